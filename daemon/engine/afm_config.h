@@ -1,0 +1,130 @@
+/* SPDX-License-Identifier: MIT */
+/* afm_config.h -- the twin's whole configuration as plain data, and its loader.
+ *
+ * Layer 0: nothing in the engine below this. Every later layer reads these structs and
+ * never a config file. All quantities are SI; names carry the unit.
+ *
+ * Loader contract (afm_config_load):
+ *  - libconfig file; unknown keys, missing required keys, wrong types and impossible values
+ *    are rejected with "FILE:LINE: key 'path.to.key': reason" in err; cfg is then untouched.
+ *  - Optional keys take the defaults that afm_config_defaults() sets.
+ *  - The library never prints: the caller prints err. */
+#ifndef AFM_CONFIG_H
+#define AFM_CONFIG_H
+
+#include <stdbool.h>
+#include <stddef.h>
+
+#define AFM_MAX_MODES 24     /* most modes a reduced model may keep (nk + 2) */
+#define AFM_MAX_ELEMENTS 400 /* most FEM beam elements */
+#define AFM_MAX_TONES 4      /* most dither tones */
+#define AFM_MAX_HARMONICS 16 /* most harmonics an estimator tracks */
+#define AFM_ERR_LEN 512      /* size of every error-message buffer */
+
+typedef enum { AFM_MODEL_BEAM = 0, AFM_MODEL_LUMPED = 1 } afm_model_kind;
+typedef enum { AFM_SQUEEZE_NONE = 0, AFM_SQUEEZE_STARR = 1, AFM_SQUEEZE_LINEAR = 2 } afm_squeeze_kind;
+typedef enum { AFM_INTEGRATOR_RT = 0, AFM_INTEGRATOR_REFERENCE = 1, AFM_INTEGRATOR_ARKODE_ERK = 2 } afm_integrator_kind;
+
+/* Euler-Bernoulli beam (thesis ch. 3.2, Table E.1). Width and height vary linearly from
+ * the clamp (index 0) to the free end (index 1); equal values give a uniform beam. */
+typedef struct {
+    double youngs_modulus_pa; /* Ec */
+    double density_kg_m3;     /* rho_c */
+    double poisson_ratio;     /* nu, only for the eq. E.1 stiffness estimate; default 0.28 */
+    double length_m;          /* L */
+    double width_m[2];        /* W0 (clamp), W1 (free end) */
+    double height_m[2];       /* H0, H1 */
+    double tip_mass_kg;       /* mt, point mass on the last transversal DOF; may be 0 */
+    int n_elements;           /* FEM elements, 1..AFM_MAX_ELEMENTS */
+    int n_kept;               /* nk, free-interface elastic modes kept in Rubin CMS, >= 0 */
+} afm_cfg_beam;
+
+/* Lumped 1-DOF model (eq. 3.1, Table C.1): me x'' + c x' + k x = k x_dit(t) + F_tip.
+ * The thesis drives it with a force Fe sin(we t); that is the same as a base amplitude
+ * Ae = Fe / k here. me follows from k and the resonance: me = k / (2 pi f0)^2. */
+typedef struct {
+    double stiffness_n_m; /* k */
+    double resonance_hz;  /* f0 = sqrt(k/me) / 2pi */
+} afm_cfg_lumped;
+
+typedef struct {
+    afm_model_kind kind;
+    afm_cfg_beam beam;
+    afm_cfg_lumped lumped;
+    /* Modal damping ratio xi_i of reduced mode i (ascending frequency). Modes past the
+     * list take its last value. Config gives damping_ratio = [...] or quality_factor =
+     * [...] (Q = 1/(2 xi)); each xi in (0, 1). */
+    int n_damping;
+    double damping_ratio[AFM_MAX_MODES];
+} afm_cfg_model;
+
+/* Tip-sample forces (eq. 3.2, 3.3, 3.6, 5.3, 2.18-2.20). d = x cos(alpha) + Z. */
+typedef struct {
+    double inclination_rad;   /* alpha; config key inclination_deg */
+    double radius_m;          /* R */
+    bool vdw_contact;         /* vdW + Hertz/DMT contact (eq. 3.2) */
+    double hamaker_j;         /* Ha */
+    double a0_m;              /* intermolecular distance a0 */
+    double reduced_modulus_pa;/* Er; given directly or from tip/sample moduli (eq. 2.22) */
+    bool viscoelastic;        /* eq. 3.3 term */
+    double eta_pa_s;          /* eta_n, normal viscosity of the contact */
+    afm_squeeze_kind squeeze;
+    double eta0_pa_s;         /* Starr: medium viscosity at STP (air 1.81e-5) */
+    double gas_constant_j_kg_k; /* Starr: R_a for Kn (air 286.9) */
+    double temperature_k;     /* Starr: T for Kn (default 293.15) */
+    double pressure_pa;       /* Starr: p_a for Kn (default 101325) */
+    double kappa;             /* Starr: fraction of tip length in h (eq. 3.6), 0..1 */
+    double tip_length_m;      /* l */
+    double plate_length_m;    /* Starr: L of the squeezing plate (beam length; set from model) */
+    double plate_width_m;     /* Starr: W (mean beam width; set from model) */
+    double p1_n_s_m2, p2_n_s_m; /* linear fit csq = p1 (Z + x) + p2 (eq. 5.3) */
+    bool capillary;           /* eq. 2.18 */
+    double surface_energy_j_m2; /* gamma_L */
+    double contact_angle_rad;   /* theta; config key contact_angle_deg */
+    double meniscus_d_m;        /* d of Fig. 2.3 */
+    bool electrostatic;       /* eq. 2.19-2.20 */
+    double voltage_v;           /* Delta V */
+    double cone_half_angle_rad; /* theta of eq. 2.20; config key cone_half_angle_deg */
+    double cone_length_m;       /* l of eq. 2.19 */
+} afm_cfg_forces;
+
+typedef struct {
+    double amplitude_m; /* A_j >= 0 */
+    double frequency_hz;/* f_j > 0, below half the sample rate */
+    double phase_rad;   /* phi_j; config key phase_deg */
+} afm_cfg_tone;
+
+/* Base excitation x_dit(t) = sum_j A_j sin(2 pi f_j t + phi_j) and the set-point Z. */
+typedef struct {
+    double separation_m; /* Z >= 0: tip-sample distance at rest */
+    int n_tones;         /* 1..AFM_MAX_TONES */
+    afm_cfg_tone tones[AFM_MAX_TONES];
+} afm_cfg_drive;
+
+typedef struct {
+    double sample_rate_hz; /* OBD sample rate; integrator output step = 1/rate. 14.06e6 */
+    afm_integrator_kind integrator;
+    int rt_substeps_contact; /* substeps per sample while in contact (rt); default set by engine */
+    double ref_rtol;         /* CVODE relative tolerance; default 1e-10 */
+    int n_harmonics;
+    int harmonics[AFM_MAX_HARMONICS]; /* harmonic numbers k >= 1 to estimate */
+} afm_cfg_sim;
+
+typedef struct {
+    char path[256]; /* file it came from */
+    afm_cfg_model model;
+    afm_cfg_forces forces;
+    afm_cfg_drive drive;
+    afm_cfg_sim sim;
+} afm_config;
+
+/* Fill every field with its default (documented in config/README.md). */
+void afm_config_defaults(afm_config *cfg);
+
+/* Load and validate FILE. Returns 0 on success, -1 with err (AFM_ERR_LEN) filled. */
+int afm_config_load(const char *path, afm_config *cfg, char *err, size_t errlen);
+
+/* Re-check a filled struct (after CLI overrides). 0 if valid, -1 with err. */
+int afm_config_validate(const afm_config *cfg, char *err, size_t errlen);
+
+#endif

@@ -1,0 +1,48 @@
+/* SPDX-License-Identifier: MIT */
+/* afm_sim_impl.h -- private: the simulator struct and the backend vtable that each
+ * integrator (afm_rt.c, afm_sundials.c) fills. Only afm_sim.c and backends include it. */
+#ifndef AFM_SIM_IMPL_H
+#define AFM_SIM_IMPL_H
+
+#include "afm_sim.h"
+
+typedef struct afm_sim_backend {
+    const char *name;
+    /* Allocate and precompute; s->be_state is the backend's. 0 or -1 with err. */
+    int (*init)(afm_sim *s, char *err, size_t errlen);
+    /* Advance the modal state s->q, s->qd from s->t_s by exactly s->dt_s (one output step)
+     * and set s->f_last_n to the tip force at the end. Does not touch s->t_s. */
+    int (*advance)(afm_sim *s);
+    /* The state, Z or the drive was changed from outside at s->t_s: resynchronise. */
+    void (*changed)(afm_sim *s);
+    void (*destroy)(afm_sim *s);
+} afm_sim_backend;
+
+struct afm_sim {
+    afm_modal m;
+    afm_force_params f;
+    afm_drive drive;
+    afm_cfg_sim cfg;
+    double z_m;   /* separation Z */
+    double dt_s;  /* output step */
+    double t_s;   /* model time */
+    long step;    /* output steps taken since create; t_s = t_start + step * dt */
+    double t_start_s;
+    double q[AFM_MAX_MODES], qd[AFM_MAX_MODES];
+    double f_last_n; /* tip force at the current state */
+    const afm_sim_backend *be;
+    void *be_state;
+};
+
+extern const afm_sim_backend afm_rt_backend;
+extern const afm_sim_backend afm_cvode_backend;
+extern const afm_sim_backend afm_arkode_erk_backend;
+
+/* Tip displacement and velocity of the current state. */
+double afm_sim_tip_x(const afm_sim *s, const double *q);
+
+/* Modal accelerations at (t, q, qd): the right-hand side every backend can share.
+ * Writes qdd (n) and returns the tip force used. */
+double afm_sim_rhs(const afm_sim *s, double t_s, const double *q, const double *qd, double *qdd);
+
+#endif

@@ -1,0 +1,23 @@
+#!/usr/bin/env bash
+# run.sh BUILD -- runs every test binary (and tests/*.sh scripts) and prints one closing
+# line "N passed, N failed" summed over all of them. Exit status 1 if anything failed.
+set -u
+BUILD=${1:-build}
+cd "$(dirname "$0")/.."
+pass=0; fail=0
+for t in "$BUILD"/tests/test_* tests/test_*.sh; do
+  [ -e "$t" ] || continue
+  case "$t" in *.d|*.o) continue;; esac
+  echo "== $t"
+  out=$(if [ "${t%.sh}" != "$t" ]; then bash "$t" "$BUILD"; else "$t"; fi 2>&1); rc=$?
+  echo "$out"
+  line=$(echo "$out" | grep -E '^[0-9]+ passed, [0-9]+ failed' | tail -1)
+  if [ -z "$line" ]; then
+    echo "FAIL $t: no result line (exit $rc)"; fail=$((fail+1)); continue
+  fi
+  p=${line%% passed*}; f=${line#*, }; f=${f%% failed*}
+  pass=$((pass+p)); fail=$((fail+f))
+  if [ "$rc" -ne 0 ] && [ "$f" -eq 0 ]; then echo "FAIL $t: exit $rc"; fail=$((fail+1)); fi
+done
+echo "$pass passed, $fail failed"
+[ "$fail" -eq 0 ]

@@ -1,0 +1,43 @@
+/* SPDX-License-Identifier: MIT */
+/* afmtwin.c -- entry point of the `afmtwin` tool: dispatches to one subcommand per job. */
+#include "afmtwin_cmds.h"
+
+#include <stdio.h>
+#include <string.h>
+
+typedef struct {
+    const char *name;
+    int (*run)(int argc, char **argv);
+    const char *summary;
+} command;
+
+static const command commands[] = {
+    {"modes", afm_cmd_modes, "eigenfrequencies, MAC, stiffness and effective mass of a model"},
+    {"sweep", afm_cmd_sweep, "stepwise frequency sweep to steady state, with harmonics"},
+    {"bench", afm_cmd_bench, "integrator speed and accuracy side by side"},
+};
+
+static void usage(FILE *f) {
+    fprintf(f, "usage: afmtwin COMMAND [OPTIONS]\n\n"
+               "A digital twin of a tapping-mode AFM cantilever (see README.md).\n\ncommands:\n");
+    for (size_t i = 0; i < sizeof commands / sizeof commands[0]; i++)
+        fprintf(f, "  %-8s %s\n", commands[i].name, commands[i].summary);
+    fprintf(f, "  help     this text\n\n`afmtwin COMMAND --help` describes every option.\n");
+}
+
+int main(int argc, char **argv) {
+    if (argc < 2) {
+        usage(stderr);
+        return 2;
+    }
+    if (!strcmp(argv[1], "help") || !strcmp(argv[1], "--help") || !strcmp(argv[1], "-h")) {
+        usage(stdout);
+        return 0;
+    }
+    for (size_t i = 0; i < sizeof commands / sizeof commands[0]; i++)
+        if (!strcmp(argv[1], commands[i].name))
+            return commands[i].run(argc - 1, argv + 1);
+    fprintf(stderr, "afmtwin: unknown command '%s'\n", argv[1]);
+    usage(stderr);
+    return 2;
+}

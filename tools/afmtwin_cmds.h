@@ -1,0 +1,12 @@
+/* SPDX-License-Identifier: MIT */
+/* afmtwin_cmds.h -- the subcommands of the `afmtwin` tool, one source file each. */
+#ifndef AFMTWIN_CMDS_H
+#define AFMTWIN_CMDS_H
+
+/* Each takes the arguments after the subcommand name (argv[0] is the subcommand) and
+ * returns the process exit code: 0 ok, 1 failure, 2 bad usage or bad input. */
+int afm_cmd_modes(int argc, char **argv);
+int afm_cmd_sweep(int argc, char **argv);
+int afm_cmd_bench(int argc, char **argv);
+
+#endif
