@@ -1,0 +1,254 @@
+/* SPDX-License-Identifier: MIT */
+/* test_config.c -- the config loader: every shipped config loads with the thesis values,
+ * and every kind of bad file is refused with "FILE:LINE: key 'KEY': reason" and leaves the
+ * caller's struct untouched. Runs from the repository root (tests/run.sh does that).
+ *
+ * Fixtures in tests/bad-configs/ mark the offending line with "# BAD"; the expected line
+ * number is read from the fixture, so editing a fixture cannot silently shift it. */
+#include "afm_config.h"
+#include "check.h"
+
+#include <dirent.h>
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+
+static const double deg = 3.14159265358979323846 / 180.0;
+
+/* Line number of the "# BAD" marker, or 1 when the fixture has none (missing group). */
+static int bad_line(const char *path) {
+    FILE *f = fopen(path, "r");
+    char buf[512];
+    int line = 0, found = 1;
+    if (!f) return -1;
+    while (fgets(buf, sizeof buf, f)) {
+        line++;
+        if (strstr(buf, "# BAD") && !strstr(buf, "marked BAD")) {
+            found = line;
+            break;
+        }
+    }
+    fclose(f);
+    return found;
+}
+
+/* Load a bad fixture; check failure, the "FILE:LINE:" prefix, the key and the reason. */
+static void expect_bad(const char *name, const char *key, const char *reason) {
+    char path[256], what[1400], prefix[300], keytxt[160], err[AFM_ERR_LEN];
+    snprintf(path, sizeof path, "tests/bad-configs/%s.conf", name);
+    afm_config cfg, before;
+    memset(&cfg, 0xA5, sizeof cfg); /* sentinel: must survive the failed load */
+    before = cfg;
+    int rc = afm_config_load(path, &cfg, err, sizeof err);
+    snprintf(what, sizeof what, "%s: rejected", name);
+    check_true(rc == -1, what);
+    snprintf(what, sizeof what, "%s: cfg untouched", name);
+    check_true(memcmp(&cfg, &before, sizeof cfg) == 0, what);
+    snprintf(prefix, sizeof prefix, "%s:%d: ", path, bad_line(path));
+    snprintf(what, sizeof what, "%s: message starts with '%s' (got: %s)", name, prefix, err);
+    check_true(strncmp(err, prefix, strlen(prefix)) == 0, what);
+    if (key) {
+        snprintf(keytxt, sizeof keytxt, "key '%s': ", key);
+        snprintf(what, sizeof what, "%s: message names %s", name, keytxt);
+        check_true(strstr(err, keytxt) != NULL, what);
+    }
+    snprintf(what, sizeof what, "%s: reason says '%s'", name, reason);
+    check_true(strstr(err, reason) != NULL, what);
+}
+
+static int load(const char *path, afm_config *cfg) {
+    char err[AFM_ERR_LEN], what[AFM_ERR_LEN + 300];
+    int rc = afm_config_load(path, cfg, err, sizeof err);
+    snprintf(what, sizeof what, "%s loads%s%s", path, rc ? ": " : "", rc ? err : "");
+    check_true(rc == 0, what);
+    return rc;
+}
+
+/* Every .conf file in config/ loads and passes afm_config_validate. */
+static void all_shipped_configs(void) {
+    DIR *d = opendir("config");
+    int n = 0;
+    check_true(d != NULL, "config/ directory found (run from repository root)");
+    if (!d) return;
+    struct dirent *e;
+    while ((e = readdir(d))) {
+        size_t len = strlen(e->d_name);
+        if (len < 6 || strcmp(e->d_name + len - 5, ".conf") != 0) continue;
+        char path[300], err[AFM_ERR_LEN];
+        afm_config cfg;
+        snprintf(path, sizeof path, "config/%s", e->d_name);
+        if (load(path, &cfg) == 0) {
+            int rc = afm_config_validate(&cfg, err, sizeof err);
+            check_true(rc == 0, "loaded config passes afm_config_validate");
+        }
+        n++;
+    }
+    closedir(d);
+    /* default, nchv, 1dof, table-3-1, fig-4-2, -4-8, -4-13, -4-20 */
+    check_true(n >= 8, "at least 8 shipped configs");
+}
+
+static void shipped_values(void) {
+    afm_config c;
+    /* NCHV, Table F.2: Er from eq. 2.22 with tip (112.5 GPa, 0.28), sapphire (345 GPa,
+     * 0.29). Same arithmetic, so only rounding differs: 1e-12. */
+    if (load("config/nchv.conf", &c) == 0) {
+        double er = 1.0 / ((1 - 0.28 * 0.28) / 112.5e9 + (1 - 0.29 * 0.29) / 345e9);
+        check_rel(c.forces.reduced_modulus_pa, er, 1e-12, "nchv Er by eq. 2.22");
+        check_rel(c.forces.reduced_modulus_pa, 92.1932e9, 1e-6, "nchv Er = 92.1932 GPa");
+        check_rel(c.model.beam.width_m[1], 33e-6 * (1 - 0.094), 1e-12, "nchv W1 = W0 (1 + sigma)");
+        check_rel(c.model.beam.width_m[0], 33e-6, 1e-15, "nchv W0");
+        check_rel(c.model.beam.height_m[1], 4e-6, 1e-15, "nchv H uniform");
+        check_true(c.model.beam.n_kept == 3 && c.model.n_damping == 5, "nchv nk 3, 5 xi");
+        check_rel(c.model.damping_ratio[1], 0.00172, 1e-15, "nchv xi2");
+        check_true(c.forces.squeeze == AFM_SQUEEZE_LINEAR, "nchv squeeze linear");
+        check_rel(c.forces.p1_n_s_m2, -1.695e-3, 1e-15, "nchv p1 (eq. 5.3)");
+        check_rel(c.forces.inclination_rad, 12 * deg, 1e-15, "nchv alpha 12 deg in rad");
+        check_rel(c.drive.tones[0].frequency_hz, 323.352e3, 1e-15, "nchv drive at f1");
+    }
+    /* Figure 4.13: Q1 200, Q3 350, Qi 5; Starr squeeze with default gas data. */
+    if (load("config/thesis-fig-4-13.conf", &c) == 0) {
+        const double xi[5] = {0.0025, 0.1, 0.00143, 0.1, 0.1};
+        for (int i = 0; i < 5; i++)
+            check_rel(c.model.damping_ratio[i], xi[i], 1e-15, "fig 4-13 xi_i");
+        check_true(c.model.beam.n_kept == 3, "fig 4-13 nk = 3 (5-DOF)");
+        check_true(c.forces.squeeze == AFM_SQUEEZE_STARR, "fig 4-13 Starr squeeze");
+        check_rel(c.forces.gas_constant_j_kg_k, 286.9, 1e-15, "default gas constant");
+        check_rel(c.forces.temperature_k, 293.15, 1e-15, "default temperature");
+        check_rel(c.forces.pressure_pa, 101325, 1e-15, "default pressure");
+        check_rel(c.model.beam.poisson_ratio, 0.28, 1e-15, "poisson 0.28");
+        check_rel(c.sim.ref_rtol, 1e-10, 1e-15, "default ref_rtol");
+        check_true(c.sim.integrator == AFM_INTEGRATOR_RT, "integrator rt");
+    }
+    /* Table 3.1: no tip mass (section 3.2.1), no tip forces. */
+    if (load("config/thesis-table-3-1.conf", &c) == 0) {
+        check_abs(c.model.beam.tip_mass_kg, 0, 0, "table 3.1 without tip mass");
+        check_true(!c.forces.vdw_contact && !c.forces.viscoelastic && !c.forces.capillary &&
+                       !c.forces.electrostatic && c.forces.squeeze == AFM_SQUEEZE_NONE,
+                   "table 3.1 has no tip forces");
+        check_rel(c.model.beam.youngs_modulus_pa, 176e9, 1e-15, "table 3.1 Ec");
+    }
+    /* Table C.1: lumped, Q = 100 -> xi = 1/(2 Q) = 0.005; Ae = Fe/k = 2e-10 m. */
+    if (load("config/thesis-1dof.conf", &c) == 0) {
+        check_true(c.model.kind == AFM_MODEL_LUMPED, "1dof is lumped");
+        check_rel(c.model.damping_ratio[0], 0.005, 1e-15, "1dof xi from Q = 100");
+        check_rel(c.model.lumped.stiffness_n_m, 40, 1e-15, "1dof k");
+        check_rel(c.drive.tones[0].amplitude_m, 8e-9 / 40, 1e-12, "1dof Ae = Fe/k");
+        check_rel(c.forces.eta_pa_s, 2200, 1e-15, "1dof eta (Table C.1 footnote 1)");
+        check_abs(c.forces.inclination_rad, 0, 0, "1dof alpha 0");
+    }
+    if (load("config/thesis-fig-4-2.conf", &c) == 0) {
+        check_rel(c.model.beam.tip_mass_kg, 2.5e-13, 1e-15, "fig 4-2 tip mass");
+        check_rel(c.forces.kappa, 0.95, 1e-15, "fig 4-2 kappa");
+        check_rel(c.forces.eta0_pa_s, 1.81e-5, 1e-15, "fig 4-2 eta0");
+        check_rel(c.drive.separation_m, 30e-9, 1e-15, "fig 4-2 Z");
+        check_rel(c.forces.inclination_rad, 15 * deg, 1e-15, "fig 4-2 alpha");
+    }
+}
+
+static void bad_configs(void) {
+    expect_bad("syntax-error", NULL, "cannot parse");
+    expect_bad("unknown-key", "model.beam.lenght_m", "unknown key");
+    expect_bad("unknown-key-tone", "drive.tones[1].amplitude", "unknown key");
+    expect_bad("unknown-top", "simulation", "unknown key");
+    expect_bad("missing-key", "model.beam.length_m", "missing required key");
+    expect_bad("missing-drive", "drive", "missing required group");
+    expect_bad("wrong-type-string", "model.beam.elements", "expected an integer");
+    expect_bad("wrong-type-float", "model.beam.elements", "expected an integer");
+    expect_bad("wrong-type-bool", "forces.viscoelastic.enabled", "expected true or false");
+    expect_bad("bad-kind", "model.kind", "not one of");
+    expect_bad("lumped-with-beam", "model.beam", "not used");
+    expect_bad("negative-length", "model.beam.length_m", "must be > 0");
+    expect_bad("negative-width", "model.beam.width_m[1]", "must be > 0");
+    expect_bad("negative-width-scalar", "model.beam.width_m", "must be > 0");
+    expect_bad("q-too-many", "model.quality_factor", "model has 4 modes");
+    expect_bad("zero-modulus", "model.beam.youngs_modulus_pa", "must be > 0");
+    expect_bad("negative-tip-mass", "model.beam.tip_mass_kg", "must be >= 0");
+    expect_bad("elements-range", "model.beam.elements", "must be in [1, 400]");
+    expect_bad("xi-range", "model.damping_ratio[1]", "must be in (0, 1)");
+    expect_bad("q-range", "model.quality_factor[0]", "> 0.5");
+    expect_bad("both-damping", "model.quality_factor", "not both");
+    expect_bad("too-many-xi", "model.damping_ratio", "model has 4 modes");
+    expect_bad("nk-negative", "model.beam.kept_modes", "must be >= 0");
+    expect_bad("nk-too-large", "model.beam.kept_modes", "at most 2 kept modes");
+    expect_bad("nk-max-modes", "model.beam.kept_modes", "must be <= 24");
+    expect_bad("infinite", "model.beam.density_kg_m3", "not a finite number");
+    expect_bad("inclination", "forces.inclination_deg", "[0, 90)");
+    expect_bad("kappa-range", "forces.squeeze.kappa", "[0, 1]");
+    expect_bad("plate-on-beam", "forces.squeeze.plate_length_m", "only for kind");
+    expect_bad("negative-hamaker", "forces.vdw_contact.hamaker_j", "must be >= 0");
+    expect_bad("er-and-parts", "forces.vdw_contact.reduced_modulus_pa", "not both");
+    expect_bad("bad-sample-poisson", "forces.vdw_contact.sample_poisson", "(-1, 0.5)");
+    expect_bad("visco-without-contact", "forces.viscoelastic.enabled", "needs vdw_contact");
+    expect_bad("negative-separation", "drive.separation_m", "must be >= 0");
+    expect_bad("tone-frequency", "drive.tones[0].frequency_hz", "sample_rate_hz/2");
+    expect_bad("tone-amplitude", "drive.tones[0].amplitude_m", "[0, 1e-06]");
+    expect_bad("no-tones", "drive.tones", "needs 1 to 4 tones");
+    expect_bad("too-many-tones", "drive.tones", "needs 1 to 4 tones");
+    expect_bad("harmonic-range", "sim.harmonics[2]", "[1, 64]");
+    expect_bad("bad-integrator", "sim.integrator", "not one of");
+}
+
+/* afm_config_validate on structs edited after loading (what CLI overrides do). */
+static void validate_struct(void) {
+    afm_config c;
+    char err[AFM_ERR_LEN];
+    if (load("config/thesis-fig-4-2.conf", &c)) return;
+    afm_config v = c;
+    v.model.beam.youngs_modulus_pa = NAN;
+    check_true(afm_config_validate(&v, err, sizeof err) == -1, "validate: NaN modulus rejected");
+    check_true(strstr(err, "config/thesis-fig-4-2.conf: key 'model.beam.youngs_modulus_pa'") !=
+                   NULL,
+               "validate: message names file and key");
+    /* Non-finite values are refused even in a disabled feature. */
+    v = c;
+    v.forces.surface_energy_j_m2 = INFINITY;
+    check_true(afm_config_validate(&v, err, sizeof err) == -1 &&
+                   strstr(err, "key 'forces.capillary.surface_energy_j_m2'") != NULL,
+               "validate: inf in disabled capillary group rejected");
+    /* Lowering the sample rate below twice the tone frequency must fail. */
+    v = c;
+    v.sim.sample_rate_hz = 100e3;
+    check_true(afm_config_validate(&v, err, sizeof err) == -1 &&
+                   strstr(err, "key 'drive.tones[0].frequency_hz'") != NULL,
+               "validate: tone above new Nyquist rejected");
+    v = c;
+    v.model.beam.n_elements = 1;
+    check_true(afm_config_validate(&v, err, sizeof err) == -1 &&
+                   strstr(err, "key 'model.beam.kept_modes'") != NULL,
+               "validate: nk 2 with 1 element rejected");
+    v = c;
+    v.drive.n_tones = AFM_MAX_TONES + 1;
+    check_true(afm_config_validate(&v, err, sizeof err) == -1, "validate: tone count > max");
+    v = c;
+    v.path[0] = '\0';
+    v.forces.kappa = -0.1;
+    check_true(afm_config_validate(&v, err, sizeof err) == -1 &&
+                   strncmp(err, "key 'forces.squeeze.kappa'", 26) == 0,
+               "validate: no path -> message starts with the key");
+    check_true(afm_config_validate(&c, err, sizeof err) == 0, "validate: untouched copy valid");
+
+    /* Documented defaults (config/README.md). */
+    afm_config d;
+    afm_config_defaults(&d);
+    check_rel(d.sim.sample_rate_hz, 14.06e6, 1e-15, "default sample rate");
+    check_rel(d.model.beam.poisson_ratio, 0.28, 1e-15, "default poisson");
+    check_true(d.model.beam.n_elements == 20 && d.sim.n_harmonics == 8 && d.sim.harmonics[7] == 8 &&
+                   d.forces.squeeze == AFM_SQUEEZE_NONE && !d.forces.vdw_contact &&
+                   d.sim.rt_substeps_contact == 0,
+               "default counts and switches");
+}
+
+int main(void) {
+    all_shipped_configs();
+    shipped_values();
+    bad_configs();
+    validate_struct();
+
+    char err[AFM_ERR_LEN];
+    afm_config c;
+    check_true(afm_config_load("tests/bad-configs/no-such-file.conf", &c, err, sizeof err) == -1 &&
+                   strstr(err, "no-such-file.conf: cannot read file") != NULL,
+               "missing file rejected with its name");
+    return check_done();
+}
