@@ -152,17 +152,15 @@ void afm_sim_get_state(const afm_sim *s, double *q, double *qd) {
 }
 
 int afm_sim_set_state(afm_sim *s, const double *q, const double *qd) {
-    if (!q || !qd)
-        return AFM_SIM_EINVAL;
+    if (!q || !qd) return AFM_SIM_EINVAL;
     for (int i = 0; i < s->m.n; i++)
-        if (!isfinite(q[i]) || !isfinite(qd[i]))
-            return AFM_SIM_EINVAL;
+        if (!isfinite(q[i]) || !isfinite(qd[i])) return AFM_SIM_EINVAL;
     for (int i = 0; i < s->m.n; i++) {
         s->q[i] = q[i];
         s->qd[i] = qd[i];
     }
-    s->f_last_n = afm_force_tip(&s->f, s->z_m, afm_sim_tip_x(s, s->q), afm_sim_tip_x(s, s->qd),
-                                NULL, NULL);
+    double x = afm_sim_tip_x(s, s->q), v = afm_sim_tip_x(s, s->qd);
+    s->f_last_n = afm_force_tip(&s->f, s->z_m, x, v, NULL, NULL);
     s->be->changed(s);
     return AFM_SIM_OK;
 }

@@ -1,0 +1,381 @@
+/* SPDX-License-Identifier: MIT */
+/* afm_rt.c -- the real-time fixed-step integrator backend (afm_rt_backend).
+ *
+ * Scheme (docs/numerics.md has the reasons and the measurements):
+ *  - Every mode's linear part and the sinusoidal base drive are integrated exactly
+ *    (afm_rt_coef.h): the drive enters through phasors e^{i theta_j} rotated by a
+ *    precomputed unit complex per step and resynchronised from afm_drive every RT_RESYNC
+ *    steps and on every change, so tone changes are phase-continuous and q never jumps.
+ *  - The tip force enters through one channel. It is taken as linear over each step
+ *    (exponential trapezoidal rule) and solved implicitly: the end force F1 satisfies
+ *    F1 = f(x* + gx F1, v* + gv F1), a scalar safeguarded Newton with at most RT_NEWTON_MAX
+ *    evaluations (usually one, from a linearised predictor).
+ *  - Out of contact: one step per output sample. When the gap is below a0 at the start or
+ *    the end of the sample, or on the cubic Hermite path between, the sample is redone in
+ *    m = cfg.rt_substeps_contact substeps, and a substep in which the contact starts or
+ *    ends is split at the crossing, located on its cubic Hermite path and rounded to a
+ *    grid of RT_GRID cells per substep (every step length used is precomputed).
+ * Cost per sample is bounded: at most 1 + 2m implicit steps. No allocation after init. */
+#include "afm_rt_coef.h"
+#include "afm_sim_impl.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define RT_GRID 8             /* table cells per contact substep: crossing resolution */
+#define RT_DEFAULT_SUBSTEPS 4 /* substeps per sample in contact (measured, numerics.md) */
+#define RT_MAX_SUBSTEPS 64
+#define RT_RESYNC 4096 /* steps between phasor resynchronisations */
+#define RT_NEWTON_MAX 12
+
+/* The state a step reads and writes; two of them so a trial step can be dropped. */
+typedef struct {
+    double q[AFM_MAX_MODES], v[AFM_MAX_MODES];
+    double z_re[AFM_MAX_TONES], z_im[AFM_MAX_TONES]; /* e^{i theta_j} */
+    double x, xd, f;  /* tip displacement, velocity, force */
+    double fx, fv;    /* df/dx, df/dv from the last force evaluation */
+    double rj;        /* 1 / (1 - fx gx - fv gv) there, for the step length rk... */
+    int rk;           /* ...in cells (0: none) */
+} rt_snap;
+
+typedef struct {
+    int n, np, m, ncell, ntones; /* np: n rounded up to a multiple of 4 */
+    double tip[AFM_MAX_MODES];    /* tip_i, zero past n */
+    afm_rt_prop *prop; /* prop[k - 1]: step of k cells, tau = k dt / ncell */
+    double *block;
+    rt_snap buf[2];
+    int cur;
+    double wd[AFM_MAX_TONES];
+    double cq_re[AFM_MAX_TONES][AFM_MAX_MODES], cq_im[AFM_MAX_TONES][AFM_MAX_MODES];
+    double xc;   /* tip x at which the gap is a0 */
+    bool kinked; /* the force has a kink at d = a0 (contact, capillary, electrostatic) */
+    double ftol; /* Newton tolerance on F (N) */
+    long since_sync;
+} rt_state;
+
+/* ---- one implicit piece ---- */
+
+/* Solve F = f(xs + gx F, vs + gv F) from the guess F. Each iteration corrects with the
+ * newest reciprocal slope rj = 1 / g'(F) known before it (a chord step: out of contact g'
+ * is 1 to 1e-5, so this is Newton there), which keeps the division off the critical path;
+ * a bracket turns a step that leaves it into bisection. Leaves f's partials and rj in o. */
+static double rt_solve(const afm_sim *s, const rt_state *r, double xs, double vs, double gx,
+                       double gv, double F, double rj, rt_snap *o) {
+    double fx, fv;
+    double f = afm_force_tip(&s->f, s->z_m, xs + gx * F, vs + gv * F, &fx, &fv);
+    double res = F - f, fn = F - res * rj;
+    /* g'(F) = 1 - fx gx - fv gv is >= 1 in contact (fx, fv <= 0); the floor guards the
+     * attractive branch, where it stays near 1 for any real cantilever. */
+    double jac = 1.0 - fx * gx - fv * gv;
+    rj = 1.0 / (jac > 0.25 ? jac : 0.25);
+    if (fabs(fn - F) > r->ftol) { /* rare out of contact: no branches on res before this */
+        double lo = res > 0 ? -HUGE_VAL : F, hi = res > 0 ? F : HUGE_VAL;
+        F = fn;
+        for (int it = 1; it < RT_NEWTON_MAX; it++) {
+            f = afm_force_tip(&s->f, s->z_m, xs + gx * F, vs + gv * F, &fx, &fv);
+            res = F - f;
+            if (res > 0)
+                hi = F;
+            else
+                lo = F;
+            fn = F - res * rj;
+            jac = 1.0 - fx * gx - fv * gv;
+            rj = 1.0 / (jac > 0.25 ? jac : 0.25);
+            if (!(fn > lo && fn < hi) && lo > -HUGE_VAL && hi < HUGE_VAL)
+                fn = 0.5 * (lo + hi);
+            if (!(fabs(fn - F) > r->ftol))
+                break;
+            F = fn;
+        }
+    }
+    o->fx = fx;
+    o->fv = fv;
+    o->rj = rj;
+    return fn;
+}
+
+/* Four modes at a time. GCC/Clang vector extension (plain C would leave it to the
+ * auto-vectoriser, which at -O2 turned these loops into memcpy calls and scalar code);
+ * aligned(8) and may_alias make loads from any double array legal. */
+typedef double rt_v4 __attribute__((vector_size(32), aligned(8), may_alias));
+#define RT_V4(p) (*(const rt_v4 *)(const void *)(p))
+#define RT_V4W(p) (*(rt_v4 *)(void *)(p))
+
+/* Advance in by k cells (tau = k dt / ncell) into o; o may be in. Mode arrays run to np =
+ * n rounded up to 4, with zero coefficients past n. The tip's x*, v* come from their own
+ * tip-weighted rows so that the force solve does not wait for the full modal update. */
+static void rt_piece(const afm_sim *s, const rt_state *r, const rt_snap *in, rt_snap *o,
+                     int k) {
+    const afm_rt_prop *P = &r->prop[k - 1];
+    const int np = r->np, nt = r->ntones;
+    const double *c = P->c;
+    const double F0 = in->f, x0 = in->x, v0 = in->xd, fx = in->fx, fv = in->fv;
+    const double rj = in->rk == k ? in->rj : 1.0 / fmax(1.0 - fx * P->gx - fv * P->gv, 0.25);
+    /* tip part first: the critical path */
+    rt_v4 xs4 = {0, 0, 0, 0}, vs4 = {0, 0, 0, 0};
+    for (int i = 0; i < np; i += 4) {
+        rt_v4 q = RT_V4(in->q + i), v = RT_V4(in->v + i);
+        xs4 += RT_V4(c + 8 * np + i) * q + RT_V4(c + 9 * np + i) * v;
+        vs4 += RT_V4(c + 10 * np + i) * q + RT_V4(c + 11 * np + i) * v;
+    }
+    double xs = P->gx0 * F0, vs = P->gv0 * F0;
+    for (int j = 0; j < nt; j++) {
+        xs += P->dx_re[j] * in->z_im[j] + P->dx_im[j] * in->z_re[j];
+        vs += P->dv_re[j] * in->z_im[j] + P->dv_im[j] * in->z_re[j];
+    }
+    xs += (xs4[0] + xs4[1]) + (xs4[2] + xs4[3]);
+    vs += (vs4[0] + vs4[1]) + (vs4[2] + vs4[3]);
+    /* Predictor: f linearised at the start, with the same implicit coupling. */
+    double guess = F0 + (fx * (xs + P->gx * F0 - x0) + fv * (vs + P->gv * F0 - v0)) * rj;
+    double F1 = rt_solve(s, r, xs, vs, P->gx, P->gv, guess, rj, o);
+    o->rk = k;
+    for (int i = 0; i < np; i += 4) {
+        rt_v4 q = RT_V4(in->q + i), v = RT_V4(in->v + i);
+        rt_v4 a = RT_V4(c + i) * q + RT_V4(c + np + i) * v + RT_V4(c + 4 * np + i) * F0 +
+                  RT_V4(c + 6 * np + i) * F1;
+        rt_v4 w = RT_V4(c + 2 * np + i) * q + RT_V4(c + 3 * np + i) * v +
+                  RT_V4(c + 5 * np + i) * F0 + RT_V4(c + 7 * np + i) * F1;
+        for (int j = 0; j < nt; j++) {
+            const double *d = P->d + 4 * np * j;
+            double zr = in->z_re[j], zi = in->z_im[j];
+            a += RT_V4(d + i) * zi + RT_V4(d + np + i) * zr;
+            w += RT_V4(d + 2 * np + i) * zi + RT_V4(d + 3 * np + i) * zr;
+        }
+        RT_V4W(o->q + i) = a;
+        RT_V4W(o->v + i) = w;
+    }
+    for (int j = 0; j < nt; j++) { /* in == o is fine: tone j reads only its own z */
+        double zr = in->z_re[j], zi = in->z_im[j];
+        o->z_re[j] = zr * P->rot_re[j] - zi * P->rot_im[j];
+        o->z_im[j] = zr * P->rot_im[j] + zi * P->rot_re[j];
+    }
+    o->x = xs + P->gx * F1;
+    o->xd = vs + P->gv * F1;
+    o->f = F1;
+}
+
+/* ---- contact location on the cubic Hermite path x(sigma), sigma in [0, 1] ---- */
+
+typedef struct {
+    double a, b, c, d; /* x(sigma) = ((a sigma + b) sigma + c) sigma + d */
+} rt_cubic;
+
+static double rt_cubic_at(const rt_cubic *p, double sg) {
+    return ((p->a * sg + p->b) * sg + p->c) * sg + p->d;
+}
+
+/* Root of x(sigma) = xc in (lo, hi), where x - xc changes sign (bisection-safe Newton). */
+static double rt_cubic_root(const rt_cubic *p, double xc, double lo, double hi) {
+    bool neg_lo = rt_cubic_at(p, lo) < xc;
+    double sg = 0.5 * (lo + hi);
+    for (int it = 0; it < 40; it++) {
+        double g = rt_cubic_at(p, sg) - xc;
+        if ((g < 0) == neg_lo)
+            lo = sg;
+        else
+            hi = sg;
+        double dg = (3.0 * p->a * sg + 2.0 * p->b) * sg + p->c;
+        double nx = dg != 0.0 ? sg - g / dg : 0.5 * (lo + hi);
+        if (!(nx > lo && nx < hi))
+            nx = 0.5 * (lo + hi);
+        if (fabs(nx - sg) < 1e-7)
+            return nx;
+        sg = nx;
+    }
+    return sg;
+}
+
+/* Where the path from a to b (a piece of length tau) first crosses xc, as a fraction in
+ * (0, 1); -1 if it does not. */
+static double rt_crossing(const rt_state *r, const rt_snap *a, const rt_snap *b, double tau) {
+    double x0 = a->x, v0 = a->xd, x1 = b->x, v1 = b->xd, xc = r->xc;
+    bool in0 = x0 < xc, in1 = x1 < xc;
+    bool dip = !in0 && !in1 && v0 < 0 && v1 > 0;
+    if (in0 == in1 && !dip)
+        return -1.0;
+    rt_cubic p = {2.0 * (x0 - x1) + tau * (v0 + v1), 3.0 * (x1 - x0) - tau * (2.0 * v0 + v1),
+                  tau * v0, x0};
+    if (in0 != in1)
+        return rt_cubic_root(&p, xc, 0.0, 1.0);
+    /* Both ends out of contact, turning inside: does the path dip below xc? Bisect x' = 0. */
+    double lo = 0.0, hi = 1.0;
+    for (int it = 0; it < 16; it++) {
+        double sg = 0.5 * (lo + hi);
+        if ((3.0 * p.a * sg + 2.0 * p.b) * sg + p.c < 0)
+            lo = sg;
+        else
+            hi = sg;
+    }
+    double sm = 0.5 * (lo + hi);
+    return rt_cubic_at(&p, sm) < xc ? rt_cubic_root(&p, xc, 0.0, sm) : -1.0;
+}
+
+/* One contact substep of RT_GRID cells from a into b, split at a located crossing. */
+static void rt_substep(const afm_sim *s, const rt_state *r, const rt_snap *a, rt_snap *b,
+                       double tau) {
+    rt_piece(s, r, a, b, RT_GRID);
+    double sg = rt_crossing(r, a, b, tau);
+    if (sg < 0)
+        return;
+    int kc = (int)lround(sg * RT_GRID);
+    if (kc <= 0 || kc >= RT_GRID)
+        return;
+    rt_piece(s, r, a, b, kc);
+    rt_piece(s, r, b, b, RT_GRID - kc);
+}
+
+/* ---- backend ---- */
+
+/* Phasors exactly from afm_drive at s->t_s. */
+static void rt_sync_phasors(const afm_sim *s, rt_state *r, rt_snap *st) {
+    for (int j = 0; j < r->ntones; j++) {
+        double th = afm_drive_phase(&s->drive, j, s->t_s);
+        st->z_re[j] = cos(th);
+        st->z_im[j] = sin(th);
+    }
+    r->since_sync = 0;
+}
+
+static int rt_advance(afm_sim *s) {
+    rt_state *r = s->be_state;
+    rt_snap *a = &r->buf[r->cur], *b = &r->buf[r->cur ^ 1];
+    if (++r->since_sync >= RT_RESYNC)
+        rt_sync_phasors(s, r, a);
+    bool contact = r->kinked && a->x < r->xc;
+    if (!contact) {
+        rt_piece(s, r, a, b, r->ncell);
+        contact = r->kinked && rt_crossing(r, a, b, s->dt_s) >= 0;
+    }
+    if (contact) {
+        double tau = s->dt_s / r->m;
+        for (int k = 0; k < r->m; k++) {
+            rt_substep(s, r, a, b, tau);
+            rt_snap *t = a;
+            a = b;
+            b = t;
+        }
+        b = a; /* the result */
+    }
+    r->cur = (int)(b - r->buf);
+    for (int i = 0; i < r->n; i++) {
+        s->q[i] = b->q[i];
+        s->qd[i] = b->v[i];
+    }
+    s->f_last_n = b->f;
+    if (!isfinite(b->f) || !isfinite(b->x) || !isfinite(b->xd))
+        return AFM_SIM_EBLOWUP;
+    return AFM_SIM_OK;
+}
+
+/* Recompute the drive tables and reload the state from s->q, s->qd at s->t_s. */
+static void rt_changed(afm_sim *s) {
+    rt_state *r = s->be_state;
+    const afm_modal *m = &s->m;
+    r->ntones = s->drive.n;
+    for (int j = 0; j < r->ntones; j++) {
+        r->wd[j] = s->drive.omega_rad_s[j];
+        for (int i = 0; i < m->n; i++)
+            afm_rt_coef_particular(m->omega_rad_s[i], m->xi[i], m->base_k[i], m->base_m[i],
+                                   s->drive.amp_m[j], r->wd[j], &r->cq_re[j][i],
+                                   &r->cq_im[j][i]);
+    }
+    for (int k = 0; k < r->ncell; k++)
+        afm_rt_coef_drive(&r->prop[k], r->np, r->tip, r->ntones, r->wd,
+                          (const double(*)[AFM_MAX_MODES])r->cq_re,
+                          (const double(*)[AFM_MAX_MODES])r->cq_im);
+    r->xc = afm_force_contact_x(&s->f, s->z_m);
+    rt_snap *st = &r->buf[r->cur];
+    rt_sync_phasors(s, r, st);
+    st->x = st->xd = 0.0;
+    for (int i = 0; i < r->n; i++) {
+        st->q[i] = s->q[i];
+        st->v[i] = s->qd[i];
+        st->x += m->tip[i] * s->q[i];
+        st->xd += m->tip[i] * s->qd[i];
+    }
+    st->f = afm_force_tip(&s->f, s->z_m, st->x, st->xd, &st->fx, &st->fv);
+    st->rk = 0;
+    s->f_last_n = st->f;
+}
+
+static void rt_destroy(afm_sim *s) {
+    rt_state *r = s->be_state;
+    if (!r)
+        return;
+    free(r->block);
+    free(r->prop);
+    free(r);
+    s->be_state = NULL;
+}
+
+static int rt_init(afm_sim *s, char *err, size_t errlen) {
+    const afm_modal *m = &s->m;
+    int sub = s->cfg.rt_substeps_contact;
+    if (sub == 0)
+        sub = RT_DEFAULT_SUBSTEPS;
+    if (sub < 1 || sub > RT_MAX_SUBSTEPS) {
+        snprintf(err, errlen, "rt integrator: rt_substeps_contact %d not in 1..%d", sub,
+                 RT_MAX_SUBSTEPS);
+        return -1;
+    }
+    if (!(s->dt_s > 0) || !isfinite(s->dt_s)) {
+        snprintf(err, errlen, "rt integrator: bad output step %g s", s->dt_s);
+        return -1;
+    }
+    for (int i = 0; i < m->n; i++) {
+        if (!(m->omega_rad_s[i] > 0) || !isfinite(m->omega_rad_s[i]) || !(m->xi[i] >= 0) ||
+            !isfinite(m->xi[i]) || !isfinite(m->tip[i]) || !isfinite(m->base_k[i]) ||
+            !isfinite(m->base_m[i])) {
+            snprintf(err, errlen,
+                     "rt integrator: mode %d has a bad frequency, damping or coupling", i + 1);
+            return -1;
+        }
+    }
+    rt_state *r = calloc(1, sizeof *r);
+    if (!r) {
+        snprintf(err, errlen, "rt integrator: out of memory");
+        return -1;
+    }
+    r->n = m->n;
+    r->np = (m->n + 3) & ~3;
+    for (int i = 0; i < r->n; i++)
+        r->tip[i] = m->tip[i];
+    r->m = sub;
+    r->ncell = sub * RT_GRID;
+    const size_t per = (size_t)(AFM_RT_COEF_ROWS + 4 * AFM_MAX_TONES) * (size_t)r->np;
+    r->prop = calloc((size_t)r->ncell, sizeof *r->prop);
+    r->block = calloc((size_t)r->ncell * per, sizeof(double));
+    _Static_assert(AFM_MAX_MODES % 4 == 0, "rt_piece works in blocks of 4 modes");
+    if (!r->prop || !r->block) {
+        free(r->prop);
+        free(r->block);
+        free(r);
+        snprintf(err, errlen, "rt integrator: out of memory");
+        return -1;
+    }
+    for (int k = 0; k < r->ncell; k++) {
+        afm_rt_prop *P = &r->prop[k];
+        P->c = r->block + (size_t)k * per;
+        P->d = P->c + AFM_RT_COEF_ROWS * r->np;
+        afm_rt_coef_modes(P, r->n, r->np, m->omega_rad_s, m->xi, m->tip,
+                          s->dt_s * (double)(k + 1) / (double)r->ncell);
+    }
+    r->kinked = s->f.vdw_contact || s->f.capillary || s->f.electrostatic;
+    /* F tolerance on the last Newton correction: 1e-5 of the force that bends the cantilever
+     * by 1 nm (the error left after that correction is far smaller: quadratic). */
+    double k_st = m->static_stiffness_n_m > 0 ? m->static_stiffness_n_m : 1.0;
+    r->ftol = 1e-5 * k_st * 1e-9;
+    s->be_state = r;
+    rt_changed(s);
+    return 0;
+}
+
+const afm_sim_backend afm_rt_backend = {
+    .name = "rt",
+    .init = rt_init,
+    .advance = rt_advance,
+    .changed = rt_changed,
+    .destroy = rt_destroy,
+};

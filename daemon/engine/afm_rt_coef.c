@@ -1,0 +1,129 @@
+/* SPDX-License-Identifier: MIT */
+/* afm_rt_coef.c -- exact per-mode step coefficients for the rt backend (see afm_rt_coef.h). */
+#include "afm_rt_coef.h"
+
+#include <math.h>
+#include <string.h>
+
+#define EXPM_MAX 8
+
+static void matmul(int n, const double *a, const double *b, double *c) {
+    for (int i = 0; i < n; i++)
+        for (int j = 0; j < n; j++) {
+            double acc = 0.0;
+            for (int k = 0; k < n; k++)
+                acc += a[i * n + k] * b[k * n + j];
+            c[i * n + j] = acc;
+        }
+}
+
+void afm_rt_coef_expm(int n, const double *a, double *e) {
+    double norm = 0.0; /* 1-norm */
+    for (int j = 0; j < n; j++) {
+        double col = 0.0;
+        for (int i = 0; i < n; i++)
+            col += fabs(a[i * n + j]);
+        if (col > norm)
+            norm = col;
+    }
+    /* Scale to norm <= 1/8: 18 Taylor terms then leave < 1e-30 and the squarings of a
+     * dissipative exponential lose little. */
+    int sq = 0;
+    while (norm > 0.125 && sq < 60) {
+        norm *= 0.5;
+        sq++;
+    }
+    double as[EXPM_MAX * EXPM_MAX], term[EXPM_MAX * EXPM_MAX], tmp[EXPM_MAX * EXPM_MAX];
+    double scale = ldexp(1.0, -sq);
+    for (int k = 0; k < n * n; k++)
+        as[k] = a[k] * scale;
+    memset(e, 0, sizeof(double) * (size_t)(n * n));
+    memset(term, 0, sizeof term);
+    for (int i = 0; i < n; i++)
+        e[i * n + i] = term[i * n + i] = 1.0;
+    for (int k = 1; k <= 18; k++) {
+        matmul(n, term, as, tmp);
+        for (int m = 0; m < n * n; m++) {
+            term[m] = tmp[m] / k;
+            e[m] += term[m];
+        }
+    }
+    for (int k = 0; k < sq; k++) {
+        matmul(n, e, e, tmp);
+        memcpy(e, tmp, sizeof(double) * (size_t)(n * n));
+    }
+}
+
+void afm_rt_coef_modes(afm_rt_prop *p, int n, int np, const double *w, const double *xi,
+                       const double *tip, double tau_s) {
+    double *c = p->c;
+    for (int i = 0; i < AFM_RT_COEF_ROWS * np; i++)
+        c[i] = 0.0;
+    p->tau_s = tau_s;
+    p->gx = p->gv = p->gx0 = p->gv0 = 0.0;
+    for (int i = 0; i < n; i++) {
+        /* Scaled state u = (q, q'/w), scaled time sigma = s/tau in [0, 1]:
+         *   du/dsigma = tau w [[0, 1], [-1, -2 xi]] u + [0; tau/w] F(sigma),
+         *   F(sigma) = F0 + (F1 - F0) sigma -> augmented with (F0, F1 - F0). */
+        double wt = w[i] * tau_s;
+        double m[16] = {0}, e[16];
+        m[0 * 4 + 1] = wt;
+        m[1 * 4 + 0] = -wt;
+        m[1 * 4 + 1] = -2.0 * xi[i] * wt;
+        m[1 * 4 + 2] = tau_s / w[i];
+        m[2 * 4 + 3] = 1.0;
+        afm_rt_coef_expm(4, m, e);
+        double g1u1 = e[3], g1u2 = e[7];               /* response to the ramp F1 - F0 */
+        double g0u1 = e[2] - g1u1, g0u2 = e[6] - g1u2; /* to constant F0, minus the ramp */
+        c[i] = e[0];
+        c[np + i] = e[1] / w[i];
+        c[2 * np + i] = e[4] * w[i];
+        c[3 * np + i] = e[5];
+        c[4 * np + i] = tip[i] * g0u1;
+        c[5 * np + i] = tip[i] * w[i] * g0u2;
+        c[6 * np + i] = tip[i] * g1u1;
+        c[7 * np + i] = tip[i] * w[i] * g1u2;
+        p->gx += tip[i] * c[6 * np + i];
+        p->gv += tip[i] * c[7 * np + i];
+        p->gx0 += tip[i] * c[4 * np + i];
+        p->gv0 += tip[i] * c[5 * np + i];
+        for (int r = 0; r < 4; r++)
+            c[(8 + r) * np + i] = tip[i] * c[r * np + i];
+    }
+}
+
+void afm_rt_coef_drive(afm_rt_prop *p, int np, const double *tip, int ntones, const double *wd,
+                       const double (*c_re)[AFM_MAX_MODES], const double (*c_im)[AFM_MAX_MODES]) {
+    const double *c = p->c;
+    for (int j = 0; j < ntones; j++) {
+        double rr = cos(wd[j] * p->tau_s), ri = sin(wd[j] * p->tau_s);
+        p->rot_re[j] = rr;
+        p->rot_im[j] = ri;
+        double *d = p->d + 4 * np * j;
+        p->dx_re[j] = p->dx_im[j] = p->dv_re[j] = p->dv_im[j] = 0.0;
+        for (int i = 0; i < np; i++) {
+            double p11 = c[i], p12 = c[np + i], p21 = c[2 * np + i], p22 = c[3 * np + i];
+            /* Dq = c (rho - p11 - i wd p12), Dv = c (i wd rho - p21 - i wd p22) */
+            double aq_re = rr - p11, aq_im = ri - wd[j] * p12;
+            double av_re = -wd[j] * ri - p21, av_im = wd[j] * rr - wd[j] * p22;
+            double cr = c_re[j][i], ci = c_im[j][i];
+            d[i] = cr * aq_re - ci * aq_im;
+            d[np + i] = cr * aq_im + ci * aq_re;
+            d[2 * np + i] = cr * av_re - ci * av_im;
+            d[3 * np + i] = cr * av_im + ci * av_re;
+            p->dx_re[j] += tip[i] * d[i];
+            p->dx_im[j] += tip[i] * d[np + i];
+            p->dv_re[j] += tip[i] * d[2 * np + i];
+            p->dv_im[j] += tip[i] * d[3 * np + i];
+        }
+    }
+}
+
+void afm_rt_coef_particular(double w, double xi, double base_k, double base_m, double amp_m,
+                            double wd, double *c_re, double *c_im) {
+    double p = (-base_k + wd * wd * base_m) * amp_m;
+    double dr = w * w - wd * wd, di = 2.0 * xi * w * wd;
+    double den = dr * dr + di * di;
+    *c_re = p * dr / den;
+    *c_im = -p * di / den;
+}

@@ -1,0 +1,436 @@
+/* SPDX-License-Identifier: MIT */
+/* test_rt.c -- the real-time integrator (afm_rt_backend) against closed-form linear
+ * solutions, across tone changes, against CVODE while tapping, and on NaN faults.
+ *
+ * Models are built by hand in the modal form of afm_model.h (as in test_sundials.c):
+ *   q_i'' + 2 xi_i w_i q_i' + w_i^2 q_i = tip_i F - base_k_i ub - base_m_i ub''.
+ * The rt scheme integrates the linear part and the harmonic drive exactly, so without tip
+ * forces it must match the closed forms to rounding (tolerance 1e-9 of the amplitude,
+ * leaving room for ~1e5 steps of 1e-16 rounding and the phasor resynchronisation).
+ *
+ * With AFMTWIN_VALIDATE=full it also measures the shipped configs against CVODE from rest
+ * (seconds of CVODE per config) and prints ns/sample and error_rel: docs/numerics.md. */
+#include "afm_config.h"
+#include "afm_model.h"
+#include "afm_sim.h"
+#include "check.h"
+
+#include <complex.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+static const double two_pi = 6.283185307179586476925286766559;
+static const double rate_hz = 14.06e6;
+
+/* 4 modes as in numerics.md: 370 kHz, 2.27, 6.4, 14 MHz, Q 427, 291, 5, 5 (xi_3,4 may be
+ * overridden, e.g. >= 1), static tip stiffness 40 N/m split 97 / 2.5 / 0.4 / 0.1 % in
+ * compliance; base_k_i = -k_s tip_i (a static base offset moves the tip rigidly), and an
+ * arbitrary base_m so that both drive terms are exercised. */
+static afm_modal make_model(int nmodes, double xi_hi) {
+    static const double f_hz[4] = {370e3, 2.27e6, 6.4e6, 14e6};
+    static const double qf[4] = {427, 291, 5, 5};
+    static const double share[4] = {0.97, 0.025, 0.004, 0.001};
+    const double ks = 40.0;
+    afm_modal m;
+    memset(&m, 0, sizeof m);
+    m.n = nmodes;
+    for (int i = 0; i < nmodes; i++) {
+        double w = two_pi * f_hz[i];
+        m.omega_rad_s[i] = w;
+        m.xi[i] = (i >= 2 && xi_hi > 0) ? xi_hi : 0.5 / qf[i];
+        m.tip[i] = (i % 2 ? -1.0 : 1.0) * w * sqrt((nmodes == 1 ? 1.0 : share[i]) / ks);
+        m.base_k[i] = -ks * m.tip[i];
+        m.base_m[i] = 0.05 / m.tip[i];
+    }
+    m.static_stiffness_n_m = ks;
+    return m;
+}
+
+static afm_force_params no_forces(void) {
+    afm_force_params f;
+    memset(&f, 0, sizeof f);
+    f.cos_alpha = 1.0;
+    return f;
+}
+
+/* DMT + vdW + viscoelastic tip of numerics.md: Ha 1.52e-19 J, R 8 nm, a0 0.476 nm,
+ * Er 120 GPa, eta 800 Pa s. */
+static afm_force_params tapping_forces(void) {
+    afm_cfg_forces c;
+    memset(&c, 0, sizeof c);
+    c.radius_m = 8e-9;
+    c.vdw_contact = true;
+    c.hamaker_j = 1.52e-19;
+    c.a0_m = 0.476e-9;
+    c.reduced_modulus_pa = 120e9;
+    c.viscoelastic = true;
+    c.eta_pa_s = 800.0;
+    c.squeeze = AFM_SQUEEZE_NONE;
+    afm_force_params f;
+    char err[AFM_ERR_LEN];
+    if (afm_force_init(&f, &c, 0.0, 0.0, err, sizeof err) != 0) {
+        printf("tapping_forces: %s\n", err);
+        exit(1);
+    }
+    return f;
+}
+
+static afm_cfg_sim sim_cfg(afm_integrator_kind k, int substeps) {
+    afm_cfg_sim c;
+    memset(&c, 0, sizeof c);
+    c.sample_rate_hz = rate_hz;
+    c.integrator = k;
+    c.rt_substeps_contact = substeps;
+    c.ref_rtol = 1e-10;
+    return c;
+}
+
+static afm_cfg_drive one_tone(double amp_m, double freq_hz, double phase_rad, double z_m) {
+    afm_cfg_drive d;
+    memset(&d, 0, sizeof d);
+    d.separation_m = z_m;
+    d.n_tones = 1;
+    d.tones[0].amplitude_m = amp_m;
+    d.tones[0].frequency_hz = freq_hz;
+    d.tones[0].phase_rad = phase_rad;
+    return d;
+}
+
+static double complex mode_h(const afm_modal *m, int i, double wd) {
+    double w = m->omega_rad_s[i];
+    return (-m->base_k[i] + m->base_m[i] * wd * wd) / (w * w - wd * wd + 2.0 * I * m->xi[i] * w * wd);
+}
+
+static double complex tip_gain(const afm_modal *m, double wd) {
+    double complex g = 0;
+    for (int i = 0; i < m->n; i++)
+        g += m->tip[i] * mode_h(m, i, wd);
+    return g;
+}
+
+/* Exact q(t) of one underdamped mode from (q0, v0) at t0 under the tone A sin(th0 +
+ * wd (t - t0)), no tip force. */
+static double mode_exact(const afm_modal *m, int i, double q0, double v0, double amp, double wd,
+                         double th0, double tau) {
+    double complex c = amp * mode_h(m, i, wd);
+    double qp0 = cimag(c * cexp(I * th0)), vp0 = cimag(I * wd * c * cexp(I * th0));
+    double w = m->omega_rad_s[i], xi = m->xi[i], wdd = w * sqrt(1.0 - xi * xi);
+    double h0 = q0 - qp0, hv0 = v0 - vp0;
+    double h = exp(-xi * w * tau) * (h0 * cos(wdd * tau) + (hv0 + xi * w * h0) / wdd * sin(wdd * tau));
+    return h + cimag(c * cexp(I * (th0 + wd * tau)));
+}
+
+#define NBUF 8192
+static afm_sample buf[NBUF], buf2[NBUF];
+
+static int run_long(afm_sim *s, long n) {
+    int rc = AFM_SIM_OK;
+    for (long done = 0; done < n && rc == AFM_SIM_OK; done += NBUF)
+        rc = afm_sim_run(s, (int)(n - done < NBUF ? n - done : NBUF), NULL);
+    return rc;
+}
+
+/* (1a) One mode from rest: every sample of the transient equals the closed form. */
+static void linear_transient_case(void) {
+    afm_modal m = make_model(1, 0);
+    m.xi[0] = 0.005;
+    afm_force_params f = no_forces();
+    afm_cfg_drive dc = one_tone(1e-9, 352.1e3, 0.7, 100e-9);
+    afm_cfg_sim sc = sim_cfg(AFM_INTEGRATOR_RT, 0);
+    char err[AFM_ERR_LEN];
+    afm_sim *s = afm_sim_create(&m, &f, &dc, &sc, err, sizeof err);
+    if (!check_true(s != NULL, "linear 1 mode: create"))
+        return;
+    double wd = two_pi * dc.tones[0].frequency_hz;
+    double amp = cabs(1e-9 * tip_gain(&m, wd)), emax = 0.0;
+    check_true(afm_sim_run(s, NBUF, buf) == AFM_SIM_OK, "linear 1 mode: run");
+    for (int k = 0; k < NBUF; k++) {
+        double x = m.tip[0] * mode_exact(&m, 0, 0.0, 0.0, 1e-9, wd, 0.7, buf[k].t_s);
+        emax = fmax(emax, fabs(buf[k].x_m - x));
+    }
+    check_abs(emax / amp, 0.0, 1e-9, "linear 1 mode from rest: max |x - exact| / amplitude");
+    afm_sim_destroy(&s);
+}
+
+/* (1b) 4 modes (optionally with overdamped upper modes): after the transient has decayed
+ * (25 time constants of mode 1: e^-25 = 1e-11) the tip amplitude and phase equal the FRF. */
+static void linear_frf_case(const char *label, double xi_hi) {
+    afm_modal m = make_model(4, xi_hi);
+    afm_force_params f = no_forces();
+    const int div = 38; /* drive at rate / 38 = 370.0 kHz: whole periods per 38 samples */
+    afm_cfg_drive dc = one_tone(0.1e-9, rate_hz / div, 0.3, 100e-9);
+    afm_cfg_sim sc = sim_cfg(AFM_INTEGRATOR_RT, 0);
+    char err[AFM_ERR_LEN], what[256];
+    afm_sim *s = afm_sim_create(&m, &f, &dc, &sc, err, sizeof err);
+    if (!check_true(s != NULL, "linear 4 modes: create"))
+        return;
+    double tau1 = 1.0 / (m.xi[0] * m.omega_rad_s[0]);
+    long settle = (long)(25.0 * tau1 * rate_hz) / div * div;
+    int nfit = 100 * div;
+    int rc = run_long(s, settle);
+    if (rc == AFM_SIM_OK)
+        rc = afm_sim_run(s, nfit, buf);
+    snprintf(what, sizeof what, "%s: run %ld samples (rc %d)", label, settle + nfit, rc);
+    check_true(rc == AFM_SIM_OK, what);
+    const afm_drive *d = afm_sim_drive(s);
+    double complex g = tip_gain(&m, d->omega_rad_s[0]);
+    double a = 0, b = 0;
+    for (int k = 0; k < nfit; k++) {
+        double th = afm_drive_phase(d, 0, buf[k].t_s);
+        a += buf[k].x_m * sin(th) * 2.0 / nfit;
+        b += buf[k].x_m * cos(th) * 2.0 / nfit;
+    }
+    snprintf(what, sizeof what, "%s: tip amplitude vs FRF (m)", label);
+    check_rel(hypot(a, b), 0.1e-9 * cabs(g), 1e-9, what);
+    snprintf(what, sizeof what, "%s: tip phase - arg FRF (rad)", label);
+    check_abs(remainder(atan2(b, a) - carg(g), two_pi), 0.0, 1e-9, what);
+    afm_sim_destroy(&s);
+}
+
+/* (2) Frequency change mid-run: set_tone leaves the state bit for bit, and the continuation
+ * of a single mode equals the closed form started from that state with the new tone at its
+ * continued phase. */
+static void tone_change_case(void) {
+    afm_modal m = make_model(1, 0);
+    m.xi[0] = 0.005;
+    afm_force_params f = no_forces();
+    afm_cfg_drive dc = one_tone(1e-9, 352.1e3, 0.0, 100e-9);
+    afm_cfg_sim sc = sim_cfg(AFM_INTEGRATOR_RT, 0);
+    char err[AFM_ERR_LEN];
+    afm_sim *s = afm_sim_create(&m, &f, &dc, &sc, err, sizeof err);
+    if (!check_true(s != NULL, "tone change: create"))
+        return;
+    afm_sim_run(s, 3001, buf);
+    double q0, v0, q1, v1;
+    afm_sim_get_state(s, &q0, &v0);
+    double t0 = afm_sim_time(s);
+    double th0 = afm_drive_phase(afm_sim_drive(s), 0, t0);
+    check_true(afm_sim_set_tone(s, 0, 1.3e-9, 341.7e3) == AFM_SIM_OK, "tone change: set_tone");
+    afm_sim_get_state(s, &q1, &v1);
+    check_true(q1 == q0 && v1 == v0, "tone change: state unchanged by the change (x, v continuous)");
+    check_abs(remainder(afm_drive_phase(afm_sim_drive(s), 0, t0) - th0, two_pi), 0.0, 1e-12,
+              "tone change: drive phase continuous (rad)");
+    afm_sim_run(s, 4000, buf2);
+    double wd = two_pi * 341.7e3, amp = cabs(1.3e-9 * tip_gain(&m, wd)), emax = 0.0;
+    for (int k = 0; k < 4000; k++) {
+        double x = m.tip[0] * mode_exact(&m, 0, q0, v0, 1.3e-9, wd, th0, buf2[k].t_s - t0);
+        emax = fmax(emax, fabs(buf2[k].x_m - x));
+    }
+    check_abs(emax / amp, 0.0, 1e-9, "tone change: continuation vs exact / amplitude");
+    double jump = fabs(buf2[0].x_m - buf[3000].x_m) / amp;
+    check_true(jump < 0.2, "tone change: first sample after the change moves by < 0.2 amplitude "
+                           "(one step at 40 samples per period moves <= 2 pi / 40)");
+    afm_sim_destroy(&s);
+}
+
+/* (3) Tapping, 4-mode model at 50 nm free amplitude, Z = 30 nm. The rt run at the default
+ * substeps runs from rest to its steady orbit; CVODE (rtol 1e-10) is started on the orbit of
+ * an rt run with 64 substeps at the same phase (a whole number of drive periods of 38
+ * samples) and runs 30 periods, so its remaining start error (~1e-4 of the amplitude)
+ * sits well below the 3e-3 target the rt scheme must meet. */
+static void tapping_case(int substeps, double tol) {
+    afm_modal m = make_model(4, 0);
+    afm_force_params f = tapping_forces();
+    const int div = 38;
+    double wd = two_pi * rate_hz / div;
+    double a_base = 50e-9 / cabs(tip_gain(&m, wd)); /* 50 nm free amplitude */
+    afm_cfg_drive dc = one_tone(a_base, rate_hz / div, 0.0, 30e-9);
+    char err[AFM_ERR_LEN], what[256];
+    afm_cfg_sim sc = sim_cfg(AFM_INTEGRATOR_RT, substeps);
+    afm_sim *s = afm_sim_create(&m, &f, &dc, &sc, err, sizeof err);
+    sc.rt_substeps_contact = 64;
+    afm_sim *fine = afm_sim_create(&m, &f, &dc, &sc, err, sizeof err);
+    sc = sim_cfg(AFM_INTEGRATOR_REFERENCE, 0);
+    afm_sim *ref = afm_sim_create(&m, &f, &dc, &sc, err, sizeof err);
+    if (!check_true(s && fine && ref, "tapping: create rt, rt-64 and CVODE")) {
+        printf("  (%s)\n", err);
+        afm_sim_destroy(&s);
+        afm_sim_destroy(&fine);
+        afm_sim_destroy(&ref);
+        return;
+    }
+    long settle = 80000L / div * div; /* 30 time constants of mode 1 */
+    int rc1 = run_long(s, settle), rc2 = run_long(fine, settle);
+    double q[AFM_MAX_MODES], qd[AFM_MAX_MODES];
+    afm_sim_get_state(fine, q, qd);
+    int rc3 = afm_sim_set_state(ref, q, qd);
+    int nrun = 30 * div;
+    int rc4 = afm_sim_run(s, nrun, buf), rc5 = afm_sim_run(ref, nrun, buf2);
+    snprintf(what, sizeof what, "tapping m=%d: runs ok (rc %d %d %d %d %d)", substeps, rc1, rc2,
+             rc3, rc4, rc5);
+    check_true(!rc1 && !rc2 && !rc3 && !rc4 && !rc5, what);
+    double emax = 0, xmin = 1, xmax = -1, fmax_n = 0;
+    int incontact = 0;
+    double xc = afm_force_contact_x(&f, 30e-9);
+    for (int k = nrun - div; k < nrun; k++) {
+        emax = fmax(emax, fabs(buf[k].x_m - buf2[k].x_m));
+        xmin = fmin(xmin, buf2[k].x_m);
+        xmax = fmax(xmax, buf2[k].x_m);
+        fmax_n = fmax(fmax_n, buf2[k].f_n);
+        incontact += buf2[k].x_m < xc;
+    }
+    double amp = 0.5 * (xmax - xmin);
+    printf("     tapping: amplitude %.3f nm, indentation %.3f nm, peak force %.1f nN, %d of %d "
+           "samples in contact\n",
+           amp * 1e9, (xc - xmin) * 1e9, fmax_n * 1e9, incontact, div);
+    check_true(xc - xmin > 0.1e-9, "tapping: the tip indents the sample by > 0.1 nm");
+    snprintf(what, sizeof what, "tapping m=%d: max |x_rt - x_cvode| / amplitude, last period",
+             substeps);
+    check_abs(emax / amp, 0.0, tol, what);
+    afm_sim_destroy(&s);
+    afm_sim_destroy(&fine);
+    afm_sim_destroy(&ref);
+}
+
+/* (4) A tip force that turns NaN in contact: the run stops with EBLOWUP, the state is back
+ * at rest with the time kept, and the handle runs on once the sample is moved away. */
+static void nan_case(void) {
+    afm_modal m = make_model(4, 0);
+    afm_force_params f = tapping_forces();
+    f.hertz_coef = NAN;
+    afm_cfg_drive dc = one_tone(50e-9 / cabs(tip_gain(&m, two_pi * 370e3)), 370e3, 0, 30e-9);
+    afm_cfg_sim sc = sim_cfg(AFM_INTEGRATOR_RT, 0);
+    char err[AFM_ERR_LEN];
+    afm_sim *s = afm_sim_create(&m, &f, &dc, &sc, err, sizeof err);
+    if (!check_true(s != NULL, "nan: create"))
+        return;
+    int rc = run_long(s, 200000);
+    check_true(rc == AFM_SIM_EBLOWUP, "nan: run into a NaN contact force returns AFM_SIM_EBLOWUP");
+    double q[AFM_MAX_MODES], qd[AFM_MAX_MODES];
+    afm_sim_get_state(s, q, qd);
+    bool rest = true;
+    for (int i = 0; i < m.n; i++)
+        rest = rest && q[i] == 0.0 && qd[i] == 0.0;
+    check_true(rest && afm_sim_time(s) > 0, "nan: state reset to rest, time kept");
+    check_true(afm_sim_set_separation(s, 1e-6) == AFM_SIM_OK, "nan: move the sample away");
+    rc = afm_sim_run(s, 1000, buf);
+    check_true(rc == AFM_SIM_OK && isfinite(buf[999].x_m) && buf[999].x_m != 0.0,
+               "nan: same handle runs again out of contact");
+    afm_sim_destroy(&s);
+}
+
+/* Bad settings are refused at create with a message. */
+static void bad_input_case(void) {
+    afm_modal m = make_model(4, 0);
+    afm_force_params f = no_forces();
+    afm_cfg_drive dc = one_tone(1e-10, 370e3, 0, 30e-9);
+    afm_cfg_sim sc = sim_cfg(AFM_INTEGRATOR_RT, 1000);
+    char err[AFM_ERR_LEN] = "";
+    afm_sim *s = afm_sim_create(&m, &f, &dc, &sc, err, sizeof err);
+    check_true(s == NULL && strstr(err, "rt_substeps_contact") != NULL,
+               "create refuses rt_substeps_contact = 1000 with a message");
+    sc.rt_substeps_contact = 0;
+    m.xi[1] = -0.1;
+    err[0] = 0;
+    s = afm_sim_create(&m, &f, &dc, &sc, err, sizeof err);
+    check_true(s == NULL && strstr(err, "mode 2") != NULL, "create refuses a negative damping ratio");
+}
+
+/* ---- AFMTWIN_VALIDATE=full: the shipped configs against CVODE from rest ---- */
+
+static double now_s(void) {
+    struct timespec t;
+    clock_gettime(CLOCK_MONOTONIC, &t);
+    return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
+}
+
+/* Run cfg (free amplitude and Z overridden when > 0, drive at mode 1 when retune) with
+ * the rt backend at `substeps` and with CVODE, both from rest for `settle` samples, and
+ * report the error over the next drive period and the rt cost per sample. */
+static void measure_config(const char *path, int substeps, double free_amp_m, double z_m,
+                           long settle, double tol) {
+    static afm_config cfg;
+    char err[AFM_ERR_LEN], what[512];
+    if (afm_config_load(path, &cfg, err, sizeof err) != 0) {
+        check_true(false, err);
+        return;
+    }
+    afm_modal m;
+    afm_force_params f;
+    bool beam = cfg.model.kind == AFM_MODEL_BEAM;
+    if (afm_model_build(&cfg.model, &m, err, sizeof err) != 0 ||
+        afm_force_init(&f, &cfg.forces, beam ? m.beam_length_m : cfg.forces.plate_length_m,
+                       beam ? m.beam_mean_width_m : cfg.forces.plate_width_m, err,
+                       sizeof err) != 0) {
+        check_true(false, err);
+        return;
+    }
+    if (free_amp_m > 0) { /* drive at mode 1 with the base amplitude for free_amp_m */
+        double wd = m.omega_rad_s[0];
+        cfg.drive.tones[0].frequency_hz = wd / two_pi;
+        cfg.drive.tones[0].amplitude_m = free_amp_m / cabs(tip_gain(&m, wd));
+    }
+    if (z_m > 0)
+        cfg.drive.separation_m = z_m;
+    afm_cfg_sim sc = cfg.sim;
+    sc.integrator = AFM_INTEGRATOR_RT;
+    sc.rt_substeps_contact = substeps;
+    afm_sim *s = afm_sim_create(&m, &f, &cfg.drive, &sc, err, sizeof err);
+    sc.integrator = AFM_INTEGRATOR_REFERENCE;
+    sc.ref_rtol = 1e-10;
+    afm_sim *ref = afm_sim_create(&m, &f, &cfg.drive, &sc, err, sizeof err);
+    if (!check_true(s && ref, "measure: create")) {
+        afm_sim_destroy(&s);
+        afm_sim_destroy(&ref);
+        return;
+    }
+    int per = (int)ceil(sc.sample_rate_hz / cfg.drive.tones[0].frequency_hz);
+    run_long(s, settle);
+    double t0 = now_s();
+    run_long(ref, settle);
+    double t_ref = now_s() - t0;
+    afm_sim_run(s, per, buf);
+    afm_sim_run(ref, per, buf2);
+    double emax = 0, xmin = 1, xmax = -1;
+    int inc = 0;
+    double xc = afm_force_contact_x(&f, cfg.drive.separation_m);
+    for (int k = 0; k < per; k++) {
+        emax = fmax(emax, fabs(buf[k].x_m - buf2[k].x_m));
+        xmin = fmin(xmin, buf2[k].x_m);
+        xmax = fmax(xmax, buf2[k].x_m);
+        inc += buf2[k].x_m < xc;
+    }
+    double amp = 0.5 * (xmax - xmin);
+    /* cost: best of 3 x 1e6 samples on the steady orbit, with and without output */
+    double best_out = 1e9, best_no = 1e9;
+    for (int rep = 0; rep < 3; rep++) {
+        t0 = now_s();
+        for (int k = 0; k < 1000000; k += 4000)
+            afm_sim_run(s, 4000, buf);
+        best_out = fmin(best_out, (now_s() - t0) * 1e3);
+        t0 = now_s();
+        run_long(s, 1000000);
+        best_no = fmin(best_no, (now_s() - t0) * 1e3);
+    }
+    printf("     %s m=%d: amplitude %.3f nm, indentation %.3f nm, %d/%d samples in contact; "
+           "rt %.1f ns/sample (%.1f without output); CVODE %.1f us/sample\n",
+           path, substeps, amp * 1e9, (xc - xmin) * 1e9, inc, per, best_out, best_no,
+           t_ref / (double)settle * 1e6);
+    snprintf(what, sizeof what, "%s m=%d: error_rel = max |x_rt - x_cvode| / amplitude", path,
+             substeps);
+    check_abs(emax / amp, 0.0, tol, what);
+    afm_sim_destroy(&s);
+    afm_sim_destroy(&ref);
+}
+
+int main(void) {
+    linear_transient_case();
+    linear_frf_case("linear 4 modes", 0);
+    linear_frf_case("linear 4 modes, xi 1.0 upper", 1.0);
+    linear_frf_case("linear 4 modes, xi 3.0 upper", 3.0);
+    tone_change_case();
+    tapping_case(0, 3e-3);
+    nan_case();
+    bad_input_case();
+    const char *v = getenv("AFMTWIN_VALIDATE");
+    if (v && strcmp(v, "full") == 0) {
+        measure_config("config/nchv.conf", 0, 50e-9, 30e-9, 60000, 3e-3);
+        measure_config("config/thesis-fig-4-2.conf", 0, 0, 0, 150000, 3e-3);
+        measure_config("config/thesis-fig-4-13.conf", 0, 0, 0, 150000, 3e-3);
+        measure_config("config/thesis-1dof.conf", 0, 0, 0, 30000, 3e-3);
+    }
+    return check_done();
+}

@@ -1,0 +1,572 @@
+/* SPDX-License-Identifier: MIT */
+/* cmd_bench.c -- `afmtwin bench`: the rt integrator, ARKODE fixed-step ERK at equal accuracy
+ * and CVODE, timed and compared side by side on tapping models.
+ *
+ * Method, per model: settle the tapping orbit with rt (thousands of periods: cheap), take
+ * its modal state and drive phase, start every integrator from exactly that state, run
+ * `periods` excitation periods and compare the last one with CVODE sample by sample. ERK's
+ * substeps are raised until its error is no worse than rt's. Then each integrator keeps
+ * running on its orbit and `runs` timed blocks of samples give median and minimum cost. */
+#include "afmtwin_cmds.h"
+
+#include "afm_config.h"
+#include "afm_force.h"
+#include "afm_model.h"
+#include "afm_sim.h"
+
+#include <cjson/cJSON.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+static const double two_pi = 6.283185307179586476925286766559;
+
+/* The models and operating points. An operating point is given as the free (linear)
+ * tip amplitude and the set-point ratio Z / free amplitude, the usual tapping-mode
+ * description; the drive amplitude A and Z follow from the model's linear response at the
+ * config's drive frequency, so the tip taps whatever the model's resonance. 0 keeps the
+ * config's value. Overrides, and why:
+ *  - thesis-1dof: none (20 nm free, Z 14 nm: taps).
+ *  - thesis-fig-4-2 (84.053 kHz, above the 80.8 kHz resonance): from rest the orbit
+ *    settles on the low branch (13.4 nm) that never reaches Z = 30 nm; Z = 0.7 x free.
+ *  - thesis-fig-4-13: 22.7 nm free never reaches Z = 45 nm; Z = 0.7 x free.
+ *  - nchv: the model's first mode is 338 kHz, so the 323.352 kHz drive gives 7.2 nm free,
+ *    no contact at Z = 31 nm; 50 nm free and Z = 35 nm as in the numerics.md prototype. */
+typedef struct {
+    const char *file;
+    double free_amp_m; /* linear tip amplitude to drive to (m), 0 = config amplitude */
+    double setpoint;   /* Z / free amplitude, 0 = config Z */
+} bench_case;
+
+static const bench_case bench_cases[] = {
+    {"thesis-1dof.conf", 0.0, 0.0},
+    {"thesis-fig-4-2.conf", 0.0, 0.7},
+    {"thesis-fig-4-13.conf", 0.0, 0.7},
+    {"nchv.conf", 50e-9, 0.7},
+};
+#define N_CASES ((int)(sizeof bench_cases / sizeof bench_cases[0]))
+
+enum { ROW_RT, ROW_ERK, ROW_REF, N_ROWS };
+static const char *const row_name[N_ROWS] = {"rt", "arkode-erk", "reference"};
+
+/* ERK substeps tried, in order, until its error is <= rt's. */
+static const int erk_substeps[] = {1,  2,  3,  4,  5,  6,  7,  8,  10,  12,  14,  16,  20,  24,
+                                   28, 32, 40, 48, 56, 64, 80, 96, 128, 160, 192, 256, 384, 512};
+#define N_ERK_SUBSTEPS ((int)(sizeof erk_substeps / sizeof erk_substeps[0]))
+
+typedef struct {
+    bool ok;
+    int substeps; /* substeps per sample; 0 = engine default (rt), -1 = adaptive (CVODE) */
+    double ns_med, ns_min, rt_factor, err_rel;
+    char note[160];
+} bench_row;
+
+typedef struct {
+    const char *config;
+    bool ok;
+    char err[AFM_ERR_LEN];
+    int n_modes;
+    double z_m, amp_m, freq_hz, rate_hz;
+    double free_amp_m;       /* linear tip amplitude at this drive (no tip force) */
+    double settle_s;         /* model time settled with rt */
+    double tip_amp_m;        /* (max - min) / 2 of x over the compared period (CVODE) */
+    double contact_fraction; /* share of those samples with the gap below a0 */
+    double peak_force_n;     /* largest tip force over that period */
+    double ref_check;        /* CVODE at ref_rtol vs CVODE at ref_rtol / 100 */
+    double ref_rtol;
+    bench_row row[N_ROWS];
+} bench_result;
+
+typedef struct {
+    bool json, quick;
+    int runs, periods;
+    double settle_tau; /* settle for this many of the slowest modal decay times */
+    const char *dir;
+    long n_time[N_ROWS]; /* samples per timed run */
+} bench_opts;
+
+static void bench_usage(FILE *f) {
+    fprintf(
+        f, "usage: afmtwin bench [--json] [--runs N] [--quick] [--periods K] [--config-dir DIR]\n\n"
+           "Times the rt integrator, ARKODE fixed-step ERK and CVODE while tapping, on\n"
+           "thesis-1dof.conf, thesis-fig-4-2.conf, thesis-fig-4-13.conf and nchv.conf.\n"
+           "Every integrator starts from one rt-settled state; error_rel is max |x - x_cvode| /\n"
+           "amplitude over the last of K excitation periods. ERK's substeps are raised until\n"
+           "its error_rel is <= rt's (equal accuracy).\n\n"
+           "options:\n"
+           "  --json            one JSON object {\"cases\": [...], \"ratios\": [...]} on stdout\n"
+           "  --runs N          timed runs per integrator, median and min reported (default 5)\n"
+           "  --quick           shorter settling and timed runs (default runs 2)\n"
+           "  --periods K       periods run before the compared one ends (default 5)\n"
+           "  --config-dir DIR  where the .conf files are (default config)\n"
+           "  --help            this text\n");
+}
+
+static double now_s(void) {
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+static int cmp_double(const void *a, const void *b) {
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+/* |x_tip / ub| of the linear model (no tip force) for a base tone at w rad/s:
+ * |sum_i tip_i (-base_k_i + base_m_i w^2) / (w_i^2 - w^2 + 2 i xi_i w_i w)|. */
+static double linear_gain(const afm_modal *m, double w) {
+    double re = 0.0, im = 0.0;
+    for (int i = 0; i < m->n; i++) {
+        double wi = m->omega_rad_s[i], num = m->tip[i] * (-m->base_k[i] + m->base_m[i] * w * w);
+        double dr = wi * wi - w * w, di = 2.0 * m->xi[i] * wi * w, den = dr * dr + di * di;
+        re += num * dr / den;
+        im -= num * di / den;
+    }
+    return hypot(re, im);
+}
+
+/* Load a case: config (with overrides), modal model, force constants. */
+static int load_case(const bench_opts *o, const bench_case *bc, afm_config *cfg, afm_modal *m,
+                     afm_force_params *f, char *err, size_t errlen) {
+    char path[512];
+    snprintf(path, sizeof path, "%s/%s", o->dir, bc->file);
+    if (afm_config_load(path, cfg, err, errlen) != 0) return -1;
+    if (afm_model_build(&cfg->model, m, err, errlen) != 0) return -1;
+    afm_cfg_tone *t = &cfg->drive.tones[0];
+    double gain = linear_gain(m, two_pi * t->frequency_hz);
+    if (bc->free_amp_m > 0) t->amplitude_m = bc->free_amp_m / gain;
+    if (bc->setpoint > 0) cfg->drive.separation_m = bc->setpoint * gain * t->amplitude_m;
+    if (afm_config_validate(cfg, err, errlen) != 0) return -1;
+    double len = m->beam_length_m > 0 ? m->beam_length_m : cfg->forces.plate_length_m;
+    double wid = m->beam_mean_width_m > 0 ? m->beam_mean_width_m : cfg->forces.plate_width_m;
+    return afm_force_init(f, &cfg->forces, len, wid, err, errlen);
+}
+
+/* A simulator of kind k on cfg's drive, started from (q, qd) if q is non-NULL. */
+static afm_sim *make_sim(const afm_config *cfg, const afm_modal *m, const afm_force_params *f,
+                         afm_integrator_kind k, int substeps, double rtol, const double *q,
+                         const double *qd, char *err, size_t errlen) {
+    afm_cfg_sim sc = cfg->sim;
+    sc.integrator = k;
+    if (substeps > 0) sc.rt_substeps_contact = substeps;
+    if (rtol > 0) sc.ref_rtol = rtol;
+    afm_sim *s = afm_sim_create(m, f, &cfg->drive, &sc, err, errlen);
+    if (s && q && afm_sim_set_state(s, q, qd) != AFM_SIM_OK) {
+        snprintf(err, errlen, "bench: settled state is not finite");
+        afm_sim_destroy(&s);
+    }
+    return s;
+}
+
+#define CHUNK 1024
+static afm_sample chunk[CHUNK];
+
+/* Run n samples; x (n entries, may be NULL) receives the tip displacement and f the force. */
+static int run_collect(afm_sim *s, long n, double *x, double *f) {
+    for (long done = 0; done < n;) {
+        int k = n - done < CHUNK ? (int)(n - done) : CHUNK;
+        int rc = afm_sim_run(s, k, chunk);
+        if (rc != AFM_SIM_OK) return rc;
+        for (int i = 0; i < k; i++) {
+            if (x) x[done + i] = chunk[i].x_m;
+            if (f) f[done + i] = chunk[i].f_n;
+        }
+        done += k;
+    }
+    return AFM_SIM_OK;
+}
+
+/* max |x - xr| / amp over samples [from, n). */
+static double err_rel(const double *x, const double *xr, long from, long n, double amp) {
+    double e = 0.0;
+    for (long i = from; i < n; i++) {
+        double d = fabs(x[i] - xr[i]);
+        if (!isfinite(d)) return INFINITY;
+        e = fmax(e, d);
+    }
+    return e / amp;
+}
+
+/* Time `runs` blocks of nsamp samples on the running orbit (samples written to a buffer,
+ * as the twin does). Fills median and minimum ns per sample. */
+static int time_runs(afm_sim *s, long nsamp, int runs, bench_row *r) {
+    double *t = malloc((size_t)runs * sizeof *t);
+    if (!t) return -1;
+    int rc = AFM_SIM_OK;
+    for (int k = 0; k < runs && rc == AFM_SIM_OK; k++) {
+        double t0 = now_s();
+        rc = run_collect(s, nsamp, NULL, NULL);
+        t[k] = (now_s() - t0) * 1e9 / (double)nsamp;
+    }
+    if (rc == AFM_SIM_OK) {
+        qsort(t, (size_t)runs, sizeof *t, cmp_double);
+        r->ns_min = t[0];
+        r->ns_med = runs % 2 ? t[runs / 2] : 0.5 * (t[runs / 2 - 1] + t[runs / 2]);
+        r->rt_factor = afm_sim_dt(s) / (r->ns_med * 1e-9);
+    }
+    free(t);
+    return rc;
+}
+
+static const char *rc_text(int rc) {
+    switch (rc) {
+    case AFM_SIM_EBLOWUP:
+        return "state blew up";
+    case AFM_SIM_ESOLVER:
+        return "SUNDIALS solver failure";
+    case AFM_SIM_EINVAL:
+        return "invalid argument";
+    default:
+        return "failed";
+    }
+}
+
+/* Everything for one model; fills res. Returns 0, or -1 with res->err. */
+static int bench_one(const bench_opts *o, const bench_case *bc, bench_result *res) {
+    afm_config cfg;
+    afm_modal m;
+    afm_force_params f;
+    char *err = res->err;
+    const size_t errlen = sizeof res->err;
+    memset(res, 0, sizeof *res);
+    res->config = bc->file;
+    for (int r = 0; r < N_ROWS; r++) {
+        res->row[r].err_rel = res->row[r].ns_med = res->row[r].ns_min = NAN;
+        res->row[r].rt_factor = NAN;
+    }
+    if (load_case(o, bc, &cfg, &m, &f, err, errlen) != 0) return -1;
+    res->n_modes = m.n;
+    res->z_m = cfg.drive.separation_m;
+    res->amp_m = cfg.drive.tones[0].amplitude_m;
+    res->freq_hz = cfg.drive.tones[0].frequency_hz;
+    res->free_amp_m = res->amp_m * linear_gain(&m, two_pi * res->freq_hz);
+    res->rate_hz = cfg.sim.sample_rate_hz;
+    res->ref_rtol = cfg.sim.ref_rtol > 0 ? cfg.sim.ref_rtol : 1e-10;
+
+    /* 1. Settle with rt for settle_tau slowest decay times 1 / (xi_i w_i). */
+    double tau = 0.0;
+    for (int i = 0; i < m.n; i++)
+        tau = fmax(tau, 1.0 / (m.xi[i] * m.omega_rad_s[i]));
+    long n_settle = (long)ceil(o->settle_tau * tau * res->rate_hz);
+    afm_sim *s = make_sim(&cfg, &m, &f, AFM_INTEGRATOR_RT, 0, 0, NULL, NULL, err, errlen);
+    if (!s) return -1;
+    int rc = run_collect(s, n_settle, NULL, NULL);
+    if (rc != AFM_SIM_OK) {
+        snprintf(err, errlen, "settling with rt: %s", rc_text(rc));
+        afm_sim_destroy(&s);
+        return -1;
+    }
+    res->settle_s = afm_sim_time(s);
+    double q0[AFM_MAX_MODES], qd0[AFM_MAX_MODES];
+    afm_sim_get_state(s, q0, qd0);
+    /* Every later simulator starts at t = 0 with the settled state and the tones' phases. */
+    const afm_drive *d = afm_sim_drive(s);
+    for (int j = 0; j < d->n && j < cfg.drive.n_tones; j++)
+        cfg.drive.tones[j].phase_rad = fmod(afm_drive_phase(d, j, afm_sim_time(s)), two_pi);
+    afm_sim_destroy(&s);
+
+    /* 2. Reference: CVODE over K periods; the compared window is the last period. */
+    double period_samples = res->rate_hz / res->freq_hz;
+    long win = (long)ceil(period_samples);
+    long n_cmp = (long)ceil(o->periods * period_samples);
+    long from = n_cmp - win;
+    double *xr = malloc((size_t)n_cmp * sizeof *xr), *x = malloc((size_t)n_cmp * sizeof *x);
+    double *fr = malloc((size_t)n_cmp * sizeof *fr);
+    afm_sim *ref = NULL, *sims[N_ROWS] = {NULL};
+    if (!xr || !x || !fr) {
+        snprintf(err, errlen, "out of memory");
+        goto fail;
+    }
+    ref = make_sim(&cfg, &m, &f, AFM_INTEGRATOR_REFERENCE, 0, 0, q0, qd0, err, errlen);
+    if (!ref) goto fail;
+    rc = run_collect(ref, n_cmp, xr, fr);
+    if (rc != AFM_SIM_OK) {
+        snprintf(err, errlen, "reference run: %s", rc_text(rc));
+        goto fail;
+    }
+    double xmin = INFINITY, xmax = -INFINITY, xc = afm_force_contact_x(&f, res->z_m);
+    long n_contact = 0;
+    res->peak_force_n = -INFINITY;
+    for (long i = from; i < n_cmp; i++) {
+        xmin = fmin(xmin, xr[i]);
+        xmax = fmax(xmax, xr[i]);
+        n_contact += f.vdw_contact && xr[i] < xc;
+        res->peak_force_n = fmax(res->peak_force_n, fr[i]);
+    }
+    res->tip_amp_m = 0.5 * (xmax - xmin);
+    res->contact_fraction = (double)n_contact / (double)win;
+    if (!(res->tip_amp_m > 0)) {
+        snprintf(err, errlen, "the reference orbit does not move");
+        goto fail;
+    }
+    sims[ROW_REF] = ref;
+    ref = NULL;
+    res->row[ROW_REF].ok = true;
+    res->row[ROW_REF].substeps = -1;
+    res->row[ROW_REF].err_rel = 0.0;
+
+    /* Check of the reference itself: the same from a 100x tighter tolerance. */
+    afm_sim *tight = make_sim(&cfg, &m, &f, AFM_INTEGRATOR_REFERENCE, 0, res->ref_rtol / 100, q0,
+                              qd0, err, errlen);
+    if (!tight) goto fail;
+    rc = run_collect(tight, n_cmp, x, NULL);
+    afm_sim_destroy(&tight);
+    res->ref_check = rc == AFM_SIM_OK ? err_rel(x, xr, from, n_cmp, res->tip_amp_m) : NAN;
+    snprintf(res->row[ROW_REF].note, sizeof res->row[ROW_REF].note,
+             "CVODE BDF rtol %.0e; vs rtol %.0e: %.2e", res->ref_rtol, res->ref_rtol / 100,
+             res->ref_check);
+
+    /* 3. rt from the same state. */
+    bench_row *rr = &res->row[ROW_RT];
+    rr->substeps = cfg.sim.rt_substeps_contact;
+    sims[ROW_RT] = make_sim(&cfg, &m, &f, AFM_INTEGRATOR_RT, 0, 0, q0, qd0, err, errlen);
+    if (!sims[ROW_RT]) goto fail;
+    rc = run_collect(sims[ROW_RT], n_cmp, x, NULL);
+    if (rc == AFM_SIM_OK) {
+        rr->ok = true;
+        rr->err_rel = err_rel(x, xr, from, n_cmp, res->tip_amp_m);
+    } else {
+        snprintf(rr->note, sizeof rr->note, "%s", rc_text(rc));
+        afm_sim_destroy(&sims[ROW_RT]);
+    }
+
+    /* 4. ERK: raise substeps until error_rel <= rt's. */
+    bench_row *re = &res->row[ROW_ERK];
+    double best = INFINITY;
+    int best_sub = 0;
+    for (int c = 0; c < N_ERK_SUBSTEPS && rr->ok; c++) {
+        afm_sim *e = make_sim(&cfg, &m, &f, AFM_INTEGRATOR_ARKODE_ERK, erk_substeps[c], 0, q0, qd0,
+                              err, errlen);
+        if (!e) goto fail;
+        rc = run_collect(e, n_cmp, x, NULL);
+        double er = rc == AFM_SIM_OK ? err_rel(x, xr, from, n_cmp, res->tip_amp_m) : INFINITY;
+        if (er < best) {
+            best = er;
+            best_sub = erk_substeps[c];
+        }
+        if (er <= rr->err_rel) {
+            sims[ROW_ERK] = e;
+            re->ok = true;
+            re->substeps = erk_substeps[c];
+            re->err_rel = er;
+            break;
+        }
+        afm_sim_destroy(&e);
+    }
+    if (!rr->ok)
+        snprintf(re->note, sizeof re->note, "skipped: rt failed");
+    else if (!re->ok)
+        snprintf(re->note, sizeof re->note,
+                 "never as accurate as rt up to %d substeps (best %.2e at %d)",
+                 erk_substeps[N_ERK_SUBSTEPS - 1], best, best_sub);
+
+    /* 5. Timing on the running orbits. */
+    for (int r = 0; r < N_ROWS; r++) {
+        if (!sims[r]) continue;
+        rc = time_runs(sims[r], o->n_time[r], o->runs, &res->row[r]);
+        if (rc != AFM_SIM_OK) {
+            res->row[r].ok = false;
+            snprintf(res->row[r].note, sizeof res->row[r].note, "timing: %s", rc_text(rc));
+        }
+    }
+    for (int r = 0; r < N_ROWS; r++)
+        afm_sim_destroy(&sims[r]);
+    free(xr);
+    free(x);
+    free(fr);
+    res->ok = true;
+    return 0;
+fail:
+    afm_sim_destroy(&ref);
+    for (int r = 0; r < N_ROWS; r++)
+        afm_sim_destroy(&sims[r]);
+    free(xr);
+    free(x);
+    free(fr);
+    return -1;
+}
+
+static double ratio_erk_rt(const bench_result *r) {
+    const bench_row *a = &r->row[ROW_ERK], *b = &r->row[ROW_RT];
+    return (a->ok && b->ok) ? a->ns_med / b->ns_med : NAN;
+}
+
+static void print_text(const bench_opts *o, const bench_result *res, int n) {
+    printf("afmtwin bench: %d timed runs per integrator (median, min); every integrator starts "
+           "from one rt-settled tapping state;\nerror_rel = max |x - x_cvode| / amplitude over "
+           "excitation period %d of %d.\n",
+           o->runs, o->periods, o->periods);
+    for (int c = 0; c < n; c++) {
+        const bench_result *r = &res[c];
+        printf("\n%s", r->config);
+        if (!r->ok) {
+            printf(": FAILED: %s\n", r->err);
+            continue;
+        }
+        printf(": %d modes, Z %.4g nm, base amplitude %.4g nm at %.6g kHz (free tip amplitude "
+               "%.4g nm), settled %.3g ms\n",
+               r->n_modes, r->z_m * 1e9, r->amp_m * 1e9, r->freq_hz * 1e-3, r->free_amp_m * 1e9,
+               r->settle_s * 1e3);
+        printf("  tip amplitude %.4g nm, in contact %.1f %% of the period, peak force %.4g nN; "
+               "sample rate %.6g MHz (real time: %.1f ns per sample)\n",
+               r->tip_amp_m * 1e9, 100 * r->contact_fraction, r->peak_force_n * 1e9,
+               r->rate_hz * 1e-6, 1e9 / r->rate_hz);
+        printf("  %-11s %9s %14s %14s %10s %10s\n", "integrator", "substeps", "ns/sample med",
+               "ns/sample min", "RT factor", "error_rel");
+        for (int k = 0; k < N_ROWS; k++) {
+            const bench_row *w = &r->row[k];
+            char sub[16];
+            if (w->substeps < 0)
+                snprintf(sub, sizeof sub, "adaptive");
+            else if (w->substeps == 0)
+                snprintf(sub, sizeof sub, "default");
+            else
+                snprintf(sub, sizeof sub, "%d", w->substeps);
+            printf("  %-11s %9s %14.1f %14.1f %10.4g %10.2e", row_name[k], sub, w->ns_med,
+                   w->ns_min, w->rt_factor, w->err_rel);
+            if (w->note[0]) printf("  (%s)", w->note);
+            printf("\n");
+        }
+        double q = ratio_erk_rt(r);
+        if (isfinite(q))
+            printf("  rt is %.1fx faster than arkode-erk at equal accuracy (%d substeps)\n", q,
+                   r->row[ROW_ERK].substeps);
+    }
+}
+
+static void json_num(cJSON *o, const char *k, double v) {
+    if (isfinite(v))
+        cJSON_AddNumberToObject(o, k, v);
+    else
+        cJSON_AddNullToObject(o, k);
+}
+
+static int print_json(const bench_opts *o, const bench_result *res, int n) {
+    cJSON *root = cJSON_CreateObject(), *cases = cJSON_CreateArray(), *ratios = cJSON_CreateArray();
+    cJSON_AddNumberToObject(root, "runs", o->runs);
+    cJSON_AddNumberToObject(root, "periods", o->periods);
+    cJSON_AddBoolToObject(root, "quick", o->quick);
+    for (int c = 0; c < n; c++) {
+        const bench_result *r = &res[c];
+        if (!r->ok) {
+            cJSON *e = cJSON_CreateObject();
+            cJSON_AddStringToObject(e, "config", r->config);
+            cJSON_AddStringToObject(e, "error", r->err);
+            cJSON_AddItemToArray(cases, e);
+            continue;
+        }
+        for (int k = 0; k < N_ROWS; k++) {
+            const bench_row *w = &r->row[k];
+            cJSON *e = cJSON_CreateObject();
+            cJSON_AddStringToObject(e, "config", r->config);
+            cJSON_AddStringToObject(e, "integrator", row_name[k]);
+            json_num(e, "ns_per_sample", w->ns_med);
+            json_num(e, "ns_per_sample_min", w->ns_min);
+            json_num(e, "realtime_factor", w->rt_factor);
+            json_num(e, "error_rel", w->err_rel);
+            if (w->substeps < 0)
+                cJSON_AddNullToObject(e, "substeps"); /* adaptive */
+            else
+                cJSON_AddNumberToObject(e, "substeps", w->substeps); /* 0: engine default */
+            cJSON_AddBoolToObject(e, "ok", w->ok);
+            if (w->note[0]) cJSON_AddStringToObject(e, "note", w->note);
+            cJSON_AddNumberToObject(e, "n_modes", r->n_modes);
+            cJSON_AddNumberToObject(e, "sample_rate_hz", r->rate_hz);
+            cJSON_AddNumberToObject(e, "separation_m", r->z_m);
+            cJSON_AddNumberToObject(e, "drive_amplitude_m", r->amp_m);
+            cJSON_AddNumberToObject(e, "drive_frequency_hz", r->freq_hz);
+            cJSON_AddNumberToObject(e, "free_amplitude_m", r->free_amp_m);
+            cJSON_AddNumberToObject(e, "tip_amplitude_m", r->tip_amp_m);
+            cJSON_AddNumberToObject(e, "contact_fraction", r->contact_fraction);
+            cJSON_AddNumberToObject(e, "peak_force_n", r->peak_force_n);
+            cJSON_AddNumberToObject(e, "settle_s", r->settle_s);
+            if (k == ROW_REF) {
+                cJSON_AddNumberToObject(e, "rtol", r->ref_rtol);
+                json_num(e, "error_rel_vs_rtol_div_100", r->ref_check);
+            }
+            cJSON_AddItemToArray(cases, e);
+        }
+        cJSON *q = cJSON_CreateObject();
+        cJSON_AddStringToObject(q, "config", r->config);
+        json_num(q, "arkode_over_rt_ns_per_sample", ratio_erk_rt(r));
+        cJSON_AddNumberToObject(q, "arkode_substeps", r->row[ROW_ERK].substeps);
+        cJSON_AddItemToArray(ratios, q);
+    }
+    cJSON_AddItemToObject(root, "cases", cases);
+    cJSON_AddItemToObject(root, "ratios", ratios);
+    char *s = cJSON_PrintUnformatted(root);
+    if (s) puts(s);
+    free(s);
+    cJSON_Delete(root);
+    return s ? 0 : 1;
+}
+
+static int parse_int(const char *s, int lo, int hi, int *v) {
+    char *end;
+    long x = strtol(s, &end, 10);
+    if (end == s || *end || x < lo || x > hi) return -1;
+    *v = (int)x;
+    return 0;
+}
+
+int afm_cmd_bench(int argc, char **argv) {
+    bench_opts o = {.runs = 0, .periods = 5, .dir = "config"};
+    for (int i = 1; i < argc; i++) {
+        const char *a = argv[i];
+        if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
+            bench_usage(stdout);
+            return 0;
+        } else if (!strcmp(a, "--json")) {
+            o.json = true;
+        } else if (!strcmp(a, "--quick")) {
+            o.quick = true;
+        } else if (!strcmp(a, "--runs") && i + 1 < argc) {
+            if (parse_int(argv[++i], 1, 1000, &o.runs) != 0) {
+                fprintf(stderr, "afmtwin bench: --runs wants an integer in [1, 1000], got '%s'\n",
+                        argv[i]);
+                return 2;
+            }
+        } else if (!strcmp(a, "--periods") && i + 1 < argc) {
+            if (parse_int(argv[++i], 1, 1000, &o.periods) != 0) {
+                fprintf(stderr,
+                        "afmtwin bench: --periods wants an integer in [1, 1000], got '%s'\n",
+                        argv[i]);
+                return 2;
+            }
+        } else if (!strcmp(a, "--config-dir") && i + 1 < argc) {
+            o.dir = argv[++i];
+        } else {
+            fprintf(stderr, "afmtwin bench: unknown or incomplete option '%s'\n", a);
+            bench_usage(stderr);
+            return 2;
+        }
+    }
+    if (o.runs == 0) o.runs = o.quick ? 2 : 5;
+    /* 40 decay times leave e^-40 of the start transient in the linear part. Timed blocks
+     * are ~10-50 ms each at the costs numerics.md measured. */
+    o.settle_tau = o.quick ? 20.0 : 40.0;
+    long scale = o.quick ? 10 : 1;
+    o.n_time[ROW_RT] = 100000 / scale;
+    o.n_time[ROW_ERK] = 5000 / scale;
+    o.n_time[ROW_REF] = 500 / scale;
+
+    bench_result *res = calloc(N_CASES, sizeof *res);
+    if (!res) {
+        fprintf(stderr, "afmtwin bench: out of memory\n");
+        return 1;
+    }
+    int failed = 0;
+    for (int c = 0; c < N_CASES; c++) {
+        if (bench_one(&o, &bench_cases[c], &res[c]) != 0) {
+            failed++;
+            if (o.json) /* the text table shows it in place */
+                fprintf(stderr, "afmtwin bench: %s: %s\n", bench_cases[c].file, res[c].err);
+        }
+    }
+    int rc = o.json ? print_json(&o, res, N_CASES) : (print_text(&o, res, N_CASES), 0);
+    free(res);
+    return (rc != 0 || failed) ? 1 : 0;
+}

@@ -1,0 +1,549 @@
+/* SPDX-License-Identifier: MIT */
+/* cmd_sweep.c -- `afmtwin sweep`: stepwise frequency sweep, each step dwelt to steady state,
+ * then the orbit's periodicity, extrema, contacts and harmonics (thesis ch. 4, App. C.4).
+ *
+ * One simulator runs the whole sweep: the state carries over from step to step and tone 0
+ * changes frequency phase-continuously, as in the thesis's time-integration sweeps (App.
+ * C.4) and the stepwise experiments, so a forward sweep can climb a high-amplitude branch
+ * that a start from rest would miss. */
+#include "afmtwin_cmds.h"
+
+#include "afm_config.h"
+#include "afm_force.h"
+#include "afm_model.h"
+#include "afm_orbit.h"
+#include "afm_sim.h"
+
+#include <cjson/cJSON.h>
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+#include <unistd.h>
+
+#define DEFAULT_MAX_PERIODS 10000
+#define DEFAULT_TOL 1e-6
+#define MAX_STEPS 1000000
+
+static const int default_harmonics[] = {1, 6, 17};
+
+typedef struct {
+    const char *config;
+    double from_hz, to_hz, step_hz; /* step NAN when not given */
+    double ae_m, z_m;               /* NAN: keep the config's */
+    int ks[AFM_MAX_HARMONICS], nk;  /* nk 0: config's list, else default_harmonics */
+    int integrator;                 /* -1: config's */
+    int max_periods;
+    double tol;
+    bool json;
+} sweep_opts;
+
+static void sweep_usage(FILE *f) {
+    fprintf(f,
+            "usage: afmtwin sweep --config FILE --from HZ --to HZ --step HZ [--ae M] [--z M]\n"
+            "                     [--harmonics K,K,...] [--integrator rt|reference|arkode-erk]\n"
+            "                     [--max-periods N] [--tol X] [--json]\n\n"
+            "Stepwise excitation-frequency sweep, as in the thesis's experiments: forward when\n"
+            "--to > --from, backward otherwise. One simulation runs the whole sweep, so the\n"
+            "cantilever state carries over from step to step and the drive frequency changes\n"
+            "phase-continuously. At each step the drive is held until the orbit repeats itself\n"
+            "(steady state, or --max-periods), then the last whole orbit is analysed:\n"
+            "  periodicity   p = 1 harmonic, 2 after period doubling, ... up to %d; 0 = no\n"
+            "                steady state within --max-periods (analysed over the best p)\n"
+            "  deflection    min and max tip displacement xr (m), negative towards the sample\n"
+            "  force         max total tip-sample force (N)\n"
+            "  contacts      each contact moment of the p-period orbit (gap d = xr cos(alpha) + Z\n"
+            "                below a0): min xr, tip velocity as the gap crosses a0 inwards (the\n"
+            "                pre-contact velocity of thesis Table 4.1), max force\n"
+            "  harmonics     amplitude and phase of xr and of the force at k fe: the phase phi_k\n"
+            "                of A_k cos(k we t + phi_k), t from a drive-phase-0 instant (x_dit =\n"
+            "                Ae sin(we t)), and the phase difference of thesis eq. E.12-E.13,\n"
+            "                mod(k (180 - phi_1) + phi_k, 360) deg (Table E.2)\n\n"
+            "options:\n"
+            "  --config FILE       libconfig model file (see config/README.md)\n"
+            "  --from HZ           first excitation frequency (tone 0), 0 < HZ < rate / 2\n"
+            "  --to HZ             last excitation frequency; included when it lies on the grid\n"
+            "                      from + i step (--from X --to X is a single point)\n"
+            "  --step HZ           frequency increment > 0 (the sign follows --from/--to);\n"
+            "                      may be omitted for a single point\n"
+            "  --ae M              excitation amplitude of tone 0 (m), 0 <= M <= 1e-6;\n"
+            "                      default the config's\n"
+            "  --z M               tip-sample separation Z (m), 0 <= M <= 1e-3; default the\n"
+            "                      config's\n"
+            "  --harmonics LIST    harmonic numbers k >= 1, comma-separated, at most %d, with\n"
+            "                      k fe below rate / 2; default the config's sim.harmonics, or\n"
+            "                      1,6,17\n"
+            "  --integrator NAME   rt (real-time scheme), reference (CVODE BDF) or arkode-erk;\n"
+            "                      default the config's\n"
+            "  --max-periods N     most drive periods dwelt per step before giving up on a\n"
+            "                      steady state, >= 2 (default %d)\n"
+            "  --tol X             steady state: the orbit over p periods differs from the one\n"
+            "                      before by less than X times the half peak-to-peak deflection,\n"
+            "                      0 < X < 1 (default %g), judged on the samples out of contact.\n"
+            "                      A slowly decaying transient can still be up to ~Q/pi times\n"
+            "                      that far from the exact orbit. An integrator whose orbit is\n"
+            "                      not periodic to X (rt in contact jitters by ~1e-4 at the\n"
+            "                      time of writing) runs to --max-periods: loosen --tol or use\n"
+            "                      reference\n"
+            "  --json              one JSON object per step and line: fe_hz, periodicity,\n"
+            "                      settle_periods, settled, orbit_change, analysed_periods,\n"
+            "                      contacts_truncated (only when true: > %d contacts, or one\n"
+            "                      ran past the samples),\n"
+            "                      min_deflection_m, max_deflection_m, max_force_n, contacts\n"
+            "                      [{min_deflection_m, pre_contact_velocity_m_s, max_force_n}],\n"
+            "                      harmonics [{k, deflection_amplitude_m, deflection_phase_deg,\n"
+            "                      force_amplitude_n, force_phase_deg, phase_diff_deg}];\n"
+            "                      phases in degrees, (-180, 180], phase_diff_deg in [0, 360)\n"
+            "  --help              this text\n\n"
+            "Without --json a readable table. A progress line goes to stderr (terminals only)\n"
+            "when the sweep takes more than a second. Exit status 0 ok, 1 simulation failure,\n"
+            "2 bad usage or bad input.\n",
+            AFM_ORBIT_MAX_P, AFM_MAX_HARMONICS, DEFAULT_MAX_PERIODS, DEFAULT_TOL,
+            AFM_ORBIT_MAX_CONTACTS);
+}
+
+static double now_s(void) {
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+/* A finite number that uses the whole string. */
+static int parse_double(const char *opt, const char *s, double *out) {
+    char *end;
+    errno = 0;
+    double v = strtod(s, &end);
+    if (end == s || *end != '\0' || errno == ERANGE || !isfinite(v)) {
+        fprintf(stderr, "afmtwin sweep: %s '%s' is not a finite number\n", opt, s);
+        return -1;
+    }
+    *out = v;
+    return 0;
+}
+
+static int parse_int(const char *opt, const char *s, long lo, long hi, int *out) {
+    char *end;
+    errno = 0;
+    long v = strtol(s, &end, 10);
+    if (end == s || *end != '\0' || errno == ERANGE || v < lo || v > hi) {
+        fprintf(stderr, "afmtwin sweep: %s '%s' must be an integer in %ld..%ld\n", opt, s, lo, hi);
+        return -1;
+    }
+    *out = (int)v;
+    return 0;
+}
+
+static int parse_harmonics(const char *s, sweep_opts *o) {
+    o->nk = 0;
+    const char *p = s;
+    while (*p) {
+        char *end;
+        errno = 0;
+        long k = strtol(p, &end, 10);
+        if (end == p || errno == ERANGE || k < 1 || k > 100000 || (*end != ',' && *end != '\0')) {
+            fprintf(stderr,
+                    "afmtwin sweep: --harmonics '%s': expected integers >= 1 separated by "
+                    "commas\n",
+                    s);
+            return -1;
+        }
+        if (o->nk == AFM_MAX_HARMONICS) {
+            fprintf(stderr, "afmtwin sweep: --harmonics '%s': at most %d harmonics\n", s,
+                    AFM_MAX_HARMONICS);
+            return -1;
+        }
+        o->ks[o->nk++] = (int)k;
+        p = *end == ',' ? end + 1 : end;
+        if (*end == ',' && *p == '\0') {
+            fprintf(stderr, "afmtwin sweep: --harmonics '%s': trailing comma\n", s);
+            return -1;
+        }
+    }
+    if (o->nk == 0) {
+        fprintf(stderr, "afmtwin sweep: --harmonics is empty\n");
+        return -1;
+    }
+    return 0;
+}
+
+/* 0 ok, 1 --help printed, -1 bad usage (message printed). */
+static int parse_args(int argc, char **argv, sweep_opts *o) {
+    memset(o, 0, sizeof *o);
+    o->from_hz = o->to_hz = o->step_hz = o->ae_m = o->z_m = NAN;
+    o->integrator = -1;
+    o->max_periods = DEFAULT_MAX_PERIODS;
+    o->tol = DEFAULT_TOL;
+    bool have_from = false, have_to = false;
+    for (int i = 1; i < argc; i++) {
+        const char *a = argv[i];
+        if (!strcmp(a, "--help") || !strcmp(a, "-h")) return 1;
+        if (!strcmp(a, "--json")) {
+            o->json = true;
+            continue;
+        }
+        static const char *const with_value[] = {
+            "--config", "--from",      "--to",         "--step",        "--ae",
+            "--z",      "--harmonics", "--integrator", "--max-periods", "--tol"};
+        int which = -1;
+        for (int j = 0; j < (int)(sizeof with_value / sizeof with_value[0]); j++)
+            if (!strcmp(a, with_value[j])) which = j;
+        if (which < 0) {
+            fprintf(stderr, "afmtwin sweep: unknown option '%s'\n", a);
+            return -1;
+        }
+        if (i + 1 >= argc) {
+            fprintf(stderr, "afmtwin sweep: %s needs a value\n", a);
+            return -1;
+        }
+        const char *v = argv[++i];
+        int rc = 0;
+        switch (which) {
+        case 0:
+            o->config = v;
+            break;
+        case 1:
+            rc = parse_double(a, v, &o->from_hz);
+            have_from = true;
+            break;
+        case 2:
+            rc = parse_double(a, v, &o->to_hz);
+            have_to = true;
+            break;
+        case 3:
+            rc = parse_double(a, v, &o->step_hz);
+            break;
+        case 4:
+            rc = parse_double(a, v, &o->ae_m);
+            break;
+        case 5:
+            rc = parse_double(a, v, &o->z_m);
+            break;
+        case 6:
+            rc = parse_harmonics(v, o);
+            break;
+        case 7:
+            if (!strcmp(v, "rt"))
+                o->integrator = AFM_INTEGRATOR_RT;
+            else if (!strcmp(v, "reference"))
+                o->integrator = AFM_INTEGRATOR_REFERENCE;
+            else if (!strcmp(v, "arkode-erk"))
+                o->integrator = AFM_INTEGRATOR_ARKODE_ERK;
+            else {
+                fprintf(stderr,
+                        "afmtwin sweep: --integrator '%s': expected rt, reference or "
+                        "arkode-erk\n",
+                        v);
+                rc = -1;
+            }
+            break;
+        case 8:
+            rc = parse_int(a, v, 2, 100000000, &o->max_periods);
+            break;
+        case 9:
+            rc = parse_double(a, v, &o->tol);
+            break;
+        }
+        if (rc) return -1;
+    }
+    if (!o->config) {
+        fprintf(stderr, "afmtwin sweep: --config FILE is required\n");
+        return -1;
+    }
+    if (!have_from || !have_to) {
+        fprintf(stderr, "afmtwin sweep: --from and --to are required\n");
+        return -1;
+    }
+    if (o->from_hz <= 0 || o->to_hz <= 0) {
+        fprintf(stderr, "afmtwin sweep: frequencies must be > 0 Hz (got --from %g --to %g)\n",
+                o->from_hz, o->to_hz);
+        return -1;
+    }
+    if (o->from_hz != o->to_hz && isnan(o->step_hz)) {
+        fprintf(stderr, "afmtwin sweep: --step is required when --from and --to differ\n");
+        return -1;
+    }
+    if (!isnan(o->step_hz) && o->step_hz <= 0) {
+        fprintf(stderr,
+                "afmtwin sweep: --step must be > 0 Hz (got %g); the direction follows "
+                "--from and --to\n",
+                o->step_hz);
+        return -1;
+    }
+    if (!isnan(o->ae_m) && (o->ae_m < 0 || o->ae_m > 1e-6)) {
+        fprintf(stderr, "afmtwin sweep: --ae must be in 0..1e-6 m (got %g)\n", o->ae_m);
+        return -1;
+    }
+    if (!isnan(o->z_m) && (o->z_m < 0 || o->z_m > 1e-3)) {
+        fprintf(stderr, "afmtwin sweep: --z must be in 0..1e-3 m (got %g)\n", o->z_m);
+        return -1;
+    }
+    if (!(o->tol > 0 && o->tol < 1)) {
+        fprintf(stderr, "afmtwin sweep: --tol must be in (0, 1) (got %g)\n", o->tol);
+        return -1;
+    }
+    return 0;
+}
+
+/* Frequency of step i (exact multiples of the step, no accumulated rounding). */
+static double step_freq(const sweep_opts *o, int i) {
+    if (i == 0) return o->from_hz;
+    return o->to_hz >= o->from_hz ? o->from_hz + (double)i * o->step_hz
+                                  : o->from_hz - (double)i * o->step_hz;
+}
+
+static cJSON *orbit_json(const afm_orbit *ob, const afm_orbit_settler *st, bool settled) {
+    cJSON *o = cJSON_CreateObject();
+    cJSON_AddNumberToObject(o, "fe_hz", ob->fe_hz);
+    cJSON_AddNumberToObject(o, "periodicity", settled ? st->p : 0);
+    cJSON_AddNumberToObject(o, "settle_periods", st->periods);
+    cJSON_AddBoolToObject(o, "settled", settled);
+    if (isfinite(st->change_rel))
+        cJSON_AddNumberToObject(o, "orbit_change", st->change_rel);
+    else
+        cJSON_AddNullToObject(o, "orbit_change");
+    cJSON_AddNumberToObject(o, "analysed_periods", ob->p);
+    cJSON_AddNumberToObject(o, "min_deflection_m", ob->min_deflection_m);
+    cJSON_AddNumberToObject(o, "max_deflection_m", ob->max_deflection_m);
+    cJSON_AddNumberToObject(o, "max_force_n", ob->max_force_n);
+    if (ob->contacts_truncated) cJSON_AddBoolToObject(o, "contacts_truncated", true);
+    cJSON *cs = cJSON_AddArrayToObject(o, "contacts");
+    for (int i = 0; i < ob->n_contacts; i++) {
+        cJSON *c = cJSON_CreateObject();
+        cJSON_AddNumberToObject(c, "min_deflection_m", ob->contacts[i].min_deflection_m);
+        cJSON_AddNumberToObject(c, "pre_contact_velocity_m_s",
+                                ob->contacts[i].pre_contact_velocity_m_s);
+        cJSON_AddNumberToObject(c, "max_force_n", ob->contacts[i].max_force_n);
+        cJSON_AddItemToArray(cs, c);
+    }
+    cJSON *hs = cJSON_AddArrayToObject(o, "harmonics");
+    for (int i = 0; i < ob->n_harmonics; i++) {
+        const afm_orbit_harmonic *h = &ob->harmonics[i];
+        cJSON *c = cJSON_CreateObject();
+        cJSON_AddNumberToObject(c, "k", h->k);
+        cJSON_AddNumberToObject(c, "deflection_amplitude_m", h->x_amp_m);
+        cJSON_AddNumberToObject(c, "deflection_phase_deg", h->x_phase_deg);
+        cJSON_AddNumberToObject(c, "force_amplitude_n", h->f_amp_n);
+        cJSON_AddNumberToObject(c, "force_phase_deg", h->f_phase_deg);
+        cJSON_AddNumberToObject(c, "phase_diff_deg", h->phase_diff_deg);
+        cJSON_AddItemToArray(hs, c);
+    }
+    return o;
+}
+
+static int print_json_line(const afm_orbit *ob, const afm_orbit_settler *st, bool settled) {
+    cJSON *o = orbit_json(ob, st, settled);
+    char *s = o ? cJSON_PrintUnformatted(o) : NULL;
+    if (s) puts(s);
+    free(s);
+    cJSON_Delete(o);
+    fflush(stdout);
+    return s ? 0 : -1;
+}
+
+static void print_text_step(const afm_orbit *ob, const afm_orbit_settler *st, bool settled) {
+    char p[16];
+    if (settled)
+        snprintf(p, sizeof p, "%d", st->p);
+    else
+        snprintf(p, sizeof p, "- (%d)", ob->p);
+    printf("%-12.3f %-7s %8d %10.2e %12.5f %12.5f %12.5e %3d\n", ob->fe_hz, p, st->periods,
+           st->change_rel, ob->min_deflection_m * 1e9, ob->max_deflection_m * 1e9, ob->max_force_n,
+           ob->n_contacts);
+    for (int i = 0; i < ob->n_contacts; i++)
+        printf("    contact %d: min(xr) %.5f nm, pre-contact velocity %.5e m/s, max(Fts) "
+               "%.5e N\n",
+               i + 1, ob->contacts[i].min_deflection_m * 1e9,
+               ob->contacts[i].pre_contact_velocity_m_s, ob->contacts[i].max_force_n);
+    if (ob->contacts_truncated) printf("    (contact list truncated)\n");
+    for (int i = 0; i < ob->n_harmonics; i++) {
+        const afm_orbit_harmonic *h = &ob->harmonics[i];
+        printf("    k %2d: |xr| %.5e m  phase %8.3f deg  |F| %.5e N  phase %8.3f deg  "
+               "dphi %7.3f deg\n",
+               h->k, h->x_amp_m, h->x_phase_deg, h->f_amp_n, h->f_phase_deg, h->phase_diff_deg);
+    }
+    fflush(stdout);
+}
+
+static const char *rc_text(int rc) {
+    switch (rc) {
+    case AFM_SIM_EBLOWUP:
+        return "the state blew up (simulator reset to rest)";
+    case AFM_SIM_ESOLVER:
+        return "SUNDIALS solver failure";
+    case AFM_SIM_EINVAL:
+        return "invalid argument";
+    default:
+        return "failed";
+    }
+}
+
+typedef struct {
+    bool tty, shown;
+    double t_start, t_last;
+} progress;
+
+static void progress_update(progress *pg, int step, int n_steps, double fe, int periods,
+                            double change) {
+    if (!pg->tty) return;
+    double t = now_s();
+    if (t - pg->t_start < 1.0 || t - pg->t_last < 0.2) return;
+    pg->t_last = t;
+    pg->shown = true;
+    fprintf(stderr, "\rsweep: step %d/%d  fe %.3f Hz  period %d  change %.1e   ", step + 1, n_steps,
+            fe, periods, change);
+    fflush(stderr);
+}
+
+static void progress_end(progress *pg) {
+    if (pg->shown) fprintf(stderr, "\r%78s\r", "");
+    pg->shown = false;
+}
+
+int afm_cmd_sweep(int argc, char **argv) {
+    sweep_opts o;
+    int rc = parse_args(argc, argv, &o);
+    if (rc == 1) {
+        sweep_usage(stdout);
+        return 0;
+    }
+    if (rc < 0) {
+        fprintf(stderr, "(afmtwin sweep --help describes every option)\n");
+        return 2;
+    }
+
+    static afm_config cfg;
+    char err[AFM_ERR_LEN];
+    if (afm_config_load(o.config, &cfg, err, sizeof err) != 0) {
+        fprintf(stderr, "afmtwin sweep: %s\n", err);
+        return 2;
+    }
+    double fs = cfg.sim.sample_rate_hz, f_hi = fmax(o.from_hz, o.to_hz);
+    double f_lo = fmin(o.from_hz, o.to_hz);
+    if (f_hi >= 0.5 * fs) {
+        fprintf(stderr, "afmtwin sweep: frequencies must be below half the sample rate, %g Hz\n",
+                0.5 * fs);
+        return 2;
+    }
+    int n_steps = 1;
+    if (o.from_hz != o.to_hz) {
+        double n = floor(fabs(o.to_hz - o.from_hz) / o.step_hz * (1.0 + 1e-12)) + 1.0;
+        if (n > MAX_STEPS) {
+            fprintf(stderr, "afmtwin sweep: %.0f steps; at most %d\n", n, MAX_STEPS);
+            return 2;
+        }
+        n_steps = (int)n;
+    }
+    if (o.nk == 0) {
+        if (cfg.sim.n_harmonics > 0) {
+            o.nk = cfg.sim.n_harmonics;
+            memcpy(o.ks, cfg.sim.harmonics, (size_t)o.nk * sizeof o.ks[0]);
+        } else {
+            o.nk = (int)(sizeof default_harmonics / sizeof default_harmonics[0]);
+            memcpy(o.ks, default_harmonics, sizeof default_harmonics);
+        }
+    }
+    for (int j = 0; j < o.nk; j++)
+        if ((double)o.ks[j] * f_hi >= 0.5 * fs) {
+            fprintf(stderr,
+                    "afmtwin sweep: harmonic %d at %g Hz is not below half the sample rate, "
+                    "%g Hz\n",
+                    o.ks[j], o.ks[j] * f_hi, 0.5 * fs);
+            return 2;
+        }
+    if (!isnan(o.ae_m)) cfg.drive.tones[0].amplitude_m = o.ae_m;
+    if (!isnan(o.z_m)) cfg.drive.separation_m = o.z_m;
+    if (o.integrator >= 0) cfg.sim.integrator = (afm_integrator_kind)o.integrator;
+    cfg.drive.tones[0].frequency_hz = o.from_hz;
+    if (afm_config_validate(&cfg, err, sizeof err) != 0) {
+        fprintf(stderr, "afmtwin sweep: %s\n", err);
+        return 2;
+    }
+
+    static afm_modal m;
+    afm_force_params f;
+    if (afm_model_build(&cfg.model, &m, err, sizeof err) != 0) {
+        fprintf(stderr, "afmtwin sweep: %s\n", err);
+        return 2;
+    }
+    double len = m.beam_length_m > 0 ? m.beam_length_m : cfg.forces.plate_length_m;
+    double wid = m.beam_mean_width_m > 0 ? m.beam_mean_width_m : cfg.forces.plate_width_m;
+    if (afm_force_init(&f, &cfg.forces, len, wid, err, sizeof err) != 0) {
+        fprintf(stderr, "afmtwin sweep: %s\n", err);
+        return 2;
+    }
+    afm_sim *sim = afm_sim_create(&m, &f, &cfg.drive, &cfg.sim, err, sizeof err);
+    if (!sim) {
+        fprintf(stderr, "afmtwin sweep: %s\n", err);
+        return 1;
+    }
+    int cap = afm_orbit_settle_capacity(fs, f_lo, AFM_ORBIT_MAX_P);
+    afm_sample *buf = cap > 0 ? malloc((size_t)cap * sizeof *buf) : NULL;
+    if (!buf) {
+        fprintf(stderr, "afmtwin sweep: cannot allocate the sample buffer\n");
+        afm_sim_destroy(&sim);
+        return 1;
+    }
+
+    double ae = cfg.drive.tones[0].amplitude_m;
+    double xc = afm_force_contact_x(afm_sim_forces(sim), afm_sim_separation(sim));
+    if (!o.json) {
+        printf("# afmtwin sweep %s: integrator %s, Ae %.4g m, Z %.4g m, contact at xr < %.5g nm, "
+               "tol %.1e, max %d periods\n",
+               o.config, afm_sim_integrator_name(sim), ae, afm_sim_separation(sim), xc * 1e9, o.tol,
+               o.max_periods);
+        printf("%-12s %-7s %8s %10s %12s %12s %12s %3s\n", "# fe_hz", "p", "periods", "change",
+               "min_xr_nm", "max_xr_nm", "max_F_N", "nc");
+    }
+
+    progress pg = {.tty = isatty(STDERR_FILENO) != 0, .t_start = now_s()};
+    int status = 0;
+    afm_orbit_settler st;
+    static afm_orbit ob;
+    for (int i = 0; i < n_steps && status == 0; i++) {
+        double fe = step_freq(&o, i);
+        rc = afm_sim_set_tone(sim, 0, ae, fe);
+        if (rc != AFM_SIM_OK) {
+            fprintf(stderr, "afmtwin sweep: cannot set %g Hz: %s\n", fe, rc_text(rc));
+            status = 2;
+            break;
+        }
+        if (afm_orbit_settle_begin(&st, buf, cap, AFM_ORBIT_MAX_P, o.tol, sim) != 0) {
+            fprintf(stderr, "afmtwin sweep: internal error: sample buffer too small\n");
+            status = 1;
+            break;
+        }
+        int settled = 0;
+        while (st.periods < o.max_periods && (settled = afm_orbit_settle_period(&st, sim)) == 0)
+            progress_update(&pg, i, n_steps, fe, st.periods, st.change_rel);
+        if (settled < 0) {
+            progress_end(&pg);
+            fprintf(stderr, "afmtwin sweep: at %g Hz after %d periods: %s\n", fe, st.periods,
+                    rc_text(settled));
+            status = 1;
+            break;
+        }
+        int p = settled ? st.p : st.p_best;
+        if (afm_orbit_analyse(st.buf, st.n, afm_sim_drive(sim), p, xc, o.ks, o.nk, &ob, err,
+                              sizeof err) != 0) {
+            progress_end(&pg);
+            fprintf(stderr, "afmtwin sweep: at %g Hz: %s\n", fe, err);
+            status = 1;
+            break;
+        }
+        progress_end(&pg);
+        if (o.json) {
+            if (print_json_line(&ob, &st, settled == 1) != 0) {
+                fprintf(stderr, "afmtwin sweep: out of memory writing JSON\n");
+                status = 1;
+            }
+        } else {
+            print_text_step(&ob, &st, settled == 1);
+        }
+    }
+    progress_end(&pg);
+    free(buf);
+    afm_sim_destroy(&sim);
+    return status;
+}
