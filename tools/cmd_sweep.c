@@ -12,6 +12,7 @@
 #include "afm_force.h"
 #include "afm_model.h"
 #include "afm_orbit.h"
+#include "afm_twin.h"
 #include "afm_sim.h"
 
 #include <cjson/cJSON.h>
@@ -366,22 +367,10 @@ static void print_text_step(const afm_orbit *ob, const afm_orbit_settler *st, bo
     fflush(stdout);
 }
 
-static const char *rc_text(int rc) {
-    switch (rc) {
-    case AFM_SIM_EBLOWUP:
-        return "the state blew up (simulator reset to rest)";
-    case AFM_SIM_ESOLVER:
-        return "SUNDIALS solver failure";
-    case AFM_SIM_EINVAL:
-        return "invalid argument";
-    default:
-        return "failed";
-    }
-}
-
 typedef struct {
     bool tty, shown;
     double t_start, t_last;
+    int step, n_steps;
 } progress;
 
 static void progress_update(progress *pg, int step, int n_steps, double fe, int periods,
@@ -394,6 +383,11 @@ static void progress_update(progress *pg, int step, int n_steps, double fe, int 
     fprintf(stderr, "\rsweep: step %d/%d  fe %.3f Hz  period %d  change %.1e   ", step + 1, n_steps,
             fe, periods, change);
     fflush(stderr);
+}
+
+static void on_period(void *ctx, const afm_orbit_settler *st, double fe_hz) {
+    progress *pg = ctx;
+    progress_update(pg, pg->step, pg->n_steps, fe_hz, st->periods, st->change_rel);
 }
 
 static void progress_end(progress *pg) {
@@ -461,27 +455,14 @@ int afm_cmd_sweep(int argc, char **argv) {
         return 2;
     }
 
-    static afm_modal m;
-    afm_force_params f;
-    if (afm_model_build(&cfg.model, &m, err, sizeof err) != 0) {
-        fprintf(stderr, "afmtwin sweep: %s\n", err);
-        return 2;
-    }
-    double len = m.beam_length_m > 0 ? m.beam_length_m : cfg.forces.plate_length_m;
-    double wid = m.beam_mean_width_m > 0 ? m.beam_mean_width_m : cfg.forces.plate_width_m;
-    if (afm_force_init(&f, &cfg.forces, len, wid, err, sizeof err) != 0) {
-        fprintf(stderr, "afmtwin sweep: %s\n", err);
-        return 2;
-    }
-    afm_sim *sim = afm_sim_create(&m, &f, &cfg.drive, &cfg.sim, err, sizeof err);
+    afm_sim *sim = afm_twin_create(&cfg, NULL, NULL, err, sizeof err);
     if (!sim) {
         fprintf(stderr, "afmtwin sweep: %s\n", err);
         return 1;
     }
-    int cap = afm_orbit_settle_capacity(fs, f_lo, AFM_ORBIT_MAX_P);
-    afm_sample *buf = cap > 0 ? malloc((size_t)cap * sizeof *buf) : NULL;
-    if (!buf) {
-        fprintf(stderr, "afmtwin sweep: cannot allocate the sample buffer\n");
+    afm_sweep sw;
+    if (afm_sweep_init(&sw, fs, f_lo, o.tol, o.max_periods, o.ks, o.nk, err, sizeof err) != 0) {
+        fprintf(stderr, "afmtwin sweep: %s\n", err);
         afm_sim_destroy(&sim);
         return 1;
     }
@@ -497,53 +478,32 @@ int afm_cmd_sweep(int argc, char **argv) {
                "min_xr_nm", "max_xr_nm", "max_F_N", "nc");
     }
 
-    progress pg = {.tty = isatty(STDERR_FILENO) != 0, .t_start = now_s()};
+    progress pg = {.tty = isatty(STDERR_FILENO) != 0, .t_start = now_s(), .n_steps = n_steps};
+    sw.on_period = on_period;
+    sw.on_period_ctx = &pg;
     int status = 0;
-    afm_orbit_settler st;
     static afm_orbit ob;
     for (int i = 0; i < n_steps && status == 0; i++) {
         double fe = step_freq(&o, i);
-        rc = afm_sim_set_tone(sim, 0, ae, fe);
-        if (rc != AFM_SIM_OK) {
-            fprintf(stderr, "afmtwin sweep: cannot set %g Hz: %s\n", fe, rc_text(rc));
-            status = 2;
-            break;
-        }
-        if (afm_orbit_settle_begin(&st, buf, cap, AFM_ORBIT_MAX_P, o.tol, sim) != 0) {
-            fprintf(stderr, "afmtwin sweep: internal error: sample buffer too small\n");
-            status = 1;
-            break;
-        }
-        int settled = 0;
-        while (st.periods < o.max_periods && (settled = afm_orbit_settle_period(&st, sim)) == 0)
-            progress_update(&pg, i, n_steps, fe, st.periods, st.change_rel);
-        if (settled < 0) {
-            progress_end(&pg);
-            fprintf(stderr, "afmtwin sweep: at %g Hz after %d periods: %s\n", fe, st.periods,
-                    rc_text(settled));
-            status = 1;
-            break;
-        }
-        int p = settled ? st.p : st.p_best;
-        if (afm_orbit_analyse(st.buf, st.n, afm_sim_drive(sim), p, xc, o.ks, o.nk, &ob, err,
-                              sizeof err) != 0) {
-            progress_end(&pg);
-            fprintf(stderr, "afmtwin sweep: at %g Hz: %s\n", fe, err);
-            status = 1;
-            break;
-        }
+        pg.step = i;
+        int settled = afm_sweep_step(&sw, sim, fe, ae, &ob, err, sizeof err);
         progress_end(&pg);
+        if (settled < 0) {
+            fprintf(stderr, "afmtwin sweep: %s\n", err);
+            status = 1;
+            break;
+        }
         if (o.json) {
-            if (print_json_line(&ob, &st, settled == 1) != 0) {
+            if (print_json_line(&ob, &sw.st, settled == 1) != 0) {
                 fprintf(stderr, "afmtwin sweep: out of memory writing JSON\n");
                 status = 1;
             }
         } else {
-            print_text_step(&ob, &st, settled == 1);
+            print_text_step(&ob, &sw.st, settled == 1);
         }
     }
     progress_end(&pg);
-    free(buf);
+    afm_sweep_destroy(&sw);
     afm_sim_destroy(&sim);
     return status;
 }
