@@ -36,6 +36,24 @@ done:
     return s;
 }
 
+afm_sim *afm_twin_fork(const afm_sim *src, const afm_cfg_sim *sim, char *err, size_t errlen) {
+    const afm_drive *d = afm_sim_drive(src);
+    double t = afm_sim_time(src), q[AFM_MAX_MODES], qd[AFM_MAX_MODES];
+    afm_cfg_drive dc = {.separation_m = afm_sim_separation(src), .n_tones = d->n};
+    for (int j = 0; j < d->n; j++) {
+        dc.tones[j].amplitude_m = d->amp_m[j];
+        dc.tones[j].frequency_hz = d->omega_rad_s[j] / 6.283185307179586476925286766559;
+        dc.tones[j].phase_rad = afm_drive_phase(d, j, t);
+    }
+    afm_sim *s = afm_sim_create(afm_sim_model(src), afm_sim_forces(src), &dc, sim, err, errlen);
+    afm_sim_get_state(src, q, qd);
+    if (s && afm_sim_set_state(s, q, qd) != AFM_SIM_OK) {
+        snprintf(err, errlen, "fork: the state to copy is not finite");
+        afm_sim_destroy(&s);
+    }
+    return s;
+}
+
 int afm_sweep_init(afm_sweep *w, double sample_rate_hz, double fe_min_hz, double tol_rel,
                    int max_periods, const int *ks, int nk, char *err, size_t errlen) {
     memset(w, 0, sizeof *w);

@@ -15,6 +15,12 @@
 afm_sim *afm_twin_create(const afm_config *cfg, afm_modal *m_out, afm_force_params *f_out,
                          char *err, size_t errlen);
 
+/* A new simulator on src's model, forces, separation and drive, started at t = 0 from
+ * src's current modal state with every tone at src's current phase, integrating with the
+ * integrator and tolerances of sim (e.g. to compare integrators from one settled state).
+ * NULL with err on failure. */
+afm_sim *afm_twin_fork(const afm_sim *src, const afm_cfg_sim *sim, char *err, size_t errlen);
+
 /* One sweep step: a reusable dwell context owning the sample buffer. */
 typedef struct {
     afm_sample *buf;
