@@ -1,6 +1,7 @@
 /* SPDX-License-Identifier: MIT */
 /* afm_force.c -- tip-sample interaction forces and their partials (contract in afm_force.h). */
 #include "afm_force.h"
+#include "afm_force_inline.h"
 
 #include <math.h>
 #include <stdarg.h>
@@ -8,10 +9,6 @@
 
 static const double pi = 3.14159265358979323846;
 static const double eps0_f_m = 8.8541878128e-12; /* vacuum permittivity (CODATA 2018) */
-
-/* Veijola's rarefied-gas fit, eq. (2.34): eta_e = eta0 / (1 + VEIJOLA_A Kn^VEIJOLA_B). */
-#define VEIJOLA_A 9.638
-#define VEIJOLA_B 1.159
 
 static void set_err(char *err, size_t errlen, const char *fmt, ...) {
     if (!err || errlen == 0)
@@ -197,83 +194,17 @@ int afm_force_init(afm_force_params *p, const afm_cfg_forces *cfg, double beam_l
     return 0;
 }
 
-/* The one evaluation both public functions use, so their totals agree bit for bit.
+/* The one evaluation both public functions use, so their totals agree bit for bit (the
+ * formulas are in afm_force_inline.h, shared with the rt integrator).
  * part[0..2] = conservative, viscoelastic, squeeze; *jx, *jv = partials of the total. */
 static inline double eval(const afm_force_params *p, double z, double x, double v,
                           double part[3], double *jx, double *jv) {
-    const double ca = p->cos_alpha;
-    const double d = x * ca + z;
-    const bool out = d >= p->a0_m; /* out of contact: d >= a0 */
-    double fcons = 0.0, kx = 0.0, fvis = 0.0, fsq = 0.0, kv = 0.0;
-
-    if (p->vdw_contact) {
-        if (out) {
-            double id = 1.0 / d;
-            double fv = p->vdw_coef * id * id;
-            fcons = -fv;
-            kx = 2.0 * fv * id * ca;
-        } else {
-            double u = p->a0_m - d;
-            double su = sqrt(u);
-            fcons = p->hertz_coef * u * su - p->f_adhesion_n;
-            kx = -1.5 * p->hertz_coef * su * ca;
-        }
-    }
-    if (p->viscoelastic && !out) {
-        double u = p->a0_m - d;
-        double su = sqrt(u); /* > 0 here: u > 0 strictly */
-        double cvis = p->visco_coef * su;
-        fvis = -cvis * v;
-        kv -= cvis;
-        kx += 0.5 * p->visco_coef * v * ca / su; /* d/dx of -eta sqrt(R u) v, du/dx = -ca */
-    }
-    if (p->capillary) {
-        double dm = p->cap_d_m;
-        double D = out ? d : p->a0_m;
-        double g = 1.0 / (1.0 + D / dm);
-        fcons += -p->cap_coef_n * g;
-        if (out)
-            kx += p->cap_coef_n * g * g / dm * ca;
-    }
-    if (p->electrostatic) {
-        double D = out ? d : p->a0_m;
-        double r = p->es_cone_m / (4.0 * D);
-        if (r > 1.0) {
-            fcons += -p->es_coef_n * log(r);
-            if (out)
-                kx += p->es_coef_n * ca / d;
-        }
-    }
-    if (p->squeeze == AFM_SQUEEZE_STARR) {
-        double h = z + x * ca + p->sq_offset_m;
-        bool floored = !(h > p->a0_m);
-        if (floored)
-            h = p->a0_m;
-        double ih = 1.0 / h;
-        double knp = pow(p->sq_lambda_m * ih, VEIJOLA_B); /* Kn^1.159 */
-        double gi = 1.0 / (1.0 + VEIJOLA_A * knp);               /* eta_e / eta0 */
-        double c = p->sq_coef * gi * ih * ih * ih;
-        fsq = -c * v;
-        kv -= c;
-        if (!floored) {
-            /* dc/dh = c (-3/h + A B Kn^B / (h (1 + A Kn^B))), dh/dx = ca */
-            double dcdh = c * ih * (-3.0 + VEIJOLA_A * VEIJOLA_B * knp * gi);
-            kx += -dcdh * ca * v;
-        }
-    } else if (p->squeeze == AFM_SQUEEZE_LINEAR) {
-        double c = p->p1 * (z + x) + p->p2;
-        if (c > 0.0) {
-            fsq = -c * v;
-            kv -= c;
-            kx += -p->p1 * v;
-        }
-    }
-    part[0] = fcons;
-    part[1] = fvis;
-    part[2] = fsq;
-    *jx = kx;
-    *jv = kv;
-    return (fcons + fvis) + fsq;
+    double kx, kv, sx, sv;
+    double fn = afm_force_near_terms(p, x * p->cos_alpha + z, v, &part[0], &part[1], &kx, &kv);
+    part[2] = afm_force_squeeze_term(p, z, x, v, &sx, &sv);
+    *jx = kx + sx;
+    *jv = kv + sv;
+    return fn + part[2];
 }
 
 double afm_force_tip(const afm_force_params *p, double z_m, double x_m, double v_m_s,

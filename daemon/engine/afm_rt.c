@@ -8,14 +8,30 @@
  *    steps and on every change, so tone changes are phase-continuous and q never jumps.
  *  - The tip force enters through one channel. It is taken as linear over each step
  *    (exponential trapezoidal rule) and solved implicitly: the end force F1 satisfies
- *    F1 = f(x* + gx F1, v* + gv F1), a scalar safeguarded Newton with at most RT_NEWTON_MAX
- *    evaluations (usually one, from a linearised predictor).
+ *    F1 = f(x* + gx F1, v* + gv F1). Out of contact that is one linearly implicit step (one
+ *    force evaluation at x* + gx F0 and one chord correction with the slope of the step
+ *    before); a convergence estimate that is checked off the critical path sends the rare
+ *    step that needs more to a safeguarded chord/Newton iteration of at most RT_NEWTON_MAX
+ *    evaluations, which in contact takes 2-4.
+ *  - Latency: x*, v* of the next full step are affine in this step's F1 (x*_next = A + hx
+ *    F1, with A from the modal update before F1 is known), so the chain from one force to
+ *    the next is one multiply-add, the force and the chord update. The modal update runs
+ *    beside it.
  *  - Out of contact: one step per output sample. When the gap is below a0 at the start or
  *    the end of the sample, or on the cubic Hermite path between, the sample is redone in
  *    m = cfg.rt_substeps_contact substeps, and a substep in which the contact starts or
  *    ends is split at the crossing, located on its cubic Hermite path and rounded to a
- *    grid of RT_GRID cells per substep (every step length used is precomputed).
- * Cost per sample is bounded: at most 1 + 2m implicit steps. No allocation after init. */
+ *    grid of RT_GRID cells per substep (every step length used is precomputed). A bound on
+ *    the Hermite path (it stays above min(x0, x1) - 4/27 dt (|v0| + |v1|)) skips the
+ *    crossing search on samples well clear of the sample.
+ *  - Forces: the formulas of afm_force_inline.h, inlined. Starr's squeeze film (a pow per
+ *    evaluation) is replaced near the rest gap h0 = Z + kappa l cos(alpha) by a quartic
+ *    interpolant of c(h) on h0 (1 +- AFM_RT_STARR_WINDOW), rebuilt whenever Z changes; outside
+ *    it the exact formula is used (afm_rt_coef.h).
+ * Cost per sample is bounded: at most 1 + 3m implicit pieces (a trial full step, then per
+ * substep a trial and two split pieces), each of at most RT_NEWTON_MAX force evaluations.
+ * No allocation after init. */
+#include "afm_force_inline.h"
 #include "afm_rt_coef.h"
 #include "afm_sim_impl.h"
 
@@ -23,6 +39,10 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+
+#if defined(__FMA__) && defined(__AVX__)
+#include <immintrin.h>
+#endif
 
 #define RT_GRID 8             /* table cells per contact substep: crossing resolution */
 #define RT_DEFAULT_SUBSTEPS 4 /* substeps per sample in contact (measured, numerics.md) */
@@ -34,26 +54,62 @@
 typedef struct {
     double q[AFM_MAX_MODES], v[AFM_MAX_MODES];
     double z_re[AFM_MAX_TONES], z_im[AFM_MAX_TONES]; /* e^{i theta_j} */
-    double x, xd, f;  /* tip displacement, velocity, force */
-    double fx, fv;    /* df/dx, df/dv from the last force evaluation */
-    double rj;        /* 1 / (1 - fx gx - fv gv) there, for the step length rk... */
-    int rk;           /* ...in cells (0: none) */
+    double x, xd, f;                                 /* tip displacement, velocity, force */
+    double xn, vn; /* x*, v* of a full step from here: the tip without its F1 response */
+    double fx, fv; /* df/dx, df/dv from the last force evaluation */
+    double rj;     /* 1 / (1 - fx gx - fv gv) there, for the step length rk... */
+    int rk;        /* ...in cells (0: none) */
 } rt_snap;
 
 typedef struct {
     int n, np, m, ncell, ntones; /* np: n rounded up to a multiple of 4 */
-    double tip[AFM_MAX_MODES];    /* tip_i, zero past n */
-    afm_rt_prop *prop; /* prop[k - 1]: step of k cells, tau = k dt / ncell */
+    double tip[AFM_MAX_MODES];   /* tip_i, zero past n */
+    afm_rt_prop *prop;           /* prop[k - 1]: step of k cells, tau = k dt / ncell */
     double *block;
     rt_snap buf[2];
     int cur;
     double wd[AFM_MAX_TONES];
     double cq_re[AFM_MAX_TONES][AFM_MAX_MODES], cq_im[AFM_MAX_TONES][AFM_MAX_MODES];
-    double xc;   /* tip x at which the gap is a0 */
-    bool kinked; /* the force has a kink at d = a0 (contact, capillary, electrostatic) */
-    double ftol; /* Newton tolerance on F (N) */
+    double xc;      /* tip x at which the gap is a0 */
+    bool kinked;    /* the force has a kink at d = a0 (contact, capillary, electrostatic) */
+    double ftol;    /* Newton tolerance on F (N) */
+    double clear_k; /* 4/27 dt: the Hermite path's largest dip per unit end speed */
+    afm_rt_starr starr;
     long since_sync;
 } rt_state;
+
+/* ---- forces ---- */
+
+/* Starr squeeze film from the interpolant; *kx, *kv its partials (afm_force_squeeze_term
+ * outside the window). */
+static inline double rt_squeeze(const afm_sim *s, const rt_state *r, double x, double v,
+                                double *kx, double *kv) {
+    const afm_force_params *p = &s->f;
+    double dcdh, c = afm_rt_starr_eval(&r->starr, afm_force_starr_h(p, s->z_m, x), &dcdh);
+    if (c >= 0.0) {
+        *kv = -c;
+        *kx = -dcdh * p->cos_alpha * v;
+        return -c * v;
+    }
+    return afm_force_squeeze_term(p, s->z_m, x, v, kx, kv);
+}
+
+/* Total tip force at (x, v) and its partials: afm_force_tip, inlined. */
+static inline double rt_force(const afm_sim *s, const rt_state *r, double x, double v,
+                              double *fx, double *fv) {
+    const afm_force_params *p = &s->f;
+    double fc, fvi, kx, kv;
+    double f = afm_force_near_terms(p, fma(x, p->cos_alpha, s->z_m), v, &fc, &fvi, &kx, &kv);
+    if (p->squeeze != AFM_SQUEEZE_NONE) {
+        double sx, sv;
+        f += rt_squeeze(s, r, x, v, &sx, &sv);
+        kx += sx;
+        kv += sv;
+    }
+    *fx = kx;
+    *fv = kv;
+    return f;
+}
 
 /* ---- one implicit piece ---- */
 
@@ -61,20 +117,26 @@ typedef struct {
  * newest reciprocal slope rj = 1 / g'(F) known before it (a chord step: out of contact g'
  * is 1 to 1e-5, so this is Newton there), which keeps the division off the critical path;
  * a bracket turns a step that leaves it into bisection. Leaves f's partials and rj in o. */
-static double rt_solve(const afm_sim *s, const rt_state *r, double xs, double vs, double gx,
-                       double gv, double F, double rj, rt_snap *o) {
+static __attribute__((noinline)) double rt_solve(const afm_sim *s, const rt_state *r, double xs, double vs,
+                              double gx, double gv, double F, double rj, rt_snap *o) {
     double fx, fv;
-    double f = afm_force_tip(&s->f, s->z_m, xs + gx * F, vs + gv * F, &fx, &fv);
-    double res = F - f, fn = F - res * rj;
+    double f = rt_force(s, r, fma(gx, F, xs), fma(gv, F, vs), &fx, &fv);
+    double res = F - f, fn = fma(-res, rj, F);
     /* g'(F) = 1 - fx gx - fv gv is >= 1 in contact (fx, fv <= 0); the floor guards the
      * attractive branch, where it stays near 1 for any real cantilever. */
     double jac = 1.0 - fx * gx - fv * gv;
-    rj = 1.0 / (jac > 0.25 ? jac : 0.25);
-    if (fabs(fn - F) > r->ftol) { /* rare out of contact: no branches on res before this */
+    jac = jac > 0.25 ? jac : 0.25;
+    /* What the next chord step would still change: |fn - F| |1 - jac rj| (the quadratic
+     * Newton term is below that by orders of magnitude for any step taken here). Out of
+     * contact this is ~1e-8 of the force change per step: the test never fails there, and
+     * nothing on the path to the next force waits for it. */
+    double est = fabs(fn - F) * fabs(1.0 - jac * rj);
+    rj = 1.0 / jac;
+    if (__builtin_expect(est > r->ftol, 0)) {
         double lo = res > 0 ? -HUGE_VAL : F, hi = res > 0 ? F : HUGE_VAL;
         F = fn;
         for (int it = 1; it < RT_NEWTON_MAX; it++) {
-            f = afm_force_tip(&s->f, s->z_m, xs + gx * F, vs + gv * F, &fx, &fv);
+            f = rt_force(s, r, fma(gx, F, xs), fma(gv, F, vs), &fx, &fv);
             res = F - f;
             if (res > 0)
                 hi = F;
@@ -82,17 +144,67 @@ static double rt_solve(const afm_sim *s, const rt_state *r, double xs, double vs
                 lo = F;
             fn = F - res * rj;
             jac = 1.0 - fx * gx - fv * gv;
-            rj = 1.0 / (jac > 0.25 ? jac : 0.25);
-            if (!(fn > lo && fn < hi) && lo > -HUGE_VAL && hi < HUGE_VAL)
+            jac = jac > 0.25 ? jac : 0.25;
+            est = fabs(fn - F) * fabs(1.0 - jac * rj);
+            rj = 1.0 / jac;
+            if (!(fn > lo && fn < hi) && lo > -HUGE_VAL && hi < HUGE_VAL) {
                 fn = 0.5 * (lo + hi);
-            if (!(fabs(fn - F) > r->ftol))
-                break;
+                est = hi - lo;
+            }
+            if (!(est > r->ftol)) break;
             F = fn;
         }
     }
     o->fx = fx;
     o->fv = fv;
     o->rj = rj;
+    return fn;
+}
+
+/* Out of contact, d = x cos(alpha) + Z >= a0: the force terms valid there, inlined. */
+static inline __attribute__((always_inline)) double
+rt_force_out(const afm_sim *s, const rt_state *r, double x, double v, double d, double *fx,
+             double *fv) {
+    const afm_force_params *p = &s->f;
+    double f = afm_force_out_terms(p, d, fx);
+    *fv = 0.0;
+    if (p->squeeze == AFM_SQUEEZE_LINEAR) {
+        double c = fma(p->p1, s->z_m + x, p->p2);
+        if (c > 0.0) {
+            f = fma(-c, v, f);
+            *fv = -c;
+            *fx = fma(-p->p1, v, *fx);
+        }
+    } else if (p->squeeze == AFM_SQUEEZE_STARR) {
+        double sx, sv;
+        f += rt_squeeze(s, r, x, v, &sx, &sv);
+        *fx += sx;
+        *fv = sv;
+    }
+    return f;
+}
+
+/* rt_solve for a step that starts out of contact: one force evaluation at the guess F and
+ * one chord correction with the reciprocal slope rj of the step before (a linearly
+ * implicit step). Its convergence estimate is checked off the critical path; a step that
+ * fails it, or whose guess is in contact, goes to rt_solve. */
+static inline __attribute__((always_inline)) double
+rt_solve_fast(const afm_sim *s, const rt_state *r, double xs, double vs, double gx, double gv,
+              double F, double rj, rt_snap *o) {
+    const afm_force_params *p = &s->f;
+    double x = fma(gx, F, xs), v = fma(gv, F, vs);
+    double d = fma(x, p->cos_alpha, s->z_m);
+    if (__builtin_expect(!(d >= p->a0_m), 0)) return rt_solve(s, r, xs, vs, gx, gv, F, rj, o);
+    double fx, fv;
+    double f = rt_force_out(s, r, x, v, d, &fx, &fv);
+    double fn = fma(f - F, rj, F);
+    double jac = 1.0 - fx * gx - fv * gv;
+    jac = jac > 0.25 ? jac : 0.25;
+    double est = fabs(fn - F) * fabs(1.0 - jac * rj);
+    if (__builtin_expect(est > r->ftol, 0)) return rt_solve(s, r, xs, vs, gx, gv, F, rj, o);
+    o->fx = fx;
+    o->fv = fv;
+    o->rj = 1.0 / jac;
     return fn;
 }
 
@@ -103,57 +215,137 @@ typedef double rt_v4 __attribute__((vector_size(32), aligned(8), may_alias));
 #define RT_V4(p) (*(const rt_v4 *)(const void *)(p))
 #define RT_V4W(p) (*(rt_v4 *)(void *)(p))
 
-/* Advance in by k cells (tau = k dt / ncell) into o; o may be in. Mode arrays run to np =
- * n rounded up to 4, with zero coefficients past n. The tip's x*, v* come from their own
- * tip-weighted rows so that the force solve does not wait for the full modal update. */
-static void rt_piece(const afm_sim *s, const rt_state *r, const rt_snap *in, rt_snap *o,
-                     int k) {
-    const afm_rt_prop *P = &r->prop[k - 1];
-    const int np = r->np, nt = r->ntones;
+/* a b + c, fused where the target has FMA (-std=c11 keeps gcc from contracting). */
+static inline rt_v4 rt_fma4(rt_v4 a, rt_v4 b, rt_v4 c) {
+#if defined(__FMA__) && defined(__AVX__)
+    return (rt_v4)_mm256_fmadd_pd((__m256d)a, (__m256d)b, (__m256d)c);
+#else
+    return a * b + c;
+#endif
+}
+
+static inline rt_v4 rt_splat(double x) { return (rt_v4){x, x, x, x}; }
+
+static inline double rt_hsum(rt_v4 a) { return (a[0] + a[1]) + (a[2] + a[3]); }
+
+/* x*, v* of a full step from st (the tip at the step's end without its F1 response). */
+static void rt_predict(const rt_state *r, rt_snap *st) {
+    const afm_rt_prop *P = &r->prop[r->ncell - 1];
+    const int np = r->np;
     const double *c = P->c;
-    const double F0 = in->f, x0 = in->x, v0 = in->xd, fx = in->fx, fv = in->fv;
-    const double rj = in->rk == k ? in->rj : 1.0 / fmax(1.0 - fx * P->gx - fv * P->gv, 0.25);
-    /* tip part first: the critical path */
-    rt_v4 xs4 = {0, 0, 0, 0}, vs4 = {0, 0, 0, 0};
+    rt_v4 xs4 = rt_splat(0.0), vs4 = rt_splat(0.0);
     for (int i = 0; i < np; i += 4) {
-        rt_v4 q = RT_V4(in->q + i), v = RT_V4(in->v + i);
-        xs4 += RT_V4(c + 8 * np + i) * q + RT_V4(c + 9 * np + i) * v;
-        vs4 += RT_V4(c + 10 * np + i) * q + RT_V4(c + 11 * np + i) * v;
+        rt_v4 q = RT_V4(st->q + i), v = RT_V4(st->v + i);
+        xs4 = rt_fma4(RT_V4(c + 8 * np + i), q, rt_fma4(RT_V4(c + 9 * np + i), v, xs4));
+        vs4 = rt_fma4(RT_V4(c + 10 * np + i), q, rt_fma4(RT_V4(c + 11 * np + i), v, vs4));
     }
-    double xs = P->gx0 * F0, vs = P->gv0 * F0;
+    double xs = P->gx0 * st->f + rt_hsum(xs4), vs = P->gv0 * st->f + rt_hsum(vs4);
+    for (int j = 0; j < r->ntones; j++) {
+        xs += P->dx_re[j] * st->z_im[j] + P->dx_im[j] * st->z_re[j];
+        vs += P->dv_re[j] * st->z_im[j] + P->dv_im[j] * st->z_re[j];
+    }
+    st->xn = xs;
+    st->vn = vs;
+}
+
+/* Advance in by k cells (tau = k dt / ncell) into o; o may be in. Mode arrays run to np =
+ * n rounded up to 4, with zero coefficients past n. A full step (k = ncell) takes x*, v*
+ * from in's predictor; a shorter piece from its own tip-weighted rows. Every piece leaves
+ * the predictor of a following full step in o. */
+static inline __attribute__((always_inline)) void
+rt_piece_t(const afm_sim *s, const rt_state *r, const rt_snap *in, rt_snap *o, int k,
+           const int np, const int nt, const bool fast) {
+    const afm_rt_prop *P = &r->prop[k - 1], *PF = &r->prop[r->ncell - 1];
+    const double *c = P->c, *cf = PF->c;
+    const double F0 = in->f;
+    double xs, vs, rj;
+    if (k == r->ncell) {
+        xs = in->xn;
+        vs = in->vn;
+    } else {
+        rt_v4 xs4 = rt_splat(0.0), vs4 = rt_splat(0.0);
+        for (int i = 0; i < np; i += 4) {
+            rt_v4 q = RT_V4(in->q + i), v = RT_V4(in->v + i);
+            xs4 = rt_fma4(RT_V4(c + 8 * np + i), q, rt_fma4(RT_V4(c + 9 * np + i), v, xs4));
+            vs4 = rt_fma4(RT_V4(c + 10 * np + i), q, rt_fma4(RT_V4(c + 11 * np + i), v, vs4));
+        }
+        xs = P->gx0 * F0 + rt_hsum(xs4);
+        vs = P->gv0 * F0 + rt_hsum(vs4);
+        for (int j = 0; j < nt; j++) {
+            xs += P->dx_re[j] * in->z_im[j] + P->dx_im[j] * in->z_re[j];
+            vs += P->dv_re[j] * in->z_im[j] + P->dv_im[j] * in->z_re[j];
+        }
+    }
+    if (in->rk == k)
+        rj = in->rj;
+    else
+        rj = 1.0 / fmax(1.0 - in->fx * P->gx - in->fv * P->gv, 0.25);
+    /* The force first (the critical path); the modal update below does not wait for it
+     * until its last multiply-add. */
+    double F1 = fast ? rt_solve_fast(s, r, xs, vs, P->gx, P->gv, F0, rj, o)
+                     : rt_solve(s, r, xs, vs, P->gx, P->gv, F0, rj, o);
+    double zr1[AFM_MAX_TONES], zi1[AFM_MAX_TONES];
+    double xn = 0.0, vn = 0.0;
     for (int j = 0; j < nt; j++) {
-        xs += P->dx_re[j] * in->z_im[j] + P->dx_im[j] * in->z_re[j];
-        vs += P->dv_re[j] * in->z_im[j] + P->dv_im[j] * in->z_re[j];
+        double zr = in->z_re[j], zi = in->z_im[j];
+        zr1[j] = zr * P->rot_re[j] - zi * P->rot_im[j];
+        zi1[j] = zr * P->rot_im[j] + zi * P->rot_re[j];
+        xn += PF->dx_re[j] * zi1[j] + PF->dx_im[j] * zr1[j];
+        vn += PF->dv_re[j] * zi1[j] + PF->dv_im[j] * zr1[j];
     }
-    xs += (xs4[0] + xs4[1]) + (xs4[2] + xs4[3]);
-    vs += (vs4[0] + vs4[1]) + (vs4[2] + vs4[3]);
-    /* Predictor: f linearised at the start, with the same implicit coupling. */
-    double guess = F0 + (fx * (xs + P->gx * F0 - x0) + fv * (vs + P->gv * F0 - v0)) * rj;
-    double F1 = rt_solve(s, r, xs, vs, P->gx, P->gv, guess, rj, o);
-    o->rk = k;
+    const rt_v4 f0 = rt_splat(F0), f1 = rt_splat(F1);
+    rt_v4 xn4 = rt_splat(0.0), vn4 = rt_splat(0.0);
     for (int i = 0; i < np; i += 4) {
         rt_v4 q = RT_V4(in->q + i), v = RT_V4(in->v + i);
-        rt_v4 a = RT_V4(c + i) * q + RT_V4(c + np + i) * v + RT_V4(c + 4 * np + i) * F0 +
-                  RT_V4(c + 6 * np + i) * F1;
-        rt_v4 w = RT_V4(c + 2 * np + i) * q + RT_V4(c + 3 * np + i) * v +
-                  RT_V4(c + 5 * np + i) * F0 + RT_V4(c + 7 * np + i) * F1;
+        rt_v4 a = rt_fma4(RT_V4(c + i), q, rt_fma4(RT_V4(c + np + i), v, RT_V4(c + 4 * np + i) * f0));
+        rt_v4 w = rt_fma4(RT_V4(c + 2 * np + i), q,
+                          rt_fma4(RT_V4(c + 3 * np + i), v, RT_V4(c + 5 * np + i) * f0));
         for (int j = 0; j < nt; j++) {
             const double *d = P->d + 4 * np * j;
-            double zr = in->z_re[j], zi = in->z_im[j];
-            a += RT_V4(d + i) * zi + RT_V4(d + np + i) * zr;
-            w += RT_V4(d + 2 * np + i) * zi + RT_V4(d + 3 * np + i) * zr;
+            rt_v4 zr = rt_splat(in->z_re[j]), zi = rt_splat(in->z_im[j]);
+            a = rt_fma4(RT_V4(d + i), zi, rt_fma4(RT_V4(d + np + i), zr, a));
+            w = rt_fma4(RT_V4(d + 2 * np + i), zi, rt_fma4(RT_V4(d + 3 * np + i), zr, w));
         }
-        RT_V4W(o->q + i) = a;
-        RT_V4W(o->v + i) = w;
+        /* next full step's x*, v* without this F1 (its F1 part is P->hx F1, P->hv F1) */
+        xn4 = rt_fma4(RT_V4(cf + 8 * np + i), a, rt_fma4(RT_V4(cf + 9 * np + i), w, xn4));
+        vn4 = rt_fma4(RT_V4(cf + 10 * np + i), a, rt_fma4(RT_V4(cf + 11 * np + i), w, vn4));
+        RT_V4W(o->q + i) = rt_fma4(RT_V4(c + 6 * np + i), f1, a);
+        RT_V4W(o->v + i) = rt_fma4(RT_V4(c + 7 * np + i), f1, w);
     }
-    for (int j = 0; j < nt; j++) { /* in == o is fine: tone j reads only its own z */
-        double zr = in->z_re[j], zi = in->z_im[j];
-        o->z_re[j] = zr * P->rot_re[j] - zi * P->rot_im[j];
-        o->z_im[j] = zr * P->rot_im[j] + zi * P->rot_re[j];
+    for (int j = 0; j < nt; j++) { /* after the loop: in == o is allowed */
+        o->z_re[j] = zr1[j];
+        o->z_im[j] = zi1[j];
     }
-    o->x = xs + P->gx * F1;
-    o->xd = vs + P->gv * F1;
+    o->rk = k;
+    o->x = fma(P->gx, F1, xs);
+    o->xd = fma(P->gv, F1, vs);
+    o->xn = fma(P->hx, F1, xn + rt_hsum(xn4));
+    o->vn = fma(P->hv, F1, vn + rt_hsum(vn4));
     o->f = F1;
+}
+
+/* rt_piece_t for the pieces of contact samples (iterated solve). */
+static __attribute__((noinline)) void rt_piece(const afm_sim *s, const rt_state *r,
+                                               const rt_snap *in, rt_snap *o, int k) {
+    if (r->ntones == 1 && r->np == 4)
+        rt_piece_t(s, r, in, o, k, 4, 1, false);
+    else if (r->ntones == 1 && r->np == 8)
+        rt_piece_t(s, r, in, o, k, 8, 1, false);
+    else
+        rt_piece_t(s, r, in, o, k, r->np, r->ntones, false);
+}
+
+/* The full trial step of every sample, out of contact at its start, with the common sizes
+ * (up to 8 modes, one tone) as constants so that its loops unroll and the phasors stay in
+ * registers. */
+static inline __attribute__((always_inline)) void rt_full(const afm_sim *s, const rt_state *r,
+                                                          const rt_snap *in, rt_snap *o) {
+    if (r->ntones == 1 && r->np == 4)
+        rt_piece_t(s, r, in, o, r->ncell, 4, 1, true);
+    else if (r->ntones == 1 && r->np == 8)
+        rt_piece_t(s, r, in, o, r->ncell, 8, 1, true);
+    else
+        rt_piece_t(s, r, in, o, r->ncell, r->np, r->ntones, true);
 }
 
 /* ---- contact location on the cubic Hermite path x(sigma), sigma in [0, 1] ---- */
@@ -178,10 +370,8 @@ static double rt_cubic_root(const rt_cubic *p, double xc, double lo, double hi) 
             hi = sg;
         double dg = (3.0 * p->a * sg + 2.0 * p->b) * sg + p->c;
         double nx = dg != 0.0 ? sg - g / dg : 0.5 * (lo + hi);
-        if (!(nx > lo && nx < hi))
-            nx = 0.5 * (lo + hi);
-        if (fabs(nx - sg) < 1e-7)
-            return nx;
+        if (!(nx > lo && nx < hi)) nx = 0.5 * (lo + hi);
+        if (fabs(nx - sg) < 1e-7) return nx;
         sg = nx;
     }
     return sg;
@@ -193,12 +383,10 @@ static double rt_crossing(const rt_state *r, const rt_snap *a, const rt_snap *b,
     double x0 = a->x, v0 = a->xd, x1 = b->x, v1 = b->xd, xc = r->xc;
     bool in0 = x0 < xc, in1 = x1 < xc;
     bool dip = !in0 && !in1 && v0 < 0 && v1 > 0;
-    if (in0 == in1 && !dip)
-        return -1.0;
+    if (in0 == in1 && !dip) return -1.0;
     rt_cubic p = {2.0 * (x0 - x1) + tau * (v0 + v1), 3.0 * (x1 - x0) - tau * (2.0 * v0 + v1),
                   tau * v0, x0};
-    if (in0 != in1)
-        return rt_cubic_root(&p, xc, 0.0, 1.0);
+    if (in0 != in1) return rt_cubic_root(&p, xc, 0.0, 1.0);
     /* Both ends out of contact, turning inside: does the path dip below xc? Bisect x' = 0. */
     double lo = 0.0, hi = 1.0;
     for (int it = 0; it < 16; it++) {
@@ -217,11 +405,9 @@ static void rt_substep(const afm_sim *s, const rt_state *r, const rt_snap *a, rt
                        double tau) {
     rt_piece(s, r, a, b, RT_GRID);
     double sg = rt_crossing(r, a, b, tau);
-    if (sg < 0)
-        return;
+    if (sg < 0) return;
     int kc = (int)lround(sg * RT_GRID);
-    if (kc <= 0 || kc >= RT_GRID)
-        return;
+    if (kc <= 0 || kc >= RT_GRID) return;
     rt_piece(s, r, a, b, kc);
     rt_piece(s, r, b, b, RT_GRID - kc);
 }
@@ -238,15 +424,35 @@ static void rt_sync_phasors(const afm_sim *s, rt_state *r, rt_snap *st) {
     r->since_sync = 0;
 }
 
+/* The outputs afm_sim_run takes from the backend (be_fills_tip). */
+static void rt_publish(afm_sim *s, const rt_state *r, const rt_snap *b) {
+    for (int i = 0; i < r->np; i += 4) {
+        RT_V4W(s->q + i) = RT_V4(b->q + i);
+        RT_V4W(s->qd + i) = RT_V4(b->v + i);
+    }
+    double u = 0.0;
+    for (int j = 0; j < r->ntones; j++)
+        u += s->drive.amp_m[j] * b->z_im[j];
+    s->f_last_n = b->f;
+    s->x_last_m = b->x;
+    s->v_last_m = b->xd;
+    s->base_last_m = u;
+}
+
 static int rt_advance(afm_sim *s) {
     rt_state *r = s->be_state;
     rt_snap *a = &r->buf[r->cur], *b = &r->buf[r->cur ^ 1];
-    if (++r->since_sync >= RT_RESYNC)
+    if (__builtin_expect(++r->since_sync >= RT_RESYNC, 0)) {
         rt_sync_phasors(s, r, a);
+        rt_predict(r, a);
+    }
     bool contact = r->kinked && a->x < r->xc;
     if (!contact) {
-        rt_piece(s, r, a, b, r->ncell);
-        contact = r->kinked && rt_crossing(r, a, b, s->dt_s) >= 0;
+        rt_full(s, r, a, b);
+        if (r->kinked) {
+            double low = (a->x < b->x ? a->x : b->x) - r->clear_k * (fabs(a->xd) + fabs(b->xd));
+            contact = low < r->xc && rt_crossing(r, a, b, s->dt_s) >= 0;
+        }
     }
     if (contact) {
         double tau = s->dt_s / r->m;
@@ -259,13 +465,8 @@ static int rt_advance(afm_sim *s) {
         b = a; /* the result */
     }
     r->cur = (int)(b - r->buf);
-    for (int i = 0; i < r->n; i++) {
-        s->q[i] = b->q[i];
-        s->qd[i] = b->v[i];
-    }
-    s->f_last_n = b->f;
-    if (!isfinite(b->f) || !isfinite(b->x) || !isfinite(b->xd))
-        return AFM_SIM_EBLOWUP;
+    rt_publish(s, r, b);
+    if (!isfinite(b->f) || !isfinite(b->x) || !isfinite(b->xd)) return AFM_SIM_EBLOWUP;
     return AFM_SIM_OK;
 }
 
@@ -278,14 +479,14 @@ static void rt_changed(afm_sim *s) {
         r->wd[j] = s->drive.omega_rad_s[j];
         for (int i = 0; i < m->n; i++)
             afm_rt_coef_particular(m->omega_rad_s[i], m->xi[i], m->base_k[i], m->base_m[i],
-                                   s->drive.amp_m[j], r->wd[j], &r->cq_re[j][i],
-                                   &r->cq_im[j][i]);
+                                   s->drive.amp_m[j], r->wd[j], &r->cq_re[j][i], &r->cq_im[j][i]);
     }
     for (int k = 0; k < r->ncell; k++)
         afm_rt_coef_drive(&r->prop[k], r->np, r->tip, r->ntones, r->wd,
                           (const double(*)[AFM_MAX_MODES])r->cq_re,
                           (const double(*)[AFM_MAX_MODES])r->cq_im);
     r->xc = afm_force_contact_x(&s->f, s->z_m);
+    afm_rt_starr_build(&r->starr, &s->f, s->z_m);
     rt_snap *st = &r->buf[r->cur];
     rt_sync_phasors(s, r, st);
     st->x = st->xd = 0.0;
@@ -295,15 +496,16 @@ static void rt_changed(afm_sim *s) {
         st->x += m->tip[i] * s->q[i];
         st->xd += m->tip[i] * s->qd[i];
     }
-    st->f = afm_force_tip(&s->f, s->z_m, st->x, st->xd, &st->fx, &st->fv);
+    st->f = rt_force(s, r, st->x, st->xd, &st->fx, &st->fv);
     st->rk = 0;
-    s->f_last_n = st->f;
+    rt_predict(r, st);
+    s->be_fills_tip = true;
+    rt_publish(s, r, st);
 }
 
 static void rt_destroy(afm_sim *s) {
     rt_state *r = s->be_state;
-    if (!r)
-        return;
+    if (!r) return;
     free(r->block);
     free(r->prop);
     free(r);
@@ -313,8 +515,7 @@ static void rt_destroy(afm_sim *s) {
 static int rt_init(afm_sim *s, char *err, size_t errlen) {
     const afm_modal *m = &s->m;
     int sub = s->cfg.rt_substeps_contact;
-    if (sub == 0)
-        sub = RT_DEFAULT_SUBSTEPS;
+    if (sub == 0) sub = RT_DEFAULT_SUBSTEPS;
     if (sub < 1 || sub > RT_MAX_SUBSTEPS) {
         snprintf(err, errlen, "rt integrator: rt_substeps_contact %d not in 1..%d", sub,
                  RT_MAX_SUBSTEPS);
@@ -328,8 +529,8 @@ static int rt_init(afm_sim *s, char *err, size_t errlen) {
         if (!(m->omega_rad_s[i] > 0) || !isfinite(m->omega_rad_s[i]) || !(m->xi[i] >= 0) ||
             !isfinite(m->xi[i]) || !isfinite(m->tip[i]) || !isfinite(m->base_k[i]) ||
             !isfinite(m->base_m[i])) {
-            snprintf(err, errlen,
-                     "rt integrator: mode %d has a bad frequency, damping or coupling", i + 1);
+            snprintf(err, errlen, "rt integrator: mode %d has a bad frequency, damping or coupling",
+                     i + 1);
             return -1;
         }
     }
@@ -362,7 +563,10 @@ static int rt_init(afm_sim *s, char *err, size_t errlen) {
         afm_rt_coef_modes(P, r->n, r->np, m->omega_rad_s, m->xi, m->tip,
                           s->dt_s * (double)(k + 1) / (double)r->ncell);
     }
+    for (int k = 0; k < r->ncell; k++)
+        afm_rt_coef_chain(&r->prop[k], &r->prop[r->ncell - 1], r->np);
     r->kinked = s->f.vdw_contact || s->f.capillary || s->f.electrostatic;
+    r->clear_k = 4.0 / 27.0 * s->dt_s;
     /* F tolerance on the last Newton correction: 1e-5 of the force that bends the cantilever
      * by 1 nm (the error left after that correction is far smaller: quadratic). */
     double k_st = m->static_stiffness_n_m > 0 ? m->static_stiffness_n_m : 1.0;

@@ -2,6 +2,8 @@
 /* afm_rt_coef.c -- exact per-mode step coefficients for the rt backend (see afm_rt_coef.h). */
 #include "afm_rt_coef.h"
 
+#include "afm_force_inline.h"
+
 #include <math.h>
 #include <string.h>
 
@@ -23,8 +25,7 @@ void afm_rt_coef_expm(int n, const double *a, double *e) {
         double col = 0.0;
         for (int i = 0; i < n; i++)
             col += fabs(a[i * n + j]);
-        if (col > norm)
-            norm = col;
+        if (col > norm) norm = col;
     }
     /* Scale to norm <= 1/8: 18 Taylor terms then leave < 1e-30 and the squarings of a
      * dissipative exponential lose little. */
@@ -92,6 +93,17 @@ void afm_rt_coef_modes(afm_rt_prop *p, int n, int np, const double *w, const dou
     }
 }
 
+void afm_rt_coef_chain(afm_rt_prop *p, const afm_rt_prop *pf, int np) {
+    const double *c = p->c, *cf = pf->c;
+    double hx = pf->gx0, hv = pf->gv0;
+    for (int i = 0; i < np; i++) {
+        hx += cf[8 * np + i] * c[6 * np + i] + cf[9 * np + i] * c[7 * np + i];
+        hv += cf[10 * np + i] * c[6 * np + i] + cf[11 * np + i] * c[7 * np + i];
+    }
+    p->hx = hx;
+    p->hv = hv;
+}
+
 void afm_rt_coef_drive(afm_rt_prop *p, int np, const double *tip, int ntones, const double *wd,
                        const double (*c_re)[AFM_MAX_MODES], const double (*c_im)[AFM_MAX_MODES]) {
     const double *c = p->c;
@@ -126,4 +138,36 @@ void afm_rt_coef_particular(double w, double xi, double base_k, double base_m, d
     double den = dr * dr + di * di;
     *c_re = p * dr / den;
     *c_im = -p * di / den;
+}
+
+void afm_rt_starr_build(afm_rt_starr *st, const afm_force_params *p, double z_m) {
+    const int nn = 5;
+    const double pi = 3.14159265358979323846;
+    st->on = false;
+    if (p->squeeze != AFM_SQUEEZE_STARR) return;
+    double h0 = afm_force_starr_h(p, z_m, 0.0), hw = AFM_RT_STARR_WINDOW * h0;
+    if (!isfinite(h0) || !(h0 - hw > p->a0_m)) return;
+    double val[5], ch[5];
+    for (int k = 0; k < nn; k++) {
+        double dcdh;
+        val[k] = afm_force_starr_c(p, h0 + hw * cos(pi * (k + 0.5) / nn), &dcdh);
+    }
+    for (int j = 0; j < nn; j++) { /* Chebyshev coefficients */
+        double acc = 0.0;
+        for (int k = 0; k < nn; k++)
+            acc += val[k] * cos(pi * j * (k + 0.5) / nn);
+        ch[j] = (j == 0 ? 1.0 : 2.0) * acc / nn;
+    }
+    /* T0 = 1, T1 = s, T2 = 2s^2 - 1, T3 = 4s^3 - 3s, T4 = 8s^4 - 8s^2 + 1 */
+    st->a[0] = ch[0] - ch[2] + ch[4];
+    st->a[1] = ch[1] - 3.0 * ch[3];
+    st->a[2] = 2.0 * ch[2] - 8.0 * ch[4];
+    st->a[3] = 4.0 * ch[3];
+    st->a[4] = 8.0 * ch[4];
+    st->h0 = h0;
+    st->hw = hw;
+    st->ihw = 1.0 / hw;
+    for (int k = 0; k < nn; k++)
+        if (!isfinite(st->a[k])) return;
+    st->on = true;
 }

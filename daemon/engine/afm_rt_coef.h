@@ -15,6 +15,9 @@
 #define AFM_RT_COEF_H
 
 #include "afm_config.h"
+#include "afm_force.h"
+
+#include <math.h>
 
 /* All coefficients for one step length tau and n modes, stored with a stride np >= n
  * (zeros past n). c and d point into a block the owner allocates: c has 12 np doubles
@@ -24,11 +27,12 @@
 #define AFM_RT_COEF_ROWS 12
 typedef struct {
     double tau_s;
-    double gx, gv;   /* sum_i tip_i G1_i: d(x, v)(tau) / dF1 */
-    double gx0, gv0; /* sum_i tip_i G0_i: d(x, v)(tau) / dF0 */
+    double gx, gv;                                       /* sum_i tip_i G1_i: d(x, v)(tau) / dF1 */
+    double gx0, gv0;                                     /* sum_i tip_i G0_i: d(x, v)(tau) / dF0 */
     double rot_re[AFM_MAX_TONES], rot_im[AFM_MAX_TONES]; /* e^{i wd_j tau} */
-    double dx_re[AFM_MAX_TONES], dx_im[AFM_MAX_TONES]; /* sum_i tip_i Dq_i */
-    double dv_re[AFM_MAX_TONES], dv_im[AFM_MAX_TONES]; /* sum_i tip_i Dv_i */
+    double dx_re[AFM_MAX_TONES], dx_im[AFM_MAX_TONES];   /* sum_i tip_i Dq_i */
+    double dv_re[AFM_MAX_TONES], dv_im[AFM_MAX_TONES];   /* sum_i tip_i Dv_i */
+    double hx, hv; /* d(x*, v*) / dF1 of a full step that follows this one (coef_chain) */
     double *c;
     double *d;
 } afm_rt_prop;
@@ -38,8 +42,15 @@ typedef struct {
 void afm_rt_coef_modes(afm_rt_prop *p, int n, int np, const double *w, const double *xi,
                        const double *tip, double tau_s);
 
+/* hx, hv of p for a full step pf after it: x*, v* of pf (the tip rows of pf applied to the
+ * state after p, plus pf's G0 term) depend on p's end force F1 through
+ * sum_i (tip p11f_i G1q_i + tip p12f_i G1v_i) + gx0f, and likewise for v. Needs
+ * afm_rt_coef_modes on both. */
+void afm_rt_coef_chain(afm_rt_prop *p, const afm_rt_prop *pf, int np);
+
 /* Drive part of p for tones wd[j] (rad/s), j < ntones, with the steady-state modal
- * amplitudes c[j][i] (re, im; zero past n), tip (np, zero past n). Needs afm_rt_coef_modes first (uses Phi). */
+ * amplitudes c[j][i] (re, im; zero past n), tip (np, zero past n). Needs afm_rt_coef_modes first
+ * (uses Phi). */
 void afm_rt_coef_drive(afm_rt_prop *p, int np, const double *tip, int ntones, const double *wd,
                        const double (*c_re)[AFM_MAX_MODES], const double (*c_im)[AFM_MAX_MODES]);
 
@@ -53,5 +64,30 @@ void afm_rt_coef_particular(double w, double xi, double base_k, double base_m, d
  * of the scaled matrix; relative accuracy about 1e-15 for the well-scaled, dissipative
  * matrices used here. */
 void afm_rt_coef_expm(int n, const double *a, double *e);
+
+/* Starr's squeeze-film coefficient c(h) (afm_force_inline.h) near the rest plate gap
+ * h0 = Z + kappa l cos(alpha), where the tip's excursion keeps it (|x| << h0): a quartic in
+ * s = (h - h0) / hw on hw = AFM_RT_STARR_WINDOW h0, interpolated at the Chebyshev nodes of
+ * the exact c. Relative error about 15 (hw / h0)^5 / 2^4 < 1e-8 on the window. */
+#define AFM_RT_STARR_WINDOW 0.02
+typedef struct {
+    bool on;
+    double h0, hw, ihw; /* m, m, 1/m */
+    double a[5];        /* c = sum_k a_k s^k (N s/m) */
+} afm_rt_starr;
+
+/* Build st for separation z_m; st->on = false when p has no Starr film or the window would
+ * reach the a0 floor (then the exact formula is the only one). Not real-time (pow, cos). */
+void afm_rt_starr_build(afm_rt_starr *st, const afm_force_params *p, double z_m);
+
+/* c(h) (N s/m) and dc/dh into *dcdh from st, or -1 when st is off or h is outside the
+ * window (the caller then uses the exact formula). */
+static inline double afm_rt_starr_eval(const afm_rt_starr *st, double h, double *dcdh) {
+    double sg = (h - st->h0) * st->ihw;
+    if (!st->on || !(fabs(sg) <= 1.0)) return -1.0;
+    const double *a = st->a;
+    *dcdh = fma(fma(fma(4.0 * a[4], sg, 3.0 * a[3]), sg, 2.0 * a[2]), sg, a[1]) * st->ihw;
+    return fma(fma(fma(fma(a[4], sg, a[3]), sg, a[2]), sg, a[1]), sg, a[0]);
+}
 
 #endif

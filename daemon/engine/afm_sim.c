@@ -77,6 +77,9 @@ void afm_sim_destroy(afm_sim **sp) {
 }
 
 static bool state_finite(const afm_sim *s) {
+    /* x, v are sums over every mode (tip_i q_i; tip_i finite): any non-finite q_i shows. */
+    if (s->be_fills_tip)
+        return isfinite(s->x_last_m) && isfinite(s->v_last_m) && fabs(s->x_last_m) < 1e-3;
     for (int i = 0; i < s->m.n; i++)
         if (!isfinite(s->q[i]) || !isfinite(s->qd[i]))
             return false;
@@ -96,16 +99,24 @@ int afm_sim_run(afm_sim *s, int n, afm_sample *out) {
         if (out) {
             afm_sample *o = &out[k];
             double x = 0, v = 0, th = 0;
-            for (int i = 0; i < s->m.n; i++) {
-                x += s->m.tip[i] * s->q[i];
-                v += s->m.tip[i] * s->qd[i];
-                th += s->m.rot[i] * s->q[i];
+            if (s->be_fills_tip) {
+                for (int i = 0; i < s->m.n; i++)
+                    th += s->m.rot[i] * s->q[i];
+                x = s->x_last_m;
+                v = s->v_last_m;
+                o->base_m = s->base_last_m;
+            } else {
+                for (int i = 0; i < s->m.n; i++) {
+                    x += s->m.tip[i] * s->q[i];
+                    v += s->m.tip[i] * s->qd[i];
+                    th += s->m.rot[i] * s->q[i];
+                }
+                o->base_m = afm_drive_x(&s->drive, s->t_s, NULL);
             }
             o->t_s = s->t_s;
             o->x_m = x;
             o->v_m_s = v;
             o->f_n = s->f_last_n;
-            o->base_m = afm_drive_x(&s->drive, s->t_s, NULL);
             o->theta_rad = th + s->m.rot_base * o->base_m;
         }
     }

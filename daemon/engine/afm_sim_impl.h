@@ -30,6 +30,12 @@ struct afm_sim {
     double t_start_s;
     double q[AFM_MAX_MODES], qd[AFM_MAX_MODES];
     double f_last_n; /* tip force at the current state */
+    /* A backend that sets be_fills_tip keeps these at the current state in advance and
+     * changed (the rt backend does); afm_sim_run then takes the output from them instead of
+     * summing over the modes and calling sin for the base. Others leave it false. */
+    bool be_fills_tip;
+    double x_last_m, v_last_m; /* tip displacement and velocity */
+    double base_last_m;        /* base displacement x_dit at t_s */
     const afm_sim_backend *be;
     void *be_state;
 };
