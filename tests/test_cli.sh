@@ -28,5 +28,34 @@ done
 n=$(echo "$out" | sed 's/.*"mac":\(\[\[[^]]*\]\(,\[[^]]*\]\)*\]\).*/\1/' | tr -cd '[' | wc -c)
 [ "$n" -eq 5 ] && ok "modes --json mac is 4 rows" || bad "modes --json mac rows: $((n-1))"
 "$A" modes --config config/default.conf >/dev/null && ok "modes on default.conf" || bad "modes on default.conf"
+
+# sweep: bad values are rejected with a message and exit 2
+C=config/thesis-1dof.conf
+sweep_bad() { # DESCRIPTION ARGS...
+  local what=$1; shift
+  msg=$("$A" sweep --config $C "$@" 2>&1 >/dev/null); rc=$?
+  if [ "$rc" -eq 2 ] && [ -n "$msg" ]; then ok "sweep rejects $what: $(echo "$msg" | head -1)"
+  else bad "sweep $what: exit $rc, message '$msg'"; fi
+}
+sweep_bad "NaN amplitude" --from 3e5 --to 3e5 --ae nan
+sweep_bad "negative Z" --from 3e5 --to 3e5 --z -1e-9
+sweep_bad "frequency at half the sample rate" --from 7.03e6 --to 7.03e6
+sweep_bad "zero step" --from 3e5 --to 3.1e5 --step 0
+sweep_bad "negative frequency" --from -3e5 --to 3e5 --step 1e3
+sweep_bad "unknown option" --from 3e5 --to 3e5 --frobnicate
+expect_rc 0 "sweep --help" "$A" sweep --help
+# sweep --json: one object per step with the issue's keys
+out=$("$A" sweep --config $C --from 299e3 --to 300e3 --step 1e3 --harmonics 1,2 --json 2>/dev/null)
+[ "$(echo "$out" | wc -l)" -eq 2 ] && ok "sweep --json: one line per step" || bad "sweep --json lines: $(echo "$out" | wc -l)"
+for key in fe_hz periodicity settle_periods min_deflection_m max_deflection_m max_force_n contacts \
+           pre_contact_velocity_m_s harmonics deflection_amplitude_m deflection_phase_deg \
+           force_amplitude_n force_phase_deg phase_diff_deg; do
+  echo "$out" | head -1 | grep -q "\"$key\"" && ok "sweep --json has $key" || bad "sweep --json lacks $key"
+done
+# bench --json: one object with cases (quick run)
+out=$("$A" bench --quick --runs 1 --json 2>/dev/null)
+for key in cases config integrator ns_per_sample realtime_factor error_rel; do
+  echo "$out" | grep -q "\"$key\"" && ok "bench --json has $key" || bad "bench --json lacks $key"
+done
 echo "$pass passed, $fail failed"
 [ "$fail" -eq 0 ]
