@@ -9,7 +9,9 @@
 #include "afmtwin_cmds.h"
 
 #include "afm_config.h"
+#include "afm_cycle.h"
 #include "afm_force.h"
+#include "afm_lockin.h"
 #include "afm_model.h"
 #include "afm_orbit.h"
 #include "afm_twin.h"
@@ -96,7 +98,16 @@ static void sweep_usage(FILE *f) {
             "                      [{min_deflection_m, pre_contact_velocity_m_s, max_force_n}],\n"
             "                      harmonics [{k, deflection_amplitude_m, deflection_phase_deg,\n"
             "                      force_amplitude_n, force_phase_deg, phase_diff_deg}];\n"
-            "                      phases in degrees, (-180, 180], phase_diff_deg in [0, 360)\n"
+            "                      phases in degrees, (-180, 180], phase_diff_deg in [0, 360);\n"
+            "                      lockin {amplitude_m, phase_deg}: a lock-in at fe on xr, run\n"
+            "                      on every sample of the sweep (not reset between steps), read\n"
+            "                      at the end of the dwell; config group lockin (time constant,\n"
+            "                      order); phase_deg is the lag of xr behind the drive (90 at a\n"
+            "                      free resonance, below 90 when repulsive);\n"
+            "                      cycle {peak_force_n, min_deflection_m, indentation_m,\n"
+            "                      contact_time_s, pre_contact_velocity_m_s (null without\n"
+            "                      contact), dissipated_energy_j (-int F v dt), mean_deflection_m}\n"
+            "                      over the last whole drive period of the dwell"
             "  --help              this text\n\n"
             "Without --json a readable table. A progress line goes to stderr (terminals only)\n"
             "when the sweep takes more than a second. Exit status 0 ok, 1 simulation failure,\n"
@@ -294,6 +305,45 @@ static double step_freq(const sweep_opts *o, int i) {
                                   : o->from_hz - (double)i * o->step_hz;
 }
 
+/* Streaming estimators fed with every sample of the sweep (afm_sweep.on_samples). */
+typedef struct {
+    afm_lockin lockin;
+    afm_cycle cycle;
+} estimators;
+
+static void on_samples(void *ctx, const afm_sim *s, const afm_sample *smp, int n) {
+    estimators *e = ctx;
+    const afm_drive *d = afm_sim_drive(s);
+    for (int i = 0; i < n; i++) {
+        double th = afm_drive_phase(d, 0, smp[i].t_s);
+        /* both refuse only non-finite values, which the simulator never returns */
+        afm_lockin_push(&e->lockin, smp[i].x_m, th);
+        afm_cycle_push(&e->cycle, &smp[i], th);
+    }
+}
+
+static void add_estimators_json(cJSON *o, const estimators *e) {
+    cJSON *l = cJSON_AddObjectToObject(o, "lockin");
+    cJSON_AddNumberToObject(l, "amplitude_m", afm_lockin_amplitude(&e->lockin));
+    cJSON_AddNumberToObject(l, "phase_deg", afm_lockin_phase_deg(&e->lockin));
+    if (e->cycle.periods < 1) {
+        cJSON_AddNullToObject(o, "cycle");
+        return;
+    }
+    const afm_cycle_metrics *m = &e->cycle.out;
+    cJSON *c = cJSON_AddObjectToObject(o, "cycle");
+    cJSON_AddNumberToObject(c, "peak_force_n", m->peak_force_n);
+    cJSON_AddNumberToObject(c, "min_deflection_m", m->min_deflection_m);
+    cJSON_AddNumberToObject(c, "indentation_m", m->indentation_m);
+    cJSON_AddNumberToObject(c, "contact_time_s", m->contact_time_s);
+    if (m->n_contacts > 0)
+        cJSON_AddNumberToObject(c, "pre_contact_velocity_m_s", m->pre_contact_velocity_m_s);
+    else
+        cJSON_AddNullToObject(c, "pre_contact_velocity_m_s");
+    cJSON_AddNumberToObject(c, "dissipated_energy_j", m->dissipated_energy_j);
+    cJSON_AddNumberToObject(c, "mean_deflection_m", m->mean_deflection_m);
+}
+
 static cJSON *orbit_json(const afm_orbit *ob, const afm_orbit_settler *st, bool settled) {
     cJSON *o = cJSON_CreateObject();
     cJSON_AddNumberToObject(o, "fe_hz", ob->fe_hz);
@@ -333,14 +383,30 @@ static cJSON *orbit_json(const afm_orbit *ob, const afm_orbit_settler *st, bool 
     return o;
 }
 
-static int print_json_line(const afm_orbit *ob, const afm_orbit_settler *st, bool settled) {
+static int print_json_line(const afm_orbit *ob, const afm_orbit_settler *st, bool settled,
+                           const estimators *e) {
     cJSON *o = orbit_json(ob, st, settled);
+    if (o) add_estimators_json(o, e);
     char *s = o ? cJSON_PrintUnformatted(o) : NULL;
     if (s) puts(s);
     free(s);
     cJSON_Delete(o);
     fflush(stdout);
     return s ? 0 : -1;
+}
+
+static void print_text_estimators(const estimators *e) {
+    printf("    lock-in: %.5e m  lag %8.3f deg", afm_lockin_amplitude(&e->lockin),
+           afm_lockin_phase_deg(&e->lockin));
+    if (e->cycle.periods > 0) {
+        const afm_cycle_metrics *m = &e->cycle.out;
+        printf("   last period: indentation %.4f nm, contact %.4e s, dissipated %.4e J, "
+               "mean xr %.5f nm",
+               m->indentation_m * 1e9, m->contact_time_s, m->dissipated_energy_j,
+               m->mean_deflection_m * 1e9);
+    }
+    printf("\n");
+    fflush(stdout);
 }
 
 static void print_text_step(const afm_orbit *ob, const afm_orbit_settler *st, bool settled) {
@@ -469,6 +535,19 @@ int afm_cmd_sweep(int argc, char **argv) {
 
     double ae = cfg.drive.tones[0].amplitude_m;
     double xc = afm_force_contact_x(afm_sim_forces(sim), afm_sim_separation(sim));
+    /* lock-in: the config's; a time constant of 0 (older configs) means 10 periods of the
+     * lowest sweep frequency, order 4 if unset */
+    static estimators est;
+    afm_cfg_lockin lk = cfg.lockin;
+    if (lk.time_constant_s == 0) lk.time_constant_s = 10.0 / f_lo;
+    if (lk.order == 0) lk.order = 4;
+    if (afm_lockin_init(&est.lockin, &lk, afm_sim_dt(sim), err, sizeof err) != 0 ||
+        afm_cycle_init(&est.cycle, xc, afm_sim_forces(sim)->cos_alpha, err, sizeof err) != 0) {
+        fprintf(stderr, "afmtwin sweep: %s\n", err);
+        afm_sweep_destroy(&sw);
+        afm_sim_destroy(&sim);
+        return 2;
+    }
     if (!o.json) {
         printf("# afmtwin sweep %s: integrator %s, Ae %.4g m, Z %.4g m, contact at xr < %.5g nm, "
                "tol %.1e, max %d periods\n",
@@ -481,6 +560,8 @@ int afm_cmd_sweep(int argc, char **argv) {
     progress pg = {.tty = isatty(STDERR_FILENO) != 0, .t_start = now_s(), .n_steps = n_steps};
     sw.on_period = on_period;
     sw.on_period_ctx = &pg;
+    sw.on_samples = on_samples;
+    sw.on_samples_ctx = &est;
     int status = 0;
     static afm_orbit ob;
     for (int i = 0; i < n_steps && status == 0; i++) {
@@ -494,12 +575,13 @@ int afm_cmd_sweep(int argc, char **argv) {
             break;
         }
         if (o.json) {
-            if (print_json_line(&ob, &sw.st, settled == 1) != 0) {
+            if (print_json_line(&ob, &sw.st, settled == 1, &est) != 0) {
                 fprintf(stderr, "afmtwin sweep: out of memory writing JSON\n");
                 status = 1;
             }
         } else {
             print_text_step(&ob, &sw.st, settled == 1);
+            print_text_estimators(&est);
         }
     }
     progress_end(&pg);

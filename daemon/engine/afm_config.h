@@ -106,9 +106,43 @@ typedef struct {
     afm_integrator_kind integrator;
     int rt_substeps_contact; /* substeps per sample while in contact (rt); default set by engine */
     double ref_rtol;         /* CVODE relative tolerance; default 1e-10 */
-    int n_harmonics;
+    int n_harmonics;                  /* 0: the estimators choose 1, 2, 3 and the harmonics
+                                         nearest f2/fe and f3/fe */
     int harmonics[AFM_MAX_HARMONICS]; /* harmonic numbers k >= 1 to estimate */
 } afm_cfg_sim;
+
+/* Optical beam deflection sensor (issue 4): it measures the tip slope, calibrated so that
+ * mode 1 reads as deflection (m), plus a white noise floor and ADC quantisation. */
+typedef struct {
+    bool enabled;                /* false: outputs carry the tip displacement itself */
+    double noise_density_m_rthz; /* white floor, one-sided, in calibrated m/sqrt(Hz); 0 = none */
+    int adc_bits;                /* NOB; 0 = no quantisation; else 2..32 */
+    double full_scale_m;         /* ADC input range +-full_scale (calibrated m) */
+    unsigned long seed;          /* noise generator seed (runs are reproducible) */
+} afm_cfg_obd;
+
+/* Thermal (Langevin) force per mode at temperature T (fluctuation-dissipation). */
+typedef struct {
+    bool enabled;
+    double temperature_k; /* T > 0 */
+    unsigned long seed;
+} afm_cfg_thermal;
+
+/* Lock-in amplifier at tone 0's frequency (the controller's view). */
+typedef struct {
+    double time_constant_s; /* tau of each first-order low-pass stage, > 0 */
+    int order;              /* 1..8 cascaded stages (6 dB/octave each) */
+} afm_cfg_lockin;
+
+#define AFM_MAX_OUTPUTS 4
+/* Decimated output streams: integer factors from the OBD sample rate. */
+typedef struct {
+    int n_outputs;                       /* 1..AFM_MAX_OUTPUTS */
+    int decimation[AFM_MAX_OUTPUTS];     /* R >= 1 (1 = no decimation) */
+    double passband_fraction;            /* kept band, as a fraction of the output Nyquist
+                                            rate (0 < p < 1, default 0.8); aliases into it
+                                            are rejected by >= 80 dB */
+} afm_cfg_output;
 
 typedef struct {
     char path[256]; /* file it came from */
@@ -116,6 +150,10 @@ typedef struct {
     afm_cfg_forces forces;
     afm_cfg_drive drive;
     afm_cfg_sim sim;
+    afm_cfg_obd obd;
+    afm_cfg_thermal thermal;
+    afm_cfg_lockin lockin;
+    afm_cfg_output output;
 } afm_config;
 
 /* Fill every field with its default (documented in config/README.md). */

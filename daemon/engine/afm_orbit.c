@@ -2,13 +2,14 @@
 /* afm_orbit.c -- steady-state orbit analysis over drive periods (contract in afm_orbit.h). */
 #include "afm_orbit.h"
 
+#include "afm_est_internal.h"
+
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
 
-static const double pi = 3.14159265358979323846264338327950;
-static const double two_pi = 6.283185307179586476925286766559;
-static const double rad2deg = 57.295779513082320876798154814105;
+static const double two_pi = AFM_EST_TWO_PI;
+static const double rad2deg = AFM_EST_RAD2DEG;
 
 #define STENCIL 10 /* points of each end correction; exact for degree < STENCIL */
 
@@ -25,51 +26,18 @@ static double boundary_time(const afm_drive *d, long m) {
     return d->t0_s[0] + (two_pi * (double)m - d->phase_rad[0]) / d->omega_rad_s[0];
 }
 
-/* Cubic Hermite on [t_j, t_j + h] from (x, v) at both ends: coefficients in s = (t-t_j)/h. */
-typedef struct {
-    double a, b, c, d;
-} cubic;
-
-static cubic hermite(const afm_sample *s0, const afm_sample *s1, double h) {
-    cubic q;
-    q.a = 2.0 * s0->x_m + h * s0->v_m_s - 2.0 * s1->x_m + h * s1->v_m_s;
-    q.b = -3.0 * s0->x_m - 2.0 * h * s0->v_m_s + 3.0 * s1->x_m - h * s1->v_m_s;
-    q.c = h * s0->v_m_s;
-    q.d = s0->x_m;
-    return q;
-}
-
-static double cubic_at(const cubic *q, double s) {
-    return ((q->a * s + q->b) * s + q->c) * s + q->d;
-}
-static double cubic_slope(const cubic *q, double s) {
-    return (3.0 * q->a * s + 2.0 * q->b) * s + q->c;
-}
-
 /* Extremum of x near sample i: the Hermite cubics on [i-1, i] and [i, i+1] are searched for
  * a stationary point; want_min selects min or max. Returns x_i if nothing better. */
 static double refine_x_extremum(const afm_sample *buf, int n, double h, int i, bool want_min) {
     double best = buf[i].x_m;
     for (int j = i - 1; j <= i; j++) {
         if (j < 0 || j + 1 >= n) continue;
-        cubic q = hermite(&buf[j], &buf[j + 1], h);
-        /* roots of 3a s^2 + 2b s + c */
-        double A = 3.0 * q.a, B = 2.0 * q.b, C = q.c, r[2];
-        int nr = 0;
-        if (fabs(A) < 1e-300) {
-            if (fabs(B) > 1e-300) r[nr++] = -C / B;
-        } else {
-            double disc = B * B - 4.0 * A * C;
-            if (disc >= 0) {
-                double sq = sqrt(disc);
-                double qq = -0.5 * (B + (B >= 0 ? sq : -sq));
-                r[nr++] = qq / A;
-                if (qq != 0) r[nr++] = C / qq;
-            }
-        }
+        afm_cubic q = afm_hermite(&buf[j], &buf[j + 1], h);
+        double r[2];
+        int nr = afm_cubic_stationary(&q, r);
         for (int k = 0; k < nr; k++) {
             if (!(r[k] >= 0.0 && r[k] <= 1.0)) continue;
-            double x = cubic_at(&q, r[k]);
+            double x = afm_cubic_at(&q, r[k]);
             if (want_min ? x < best : x > best) best = x;
         }
     }
@@ -78,34 +46,16 @@ static double refine_x_extremum(const afm_sample *buf, int n, double h, int i, b
 
 /* Peak of f near a sample maximum i by the parabola through i-1, i, i+1. */
 static double refine_f_max(const afm_sample *buf, int n, int i) {
-    double f0 = buf[i].f_n;
-    if (i < 1 || i + 1 >= n) return f0;
-    double fm = buf[i - 1].f_n, fp = buf[i + 1].f_n;
-    double den = fm - 2.0 * f0 + fp;
-    if (!(den < 0) || fm > f0 || fp > f0) return f0;
-    double delta = 0.5 * (fm - fp) / den;
-    return f0 - 0.25 * (fm - fp) * delta;
+    if (i < 1 || i + 1 >= n) return buf[i].f_n;
+    return afm_parabola_peak(buf[i - 1].f_n, buf[i].f_n, buf[i + 1].f_n);
 }
 
 /* Crossing of x through xc inside [t_j, t_j+1] (x_j and x_j+1 on opposite sides): bisection
  * on the Hermite cubic. Writes the time and the velocity there. */
 static void crossing(const afm_sample *buf, double h, int j, double xc, double *t, double *v) {
-    cubic q = hermite(&buf[j], &buf[j + 1], h);
-    double lo = 0.0, hi = 1.0;
-    double glo = q.d - xc;
-    for (int it = 0; it < 200 && hi - lo > 1e-15; it++) {
-        double mid = 0.5 * (lo + hi);
-        double g = cubic_at(&q, mid) - xc;
-        if ((g >= 0) == (glo >= 0)) {
-            lo = mid;
-            glo = g;
-        } else {
-            hi = mid;
-        }
-    }
-    double s = 0.5 * (lo + hi);
+    double s;
+    afm_hermite_crossing(&buf[j], &buf[j + 1], h, xc, &s, v);
     *t = buf[j].t_s + s * h;
-    *v = cubic_slope(&q, s) / h;
 }
 
 /* Uniform step of the buffer, or 0 if the times are not uniform and increasing. */
@@ -439,10 +389,7 @@ int afm_orbit_analyse(const afm_sample *buf, int n, const afm_drive *d, int p, d
         o->x_phase_deg = phk * rad2deg;
         o->f_amp_n = scale * hypot(fr[j], fi[j]);
         o->f_phase_deg = atan2(fi[j], fr[j]) * rad2deg;
-        double dphi = fmod((double)kk[j] * (pi - phi1) + phk, two_pi);
-        if (dphi < 0) dphi += two_pi;
-        o->phase_diff_deg = dphi * rad2deg;
-        if (o->phase_diff_deg >= 360.0) o->phase_diff_deg = 0.0;
+        o->phase_diff_deg = afm_phase_diff_deg(kk[j], phi1, phk);
     }
     return 0;
 }

@@ -101,9 +101,19 @@ int afm_sweep_step(afm_sweep *w, afm_sim *s, double fe_hz, double amp_m, afm_orb
         return -1;
     }
     int settled = 0;
-    while (w->st.periods < w->max_periods && (settled = afm_orbit_settle_period(&w->st, s)) == 0)
+    while (w->st.periods < w->max_periods) {
+        double t_fed = afm_sim_time(s); /* samples after this time are new */
+        settled = afm_orbit_settle_period(&w->st, s);
+        if (settled >= 0 && w->on_samples) {
+            int i = w->st.n;
+            while (i > 0 && w->st.buf[i - 1].t_s > t_fed)
+                i--;
+            if (i < w->st.n) w->on_samples(w->on_samples_ctx, s, w->st.buf + i, w->st.n - i);
+        }
+        if (settled != 0) break;
         if (w->on_period)
             w->on_period(w->on_period_ctx, &w->st, fe_hz);
+    }
     if (settled < 0) {
         snprintf(err, errlen, "at %g Hz after %d periods: %s", fe_hz, w->st.periods,
                  sim_rc_text(settled));

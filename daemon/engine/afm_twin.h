@@ -33,6 +33,12 @@ typedef struct {
     /* Optional: called after every dwell period (e.g. a progress line); may be NULL. */
     void (*on_period)(void *ctx, const afm_orbit_settler *st, double fe_hz);
     void *on_period_ctx;
+    /* Optional: called after every dwell period with the samples just simulated, oldest
+     * first, so that streaming estimators (afm_lockin, afm_harm, afm_cycle) see every sample
+     * of every dwell exactly once and in order; s gives the drive for the phase
+     * (afm_drive_phase(afm_sim_drive(s), 0, t)). May be NULL. Set after afm_sweep_init. */
+    void (*on_samples)(void *ctx, const afm_sim *s, const afm_sample *samples, int n);
+    void *on_samples_ctx;
 } afm_sweep;
 
 /* fe_min_hz: the lowest tone-0 frequency the sweep will use (sizes the buffer).

@@ -1,0 +1,155 @@
+/* SPDX-License-Identifier: MIT */
+/* afm_cycle.c -- streaming per-period tapping metrics (contract in afm_cycle.h). */
+#include "afm_cycle.h"
+
+#include <stdio.h>
+#include <string.h>
+
+int afm_cycle_init(afm_cycle *c, double x_contact_m, double cos_alpha, char *err, size_t errlen) {
+    if (!c || isnan(x_contact_m) || x_contact_m == HUGE_VAL || !(cos_alpha > 0) ||
+        !(cos_alpha <= 1)) {
+        if (err && errlen)
+            snprintf(err, errlen,
+                     "cycle: contact line must be a number or -inf (got %g), cos(alpha) in (0, 1] "
+                     "(got %g)",
+                     x_contact_m, cos_alpha);
+        return -1;
+    }
+    memset(c, 0, sizeof *c);
+    c->x_contact_m = x_contact_m;
+    c->cos_alpha = cos_alpha;
+    return 0;
+}
+
+int afm_cycle_set_contact(afm_cycle *c, double x_contact_m) {
+    if (isnan(x_contact_m) || x_contact_m == HUGE_VAL) return -1;
+    c->x_contact_m = x_contact_m;
+    return 0;
+}
+
+void afm_cycle_reset(afm_cycle *c) {
+    double xc = c->x_contact_m, ca = c->cos_alpha;
+    memset(c, 0, sizeof *c);
+    c->x_contact_m = xc;
+    c->cos_alpha = ca;
+}
+
+/* Start period accumulation at sample s (the whole period still ahead). */
+static void begin(afm_cycle *c, const afm_sample *s, double t_start) {
+    memset(&c->cur, 0, sizeof c->cur);
+    c->cur.period = c->periods;
+    c->cur.t_start_s = t_start;
+    c->cur.peak_force_n = s->f_n;
+    c->cur.min_deflection_m = s->x_m;
+    c->cur.pre_contact_velocity_m_s = NAN;
+    c->x_int = 0.0;
+    c->active = true;
+}
+
+static void finish(afm_cycle *c) {
+    afm_cycle_metrics *m = &c->cur;
+    m->mean_deflection_m = m->duration_s > 0 ? c->x_int / m->duration_s : m->min_deflection_m;
+    m->indentation_m = m->min_deflection_m < c->x_contact_m
+                           ? c->cos_alpha * (c->x_contact_m - m->min_deflection_m)
+                           : 0.0;
+    c->out = *m;
+    c->periods++;
+}
+
+/* Length of [a, b] inside [lo, hi]. */
+static double overlap(double a, double b, double lo, double hi) {
+    double l = a > lo ? a : lo, r = b < hi ? b : hi;
+    return r > l ? r - l : 0.0;
+}
+
+int afm_cycle_push(afm_cycle *c, const afm_sample *s, double theta_rad) {
+    if (!s || !isfinite(s->t_s) || !isfinite(s->x_m) || !isfinite(s->v_m_s) ||
+        !isfinite(s->f_n) || afm_clock_check(&c->clk, theta_rad) != AFM_CLOCK_NONE ||
+        (c->n_prev > 0 && !(s->t_s > c->prev.t_s)))
+        return -1;
+    bool had_prev = c->clk.started;
+    double frac = 1.0;
+    double ph;
+    int ev = afm_clock_advance(&c->clk, theta_rad, &frac, &ph);
+    int done = 0;
+    bool cross = ev == AFM_CLOCK_CROSS;
+    afm_cycle_metrics *m = &c->cur;
+
+    if (!had_prev) {
+        if (ev == AFM_CLOCK_START) begin(c, s, s->t_s);
+    } else {
+        const afm_sample *p = &c->prev;
+        double h = s->t_s - p->t_s, sb = cross ? frac : 1.0; /* part of the step before */
+        /* peak force: refine prev if it is a local maximum (it belongs to `cur`) */
+        if (c->active && c->n_prev >= 2) {
+            double pk = afm_parabola_peak(c->f_prev2, p->f_n, s->f_n);
+            if (pk > m->peak_force_n) m->peak_force_n = pk;
+        }
+        /* minima of the Hermite cubic inside the step, before and after the boundary */
+        afm_cubic q = afm_hermite(p, s, h);
+        double r[2], xmin_b = HUGE_VAL, xmin_a = HUGE_VAL;
+        int nr = afm_cubic_stationary(&q, r);
+        for (int k = 0; k < nr; k++) {
+            if (!(r[k] > 0.0 && r[k] < 1.0)) continue;
+            double x = afm_cubic_at(&q, r[k]);
+            if (r[k] < sb) {
+                if (x < xmin_b) xmin_b = x;
+            } else if (x < xmin_a) {
+                xmin_a = x;
+            }
+        }
+        /* contact part of the step [ca, cb] (fractions) and the inward crossing r_in */
+        double xc = c->x_contact_m, ca = 0.0, cb = 0.0, r_in = -1.0, v_in = 0.0;
+        bool in0 = p->x_m < xc, in1 = s->x_m < xc;
+        if (in0 && in1) {
+            cb = 1.0;
+        } else if (!in0 && in1) {
+            afm_hermite_crossing(p, s, h, xc, &r_in, &v_in);
+            ca = r_in;
+            cb = 1.0;
+        } else if (in0 && !in1) {
+            double v_out;
+            afm_hermite_crossing(p, s, h, xc, &cb, &v_out);
+        }
+        /* integrals of -f v and x over each part */
+        double wb[2] = {0.5, 0.5}, wa[2] = {0.0, 0.0};
+        if (cross) afm_split_weights(frac, wb, wa);
+        double e0 = -p->f_n * p->v_m_s, e1 = -s->f_n * s->v_m_s;
+        if (c->active) {
+            m->dissipated_energy_j += h * (wb[0] * e0 + wb[1] * e1);
+            c->x_int += h * (wb[0] * p->x_m + wb[1] * s->x_m);
+            m->duration_s += h * sb;
+            m->contact_time_s += h * overlap(ca, cb, 0.0, sb);
+            if (xmin_b < m->min_deflection_m) m->min_deflection_m = xmin_b;
+            if (r_in >= 0.0 && r_in < sb) {
+                if (m->n_contacts == 0) m->pre_contact_velocity_m_s = v_in;
+                m->n_contacts++;
+            }
+            if (!cross || frac >= 1.0) { /* the sample lies in (or ends) this period */
+                if (s->x_m < m->min_deflection_m) m->min_deflection_m = s->x_m;
+                if (s->f_n > m->peak_force_n) m->peak_force_n = s->f_n;
+            }
+            if (cross) {
+                finish(c);
+                done = 1;
+            }
+        }
+        if (cross) {
+            /* a new period starts inside this step: it gets the rest of the step */
+            begin(c, s, p->t_s + frac * h);
+            m->duration_s = h * (1.0 - frac);
+            m->dissipated_energy_j = h * (wa[0] * e0 + wa[1] * e1);
+            c->x_int = h * (wa[0] * p->x_m + wa[1] * s->x_m);
+            m->contact_time_s = h * overlap(ca, cb, frac, 1.0);
+            if (xmin_a < m->min_deflection_m) m->min_deflection_m = xmin_a;
+            if (r_in >= frac) {
+                m->pre_contact_velocity_m_s = v_in;
+                m->n_contacts = 1;
+            }
+        }
+    }
+    c->f_prev2 = c->prev.f_n;
+    c->prev = *s;
+    if (c->n_prev < 2) c->n_prev++;
+    return done;
+}

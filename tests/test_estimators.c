@@ -1,0 +1,429 @@
+/* SPDX-License-Identifier: MIT */
+/* test_estimators.c -- the streaming estimators (afm_harm, afm_lockin, afm_cycle) on
+ * synthetic series with known answers, and the lock-in on a linear 1-mode simulation. */
+#include "afm_config.h"
+#include "afm_cycle.h"
+#include "afm_drive.h"
+#include "afm_force.h"
+#include "afm_harm.h"
+#include "afm_lockin.h"
+#include "afm_model.h"
+#include "afm_sim.h"
+#include "check.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+
+static const double pi = 3.14159265358979323846;
+static const double fs = 14.06e6;  /* OBD sample rate of the thesis experiments */
+static const double fe = 84.053e3; /* Table 4.1 F3/F4: 167.27... samples per period */
+
+static double wrap_rad(double a) {
+    a = fmod(a, 2 * pi);
+    if (a > pi) a -= 2 * pi;
+    if (a <= -pi) a += 2 * pi;
+    return a;
+}
+
+/* ---- afm_harm ---- */
+
+/* Period of exactly N samples: the result must equal the DFT of those N samples. */
+static void test_harm_dft(int n0) {
+    enum { N = 100, NP = 4 };
+    const int ks[] = {1, 2, 3, 5, 7, 11};
+    const double ax[] = {3e-8, 1e-9, 4e-10, 2e-10, 7e-11, 3e-11}, px[] = {0.3, -2.0, 1.1, 2.9, -0.7, 0.2};
+    const double af[] = {5e-9, 3e-9, 2e-9, 1e-9, 5e-10, 2e-10}, pf[] = {-1.0, 0.5, 2.5, -2.9, 1.7, -0.1};
+    const int nk = 6;
+    static double x[N * NP + 200], f[N * NP + 200];
+    int total = N * NP + n0 + 1;
+    for (int n = 0; n < total; n++) {
+        x[n] = 1e-9; /* a mean: must not leak into any k */
+        f[n] = -2e-9;
+        for (int j = 0; j < nk; j++) {
+            x[n] += ax[j] * cos(2 * pi * ks[j] * (double)(n - n0) / N + px[j]);
+            f[n] += af[j] * cos(2 * pi * ks[j] * (double)(n - n0) / N + pf[j]);
+        }
+    }
+    afm_harm h;
+    char err[AFM_ERR_LEN];
+    check_true(afm_harm_init(&h, ks, nk, err, sizeof err) == 0, "harm init");
+    int periods = 0;
+    double max_amp = 0, max_ph = 0, max_fa = 0, max_fp = 0, max_pd = 0;
+    for (int n = 0; n < total; n++) {
+        /* theta of sample n: the first sample lies n0 samples after a boundary */
+        double th = 2 * pi * (double)(n - n0) / N + 2 * pi * 7;
+        int rc = afm_harm_push(&h, x[n], f[n], th);
+        if (rc != 1) continue;
+        periods++;
+        /* the period just completed: samples [n - N, n) */
+        double phi1 = 0;
+        for (int j = 0; j < nk; j++) {
+            double xr = 0, xi = 0, fr = 0, fi = 0;
+            for (int i = 0; i < N; i++) {
+                double a = 2 * pi * ks[j] * (double)i / N;
+                xr += x[n - N + i] * cos(a);
+                xi -= x[n - N + i] * sin(a);
+                fr += f[n - N + i] * cos(a);
+                fi -= f[n - N + i] * sin(a);
+            }
+            double amp = 2 * hypot(xr, xi) / N, ph = atan2(xi, xr);
+            if (j == 0) phi1 = ph;
+            double pd = fmod(ks[j] * (pi - phi1) + ph, 2 * pi);
+            if (pd < 0) pd += 2 * pi;
+            const afm_orbit_harmonic *o = &h.out.h[j];
+            max_amp = fmax(max_amp, fabs(o->x_amp_m / amp - 1));
+            max_ph = fmax(max_ph, fabs(wrap_rad(o->x_phase_deg * pi / 180 - ph)));
+            max_fa = fmax(max_fa, fabs(o->f_amp_n / (2 * hypot(fr, fi) / N) - 1));
+            max_fp = fmax(max_fp, fabs(wrap_rad(o->f_phase_deg * pi / 180 - atan2(fi, fr))));
+            max_pd = fmax(max_pd, fabs(wrap_rad((o->phase_diff_deg * pi / 180) - pd)));
+        }
+    }
+    char what[128];
+    snprintf(what, sizeof what, "DFT: whole periods of %d samples (first sample %d after a boundary)", N, n0);
+    /* NP + 1 boundaries pass; the first counts only if theta lands exactly on it */
+    check_true(periods == NP || periods == NP - 1, what);
+    /* 1e-9 requested; only rounding separates the two sums (~1e-13 for the smallest line) */
+    check_abs(max_amp, 0, 1e-9, "DFT: deflection amplitudes, max rel diff");
+    check_abs(max_ph, 0, 1e-9, "DFT: deflection phases, max diff (rad)");
+    check_abs(max_fa, 0, 1e-9, "DFT: force amplitudes, max rel diff");
+    check_abs(max_fp, 0, 1e-9, "DFT: force phases, max diff (rad)");
+    check_abs(max_pd, 0, 1e-9, "DFT: phase_diff eq. E.13, max diff (rad)");
+    check_true(h.out.samples > N - 1e-9 && h.out.samples < N + 1e-9, "DFT: period length N samples");
+}
+
+/* Non-integer samples per period, a pure tone locked to the drive phase, through a
+ * phase-continuous frequency change: fractional-end trapezoid to ~1e-6. */
+static void test_harm_fractional(void) {
+    afm_cfg_drive c = {.separation_m = 30e-9, .n_tones = 1};
+    c.tones[0].amplitude_m = 0.7e-9;
+    c.tones[0].frequency_hz = fe;
+    c.tones[0].phase_rad = 1.1;
+    afm_drive d;
+    afm_drive_init(&d, &c);
+    const double a1 = 2.4e-8, p1 = 20.4 * pi / 180, a3 = 1e-9, p3 = -100 * pi / 180;
+    const int ks[] = {1, 2, 3};
+    afm_harm h;
+    afm_harm_init(&h, ks, 3, NULL, 0);
+    double e1 = 0, ep1 = 0, e3 = 0, ep3 = 0, e2 = 0, f1 = 0;
+    int periods = 0;
+    bool changed = false, straddle = false;
+    for (long n = 0; n < 40 * 168; n++) {
+        double t = 3.7e-6 + (double)n / fs;
+        if (!changed && t > 100e-6) { /* 3 % step in fe, phase-continuous */
+            afm_drive_set_tone(&d, t - 0.5 / fs, 0, 0.7e-9, fe * 1.03);
+            changed = straddle = true;
+        }
+        double th = afm_drive_phase(&d, 0, t);
+        double x = a1 * cos(th + p1) + a3 * cos(3 * th + p3);
+        double f = 2e-9 * cos(th - 0.4);
+        if (afm_harm_push(&h, x, f, th) != 1) continue;
+        periods++;
+        /* The period holding the change is not stationary: theta's rate changes inside it,
+         * so cos(theta) e^{-i theta} does not average its 2 theta part to 0 over dt. */
+        if (straddle) {
+            straddle = false;
+            continue;
+        }
+        e1 = fmax(e1, fabs(h.out.h[0].x_amp_m / a1 - 1));
+        ep1 = fmax(ep1, fabs(wrap_rad(h.out.h[0].x_phase_deg * pi / 180 - p1)));
+        e2 = fmax(e2, h.out.h[1].x_amp_m / a1);
+        e3 = fmax(e3, fabs(h.out.h[2].x_amp_m / a3 - 1));
+        ep3 = fmax(ep3, fabs(wrap_rad(h.out.h[2].x_phase_deg * pi / 180 - p3)));
+        f1 = fmax(f1, fabs(h.out.h[0].f_amp_n / 2e-9 - 1));
+    }
+    check_true(periods >= 38, "fractional: periods completed across the fe change");
+    /* Error bound (afm_harm.h): (2 k w h)^2 / (12 N) per period for the tone at its own k,
+     * plus the other line leaking through the end pieces at about the same order. k = 1:
+     * 2.8e-6 at 167 samples; k = 3 (3 % of the signal relative to tone 1's 24x larger
+     * amplitude leaking in): bound 24 * 2.5e-5. */
+    printf("  fractional: k1 amp %.2e phase %.2e rad, k2 leak %.2e, k3 amp %.2e phase %.2e, F %.2e\n",
+           e1, ep1, e2, e3, ep3, f1);
+    check_abs(e1, 0, 3e-6, "fractional: |x|_1 rel error (pure tone ~1e-6)");
+    check_abs(ep1, 0, 3e-6, "fractional: phi_1 error (rad)");
+    check_abs(f1, 0, 3e-6, "fractional: |F|_1 rel error");
+    check_abs(e2, 0, 3e-6, "fractional: |x|_2 leak / |x|_1");
+    check_abs(e3, 0, 6e-4, "fractional: |x|_3 rel error");
+    check_abs(ep3, 0, 6e-4, "fractional: phi_3 error (rad)");
+}
+
+static void test_harm_defaults_and_errors(void) {
+    afm_modal m;
+    memset(&m, 0, sizeof m);
+    double w = 2 * pi * fe;
+    m.n = 4;
+    m.omega_rad_s[0] = 1.01 * w;
+    m.omega_rad_s[1] = 6.3 * w;
+    m.omega_rad_s[2] = 17.6 * w;
+    m.omega_rad_s[3] = 34 * w;
+    int ks[8];
+    int n = afm_harm_default_list(&m, fe, ks);
+    check_true(n == 5 && ks[0] == 1 && ks[1] == 2 && ks[2] == 3 && ks[3] == 6 && ks[4] == 18,
+               "default list: 1, 2, 3, round(f2/fe) = 6, round(f3/fe) = 18");
+    m.omega_rad_s[1] = 2.9 * w; /* duplicates 3 */
+    m.omega_rad_s[2] = 1.2 * w; /* duplicates 1 */
+    n = afm_harm_default_list(&m, fe, ks);
+    check_true(n == 3 && ks[0] == 1 && ks[1] == 2 && ks[2] == 3, "default list de-duplicated");
+    m.n = 1;
+    n = afm_harm_default_list(&m, fe, ks);
+    check_true(n == 3, "default list for a 1-mode model: 1, 2, 3");
+
+    afm_harm h;
+    char err[AFM_ERR_LEN] = "";
+    int bad[] = {1, 0};
+    check_true(afm_harm_init(&h, bad, 2, err, sizeof err) == -1 && err[0], "harm init rejects k = 0");
+    int good[] = {1, 2};
+    afm_harm_init(&h, good, 2, NULL, 0);
+    afm_harm_push(&h, 1e-9, 0, 1.0);
+    afm_harm_push(&h, 1e-9, 0, 1.1);
+    afm_harm before = h;
+    check_true(afm_harm_push(&h, NAN, 0, 1.2) == -1, "harm rejects NaN x");
+    check_true(afm_harm_push(&h, 1e-9, 0, 1.1) == -1, "harm rejects non-increasing theta");
+    check_true(afm_harm_push(&h, 1e-9, 0, 1.1 + 4.0) == -1, "harm rejects a theta step >= pi");
+    check_true(afm_harm_push(&h, 1e-9, 0, INFINITY) == -1, "harm rejects infinite theta");
+    check_true(memcmp(&before, &h, sizeof h) == 0, "harm unchanged after rejected samples");
+}
+
+/* ---- afm_lockin ---- */
+
+/* Step response through the lock-in with the reference held at theta = pi/2: X = LPF(2u). */
+static void test_lockin_filter(int order) {
+    const double dt = 1.0 / fs, tau = 1000 * dt;
+    afm_cfg_lockin c = {.time_constant_s = tau, .order = order};
+    afm_lockin l;
+    afm_lockin_init(&l, &c, dt, NULL, 0);
+    double alpha = 1 - exp(-dt / tau), beta = 1 - alpha;
+    double max_exact = 0, max_cont = 0, at_tau = 0;
+    /* exact discrete response y_n = sum_{j<n} alpha^m C(j+m-1, m-1) beta^j */
+    double sum = 0, term = pow(alpha, order); /* j = 0 */
+    for (int n = 1; n <= 10000; n++) {
+        afm_lockin_push(&l, 0.5, pi / 2);
+        sum += term;
+        term *= beta * (double)(n - 1 + order) / (double)n; /* term for j = n */
+        double y = afm_lockin_x(&l), tt = n * dt / tau;
+        double cont = 0, p = 1;
+        for (int j = 0; j < order; j++) {
+            cont += p;
+            p *= tt / (j + 1);
+        }
+        cont = 1 - exp(-tt) * cont;
+        max_exact = fmax(max_exact, fabs(y - sum));
+        max_cont = fmax(max_cont, fabs(y - cont));
+        if (n == 1000) at_tau = y;
+    }
+    char what[128];
+    snprintf(what, sizeof what, "lock-in order %d: step response = exact discrete cascade", order);
+    check_abs(max_exact, 0, 1e-12, what);
+    /* The discretisation holds each stage's input over the step, so every stage leads the
+     * continuous one by at most dt / tau of the unit step; tau = 1000 dt. */
+    snprintf(what, sizeof what, "lock-in order %d: vs continuous Erlang step (tol order dt/tau)", order);
+    check_abs(max_cont, 0, order * 1e-3, what);
+    if (order == 1)
+        check_abs(at_tau, 1 - exp(-1.0), 1e-12, "lock-in order 1: 1 - 1/e at t = tau");
+    else {
+        /* Erlang-4 CDF at t = tau: 1 - e^-1 (1 + 1 + 1/2 + 1/6) = 0.018988... */
+        check_abs(at_tau, 1 - exp(-1.0) * (1 + 1 + 0.5 + 1.0 / 6), 4e-3,
+                  "lock-in order 4: Erlang CDF at t = tau");
+    }
+    afm_lockin before = l;
+    check_true(afm_lockin_push(&l, NAN, 0) == -1 && memcmp(&before, &l, sizeof l) == 0,
+               "lock-in rejects NaN, unchanged");
+    char err[AFM_ERR_LEN] = "";
+    afm_cfg_lockin bad = {.time_constant_s = 0, .order = 2};
+    check_true(afm_lockin_init(&l, &bad, dt, err, sizeof err) == -1 && err[0] &&
+                   memcmp(&before, &l, sizeof l) == 0,
+               "lock-in rejects tau = 0, unchanged");
+}
+
+/* Linear 1-mode oscillator (lumped, Q = 100, f0 = 300 kHz, base excitation) at r = fe/f0,
+ * started on its steady state; the lock-in (tau = 10 periods, order 4) must read the
+ * analytic amplitude A / sqrt((1 - r^2)^2 + (2 xi r)^2) and lag atan2(2 xi r, 1 - r^2). */
+static void test_lockin_oscillator(double r, const char *where) {
+    const double f0 = 300e3, xi = 0.005, ae = 1e-9, k = 40.0;
+    afm_cfg_model cm = {.kind = AFM_MODEL_LUMPED, .n_damping = 1};
+    cm.lumped.stiffness_n_m = k;
+    cm.lumped.resonance_hz = f0;
+    cm.damping_ratio[0] = xi;
+    afm_modal m;
+    char err[AFM_ERR_LEN];
+    if (afm_model_build(&cm, &m, err, sizeof err) != 0) {
+        check_true(false, err);
+        return;
+    }
+    afm_cfg_forces cf;
+    memset(&cf, 0, sizeof cf);
+    afm_force_params fp;
+    if (afm_force_init(&fp, &cf, 0, 0, err, sizeof err) != 0) {
+        check_true(false, err);
+        return;
+    }
+    afm_cfg_drive cd = {.separation_m = 1e-6, .n_tones = 1};
+    cd.tones[0].amplitude_m = ae;
+    cd.tones[0].frequency_hz = r * f0;
+    afm_cfg_sim cs = {.sample_rate_hz = fs, .integrator = AFM_INTEGRATOR_REFERENCE, .ref_rtol = 1e-11};
+    afm_sim *s = afm_sim_create(&m, &fp, &cd, &cs, err, sizeof err);
+    if (!s) {
+        check_true(false, err);
+        return;
+    }
+    double amp = ae / hypot(1 - r * r, 2 * xi * r), lag = atan2(2 * xi * r, 1 - r * r);
+    double w = 2 * pi * r * f0;
+    double q = amp * sin(-lag) / m.tip[0], qd = amp * w * cos(-lag) / m.tip[0];
+    afm_sim_set_state(s, &q, &qd);
+    double te = 1 / (r * f0);
+    afm_cfg_lockin cl = {.time_constant_s = 10 * te, .order = 4};
+    afm_lockin l;
+    afm_lockin_init(&l, &cl, afm_sim_dt(s), NULL, 0);
+    afm_sample buf[256];
+    int total = (int)(400 * te * fs); /* 40 tau: the order-4 start-up is < 1e-12 */
+    for (int done = 0; done < total;) {
+        int n = total - done < 256 ? total - done : 256;
+        afm_sim_run(s, n, buf);
+        for (int i = 0; i < n; i++)
+            afm_lockin_push(&l, buf[i].x_m, afm_drive_phase(afm_sim_drive(s), 0, buf[i].t_s));
+        done += n;
+    }
+    char what[160];
+    printf("  %s: lock-in %.8e m %.6f deg, analytic %.8e m %.6f deg\n", where,
+           afm_lockin_amplitude(&l), afm_lockin_phase_deg(&l), amp, lag * 180 / pi);
+    snprintf(what, sizeof what, "lock-in %s: amplitude (rel 1e-4)", where);
+    check_rel(afm_lockin_amplitude(&l), amp, 1e-4, what);
+    snprintf(what, sizeof what, "lock-in %s: phase lag vs analytic (1e-3 deg)", where);
+    check_abs(afm_lockin_phase_deg(&l), lag * 180 / pi, 1e-3, what);
+    snprintf(what, sizeof what, "lock-in %s: lag %s 90 deg", where, r < 1 ? "<" : r > 1 ? ">" : "=");
+    if (r < 1)
+        check_true(afm_lockin_phase_deg(&l) < 89, what);
+    else if (r > 1)
+        check_true(afm_lockin_phase_deg(&l) > 91, what);
+    else
+        check_abs(afm_lockin_phase_deg(&l), 90, 1e-3, what);
+    afm_sim_destroy(&s);
+}
+
+/* ---- afm_cycle ---- */
+
+/* x = x0 + A cos(theta), v exact, f = -c v (a dashpot): E = c int v^2 = pi c A^2 w per
+ * period; mean x0; min x0 - A; peak force c A w; no contact. */
+static void test_cycle_dashpot(double samples_per_period, const char *where, double tol) {
+    const double A = 20e-9, x0 = -3e-9, cdamp = 2e-7;
+    const double fe_here = fs / samples_per_period, w = 2 * pi * fe_here;
+    afm_cycle c;
+    afm_cycle_init(&c, -HUGE_VAL, 1.0, NULL, 0);
+    double eE = 0, eM = 0, eMin = 0, eP = 0, eT = 0;
+    int periods = 0;
+    for (int n = 0; n < 12 * (int)samples_per_period; n++) {
+        double t = 1.3e-7 + n / fs, th = w * t;
+        afm_sample s = {.t_s = t, .x_m = x0 + A * cos(th), .v_m_s = -A * w * sin(th)};
+        s.f_n = -cdamp * s.v_m_s;
+        if (afm_cycle_push(&c, &s, th) != 1) continue;
+        periods++;
+        eE = fmax(eE, fabs(c.out.dissipated_energy_j / (pi * cdamp * A * A * w) - 1));
+        eM = fmax(eM, fabs(c.out.mean_deflection_m - x0) / A);
+        eMin = fmax(eMin, fabs(c.out.min_deflection_m - (x0 - A)) / A);
+        eP = fmax(eP, fabs(c.out.peak_force_n / (cdamp * A * w) - 1));
+        eT = fmax(eT, fabs(c.out.duration_s * fe_here - 1));
+        if (c.out.contact_time_s != 0 || c.out.n_contacts != 0 || c.out.indentation_m != 0 ||
+            !isnan(c.out.pre_contact_velocity_m_s))
+            eT = 1;
+    }
+    printf("  dashpot %s: E %.2e mean %.2e min %.2e peak %.2e period %.2e\n", where, eE, eM,
+           eMin, eP, eT);
+    char what[128];
+    snprintf(what, sizeof what, "cycle dashpot %s: >= 10 whole periods", where);
+    check_true(periods >= 10, what);
+    snprintf(what, sizeof what, "cycle dashpot %s: E = pi c A^2 w", where);
+    check_abs(eE, 0, tol, what);
+    snprintf(what, sizeof what, "cycle dashpot %s: mean deflection", where);
+    check_abs(eM, 0, tol, what);
+    /* Hermite cubic minimum: error <~ (w h)^4 / 384 relative (4e-8 at 100 samples per
+     * period); the parabola through the peak sample and its neighbours: (w h)^2 / 24 at
+     * worst times the offset of the peak from the sample, ~1e-7 here */
+    snprintf(what, sizeof what, "cycle dashpot %s: min deflection (Hermite)", where);
+    check_abs(eMin, 0, 1e-7, what);
+    snprintf(what, sizeof what, "cycle dashpot %s: peak force (parabola)", where);
+    check_abs(eP, 0, 1e-6, what);
+    snprintf(what, sizeof what, "cycle dashpot %s: duration, no contact", where);
+    check_abs(eT, 0, 1e-9, what);
+}
+
+/* A periodic parabolic dip x = x0 + b u^2, u the time from the dip centre wrapped into
+ * [-T/2, T/2): the Hermite cubic reproduces a parabola, so the crossings are exact.
+ * Contact line xc above x0: contact time 2 sqrt((xc - x0) / b), indentation
+ * cos(alpha) (xc - x0), pre-contact velocity -2 sqrt(b (xc - x0)). centre: the dip centre
+ * as a fraction of the period (0.01: the contact straddles the period boundary). */
+static void test_cycle_dip(double centre, const char *where) {
+    const double te = 167.27 / fs, x0 = -2e-9, xc = -1e-9, top = 5e-9;
+    const double b = 4 * (top - x0) / (te * te), ca = cos(11 * pi / 180);
+    afm_cycle c;
+    afm_cycle_init(&c, xc, ca, NULL, 0);
+    double eT = 0, eI = 0, eV = 0, eMin = 0;
+    int periods = 0, nc_ok = 1;
+    for (int n = 0; n < 6 * 168; n++) {
+        double t = 2.1e-7 + n / fs, th = 2 * pi * t / te;
+        double u = t / te - centre;
+        u = (u - floor(u + 0.5)) * te;
+        afm_sample s = {.t_s = t, .x_m = x0 + b * u * u, .v_m_s = 2 * b * u, .f_n = 0};
+        if (afm_cycle_push(&c, &s, th) != 1) continue;
+        periods++;
+        double tc = 2 * sqrt((xc - x0) / b);
+        eT = fmax(eT, fabs(c.out.contact_time_s / tc - 1));
+        eI = fmax(eI, fabs(c.out.indentation_m / (ca * (xc - x0)) - 1));
+        eV = fmax(eV, fabs(c.out.pre_contact_velocity_m_s / (-2 * sqrt(b * (xc - x0))) - 1));
+        eMin = fmax(eMin, fabs(c.out.min_deflection_m - x0) / (xc - x0));
+        nc_ok = nc_ok && c.out.n_contacts == 1;
+    }
+    printf("  dip %s: contact time %.2e indentation %.2e v_in %.2e min %.2e\n", where, eT, eI, eV,
+           eMin);
+    char what[128];
+    snprintf(what, sizeof what, "cycle dip %s: 5 periods, one contact each", where);
+    check_true(periods == 5 && nc_ok, what);
+    /* exact up to the 1e-15 bisection and rounding */
+    snprintf(what, sizeof what, "cycle dip %s: contact time 2 sqrt((xc - x0)/b)", where);
+    check_abs(eT, 0, 1e-9, what);
+    snprintf(what, sizeof what, "cycle dip %s: indentation cos(alpha)(xc - x0)", where);
+    check_abs(eI, 0, 1e-9, what);
+    snprintf(what, sizeof what, "cycle dip %s: pre-contact velocity", where);
+    check_abs(eV, 0, 1e-9, what);
+    snprintf(what, sizeof what, "cycle dip %s: min deflection x0", where);
+    check_abs(eMin, 0, 1e-9, what);
+}
+
+static void test_cycle_errors(void) {
+    afm_cycle c;
+    char err[AFM_ERR_LEN] = "";
+    check_true(afm_cycle_init(&c, NAN, 1.0, err, sizeof err) == -1 && err[0], "cycle init rejects NaN line");
+    afm_cycle_init(&c, -1e-9, 1.0, NULL, 0);
+    afm_sample s = {.t_s = 1e-6, .x_m = 0, .v_m_s = 0, .f_n = 0};
+    afm_cycle_push(&c, &s, 1.0);
+    s.t_s += 1e-7;
+    afm_cycle_push(&c, &s, 1.1);
+    afm_cycle before = c;
+    afm_sample bad = s;
+    bad.t_s += 1e-7;
+    bad.f_n = NAN;
+    check_true(afm_cycle_push(&c, &bad, 1.2) == -1, "cycle rejects NaN force");
+    bad.f_n = 0;
+    bad.t_s = s.t_s;
+    check_true(afm_cycle_push(&c, &bad, 1.2) == -1, "cycle rejects non-increasing time");
+    bad.t_s = s.t_s + 1e-7;
+    check_true(afm_cycle_push(&c, &bad, 1.05) == -1, "cycle rejects decreasing theta");
+    check_true(memcmp(&before, &c, sizeof c) == 0, "cycle unchanged after rejected samples");
+}
+
+int main(void) {
+    test_harm_dft(0);
+    test_harm_dft(37);
+    test_harm_fractional();
+    test_harm_defaults_and_errors();
+    test_lockin_filter(1);
+    test_lockin_filter(4);
+    test_lockin_oscillator(1.0, "at resonance");
+    test_lockin_oscillator(0.99, "below resonance");
+    test_lockin_oscillator(1.01, "above resonance");
+    test_cycle_dashpot(100.0, "100 samples/period", 1e-12);
+    test_cycle_dashpot(167.27, "167.27 samples/period", 3e-6);
+    test_cycle_dip(0.5, "mid-period");
+    test_cycle_dip(0.01, "across the boundary");
+    test_cycle_errors();
+    return check_done();
+}
