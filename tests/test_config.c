@@ -106,6 +106,15 @@ static void shipped_values(void) {
         check_rel(c.forces.inclination_rad, 12 * deg, 1e-15, "nchv alpha 12 deg in rad");
         check_rel(c.drive.tones[0].frequency_hz, 338.112e3, 1e-15, "nchv drive at the model's f1");
     }
+    /* default.conf: the OBD and output groups as written there. */
+    if (load("config/default.conf", &c) == 0) {
+        check_true(c.obd.enabled && c.obd.adc_bits == 16 && c.output.n_outputs == 2 &&
+                       c.output.decimation[0] == 16 && c.output.decimation[1] == 256,
+                   "default.conf: obd 16-bit ADC, outputs 16 and 256");
+        check_rel(c.obd.noise_density_m_rthz, 50e-15, 1e-15, "default.conf: OBD noise 50 fm/rtHz");
+        check_rel(c.obd.full_scale_m, 200e-9, 1e-15, "default.conf: ADC full scale 200 nm");
+        check_true(!c.thermal.enabled, "default.conf: thermal noise off");
+    }
     /* Figure 4.13: Q1 200, Q3 350, Qi 5; Starr squeeze with default gas data. */
     if (load("config/thesis-fig-4-13.conf", &c) == 0) {
         const double xi[5] = {0.0025, 0.1, 0.00143, 0.1, 0.1};
@@ -187,6 +196,21 @@ static void bad_configs(void) {
     expect_bad("too-many-tones", "drive.tones", "needs 1 to 4 tones");
     expect_bad("harmonic-range", "sim.harmonics[2]", "[1, 64]");
     expect_bad("bad-integrator", "sim.integrator", "not one of");
+    /* obd, thermal, lockin, output (issue 4) */
+    expect_bad("obd-unknown-key", "obd.noise_density", "unknown key");
+    expect_bad("obd-adc-bits", "obd.adc_bits", "[2, 32]");
+    expect_bad("obd-negative-noise", "obd.noise_density_m_rthz", "must be >= 0");
+    expect_bad("obd-seed-negative", "obd.seed", "must be >= 0");
+    expect_bad("obd-full-scale-type", "obd.full_scale_m", "expected a number");
+    expect_bad("thermal-temperature", "thermal.temperature_k", "must be > 0");
+    expect_bad("lockin-order", "lockin.order", "[1, 8]");
+    expect_bad("lockin-tau-short", "lockin.time_constant_s", "one sample interval");
+    expect_bad("output-decimation-zero", "output.decimation[1]", "[1, 65536]");
+    expect_bad("output-decimation-float", "output.decimation[0]", "expected an integer");
+    expect_bad("output-decimation-repeat", "output.decimation[2]", "repeats decimation[0]");
+    expect_bad("output-too-many", "output.decimation", "needs 1 to 4 values");
+    expect_bad("output-passband", "output.passband_fraction", "(0, 0.95]");
+    expect_bad("output-not-group", "output", "expected a group");
 }
 
 /* afm_config_validate on structs edited after loading (what CLI overrides do). */
@@ -233,10 +257,26 @@ static void validate_struct(void) {
     afm_config_defaults(&d);
     check_rel(d.sim.sample_rate_hz, 14.06e6, 1e-15, "default sample rate");
     check_rel(d.model.beam.poisson_ratio, 0.28, 1e-15, "default poisson");
-    check_true(d.model.beam.n_elements == 20 && d.sim.n_harmonics == 8 && d.sim.harmonics[7] == 8 &&
+    check_true(d.model.beam.n_elements == 20 && d.sim.n_harmonics == 0 &&
                    d.forces.squeeze == AFM_SQUEEZE_NONE && !d.forces.vdw_contact &&
                    d.sim.rt_substeps_contact == 0,
                "default counts and switches");
+    check_true(d.obd.enabled && d.obd.noise_density_m_rthz == 0 && d.obd.adc_bits == 0 &&
+                   d.obd.full_scale_m == 1e-6 && !d.thermal.enabled &&
+                   d.thermal.temperature_k == 295.0 && d.lockin.time_constant_s == 1e-4 &&
+                   d.lockin.order == 4 && d.output.n_outputs == 1 && d.output.decimation[0] == 16 &&
+                   d.output.passband_fraction == 0.8,
+               "defaults of obd, thermal, lockin, output");
+    v = c;
+    v.output.passband_fraction = NAN;
+    check_true(afm_config_validate(&v, err, sizeof err) == -1 &&
+                   strstr(err, "key 'output.passband_fraction'") != NULL,
+               "validate: NaN passband rejected");
+    v = c;
+    v.obd.full_scale_m = 0;
+    check_true(afm_config_validate(&v, err, sizeof err) == -1 &&
+                   strstr(err, "key 'obd.full_scale_m'") != NULL,
+               "validate: zero ADC full scale rejected");
 }
 
 int main(void) {

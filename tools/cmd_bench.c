@@ -9,6 +9,7 @@
  * running on its orbit and `runs` timed blocks of samples give median and minimum cost. */
 #include "afmtwin_cmds.h"
 
+#include "afm_chain.h"
 #include "afm_config.h"
 #include "afm_force.h"
 #include "afm_model.h"
@@ -38,14 +39,22 @@ typedef struct {
     const char *file;
     double free_amp_m; /* linear tip amplitude to drive to (m), 0 = config amplitude */
     double setpoint;   /* Z / free amplitude, 0 = config Z */
+    bool chain;        /* also time the output chain on this case's rt orbit */
 } bench_case;
 
 static const bench_case bench_cases[] = {
-    {"thesis-1dof.conf", 0.0, 0.0},
-    {"thesis-fig-4-2.conf", 0.0, 0.7},
-    {"thesis-fig-4-13.conf", 0.0, 0.7},
-    {"nchv.conf", 50e-9, 0.7},
+    {"thesis-1dof.conf", 0.0, 0.0, false},
+    {"thesis-fig-4-2.conf", 0.0, 0.7, false},
+    {"thesis-fig-4-13.conf", 0.0, 0.7, false},
+    {"nchv.conf", 50e-9, 0.7, true},
 };
+
+/* The chain case's sensor and outputs (nchv.conf has no obd/output groups): those of
+ * config/default.conf, so the noise generator and the ADC are in the timed path. */
+#define CHAIN_NOISE_M_RTHZ 50e-15
+#define CHAIN_ADC_BITS 16
+#define CHAIN_FULL_SCALE_M 200e-9
+static const int chain_decimation[] = {16, 256};
 #define N_CASES ((int)(sizeof bench_cases / sizeof bench_cases[0]))
 
 enum { ROW_RT, ROW_ERK, ROW_REF, N_ROWS };
@@ -77,6 +86,11 @@ typedef struct {
     double ref_check;        /* CVODE at ref_rtol vs CVODE at ref_rtol / 100 */
     double ref_rtol;
     bench_row row[N_ROWS];
+    /* "chain": rt integrator + afm_chain (OBD, decimation, estimators), timed per block
+     * side by side in the same runs */
+    bool has_chain, chain_ok;
+    double chain_int_ns, chain_ns, chain_total_ns, chain_rt_factor, chain_overhead_pct;
+    char chain_note[AFM_ERR_LEN];
 } bench_result;
 
 typedef struct {
@@ -222,6 +236,73 @@ static const char *rc_text(int rc) {
     default:
         return "failed";
     }
+}
+
+/* Time the rt integrator and the output chain on s's running orbit: every block of CHUNK
+ * samples is integrated, then pushed through the chain, each timed on its own, over
+ * `runs` runs of nsamp samples. Medians per run. */
+static void time_chain(afm_sim *s, const afm_config *cfg0, const afm_modal *m, long nsamp,
+                       int runs, bench_result *res) {
+    afm_config cfg = *cfg0;
+    cfg.obd.enabled = true;
+    cfg.obd.noise_density_m_rthz = CHAIN_NOISE_M_RTHZ;
+    cfg.obd.adc_bits = CHAIN_ADC_BITS;
+    cfg.obd.full_scale_m = CHAIN_FULL_SCALE_M;
+    cfg.output.n_outputs = (int)(sizeof chain_decimation / sizeof chain_decimation[0]);
+    memcpy(cfg.output.decimation, chain_decimation, sizeof chain_decimation);
+    res->has_chain = true;
+    afm_chain *c = afm_chain_create(&cfg, m, res->chain_note, sizeof res->chain_note);
+    if (!c) return;
+    if (afm_chain_attach(c, s, res->chain_note, sizeof res->chain_note) != 0) {
+        afm_chain_destroy(&c);
+        return;
+    }
+    double *ti = malloc((size_t)runs * sizeof *ti), *tc = malloc((size_t)runs * sizeof *tc);
+    afm_chain_period per[64];
+    afm_chain_block b;
+    int rc = ti && tc ? AFM_SIM_OK : AFM_SIM_EINVAL;
+    for (int k = 0; k < runs && rc == AFM_SIM_OK; k++) {
+        double sum_i = 0, sum_c = 0;
+        for (long done = 0; done < nsamp && rc == AFM_SIM_OK;) {
+            int n = nsamp - done < CHUNK ? (int)(nsamp - done) : CHUNK;
+            double t0 = now_s();
+            rc = afm_sim_run(s, n, chunk);
+            double t1 = now_s();
+            afm_chain_push(c, chunk, n);
+            /* drain as the daemon would (cheap: pointers into the rings) */
+            for (int st = 0; st < afm_chain_n_streams(c); st++)
+                while (afm_chain_take_block(c, st, &b, 0) > 0) {
+                }
+            while (afm_chain_take_periods(c, per, 64) > 0) {
+            }
+            double t2 = now_s();
+            sum_i += t1 - t0;
+            sum_c += t2 - t1;
+            done += n;
+        }
+        ti[k] = sum_i * 1e9 / (double)nsamp;
+        tc[k] = sum_c * 1e9 / (double)nsamp;
+    }
+    if (rc == AFM_SIM_OK) {
+        qsort(ti, (size_t)runs, sizeof *ti, cmp_double);
+        qsort(tc, (size_t)runs, sizeof *tc, cmp_double);
+        int h = runs / 2;
+        res->chain_int_ns = runs % 2 ? ti[h] : 0.5 * (ti[h - 1] + ti[h]);
+        res->chain_ns = runs % 2 ? tc[h] : 0.5 * (tc[h - 1] + tc[h]);
+        res->chain_total_ns = res->chain_int_ns + res->chain_ns;
+        res->chain_rt_factor = afm_sim_dt(s) / (res->chain_total_ns * 1e-9);
+        res->chain_overhead_pct = 100.0 * res->chain_ns / res->chain_int_ns;
+        afm_chain_stats st = afm_chain_stats_get(c);
+        snprintf(res->chain_note, sizeof res->chain_note,
+                 "%lld periods estimated, %lld ADC clamps, %lld non-finite", st.periods,
+                 st.obd_saturated, st.nonfinite);
+        res->chain_ok = st.periods > 0;
+    } else {
+        snprintf(res->chain_note, sizeof res->chain_note, "integrator: %s", rc_text(rc));
+    }
+    free(ti);
+    free(tc);
+    afm_chain_destroy(&c);
 }
 
 /* Everything for one model; fills res. Returns 0, or -1 with res->err. */
@@ -372,6 +453,8 @@ static int bench_one(const bench_opts *o, const bench_case *bc, bench_result *re
             snprintf(res->row[r].note, sizeof res->row[r].note, "timing: %s", rc_text(rc));
         }
     }
+    if (bc->chain && sims[ROW_RT] && res->row[ROW_RT].ok)
+        time_chain(sims[ROW_RT], &cfg, &m, o->n_time[ROW_RT], o->runs, res);
     for (int r = 0; r < N_ROWS; r++)
         afm_sim_destroy(&sims[r]);
     free(xr);
@@ -434,6 +517,18 @@ static void print_text(const bench_opts *o, const bench_result *res, int n) {
         if (isfinite(q))
             printf("  rt is %.1fx faster than arkode-erk at equal accuracy (%d substeps)\n", q,
                    r->row[ROW_ERK].substeps);
+        if (r->has_chain) {
+            printf("  chain (rt + OBD %.0f fm/rtHz %d-bit +-%.0f nm, decimation 16 and 256, "
+                   "harmonics/lock-in/cycle), same runs:\n",
+                   CHAIN_NOISE_M_RTHZ * 1e15, CHAIN_ADC_BITS, CHAIN_FULL_SCALE_M * 1e9);
+            if (r->chain_ok)
+                printf("    integrator %.1f ns + chain %.1f ns = %.1f ns/sample, RT factor %.4g, "
+                       "chain overhead %.1f %% of the integrator (%s)\n",
+                       r->chain_int_ns, r->chain_ns, r->chain_total_ns, r->chain_rt_factor,
+                       r->chain_overhead_pct, r->chain_note);
+            else
+                printf("    FAILED: %s\n", r->chain_note);
+        }
     }
 }
 
@@ -494,6 +589,25 @@ static int print_json(const bench_opts *o, const bench_result *res, int n) {
         json_num(q, "arkode_over_rt_ns_per_sample", ratio_erk_rt(r));
         cJSON_AddNumberToObject(q, "arkode_substeps", r->row[ROW_ERK].substeps);
         cJSON_AddItemToArray(ratios, q);
+        if (r->has_chain) {
+            cJSON *ch = cJSON_CreateObject();
+            cJSON_AddStringToObject(ch, "config", r->config);
+            cJSON_AddStringToObject(ch, "integrator", "rt");
+            cJSON_AddBoolToObject(ch, "ok", r->chain_ok);
+            json_num(ch, "integrator_ns_per_sample", r->chain_int_ns);
+            json_num(ch, "chain_ns_per_sample", r->chain_ns);
+            json_num(ch, "ns_per_sample", r->chain_total_ns);
+            json_num(ch, "realtime_factor", r->chain_rt_factor);
+            json_num(ch, "chain_overhead_pct", r->chain_overhead_pct);
+            cJSON_AddNumberToObject(ch, "obd_noise_density_m_rthz", CHAIN_NOISE_M_RTHZ);
+            cJSON_AddNumberToObject(ch, "obd_adc_bits", CHAIN_ADC_BITS);
+            cJSON *dec = cJSON_AddArrayToObject(ch, "decimation");
+            for (size_t i = 0; i < sizeof chain_decimation / sizeof chain_decimation[0]; i++)
+                cJSON_AddItemToArray(dec, cJSON_CreateNumber(chain_decimation[i]));
+            cJSON_AddBoolToObject(ch, "estimators", true);
+            if (r->chain_note[0]) cJSON_AddStringToObject(ch, "note", r->chain_note);
+            cJSON_AddItemToObject(root, "chain", ch);
+        }
     }
     cJSON_AddItemToObject(root, "cases", cases);
     cJSON_AddItemToObject(root, "ratios", ratios);

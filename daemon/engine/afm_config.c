@@ -6,9 +6,10 @@
  * of the right type, required keys must be present, and values with no struct field of
  * their own (quality factors, tip/sample moduli) are range-checked on the spot. Then the
  * filled struct goes through the same checks afm_config_validate() runs after CLI
- * overrides; that pass names the failing key by its config path, and the loader turns
+ * overrides (afm_config_check.c); that pass names the failing key by its config path, and the loader turns
  * the path back into a line number. Every failure leaves the caller's struct untouched. */
 #include "afm_config.h"
+#include "afm_config_impl.h"
 
 #include <errno.h>
 #include <limits.h>
@@ -21,10 +22,7 @@
 
 static const double deg = 3.14159265358979323846 / 180.0;
 
-#define MAX_AMPLITUDE_M 1e-6 /* larger dither amplitudes are not tapping mode */
-#define MAX_HARMONIC 64      /* highest harmonic number an estimator may track */
-#define MAX_SUBSTEPS 1000    /* rt_substeps_contact upper bound */
-#define KEY_LEN 128
+#define KEY_LEN AFM_CONFIG_KEY_LEN
 
 /* ------------------------------------------------------------------ defaults */
 
@@ -50,233 +48,21 @@ void afm_config_defaults(afm_config *cfg) {
     s->integrator = AFM_INTEGRATOR_RT;
     s->rt_substeps_contact = 0; /* 0: the engine chooses */
     s->ref_rtol = 1e-10;
-    s->n_harmonics = 8;
-    for (int k = 0; k < 8; k++)
-        s->harmonics[k] = k + 1;
-}
+    s->n_harmonics = 0; /* the estimators choose (afm_harm_default_list) */
 
-/* ------------------------------------------------------------------ struct checks */
-
-/* Write the failing key path and the reason; always returns -1. */
-static int bad(char *key, char *why, size_t why_len, const char *path, const char *fmt, ...)
-    __attribute__((format(printf, 5, 6)));
-static int bad(char *key, char *why, size_t why_len, const char *path, const char *fmt, ...) {
-    snprintf(key, KEY_LEN, "%s", path);
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(why, why_len, fmt, ap);
-    va_end(ap);
-    return -1;
-}
-
-#define BAD(...) return bad(key, why, why_len, __VA_ARGS__)
-#define NEED(cond, ...)                                                                            \
-    do {                                                                                           \
-        if (!(cond)) BAD(__VA_ARGS__);                                                             \
-    } while (0)
-#define FINITE(v, path) NEED(isfinite(v), path, "not a finite number")
-#define POS(v, path) NEED(isfinite(v) && (v) > 0, path, "must be > 0 (got %g)", (v))
-#define NONNEG(v, path) NEED(isfinite(v) && (v) >= 0, path, "must be >= 0 (got %g)", (v))
-
-static int check_model(const afm_config *c, char *key, char *why, size_t why_len) {
-    const afm_cfg_model *m = &c->model;
-    const afm_cfg_beam *b = &m->beam;
-    if (m->kind == AFM_MODEL_BEAM) {
-        POS(b->youngs_modulus_pa, "model.beam.youngs_modulus_pa");
-        POS(b->density_kg_m3, "model.beam.density_kg_m3");
-        NEED(isfinite(b->poisson_ratio) && b->poisson_ratio > -1 && b->poisson_ratio < 0.5,
-             "model.beam.poisson_ratio", "must be in (-1, 0.5) (got %g)", b->poisson_ratio);
-        POS(b->length_m, "model.beam.length_m");
-        for (int i = 0; i < 2; i++) {
-            char p[64];
-            snprintf(p, sizeof p, "model.beam.width_m[%d]", i);
-            POS(b->width_m[i], p);
-            snprintf(p, sizeof p, "model.beam.height_m[%d]", i);
-            POS(b->height_m[i], p);
-        }
-        NONNEG(b->tip_mass_kg, "model.beam.tip_mass_kg");
-        NEED(b->n_elements >= 1 && b->n_elements <= AFM_MAX_ELEMENTS, "model.beam.elements",
-             "must be in [1, %d] (got %d)", AFM_MAX_ELEMENTS, b->n_elements);
-        NEED(b->n_kept >= 0, "model.beam.kept_modes", "must be >= 0 (got %d)", b->n_kept);
-        NEED(b->n_kept + 2 <= AFM_MAX_MODES, "model.beam.kept_modes",
-             "kept_modes + 2 reduced modes must be <= %d (got %d)", AFM_MAX_MODES, b->n_kept);
-        /* Guided-free beam, ne elements: 2 ne + 1 free DOF once theta1 = 0. Rubin keeps
-         * 1 rigid + nk elastic + 2 residual modes, so nk <= 2 ne + 1 - 3. */
-        NEED(b->n_kept <= 2 * b->n_elements - 2, "model.beam.kept_modes",
-             "%d elements give at most %d kept modes (2*elements - 2), got %d", b->n_elements,
-             2 * b->n_elements - 2, b->n_kept);
-    } else if (m->kind == AFM_MODEL_LUMPED) {
-        POS(m->lumped.stiffness_n_m, "model.lumped.stiffness_n_m");
-        POS(m->lumped.resonance_hz, "model.lumped.resonance_hz");
-        NEED(m->lumped.resonance_hz < c->sim.sample_rate_hz / 2, "model.lumped.resonance_hz",
-             "must be below half the sample rate (%g Hz), got %g", c->sim.sample_rate_hz / 2,
-             m->lumped.resonance_hz);
-    } else {
-        BAD("model.kind", "unknown model kind %d", (int)m->kind);
-    }
-
-    int nmodes = m->kind == AFM_MODEL_BEAM ? b->n_kept + 2 : 1;
-    NEED(m->n_damping >= 1 && m->n_damping <= AFM_MAX_MODES, "model.damping_ratio",
-         "needs 1 to %d values (got %d)", AFM_MAX_MODES, m->n_damping);
-    NEED(m->n_damping <= nmodes, "model.damping_ratio",
-         "%d values given but the model has %d mode%s", m->n_damping, nmodes,
-         nmodes == 1 ? "" : "s");
-    for (int i = 0; i < m->n_damping; i++) {
-        char p[64];
-        snprintf(p, sizeof p, "model.damping_ratio[%d]", i);
-        double xi = m->damping_ratio[i];
-        NEED(isfinite(xi) && xi > 0 && xi < 1, p, "must be in (0, 1) (got %g)", xi);
-    }
-    return 0;
-}
-
-static int check_forces(const afm_config *c, char *key, char *why, size_t why_len) {
-    const afm_cfg_forces *f = &c->forces;
-    /* Finite everywhere, enabled or not: a NaN must not sleep in a disabled group. */
-    const struct {
-        double v;
-        const char *path;
-    } all[] = {
-        {f->inclination_rad, "forces.inclination_deg"},
-        {f->radius_m, "forces.radius_m"},
-        {f->hamaker_j, "forces.vdw_contact.hamaker_j"},
-        {f->a0_m, "forces.vdw_contact.a0_m"},
-        {f->reduced_modulus_pa, "forces.vdw_contact.reduced_modulus_pa"},
-        {f->eta_pa_s, "forces.viscoelastic.eta_pa_s"},
-        {f->eta0_pa_s, "forces.squeeze.eta0_pa_s"},
-        {f->gas_constant_j_kg_k, "forces.squeeze.gas_constant_j_kg_k"},
-        {f->temperature_k, "forces.squeeze.temperature_k"},
-        {f->pressure_pa, "forces.squeeze.pressure_pa"},
-        {f->kappa, "forces.squeeze.kappa"},
-        {f->tip_length_m, "forces.squeeze.tip_length_m"},
-        {f->plate_length_m, "forces.squeeze.plate_length_m"},
-        {f->plate_width_m, "forces.squeeze.plate_width_m"},
-        {f->p1_n_s_m2, "forces.squeeze.p1_n_s_m2"},
-        {f->p2_n_s_m, "forces.squeeze.p2_n_s_m"},
-        {f->surface_energy_j_m2, "forces.capillary.surface_energy_j_m2"},
-        {f->contact_angle_rad, "forces.capillary.contact_angle_deg"},
-        {f->meniscus_d_m, "forces.capillary.meniscus_d_m"},
-        {f->voltage_v, "forces.electrostatic.voltage_v"},
-        {f->cone_half_angle_rad, "forces.electrostatic.cone_half_angle_deg"},
-        {f->cone_length_m, "forces.electrostatic.cone_length_m"},
-    };
-    for (size_t i = 0; i < sizeof all / sizeof all[0]; i++)
-        FINITE(all[i].v, all[i].path);
-
-    NEED(f->inclination_rad >= 0 && f->inclination_rad < 90 * deg, "forces.inclination_deg",
-         "must be in [0, 90) degrees (got %g)", f->inclination_rad / deg);
-    if (f->vdw_contact || f->viscoelastic || f->capillary) POS(f->radius_m, "forces.radius_m");
-    if (f->vdw_contact) {
-        NONNEG(f->hamaker_j, "forces.vdw_contact.hamaker_j");
-        POS(f->a0_m, "forces.vdw_contact.a0_m");
-        POS(f->reduced_modulus_pa, "forces.vdw_contact.reduced_modulus_pa");
-    }
-    if (f->viscoelastic) {
-        NEED(f->vdw_contact, "forces.viscoelastic.enabled",
-             "the viscoelastic term (eq. 3.3) needs vdw_contact enabled (it uses a0)");
-        NONNEG(f->eta_pa_s, "forces.viscoelastic.eta_pa_s");
-    }
-    switch (f->squeeze) {
-    case AFM_SQUEEZE_NONE:
-    case AFM_SQUEEZE_LINEAR: /* p1, p2 of eq. 5.3 may have any sign; finite checked above */
-        break;
-    case AFM_SQUEEZE_STARR:
-        POS(f->eta0_pa_s, "forces.squeeze.eta0_pa_s");
-        POS(f->gas_constant_j_kg_k, "forces.squeeze.gas_constant_j_kg_k");
-        POS(f->temperature_k, "forces.squeeze.temperature_k");
-        POS(f->pressure_pa, "forces.squeeze.pressure_pa");
-        NEED(f->kappa >= 0 && f->kappa <= 1, "forces.squeeze.kappa", "must be in [0, 1] (got %g)",
-             f->kappa);
-        POS(f->tip_length_m, "forces.squeeze.tip_length_m");
-        if (c->model.kind == AFM_MODEL_LUMPED) {
-            POS(f->plate_length_m, "forces.squeeze.plate_length_m");
-            POS(f->plate_width_m, "forces.squeeze.plate_width_m");
-        }
-        break;
-    default:
-        BAD("forces.squeeze.model", "unknown squeeze model %d", (int)f->squeeze);
-    }
-    if (f->capillary) {
-        POS(f->surface_energy_j_m2, "forces.capillary.surface_energy_j_m2");
-        NEED(f->contact_angle_rad >= 0 && f->contact_angle_rad <= 180 * deg,
-             "forces.capillary.contact_angle_deg", "must be in [0, 180] degrees (got %g)",
-             f->contact_angle_rad / deg);
-        POS(f->meniscus_d_m, "forces.capillary.meniscus_d_m");
-    }
-    if (f->electrostatic) {
-        NEED(f->cone_half_angle_rad > 0 && f->cone_half_angle_rad < 90 * deg,
-             "forces.electrostatic.cone_half_angle_deg", "must be in (0, 90) degrees (got %g)",
-             f->cone_half_angle_rad / deg);
-        POS(f->cone_length_m, "forces.electrostatic.cone_length_m");
-    }
-    return 0;
-}
-
-static int check_drive_sim(const afm_config *c, char *key, char *why, size_t why_len) {
-    const afm_cfg_sim *s = &c->sim;
-    POS(s->sample_rate_hz, "sim.sample_rate_hz");
-    NEED(s->integrator == AFM_INTEGRATOR_RT || s->integrator == AFM_INTEGRATOR_REFERENCE ||
-             s->integrator == AFM_INTEGRATOR_ARKODE_ERK,
-         "sim.integrator", "unknown integrator %d", (int)s->integrator);
-    NEED(s->rt_substeps_contact >= 0 && s->rt_substeps_contact <= MAX_SUBSTEPS,
-         "sim.rt_substeps_contact", "must be in [0, %d] (0 = engine default), got %d", MAX_SUBSTEPS,
-         s->rt_substeps_contact);
-    NEED(isfinite(s->ref_rtol) && s->ref_rtol > 0 && s->ref_rtol < 1e-2, "sim.ref_rtol",
-         "must be in (0, 1e-2) (got %g)", s->ref_rtol);
-    NEED(s->n_harmonics >= 1 && s->n_harmonics <= AFM_MAX_HARMONICS, "sim.harmonics",
-         "needs 1 to %d values (got %d)", AFM_MAX_HARMONICS, s->n_harmonics);
-    for (int i = 0; i < s->n_harmonics; i++) {
-        char p[64];
-        snprintf(p, sizeof p, "sim.harmonics[%d]", i);
-        NEED(s->harmonics[i] >= 1 && s->harmonics[i] <= MAX_HARMONIC, p,
-             "must be in [1, %d] (got %d)", MAX_HARMONIC, s->harmonics[i]);
-    }
-
-    const afm_cfg_drive *d = &c->drive;
-    NONNEG(d->separation_m, "drive.separation_m");
-    NEED(d->n_tones >= 1 && d->n_tones <= AFM_MAX_TONES, "drive.tones",
-         "needs 1 to %d tones (got %d)", AFM_MAX_TONES, d->n_tones);
-    for (int j = 0; j < d->n_tones; j++) {
-        const afm_cfg_tone *t = &d->tones[j];
-        char p[64];
-        snprintf(p, sizeof p, "drive.tones[%d].amplitude_m", j);
-        NEED(isfinite(t->amplitude_m) && t->amplitude_m >= 0 && t->amplitude_m <= MAX_AMPLITUDE_M,
-             p, "must be in [0, %g] m (got %g)", MAX_AMPLITUDE_M, t->amplitude_m);
-        snprintf(p, sizeof p, "drive.tones[%d].frequency_hz", j);
-        NEED(isfinite(t->frequency_hz) && t->frequency_hz > 0 &&
-                 t->frequency_hz < s->sample_rate_hz / 2,
-             p, "must be in (0, sample_rate_hz/2 = %g) Hz (got %g)", s->sample_rate_hz / 2,
-             t->frequency_hz);
-        snprintf(p, sizeof p, "drive.tones[%d].phase_deg", j);
-        FINITE(t->phase_rad, p);
-    }
-    return 0;
-}
-
-/* All struct checks; on failure key holds the config path and why the reason. */
-static int check_all(const afm_config *c, char *key, char *why, size_t why_len) {
-    if (check_model(c, key, why, why_len) || check_forces(c, key, why, why_len) ||
-        check_drive_sim(c, key, why, why_len))
-        return -1;
-    return 0;
-}
-
-#undef BAD
-#undef NEED
-#undef FINITE
-#undef POS
-#undef NONNEG
-
-int afm_config_validate(const afm_config *cfg, char *err, size_t errlen) {
-    char key[KEY_LEN], why[AFM_ERR_LEN];
-    if (check_all(cfg, key, why, sizeof why) == 0) return 0;
-    if (err && errlen) {
-        if (cfg->path[0])
-            snprintf(err, errlen, "%s: key '%s': %s", cfg->path, key, why);
-        else
-            snprintf(err, errlen, "key '%s': %s", key, why);
-    }
-    return -1;
+    cfg->obd.enabled = true;
+    cfg->obd.noise_density_m_rthz = 0.0;
+    cfg->obd.adc_bits = 0;
+    cfg->obd.full_scale_m = 1e-6;
+    cfg->obd.seed = 1;
+    cfg->thermal.enabled = false;
+    cfg->thermal.temperature_k = 295.0;
+    cfg->thermal.seed = 2;
+    cfg->lockin.time_constant_s = 1e-4;
+    cfg->lockin.order = 4;
+    cfg->output.n_outputs = 1;
+    cfg->output.decimation[0] = 16;
+    cfg->output.passband_fraction = 0.8;
 }
 
 /* ------------------------------------------------------------------ loader */
@@ -774,7 +560,76 @@ static int load_sim(const loader *L, const config_setting_t *root, afm_cfg_sim *
     return 0;
 }
 
-/* Setting for a path written by check_all ("drive.tones[1].frequency_hz"); the deepest
+/* Non-negative integer that fits an unsigned long (noise generator seeds). */
+static int get_seed(const loader *L, const config_setting_t *g, const char *name,
+                    unsigned long *out) {
+    config_setting_t *s;
+    if (member(L, g, name, false, &s)) return -1;
+    if (!s) return 0;
+    long long v;
+    switch (config_setting_type(s)) {
+    case CONFIG_TYPE_INT:
+        v = config_setting_get_int(s);
+        break;
+    case CONFIG_TYPE_INT64:
+        v = config_setting_get_int64(s);
+        break;
+    default:
+        return fail(L, s, NULL, "expected an integer, got %s", type_name(s));
+    }
+    if (v < 0) return fail(L, s, NULL, "must be >= 0 (got %lld)", v);
+    *out = (unsigned long)v;
+    return 0;
+}
+
+/* obd, thermal, lockin, output: optional groups (issue 4). obd is on unless the group
+ * says enabled = false; thermal is off unless its group is present (enabled defaults to
+ * true then, as for the force features). */
+static int load_chain(const loader *L, const config_setting_t *root, afm_config *c) {
+    static const char *const okeys[] = {"enabled",      "noise_density_m_rthz", "adc_bits",
+                                        "full_scale_m", "seed",                 NULL};
+    static const char *const tkeys[] = {"enabled", "temperature_k", "seed", NULL};
+    static const char *const lkeys[] = {"time_constant_s", "order", NULL};
+    static const char *const outkeys[] = {"decimation", "passband_fraction", NULL};
+    config_setting_t *g, *s;
+    if (get_group(L, root, "obd", false, &g)) return -1;
+    if (g && (only_keys(L, g, okeys) || get_bool(L, g, "enabled", &c->obd.enabled) ||
+              get_num(L, g, "noise_density_m_rthz", false, &c->obd.noise_density_m_rthz, NULL) ||
+              get_int(L, g, "adc_bits", false, &c->obd.adc_bits) ||
+              get_num(L, g, "full_scale_m", false, &c->obd.full_scale_m, NULL) ||
+              get_seed(L, g, "seed", &c->obd.seed)))
+        return -1;
+    if (get_feature(L, root, "thermal", &g, &c->thermal.enabled)) return -1;
+    if (g && (only_keys(L, g, tkeys) ||
+              get_num(L, g, "temperature_k", false, &c->thermal.temperature_k, NULL) ||
+              get_seed(L, g, "seed", &c->thermal.seed)))
+        return -1;
+    if (get_group(L, root, "lockin", false, &g)) return -1;
+    if (g && (only_keys(L, g, lkeys) ||
+              get_num(L, g, "time_constant_s", false, &c->lockin.time_constant_s, NULL) ||
+              get_int(L, g, "order", false, &c->lockin.order)))
+        return -1;
+    if (get_group(L, root, "output", false, &g)) return -1;
+    if (!g) return 0;
+    if (only_keys(L, g, outkeys) ||
+        get_num(L, g, "passband_fraction", false, &c->output.passband_fraction, NULL) ||
+        member(L, g, "decimation", false, &s))
+        return -1;
+    if (s) {
+        int t = config_setting_type(s), n = config_setting_length(s);
+        if (t != CONFIG_TYPE_ARRAY && t != CONFIG_TYPE_LIST)
+            return fail(L, s, NULL, "expected an array of integers, got %s", type_name(s));
+        if (n < 1 || n > AFM_MAX_OUTPUTS)
+            return fail(L, s, NULL, "needs 1 to %d values (got %d)", AFM_MAX_OUTPUTS, n);
+        for (int i = 0; i < n; i++)
+            if (as_int(L, config_setting_get_elem(s, (unsigned)i), &c->output.decimation[i]))
+                return -1;
+        c->output.n_outputs = n;
+    }
+    return 0;
+}
+
+/* Setting for a path written by afm_config_check_all ("drive.tones[1].frequency_hz"); the deepest
  * existing ancestor when the key itself is absent (a default value). */
 static const config_setting_t *resolve(const config_setting_t *root, const char *path) {
     const config_setting_t *s = root;
@@ -836,14 +691,15 @@ int afm_config_load(const char *path, afm_config *cfg, char *err, size_t errlen)
         goto out;
     }
     const config_setting_t *root = config_root_setting(&lc);
-    static const char *const keys[] = {"model", "forces", "drive", "sim", NULL};
+    static const char *const keys[] = {"model",   "forces", "drive",  "sim", "obd",
+                                       "thermal", "lockin", "output", NULL};
     if (only_keys(&L, root, keys) || load_model(&L, root, &tmp.model) ||
         load_forces(&L, root, tmp.model.kind, &tmp.forces) || load_drive(&L, root, &tmp.drive) ||
-        load_sim(&L, root, &tmp.sim))
+        load_sim(&L, root, &tmp.sim) || load_chain(&L, root, &tmp))
         goto out;
 
     char key[KEY_LEN], why[AFM_ERR_LEN];
-    if (check_all(&tmp, key, why, sizeof why)) {
+    if (afm_config_check_all(&tmp, key, why, sizeof why)) {
         /* Name the key as the file spells it: quality_factor for Q given damping ratios,
          * width_m rather than width_m[1] for a scalar standing for both ends. */
         static const char xi_key[] = "model.damping_ratio";
