@@ -8,8 +8,9 @@
  * forces it must match the closed forms to rounding (tolerance 1e-9 of the amplitude,
  * leaving room for ~1e5 steps of 1e-16 rounding and the phasor resynchronisation).
  *
- * Also: the Starr squeeze-film interpolant of the rt path against the exact formula, and
- * the one-evaluation (linearly implicit) step out of contact against CVODE.
+ * Also: the Starr squeeze-film interpolant of the rt path against the exact formula, the
+ * one-evaluation (linearly implicit) step out of contact against CVODE, and the thermal
+ * (Langevin) force: exact increment covariance, equipartition, reproducibility by seed.
  *
  * With AFMTWIN_VALIDATE=full it also measures the shipped configs against CVODE from rest
  * (seconds of CVODE per config) and prints ns/sample and error_rel: docs/numerics.md. */
@@ -441,6 +442,182 @@ static void bad_input_case(void) {
                "create refuses a negative damping ratio");
 }
 
+/* ---- thermal force (afm_sim_set_thermal) ---- */
+
+static const double kb_j_k = 1.380649e-23;
+
+/* The exact increment's covariance Sigma(h) = L L^T of afm_rt_coef_thermal composes:
+ * Sigma(2h) = Phi(h) Sigma(h) Phi(h)^T + Sigma(h) (two independent half steps), for a
+ * lightly damped mode (Q 427; Sigma ~ 2e-5 of the stationary variance at dt/32) and a
+ * heavily damped one (xi 3), at h = dt/32 (the shortest contact piece) and dt. Bound 1e-10:
+ * both sides are built from exponentials accurate to ~1e-15 of O(1) entries, and the
+ * smallest Sigma entry compared is ~1e-5. */
+static void thermal_coef_case(void) {
+    const double w[2] = {two_pi * 370e3, two_pi * 6.4e6}, xi[2] = {0.5 / 427, 3.0};
+    const double tip[2] = {1, 1}, kt = kb_j_k * 300;
+    const int np = 4;
+    double blk[2][AFM_RT_COEF_ROWS * 4];
+    afm_rt_prop p[2];
+    double worst = 0;
+    for (int ih = 0; ih < 2; ih++) {
+        double h = (ih ? 1.0 : 1.0 / 32) / rate_hz;
+        double l[2][3][4];
+        for (int k = 0; k < 2; k++) {
+            p[k].c = blk[k];
+            afm_rt_coef_modes(&p[k], 2, np, w, xi, tip, h * (k + 1));
+            afm_rt_coef_thermal(&p[k], 2, np, w, xi, kt, l[k][0], l[k][1], l[k][2]);
+        }
+        for (int i = 0; i < 2; i++) {
+            const double *c = p[0].c;
+            double a = l[0][0][i], b = l[0][1][i], d = l[0][2][i];
+            double s[2][2] = {{a * a, a * b}, {a * b, b * b + d * d}};
+            double ph[2][2] = {{c[i], c[np + i]}, {c[2 * np + i], c[3 * np + i]}};
+            double t[2][2], s2[2][2];
+            for (int r = 0; r < 2; r++)
+                for (int q = 0; q < 2; q++)
+                    t[r][q] = ph[r][0] * s[0][q] + ph[r][1] * s[1][q];
+            for (int r = 0; r < 2; r++)
+                for (int q = 0; q < 2; q++)
+                    s2[r][q] = t[r][0] * ph[q][0] + t[r][1] * ph[q][1] + s[r][q];
+            double a2 = l[1][0][i], b2 = l[1][1][i], d2 = l[1][2][i];
+            double e[3] = {a2 * a2, a2 * b2, b2 * b2 + d2 * d2};
+            double g[3] = {s2[0][0], s2[0][1], s2[1][1]};
+            /* relative to the natural scales sqrt(Sqq Svv) for the cross term */
+            worst = fmax(worst, fabs(e[0] - g[0]) / g[0]);
+            worst = fmax(worst, fabs(e[2] - g[2]) / g[2]);
+            worst = fmax(worst, fabs(e[1] - g[1]) / sqrt(g[0] * g[2]));
+        }
+    }
+    check_abs(worst, 0.0, 1e-10, "thermal increment: Sigma(2h) = Phi Sigma(h) Phi^T + Sigma(h)");
+}
+
+/* Equipartition: forces off, no drive, T = 300 K. Each mode's <q^2> must be kB T / w^2,
+ * <q'^2> kB T and <q q'> 0; the tip <x^2> = kB T / k_static.
+ * Damping is raised (xi 0.1, 0.02, 0.2, 0.3) so that a short run averages many correlation
+ * times: the relative standard error of a variance estimated over a time T from a
+ * narrow-band process of decay rate xi w is sqrt(1 / (T xi w)); T = 0.28 s (4e6 samples)
+ * gives 0.39 % for mode 1 (the worst), so 2 % is 5 standard errors. The normalised
+ * correlation <q q'> / (sd q sd q') has about the same standard error; bound 0.02. */
+static void thermal_equipartition_case(void) {
+    afm_modal m = make_model(4, 0);
+    static const double xi[4] = {0.1, 0.02, 0.2, 0.3};
+    for (int i = 0; i < 4; i++)
+        m.xi[i] = xi[i];
+    afm_force_params f = no_forces();
+    afm_cfg_drive dc = one_tone(0.0, 370e3, 0, 30e-9);
+    afm_cfg_sim sc = sim_cfg(AFM_INTEGRATOR_RT, 0);
+    char err[AFM_ERR_LEN] = "";
+    afm_sim *s = afm_sim_create(&m, &f, &dc, &sc, err, sizeof err);
+    afm_cfg_thermal th = {.enabled = true, .temperature_k = 300.0, .seed = 12345};
+    if (!check_true(s && afm_sim_set_thermal(s, &th, err, sizeof err) == AFM_SIM_OK,
+                    "thermal: create and enable")) {
+        afm_sim_destroy(&s);
+        return;
+    }
+    const double kt = kb_j_k * th.temperature_k;
+    run_long(s, 200000); /* > 20 decay times of mode 2 from rest */
+    double sqq[4] = {0}, svv[4] = {0}, sqv[4] = {0}, sxx = 0;
+    const long nsamp = 2000000, every = 2;
+    for (long k = 0; k < nsamp; k++) {
+        afm_sim_run(s, every, buf);
+        double q[4], v[4];
+        afm_sim_get_state(s, q, v);
+        for (int i = 0; i < 4; i++) {
+            sqq[i] += q[i] * q[i];
+            svv[i] += v[i] * v[i];
+            sqv[i] += q[i] * v[i];
+        }
+        sxx += buf[every - 1].x_m * buf[every - 1].x_m;
+    }
+    char what[160];
+    for (int i = 0; i < 4; i++) {
+        double w = m.omega_rad_s[i];
+        snprintf(what, sizeof what, "thermal mode %d: <q^2> / (kB T / w^2)", i + 1);
+        check_rel(sqq[i] / nsamp / (kt / (w * w)), 1.0, 0.02, what);
+        snprintf(what, sizeof what, "thermal mode %d: <q'^2> / kB T", i + 1);
+        check_rel(svv[i] / nsamp / kt, 1.0, 0.02, what);
+        snprintf(what, sizeof what, "thermal mode %d: <q q'> / (sd q sd q')", i + 1);
+        check_abs(sqv[i] / sqrt(sqq[i] * svv[i]), 0.0, 0.02, what);
+    }
+    check_rel(sxx / nsamp / (kt / m.static_stiffness_n_m), 1.0, 0.02,
+              "thermal: tip <x^2> / (kB T / k_static)");
+    afm_sim_destroy(&s);
+}
+
+/* Same seed => the same run, bit for bit (also through contact pieces: tapping); another
+ * seed differs; thermal off again => the noiseless result; bad settings are refused. */
+static void thermal_seed_case(void) {
+    afm_modal m = make_model(4, 0);
+    afm_force_params f = tapping_forces();
+    double wd = m.omega_rad_s[0];
+    afm_cfg_drive dc = one_tone(40e-9 / cabs(tip_gain(&m, wd)), wd / two_pi, 0, 30e-9);
+    afm_cfg_sim sc = sim_cfg(AFM_INTEGRATOR_RT, 0);
+    char err[AFM_ERR_LEN] = "";
+    afm_cfg_thermal th = {.enabled = true, .temperature_k = 300.0, .seed = 7};
+    afm_sim *s[3];
+    enum { N = 40000 };
+    static afm_sample out[3][N];
+    for (int k = 0; k < 3; k++) {
+        s[k] = afm_sim_create(&m, &f, &dc, &sc, err, sizeof err);
+        th.seed = k == 2 ? 8 : 7;
+        if (!check_true(s[k] && afm_sim_set_thermal(s[k], &th, err, sizeof err) == 0,
+                        "thermal: create")) {
+            for (int j = 0; j <= k; j++)
+                afm_sim_destroy(&s[j]);
+            return;
+        }
+        check_true(afm_sim_run(s[k], N, out[k]) == AFM_SIM_OK, "thermal tapping run");
+    }
+    bool same = true, differ = false, taps = false;
+    double xc = afm_force_contact_x(&f, dc.separation_m);
+    for (int i = 0; i < N; i++) {
+        same = same && out[0][i].x_m == out[1][i].x_m && out[0][i].f_n == out[1][i].f_n;
+        differ = differ || out[0][i].x_m != out[2][i].x_m;
+        taps = taps || out[0][i].x_m < xc;
+    }
+    check_true(taps, "thermal: the seeded run taps (contact pieces draw noise too)");
+    check_true(same, "thermal: same seed, same run (bit for bit)");
+    check_true(differ, "thermal: another seed, another run");
+    /* Thermal off: from one state at one time, the run equals a simulator that never had
+     * it. */
+    afm_cfg_thermal off = {.enabled = false};
+    afm_sim *clean = afm_sim_create(&m, &f, &dc, &sc, err, sizeof err);
+    if (clean) afm_sim_run(clean, N, out[1]);
+    double q[4], v[4];
+    afm_sim_get_state(s[0], q, v);
+    check_true(clean && afm_sim_set_thermal(s[0], &off, err, sizeof err) == 0 &&
+                   afm_sim_set_state(clean, q, v) == 0 && afm_sim_set_state(s[0], q, v) == 0,
+               "thermal: switched off");
+    if (clean) {
+        afm_sim_run(s[0], 1000, out[0]);
+        afm_sim_run(clean, 1000, out[1]);
+        same = true;
+        for (int i = 0; i < 1000; i++)
+            same = same && out[0][i].x_m == out[1][i].x_m;
+        check_true(same, "thermal: off again = never on (bit for bit)");
+    }
+    afm_cfg_thermal bad = {.enabled = true, .temperature_k = -1, .seed = 1};
+    err[0] = 0;
+    check_true(afm_sim_set_thermal(s[1], &bad, err, sizeof err) == AFM_SIM_EINVAL &&
+                   strstr(err, "temperature") != NULL,
+               "thermal: T < 0 refused with a message");
+    bad.temperature_k = NAN;
+    check_true(afm_sim_set_thermal(s[1], &bad, err, sizeof err) == AFM_SIM_EINVAL,
+               "thermal: T NaN refused");
+    check_true(afm_sim_set_thermal(s[1], NULL, err, sizeof err) == AFM_SIM_EINVAL,
+               "thermal: NULL refused");
+    afm_sim_destroy(&clean);
+    sc.integrator = AFM_INTEGRATOR_REFERENCE;
+    afm_sim *ref = afm_sim_create(&m, &f, &dc, &sc, err, sizeof err);
+    err[0] = 0;
+    check_true(ref && afm_sim_set_thermal(ref, &th, err, sizeof err) == AFM_SIM_EINVAL &&
+                   strstr(err, "thermal") != NULL,
+               "thermal: refused by CVODE with a message");
+    afm_sim_destroy(&ref);
+    for (int k = 0; k < 3; k++)
+        afm_sim_destroy(&s[k]);
+}
+
 /* ---- AFMTWIN_VALIDATE=full: the shipped configs against CVODE from rest ---- */
 
 static double now_s(void) {
@@ -539,6 +716,9 @@ int main(void) {
     free_vs_cvode_case("free, vdW", false, 41.5e-9, 3e-6);
     free_vs_cvode_case("free, vdW + Starr", true, 20e-9, 3e-3);
     bad_input_case();
+    thermal_coef_case();
+    thermal_equipartition_case();
+    thermal_seed_case();
     const char *v = getenv("AFMTWIN_VALIDATE");
     if (v && strcmp(v, "full") == 0) {
         /* Beam models: drive at mode 1 for the given linear free amplitude (without the

@@ -15,6 +15,7 @@ static const command commands[] = {
     {"modes", afm_cmd_modes, "eigenfrequencies, MAC, stiffness and effective mass of a model"},
     {"sweep", afm_cmd_sweep, "stepwise frequency sweep to steady state, with harmonics"},
     {"bench", afm_cmd_bench, "integrator speed and accuracy side by side"},
+    {"thermal", afm_cmd_thermal, "thermal tune: PSD of thermal motion, fit of eq. 5.1 per mode"},
 };
 
 static void usage(FILE *f) {

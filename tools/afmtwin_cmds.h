@@ -8,5 +8,6 @@
 int afm_cmd_modes(int argc, char **argv);
 int afm_cmd_sweep(int argc, char **argv);
 int afm_cmd_bench(int argc, char **argv);
+int afm_cmd_thermal(int argc, char **argv);
 
 #endif

@@ -3,9 +3,14 @@
  *
  * Scheme (docs/numerics.md has the reasons and the measurements):
  *  - Every mode's linear part and the sinusoidal base drive are integrated exactly
- *    (afm_rt_coef.h): the drive enters through phasors e^{i theta_j} rotated by a
- *    precomputed unit complex per step and resynchronised from afm_drive every RT_RESYNC
- *    steps and on every change, so tone changes are phase-continuous and q never jumps.
+ *    (afm_rt_coef.h): the state is the homogeneous part qh = q - sum_j Im(c_j e^{i theta_j})
+ *    (c_j the steady-state response to tone j), which the drive does not enter; the phasors
+ *    e^{i theta_j} are rotated by a precomputed unit complex per step and resynchronised
+ *    from afm_drive every RT_RESYNC steps and on every change. A change reloads qh from the
+ *    full q, so tone changes are phase-continuous and q never jumps.
+ *  - Thermal noise (afm_sim_set_thermal): each piece adds the exact Gaussian increment of
+ *    the Langevin force to (qh, qh') (afm_rt_coef_thermal), drawn before the force solve so
+ *    that the implicit force sees it.
  *  - The tip force enters through one channel. It is taken as linear over each step
  *    (exponential trapezoidal rule) and solved implicitly: the end force F1 satisfies
  *    F1 = f(x* + gx F1, v* + gv F1). Out of contact that is one linearly implicit step (one
@@ -28,10 +33,14 @@
  *    evaluation) is replaced near the rest gap h0 = Z + kappa l cos(alpha) by a quartic
  *    interpolant of c(h) on h0 (1 +- AFM_RT_STARR_WINDOW), rebuilt whenever Z changes; outside
  *    it the exact formula is used (afm_rt_coef.h).
+ *  - Output: afm_sim_run calls rt_run (the backend's batch hook), one loop over the block
+ *    of samples writing x, v, F, theta and the base displacement from the step; the full
+ *    q is rebuilt for struct afm_sim once per call (rt_publish).
  * Cost per sample is bounded: at most 1 + 3m implicit pieces (a trial full step, then per
  * substep a trial and two split pieces), each of at most RT_NEWTON_MAX force evaluations.
  * No allocation after init. */
 #include "afm_force_inline.h"
+#include "afm_rng.h"
 #include "afm_rt_coef.h"
 #include "afm_sim_impl.h"
 
@@ -49,10 +58,11 @@
 #define RT_MAX_SUBSTEPS 64
 #define RT_RESYNC 4096 /* steps between phasor resynchronisations */
 #define RT_NEWTON_MAX 12
+#define RT_KB_J_K 1.380649e-23 /* Boltzmann constant (exact, SI 2019) */
 
 /* The state a step reads and writes; two of them so a trial step can be dropped. */
 typedef struct {
-    double q[AFM_MAX_MODES], v[AFM_MAX_MODES];
+    double q[AFM_MAX_MODES], v[AFM_MAX_MODES];       /* homogeneous part qh, qh' */
     double z_re[AFM_MAX_TONES], z_im[AFM_MAX_TONES]; /* e^{i theta_j} */
     double x, xd, f;                                 /* tip displacement, velocity, force */
     double xn, vn; /* x*, v* of a full step from here: the tip without its F1 response */
@@ -64,18 +74,23 @@ typedef struct {
 typedef struct {
     int n, np, m, ncell, ntones; /* np: n rounded up to a multiple of 4 */
     double tip[AFM_MAX_MODES];   /* tip_i, zero past n */
+    double rot[AFM_MAX_MODES];   /* rot_i (tip rotation per unit q_i), zero past n */
     afm_rt_prop *prop;           /* prop[k - 1]: step of k cells, tau = k dt / ncell */
     double *block;
     rt_snap buf[2];
     int cur;
     double wd[AFM_MAX_TONES];
     double cq_re[AFM_MAX_TONES][AFM_MAX_MODES], cq_im[AFM_MAX_TONES][AFM_MAX_MODES];
+    double th_re[AFM_MAX_TONES], th_im[AFM_MAX_TONES]; /* theta = rot . qh + Im(th z) */
     double xc;      /* tip x at which the gap is a0 */
     bool kinked;    /* the force has a kink at d = a0 (contact, capillary, electrostatic) */
     double ftol;    /* Newton tolerance on F (N) */
     double clear_k; /* 4/27 dt: the Hermite path's largest dip per unit end speed */
     afm_rt_starr starr;
     long since_sync;
+    bool noise;   /* thermal force on */
+    double *lth;  /* thermal Cholesky factors: step of k cells at lth + 3 np (k - 1) */
+    afm_rng *rng; /* its generator (allocated by the first afm_sim_set_thermal) */
 } rt_state;
 
 /* ---- forces ---- */
@@ -100,7 +115,14 @@ static inline double rt_force(const afm_sim *s, const rt_state *r, double x, dou
     const afm_force_params *p = &s->f;
     double fc, fvi, kx, kv;
     double f = afm_force_near_terms(p, fma(x, p->cos_alpha, s->z_m), v, &fc, &fvi, &kx, &kv);
-    if (p->squeeze != AFM_SQUEEZE_NONE) {
+    if (p->squeeze == AFM_SQUEEZE_LINEAR) { /* afm_force_squeeze_term's linear film */
+        double c = fma(p->p1, s->z_m + x, p->p2);
+        if (c > 0.0) {
+            f = fma(-c, v, f);
+            kv -= c;
+            kx = fma(-p->p1, v, kx);
+        }
+    } else if (p->squeeze == AFM_SQUEEZE_STARR) {
         double sx, sv;
         f += rt_squeeze(s, r, x, v, &sx, &sv);
         kx += sx;
@@ -117,8 +139,9 @@ static inline double rt_force(const afm_sim *s, const rt_state *r, double x, dou
  * newest reciprocal slope rj = 1 / g'(F) known before it (a chord step: out of contact g'
  * is 1 to 1e-5, so this is Newton there), which keeps the division off the critical path;
  * a bracket turns a step that leaves it into bisection. Leaves f's partials and rj in o. */
-static __attribute__((noinline)) double rt_solve(const afm_sim *s, const rt_state *r, double xs, double vs,
-                              double gx, double gv, double F, double rj, rt_snap *o) {
+static inline __attribute__((always_inline)) double
+rt_solve_in(const afm_sim *s, const rt_state *r, double xs, double vs, double gx, double gv,
+            double F, double rj, rt_snap *o) {
     double fx, fv;
     double f = rt_force(s, r, fma(gx, F, xs), fma(gv, F, vs), &fx, &fv);
     double res = F - f, fn = fma(-res, rj, F);
@@ -159,6 +182,14 @@ static __attribute__((noinline)) double rt_solve(const afm_sim *s, const rt_stat
     o->fv = fv;
     o->rj = rj;
     return fn;
+}
+
+/* rt_solve_in out of line: the rare fallback of the free step (rt_solve_fast). The
+ * contact pieces inline rt_solve_in. */
+static __attribute__((noinline)) double rt_solve(const afm_sim *s, const rt_state *r, double xs,
+                                                 double vs, double gx, double gv, double F,
+                                                 double rj, rt_snap *o) {
+    return rt_solve_in(s, r, xs, vs, gx, gv, F, rj, o);
 }
 
 /* Out of contact, d = x cos(alpha) + Z >= a0: the force terms valid there, inlined. */
@@ -228,6 +259,19 @@ static inline rt_v4 rt_splat(double x) { return (rt_v4){x, x, x, x}; }
 
 static inline double rt_hsum(rt_v4 a) { return (a[0] + a[1]) + (a[2] + a[3]); }
 
+/* rt_hsum of a and b at once (one horizontal add), same rounding. */
+static inline void rt_hsum2(rt_v4 a, rt_v4 b, double *sa, double *sb) {
+#if defined(__AVX__)
+    __m256d t = _mm256_hadd_pd((__m256d)a, (__m256d)b); /* a0+a1, b0+b1, a2+a3, b2+b3 */
+    __m128d u = _mm_add_pd(_mm256_castpd256_pd128(t), _mm256_extractf128_pd(t, 1));
+    *sa = u[0];
+    *sb = u[1];
+#else
+    *sa = rt_hsum(a);
+    *sb = rt_hsum(b);
+#endif
+}
+
 /* x*, v* of a full step from st (the tip at the step's end without its F1 response). */
 static void rt_predict(const rt_state *r, rt_snap *st) {
     const afm_rt_prop *P = &r->prop[r->ncell - 1];
@@ -248,17 +292,41 @@ static void rt_predict(const rt_state *r, rt_snap *st) {
     st->vn = vs;
 }
 
+/* The thermal increment of a piece of k cells: (nq, nv) per mode (zero past n) and its tip
+ * sums (*xq, *xv). */
+static inline void rt_thermal_draw(const rt_state *r, int k, double *nq, double *nv,
+                                   double *xq, double *xv) {
+    const int np = r->np;
+    const double *l = r->lth + 3 * (size_t)np * (size_t)(k - 1);
+    double sx = 0.0, sv = 0.0;
+    for (int i = 0; i < np; i++) {
+        double n1 = 0.0, n2 = 0.0;
+        if (i < r->n) {
+            n1 = afm_rng_normal(r->rng);
+            n2 = afm_rng_normal(r->rng);
+        }
+        nq[i] = l[i] * n1;
+        nv[i] = fma(l[np + i], n1, l[2 * np + i] * n2);
+        sx = fma(r->tip[i], nq[i], sx);
+        sv = fma(r->tip[i], nv[i], sv);
+    }
+    *xq = sx;
+    *xv = sv;
+}
+
 /* Advance in by k cells (tau = k dt / ncell) into o; o may be in. Mode arrays run to np =
  * n rounded up to 4, with zero coefficients past n. A full step (k = ncell) takes x*, v*
  * from in's predictor; a shorter piece from its own tip-weighted rows. Every piece leaves
- * the predictor of a following full step in o. */
+ * the predictor of a following full step in o. noise: add the thermal increment. */
 static inline __attribute__((always_inline)) void
 rt_piece_t(const afm_sim *s, const rt_state *r, const rt_snap *in, rt_snap *o, int k,
-           const int np, const int nt, const bool fast) {
+           const int np, const int nt, const bool fast, const bool noise) {
     const afm_rt_prop *P = &r->prop[k - 1], *PF = &r->prop[r->ncell - 1];
     const double *c = P->c, *cf = PF->c;
     const double F0 = in->f;
     double xs, vs, rj;
+    double nq[AFM_MAX_MODES] __attribute__((aligned(32)));
+    double nv[AFM_MAX_MODES] __attribute__((aligned(32)));
     if (k == r->ncell) {
         xs = in->xn;
         vs = in->vn;
@@ -269,12 +337,19 @@ rt_piece_t(const afm_sim *s, const rt_state *r, const rt_snap *in, rt_snap *o, i
             xs4 = rt_fma4(RT_V4(c + 8 * np + i), q, rt_fma4(RT_V4(c + 9 * np + i), v, xs4));
             vs4 = rt_fma4(RT_V4(c + 10 * np + i), q, rt_fma4(RT_V4(c + 11 * np + i), v, vs4));
         }
-        xs = P->gx0 * F0 + rt_hsum(xs4);
-        vs = P->gv0 * F0 + rt_hsum(vs4);
+        rt_hsum2(xs4, vs4, &xs, &vs);
+        xs = fma(P->gx0, F0, xs);
+        vs = fma(P->gv0, F0, vs);
         for (int j = 0; j < nt; j++) {
             xs += P->dx_re[j] * in->z_im[j] + P->dx_im[j] * in->z_re[j];
             vs += P->dv_re[j] * in->z_im[j] + P->dv_im[j] * in->z_re[j];
         }
+    }
+    if (noise) {
+        double xq, xv;
+        rt_thermal_draw(r, k, nq, nv, &xq, &xv);
+        xs += xq;
+        vs += xv;
     }
     if (in->rk == k)
         rj = in->rj;
@@ -283,7 +358,7 @@ rt_piece_t(const afm_sim *s, const rt_state *r, const rt_snap *in, rt_snap *o, i
     /* The force first (the critical path); the modal update below does not wait for it
      * until its last multiply-add. */
     double F1 = fast ? rt_solve_fast(s, r, xs, vs, P->gx, P->gv, F0, rj, o)
-                     : rt_solve(s, r, xs, vs, P->gx, P->gv, F0, rj, o);
+                     : rt_solve_in(s, r, xs, vs, P->gx, P->gv, F0, rj, o);
     double zr1[AFM_MAX_TONES], zi1[AFM_MAX_TONES];
     double xn = 0.0, vn = 0.0;
     for (int j = 0; j < nt; j++) {
@@ -300,11 +375,9 @@ rt_piece_t(const afm_sim *s, const rt_state *r, const rt_snap *in, rt_snap *o, i
         rt_v4 a = rt_fma4(RT_V4(c + i), q, rt_fma4(RT_V4(c + np + i), v, RT_V4(c + 4 * np + i) * f0));
         rt_v4 w = rt_fma4(RT_V4(c + 2 * np + i), q,
                           rt_fma4(RT_V4(c + 3 * np + i), v, RT_V4(c + 5 * np + i) * f0));
-        for (int j = 0; j < nt; j++) {
-            const double *d = P->d + 4 * np * j;
-            rt_v4 zr = rt_splat(in->z_re[j]), zi = rt_splat(in->z_im[j]);
-            a = rt_fma4(RT_V4(d + i), zi, rt_fma4(RT_V4(d + np + i), zr, a));
-            w = rt_fma4(RT_V4(d + 2 * np + i), zi, rt_fma4(RT_V4(d + 3 * np + i), zr, w));
+        if (noise) {
+            a += RT_V4(nq + i);
+            w += RT_V4(nv + i);
         }
         /* next full step's x*, v* without this F1 (its F1 part is P->hx F1, P->hv F1) */
         xn4 = rt_fma4(RT_V4(cf + 8 * np + i), a, rt_fma4(RT_V4(cf + 9 * np + i), w, xn4));
@@ -316,36 +389,27 @@ rt_piece_t(const afm_sim *s, const rt_state *r, const rt_snap *in, rt_snap *o, i
         o->z_re[j] = zr1[j];
         o->z_im[j] = zi1[j];
     }
+    double xh, vh;
+    rt_hsum2(xn4, vn4, &xh, &vh);
     o->rk = k;
     o->x = fma(P->gx, F1, xs);
     o->xd = fma(P->gv, F1, vs);
-    o->xn = fma(P->hx, F1, xn + rt_hsum(xn4));
-    o->vn = fma(P->hv, F1, vn + rt_hsum(vn4));
+    o->xn = fma(P->hx, F1, xn + xh);
+    o->vn = fma(P->hv, F1, vn + vh);
     o->f = F1;
 }
 
 /* rt_piece_t for the pieces of contact samples (iterated solve). */
 static __attribute__((noinline)) void rt_piece(const afm_sim *s, const rt_state *r,
                                                const rt_snap *in, rt_snap *o, int k) {
-    if (r->ntones == 1 && r->np == 4)
-        rt_piece_t(s, r, in, o, k, 4, 1, false);
+    if (r->noise)
+        rt_piece_t(s, r, in, o, k, r->np, r->ntones, false, true);
+    else if (r->ntones == 1 && r->np == 4)
+        rt_piece_t(s, r, in, o, k, 4, 1, false, false);
     else if (r->ntones == 1 && r->np == 8)
-        rt_piece_t(s, r, in, o, k, 8, 1, false);
+        rt_piece_t(s, r, in, o, k, 8, 1, false, false);
     else
-        rt_piece_t(s, r, in, o, k, r->np, r->ntones, false);
-}
-
-/* The full trial step of every sample, out of contact at its start, with the common sizes
- * (up to 8 modes, one tone) as constants so that its loops unroll and the phasors stay in
- * registers. */
-static inline __attribute__((always_inline)) void rt_full(const afm_sim *s, const rt_state *r,
-                                                          const rt_snap *in, rt_snap *o) {
-    if (r->ntones == 1 && r->np == 4)
-        rt_piece_t(s, r, in, o, r->ncell, 4, 1, true);
-    else if (r->ntones == 1 && r->np == 8)
-        rt_piece_t(s, r, in, o, r->ncell, 8, 1, true);
-    else
-        rt_piece_t(s, r, in, o, r->ncell, r->np, r->ntones, true);
+        rt_piece_t(s, r, in, o, k, r->np, r->ntones, false, false);
 }
 
 /* ---- contact location on the cubic Hermite path x(sigma), sigma in [0, 1] ---- */
@@ -424,11 +488,18 @@ static void rt_sync_phasors(const afm_sim *s, rt_state *r, rt_snap *st) {
     r->since_sync = 0;
 }
 
-/* The outputs afm_sim_run takes from the backend (be_fills_tip). */
+/* The full state into struct afm_sim: q = qh + sum_j Im(c_j z_j), q' = qh' + sum_j
+ * Im(i wd_j c_j z_j), and the tip outputs (be_fills_tip). Once per afm_sim_run. */
 static void rt_publish(afm_sim *s, const rt_state *r, const rt_snap *b) {
-    for (int i = 0; i < r->np; i += 4) {
-        RT_V4W(s->q + i) = RT_V4(b->q + i);
-        RT_V4W(s->qd + i) = RT_V4(b->v + i);
+    for (int i = 0; i < r->n; i++) {
+        double q = b->q[i], v = b->v[i];
+        for (int j = 0; j < r->ntones; j++) {
+            double cr = r->cq_re[j][i], ci = r->cq_im[j][i];
+            q += cr * b->z_im[j] + ci * b->z_re[j];
+            v += r->wd[j] * (cr * b->z_re[j] - ci * b->z_im[j]);
+        }
+        s->q[i] = q;
+        s->qd[i] = v;
     }
     double u = 0.0;
     for (int j = 0; j < r->ntones; j++)
@@ -439,60 +510,118 @@ static void rt_publish(afm_sim *s, const rt_state *r, const rt_snap *b) {
     s->base_last_m = u;
 }
 
-static int rt_advance(afm_sim *s) {
+/* One sample that touches contact, from a: m substeps, each split at a crossing. The
+ * result is in *a or *b; returns which. */
+static __attribute__((noinline)) rt_snap *rt_contact(const afm_sim *s, const rt_state *r,
+                                                     rt_snap *a, rt_snap *b) {
+    double tau = s->dt_s / r->m;
+    for (int k = 0; k < r->m; k++) {
+        rt_substep(s, r, a, b, tau);
+        rt_snap *t = a;
+        a = b;
+        b = t;
+    }
+    return a;
+}
+
+/* n output steps (afm_sim_backend.run), with the common sizes (up to 8 modes, one tone)
+ * and the thermal switch as constants so that the full step's loops unroll and the
+ * phasors stay in registers. */
+static inline __attribute__((always_inline)) int
+rt_run_t(afm_sim *s, rt_state *r, int n, afm_sample *out, const int np, const int nt,
+         const bool noise) {
+    int rc = AFM_SIM_OK;
+    for (int k = 0; k < n; k++) {
+        rt_snap *a = &r->buf[r->cur], *b = &r->buf[r->cur ^ 1];
+        if (__builtin_expect(++r->since_sync >= RT_RESYNC, 0)) {
+            rt_sync_phasors(s, r, a);
+            rt_predict(r, a);
+        }
+        bool contact = r->kinked && a->x < r->xc;
+        if (!contact) {
+            rt_piece_t(s, r, a, b, r->ncell, np, nt, true, noise);
+            if (r->kinked) {
+                double low =
+                    (a->x < b->x ? a->x : b->x) - r->clear_k * (fabs(a->xd) + fabs(b->xd));
+                contact = low < r->xc && rt_crossing(r, a, b, s->dt_s) >= 0;
+            }
+        }
+        if (contact) b = rt_contact(s, r, a, b);
+        r->cur = (int)(b - r->buf);
+        s->step++;
+        s->t_s = s->t_start_s + (double)s->step * s->dt_s;
+        /* x and v are sums over every mode: a non-finite q_i shows in them. A tip excursion
+         * of a millimetre is no cantilever any more. */
+        if (!(fabs(b->x) < 1e-3 && fabs(b->xd) < HUGE_VAL && fabs(b->f) < HUGE_VAL)) {
+            rc = AFM_SIM_EBLOWUP;
+            break;
+        }
+        if (out) {
+            afm_sample *o = &out[k];
+            rt_v4 th4 = rt_splat(0.0);
+            for (int i = 0; i < np; i += 4)
+                th4 = rt_fma4(RT_V4(r->rot + i), RT_V4(b->q + i), th4);
+            double th = rt_hsum(th4), u = 0.0;
+            for (int j = 0; j < nt; j++) {
+                th += r->th_re[j] * b->z_im[j] + r->th_im[j] * b->z_re[j];
+                u += s->drive.amp_m[j] * b->z_im[j];
+            }
+            o->t_s = s->t_s;
+            o->x_m = b->x;
+            o->v_m_s = b->xd;
+            o->f_n = b->f;
+            o->theta_rad = th;
+            o->base_m = u;
+        }
+    }
+    rt_publish(s, r, &r->buf[r->cur]);
+    return rc;
+}
+
+static int rt_run(afm_sim *s, int n, afm_sample *out) {
     rt_state *r = s->be_state;
-    rt_snap *a = &r->buf[r->cur], *b = &r->buf[r->cur ^ 1];
-    if (__builtin_expect(++r->since_sync >= RT_RESYNC, 0)) {
-        rt_sync_phasors(s, r, a);
-        rt_predict(r, a);
-    }
-    bool contact = r->kinked && a->x < r->xc;
-    if (!contact) {
-        rt_full(s, r, a, b);
-        if (r->kinked) {
-            double low = (a->x < b->x ? a->x : b->x) - r->clear_k * (fabs(a->xd) + fabs(b->xd));
-            contact = low < r->xc && rt_crossing(r, a, b, s->dt_s) >= 0;
-        }
-    }
-    if (contact) {
-        double tau = s->dt_s / r->m;
-        for (int k = 0; k < r->m; k++) {
-            rt_substep(s, r, a, b, tau);
-            rt_snap *t = a;
-            a = b;
-            b = t;
-        }
-        b = a; /* the result */
-    }
-    r->cur = (int)(b - r->buf);
-    rt_publish(s, r, b);
-    if (!isfinite(b->f) || !isfinite(b->x) || !isfinite(b->xd)) return AFM_SIM_EBLOWUP;
-    return AFM_SIM_OK;
+    if (r->noise) return rt_run_t(s, r, n, out, r->np, r->ntones, true);
+    if (r->ntones == 1 && r->np == 4) return rt_run_t(s, r, n, out, 4, 1, false);
+    if (r->ntones == 1 && r->np == 8) return rt_run_t(s, r, n, out, 8, 1, false);
+    return rt_run_t(s, r, n, out, r->np, r->ntones, false);
 }
 
 /* Recompute the drive tables and reload the state from s->q, s->qd at s->t_s. */
 static void rt_changed(afm_sim *s) {
     rt_state *r = s->be_state;
     const afm_modal *m = &s->m;
+    double cx_re[AFM_MAX_TONES], cx_im[AFM_MAX_TONES];
     r->ntones = s->drive.n;
     for (int j = 0; j < r->ntones; j++) {
         r->wd[j] = s->drive.omega_rad_s[j];
-        for (int i = 0; i < m->n; i++)
+        cx_re[j] = cx_im[j] = 0.0;
+        r->th_re[j] = m->rot_base * s->drive.amp_m[j];
+        r->th_im[j] = 0.0;
+        for (int i = 0; i < m->n; i++) {
             afm_rt_coef_particular(m->omega_rad_s[i], m->xi[i], m->base_k[i], m->base_m[i],
                                    s->drive.amp_m[j], r->wd[j], &r->cq_re[j][i], &r->cq_im[j][i]);
+            cx_re[j] += m->tip[i] * r->cq_re[j][i];
+            cx_im[j] += m->tip[i] * r->cq_im[j][i];
+            r->th_re[j] += m->rot[i] * r->cq_re[j][i];
+            r->th_im[j] += m->rot[i] * r->cq_im[j][i];
+        }
     }
     for (int k = 0; k < r->ncell; k++)
-        afm_rt_coef_drive(&r->prop[k], r->np, r->tip, r->ntones, r->wd,
-                          (const double(*)[AFM_MAX_MODES])r->cq_re,
-                          (const double(*)[AFM_MAX_MODES])r->cq_im);
+        afm_rt_coef_drive(&r->prop[k], r->ntones, r->wd, cx_re, cx_im);
     r->xc = afm_force_contact_x(&s->f, s->z_m);
     afm_rt_starr_build(&r->starr, &s->f, s->z_m);
     rt_snap *st = &r->buf[r->cur];
     rt_sync_phasors(s, r, st);
     st->x = st->xd = 0.0;
     for (int i = 0; i < r->n; i++) {
-        st->q[i] = s->q[i];
-        st->v[i] = s->qd[i];
+        double q = s->q[i], v = s->qd[i];
+        for (int j = 0; j < r->ntones; j++) {
+            double cr = r->cq_re[j][i], ci = r->cq_im[j][i];
+            q -= cr * st->z_im[j] + ci * st->z_re[j];
+            v -= r->wd[j] * (cr * st->z_re[j] - ci * st->z_im[j]);
+        }
+        st->q[i] = q;
+        st->v[i] = v;
         st->x += m->tip[i] * s->q[i];
         st->xd += m->tip[i] * s->qd[i];
     }
@@ -503,11 +632,45 @@ static void rt_changed(afm_sim *s) {
     rt_publish(s, r, st);
 }
 
+/* afm_sim_set_thermal: the Cholesky factors of every step length's increment, and the
+ * generator seeded. */
+static int rt_thermal(afm_sim *s, const afm_cfg_thermal *t, char *err, size_t errlen) {
+    rt_state *r = s->be_state;
+    if (!t->enabled) {
+        r->noise = false;
+        return 0;
+    }
+    if (!r->lth) {
+        double *l = calloc(3 * (size_t)r->np * (size_t)r->ncell, sizeof *l);
+        afm_rng *g = calloc(1, sizeof *g);
+        if (!l || !g) {
+            free(l);
+            free(g);
+            snprintf(err, errlen, "rt integrator: out of memory");
+            return -1;
+        }
+        r->lth = l;
+        r->rng = g;
+    }
+    const double kt = RT_KB_J_K * t->temperature_k;
+    const size_t np = (size_t)r->np;
+    for (int k = 0; k < r->ncell; k++) {
+        double *l = r->lth + 3 * np * (size_t)k;
+        afm_rt_coef_thermal(&r->prop[k], r->n, r->np, s->m.omega_rad_s, s->m.xi, kt, l, l + np,
+                            l + 2 * np);
+    }
+    afm_rng_seed(r->rng, (uint64_t)t->seed);
+    r->noise = true;
+    return 0;
+}
+
 static void rt_destroy(afm_sim *s) {
     rt_state *r = s->be_state;
     if (!r) return;
     free(r->block);
     free(r->prop);
+    free(r->lth);
+    free(r->rng);
     free(r);
     s->be_state = NULL;
 }
@@ -541,11 +704,13 @@ static int rt_init(afm_sim *s, char *err, size_t errlen) {
     }
     r->n = m->n;
     r->np = (m->n + 3) & ~3;
-    for (int i = 0; i < r->n; i++)
+    for (int i = 0; i < r->n; i++) {
         r->tip[i] = m->tip[i];
+        r->rot[i] = m->rot[i];
+    }
     r->m = sub;
     r->ncell = sub * RT_GRID;
-    const size_t per = (size_t)(AFM_RT_COEF_ROWS + 4 * AFM_MAX_TONES) * (size_t)r->np;
+    const size_t per = (size_t)AFM_RT_COEF_ROWS * (size_t)r->np;
     r->prop = calloc((size_t)r->ncell, sizeof *r->prop);
     r->block = calloc((size_t)r->ncell * per, sizeof(double));
     _Static_assert(AFM_MAX_MODES % 4 == 0, "rt_piece works in blocks of 4 modes");
@@ -559,7 +724,6 @@ static int rt_init(afm_sim *s, char *err, size_t errlen) {
     for (int k = 0; k < r->ncell; k++) {
         afm_rt_prop *P = &r->prop[k];
         P->c = r->block + (size_t)k * per;
-        P->d = P->c + AFM_RT_COEF_ROWS * r->np;
         afm_rt_coef_modes(P, r->n, r->np, m->omega_rad_s, m->xi, m->tip,
                           s->dt_s * (double)(k + 1) / (double)r->ncell);
     }
@@ -579,7 +743,8 @@ static int rt_init(afm_sim *s, char *err, size_t errlen) {
 const afm_sim_backend afm_rt_backend = {
     .name = "rt",
     .init = rt_init,
-    .advance = rt_advance,
+    .run = rt_run,
     .changed = rt_changed,
+    .thermal = rt_thermal,
     .destroy = rt_destroy,
 };

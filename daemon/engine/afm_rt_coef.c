@@ -104,30 +104,61 @@ void afm_rt_coef_chain(afm_rt_prop *p, const afm_rt_prop *pf, int np) {
     p->hv = hv;
 }
 
-void afm_rt_coef_drive(afm_rt_prop *p, int np, const double *tip, int ntones, const double *wd,
-                       const double (*c_re)[AFM_MAX_MODES], const double (*c_im)[AFM_MAX_MODES]) {
-    const double *c = p->c;
+void afm_rt_coef_drive(afm_rt_prop *p, int ntones, const double *wd, const double *cx_re,
+                       const double *cx_im) {
     for (int j = 0; j < ntones; j++) {
         double rr = cos(wd[j] * p->tau_s), ri = sin(wd[j] * p->tau_s);
         p->rot_re[j] = rr;
         p->rot_im[j] = ri;
-        double *d = p->d + 4 * np * j;
-        p->dx_re[j] = p->dx_im[j] = p->dv_re[j] = p->dv_im[j] = 0.0;
-        for (int i = 0; i < np; i++) {
-            double p11 = c[i], p12 = c[np + i], p21 = c[2 * np + i], p22 = c[3 * np + i];
-            /* Dq = c (rho - p11 - i wd p12), Dv = c (i wd rho - p21 - i wd p22) */
-            double aq_re = rr - p11, aq_im = ri - wd[j] * p12;
-            double av_re = -wd[j] * ri - p21, av_im = wd[j] * rr - wd[j] * p22;
-            double cr = c_re[j][i], ci = c_im[j][i];
-            d[i] = cr * aq_re - ci * aq_im;
-            d[np + i] = cr * aq_im + ci * aq_re;
-            d[2 * np + i] = cr * av_re - ci * av_im;
-            d[3 * np + i] = cr * av_im + ci * av_re;
-            p->dx_re[j] += tip[i] * d[i];
-            p->dx_im[j] += tip[i] * d[np + i];
-            p->dv_re[j] += tip[i] * d[2 * np + i];
-            p->dv_im[j] += tip[i] * d[3 * np + i];
+        p->dx_re[j] = cx_re[j] * rr - cx_im[j] * ri;
+        p->dx_im[j] = cx_re[j] * ri + cx_im[j] * rr;
+        p->dv_re[j] = -wd[j] * p->dx_im[j]; /* i wd dx */
+        p->dv_im[j] = wd[j] * p->dx_re[j];
+    }
+}
+
+void afm_rt_coef_thermal(const afm_rt_prop *p, int n, int np, const double *w,
+                         const double *xi, double kt_j, double *l11, double *l21, double *l22) {
+    for (int i = 0; i < np; i++)
+        l11[i] = l21[i] = l22[i] = 0.0;
+    const double *c = p->c;
+    for (int i = 0; i < n; i++) {
+        /* Scaled coordinates u = (q, q'/w), time sigma = s/tau, variances in units of
+         * kB T / w^2: du/dsigma = M u + noise of intensity Qs = diag(0, 4 xi w tau),
+         * M = w tau [0, 1; -1, -2 xi], stationary covariance I. */
+        double wt = w[i] * p->tau_s, s11, s12, s22;
+        if (2.0 * xi[i] * wt > 0.5) {
+            /* Strong decay over the step: I - Phi_s Phi_s^T loses under one digit. */
+            double a = c[i], b = w[i] * c[np + i], cc = c[2 * np + i] / w[i], d = c[3 * np + i];
+            s11 = 1.0 - (a * a + b * b);
+            s12 = -(a * cc + b * d);
+            s22 = 1.0 - (cc * cc + d * d);
+        } else {
+            /* Weak decay: that difference would cancel to the damping per step. Van Loan:
+             * exp([-M, Qs; 0, M^T]) = [., E12; 0, Phi_s^T], Sigma_s = Phi_s E12, with E12 =
+             * O(Qs) accurate to ~1e-16 absolute (exp(-M) grows at most e^0.25 here). */
+            double m[16] = {0}, e[16];
+            m[0 * 4 + 1] = -wt; /* -M */
+            m[1 * 4 + 0] = wt;
+            m[1 * 4 + 1] = 2.0 * xi[i] * wt;
+            m[1 * 4 + 3] = 4.0 * xi[i] * wt; /* Qs */
+            m[2 * 4 + 3] = -wt;              /* M^T */
+            m[3 * 4 + 2] = wt;
+            m[3 * 4 + 3] = -2.0 * xi[i] * wt;
+            afm_rt_coef_expm(4, m, e);
+            double f11 = e[10], f12 = e[14], f21 = e[11], f22 = e[15]; /* Phi_s = E22^T */
+            double g11 = e[2], g12 = e[3], g21 = e[6], g22 = e[7];
+            s11 = f11 * g11 + f12 * g21;
+            s22 = f21 * g12 + f22 * g22;
+            s12 = 0.5 * ((f11 * g12 + f12 * g22) + (f21 * g11 + f22 * g21));
         }
+        double var = kt_j / (w[i] * w[i]);
+        if (!(s11 > 0.0)) continue; /* no damping: no noise */
+        double q11 = var * s11, q12 = var * w[i] * s12, q22 = var * w[i] * w[i] * s22;
+        l11[i] = sqrt(q11);
+        l21[i] = q12 / l11[i];
+        double r = q22 - l21[i] * l21[i];
+        l22[i] = r > 0.0 ? sqrt(r) : 0.0;
     }
 }
 

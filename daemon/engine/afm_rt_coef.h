@@ -10,7 +10,10 @@
  * G0 = int_0^tau Phi(tau - s) [0; tip] (1 - s/tau) ds, G1 = same with s/tau (both from one
  * exponential of an augmented 4x4 matrix, Van Loan, so xi >= 1 needs no special case), and
  * D_j = P(tau) - Phi P(0) with P(s) the steady-state response [c; i wd c] e^{i wd s} to tone
- * j. Build time (and drive changes) only; afm_rt.c reads the tables on the real-time path. */
+ * j. The rt backend integrates the homogeneous part qh = q - sum_j Im(c_j e^{i theta_j})
+ * instead, for which the drive terms vanish (qh(tau) = Phi qh(0) + G0 F0 + G1 F1): only the
+ * tip sums of the particular response are tabulated. Build time (and drive changes) only;
+ * afm_rt.c reads the tables on the real-time path. */
 #ifndef AFM_RT_COEF_H
 #define AFM_RT_COEF_H
 
@@ -20,21 +23,22 @@
 #include <math.h>
 
 /* All coefficients for one step length tau and n modes, stored with a stride np >= n
- * (zeros past n). c and d point into a block the owner allocates: c has 12 np doubles
- * (p11, p12, p21, p22, g0q, g0v, g1q, g1v, then tip_i times p11, p12, p21, p22: the rows
- * that give x and x' directly; np each), d has 4 np per tone (dq_re, dq_im, dv_re, dv_im;
- * np each) for AFM_MAX_TONES tones. */
+ * (zeros past n). c points into a block the owner allocates: 12 np doubles (p11, p12, p21,
+ * p22, g0q, g0v, g1q, g1v, then tip_i times p11, p12, p21, p22: the rows that give x and x'
+ * directly; np each). */
 #define AFM_RT_COEF_ROWS 12
 typedef struct {
     double tau_s;
     double gx, gv;                                       /* sum_i tip_i G1_i: d(x, v)(tau) / dF1 */
     double gx0, gv0;                                     /* sum_i tip_i G0_i: d(x, v)(tau) / dF0 */
     double rot_re[AFM_MAX_TONES], rot_im[AFM_MAX_TONES]; /* e^{i wd_j tau} */
-    double dx_re[AFM_MAX_TONES], dx_im[AFM_MAX_TONES];   /* sum_i tip_i Dq_i */
-    double dv_re[AFM_MAX_TONES], dv_im[AFM_MAX_TONES];   /* sum_i tip_i Dv_i */
+    /* Particular tip response at the step's end per unit phasor at its start:
+     * x_p(tau) = Im(dx e^{i theta(0)}), dx = cx e^{i wd tau}, cx = sum_i tip_i c_i; dv likewise
+     * with i wd cx. */
+    double dx_re[AFM_MAX_TONES], dx_im[AFM_MAX_TONES];
+    double dv_re[AFM_MAX_TONES], dv_im[AFM_MAX_TONES];
     double hx, hv; /* d(x*, v*) / dF1 of a full step that follows this one (coef_chain) */
     double *c;
-    double *d;
 } afm_rt_prop;
 
 /* Per-mode part of p (Phi, G0, G1, gx, gv) for n modes w (rad/s > 0), xi (>= 0), tip;
@@ -48,11 +52,21 @@ void afm_rt_coef_modes(afm_rt_prop *p, int n, int np, const double *w, const dou
  * afm_rt_coef_modes on both. */
 void afm_rt_coef_chain(afm_rt_prop *p, const afm_rt_prop *pf, int np);
 
-/* Drive part of p for tones wd[j] (rad/s), j < ntones, with the steady-state modal
- * amplitudes c[j][i] (re, im; zero past n), tip (np, zero past n). Needs afm_rt_coef_modes first
- * (uses Phi). */
-void afm_rt_coef_drive(afm_rt_prop *p, int np, const double *tip, int ntones, const double *wd,
-                       const double (*c_re)[AFM_MAX_MODES], const double (*c_im)[AFM_MAX_MODES]);
+/* Drive part of p (rot, dx, dv) for tones wd[j] (rad/s), j < ntones, whose steady-state tip
+ * response is x_p = Im(cx_j e^{i theta_j}). Needs tau_s (afm_rt_coef_modes) first. */
+void afm_rt_coef_drive(afm_rt_prop *p, int ntones, const double *wd, const double *cx_re,
+                       const double *cx_im);
+
+/* Thermal (Langevin) increment over p's step (tau_s) for n modes w, xi at kB T = kt_j (J),
+ * stride np (zeros past n and for modes without damping). With mass-normalised modes and
+ * <eta(t) eta(t')> = 4 xi w kB T delta(t - t'), the exact step adds to (q, q') a Gaussian of
+ * covariance Sigma(tau) = int_0^tau Phi(s) diag(0, 4 xi w kB T) Phi(s)^T ds = P - Phi P Phi^T
+ * with P = diag(kB T / w^2, kB T) the stationary covariance; the latter form only where the
+ * mode decays strongly over the step (2 xi w tau > 0.5), Van Loan's exponential elsewhere
+ * (no cancellation). Writes the Cholesky factor: (dq, dv) = (l11 n1, l21 n1 + l22 n2) with
+ * n1, n2 standard normal. Needs afm_rt_coef_modes first (uses Phi). */
+void afm_rt_coef_thermal(const afm_rt_prop *p, int n, int np, const double *w,
+                         const double *xi, double kt_j, double *l11, double *l21, double *l22);
 
 /* Steady-state response of one mode to the base tone A sin(theta), theta' = wd:
  * q_p = Im(c e^{i theta}); returns c as (re, im). The modal force amplitude is

@@ -88,6 +88,14 @@ static bool state_finite(const afm_sim *s) {
 }
 
 int afm_sim_run(afm_sim *s, int n, afm_sample *out) {
+    if (s->be->run) {
+        int rc = s->be->run(s, n, out);
+        if (rc != AFM_SIM_OK) {
+            afm_sim_reset(s);
+            return rc == AFM_SIM_ESOLVER ? rc : AFM_SIM_EBLOWUP;
+        }
+        return AFM_SIM_OK;
+    }
     for (int k = 0; k < n; k++) {
         int rc = s->be->advance(s);
         s->step++;
@@ -145,6 +153,25 @@ void afm_sim_reset(afm_sim *s) {
     memset(s->qd, 0, sizeof s->qd);
     s->f_last_n = afm_force_tip(&s->f, s->z_m, 0.0, 0.0, NULL, NULL);
     s->be->changed(s);
+}
+
+int afm_sim_set_thermal(afm_sim *s, const afm_cfg_thermal *t, char *err, size_t errlen) {
+    if (!t) {
+        snprintf(err, errlen, "afm_sim_set_thermal: no settings");
+        return AFM_SIM_EINVAL;
+    }
+    if (t->enabled && !(t->temperature_k > 0 && isfinite(t->temperature_k))) {
+        snprintf(err, errlen, "thermal: temperature %g K is not > 0", t->temperature_k);
+        return AFM_SIM_EINVAL;
+    }
+    if (t->enabled && !s->be->thermal) {
+        snprintf(err, errlen, "thermal: the %s integrator has no thermal force (use rt)",
+                 s->be->name);
+        return AFM_SIM_EINVAL;
+    }
+    if (s->be->thermal && s->be->thermal(s, t, err, errlen) != 0) return AFM_SIM_EINVAL;
+    s->thermal = *t;
+    return AFM_SIM_OK;
 }
 
 double afm_sim_time(const afm_sim *s) { return s->t_s; }

@@ -55,6 +55,15 @@ const afm_modal *afm_sim_model(const afm_sim *s);
 const afm_force_params *afm_sim_forces(const afm_sim *s);
 const char *afm_sim_integrator_name(const afm_sim *s);
 
+/* Thermal (Langevin) force per mode at t->temperature_k (fluctuation-dissipation: each
+ * mass-normalised mode gets <q^2> = kB T / w^2), from a generator seeded with t->seed, or
+ * off (t->enabled false; the state at create). Rejects a NULL t, T not finite or <= 0
+ * when enabled, or an integrator without a thermal force (only rt has one) with
+ * AFM_SIM_EINVAL and err filled; nothing changed then. Call after create, not on the
+ * real-time path (it precomputes; may allocate). Each call restarts the noise sequence
+ * from the seed: the same seed gives the same run. */
+int afm_sim_set_thermal(afm_sim *s, const afm_cfg_thermal *t, char *err, size_t errlen);
+
 /* Modal state (n entries each) for inspection and tests. */
 void afm_sim_get_state(const afm_sim *s, double *q, double *qd);
 /* Set the modal state (n entries each) at the current model time, e.g. to start several

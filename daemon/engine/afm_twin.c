@@ -27,6 +27,8 @@ afm_sim *afm_twin_create(const afm_config *cfg, afm_modal *m_out, afm_force_para
     if (afm_force_init(&f, &cfg->forces, len, wid, err, errlen) != 0)
         goto done;
     s = afm_sim_create(m, &f, &cfg->drive, &cfg->sim, err, errlen);
+    if (s && cfg->thermal.enabled && afm_sim_set_thermal(s, &cfg->thermal, err, errlen) != 0)
+        afm_sim_destroy(&s);
     if (s && m_out)
         *m_out = *m;
     if (s && f_out)

@@ -10,15 +10,17 @@
 #include "afm_orbit.h"
 #include "afm_sim.h"
 
-/* Build the modal model and the force constants of cfg and create the simulator.
- * m_out and f_out (may be NULL) receive copies. NULL with err on failure. */
+/* Build the modal model and the force constants of cfg and create the simulator, with
+ * thermal noise when cfg->thermal.enabled. m_out and f_out (may be NULL) receive copies.
+ * NULL with err on failure. */
 afm_sim *afm_twin_create(const afm_config *cfg, afm_modal *m_out, afm_force_params *f_out,
                          char *err, size_t errlen);
 
 /* A new simulator on src's model, forces, separation and drive, started at t = 0 from
  * src's current modal state with every tone at src's current phase, integrating with the
  * integrator and tolerances of sim (e.g. to compare integrators from one settled state).
- * NULL with err on failure. */
+ * The fork has no thermal noise (call afm_sim_set_thermal on it if wanted: its noise
+ * sequence starts afresh from the seed). NULL with err on failure. */
 afm_sim *afm_twin_fork(const afm_sim *src, const afm_cfg_sim *sim, char *err, size_t errlen);
 
 /* One sweep step: a reusable dwell context owning the sample buffer. */
