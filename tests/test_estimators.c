@@ -1,6 +1,7 @@
 /* SPDX-License-Identifier: MIT */
 /* test_estimators.c -- the streaming estimators (afm_harm, afm_lockin, afm_cycle) on
- * synthetic series with known answers, and the lock-in on a linear 1-mode simulation. */
+ * synthetic series with known answers, the lock-in on a linear 1-mode simulation, and the
+ * phasors that replace per-sample sin/cos against afm_drive_phase. */
 #include "afm_config.h"
 #include "afm_cycle.h"
 #include "afm_drive.h"
@@ -410,6 +411,54 @@ static void test_cycle_errors(void) {
     check_true(memcmp(&before, &c, sizeof c) == 0, "cycle unchanged after rejected samples");
 }
 
+/* ---- phase tracking (afm_phase_track, shared by the three estimators) ---- */
+
+/* The phasors the estimators rotate instead of calling sin/cos per sample must follow
+ * afm_drive_phase: 10^7 samples (0.71 s at 14.06 MHz, theta up to ~4e5 rad) with two
+ * phase-continuous frequency changes (afm_drive re-wraps its phase there, so the unwrapped
+ * theta jumps by 2 pi m). Harmonic 1's phasor of afm_harm is e^{-i (theta mod 2 pi)}, the
+ * lock-in's is e^{i theta}; both within 1e-9 rad (the tracker's bound is 2e-11 rad + 8 eps
+ * |theta| = 7e-10 rad at the end, plus the rotations' rounding). Nearly all samples must
+ * take the fast path: at most ~1 resynchronisation per drive period plus a few per change. */
+static void test_phase_tracking(void) {
+    afm_cfg_drive c = {.separation_m = 30e-9, .n_tones = 1};
+    c.tones[0].amplitude_m = 0.7e-9;
+    c.tones[0].frequency_hz = fe;
+    c.tones[0].phase_rad = 2.0;
+    afm_drive d;
+    afm_drive_init(&d, &c);
+    const int ks[] = {1, 2, 3, 6, 18};
+    afm_harm h;
+    afm_harm_init(&h, ks, 5, NULL, 0);
+    afm_cfg_lockin cl = {.time_constant_s = 10 / fe, .order = 4};
+    afm_lockin l;
+    afm_lockin_init(&l, &cl, 1 / fs, NULL, 0);
+    const long total = 10000000;
+    double eh = 0, el = 0;
+    long slow_h = 0, slow_l = 0, rejects = 0;
+    for (long n = 0; n < total; n++) {
+        double t = 2.5e-6 + (double)n / fs;
+        if (n == 3000000) afm_drive_set_tone(&d, t - 0.37 / fs, 0, 0.7e-9, fe * 1.0123);
+        if (n == 7000000) afm_drive_set_tone(&d, t - 0.81 / fs, 0, 0.7e-9, fe * 0.97);
+        double th = afm_drive_phase(&d, 0, t);
+        if (afm_harm_push(&h, 1e-9, 0.0, th) < 0 || afm_lockin_push(&l, 1e-9, th) < 0) rejects++;
+        slow_h += h.trk.n == 0;
+        slow_l += l.trk.n == 0;
+        double p = fmod(th, 2 * pi);
+        eh = fmax(eh, hypot(h.er[0] - cos(p), h.ei[0] + sin(p)));
+        el = fmax(el, hypot(l.c - cos(th), l.s - sin(th)));
+    }
+    printf("  phase tracking: max |phasor - e^{i theta}| harm %.2e lock-in %.2e; exact samples "
+           "harm %ld lock-in %ld of %ld\n", eh, el, slow_h, slow_l, total);
+    check_true(rejects == 0, "phase tracking: no sample rejected");
+    check_abs(eh, 0, 1e-9, "phase tracking: harm phasor vs afm_drive_phase over 1e7 samples (rad)");
+    check_abs(el, 0, 1e-9, "phase tracking: lock-in phasor vs afm_drive_phase (rad)");
+    /* periods: 0.71 s * ~84 kHz = 6e4; allow 2 per period for the harm (boundary + the
+     * sample after a drift), and 1 per 1000 samples for the lock-in (every 4096 plus drift) */
+    check_true(slow_h < 2 * total / 167, "phase tracking: harm fast path on all but ~1/period");
+    check_true(slow_l < total / 1000, "phase tracking: lock-in fast path nearly always");
+}
+
 int main(void) {
     test_harm_dft(0);
     test_harm_dft(37);
@@ -425,5 +474,6 @@ int main(void) {
     test_cycle_dip(0.5, "mid-period");
     test_cycle_dip(0.01, "across the boundary");
     test_cycle_errors();
+    test_phase_tracking();
     return check_done();
 }

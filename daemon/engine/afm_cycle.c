@@ -18,6 +18,7 @@ int afm_cycle_init(afm_cycle *c, double x_contact_m, double cos_alpha, char *err
     memset(c, 0, sizeof *c);
     c->x_contact_m = x_contact_m;
     c->cos_alpha = cos_alpha;
+    afm_track_init(&c->trk, true);
     return 0;
 }
 
@@ -32,6 +33,7 @@ void afm_cycle_reset(afm_cycle *c) {
     memset(c, 0, sizeof *c);
     c->x_contact_m = xc;
     c->cos_alpha = ca;
+    afm_track_init(&c->trk, true);
 }
 
 /* Start period accumulation at sample s (the whole period still ahead). */
@@ -62,15 +64,10 @@ static double overlap(double a, double b, double lo, double hi) {
     return r > l ? r - l : 0.0;
 }
 
-int afm_cycle_push(afm_cycle *c, const afm_sample *s, double theta_rad) {
-    if (!s || !isfinite(s->t_s) || !isfinite(s->x_m) || !isfinite(s->v_m_s) ||
-        !isfinite(s->f_n) || afm_clock_check(&c->clk, theta_rad) != AFM_CLOCK_NONE ||
-        (c->n_prev > 0 && !(s->t_s > c->prev.t_s)))
-        return -1;
-    bool had_prev = c->clk.started;
-    double frac = 1.0;
-    double ph;
-    int ev = afm_clock_advance(&c->clk, theta_rad, &frac, &ph);
+/* The step from c->prev to s in general: clock event ev (frac for a crossing), Hermite
+ * minima, contact crossings, the peak's parabola, the split at a boundary. */
+AFM_EST_COLD static int step_general(afm_cycle *c, const afm_sample *s, bool had_prev, int ev,
+                                     double frac) {
     int done = 0;
     bool cross = ev == AFM_CLOCK_CROSS;
     afm_cycle_metrics *m = &c->cur;
@@ -152,4 +149,48 @@ int afm_cycle_push(afm_cycle *c, const afm_sample *s, double theta_rad) {
     c->prev = *s;
     if (c->n_prev < 2) c->n_prev++;
     return done;
+}
+
+/* The sample by the exact clock (checked: the sample itself is valid). */
+AFM_EST_COLD static int push_slow(afm_cycle *c, const afm_sample *s, double theta_rad) {
+    double frac = 1.0, ph;
+    bool rate_changed;
+    if (afm_track_check(&c->trk, theta_rad, &ph) != AFM_CLOCK_NONE) return -1;
+    bool had_prev = c->trk.started;
+    int ev = afm_track_advance(&c->trk, theta_rad, ph, &frac, &rate_changed);
+    return step_general(c, s, had_prev, ev, frac);
+}
+
+int afm_cycle_push(afm_cycle *c, const afm_sample *s, double theta_rad) {
+    if (!s || !isfinite(s->t_s) || !isfinite(s->x_m) || !isfinite(s->v_m_s) ||
+        !isfinite(s->f_n) || (c->n_prev > 0 && !(s->t_s > c->prev.t_s)))
+        return -1;
+    if (!afm_track_fast(&c->trk, theta_rad)) return push_slow(c, s, theta_rad);
+    /* No boundary in the step. The common case needs compares and adds only: the sample
+     * history is full, the period active, both samples on the same side of the contact
+     * line, and the Hermite cubic cannot dip below the running minimum inside the step (it
+     * stays above its Bernstein control points x0, x0 + h v0 / 3, x1 - h v1 / 3, x1). */
+    const afm_sample *p = &c->prev;
+    afm_cycle_metrics *m = &c->cur;
+    double h = s->t_s - p->t_s, h3 = h * (1.0 / 3.0);
+    double xmin = s->x_m < m->min_deflection_m ? s->x_m : m->min_deflection_m;
+    double b1 = p->x_m + h3 * p->v_m_s, b2 = s->x_m - h3 * s->v_m_s;
+    bool in0 = p->x_m < c->x_contact_m, in1 = s->x_m < c->x_contact_m;
+    if (!c->active || c->n_prev < 2 || in0 != in1 || b1 < xmin || b2 < xmin)
+        return step_general(c, s, true, AFM_CLOCK_NONE, 1.0);
+    /* the previous sample is a local maximum of f: refine it by the parabola */
+    if (p->f_n >= c->f_prev2 && p->f_n >= s->f_n) {
+        double pk = afm_parabola_peak(c->f_prev2, p->f_n, s->f_n);
+        if (pk > m->peak_force_n) m->peak_force_n = pk;
+    }
+    double e0 = -p->f_n * p->v_m_s, e1 = -s->f_n * s->v_m_s;
+    m->dissipated_energy_j += h * (0.5 * e0 + 0.5 * e1);
+    c->x_int += h * (0.5 * p->x_m + 0.5 * s->x_m);
+    m->duration_s += h;
+    if (in0) m->contact_time_s += h;
+    m->min_deflection_m = xmin;
+    if (s->f_n > m->peak_force_n) m->peak_force_n = s->f_n;
+    c->f_prev2 = p->f_n;
+    c->prev = *s;
+    return 0;
 }

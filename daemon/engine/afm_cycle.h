@@ -27,7 +27,9 @@
  * Integrals: trapezoid with fractional ends (the step containing a boundary is split there,
  * linear interpolant of the integrand), as afm_harm.
  *
- * Nothing allocates; O(1) per sample (a crossing costs one bisection on a cubic). */
+ * Nothing allocates; O(1) per sample: compares and adds, except at a boundary, a contact
+ * crossing (one bisection on a cubic) and a step whose Hermite cubic may dip below the
+ * running minimum (its stationary points); see afm_phase_track in afm_est_internal.h. */
 #ifndef AFM_CYCLE_H
 #define AFM_CYCLE_H
 
@@ -49,7 +51,7 @@ typedef struct {
 
 typedef struct {
     double x_contact_m, cos_alpha;
-    afm_period_clock clk;
+    afm_phase_track trk;
     bool active;
     afm_sample prev;    /* last sample */
     double f_prev2;     /* f of the sample before prev (for the parabola) */

@@ -1,8 +1,9 @@
 /* SPDX-License-Identifier: MIT */
 /* afm_est_internal.h -- small helpers shared by the estimators (afm_orbit, afm_harm,
- * afm_cycle): cubic Hermite pieces in (x, v), contact-line crossings, the 3-point peak, the
- * thesis App. E.4 phase difference and the drive-period clock. Internal: not installed,
- * not part of any contract; everything is static inline so each user gets its own copy. */
+ * afm_cycle, afm_lockin): cubic Hermite pieces in (x, v), contact-line crossings, the 3-point
+ * peak, the thesis App. E.4 phase difference and the drive-phase tracker (period clock).
+ * Internal: not installed, not part of any contract; everything is static inline so each
+ * user gets its own copy. */
 #ifndef AFM_EST_INTERNAL_H
 #define AFM_EST_INTERNAL_H
 
@@ -10,6 +11,14 @@
 
 #include <math.h>
 #include <stdbool.h>
+
+/* Slow paths of the estimators: kept out of line so that the per-sample fast path stays a
+ * leaf function without a stack frame. */
+#if defined(__GNUC__)
+#define AFM_EST_COLD __attribute__((noinline, cold))
+#else
+#define AFM_EST_COLD
+#endif
 
 #define AFM_EST_PI 3.14159265358979323846264338327950
 #define AFM_EST_TWO_PI 6.283185307179586476925286766559
@@ -97,53 +106,166 @@ static inline double afm_phase_diff_deg(int k, double phi1_rad, double phik_rad)
     return deg >= 360.0 ? 0.0 : deg;
 }
 
-/* Drive-period clock for streaming estimators: periods are the intervals between the
- * instants where tone 0's phase theta is a multiple of 2 pi. Only theta mod 2 pi is used,
- * so the 2 pi m jumps of afm_drive_phase at a phase-continuous tone change (afm_drive
- * keeps its phase wrapped) do not matter. A step must advance the phase by more than 0
- * and less than pi (tone 0 below half the sample rate). */
+/* Drive-phase tracker for the streaming estimators (afm_harm, afm_cycle, afm_lockin): it
+ * follows the phase theta of tone 0 supplied with every sample so that the estimators need
+ * no transcendental function per sample.
+ *
+ * Fast path (afm_track_fast, a few flops): the tracker predicts theta_n = th_ref + n dphi
+ * from the last resynchronisation (th_ref, exact) and a phase-step estimate dphi. The
+ * sample takes the fast path when the supplied theta is within tol of the prediction
+ * (tol = 2e-11 rad + 8 eps |theta| + the noise floor observed in theta, at most 1e-6 rad:
+ * a few ulps of theta, or of omega t when t is large and theta small) and n <= n_end: for a clock, the
+ * predicted theta mod 2 pi p_ref + n dphi stays more than 2 tol + 1e-12 below 2 pi (and
+ * dphi > 4 tol + 1e-12 keeps it above 0). Then theta mod 2 pi = p_ref + (theta - th_ref)
+ * exactly, so no period boundary lies in the step and the step is in (0, pi): the answer of
+ * the exact clock is known without computing it, and an estimator's phasors rotated by
+ * e^{i dphi} since th_ref are within tol (plus rounding) of e^{i theta}.
+ *
+ * Slow path (afm_track_check + afm_track_advance, one or two fmod): everything else -- the
+ * first sample, the sample after each period boundary, a jump of theta (afm_drive re-wraps
+ * its phase at a tone change, so the unwrapped theta jumps by 2 pi m; the step in which the
+ * frequency changes), a drift of more than tol, and every 4096 (clock) or 1024 samples. It is
+ * the exact drive-period clock: periods are the intervals between the instants where
+ * theta is a multiple of 2 pi; only theta mod 2 pi is used; for a clock a step must advance
+ * the phase by more than 0 and less than pi (tone 0 below half the sample rate). It then
+ * resynchronises (th_ref = theta) and updates dphi: after a jump the next step's increment
+ * (one sample of exact clock in between); otherwise the running average of the clean
+ * intervals' increments, refined only when that moves the prediction over a run by more
+ * than tol / 8 (so an estimator's per-step rotations are rarely recomputed). A non-clock
+ * tracker (the lock-in) accepts any finite theta and never looks at theta mod 2 pi. */
 typedef struct {
-    bool started;
-    double ph_prev; /* theta mod 2 pi of the last sample, [0, 2 pi) */
-} afm_period_clock;
+    bool clock;       /* period clock: monotone phase, boundaries (harm, cycle) */
+    bool started;     /* a sample has been accepted since init/reset */
+    bool locked;      /* dphi is known: the fast path may run */
+    double th_prev;   /* theta of the last accepted sample, as supplied */
+    double th_ref;    /* theta at the last resynchronisation */
+    double p_ref;     /* th_ref mod 2 pi (clock), else 0 */
+    double n;         /* steps since the resynchronisation */
+    double dphi;      /* phase step, rad */
+    double nb;        /* steps behind the dphi estimate (capped) */
+    double tol;       /* |theta - th_ref - n dphi| allowed on the fast path; -1: none */
+    double noise;     /* observed noise floor of theta (rad), see afm_track_advance */
+    double n_end;     /* fast path for n <= n_end: for a clock, p_ref + n dphi stays more
+                       * than 2 tol + 1e-12 below 2 pi; at most the window below */
+} afm_phase_track;
 
-#define AFM_CLOCK_BAD (-1)   /* theta non-finite, or a phase step not in (0, pi) */
+/* Resynchronise at least every so many steps (rounding of the rotations; the rate estimate
+ * must hold tol over the window): a clock also does at every boundary. */
+#define AFM_TRACK_WINDOW_CLOCK 4096.0
+#define AFM_TRACK_WINDOW_FREE 1024.0
+#define AFM_TRACK_MAX_BASELINE 4096.0
+
+#define AFM_CLOCK_BAD (-1)   /* theta non-finite, or (clock) a phase step not in (0, pi) */
 #define AFM_CLOCK_NONE 0     /* no boundary in (previous sample, this one] */
 #define AFM_CLOCK_CROSS 1    /* boundary in (previous, this]: *frac in (0, 1] of the step
                               * lies before it */
 #define AFM_CLOCK_START 2    /* first sample, exactly on a boundary */
+
+static inline void afm_track_init(afm_phase_track *t, bool clock) {
+    t->clock = clock;
+    t->started = t->locked = false;
+    t->th_prev = t->th_ref = t->p_ref = t->n = t->dphi = t->nb = t->noise = 0.0;
+    t->tol = -1.0;
+    t->n_end = 0.0;
+}
+
+/* The fast path: true (and the tracker advanced) when theta is the predicted next phase;
+ * false (nothing changed) otherwise, then call afm_track_check / afm_track_advance. */
+static inline bool afm_track_fast(afm_phase_track *t, double th) {
+    double n = t->n + 1.0;
+    if (!(n <= t->n_end && fabs((th - t->th_ref) - n * t->dphi) <= t->tol)) return false;
+    t->n = n;
+    t->th_prev = th;
+    return true;
+}
 
 static inline double afm_clock_wrap(double th) {
     double ph = fmod(th, AFM_EST_TWO_PI);
     return ph < 0 ? ph + AFM_EST_TWO_PI : ph;
 }
 
-/* Check theta against the clock without changing it: AFM_CLOCK_BAD or AFM_CLOCK_NONE. */
-static inline int afm_clock_check(const afm_period_clock *c, double th) {
+/* Slow path, part 1: check theta without changing anything: AFM_CLOCK_BAD or
+ * AFM_CLOCK_NONE; *p gets theta mod 2 pi (clock; 0 otherwise). */
+static inline int afm_track_check(const afm_phase_track *t, double th, double *p) {
+    *p = 0.0;
     if (!isfinite(th)) return AFM_CLOCK_BAD;
-    if (c->started) {
-        double d = afm_clock_wrap(th) - c->ph_prev;
+    if (!t->clock) return AFM_CLOCK_NONE;
+    *p = afm_clock_wrap(th);
+    if (t->started) {
+        double d = *p - afm_clock_wrap(t->th_prev);
         if (d < 0) d += AFM_EST_TWO_PI;
         if (!(d > 0 && d < AFM_EST_PI)) return AFM_CLOCK_BAD;
     }
     return AFM_CLOCK_NONE;
 }
 
-/* Advance to th (checked with afm_clock_check first); *ph gets theta mod 2 pi, the phase
- * since the last boundary. */
-static inline int afm_clock_advance(afm_period_clock *c, double th, double *frac, double *ph) {
+/* Slow path, part 2: advance to theta (checked, p from afm_track_check) and resynchronise.
+ * Returns AFM_CLOCK_NONE/CROSS/START (always NONE for a non-clock); *frac as for CROSS;
+ * *rate_changed set when dphi took a new value (the caller's per-step rotation must be
+ * recomputed from it; only meaningful while t->locked). */
+static inline int afm_track_advance(afm_phase_track *t, double th, double p, double *frac,
+                                    bool *rate_changed) {
     int rc = AFM_CLOCK_NONE;
-    double p = afm_clock_wrap(th);
-    if (!c->started) {
-        c->started = true;
-        if (p == 0.0) rc = AFM_CLOCK_START;
-    } else if (p < c->ph_prev) {
-        *frac = (AFM_EST_TWO_PI - c->ph_prev) / (p + AFM_EST_TWO_PI - c->ph_prev);
-        if (*frac > 1.0) *frac = 1.0;
-        rc = AFM_CLOCK_CROSS;
+    double n = t->n + 1.0;
+    *rate_changed = false;
+    if (t->clock) {
+        if (!t->started) {
+            if (p == 0.0) rc = AFM_CLOCK_START;
+        } else {
+            double pp = afm_clock_wrap(t->th_prev);
+            if (p < pp) {
+                *frac = (AFM_EST_TWO_PI - pp) / (p + AFM_EST_TWO_PI - pp);
+                if (*frac > 1.0) *frac = 1.0;
+                rc = AFM_CLOCK_CROSS;
+            }
+        }
     }
-    c->ph_prev = p;
-    *ph = p;
+    double err = (th - t->th_ref) - n * t->dphi;
+    bool drift = t->locked && n <= t->n_end && fabs(err) > t->tol; /* not boundary/window */
+    if (!t->started) {
+        t->locked = false;
+    } else if (t->locked && fabs((th - t->th_prev) - t->dphi) <= 4.0 * t->tol) {
+        /* same rate (the step is consistent): average in the increments since th_ref. A
+         * drift failure raises the noise floor (theta carries the rounding of the sample
+         * time, omega ulp(t), which the tracker cannot know); it decays otherwise. */
+        t->noise = drift ? fmin(fmax(t->noise, 2.0 * fabs(err)), 1e-6) : 0.97 * t->noise;
+        double d = (t->dphi * t->nb + (th - t->th_ref)) / (t->nb + n);
+        double tol = 2e-11 + 1.8e-15 * fabs(th) + t->noise;
+        double win = t->clock ? AFM_TRACK_WINDOW_CLOCK : AFM_TRACK_WINDOW_FREE;
+        if (t->clock && t->dphi > 0 && AFM_EST_TWO_PI / t->dphi < win)
+            win = AFM_EST_TWO_PI / t->dphi; /* the run between two boundaries */
+        if (fabs(d - t->dphi) * win > 0.125 * tol) {
+            t->dphi = d;
+            *rate_changed = true;
+        }
+        t->nb = t->nb + n < AFM_TRACK_MAX_BASELINE ? t->nb + n : AFM_TRACK_MAX_BASELINE;
+    } else if (t->locked) {
+        t->locked = false; /* a jump: take the next step's increment */
+    } else {
+        t->dphi = th - t->th_prev;
+        t->nb = 1.0;
+        t->locked = true;
+        *rate_changed = true;
+    }
+    double tol = 2e-11 + 1.8e-15 * fabs(th) + t->noise;
+    if (t->locked && t->clock &&
+        !(t->dphi > 4.0 * tol + 1e-12 && t->dphi < AFM_EST_PI - 4.0 * tol))
+        t->locked = false;
+    t->started = true;
+    t->th_prev = t->th_ref = th;
+    t->p_ref = p;
+    t->n = 0.0;
+    t->tol = t->locked ? tol : -1.0;
+    t->n_end = 0.0;
+    if (t->locked && !t->clock) {
+        t->n_end = AFM_TRACK_WINDOW_FREE;
+    } else if (t->locked) {
+        double lim = AFM_EST_TWO_PI - (2.0 * tol + 1e-12);
+        double m = floor((lim - p) / t->dphi);
+        if (m > AFM_TRACK_WINDOW_CLOCK) m = AFM_TRACK_WINDOW_CLOCK;
+        while (m > 0 && !(p + m * t->dphi < lim)) m -= 1.0; /* rounding of the division */
+        t->n_end = m > 0 ? m : 0.0;
+    }
     return rc;
 }
 

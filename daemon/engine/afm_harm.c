@@ -5,6 +5,22 @@
 #include <stdio.h>
 #include <string.h>
 
+/* Empty state for the harmonic list already in h (nk, nl, ks). */
+static void clear_state(afm_harm *h) {
+    afm_track_init(&h->trk, true);
+    h->active = false;
+    h->x_prev = h->f_prev = 0.0;
+    for (int j = 0; j < AFM_HARM_LANES; j++) {
+        h->er[j] = h->rr[j] = 1.0;
+        h->ei[j] = h->ri[j] = 0.0;
+        h->xr[j] = h->xi[j] = h->fr[j] = h->fi[j] = 0.0;
+    }
+    h->wsum = 0.0;
+    h->periods = 0;
+    memset(&h->out, 0, sizeof h->out);
+    h->out.n_harmonics = h->nk;
+}
+
 int afm_harm_init(afm_harm *h, const int *ks, int nk, char *err, size_t errlen) {
     if (!h || !ks || nk < 1 || nk > AFM_MAX_HARMONICS) {
         if (err && errlen)
@@ -20,22 +36,18 @@ int afm_harm_init(afm_harm *h, const int *ks, int nk, char *err, size_t errlen) 
         }
     memset(h, 0, sizeof *h);
     h->nk = nk;
+    h->nl = (nk + 1 + 3) / 4 * 4;
     h->ks[0] = 1;
     memcpy(h->ks + 1, ks, (size_t)nk * sizeof *ks);
-    h->out.n_harmonics = nk;
+    clear_state(h);
     return 0;
 }
 
 void afm_harm_reset(afm_harm *h) {
-    int nk = h->nk, ks[AFM_MAX_HARMONICS + 1];
-    memcpy(ks, h->ks, sizeof ks);
-    memset(h, 0, sizeof *h);
-    h->nk = nk;
-    memcpy(h->ks, ks, sizeof ks);
-    h->out.n_harmonics = nk;
+    clear_state(h);
 }
 
-/* e^{-i k phi} from c + i s = e^{-i phi} by binary powering. */
+/* e^{-i k phi} from c + i s = e^{-i phi} by binary powering (k = 0: 1). */
 static void rot_pow(double c, double s, int k, double *re, double *im) {
     double rr = 1.0, ri = 0.0;
     while (k) {
@@ -74,54 +86,105 @@ static void finish_period(afm_harm *h) {
     h->periods++;
 }
 
-int afm_harm_push(afm_harm *h, double x, double f, double theta_rad) {
-    if (!isfinite(x) || !isfinite(f) || afm_clock_check(&h->clk, theta_rad) != AFM_CLOCK_NONE)
-        return -1;
-    bool had_prev = h->clk.started;
+/* The sample by the exact clock: theta mod 2 pi, sincos, O(log k) products per harmonic;
+ * boundaries, fractional ends, resynchronisation of the phasors. */
+AFM_EST_COLD static int push_slow(afm_harm *h, double x, double f, double theta_rad) {
+    double phi; /* phase since the last boundary; at a boundary e^{-ik phi} is the same for
+                 * both periods since k is an integer */
+    if (afm_track_check(&h->trk, theta_rad, &phi) != AFM_CLOCK_NONE) return -1;
+    bool had_prev = h->trk.started, rate_changed;
     double frac = 1.0;
-    /* phi: phase since the last boundary; at a boundary e^{-ik phi} is the same for both
-     * periods since k is an integer */
-    double phi;
-    int ev = afm_clock_advance(&h->clk, theta_rad, &frac, &phi);
+    int ev = afm_track_advance(&h->trk, theta_rad, phi, &frac, &rate_changed);
+    int n = h->nl, done = 0;
+    double er[AFM_HARM_LANES], ei[AFM_HARM_LANES];
     double c1 = cos(phi), s1 = -sin(phi);
-    int n = h->nk + 1, done = 0;
-    double er[AFM_MAX_HARMONICS + 1], ei[AFM_MAX_HARMONICS + 1];
     for (int j = 0; j < n; j++)
         rot_pow(c1, s1, h->ks[j], &er[j], &ei[j]);
+    if (h->trk.locked && rate_changed) {
+        double cd = cos(h->trk.dphi), sd = -sin(h->trk.dphi);
+        for (int j = 0; j < n; j++)
+            rot_pow(cd, sd, h->ks[j], &h->rr[j], &h->ri[j]);
+    }
 
     if (had_prev && h->active) {
-        double wb[2] = {0.5, 0.5}, wa[2];
-        if (ev == AFM_CLOCK_CROSS) afm_split_weights(frac, wb, wa);
-        for (int j = 0; j < n; j++) {
-            h->xr[j] += wb[0] * h->x_prev * h->er_prev[j] + wb[1] * x * er[j];
-            h->xi[j] += wb[0] * h->x_prev * h->ei_prev[j] + wb[1] * x * ei[j];
-            h->fr[j] += wb[0] * h->f_prev * h->er_prev[j] + wb[1] * f * er[j];
-            h->fi[j] += wb[0] * h->f_prev * h->ei_prev[j] + wb[1] * f * ei[j];
-        }
-        h->wsum += ev == AFM_CLOCK_CROSS ? frac : 1.0;
         if (ev == AFM_CLOCK_CROSS) {
+            /* the previous sample already has weight 1 (0.5 from each side); the step's
+             * part before the boundary is wb[0] g_prev + wb[1] g_cur */
+            double wb[2], wa[2];
+            afm_split_weights(frac, wb, wa);
+            double w0 = wb[0] - 0.5;
+            for (int j = 0; j < n; j++) {
+                h->xr[j] += w0 * h->x_prev * h->er[j] + wb[1] * x * er[j];
+                h->xi[j] += w0 * h->x_prev * h->ei[j] + wb[1] * x * ei[j];
+                h->fr[j] += w0 * h->f_prev * h->er[j] + wb[1] * f * er[j];
+                h->fi[j] += w0 * h->f_prev * h->ei[j] + wb[1] * f * ei[j];
+            }
+            h->wsum += frac;
             finish_period(h);
             done = 1;
+        } else {
+            for (int j = 0; j < n; j++) {
+                h->xr[j] += x * er[j];
+                h->xi[j] += x * ei[j];
+                h->fr[j] += f * er[j];
+                h->fi[j] += f * ei[j];
+            }
+            h->wsum += 1.0;
         }
     }
     if (ev == AFM_CLOCK_START || (ev == AFM_CLOCK_CROSS && had_prev)) {
-        /* a new period starts: at this sample, or inside the step just taken */
+        /* a new period starts: at this sample, or inside the step just taken; this sample
+         * gets the after-boundary weight plus 0.5 from the next step */
         double wb[2], wa[2] = {0.0, 0.0};
         if (ev == AFM_CLOCK_CROSS) afm_split_weights(frac, wb, wa);
+        double w1 = wa[1] + 0.5;
         for (int j = 0; j < n; j++) {
-            h->xr[j] = wa[0] * h->x_prev * h->er_prev[j] + wa[1] * x * er[j];
-            h->xi[j] = wa[0] * h->x_prev * h->ei_prev[j] + wa[1] * x * ei[j];
-            h->fr[j] = wa[0] * h->f_prev * h->er_prev[j] + wa[1] * f * er[j];
-            h->fi[j] = wa[0] * h->f_prev * h->ei_prev[j] + wa[1] * f * ei[j];
+            h->xr[j] = wa[0] * h->x_prev * h->er[j] + w1 * x * er[j];
+            h->xi[j] = wa[0] * h->x_prev * h->ei[j] + w1 * x * ei[j];
+            h->fr[j] = wa[0] * h->f_prev * h->er[j] + w1 * f * er[j];
+            h->fi[j] = wa[0] * h->f_prev * h->ei[j] + w1 * f * ei[j];
         }
         h->wsum = ev == AFM_CLOCK_CROSS ? 1.0 - frac : 0.0;
         h->active = true;
     }
     h->x_prev = x;
     h->f_prev = f;
-    memcpy(h->er_prev, er, (size_t)n * sizeof er[0]);
-    memcpy(h->ei_prev, ei, (size_t)n * sizeof ei[0]);
+    memcpy(h->er, er, (size_t)n * sizeof er[0]);
+    memcpy(h->ei, ei, (size_t)n * sizeof ei[0]);
     return done;
+}
+
+int afm_harm_push(afm_harm *h, double x, double f, double theta_rad) {
+    if (!isfinite(x) || !isfinite(f)) return -1;
+    if (!afm_track_fast(&h->trk, theta_rad)) return push_slow(h, x, f, theta_rad);
+    /* fast path: no boundary in the step; rotate every harmonic's phasor by one step and
+     * add the sample with weight 1 (4 lanes at a time: the compiler vectorises these) */
+    int n = h->nl;
+    if (h->active) {
+        for (int j = 0; j < n; j += 4)
+            for (int l = j; l < j + 4; l++) {
+                double a = fma(h->er[l], h->rr[l], -h->ei[l] * h->ri[l]);
+                double b = fma(h->er[l], h->ri[l], h->ei[l] * h->rr[l]);
+                h->er[l] = a;
+                h->ei[l] = b;
+                h->xr[l] = fma(x, a, h->xr[l]);
+                h->xi[l] = fma(x, b, h->xi[l]);
+                h->fr[l] = fma(f, a, h->fr[l]);
+                h->fi[l] = fma(f, b, h->fi[l]);
+            }
+        h->wsum += 1.0;
+    } else {
+        for (int j = 0; j < n; j += 4)
+            for (int l = j; l < j + 4; l++) {
+                double a = fma(h->er[l], h->rr[l], -h->ei[l] * h->ri[l]);
+                double b = fma(h->er[l], h->ri[l], h->ei[l] * h->rr[l]);
+                h->er[l] = a;
+                h->ei[l] = b;
+            }
+    }
+    h->x_prev = x;
+    h->f_prev = f;
+    return 0;
 }
 
 int afm_harm_default_list(const afm_modal *m, double fe_hz, int *ks) {

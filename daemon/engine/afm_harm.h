@@ -24,8 +24,13 @@
  *    harmonic k, relative error <~ (2 k w h)^2 / (12 N) per period with N = T / h samples
  *    (2.8e-6 for k = 1 at 167 samples per period, the thesis's 84 kHz at 14.06 MHz).
  *
- * Nothing allocates; the caller owns the struct. Cost per sample: one sincos plus
- * O(log k) complex products per harmonic. */
+ * Nothing allocates; the caller owns the struct. Cost per sample: one complex rotation and
+ * four multiply-adds per harmonic (vectorised 4 harmonics at a time). e^{-ik theta} is
+ * carried by per-harmonic phasors rotated by e^{-ik dphi} (afm_phase_track in
+ * afm_est_internal.h: within a few ulps of theta of the supplied phase, else the sample is
+ * computed exactly); at each period boundary, after a jump or drift of theta and every
+ * 4096 samples they are recomputed exactly from theta mod 2 pi (one sincos and O(log k)
+ * complex products per harmonic). */
 #ifndef AFM_HARM_H
 #define AFM_HARM_H
 
@@ -40,15 +45,23 @@ typedef struct {
     afm_orbit_harmonic h[AFM_MAX_HARMONICS]; /* in the order they were configured */
 } afm_harm_result;
 
+/* Harmonic lanes: harmonic 1 then the configured ones, padded to a multiple of 4 (pads have
+ * k = 0: e^0 = 1, never reported). */
+#define AFM_HARM_LANES ((AFM_MAX_HARMONICS + 1 + 3) / 4 * 4)
+
 typedef struct {
     int nk;                            /* configured harmonics */
-    int ks[AFM_MAX_HARMONICS + 1];     /* [0] = 1 (for phi_1), then the configured ones */
-    afm_period_clock clk;
+    int nl;                            /* lanes in use: nk + 1 rounded up to 4 */
+    int ks[AFM_HARM_LANES];            /* [0] = 1 (for phi_1), then the configured ones */
+    afm_phase_track trk;
     bool active;                       /* inside a period that started at a boundary */
     double x_prev, f_prev;
-    double er_prev[AFM_MAX_HARMONICS + 1], ei_prev[AFM_MAX_HARMONICS + 1]; /* e^{-ik phi} */
-    double xr[AFM_MAX_HARMONICS + 1], xi[AFM_MAX_HARMONICS + 1];
-    double fr[AFM_MAX_HARMONICS + 1], fi[AFM_MAX_HARMONICS + 1];
+    double er[AFM_HARM_LANES], ei[AFM_HARM_LANES]; /* e^{-ik phi} of the last sample */
+    double rr[AFM_HARM_LANES], ri[AFM_HARM_LANES]; /* e^{-ik dphi}: one step */
+    /* running sums of x e^{-ik phi}, f e^{-ik phi}: weight 1 per sample, the ends corrected
+     * to the trapezoid with fractional ends at the boundaries */
+    double xr[AFM_HARM_LANES], xi[AFM_HARM_LANES];
+    double fr[AFM_HARM_LANES], fi[AFM_HARM_LANES];
     double wsum;                       /* sample intervals accumulated */
     long periods;                      /* completed periods since init/reset */
     afm_harm_result out;               /* the last completed period (valid if periods > 0) */

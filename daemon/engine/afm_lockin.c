@@ -24,34 +24,59 @@ int afm_lockin_init(afm_lockin *l, const afm_cfg_lockin *cfg, double dt_s, char 
     l->tau_s = cfg->time_constant_s;
     l->dt_s = dt_s;
     l->alpha = -expm1(-dt_s / cfg->time_constant_s);
+    afm_lockin_reset(l);
     return 0;
 }
 
 void afm_lockin_reset(afm_lockin *l) {
-    memset(l->x, 0, sizeof l->x);
-    memset(l->y, 0, sizeof l->y);
+    memset(l->xy, 0, sizeof l->xy);
     l->n = 0;
+    afm_track_init(&l->trk, false);
+    l->c = l->rc = 1.0;
+    l->s = l->rs = 0.0;
+}
+
+/* theta off the tracker's prediction: sin and cos from theta itself, resynchronise. */
+AFM_EST_COLD static int phase_slow(afm_lockin *l, double theta_rad) {
+    double p, frac;
+    bool rate_changed;
+    if (afm_track_check(&l->trk, theta_rad, &p) != AFM_CLOCK_NONE) return -1;
+    afm_track_advance(&l->trk, theta_rad, p, &frac, &rate_changed);
+    l->c = cos(theta_rad);
+    l->s = sin(theta_rad);
+    if (l->trk.locked && rate_changed) {
+        l->rc = cos(l->trk.dphi);
+        l->rs = sin(l->trk.dphi);
+    }
+    return 0;
 }
 
 int afm_lockin_push(afm_lockin *l, double u_m, double theta_rad) {
-    if (!isfinite(u_m) || !isfinite(theta_rad)) return -1;
-    double ux = 2.0 * u_m * sin(theta_rad), uy = 2.0 * u_m * cos(theta_rad), a = l->alpha;
-    for (int i = 0; i < l->order; i++) {
-        l->x[i] += a * (ux - l->x[i]);
-        l->y[i] += a * (uy - l->y[i]);
-        ux = l->x[i];
-        uy = l->y[i];
+    if (!isfinite(u_m)) return -1;
+    if (afm_track_fast(&l->trk, theta_rad)) {
+        double c = fma(l->c, l->rc, -l->s * l->rs);
+        l->s = fma(l->s, l->rc, l->c * l->rs);
+        l->c = c;
+    } else if (phase_slow(l, theta_rad)) {
+        return -1;
     }
+    /* y += alpha (in - y) per stage, both channels side by side */
+    double in[2] = {2.0 * u_m * l->s, 2.0 * u_m * l->c}, a = l->alpha;
+    for (int i = 0; i < l->order; i++)
+        for (int k = 0; k < 2; k++) {
+            l->xy[i][k] = fma(a, in[k] - l->xy[i][k], l->xy[i][k]);
+            in[k] = l->xy[i][k];
+        }
     l->n++;
     return 0;
 }
 
 double afm_lockin_x(const afm_lockin *l) {
-    return l->x[l->order - 1];
+    return l->xy[l->order - 1][0];
 }
 
 double afm_lockin_y(const afm_lockin *l) {
-    return l->y[l->order - 1];
+    return l->xy[l->order - 1][1];
 }
 
 double afm_lockin_amplitude(const afm_lockin *l) {

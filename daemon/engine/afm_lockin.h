@@ -16,19 +16,26 @@
  * 90. The 2 fe ripple left by the filter is about R / (2 w tau)^order (order 1 with tau
  * = 10 periods: 8e-3 R; order 4: 4e-9 R).
  *
- * Nothing allocates; push is O(order) per sample. */
+ * Nothing allocates; push is O(order) per sample with no transcendental function: sin and
+ * cos of theta come from a phasor rotated by e^{i dphi} per sample while theta follows
+ * th_ref + n dphi to a few ulps (afm_phase_track in afm_est_internal.h), and are computed
+ * exactly from theta otherwise (a jump or drift of theta, every 4096 samples). */
 #ifndef AFM_LOCKIN_H
 #define AFM_LOCKIN_H
 
 #include "afm_config.h"
+#include "afm_est_internal.h"
 
 #define AFM_LOCKIN_MAX_ORDER 8
 
 typedef struct {
     int order;
     double tau_s, dt_s, alpha;
-    double x[AFM_LOCKIN_MAX_ORDER], y[AFM_LOCKIN_MAX_ORDER]; /* stage outputs */
-    long n;                                                  /* samples since reset */
+    double xy[AFM_LOCKIN_MAX_ORDER][2]; /* stage outputs: [i][0] in-phase, [i][1] quadrature */
+    long n;                             /* samples since reset */
+    afm_phase_track trk;
+    double c, s;   /* cos, sin theta of the last sample */
+    double rc, rs; /* cos, sin dphi: one step */
 } afm_lockin;
 
 /* tau > 0, order 1..AFM_LOCKIN_MAX_ORDER, dt_s > 0 (the sample interval). Filter state
