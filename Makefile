@@ -37,7 +37,7 @@ TOOL_SRC   := $(wildcard tools/*.c)
 TOOL_OBJ   := $(patsubst %.c,$(BUILD)/obj/%.o,$(TOOL_SRC))
 TEST_SRC   := $(wildcard tests/test_*.c)
 TEST_BIN   := $(patsubst tests/%.c,$(BUILD)/tests/%,$(TEST_SRC))
-TEST_COMMON := $(BUILD)/obj/tests/check.o
+TEST_COMMON := $(BUILD)/obj/tests/check.o $(BUILD)/obj/tests/fixtures.o
 
 .PHONY: all deps run test validate bench install clean format format-check
 

@@ -20,6 +20,7 @@
 #include "afm_rt_coef.h"
 #include "afm_sim.h"
 #include "check.h"
+#include "fixtures.h"
 
 #include <complex.h>
 #include <math.h>
@@ -31,36 +32,7 @@
 static const double two_pi = 6.283185307179586476925286766559;
 static const double rate_hz = 14.06e6;
 
-/* 4 modes as in numerics.md: 370 kHz, 2.27, 6.4, 14 MHz, Q 427, 291, 5, 5 (xi_3,4 may be
- * overridden, e.g. >= 1), static tip stiffness 40 N/m split 97 / 2.5 / 0.4 / 0.1 % in
- * compliance; base_k_i = -k_s tip_i (a static base offset moves the tip rigidly), and an
- * arbitrary base_m so that both drive terms are exercised. */
-static afm_modal make_model(int nmodes, double xi_hi) {
-    static const double f_hz[4] = {370e3, 2.27e6, 6.4e6, 14e6};
-    static const double qf[4] = {427, 291, 5, 5};
-    static const double share[4] = {0.97, 0.025, 0.004, 0.001};
-    const double ks = 40.0;
-    afm_modal m;
-    memset(&m, 0, sizeof m);
-    m.n = nmodes;
-    for (int i = 0; i < nmodes; i++) {
-        double w = two_pi * f_hz[i];
-        m.omega_rad_s[i] = w;
-        m.xi[i] = (i >= 2 && xi_hi > 0) ? xi_hi : 0.5 / qf[i];
-        m.tip[i] = (i % 2 ? -1.0 : 1.0) * w * sqrt((nmodes == 1 ? 1.0 : share[i]) / ks);
-        m.base_k[i] = -ks * m.tip[i];
-        m.base_m[i] = 0.05 / m.tip[i];
-    }
-    m.static_stiffness_n_m = ks;
-    return m;
-}
 
-static afm_force_params no_forces(void) {
-    afm_force_params f;
-    memset(&f, 0, sizeof f);
-    f.cos_alpha = 1.0;
-    return f;
-}
 
 /* DMT + vdW + viscoelastic tip of numerics.md: Ha 1.52e-19 J, R 8 nm, a0 0.476 nm,
  * Er 120 GPa, eta 800 Pa s. */
@@ -143,9 +115,9 @@ static int run_long(afm_sim *s, long n) {
 
 /* (1a) One mode from rest: every sample of the transient equals the closed form. */
 static void linear_transient_case(void) {
-    afm_modal m = make_model(1, 0);
+    afm_modal m = fixture_model(1, 0, 0);
     m.xi[0] = 0.005;
-    afm_force_params f = no_forces();
+    afm_force_params f = fixture_no_forces();
     afm_cfg_drive dc = one_tone(1e-9, 352.1e3, 0.7, 100e-9);
     afm_cfg_sim sc = sim_cfg(AFM_INTEGRATOR_RT, 0);
     char err[AFM_ERR_LEN];
@@ -165,8 +137,8 @@ static void linear_transient_case(void) {
 /* (1b) 4 modes (optionally with overdamped upper modes): after the transient has decayed
  * (25 time constants of mode 1: e^-25 = 1e-11) the tip amplitude and phase equal the FRF. */
 static void linear_frf_case(const char *label, double xi_hi) {
-    afm_modal m = make_model(4, xi_hi);
-    afm_force_params f = no_forces();
+    afm_modal m = fixture_model(4, 0, xi_hi);
+    afm_force_params f = fixture_no_forces();
     const int div = 38; /* drive at rate / 38 = 370.0 kHz: whole periods per 38 samples */
     afm_cfg_drive dc = one_tone(0.1e-9, rate_hz / div, 0.3, 100e-9);
     afm_cfg_sim sc = sim_cfg(AFM_INTEGRATOR_RT, 0);
@@ -199,9 +171,9 @@ static void linear_frf_case(const char *label, double xi_hi) {
  * of a single mode equals the closed form started from that state with the new tone at its
  * continued phase. */
 static void tone_change_case(void) {
-    afm_modal m = make_model(1, 0);
+    afm_modal m = fixture_model(1, 0, 0);
     m.xi[0] = 0.005;
-    afm_force_params f = no_forces();
+    afm_force_params f = fixture_no_forces();
     afm_cfg_drive dc = one_tone(1e-9, 352.1e3, 0.0, 100e-9);
     afm_cfg_sim sc = sim_cfg(AFM_INTEGRATOR_RT, 0);
     char err[AFM_ERR_LEN];
@@ -237,7 +209,7 @@ static void tone_change_case(void) {
  * samples) and runs 30 periods, so its remaining start error (~1e-4 of the amplitude)
  * sits well below the 3e-3 target the rt scheme must meet. */
 static void tapping_case(int substeps, double tol) {
-    afm_modal m = make_model(4, 0);
+    afm_modal m = fixture_model(4, 0, 0);
     afm_force_params f = tapping_forces();
     const int div = 38;
     double wd = two_pi * rate_hz / div;
@@ -293,7 +265,7 @@ static void tapping_case(int substeps, double tol) {
 /* (4) A tip force that turns NaN in contact: the run stops with EBLOWUP, the state is back
  * at rest with the time kept, and the handle runs on once the sample is moved away. */
 static void nan_case(void) {
-    afm_modal m = make_model(4, 0);
+    afm_modal m = fixture_model(4, 0, 0);
     afm_force_params f = tapping_forces();
     f.hertz_coef = NAN;
     afm_cfg_drive dc = one_tone(50e-9 / cabs(tip_gain(&m, two_pi * 370e3)), 370e3, 0, 30e-9);
@@ -370,7 +342,7 @@ static void starr_cache_case(void) {
     check_true(afm_rt_starr_eval(&st, st.h0 * 1.021, &dummy) < 0 &&
                    afm_rt_starr_eval(&st, st.h0 * 0.979, &dummy) < 0,
                "starr cache: declines outside the window (exact formula used there)");
-    afm_force_params nf = no_forces();
+    afm_force_params nf = fixture_no_forces();
     afm_rt_starr_build(&st, &nf, z);
     check_true(!st.on, "starr cache: off without a Starr film");
 }
@@ -387,7 +359,7 @@ static void starr_cache_case(void) {
  *    step and the interpolant were introduced); it must stay below the 3e-3 target.
  * Bounds: about 3x the measured values (printed). */
 static void free_vs_cvode_case(const char *label, bool starr, double z, double tol) {
-    afm_modal m = make_model(4, 0);
+    afm_modal m = fixture_model(4, 0, 0);
     afm_force_params f = starr ? starr_forces(true) : tapping_forces();
     const int div = 38;
     double wd = two_pi * rate_hz / div;
@@ -426,8 +398,8 @@ static void free_vs_cvode_case(const char *label, bool starr, double z, double t
 
 /* Bad settings are refused at create with a message. */
 static void bad_input_case(void) {
-    afm_modal m = make_model(4, 0);
-    afm_force_params f = no_forces();
+    afm_modal m = fixture_model(4, 0, 0);
+    afm_force_params f = fixture_no_forces();
     afm_cfg_drive dc = one_tone(1e-10, 370e3, 0, 30e-9);
     afm_cfg_sim sc = sim_cfg(AFM_INTEGRATOR_RT, 1000);
     char err[AFM_ERR_LEN] = "";
@@ -499,11 +471,11 @@ static void thermal_coef_case(void) {
  * gives 0.39 % for mode 1 (the worst), so 2 % is 5 standard errors. The normalised
  * correlation <q q'> / (sd q sd q') has about the same standard error; bound 0.02. */
 static void thermal_equipartition_case(void) {
-    afm_modal m = make_model(4, 0);
+    afm_modal m = fixture_model(4, 0, 0);
     static const double xi[4] = {0.1, 0.02, 0.2, 0.3};
     for (int i = 0; i < 4; i++)
         m.xi[i] = xi[i];
-    afm_force_params f = no_forces();
+    afm_force_params f = fixture_no_forces();
     afm_cfg_drive dc = one_tone(0.0, 370e3, 0, 30e-9);
     afm_cfg_sim sc = sim_cfg(AFM_INTEGRATOR_RT, 0);
     char err[AFM_ERR_LEN] = "";
@@ -547,7 +519,7 @@ static void thermal_equipartition_case(void) {
 /* Same seed => the same run, bit for bit (also through contact pieces: tapping); another
  * seed differs; thermal off again => the noiseless result; bad settings are refused. */
 static void thermal_seed_case(void) {
-    afm_modal m = make_model(4, 0);
+    afm_modal m = fixture_model(4, 0, 0);
     afm_force_params f = tapping_forces();
     double wd = m.omega_rad_s[0];
     afm_cfg_drive dc = one_tone(40e-9 / cabs(tip_gain(&m, wd)), wd / two_pi, 0, 30e-9);

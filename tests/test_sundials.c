@@ -9,6 +9,7 @@
  * W), and the tip x = sum tip_i q_i = A |G| sin(theta + arg G), G = sum_i tip_i H_i. */
 #include "afm_sim.h"
 #include "check.h"
+#include "fixtures.h"
 
 #include <complex.h>
 #include <math.h>
@@ -18,41 +19,8 @@
 static const double two_pi = 6.283185307179586476925286766559;
 static const double rate_hz = 14.06e6;
 
-/* 4 modes as in numerics.md: 370 kHz, 2.27, 6.4, 14 MHz, Q 427, 291, 5, 5, static tip
- * stiffness k_s = 40 N/m split 97 / 2.5 / 0.4 / 0.1 % in compliance (sum tip_i^2 / w_i^2 =
- * 1/k_s). base_k_i = -k_s tip_i makes a static base offset move the tip rigidly
- * (sum tip_i (-base_k_i) / w_i^2 = 1); base_m_i is an arbitrary inertial coupling so that
- * both drive terms are exercised. nmodes = 1 keeps only mode 1 (with all the compliance). */
-static afm_modal make_model(int nmodes, double q1) {
-    static const double f_hz[4] = {370e3, 2.27e6, 6.4e6, 14e6};
-    static const double qf[4] = {427, 291, 5, 5};
-    static const double share[4] = {0.97, 0.025, 0.004, 0.001};
-    const double ks = 40.0;
-    afm_modal m;
-    memset(&m, 0, sizeof m);
-    m.n = nmodes;
-    for (int i = 0; i < nmodes; i++) {
-        double w = two_pi * f_hz[i];
-        double a = nmodes == 1 ? 1.0 : share[i];
-        m.omega_rad_s[i] = w;
-        m.xi[i] = 0.5 / (i == 0 && q1 > 0 ? q1 : qf[i]);
-        m.tip[i] = (i % 2 ? -1.0 : 1.0) * w * sqrt(a / ks);
-        m.rot[i] = 1.5e4 * m.tip[i]; /* any finite value: rotation is not checked here */
-        m.base_k[i] = -ks * m.tip[i];
-        m.base_m[i] = 0.05 / m.tip[i];
-    }
-    m.static_stiffness_n_m = ks;
-    return m;
-}
 
 /* No tip force at all (every flag off). */
-static afm_force_params no_forces(void) {
-    afm_force_params f;
-    memset(&f, 0, sizeof f);
-    f.cos_alpha = 1.0;
-    f.squeeze = AFM_SQUEEZE_NONE;
-    return f;
-}
 
 static afm_cfg_sim sim_cfg(afm_integrator_kind k) {
     afm_cfg_sim c;
@@ -130,7 +98,7 @@ static afm_sample buf[NBUF], buf2[NBUF];
 static void frf_case(const char *label, afm_integrator_kind kind, const afm_modal *m, int ntones,
                      const int *div, const double *amp_m, bool start_at_rest, int n_settle,
                      int n_fit, double tol) {
-    afm_force_params f = no_forces();
+    afm_force_params f = fixture_no_forces();
     afm_cfg_drive dc;
     memset(&dc, 0, sizeof dc);
     dc.separation_m = 100e-9;
@@ -185,8 +153,8 @@ static void frf_case(const char *label, afm_integrator_kind kind, const afm_moda
  * after it shows no jump, and the continuation equals a fresh run started from the same
  * state with the new tone (phase-continuous) to within the integrator's accuracy. */
 static void tone_change_case(const char *label, afm_integrator_kind kind, double tol) {
-    afm_modal m = make_model(4, 0);
-    afm_force_params f = no_forces();
+    afm_modal m = fixture_model(4, 0, 0);
+    afm_force_params f = fixture_no_forces();
     afm_cfg_drive dc;
     memset(&dc, 0, sizeof dc);
     dc.separation_m = 100e-9;
@@ -249,8 +217,8 @@ static void tone_change_case(const char *label, afm_integrator_kind kind, double
  * the same handle runs normally. Then a model that is NaN everywhere (base_m), which
  * fails every run without crashing. */
 static void nan_case(const char *label, afm_integrator_kind kind) {
-    afm_modal m = make_model(1, 0);
-    afm_force_params f = no_forces();
+    afm_modal m = fixture_model(1, 0, 0);
+    afm_force_params f = fixture_no_forces();
     f.vdw_contact = true;
     f.a0_m = 0.476e-9;
     f.vdw_coef = 1.52e-19 * 8e-9 / 6.0;
@@ -288,7 +256,7 @@ static void nan_case(const char *label, afm_integrator_kind kind) {
 
     /* NaN everywhere in the model: every run fails cleanly, handle stays usable. */
     m.base_m[0] = NAN;
-    f = no_forces();
+    f = fixture_no_forces();
     s = afm_sim_create(&m, &f, &dc, &sc, err, sizeof err);
     if (!check_true(s != NULL, "nan model: create")) return;
     int rc1 = afm_sim_run(s, 10, buf), rc2 = afm_sim_run(s, 10, buf);
@@ -302,7 +270,7 @@ int main(void) {
     const double amp1[1] = {0.1e-9};
     const int div2[2] = {38, 6};
     const double amp2[2] = {0.1e-9, 0.5e-9};
-    afm_modal m1 = make_model(1, 0), m1lo = make_model(1, 10), m4 = make_model(4, 0);
+    afm_modal m1 = fixture_model(1, 0, 0), m1lo = fixture_model(1, 10, 0), m4 = fixture_model(4, 0, 0);
     /* Tolerances. CVODE at rtol 1e-10 over ~30 periods of a Q 427 oscillator: the global
      * error grows about linearly with the number of steps (~1e4 here), so ~1e-7 of the
      * amplitude is expected (measured 2e-7); 1e-6 leaves room. BDF and Adams at 1e-12 agree
