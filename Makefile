@@ -8,7 +8,7 @@ CC      ?= cc
 
 DEB_PKGS := build-essential pkg-config liblcm-dev liblcm-bin libglib2.0-dev libsundials-dev \
             liblapacke-dev libconfig-dev libsystemd-dev libcjson-dev can-utils gnuplot-nox \
-            libfftw3-dev
+            libfftw3-dev systemd
 
 CSTD     := -std=c11 -D_POSIX_C_SOURCE=200809L
 WARN     := -Wall -Wextra -Werror -Wshadow -Wstrict-prototypes -Wmissing-prototypes
@@ -96,9 +96,11 @@ $(BUILD)/tests/%: $(BUILD)/obj/tests/%.o $(TEST_COMMON) $(LIBS_ALL)
 	@mkdir -p $(dir $@)
 	$(CC) $(CFLAGS) -o $@ $^ $(LDLIBS)
 
+# The daemon in the foreground on default.conf (tools/afmtwind-run.sh: LCM's default udpm
+# when this host has a multicast route, else a private network namespace; see README).
 run: deps
-	$(MAKE) $(BUILD)/bin/afmtwin
-	$(BUILD)/bin/afmtwin modes --config config/default.conf
+	$(MAKE) $(BUILD)/bin/afmtwin $(BUILD)/bin/afmtwind
+	sh tools/afmtwind-run.sh $(BUILD) config/default.conf
 
 test: deps
 	$(MAKE) all
@@ -110,14 +112,21 @@ validate: deps
 	@bash tools/validation-doc.sh $(BUILD) > docs/validation.md
 
 bench: deps
-	$(MAKE) $(BUILD)/bin/afmtwin
+	$(MAKE) $(BUILD)/bin/afmtwin $(BUILD)/bin/afmtwind
 	$(BUILD)/bin/afmtwin bench
+	$(BUILD)/bin/afmtwin bench-daemon --daemon $(BUILD)/bin/afmtwind
 
-install: $(BUILD)/bin/afmtwin
+# SYSTEMD_UNIT_DIR: where the unit goes (ExecStart is rewritten to PREFIX's paths).
+SYSTEMD_UNIT_DIR ?= $(PREFIX)/lib/systemd/system
+install: $(BUILD)/bin/afmtwin $(if $(DAEMON_SRC),$(BUILD)/bin/afmtwind)
 	install -d $(DESTDIR)$(PREFIX)/bin $(DESTDIR)$(PREFIX)/share/afmtwin/config
 	install -m 755 $(BUILD)/bin/afmtwin $(DESTDIR)$(PREFIX)/bin/
 	if [ -x $(BUILD)/bin/afmtwind ]; then install -m 755 $(BUILD)/bin/afmtwind $(DESTDIR)$(PREFIX)/bin/; fi
 	install -m 644 config/*.conf $(DESTDIR)$(PREFIX)/share/afmtwin/config/
+	install -d $(DESTDIR)$(SYSTEMD_UNIT_DIR)
+	sed 's|/usr/local/|$(PREFIX)/|g' systemd/afmtwind.service > $(DESTDIR)$(SYSTEMD_UNIT_DIR)/afmtwind.service
+	chmod 644 $(DESTDIR)$(SYSTEMD_UNIT_DIR)/afmtwind.service
+	@echo "installed $(SYSTEMD_UNIT_DIR)/afmtwind.service (systemctl daemon-reload; systemctl start afmtwind)"
 
 clean:
 	rm -rf $(BUILD)

@@ -15,15 +15,19 @@ static const command commands[] = {
     {"modes", afm_cmd_modes, "eigenfrequencies, MAC, stiffness and effective mass of a model"},
     {"sweep", afm_cmd_sweep, "stepwise frequency sweep to steady state, with harmonics"},
     {"bench", afm_cmd_bench, "integrator speed and accuracy side by side"},
-    {"thermal", afm_cmd_thermal, "thermal tune: PSD of thermal motion, fit of eq. 5.1 per mode"},
+    {"thermal", afm_cmd_thermal, "thermal tune: PSD of the Brownian motion, eq. 5.1 fit of f, Q, k"},
+    {"send", afm_cmd_send, "publish one command to the daemon (validated as the daemon does)"},
+    {"listen", afm_cmd_listen, "print what the daemon publishes (samples, harmonics, status)"},
+    {"replay", afm_cmd_replay, "run the commands of an LCM log in model time, outputs to a log"},
+    {"bench-daemon", afm_cmd_bench_daemon, "real-time factor and command latency of afmtwind"},
 };
 
 static void usage(FILE *f) {
     fprintf(f, "usage: afmtwin COMMAND [OPTIONS]\n\n"
                "A digital twin of a tapping-mode AFM cantilever (see README.md).\n\ncommands:\n");
     for (size_t i = 0; i < sizeof commands / sizeof commands[0]; i++)
-        fprintf(f, "  %-8s %s\n", commands[i].name, commands[i].summary);
-    fprintf(f, "  help     this text\n\n`afmtwin COMMAND --help` describes every option.\n");
+        fprintf(f, "  %-12s %s\n", commands[i].name, commands[i].summary);
+    fprintf(f, "  help         this text\n\n`afmtwin COMMAND --help` describes every option.\n");
 }
 
 int main(int argc, char **argv) {

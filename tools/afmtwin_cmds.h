@@ -9,5 +9,9 @@ int afm_cmd_modes(int argc, char **argv);
 int afm_cmd_sweep(int argc, char **argv);
 int afm_cmd_bench(int argc, char **argv);
 int afm_cmd_thermal(int argc, char **argv);
+int afm_cmd_send(int argc, char **argv);
+int afm_cmd_listen(int argc, char **argv);
+int afm_cmd_replay(int argc, char **argv);
+int afm_cmd_bench_daemon(int argc, char **argv);
 
 #endif

@@ -1,0 +1,124 @@
+/* SPDX-License-Identifier: MIT */
+/* afm_runner.h -- the twin as the daemon and the replay tool run it: simulator + output
+ * chain (OBD, decimators, estimators), commands applied at block boundaries, n samples at
+ * a time. No LCM, no threads, no clock: the caller decides when to run and what to apply.
+ *
+ * Layer "runner" (top of the engine; uses afm_twin, afm_sim, afm_chain and the command
+ * struct of daemon/transport/afm_cmd.h, which is plain data).
+ *
+ * Life cycle: afm_runner_create (allocates everything) -> { afm_runner_apply, afm_runner_run,
+ * afm_runner_take_* , afm_runner_status } ... -> afm_runner_destroy. Nothing after create
+ * allocates, locks or blocks, except afm_runner_model_build / _destroy, which exist to be
+ * called on another thread (or, in replay, inline).
+ *
+ * Determinism: the output depends only on the config and on which commands were applied
+ * after how many samples since create. The setpoint ramp moves Z every
+ * AFM_RUNNER_RAMP_SAMPLES samples counted from create, so how the caller slices
+ * afm_runner_run does not matter either: same commands at the same sample counts ->
+ * bit-identical outputs (replay depends on it).
+ *
+ * Commands (validated with afm_cmd_validate first; afm_runner_apply re-checks what depends
+ * on the running state and changes nothing on rejection):
+ *  - dither: tone j < n_tones set phase-continuously (afm_sim_set_tone); a tone this
+ *    command starts begins at phase_rad; running tones past n_tones get amplitude 0.
+ *  - setpoint: ramp rate 0 -> Z now; else Z moves linearly towards the target.
+ *  - param: SEPARATION and FORCE names apply now (afm_param_apply on the runner's config,
+ *    then the force constants are swapped into the simulator, no allocation); DAMPING and
+ *    GEOMETRY names need a model built by afm_runner_model_build from the config the
+ *    command leads to (passed to afm_runner_apply in *model).
+ *  - control: RUN, PAUSE, RESET (state to rest, chain cleared, drive and Z kept),
+ *    STEP n (pauses; the next n samples run although paused).
+ *  - tick: adds n samples to the lockstep budget (see afm_runner_run).
+ *  - reload: swaps in *model (built from a whole new config): new simulator and chain,
+ *    model time continues, state at rest, drive and Z from the new config.
+ * Every applied command but a reload sets seq_applied = its seq; all outputs carry
+ * seq_applied.
+ *
+ * A numerical blow-up (AFM_SIM_EBLOWUP from the integrator) resets the state to rest and
+ * the chain, is counted (status.blowups, last_blowup_t_s); the samples of that slice are
+ * dropped and the run goes on with the rest of it from rest. */
+#ifndef AFM_RUNNER_H
+#define AFM_RUNNER_H
+
+#include "afm_chain.h"
+#include "afm_cmd.h"
+#include "afm_config.h"
+#include "afm_sim.h"
+
+#include <stdint.h>
+
+#define AFM_RUNNER_RAMP_SAMPLES 64 /* Z ramp update interval (samples; 4.6 us at 14.06 MHz) */
+
+typedef struct afm_runner afm_runner;
+/* A simulator (and, for geometry changes and reloads, a chain) built for a config, ready
+ * to be swapped in. After afm_runner_apply the same handle holds what was swapped out. */
+typedef struct afm_runner_model afm_runner_model;
+
+/* Build the twin of cfg. block_max: the largest slice afm_runner_run processes in one
+ * integrator call (sizes the sample buffer; larger n are split). lockstep: the twin
+ * advances only by tick budget (see afm_runner_run). NULL with err on failure. */
+afm_runner *afm_runner_create(const afm_config *cfg, int block_max, bool lockstep, char *err,
+                              size_t errlen);
+void afm_runner_destroy(afm_runner **r);
+
+/* Build, for a DAMPING / GEOMETRY param command or a reload, the simulator for cfg (the
+ * config the command leads to: the caller's copy after afm_param_apply, or the new file),
+ * and a chain when new_chain (geometry: the OBD calibration follows the model; reload).
+ * Allocates: call off the real-time thread. NULL with err. */
+afm_runner_model *afm_runner_model_build(const afm_config *cfg, bool new_chain, char *err,
+                                         size_t errlen);
+void afm_runner_model_destroy(afm_runner_model **m);
+
+/* Does this (validated) command need a model from afm_runner_model_build? 1 for a reload
+ * and for a param command whose strongest effect is DAMPING or GEOMETRY (then *new_chain
+ * says whether the model needs a chain), else 0. cfg: the config before the command. */
+int afm_runner_cmd_needs_model(const afm_config *cfg, const afm_cmd *c, bool *new_chain);
+
+/* Apply c now (between runs). model: NULL, or the address of a model handle for the
+ * commands that need one; on success it then holds the objects swapped out (destroy them
+ * off the real-time thread). 0, or -1 with err and nothing changed. */
+int afm_runner_apply(afm_runner *r, const afm_cmd *c, afm_runner_model **model, char *err,
+                     size_t errlen);
+
+/* Advance up to n samples. Free-running (not lockstep) and running: n. Paused: at most the
+ * STEP budget. Lockstep and running: at most the tick budget. Returns the samples advanced
+ * (0..n). Outputs wait in the chain's rings until taken. */
+long long afm_runner_run(afm_runner *r, long long n);
+
+/* Samples the next afm_runner_run would advance at most (LLONG_MAX when not gated). */
+long long afm_runner_budget(const afm_runner *r);
+
+/* Outputs: decimated blocks of stream i and per-period records, as afm_chain_take_block /
+ * afm_chain_take_periods (pointers valid until the next run, apply or reset). */
+int afm_runner_n_streams(const afm_runner *r);
+int afm_runner_take_block(afm_runner *r, int stream, afm_chain_block *b, int max_n);
+int afm_runner_take_periods(afm_runner *r, afm_chain_period *out, int max);
+
+typedef struct {
+    int64_t seq_applied;     /* seq of the last command applied (-1: none yet) */
+    long long samples;       /* samples advanced since create */
+    double t_s;              /* model time */
+    double dt_s;             /* sample interval */
+    bool running;            /* not paused */
+    bool lockstep;
+    long long step_budget, tick_budget;
+    double separation_m;     /* current Z */
+    double separation_target_m; /* ramp target (= separation_m when not ramping) */
+    double fe_hz;            /* tone 0 frequency */
+    double amplitude_m;      /* tone 0 amplitude */
+    long long blowups;       /* numerical blow-ups (state reset) */
+    double last_blowup_t_s;  /* model time of the last one (NAN if none) */
+    long long applied;       /* commands applied */
+    long long swaps;         /* models swapped in (damping, geometry, reload) */
+    afm_chain_stats chain;   /* OBD saturation, ring drops, periods, estimator rejects */
+} afm_runner_status;
+
+void afm_runner_status_get(const afm_runner *r, afm_runner_status *st);
+
+/* The config the runner is running now (after live params and swaps). Valid until the
+ * next apply. */
+const afm_config *afm_runner_config(const afm_runner *r);
+/* The simulator (read-only: for its drive, model, separation). */
+const afm_sim *afm_runner_sim(const afm_runner *r);
+
+#endif

@@ -1,0 +1,68 @@
+/* SPDX-License-Identifier: MIT */
+/* afm_sim_live.c -- live changes to a running simulator (contract in afm_sim_live.h). */
+#include "afm_sim_live.h"
+
+#include "afm_sim_impl.h"
+
+#include <math.h>
+#include <string.h>
+
+static const double two_pi = 6.283185307179586476925286766559;
+
+int afm_sim_start_tone(afm_sim *s, int j, double amp_m, double freq_hz, double phase_rad) {
+    if (!isfinite(phase_rad)) return AFM_SIM_EINVAL;
+    bool starts = j == s->drive.n;
+    int rc = afm_sim_set_tone(s, j, amp_m, freq_hz);
+    if (rc != AFM_SIM_OK || !starts) return rc;
+    double ph = fmod(phase_rad, two_pi);
+    if (ph < 0) ph += two_pi;
+    s->drive.phase_rad[j] = ph; /* t0_j is now (afm_drive_set_tone) */
+    s->be->changed(s);
+    return AFM_SIM_OK;
+}
+
+int afm_sim_set_forces(afm_sim *s, const afm_force_params *f) {
+    if (!f || f->vdw_contact != s->f.vdw_contact || f->viscoelastic != s->f.viscoelastic ||
+        f->squeeze != s->f.squeeze || f->capillary != s->f.capillary ||
+        f->electrostatic != s->f.electrostatic)
+        return AFM_SIM_EINVAL;
+    s->f = *f;
+    /* Keep the tip force of the current state consistent with the new constants. */
+    double x = afm_sim_tip_x(s, s->q), v = afm_sim_tip_x(s, s->qd);
+    s->f_last_n = afm_force_tip(&s->f, s->z_m, x, v, NULL, NULL);
+    s->be->changed(s);
+    return AFM_SIM_OK;
+}
+
+int afm_sim_continue(afm_sim *dst, const afm_sim *src, unsigned what) {
+    if ((what & AFM_SIM_KEEP_STATE) && dst->m.n != src->m.n) return AFM_SIM_EINVAL;
+    double t = src->t_s;
+    /* Time: same step count and origin, so t_s = t_start + step dt stays exact. A reload
+     * may change dt; then the new simulator starts its own step count at t. */
+    if (dst->dt_s == src->dt_s) {
+        dst->t_start_s = src->t_start_s;
+        dst->step = src->step;
+    } else {
+        dst->t_start_s = t;
+        dst->step = 0;
+    }
+    dst->t_s = t;
+    if (what & AFM_SIM_KEEP_DRIVE) {
+        dst->drive = src->drive;
+        dst->z_m = src->z_m;
+    } else {
+        for (int j = 0; j < dst->drive.n; j++)
+            dst->drive.t0_s[j] = t; /* phase_rad[j] is the configured phase */
+    }
+    if (what & AFM_SIM_KEEP_STATE) {
+        memcpy(dst->q, src->q, sizeof dst->q);
+        memcpy(dst->qd, src->qd, sizeof dst->qd);
+    } else {
+        memset(dst->q, 0, sizeof dst->q);
+        memset(dst->qd, 0, sizeof dst->qd);
+    }
+    double x = afm_sim_tip_x(dst, dst->q), v = afm_sim_tip_x(dst, dst->qd);
+    dst->f_last_n = afm_force_tip(&dst->f, dst->z_m, x, v, NULL, NULL);
+    dst->be->changed(dst);
+    return AFM_SIM_OK;
+}

@@ -1,0 +1,37 @@
+/* SPDX-License-Identifier: MIT */
+/* afm_sim_live.h -- changes the daemon makes to a running simulator beyond afm_sim.h's
+ * setters: start a tone at a given phase, swap the force constants, and hand model time,
+ * drive and state over to a simulator built off the real-time thread.
+ *
+ * Layer 3 (beside afm_sim; reads the simulator struct of afm_sim_impl.h). Nothing here
+ * allocates, locks or blocks: all of it is safe at a block boundary of the real-time
+ * loop. Every change resynchronises the backend (its `changed` hook) at the current
+ * model time, as afm_sim_set_tone does. */
+#ifndef AFM_SIM_LIVE_H
+#define AFM_SIM_LIVE_H
+
+#include "afm_sim.h"
+
+/* As afm_sim_set_tone, but a tone that starts now (j == current tone count) begins at
+ * phase_rad (afm_sim_set_tone starts it at 0); for a running tone phase_rad is ignored
+ * (the change stays phase-continuous). AFM_SIM_EINVAL on the values afm_sim_set_tone
+ * rejects or a non-finite phase. */
+int afm_sim_start_tone(afm_sim *s, int j, double amp_m, double freq_hz, double phase_rad);
+
+/* Replace the tip-sample force constants (afm_force_init of the new config, same model).
+ * The enabled terms must be the same as before (the rt backend chose its stepping for
+ * them at create); AFM_SIM_EINVAL otherwise, nothing changed. */
+int afm_sim_set_forces(afm_sim *s, const afm_force_params *f);
+
+/* What afm_sim_continue takes over from the old simulator. */
+#define AFM_SIM_KEEP_DRIVE 1u /* tones (phase-continuous) and separation Z */
+#define AFM_SIM_KEEP_STATE 2u /* modal state q, q' (same number of modes required) */
+
+/* Make dst (fresh from afm_sim_create / afm_twin_create) continue where src is: model
+ * time (and step count) always; drive and Z, and the modal state, as `what` says. Without
+ * KEEP_DRIVE, dst's own tones are re-anchored so that each starts at its configured phase
+ * at the current time. Without KEEP_STATE dst is at rest. AFM_SIM_EINVAL (nothing changed)
+ * if KEEP_STATE and the mode counts differ. */
+int afm_sim_continue(afm_sim *dst, const afm_sim *src, unsigned what);
+
+#endif

@@ -1,0 +1,45 @@
+/* SPDX-License-Identifier: MIT */
+/* rt_setup.c -- real-time privileges for the daemon: locked memory, SCHED_FIFO and CPU
+ * pinning, each when permitted (CAP_IPC_LOCK / CAP_SYS_NICE or rlimits), else a warning. */
+#define _GNU_SOURCE /* pthread_setaffinity_np, CPU_SET */
+#include "twind.h"
+
+#include <errno.h>
+#include <pthread.h>
+#include <sched.h>
+#include <stdio.h>
+#include <string.h>
+#include <sys/mman.h>
+
+static void append(char *warn, size_t len, const char *fmt, const char *what, int e) {
+    size_t n = strlen(warn);
+    if (n + 2 >= len) return;
+    snprintf(warn + n, len - n, fmt, what, strerror(e));
+}
+
+void twind_rt_setup_process(char *warn, size_t len) {
+    if (mlockall(MCL_CURRENT | MCL_FUTURE) != 0)
+        append(warn, len, "%s failed (%s): pages may fault in the loop; ", "mlockall", errno);
+}
+
+void twind_rt_setup_thread(int priority, int cpu, char *warn, size_t len) {
+    struct sched_param sp = {.sched_priority = priority};
+    int e = pthread_setschedparam(pthread_self(), SCHED_FIFO, &sp);
+    if (e != 0)
+        append(warn, len, "%s failed (%s): running with normal scheduling; ", "SCHED_FIFO", e);
+    if (cpu >= 0) {
+        cpu_set_t set;
+        CPU_ZERO(&set);
+        CPU_SET(cpu, &set);
+        e = pthread_setaffinity_np(pthread_self(), sizeof set, &set);
+        if (e != 0) append(warn, len, "%s failed (%s); ", "CPU pinning", e);
+    }
+    /* Touch the stack the loop will use, so that it is resident (and locked). */
+    volatile char stack[256 * 1024];
+    memset((char *)stack, 0, sizeof stack);
+}
+
+void twind_rt_setup_aux(int priority) {
+    struct sched_param sp = {.sched_priority = priority > 1 ? priority : 1};
+    (void)pthread_setschedparam(pthread_self(), SCHED_FIFO, &sp); /* the RT thread warned */
+}

@@ -1,0 +1,172 @@
+/* SPDX-License-Identifier: MIT */
+/* afm_cmd.h -- the daemon's internal command (one tagged union for every inbound LCM
+ * message), its decoding from the generated LCM types, its validation, and the table of
+ * live parameter names.
+ *
+ * Pure functions: nothing here keeps state, and a rejected command changes nothing. The
+ * daemon (afmtwind), the replay tool and `afmtwin send` all use them, so that `send` exits
+ * non-zero on exactly the values the daemon would reject.
+ *
+ * Pipeline in the daemon's receive thread:
+ *   bytes --afm_cmd_decode--> afm_cmd (decoded AND validated, or rejected with a reason)
+ *         --(param only) afm_param_apply on the daemon's copy of the config--> queue.
+ *
+ * Validation (afm_cmd_validate), each with a reason naming the field, e.g.
+ *   "dither: tone 1 frequency_hz 8e+06 must be > 0 and < 7.03e+06 (half the sample rate)":
+ *  - every double finite (NaN, inf rejected);
+ *  - dither: n_tones 1..AFM_MAX_TONES, amplitude 0..AFM_CMD_MAX_AMPLITUDE_M,
+ *    0 < frequency < sample_rate/2 (only > 0 when the limits give no sample rate),
+ *    phase finite;
+ *  - setpoint: separation 0..AFM_CMD_MAX_SEPARATION_M, ramp rate 0..AFM_CMD_MAX_RAMP_M_S;
+ *  - param: n 1..AFM_CMD_MAX_PARAMS, every name in the table (afm_param_lookup), every
+ *    value within the entry's range; the same name twice is rejected;
+ *  - control: action RUN/PAUSE/RESET/STEP, STEP's n_samples 1..AFM_CMD_MAX_STEP;
+ *  - tick: n_samples 1..AFM_CMD_MAX_STEP.
+ * Whether a param change fits the running config (e.g. a beam parameter on a lumped model,
+ * a capillary parameter while capillary forces are off) needs the config:
+ * afm_param_apply says so. */
+#ifndef AFM_CMD_H
+#define AFM_CMD_H
+
+#include "afm_config.h"
+
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#define AFM_CMD_MAX_PARAMS 16          /* names per param message */
+#define AFM_CMD_MAX_AMPLITUDE_M 1e-6   /* dither amplitude limit (as afm_sim_set_tone) */
+#define AFM_CMD_MAX_SEPARATION_M 1e-3  /* Z limit (as afm_sim_set_separation) */
+#define AFM_CMD_MAX_RAMP_M_S 1.0       /* Z ramp rate limit: 1 m/s is no Z stage */
+#define AFM_CMD_MAX_STEP 1000000000LL  /* STEP and tick n_samples upper bound */
+#define AFM_CMD_NAME_LEN 64            /* longest param name + 1 */
+
+typedef enum {
+    AFM_CMD_DITHER = 1,
+    AFM_CMD_SETPOINT = 2,
+    AFM_CMD_PARAM = 3,
+    AFM_CMD_CONTROL = 4,
+    AFM_CMD_TICK = 5,
+    AFM_CMD_RELOAD = 6 /* internal (SIGHUP): never decoded from a message */
+} afm_cmd_kind;
+
+/* Values of afmtwin_control_t.action (checked against the generated constants). */
+typedef enum {
+    AFM_CTL_RUN = 1,
+    AFM_CTL_PAUSE = 2,
+    AFM_CTL_RESET = 3,
+    AFM_CTL_STEP = 4
+} afm_cmd_action;
+
+/* How a parameter takes effect. */
+typedef enum {
+    AFM_PARAM_SEPARATION = 0, /* drive.separation_m: a setpoint step, at once */
+    AFM_PARAM_FORCE = 1,      /* tip-sample force constants: at once, no allocation */
+    AFM_PARAM_DAMPING = 2,    /* modal damping: a new simulator on the same modes is built
+                                 off the real-time thread; the state carries over */
+    AFM_PARAM_GEOMETRY = 3    /* beam or lumped model: model rebuilt off the real-time
+                                 thread, swapped in at a block boundary, starts at rest */
+} afm_param_effect;
+
+typedef struct {
+    int n_tones;                          /* 1..AFM_MAX_TONES */
+    double frequency_hz[AFM_MAX_TONES];
+    double amplitude_m[AFM_MAX_TONES];
+    double phase_rad[AFM_MAX_TONES];      /* used only by tones this command starts */
+} afm_cmd_dither;
+
+typedef struct {
+    double separation_m;   /* target Z, m */
+    double ramp_rate_m_s;  /* 0: step; > 0: ramp at this rate */
+} afm_cmd_setpoint;
+
+typedef struct {
+    int n;
+    int entry[AFM_CMD_MAX_PARAMS]; /* index into afm_param_table() */
+    int index[AFM_CMD_MAX_PARAMS]; /* array element ([i]), -1 for a scalar name */
+    double value[AFM_CMD_MAX_PARAMS]; /* in the name's unit (degrees for *_deg) */
+} afm_cmd_param;
+
+typedef struct {
+    int action;          /* afm_cmd_action */
+    long long n_samples; /* STEP: samples to advance */
+} afm_cmd_control;
+
+typedef struct {
+    long long n_samples; /* lockstep: samples to advance */
+} afm_cmd_tick;
+
+typedef struct {
+    afm_cmd_kind kind;
+    int64_t seq;   /* sender's sequence number; outputs echo the last one applied */
+    int64_t utime; /* sender's time stamp, microseconds */
+    union {
+        afm_cmd_dither dither;
+        afm_cmd_setpoint setpoint;
+        afm_cmd_param param;
+        afm_cmd_control control;
+        afm_cmd_tick tick;
+    } u;
+} afm_cmd;
+
+/* What validation needs to know about the running twin. sample_rate_hz <= 0: unknown
+ * (dither frequencies are then only checked for > 0). */
+typedef struct {
+    double sample_rate_hz;
+} afm_cmd_limits;
+
+/* "dither", "setpoint", ... ("?" for an unknown kind). */
+const char *afm_cmd_kind_name(afm_cmd_kind k);
+
+/* Check c; 0, or -1 with the reason in err. */
+int afm_cmd_validate(const afm_cmd *c, const afm_cmd_limits *lim, char *err, size_t errlen);
+
+/* Decode one LCM message body (what lcm hands a subscriber: rbuf->data, rbuf->data_size)
+ * of the given kind into c and validate it. Rejected (-1, reason in err, c unspecified):
+ * a wrong fingerprint (another message type on this channel), a truncated or malformed
+ * body (lcm's decode returned < 0), trailing bytes, and everything afm_cmd_validate
+ * rejects. May allocate temporarily (lcm's decode does); not for the real-time thread. */
+int afm_cmd_decode(afm_cmd_kind kind, const void *data, size_t len, const afm_cmd_limits *lim,
+                   afm_cmd *c, char *err, size_t errlen);
+
+/* The same from an already decoded message (pointer to the generated struct, e.g.
+ * const afmtwin_dither_t *): copies and validates. Declared with void * so this header
+ * does not pull in the generated headers; msg must be the type that kind names. */
+int afm_cmd_from_msg(afm_cmd_kind kind, const void *msg, const afm_cmd_limits *lim, afm_cmd *c,
+                     char *err, size_t errlen);
+
+/* ---- parameter names ------------------------------------------------------------------ */
+
+typedef struct {
+    const char *name;    /* config key path, e.g. "forces.vdw_contact.hamaker_j" */
+    int n_index;         /* 0: scalar; else the name takes [0 .. n_index-1] (and, if
+                            scalar_ok, also the bare name: sets every element) */
+    bool scalar_ok;
+    double min, max;     /* allowed values, inclusive unless *_open */
+    bool min_open, max_open;
+    afm_param_effect effect;
+    const char *unit;
+} afm_param_def;
+
+/* The table (n entries into *n). Static data, valid for the life of the program. */
+const afm_param_def *afm_param_table(int *n);
+
+/* Resolve "model.damping_ratio[2]" -> entry, index 2; "forces.radius_m" -> entry, -1.
+ * 0, or -1 with "unknown parameter 'x' (known: ...)" or a bad index in err. */
+int afm_param_lookup(const char *name, int *entry, int *index, char *err, size_t errlen);
+
+/* The canonical name of (entry, index) into buf. */
+void afm_param_name(int entry, int index, char *buf, size_t len);
+
+/* Apply the validated param command p to *cfg: cfg is changed only if the result passes
+ * afm_config_validate and every parameter fits the config (a force term that is switched
+ * off, a beam name on a lumped model, ... are rejected with a reason). *effect (may be
+ * NULL) receives the strongest effect among the names (GEOMETRY > DAMPING > FORCE >
+ * SEPARATION). Allocates nothing: usable on the real-time thread. 0 or -1 with err. */
+int afm_param_apply(afm_config *cfg, const afm_cmd_param *p, afm_param_effect *effect, char *err,
+                    size_t errlen);
+
+/* Current value of (entry, index) in cfg (in the name's unit); NAN for a bad entry. */
+double afm_param_get(const afm_config *cfg, int entry, int index);
+
+#endif

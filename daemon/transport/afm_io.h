@@ -1,0 +1,104 @@
+/* SPDX-License-Identifier: MIT */
+/* afm_io.h -- the daemon's transport interface: a small vtable, as LCM's providers, so
+ * that LCM (afm_lcm_io.c) and later CAN (issue 6) plug in the same way.
+ *
+ * Inbound, a transport decodes and validates each message (afm_cmd_decode) and hands the
+ * daemon either a command (sink->on_cmd) or a rejection with its reason
+ * (sink->on_reject); it never touches the twin itself. Outbound, it publishes the records
+ * below, which carry plain numbers (no engine handles), each with utime and seq_applied.
+ *
+ * Threads: `poll` runs on the receive thread only (and calls the sink there); the publish
+ * functions run on the publish thread only. A transport must allow these two to run at
+ * the same time (LCM does). Nothing here is called from the real-time thread. */
+#ifndef AFM_IO_H
+#define AFM_IO_H
+
+#include "afm_chain.h"
+#include "afm_cmd.h"
+
+#include <stdint.h>
+
+#define AFM_IO_MAX_BLOCK 2048  /* samples per samples record */
+#define AFM_IO_REASON_LEN 256  /* rejection reasons in status */
+
+typedef struct {
+    int64_t utime;        /* publish time stamp, us (wall clock; model time in replay) */
+    int64_t seq_applied;
+    int stream;           /* output stream index */
+    double t0_s;          /* model time of the first sample */
+    double rate_hz;
+    int n;                /* 1..AFM_IO_MAX_BLOCK */
+    float deflection_m[AFM_IO_MAX_BLOCK];
+    float obd_m[AFM_IO_MAX_BLOCK];
+    int32_t obd_counts[AFM_IO_MAX_BLOCK]; /* 0 without ADC */
+    float force_n[AFM_IO_MAX_BLOCK];
+} afm_io_samples;
+
+typedef struct {
+    int64_t utime;
+    int64_t seq_applied;
+    double fe_hz;         /* tone 0 frequency when the period ended */
+    afm_chain_period p;   /* t_s = p.cycle.t_start_s */
+} afm_io_harmonics;
+
+typedef struct {
+    int64_t utime;
+    int64_t seq_applied;
+    double model_time_s;
+    double realtime_factor;
+    int64_t overruns;
+    double lag_s;
+    int64_t received, rejected;
+    char last_reject[AFM_IO_REASON_LEN];
+    int64_t blowups;
+    const char *mode;     /* "realtime", "freerun", "lockstep" */
+    int running;
+    double separation_m, fe_hz, amplitude_m;
+} afm_io_status;
+
+/* What a transport calls on the receive thread. */
+typedef struct {
+    void *ctx;
+    /* A decoded and validated command. Return 0 if taken, -1 with a reason in err if the
+     * daemon refuses it (the transport then counts nothing more: the daemon did). */
+    int (*on_cmd)(void *ctx, const afm_cmd *c);
+    /* A message the transport rejected (malformed, wrong type, invalid values). */
+    void (*on_reject)(void *ctx, const char *channel, const char *reason);
+    /* Limits for afm_cmd_decode (the running sample rate). */
+    afm_cmd_limits (*limits)(void *ctx);
+} afm_io_sink;
+
+typedef struct afm_io afm_io;
+
+typedef struct {
+    const char *name;
+    /* Wait up to timeout_ms for inbound messages and dispatch them to the sink. 0 ok (also
+     * on timeout), -1 on a transport failure. */
+    int (*poll)(afm_io *io, int timeout_ms);
+    int (*publish_samples)(afm_io *io, const afm_io_samples *s);
+    int (*publish_harmonics)(afm_io *io, const afm_io_harmonics *h);
+    int (*publish_status)(afm_io *io, const afm_io_status *s);
+    void (*destroy)(afm_io *io);
+} afm_io_ops;
+
+struct afm_io {
+    const afm_io_ops *ops;
+    afm_io_sink sink;
+    void *impl;
+};
+
+/* LCM transport on url (NULL: LCM's default, i.e. $LCM_DEFAULT_URL or udpm), channels
+ * prefix + DITHER, SETPOINT, PARAM, CONTROL, TICK (in) and SAMPLES, HARMONICS, STATUS
+ * (out). Every inbound channel is subscribed raw, so that any bytes on it are decoded and
+ * judged here. NULL with err. */
+afm_io *afm_lcm_io_create(const char *url, const char *prefix, const afm_io_sink *sink,
+                          char *err, size_t errlen);
+
+static inline void afm_io_destroy(afm_io **io) {
+    if (io && *io) {
+        (*io)->ops->destroy(*io);
+        *io = NULL;
+    }
+}
+
+#endif

@@ -1,0 +1,151 @@
+/* SPDX-License-Identifier: MIT */
+/* twind.h -- what the daemon's modules share: the daemon state, the queue items between
+ * its threads, the real-time thread's published snapshot, and each module's entry points.
+ *
+ * Threads and who owns what:
+ *  - main (afmtwind.c): arguments, start-up and shutdown in order, signals (sigtimedwait),
+ *    the status line on stderr once a second, sd_notify.
+ *  - receive (cmd_in.c): transport poll; decoded commands checked against the daemon's copy
+ *    of the config (shadow), models built for damping/geometry changes and SIGHUP reloads,
+ *    all pushed into cmd_q (its only producer); destroys what the RT thread swapped out
+ *    (trash_q) and counts the RT thread's rare rejections (rtrej_q).
+ *  - rt (rt_loop.c): the runner. Pops cmd_q at block boundaries, runs a block, pushes
+ *    samples (samples_q) and harmonics (harm_q), updates the snapshot (seqlock). Never
+ *    blocks, locks or allocates.
+ *  - publish (publish.c): pops samples_q and harm_q, publishes them, and the status at
+ *    10 Hz; the final status at shutdown.
+ * Counters the receive thread owns (received, rejected, last reason) sit behind `lock`,
+ * which only the non-real-time threads take. */
+#ifndef TWIND_H
+#define TWIND_H
+
+#include "afm_io.h"
+#include "afm_runner.h"
+#include "afm_spsc.h"
+
+#include <pthread.h>
+#include <semaphore.h>
+#include <stdatomic.h>
+#include <stdint.h>
+
+typedef enum { TWIND_REALTIME = 0, TWIND_FREERUN = 1, TWIND_LOCKSTEP = 2 } twind_mode;
+
+typedef struct {
+    const char *config_path;
+    const char *lcm_url;  /* NULL: LCM's default */
+    const char *prefix;   /* channel prefix, default "AFMTWIN_" */
+    twind_mode mode;
+    int cpu;              /* pin the RT thread to this CPU; -1: no pinning */
+    int rt_priority;      /* SCHED_FIFO priority 1..99 */
+    double block_s;       /* real-time block length (s) */
+    double exit_after_s;  /* > 0: stop after this long (tests) */
+    int harmonics_every;  /* publish every k-th period; 0: auto (at most harmonics_max_hz) */
+    double harmonics_max_hz;
+    int quiet;            /* no status line */
+} twind_opts;
+
+/* cmd_q item: a validated command and, for damping/geometry/reload, the model to swap in.
+ * The RT thread hands models back through trash_q (what was swapped out, or the unused
+ * model of a command it rejected). */
+typedef struct {
+    afm_cmd cmd;
+    afm_runner_model *model;
+} twind_cmd_item;
+
+typedef struct {
+    char reason[AFM_IO_REASON_LEN];
+} twind_reason;
+
+/* What the RT thread publishes after every block (seqlock: readers retry while seq is odd
+ * or changed under them). */
+typedef struct {
+    afm_runner_status st;
+    long long blocks;          /* blocks run */
+    long long overruns;        /* realtime blocks that ended after their deadline */
+    double lag_s;              /* wall clock minus model time (realtime mode) */
+    long long samples_dropped; /* sample records lost to a full samples_q */
+    long long harm_dropped;    /* harmonics records lost to a full harm_q */
+    long long heartbeat;       /* increases every loop turn (watchdog) */
+    double busy_fraction;      /* compute time / wall time over the last second */
+} twind_snapshot;
+
+typedef struct {
+    twind_opts opt;
+    afm_runner *runner;   /* the RT thread's after start */
+    afm_io *io;
+    afm_spsc cmd_q, trash_q, rtrej_q, samples_q, harm_q;
+    sem_t out_sem;        /* posted by the RT thread after pushing outputs */
+    atomic_int stop;      /* set by main: all threads finish */
+    atomic_int rt_done;   /* set by the RT thread when it has left its loop */
+    atomic_int reload;    /* set by main on SIGHUP, taken by the receive thread */
+    /* snapshot */
+    atomic_uint snap_seq;
+    twind_snapshot snap;
+    /* receive-side counters */
+    pthread_mutex_t lock;
+    long long received, rejected;
+    char last_reject[AFM_IO_REASON_LEN];
+    afm_config shadow;    /* receive thread only: the config after all queued commands */
+    /* RT scheduling result, for the start-up report */
+    char rt_warn[512];
+} twind;
+
+/* afmtwind.c */
+const char *twind_mode_name(twind_mode m);
+
+/* rt_setup.c: mlockall (on the calling process), SCHED_FIFO and CPU affinity for the
+ * calling thread. Each failure is described in warn (appended), never fatal. */
+void twind_rt_setup_process(char *warn, size_t len);
+void twind_rt_setup_thread(int priority, int cpu, char *warn, size_t len);
+/* The publish and receive threads: SCHED_FIFO at a lower priority when permitted, so that
+ * outputs and commands are not starved by ordinary processes; silent (the RT thread warns). */
+void twind_rt_setup_aux(int priority);
+
+/* rt_loop.c: the real-time thread (arg: twind *). */
+void *twind_rt_main(void *arg);
+
+/* cmd_in.c: the sink the transport calls, and the receive thread (arg: twind *). */
+afm_io_sink twind_sink(twind *d);
+void *twind_recv_main(void *arg);
+/* Count a rejection with its reason (non-RT threads). */
+void twind_reject(twind *d, const char *reason);
+
+/* publish.c: the publish thread (arg: twind *), and one status record from the snapshot.
+ * The real-time factor is model time over wall time since the caller's previous call
+ * (state in *rs, zero-initialised); once the RT thread has stopped it keeps the last value
+ * (the interval of the final status would count the shutdown). */
+typedef struct {
+    double wall, model, rtf;
+} twind_rtf_state;
+void *twind_pub_main(void *arg);
+void twind_status_fill(twind *d, afm_io_status *st, twind_rtf_state *rs);
+
+/* notify.c: sd_notify wrappers (no-ops outside systemd). */
+void twind_notify_ready(void);
+void twind_notify_status(const char *text);
+void twind_notify_watchdog(void);
+void twind_notify_stopping(void);
+
+/* Seqlock snapshot access. */
+static inline void twind_snap_write(twind *d, const twind_snapshot *s) {
+    unsigned q = atomic_load_explicit(&d->snap_seq, memory_order_relaxed);
+    atomic_store_explicit(&d->snap_seq, q + 1, memory_order_relaxed);
+    atomic_thread_fence(memory_order_release);
+    d->snap = *s;
+    atomic_store_explicit(&d->snap_seq, q + 2, memory_order_release);
+}
+static inline void twind_snap_read(twind *d, twind_snapshot *s) {
+    for (;;) {
+        unsigned a = atomic_load_explicit(&d->snap_seq, memory_order_acquire);
+        if (a & 1u) continue;
+        *s = d->snap;
+        atomic_thread_fence(memory_order_acquire);
+        if (atomic_load_explicit(&d->snap_seq, memory_order_relaxed) == a) return;
+    }
+}
+
+/* Wall clock now (CLOCK_REALTIME, us) for utime stamps, and CLOCK_MONOTONIC in s. */
+int64_t twind_utime_now(void);
+double twind_mono_now(void);
+
+#endif

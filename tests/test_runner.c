@@ -1,0 +1,313 @@
+/* SPDX-License-Identifier: MIT */
+/* test_runner.c -- the runner (afm_runner) the daemon and replay share:
+ *  - determinism: two runners on default.conf get the same commands (setpoint ramp, dither
+ *    change with a second tone, live force change, damping change with a model swap, pause,
+ *    step, run, reset) at the same sample counts but run in different slice lengths
+ *    (1000 vs 777 samples); every decimated sample of both streams, every period record and
+ *    the final status must be bit-identical;
+ *  - commands take effect: the ramp ends at its target at rate x time; seq_applied echoes;
+ *    a rejected command (tick outside lockstep, damping without a model) changes nothing;
+ *  - gating: paused runs advance only the STEP budget, lockstep only the tick budget;
+ *  - blow-up: a lumped cantilever with xi = 1e-9 driven at resonance with 1 um grows
+ *    without bound; the runner reports blow-ups, restarts from rest and keeps running
+ *    (samples advance as asked, outputs keep coming). */
+#include "afm_runner.h"
+#include "check.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define MAXOUT 400000
+#define PER (MAXOUT / AFM_MAX_OUTPUTS)
+
+typedef struct {
+    double *t, *x, *obd, *f;
+    long n;        /* all streams */
+    long ns[AFM_MAX_OUTPUTS]; /* per stream: stream s fills [s * PER, s * PER + ns[s]) */
+    afm_chain_period *per;
+    long np;
+} outlog;
+
+static void log_init(outlog *o) {
+    o->t = calloc(MAXOUT, sizeof(double));
+    o->x = calloc(MAXOUT, sizeof(double));
+    o->obd = calloc(MAXOUT, sizeof(double));
+    o->f = calloc(MAXOUT, sizeof(double));
+    o->per = calloc(20000, sizeof *o->per);
+    o->n = o->np = 0;
+    memset(o->ns, 0, sizeof o->ns);
+}
+
+static void log_free(outlog *o) {
+    free(o->t);
+    free(o->x);
+    free(o->obd);
+    free(o->f);
+    free(o->per);
+}
+
+static void drain(afm_runner *r, outlog *o) {
+    for (int s = 0; s < afm_runner_n_streams(r); s++) {
+        afm_chain_block b;
+        while (afm_runner_take_block(r, s, &b, 0) > 0)
+            for (int i = 0; i < b.n && o->ns[s] < PER; i++, o->n++) {
+                long w = (long)s * PER + o->ns[s]++;
+                o->t[w] = b.t_s[i];
+                o->x[w] = b.x_m[i];
+                o->obd[w] = b.obd_m[i];
+                o->f[w] = b.f_n[i];
+            }
+    }
+    afm_chain_period p[64];
+    int n;
+    while ((n = afm_runner_take_periods(r, p, 64)) > 0)
+        for (int i = 0; i < n && o->np < 20000; i++)
+            o->per[o->np++] = p[i];
+}
+
+static int lookup(const char *name, int *e, int *i) {
+    char err[AFM_ERR_LEN];
+    return afm_param_lookup(name, e, i, err, sizeof err);
+}
+
+/* The script: command k applied when the runner has advanced at[k] samples. */
+#define N_CMDS 9
+static const long long at[N_CMDS] = {10000, 30000, 45000, 60000, 80000, 80000, 80000, 90000, 110000};
+static const long long total = 140000;
+
+static afm_cmd script(int k, const afm_config *cfg0, afm_config *shadow, afm_runner_model **m) {
+    afm_cmd c = {.seq = 100 + k};
+    *m = NULL;
+    int e, i;
+    switch (k) {
+    case 0: /* ramp Z 40 -> 30 nm at 1e-4 m/s: 100 us = 1406 samples */
+        c.kind = AFM_CMD_SETPOINT;
+        c.u.setpoint = (afm_cmd_setpoint){30e-9, 1e-4};
+        break;
+    case 1: /* tone 0 up 2 kHz, tone 1 starts at 1 MHz with phase 0.3 */
+        c.kind = AFM_CMD_DITHER;
+        c.u.dither = (afm_cmd_dither){2, {340112, 1e6}, {0.09e-9, 0.01e-9}, {0, 0.3}};
+        break;
+    case 2: /* live force change */
+        c.kind = AFM_CMD_PARAM;
+        lookup("forces.viscoelastic.eta_pa_s", &e, &i);
+        c.u.param = (afm_cmd_param){1, {e}, {i}, {400.0}};
+        break;
+    case 3: /* damping: a model built "off the RT thread" from the shadow config */
+        c.kind = AFM_CMD_PARAM;
+        lookup("model.damping_ratio[0]", &e, &i);
+        c.u.param = (afm_cmd_param){1, {e}, {i}, {0.002}};
+        break;
+    case 4: c.kind = AFM_CMD_CONTROL; c.u.control = (afm_cmd_control){AFM_CTL_PAUSE, 0}; break;
+    case 5: c.kind = AFM_CMD_CONTROL; c.u.control = (afm_cmd_control){AFM_CTL_STEP, 5000}; break;
+    case 6: c.kind = AFM_CMD_CONTROL; c.u.control = (afm_cmd_control){AFM_CTL_STEP, 5000}; break;
+    case 7: c.kind = AFM_CMD_CONTROL; c.u.control = (afm_cmd_control){AFM_CTL_RUN, 0}; break;
+    case 8: c.kind = AFM_CMD_CONTROL; c.u.control = (afm_cmd_control){AFM_CTL_RESET, 0}; break;
+    }
+    (void)cfg0;
+    if (c.kind == AFM_CMD_PARAM) {
+        char err[AFM_ERR_LEN];
+        afm_param_effect eff;
+        afm_param_apply(shadow, &c.u.param, &eff, err, sizeof err);
+        bool nc;
+        if (afm_runner_cmd_needs_model(shadow, &c, &nc) || eff >= AFM_PARAM_DAMPING)
+            *m = afm_runner_model_build(shadow, eff == AFM_PARAM_GEOMETRY, err, sizeof err);
+    }
+    return c;
+}
+
+/* Run the script in slices of `slice` samples; returns the final status. */
+static afm_runner_status play(const afm_config *cfg, long long slice, outlog *o, int *apply_fail) {
+    char err[AFM_ERR_LEN];
+    afm_runner *r = afm_runner_create(cfg, 4096, false, err, sizeof err);
+    afm_config shadow = *cfg;
+    afm_runner_status st;
+    *apply_fail = 0;
+    int k = 0;
+    long long done = 0;
+    while (done < total || k < N_CMDS) {
+        while (k < N_CMDS && at[k] <= done) {
+            afm_runner_model *m;
+            afm_cmd c = script(k, cfg, &shadow, &m);
+            if (afm_runner_apply(r, &c, m ? &m : NULL, err, sizeof err)) {
+                printf("  apply %d: %s\n", k, err);
+                (*apply_fail)++;
+            }
+            afm_runner_model_destroy(&m);
+            k++;
+        }
+        long long n = slice;
+        if (k < N_CMDS && at[k] - done < n) n = at[k] - done;
+        if (total - done < n) n = total - done;
+        if (n <= 0 && k >= N_CMDS) break;
+        long long adv = afm_runner_run(r, n);
+        if (adv == 0) { /* paused with no budget: nothing to wait for in a test */
+            if (k < N_CMDS) done = at[k];
+            else break;
+        }
+        done += adv;
+        drain(r, o);
+    }
+    afm_runner_status_get(r, &st);
+    afm_runner_destroy(&r);
+    return st;
+}
+
+static void test_determinism(const afm_config *cfg) {
+    outlog a, b;
+    log_init(&a);
+    log_init(&b);
+    int fa, fb;
+    afm_runner_status sa = play(cfg, 1000, &a, &fa);
+    afm_runner_status sb = play(cfg, 777, &b, &fb);
+    check_true(fa == 0 && fb == 0, "every scripted command applied");
+    printf("  %ld decimated samples, %ld periods; model time %.6f s, %lld samples\n", a.n, a.np,
+           sa.t_s, sa.samples);
+    check_true(a.n > 5000 && a.np > 1000, "outputs produced");
+    bool same = a.n == b.n && !memcmp(a.ns, b.ns, sizeof a.ns);
+    for (int s = 0; s < AFM_MAX_OUTPUTS; s++)
+        for (long i = (long)s * PER; same && i < (long)s * PER + a.ns[s]; i++)
+            same = a.t[i] == b.t[i] && a.x[i] == b.x[i] && a.obd[i] == b.obd[i] && a.f[i] == b.f[i];
+    check_true(same, "slices 1000 vs 777: every decimated sample bit-identical");
+    same = a.np == b.np && memcmp(a.per, b.per, (size_t)a.np * sizeof *a.per) == 0;
+    check_true(same, "slices 1000 vs 777: every period record bit-identical");
+    check_true(sa.t_s == sb.t_s && sa.samples == sb.samples && sa.seq_applied == sb.seq_applied &&
+                   sa.separation_m == sb.separation_m && sa.swaps == sb.swaps,
+               "final status identical");
+    check_true(sa.seq_applied == 108 && sa.applied == N_CMDS, "seq_applied echoes the last command (108)");
+    check_true(sa.separation_m == 30e-9, "Z ramp ended exactly at the target 30 nm");
+    check_true(sa.swaps == 1, "the damping change swapped one model in");
+    check_rel(sa.fe_hz, 340112, 1e-12, "tone 0 frequency after the dither command");
+    /* paused at 80000 with 2 x 5000 steps, run again from 90000: 140000 - 0 samples asked,
+     * 10000 of them while paused */
+    check_true(sa.samples == total, "samples advanced = asked (steps included)");
+    log_free(&a);
+    log_free(&b);
+}
+
+static void test_ramp_and_rejects(const afm_config *cfg) {
+    char err[AFM_ERR_LEN];
+    afm_runner *r = afm_runner_create(cfg, 2048, false, err, sizeof err);
+    afm_runner_status st;
+    afm_cmd c = {.kind = AFM_CMD_SETPOINT, .seq = 5, .u.setpoint = {30e-9, 1e-4}};
+    afm_runner_apply(r, &c, NULL, err, sizeof err);
+    /* 50 us at 1e-4 m/s = 5 nm; Z moves every 64 samples (4.55 us) */
+    afm_runner_run(r, 703);
+    afm_runner_status_get(r, &st);
+    check_abs(st.separation_m, 35e-9, 1e-4 * 64 / 14.06e6 + 1e-15,
+              "ramp after 703 samples (50 us): Z = 35 nm within one 64-sample step");
+    afm_runner_run(r, 2000);
+    afm_runner_status_get(r, &st);
+    check_true(st.separation_m == 30e-9 && st.separation_target_m == 30e-9, "ramp stops at 30 nm");
+    afm_runner_status before = st;
+    afm_cmd t = {.kind = AFM_CMD_TICK, .seq = 6, .u.tick = {100}};
+    int rc = afm_runner_apply(r, &t, NULL, err, sizeof err);
+    printf("  tick outside lockstep: %s\n", err);
+    afm_runner_status_get(r, &st);
+    check_true(rc == -1 && st.seq_applied == 5 && st.tick_budget == 0, "tick outside lockstep rejected, nothing changed");
+    int e, i;
+    lookup("model.damping_ratio[0]", &e, &i);
+    afm_cmd p = {.kind = AFM_CMD_PARAM, .seq = 7, .u.param = {1, {e}, {i}, {0.01}}};
+    rc = afm_runner_apply(r, &p, NULL, err, sizeof err);
+    printf("  damping without a model: %s\n", err);
+    afm_runner_status_get(r, &st);
+    check_true(rc == -1 && st.seq_applied == 5 && afm_runner_config(r)->model.damping_ratio[0] == 0.0012,
+               "damping change without a model rejected, config unchanged");
+    afm_cmd bad = {.kind = AFM_CMD_SETPOINT, .seq = 8, .u.setpoint = {NAN, 0}};
+    rc = afm_runner_apply(r, &bad, NULL, err, sizeof err);
+    afm_runner_status_get(r, &st);
+    check_true(rc == -1 && st.seq_applied == 5 && st.separation_m == before.separation_m,
+               "NaN setpoint rejected by the runner too");
+    /* geometry: new model with chain, starts at rest, model time continues */
+    lookup("model.beam.length_m", &e, &i);
+    afm_cmd g = {.kind = AFM_CMD_PARAM, .seq = 9, .u.param = {1, {e}, {i}, {120e-6}}};
+    afm_config sh = *afm_runner_config(r);
+    afm_param_effect eff;
+    afm_param_apply(&sh, &g.u.param, &eff, err, sizeof err);
+    bool nc = false;
+    check_true(afm_runner_cmd_needs_model(afm_runner_config(r), &g, &nc) == 1 && nc,
+               "a length change needs a model with a new chain");
+    afm_runner_model *m = afm_runner_model_build(&sh, nc, err, sizeof err);
+    double t0 = st.t_s;
+    rc = afm_runner_apply(r, &g, &m, err, sizeof err);
+    afm_runner_model_destroy(&m);
+    afm_runner_status_get(r, &st);
+    check_true(rc == 0 && st.t_s == t0 && st.seq_applied == 9 &&
+                   afm_runner_config(r)->model.beam.length_m == 120e-6 && st.separation_m == 30e-9,
+               "geometry swap: applied, model time and Z kept");
+    check_true(afm_runner_run(r, 20000) == 20000, "runs on after the geometry swap");
+    afm_runner_destroy(&r);
+}
+
+static void test_gating(const afm_config *cfg) {
+    char err[AFM_ERR_LEN];
+    afm_runner *r = afm_runner_create(cfg, 2048, true, err, sizeof err);
+    check_true(afm_runner_run(r, 1000) == 0, "lockstep without ticks: nothing runs");
+    afm_cmd t = {.kind = AFM_CMD_TICK, .seq = 1, .u.tick = {1500}};
+    afm_runner_apply(r, &t, NULL, err, sizeof err);
+    long long a = afm_runner_run(r, 1000), b = afm_runner_run(r, 1000), c = afm_runner_run(r, 1000);
+    check_true(a == 1000 && b == 500 && c == 0, "tick 1500: runs 1000, 500, then waits");
+    afm_cmd p = {.kind = AFM_CMD_CONTROL, .seq = 2, .u.control = {AFM_CTL_STEP, 300}};
+    afm_runner_apply(r, &p, NULL, err, sizeof err);
+    check_true(afm_runner_run(r, 1000) == 300 && afm_runner_run(r, 1000) == 0,
+               "step 300 while paused: exactly 300 samples");
+    afm_runner_destroy(&r);
+}
+
+static void test_blowup(void) {
+    afm_config cfg;
+    char err[AFM_ERR_LEN];
+    if (afm_config_load("config/thesis-1dof.conf", &cfg, err, sizeof err)) {
+        check_true(false, err);
+        return;
+    }
+    /* no contact, almost no damping, 1 um at resonance: |x| grows by ~pi A per period and
+     * passes the 1 mm runaway limit after ~300 periods (~1 ms) */
+    cfg.drive.separation_m = 1e-3;
+    cfg.model.damping_ratio[0] = 1e-9;
+    cfg.model.n_damping = 1;
+    cfg.drive.tones[0].amplitude_m = 1e-6;
+    afm_runner *r = afm_runner_create(&cfg, 4096, false, err, sizeof err);
+    if (!r) {
+        check_true(false, err);
+        return;
+    }
+    outlog o;
+    log_init(&o);
+    long long adv = 0;
+    for (int i = 0; i < 100; i++) { /* 100 x 4096 samples = 29 ms */
+        adv += afm_runner_run(r, 4096);
+        drain(r, &o);
+    }
+    afm_runner_status st;
+    afm_runner_status_get(r, &st);
+    printf("  runaway: %lld blow-ups in %.4f s model time, last at %.6f s; %ld samples out\n",
+           st.blowups, st.t_s, st.last_blowup_t_s, o.n);
+    check_true(st.blowups >= 2, "runaway: blow-ups reported (more than one: it restarts)");
+    check_true(adv == 409600 && st.samples == 409600, "every asked sample advanced despite blow-ups");
+    check_abs(st.t_s, 409600 / 14.06e6, 1e-12, "model time continuous through the resets");
+    check_true(o.n > 1000, "outputs keep coming after a blow-up");
+    bool finite = true;
+    for (int s = 0; s < AFM_MAX_OUTPUTS; s++)
+        for (long i = (long)s * PER; i < (long)s * PER + o.ns[s]; i++)
+            finite &= isfinite(o.x[i]) && fabs(o.x[i]) < 1e-3;
+    check_true(finite, "every published sample finite and below the 1 mm limit");
+    log_free(&o);
+    afm_runner_destroy(&r);
+}
+
+int main(void) {
+    afm_config cfg;
+    char err[AFM_ERR_LEN];
+    if (afm_config_load("config/default.conf", &cfg, err, sizeof err)) {
+        check_true(false, err);
+        return check_done();
+    }
+    test_determinism(&cfg);
+    test_ramp_and_rejects(&cfg);
+    test_gating(&cfg);
+    test_blowup();
+    return check_done();
+}

@@ -1,0 +1,34 @@
+#!/usr/bin/env bash
+# SPDX-License-Identifier: MIT
+# test_unit.sh BUILD -- systemd/afmtwind.service passes `systemd-analyze verify` (with
+# ExecStart pointed at BUILD's afmtwind and the repository's default.conf, as `make install`
+# rewrites it for PREFIX), and keeps the promised settings: Type=notify, a watchdog, an
+# unprivileged dynamic user with only CAP_SYS_NICE and CAP_IPC_LOCK, NoNewPrivileges and
+# ProtectSystem=strict.
+set -u
+BUILD=${1:-build}
+cd "$(dirname "$0")/.."
+pass=0; fail=0
+ok() { echo "ok   $1"; pass=$((pass+1)); }
+bad() { echo "FAIL $1"; fail=$((fail+1)); }
+unit=systemd/afmtwind.service
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+case "$BUILD" in /*) bin=$BUILD/bin/afmtwind ;; *) bin=$PWD/$BUILD/bin/afmtwind ;; esac
+sed "s|/usr/local/bin/afmtwind|$bin|; s|/usr/local/share/afmtwin/config/default.conf|$PWD/config/default.conf|" \
+  "$unit" > "$tmp/afmtwind.service"
+if ! command -v systemd-analyze >/dev/null; then
+  bad "systemd-analyze not installed (Debian package systemd; make deps installs it)"
+elif out=$(systemd-analyze verify "$tmp/afmtwind.service" 2>&1) && [ -z "$out" ]; then
+  ok "systemd-analyze verify: clean"
+else
+  bad "systemd-analyze verify: $out"
+fi
+for want in 'Type=notify' 'WatchdogSec=' 'DynamicUser=yes' 'NoNewPrivileges=yes' \
+            'ProtectSystem=strict' 'ProtectHome=yes' 'PrivateTmp=yes' \
+            'CapabilityBoundingSet=CAP_SYS_NICE CAP_IPC_LOCK' \
+            'AmbientCapabilities=CAP_SYS_NICE CAP_IPC_LOCK' 'LimitRTPRIO=' 'LimitMEMLOCK='; do
+  if grep -q "^$want" "$unit"; then ok "unit has $want"; else bad "unit lacks $want"; fi
+done
+echo "$pass passed, $fail failed"
+[ "$fail" -eq 0 ]

@@ -1,0 +1,450 @@
+/* SPDX-License-Identifier: MIT */
+/* cmd_bench_daemon.c -- `afmtwin bench-daemon`: what afmtwind sustains, measured from
+ * outside over LCM inside a private network namespace: the real-time factor while tapping
+ * with all outputs on (overruns, lag), and the latency from a setpoint command to the first
+ * samples message that reflects it (p50, p99, max).
+ *
+ * Method, per config: start the daemon (realtime mode, default outputs), make it tap
+ * (tone 0 at the model's f1, 50 nm free amplitude, Z = 35 nm, as the integrator bench's NCHV
+ * case), wait 1 s, then (a) read status for --seconds: real-time factor = model time
+ * advanced / wall time between the first and last status received here; overruns and lag
+ * from the daemon's status; (b) send --commands setpoints (Z alternating 35 / 35.5 nm, each
+ * with a new seq) one after the other, each after a pseudo-random pause of 0..2 ms (so that
+ * commands land at every phase of the daemon's block), and time on CLOCK_MONOTONIC from
+ * just before lcm_publish to the arrival of the first samples message whose seq_applied is
+ * the command's. Both clocks are this process's, so no clock offsets enter. */
+#include "afmtwin_cmds.h"
+#include "lcm_tool.h"
+
+#include "afmtwin_harmonics_t.h"
+#include "afmtwin_samples_t.h"
+#include "afmtwin_setpoint_t.h"
+#include "afmtwin_dither_t.h"
+#include "afmtwin_status_t.h"
+
+#include <errno.h>
+#include <fcntl.h>
+#include <lcm/lcm.h>
+#include <math.h>
+#include <signal.h>
+#include <stdbool.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/wait.h>
+#include <time.h>
+#include <unistd.h>
+
+#define BD_URL "udpm://239.255.76.67:7667?ttl=0&recv_buf_size=4194304"
+#define BD_MAX_CMDS 100000
+#define BD_WAIT_S 0.25 /* a command not seen applied by then counts as lost */
+#define BD_TAP_FREQ_HZ 338112.0 /* model f1 of the NCHV beam (`afmtwin modes`) */
+#define BD_TAP_AMP_M 0.087e-9   /* 50 nm free amplitude at f1 (config/default.conf) */
+#define BD_TAP_Z_M 35e-9        /* Z = 0.7 x free amplitude */
+
+typedef struct {
+    const char *daemon;
+    const char *configs[8];
+    int n_configs;
+    int commands;
+    double seconds;
+    bool inside, json;
+} bd_opts;
+
+typedef struct {
+    /* status */
+    int n_status;
+    double first_wall, first_model, last_wall, last_model;
+    long long first_overruns, last_overruns, last_rejected, last_received;
+    double last_lag, last_rtf;
+    /* harmonics (tapping check) */
+    double contact_time_s, indentation_m, lockin_m;
+    int n_harm;
+    /* latency */
+    int64_t want_seq;
+    bool got;
+    double t_got;
+} bd_state;
+
+static void bd_usage(FILE *f) {
+    fprintf(f,
+            "usage: afmtwin bench-daemon [--daemon PATH] [--config FILE]... [--commands N]\n"
+            "                            [--seconds S] [--json] [--no-netns]\n\n"
+            "Benchmarks the running daemon from outside, over LCM, inside a private network\n"
+            "namespace (unshare -n; loopback with a multicast route, nothing else):\n"
+            "  real-time factor  model seconds per wall second while tapping with all outputs\n"
+            "                    on (samples of every stream, harmonics, status), with the\n"
+            "                    daemon's overruns and lag\n"
+            "  latency           from sending a setpoint to the first samples message that\n"
+            "                    carries its seq (p50, p99, max over N commands); the daemon's\n"
+            "                    goal is p99 within one output block + 200 us\n\n"
+            "options:\n"
+            "  --daemon PATH   afmtwind to run (default: afmtwind next to this afmtwin)\n"
+            "  --config FILE   config to run (repeatable; default config/nchv.conf and\n"
+            "                  config/default.conf); the twin is set to tap: tone 0 at\n"
+            "                  338.112 kHz, 0.087 nm (50 nm free), Z 35 nm\n"
+            "  --commands N    setpoint commands for the latency (default 1000, >= 10)\n"
+            "  --seconds S     real-time factor window (default 5)\n"
+            "  --json          one JSON object per config\n"
+            "  --no-netns      run in the current network namespace (already private)\n"
+            "  --help          this text\n\n"
+            "Exit status 0 when every run completed (whatever the numbers), 1 otherwise.\n");
+}
+
+/* ---- LCM handlers ---------------------------------------------------------------------- */
+
+static void on_status(const lcm_recv_buf_t *rb, const char *ch, const afmtwin_status_t *m,
+                      void *u) {
+    (void)rb;
+    (void)ch;
+    bd_state *s = u;
+    double now = afmt_mono_s();
+    if (s->n_status++ == 0) {
+        s->first_wall = now;
+        s->first_model = m->model_time_s;
+        s->first_overruns = m->overruns;
+    }
+    s->last_wall = now;
+    s->last_model = m->model_time_s;
+    s->last_overruns = m->overruns;
+    s->last_lag = m->lag_s;
+    s->last_rtf = m->realtime_factor;
+    s->last_rejected = m->rejected;
+    s->last_received = m->received;
+}
+
+static void on_harm(const lcm_recv_buf_t *rb, const char *ch, const afmtwin_harmonics_t *m,
+                    void *u) {
+    (void)rb;
+    (void)ch;
+    bd_state *s = u;
+    s->contact_time_s = m->contact_time_s;
+    s->indentation_m = m->indentation_m;
+    s->lockin_m = m->lockin_amplitude_m;
+    s->n_harm++;
+}
+
+static void on_samples(const lcm_recv_buf_t *rb, const char *ch, const afmtwin_samples_t *m,
+                       void *u) {
+    (void)rb;
+    (void)ch;
+    bd_state *s = u;
+    if (!s->got && s->want_seq >= 0 && m->seq_applied == s->want_seq) {
+        s->got = true;
+        s->t_got = afmt_mono_s();
+    }
+}
+
+static void pump(lcm_t *lcm, double seconds) {
+    double end = afmt_mono_s() + seconds;
+    for (;;) {
+        double left = end - afmt_mono_s();
+        if (left <= 0) return;
+        lcm_handle_timeout(lcm, (int)ceil(left * 1e3));
+    }
+}
+
+static int cmp_d(const void *a, const void *b) {
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+/* ---- one config ------------------------------------------------------------------------ */
+
+typedef struct {
+    bool ok;
+    char err[256];
+    double rtf, overruns_per_s, lag_s, block_s;
+    long long overruns;
+    double contact_time_s, indentation_m, lockin_m;
+    int n_lat, lost;
+    double p50, p99, max, mean;
+    long long rejected, received;
+    char warn[512];
+} bd_result;
+
+static pid_t start_daemon(const bd_opts *o, const char *config, const char *errfile) {
+    pid_t pid = fork();
+    if (pid != 0) return pid;
+    int fd = open(errfile, O_WRONLY | O_CREAT | O_TRUNC, 0600);
+    if (fd >= 0) {
+        dup2(fd, 2);
+        close(fd);
+    }
+    execl(o->daemon, o->daemon, "--config", config, "--lcm-url", BD_URL, "--quiet", (char *)NULL);
+    fprintf(stderr, "cannot run %s: %s\n", o->daemon, strerror(errno));
+    _exit(127);
+}
+
+static void read_warnings(const char *errfile, char *out, size_t len) {
+    FILE *f = fopen(errfile, "r");
+    out[0] = 0;
+    if (!f) return;
+    char line[512];
+    while (fgets(line, sizeof line, f)) {
+        char *w = strstr(line, "warning:");
+        if (w && strlen(out) + strlen(w) + 2 < len) {
+            line[strcspn(line, "\n")] = 0;
+            strcat(out, out[0] ? "; " : "");
+            strcat(out, w + 9);
+        }
+    }
+    fclose(f);
+}
+
+static double block_from_errfile(const char *errfile) {
+    FILE *f = fopen(errfile, "r");
+    if (!f) return NAN;
+    char line[512];
+    double us = NAN;
+    while (fgets(line, sizeof line, f)) {
+        char *b = strstr(line, "samples (");
+        if (b && sscanf(b, "samples (%lf us)", &us) == 1) break;
+    }
+    fclose(f);
+    return us * 1e-6;
+}
+
+static void bench_config(const bd_opts *o, const char *config, bd_result *r) {
+    static double lat[BD_MAX_CMDS];
+    memset(r, 0, sizeof *r);
+    char errfile[] = "/tmp/afmtwin-bench-daemon.XXXXXX";
+    int efd = mkstemp(errfile);
+    if (efd >= 0) close(efd);
+    lcm_t *lcm = lcm_create(BD_URL);
+    if (!lcm) {
+        snprintf(r->err, sizeof r->err, "lcm_create(%s) failed (no multicast route?)", BD_URL);
+        unlink(errfile);
+        return;
+    }
+    bd_state s = {.want_seq = -1};
+    afmtwin_status_t_subscription_t *s1 =
+        afmtwin_status_t_subscribe(lcm, "AFMTWIN_STATUS", on_status, &s);
+    afmtwin_harmonics_t_subscription_t *s2 =
+        afmtwin_harmonics_t_subscribe(lcm, "AFMTWIN_HARMONICS", on_harm, &s);
+    afmtwin_samples_t_subscription_t *s3 =
+        afmtwin_samples_t_subscribe(lcm, "AFMTWIN_SAMPLES", on_samples, &s);
+    afmtwin_status_t_subscription_set_queue_capacity(s1, 1000);
+    afmtwin_harmonics_t_subscription_set_queue_capacity(s2, 10000);
+    afmtwin_samples_t_subscription_set_queue_capacity(s3, 10000);
+    pid_t pid = start_daemon(o, config, errfile);
+    if (pid < 0) {
+        snprintf(r->err, sizeof r->err, "fork failed");
+        goto out;
+    }
+    /* up? */
+    for (int i = 0; i < 50 && s.n_status == 0; i++) pump(lcm, 0.1);
+    if (s.n_status == 0) {
+        snprintf(r->err, sizeof r->err, "no status from %s within 5 s", o->daemon);
+        goto stop;
+    }
+    r->block_s = block_from_errfile(errfile);
+    /* tap */
+    double f = BD_TAP_FREQ_HZ, a = BD_TAP_AMP_M, ph = 0;
+    afmtwin_dither_t dm = {.utime = afmt_wall_us(), .seq = 1, .n_tones = 1,
+                           .frequency_hz = &f, .amplitude_m = &a, .phase_rad = &ph};
+    afmtwin_setpoint_t sp = {.utime = afmt_wall_us(), .seq = 2, .separation_m = BD_TAP_Z_M};
+    afmtwin_dither_t_publish(lcm, "AFMTWIN_DITHER", &dm);
+    afmtwin_setpoint_t_publish(lcm, "AFMTWIN_SETPOINT", &sp);
+    pump(lcm, 1.0);
+    /* (a) real-time factor over the window */
+    s.n_status = 0;
+    pump(lcm, o->seconds);
+    if (s.n_status < 2 || s.last_wall <= s.first_wall) {
+        snprintf(r->err, sizeof r->err, "too few status messages (%d)", s.n_status);
+        goto stop;
+    }
+    r->rtf = (s.last_model - s.first_model) / (s.last_wall - s.first_wall);
+    r->overruns = s.last_overruns - s.first_overruns;
+    r->overruns_per_s = (double)r->overruns / (s.last_wall - s.first_wall);
+    r->lag_s = s.last_lag;
+    r->contact_time_s = s.contact_time_s;
+    r->indentation_m = s.indentation_m;
+    r->lockin_m = s.lockin_m;
+    /* (b) latency */
+    unsigned long long lcg = 12345;
+    for (int i = 0; i < o->commands; i++) {
+        lcg = lcg * 6364136223846793005ULL + 1442695040888963407ULL;
+        pump(lcm, (double)(lcg >> 40) / (double)(1ULL << 24) * 2e-3);
+        afmtwin_setpoint_t c = {.utime = afmt_wall_us(), .seq = 100 + i,
+                                .separation_m = (i & 1) ? 35.5e-9 : 35e-9};
+        s.want_seq = c.seq;
+        s.got = false;
+        double t0 = afmt_mono_s();
+        afmtwin_setpoint_t_publish(lcm, "AFMTWIN_SETPOINT", &c);
+        while (!s.got && afmt_mono_s() - t0 < BD_WAIT_S) lcm_handle_timeout(lcm, 100);
+        if (s.got)
+            lat[r->n_lat++] = s.t_got - t0;
+        else
+            r->lost++;
+    }
+    if (r->n_lat > 0) {
+        double sum = 0;
+        for (int i = 0; i < r->n_lat; i++) sum += lat[i];
+        qsort(lat, (size_t)r->n_lat, sizeof lat[0], cmp_d);
+        r->p50 = lat[(r->n_lat - 1) / 2];
+        r->p99 = lat[(int)ceil(0.99 * r->n_lat) - 1];
+        r->max = lat[r->n_lat - 1];
+        r->mean = sum / r->n_lat;
+    }
+    pump(lcm, 0.3);
+    r->rejected = s.last_rejected;
+    r->received = s.last_received;
+    r->ok = r->n_lat > 0;
+    if (!r->ok) snprintf(r->err, sizeof r->err, "no command was seen applied");
+stop:
+    kill(pid, SIGTERM);
+    int st = 0;
+    waitpid(pid, &st, 0);
+    if (r->ok && !(WIFEXITED(st) && WEXITSTATUS(st) == 0)) {
+        r->ok = false;
+        snprintf(r->err, sizeof r->err, "the daemon did not exit cleanly (status %d)", st);
+    }
+    read_warnings(errfile, r->warn, sizeof r->warn);
+out:
+    lcm_destroy(lcm);
+    unlink(errfile);
+}
+
+/* ---- driver ---------------------------------------------------------------------------- */
+
+static int reexec_in_netns(int argc, char **argv) {
+    static char self[4096];
+    ssize_t n = readlink("/proc/self/exe", self, sizeof self - 1);
+    if (n <= 0) {
+        fprintf(stderr, "afmtwin bench-daemon: cannot find my own executable\n");
+        return 1;
+    }
+    self[n] = 0;
+    char *args[64];
+    int k = 0;
+    args[k++] = "unshare";
+    args[k++] = "-n";
+    args[k++] = "sh";
+    args[k++] = "-c";
+    args[k++] = "ip link set lo up && ip link set lo multicast on && "
+                "ip route add 224.0.0.0/4 dev lo && exec \"$@\"";
+    args[k++] = "afmtwin";
+    args[k++] = self;
+    args[k++] = "bench-daemon";
+    args[k++] = "--inside";
+    for (int i = 1; i < argc && k < 62; i++) args[k++] = argv[i];
+    args[k] = NULL;
+    fflush(stdout);
+    execvp("unshare", args);
+    fprintf(stderr, "afmtwin bench-daemon: cannot run unshare: %s (try --no-netns inside a "
+                    "private namespace)\n", strerror(errno));
+    return 1;
+}
+
+int afm_cmd_bench_daemon(int argc, char **argv) {
+    bd_opts o = {.commands = 1000, .seconds = 5.0};
+    static char daemon_path[4096];
+    bool no_netns = false;
+    for (int i = 1; i < argc; i++) {
+        const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
+        double x;
+        if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
+            bd_usage(stdout);
+            return 0;
+        } else if (!strcmp(a, "--inside")) {
+            o.inside = true;
+        } else if (!strcmp(a, "--no-netns")) {
+            no_netns = true;
+        } else if (!strcmp(a, "--json")) {
+            o.json = true;
+        } else if (!strcmp(a, "--daemon") && v) {
+            o.daemon = v;
+            i++;
+        } else if (!strcmp(a, "--config") && v) {
+            if (o.n_configs >= 8) {
+                fprintf(stderr, "afmtwin bench-daemon: at most 8 --config\n");
+                return 2;
+            }
+            o.configs[o.n_configs++] = v;
+            i++;
+        } else if (!strcmp(a, "--commands") && v) {
+            if (afmt_parse_double(v, &x) || x < 10 || x > BD_MAX_CMDS || x != floor(x)) {
+                fprintf(stderr, "afmtwin bench-daemon: --commands wants an integer in 10..%d\n",
+                        BD_MAX_CMDS);
+                return 2;
+            }
+            o.commands = (int)x;
+            i++;
+        } else if (!strcmp(a, "--seconds") && v) {
+            if (afmt_parse_double(v, &o.seconds) || !(o.seconds >= 1 && o.seconds <= 3600)) {
+                fprintf(stderr, "afmtwin bench-daemon: --seconds wants 1..3600\n");
+                return 2;
+            }
+            i++;
+        } else {
+            fprintf(stderr, "afmtwin bench-daemon: unknown or incomplete option '%s'\n", a);
+            return 2;
+        }
+    }
+    if (!o.inside && !no_netns) return reexec_in_netns(argc, argv);
+    if (!o.daemon) {
+        ssize_t n = readlink("/proc/self/exe", daemon_path, sizeof daemon_path - 2);
+        if (n <= 0) {
+            fprintf(stderr, "afmtwin bench-daemon: give --daemon PATH\n");
+            return 2;
+        }
+        daemon_path[n] = 0;
+        strcat(daemon_path, "d"); /* .../afmtwin -> .../afmtwind */
+        o.daemon = daemon_path;
+    }
+    if (access(o.daemon, X_OK)) {
+        fprintf(stderr, "afmtwin bench-daemon: %s is not executable (give --daemon PATH)\n",
+                o.daemon);
+        return 2;
+    }
+    if (o.n_configs == 0) {
+        o.configs[o.n_configs++] = "config/nchv.conf";
+        o.configs[o.n_configs++] = "config/default.conf";
+    }
+    if (!o.json)
+        printf("\nafmtwin bench-daemon: afmtwind in realtime mode over LCM (private network "
+               "namespace), tapping at %.3f kHz, %.3g nm base amplitude, Z %.0f nm; %g s "
+               "real-time window, %d setpoint commands\n",
+               BD_TAP_FREQ_HZ * 1e-3, BD_TAP_AMP_M * 1e9, BD_TAP_Z_M * 1e9, o.seconds,
+               o.commands);
+    int rc = 0;
+    for (int c = 0; c < o.n_configs; c++) {
+        bd_result r;
+        bench_config(&o, o.configs[c], &r);
+        if (!r.ok) rc = 1;
+        if (o.json) {
+            printf("{\"config\":\"%s\",\"ok\":%s,\"error\":\"%s\",\"realtime_factor\":%.6g,"
+                   "\"overruns\":%lld,\"overruns_per_s\":%.6g,\"lag_s\":%.6g,\"block_s\":%.6g,"
+                   "\"tapping\":{\"contact_time_s\":%.6g,\"indentation_m\":%.6g,"
+                   "\"lockin_amplitude_m\":%.6g},\"latency_s\":{\"n\":%d,\"lost\":%d,"
+                   "\"p50\":%.6g,\"p99\":%.6g,\"max\":%.6g,\"mean\":%.6g},\"received\":%lld,"
+                   "\"rejected\":%lld}\n",
+                   o.configs[c], r.ok ? "true" : "false", r.err, r.rtf, r.overruns,
+                   r.overruns_per_s, r.lag_s, r.block_s, r.contact_time_s, r.indentation_m,
+                   r.lockin_m, r.n_lat, r.lost, r.p50, r.p99, r.max, r.mean, r.received, r.rejected);
+            continue;
+        }
+        printf("\n%s (daemon)", o.configs[c]);
+        if (!r.ok) {
+            printf(": FAILED: %s\n", r.err);
+            continue;
+        }
+        printf(": block %.0f us\n", r.block_s * 1e6);
+        printf("  tapping: lock-in amplitude %.4g nm, contact %.4g ns per period, indentation "
+               "%.3g nm\n",
+               r.lockin_m * 1e9, r.contact_time_s * 1e9, r.indentation_m * 1e9);
+        printf("  real-time factor %.3f (%s 1.0), overruns %lld in %.0f s (%.0f/s), lag %.3g s\n",
+               r.rtf, r.rtf >= 1.0 ? ">=" : "BELOW", r.overruns, o.seconds, r.overruns_per_s,
+               r.lag_s);
+        double goal = r.block_s + 200e-6;
+        printf("  setpoint -> first samples: p50 %.3f ms, p99 %.3f ms, max %.3f ms, mean %.3f ms "
+               "(%d commands, %d not seen applied within %.0f ms; the daemon received %lld of %d)"
+               "; goal p99 <= %.3f ms: %s\n",
+               r.p50 * 1e3, r.p99 * 1e3, r.max * 1e3, r.mean * 1e3, r.n_lat, r.lost,
+               BD_WAIT_S * 1e3, r.received, o.commands + 2, goal * 1e3,
+               r.p99 <= goal ? "met" : "MISSED");
+        if (r.warn[0]) printf("  daemon warnings: %s\n", r.warn);
+    }
+    return rc;
+}

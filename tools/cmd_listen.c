@@ -1,0 +1,429 @@
+/* SPDX-License-Identifier: MIT */
+/* cmd_listen.c -- `afmtwin listen`: subscribes to the twin's output channels (samples,
+ * harmonics, status) and prints each message as text or as one JSON object per line. */
+#include "afmtwin_cmds.h"
+#include "lcm_tool.h"
+
+#include "afmtwin_harmonics_t.h"
+#include "afmtwin_samples_t.h"
+#include "afmtwin_status_t.h"
+
+#include <cjson/cJSON.h>
+#include <lcm/eventlog.h>
+#include <lcm/lcm.h>
+#include <math.h>
+#include <signal.h>
+#include <stdbool.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#define LISTEN_QUEUE 10000 /* messages a subscription may hold while we print */
+
+enum { OUT_SAMPLES, OUT_HARMONICS, OUT_STATUS, N_OUT };
+static const char *const out_name[N_OUT] = {"samples", "harmonics", "status"};
+
+typedef struct {
+    bool json, full;
+    long count;        /* 0: no limit */
+    double timeout_s;  /* 0: none */
+    bool want[N_OUT];
+    const char *url, *prefix, *log;
+    long got;          /* messages printed */
+    long bad;          /* messages that did not decode */
+    char chan[N_OUT][AFMT_CHAN_LEN];
+} listen_ctx;
+
+static volatile sig_atomic_t listen_stop;
+static void on_signal(int sig) {
+    (void)sig;
+    listen_stop = 1;
+}
+
+static void listen_usage(FILE *f) {
+    fprintf(f,
+            "usage: afmtwin listen [--json] [--full] [--count N] [--channels LIST]\n"
+            "                      [--timeout S] [--lcm-url URL] [--prefix NAME_]\n"
+            "       afmtwin listen --log FILE [--json] [--full] [--count N] [--channels LIST]\n"
+            "                      [--prefix NAME_]\n\n"
+            "Prints what the twin (afmtwind, or `afmtwin replay` through lcm-logplayer)\n"
+            "publishes: samples blocks, per-period harmonics and the 10 Hz status.\n\n"
+            "options:\n"
+            "  --json           one JSON object per message and line, with every field of the\n"
+            "                   message plus \"channel\" and \"type\"; samples carry summary\n"
+            "                   statistics (min, max, mean, rms of deflection_m, obd_m, force_n)\n"
+            "                   and the arrays only with --full\n"
+            "  --full           also print the sample arrays of samples messages\n"
+            "  --count N        exit after N messages (N >= 1); exit status 1 if the timeout\n"
+            "                   comes first\n"
+            "  --channels LIST  comma-separated subset of samples,harmonics,status (default all)\n"
+            "  --timeout S      exit after S seconds (S > 0; default: run until N messages or a\n"
+            "                   signal)\n"
+            "  --lcm-url URL    LCM provider (default: LCM_DEFAULT_URL or LCM's default)\n"
+            "  --prefix NAME_   channel-name prefix of the twin (default %s)\n"
+            "  --log FILE       read the messages from an LCM log (lcm-logger's format, e.g.\n"
+            "                   `afmtwin replay --out`) instead of the network, to its end\n"
+            "  --help           this text\n\n"
+            "Channels: PREFIX + %s, %s, %s. Text output: one line per message.\n"
+            "Exit status 0 ok, 1 LCM failure or --count not reached, 2 bad usage.\n",
+            AFMT_DEFAULT_PREFIX, AFMT_CHAN_SAMPLES, AFMT_CHAN_HARMONICS, AFMT_CHAN_STATUS);
+}
+
+/* ---- samples: summary statistics of a float array ---- */
+typedef struct {
+    double min, max, mean, rms;
+} arr_stats;
+
+static arr_stats stats_f(const float *v, int n) {
+    arr_stats s = {NAN, NAN, NAN, NAN};
+    if (n <= 0 || !v) return s;
+    double sum = 0, sq = 0;
+    s.min = s.max = v[0];
+    for (int i = 0; i < n; i++) {
+        double x = v[i];
+        if (x < s.min) s.min = x;
+        if (x > s.max) s.max = x;
+        sum += x;
+        sq += x * x;
+    }
+    s.mean = sum / n;
+    s.rms = sqrt(sq / n);
+    return s;
+}
+
+static void json_num(cJSON *o, const char *k, double v) {
+    if (isfinite(v))
+        cJSON_AddNumberToObject(o, k, v);
+    else
+        cJSON_AddNullToObject(o, k);
+}
+
+/* 64-bit integers exactly (cJSON numbers are doubles: seq numbers of 1e15 and more would
+ * print rounded or in exponent form). */
+static void json_int(cJSON *o, const char *k, int64_t v) {
+    char buf[32];
+    snprintf(buf, sizeof buf, "%lld", (long long)v);
+    cJSON_AddRawToObject(o, k, buf);
+}
+
+static void json_stats(cJSON *o, const char *k, arr_stats s) {
+    cJSON *j = cJSON_AddObjectToObject(o, k);
+    json_num(j, "min", s.min);
+    json_num(j, "max", s.max);
+    json_num(j, "mean", s.mean);
+    json_num(j, "rms", s.rms);
+}
+
+static void json_farr(cJSON *o, const char *k, const float *v, int n) {
+    cJSON *a = cJSON_AddArrayToObject(o, k);
+    for (int i = 0; i < n; i++) cJSON_AddItemToArray(a, isfinite(v[i]) ? cJSON_CreateNumber(v[i]) : cJSON_CreateNull());
+}
+
+static void json_darr(cJSON *o, const char *k, const double *v, int n) {
+    cJSON *a = cJSON_AddArrayToObject(o, k);
+    for (int i = 0; i < n; i++) cJSON_AddItemToArray(a, isfinite(v[i]) ? cJSON_CreateNumber(v[i]) : cJSON_CreateNull());
+}
+
+static void json_print(cJSON *o) {
+    char *s = cJSON_PrintUnformatted(o);
+    if (s) {
+        puts(s);
+        free(s);
+    }
+    cJSON_Delete(o);
+}
+
+static cJSON *json_head(const char *channel, const char *type, int64_t utime, int64_t seq) {
+    cJSON *o = cJSON_CreateObject();
+    cJSON_AddStringToObject(o, "channel", channel);
+    cJSON_AddStringToObject(o, "type", type);
+    json_int(o, "utime", utime);
+    json_int(o, "seq_applied", seq);
+    return o;
+}
+
+static void print_samples(const listen_ctx *c, const char *channel, const afmtwin_samples_t *m) {
+    arr_stats sx = stats_f(m->deflection_m, m->n), so = stats_f(m->obd_m, m->n),
+              sf = stats_f(m->force_n, m->n);
+    if (c->json) {
+        cJSON *o = json_head(channel, "samples", m->utime, m->seq_applied);
+        cJSON_AddNumberToObject(o, "stream", m->stream);
+        json_num(o, "t0_s", m->t0_s);
+        json_num(o, "rate_hz", m->rate_hz);
+        cJSON_AddNumberToObject(o, "n", m->n);
+        json_stats(o, "deflection_m", sx);
+        json_stats(o, "obd_m", so);
+        json_stats(o, "force_n", sf);
+        if (c->full) {
+            cJSON *a = cJSON_AddObjectToObject(o, "data");
+            json_farr(a, "deflection_m", m->deflection_m, m->n);
+            json_farr(a, "obd_m", m->obd_m, m->n);
+            cJSON *ca = cJSON_AddArrayToObject(a, "obd_counts");
+            for (int i = 0; i < m->n; i++) cJSON_AddItemToArray(ca, cJSON_CreateNumber(m->obd_counts[i]));
+            json_farr(a, "force_n", m->force_n, m->n);
+        }
+        json_print(o);
+        return;
+    }
+    printf("samples   seq %lld stream %d t0 %.9f s rate %.6g Hz n %d: deflection %.4g..%.4g nm "
+           "(rms %.4g), obd %.4g..%.4g nm, force %.4g..%.4g nN\n",
+           (long long)m->seq_applied, m->stream, m->t0_s, m->rate_hz, m->n, sx.min * 1e9,
+           sx.max * 1e9, sx.rms * 1e9, so.min * 1e9, so.max * 1e9, sf.min * 1e9, sf.max * 1e9);
+    if (c->full)
+        for (int i = 0; i < m->n; i++)
+            printf("  %d %.9g %.9g %d %.9g\n", i, m->deflection_m[i], m->obd_m[i], m->obd_counts[i],
+                   m->force_n[i]);
+}
+
+static void print_harmonics(const listen_ctx *c, const char *channel, const afmtwin_harmonics_t *m) {
+    if (c->json) {
+        cJSON *o = json_head(channel, "harmonics", m->utime, m->seq_applied);
+        json_num(o, "t_s", m->t_s);
+        json_num(o, "fe_hz", m->fe_hz);
+        cJSON_AddNumberToObject(o, "n", m->n);
+        cJSON *k = cJSON_AddArrayToObject(o, "k");
+        for (int i = 0; i < m->n; i++) cJSON_AddItemToArray(k, cJSON_CreateNumber(m->k[i]));
+        json_darr(o, "deflection_amplitude_m", m->deflection_amplitude_m, m->n);
+        json_darr(o, "deflection_phase_deg", m->deflection_phase_deg, m->n);
+        json_darr(o, "force_amplitude_n", m->force_amplitude_n, m->n);
+        json_darr(o, "force_phase_deg", m->force_phase_deg, m->n);
+        json_darr(o, "phase_diff_deg", m->phase_diff_deg, m->n);
+        json_num(o, "lockin_amplitude_m", m->lockin_amplitude_m);
+        json_num(o, "lockin_phase_deg", m->lockin_phase_deg);
+        json_num(o, "peak_force_n", m->peak_force_n);
+        json_num(o, "min_deflection_m", m->min_deflection_m);
+        json_num(o, "indentation_m", m->indentation_m);
+        json_num(o, "contact_time_s", m->contact_time_s);
+        json_num(o, "pre_contact_velocity_m_s", m->pre_contact_velocity_m_s);
+        json_num(o, "dissipated_energy_j", m->dissipated_energy_j);
+        json_num(o, "mean_deflection_m", m->mean_deflection_m);
+        json_print(o);
+        return;
+    }
+    printf("harmonics seq %lld t %.9f s fe %.6g Hz lock-in %.5g nm %.3f deg, peak force %.4g nN,"
+           " min deflection %.4g nm, contact %.4g ns",
+           (long long)m->seq_applied, m->t_s, m->fe_hz, m->lockin_amplitude_m * 1e9,
+           m->lockin_phase_deg, m->peak_force_n * 1e9, m->min_deflection_m * 1e9,
+           m->contact_time_s * 1e9);
+    for (int i = 0; i < m->n; i++)
+        printf("%s k%d %.4g nm %.2f deg", i ? "," : ";", m->k[i], m->deflection_amplitude_m[i] * 1e9,
+               m->deflection_phase_deg[i]);
+    printf("\n");
+}
+
+static void print_status(const listen_ctx *c, const char *channel, const afmtwin_status_t *m) {
+    if (c->json) {
+        cJSON *o = json_head(channel, "status", m->utime, m->seq_applied);
+        json_num(o, "model_time_s", m->model_time_s);
+        json_num(o, "realtime_factor", m->realtime_factor);
+        json_int(o, "overruns", m->overruns);
+        json_num(o, "lag_s", m->lag_s);
+        json_int(o, "received", m->received);
+        json_int(o, "rejected", m->rejected);
+        cJSON_AddStringToObject(o, "last_reject", m->last_reject ? m->last_reject : "");
+        json_int(o, "blowups", m->blowups);
+        cJSON_AddStringToObject(o, "mode", m->mode ? m->mode : "");
+        cJSON_AddNumberToObject(o, "running", m->running);
+        json_num(o, "separation_m", m->separation_m);
+        json_num(o, "fe_hz", m->fe_hz);
+        json_num(o, "amplitude_m", m->amplitude_m);
+        json_print(o);
+        return;
+    }
+    printf("status    seq %lld t %.6f s %s %s RT %.4g lag %.3g s overruns %lld blowups %lld "
+           "received %lld rejected %lld%s%s%s Z %.4g nm fe %.6g Hz Ae %.4g nm\n",
+           (long long)m->seq_applied, m->model_time_s, m->mode ? m->mode : "?",
+           m->running ? "running" : "paused", m->realtime_factor, m->lag_s, (long long)m->overruns,
+           (long long)m->blowups, (long long)m->received, (long long)m->rejected,
+           m->last_reject && m->last_reject[0] ? " (last: " : "",
+           m->last_reject && m->last_reject[0] ? m->last_reject : "",
+           m->last_reject && m->last_reject[0] ? ")" : "", m->separation_m * 1e9, m->fe_hz,
+           m->amplitude_m * 1e9);
+}
+
+/* One handler for all three channels: the channel name says the type. A message that does
+ * not decode (wrong type, truncated) is reported on stderr and not counted. */
+static void on_message(const lcm_recv_buf_t *rb, const char *channel, void *user) {
+    listen_ctx *c = user;
+    if (c->count > 0 && c->got >= c->count) return;
+    int k = -1;
+    for (int i = 0; i < N_OUT; i++)
+        if (c->want[i] && !strcmp(channel, c->chan[i])) k = i;
+    if (k < 0) return;
+    int rc = -1;
+    if (k == OUT_SAMPLES) {
+        afmtwin_samples_t m;
+        rc = afmtwin_samples_t_decode(rb->data, 0, (int)rb->data_size, &m);
+        if (rc >= 0) {
+            print_samples(c, channel, &m);
+            afmtwin_samples_t_decode_cleanup(&m);
+        }
+    } else if (k == OUT_HARMONICS) {
+        afmtwin_harmonics_t m;
+        rc = afmtwin_harmonics_t_decode(rb->data, 0, (int)rb->data_size, &m);
+        if (rc >= 0) {
+            print_harmonics(c, channel, &m);
+            afmtwin_harmonics_t_decode_cleanup(&m);
+        }
+    } else {
+        afmtwin_status_t m;
+        rc = afmtwin_status_t_decode(rb->data, 0, (int)rb->data_size, &m);
+        if (rc >= 0) {
+            print_status(c, channel, &m);
+            afmtwin_status_t_decode_cleanup(&m);
+        }
+    }
+    if (rc < 0) {
+        c->bad++;
+        fprintf(stderr, "afmtwin listen: %s: %u bytes that do not decode as %s_t (ignored)\n",
+                channel, rb->data_size, out_name[k]);
+        return;
+    }
+    fflush(stdout);
+    c->got++;
+}
+
+/* Messages from a log file, in order, through the same handler. */
+static int listen_log(listen_ctx *c) {
+    lcm_eventlog_t *l = lcm_eventlog_create(c->log, "r");
+    if (!l) {
+        fprintf(stderr, "afmtwin listen: cannot read log '%s'\n", c->log);
+        return 1;
+    }
+    lcm_eventlog_event_t *ev;
+    while ((c->count == 0 || c->got < c->count) && (ev = lcm_eventlog_read_next_event(l))) {
+        lcm_recv_buf_t rb = {.data = ev->data, .data_size = (uint32_t)ev->datalen,
+                             .recv_utime = ev->timestamp, .lcm = NULL};
+        on_message(&rb, ev->channel, c);
+        lcm_eventlog_free_event(ev);
+    }
+    lcm_eventlog_destroy(l);
+    if (c->count > 0 && c->got < c->count) {
+        fprintf(stderr, "afmtwin listen: the log ended after %ld of %ld messages\n", c->got,
+                c->count);
+        return 1;
+    }
+    return 0;
+}
+
+static int parse_channels(const char *s, bool *want) {
+    for (int i = 0; i < N_OUT; i++) want[i] = false;
+    char buf[128];
+    if (strlen(s) >= sizeof buf) return -1;
+    strcpy(buf, s);
+    char *save = NULL;
+    int n = 0;
+    for (char *t = strtok_r(buf, ",", &save); t; t = strtok_r(NULL, ",", &save)) {
+        int k = -1;
+        for (int i = 0; i < N_OUT; i++)
+            if (!strcmp(t, out_name[i])) k = i;
+        if (k < 0) return -1;
+        want[k] = true;
+        n++;
+    }
+    return n > 0 ? 0 : -1;
+}
+
+static double mono_s(void) {
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return ts.tv_sec + 1e-9 * ts.tv_nsec;
+}
+
+int afm_cmd_listen(int argc, char **argv) {
+    listen_ctx c = {.prefix = AFMT_DEFAULT_PREFIX};
+    for (int i = 0; i < N_OUT; i++) c.want[i] = true;
+    for (int i = 1; i < argc; i++) {
+        const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
+        if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
+            listen_usage(stdout);
+            return 0;
+        } else if (!strcmp(a, "--json")) {
+            c.json = true;
+        } else if (!strcmp(a, "--full")) {
+            c.full = true;
+        } else if (!strcmp(a, "--count") && v) {
+            double x;
+            if (afmt_parse_double(v, &x) || x < 1 || x > 1e12 || x != floor(x)) {
+                fprintf(stderr, "afmtwin listen: --count wants an integer >= 1, got '%s'\n", v);
+                return 2;
+            }
+            c.count = (long)x;
+            i++;
+        } else if (!strcmp(a, "--timeout") && v) {
+            if (afmt_parse_double(v, &c.timeout_s) || !(c.timeout_s > 0) || c.timeout_s > 1e7) {
+                fprintf(stderr, "afmtwin listen: --timeout wants seconds > 0, got '%s'\n", v);
+                return 2;
+            }
+            i++;
+        } else if (!strcmp(a, "--channels") && v) {
+            if (parse_channels(v, c.want)) {
+                fprintf(stderr,
+                        "afmtwin listen: --channels wants a comma-separated subset of "
+                        "samples,harmonics,status, got '%s'\n",
+                        v);
+                return 2;
+            }
+            i++;
+        } else if (!strcmp(a, "--lcm-url") && v) {
+            c.url = v;
+            i++;
+        } else if (!strcmp(a, "--log") && v) {
+            c.log = v;
+            i++;
+        } else if (!strcmp(a, "--prefix") && v) {
+            c.prefix = v;
+            i++;
+        } else {
+            fprintf(stderr, "afmtwin listen: unknown or incomplete option '%s' (see --help)\n", a);
+            return 2;
+        }
+    }
+    char err[256];
+    const char *suffix[N_OUT] = {AFMT_CHAN_SAMPLES, AFMT_CHAN_HARMONICS, AFMT_CHAN_STATUS};
+    for (int i = 0; i < N_OUT; i++)
+        if (afmt_channel(c.prefix, suffix[i], c.chan[i], err, sizeof err)) {
+            fprintf(stderr, "afmtwin listen: %s\n", err);
+            return 2;
+        }
+    if (c.log) return listen_log(&c);
+    lcm_t *lcm = lcm_create(c.url);
+    if (!lcm) {
+        fprintf(stderr, "afmtwin listen: cannot open LCM on '%s'\n", c.url ? c.url : "(default)");
+        return 1;
+    }
+    for (int i = 0; i < N_OUT; i++) {
+        if (!c.want[i]) continue;
+        lcm_subscription_t *sub = lcm_subscribe(lcm, c.chan[i], on_message, &c);
+        if (!sub) {
+            fprintf(stderr, "afmtwin listen: cannot subscribe to %s\n", c.chan[i]);
+            lcm_destroy(lcm);
+            return 1;
+        }
+        /* the daemon publishes in bursts (one block's outputs at once) */
+        lcm_subscription_set_queue_capacity(sub, LISTEN_QUEUE);
+    }
+    struct sigaction sa = {.sa_handler = on_signal};
+    sigaction(SIGINT, &sa, NULL);
+    sigaction(SIGTERM, &sa, NULL);
+    double t_end = c.timeout_s > 0 ? mono_s() + c.timeout_s : INFINITY;
+    int rc = 0;
+    while (!listen_stop && (c.count == 0 || c.got < c.count)) {
+        double left = t_end - mono_s();
+        if (left <= 0) break;
+        int ms = left > 0.2 ? 200 : (int)ceil(left * 1e3);
+        if (lcm_handle_timeout(lcm, ms) < 0) {
+            fprintf(stderr, "afmtwin listen: LCM receive failed\n");
+            rc = 1;
+            break;
+        }
+    }
+    if (rc == 0 && c.count > 0 && c.got < c.count) {
+        fprintf(stderr, "afmtwin listen: %s after %ld of %ld messages\n",
+                listen_stop ? "stopped" : "timed out", c.got, c.count);
+        rc = 1;
+    }
+    lcm_destroy(lcm);
+    return rc;
+}

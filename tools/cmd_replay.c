@@ -1,0 +1,493 @@
+/* SPDX-License-Identifier: MIT */
+/* cmd_replay.c -- `afmtwin replay`: runs the commands of an LCM log through the twin
+ * (afm_runner) in model time, as fast as possible, and writes the outputs (samples,
+ * harmonics, status) to an LCM log, bit-identical on every run.
+ *
+ * Time: a command logged at time t applies when the twin has run
+ * ceil_B(round((t - t_first) * rate)) samples since the start, ceil_B rounding up to a
+ * multiple of the block size B (commands apply at block boundaries, as in the daemon);
+ * t_first is the time of the first command in the log. While the twin is paused (control
+ * pause) model time stands still and commands apply in log order without advancing it.
+ * With --lockstep the twin advances only by the log's tick commands and log times do not
+ * matter. Output events carry model time (us) as their time stamp and utime: nothing from
+ * the wall clock enters the output. */
+#include "afmtwin_cmds.h"
+#include "lcm_tool.h"
+
+#include "afm_cmd.h"
+#include "afm_config.h"
+#include "afm_io.h"
+#include "afm_runner.h"
+
+#include "afmtwin_harmonics_t.h"
+#include "afmtwin_samples_t.h"
+#include "afmtwin_status_t.h"
+
+#include <lcm/eventlog.h>
+#include <math.h>
+#include <stdbool.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define REPLAY_DEFAULT_BLOCK 1024   /* samples per block: 72.8 us at 14.06 MHz */
+#define REPLAY_STATUS_INTERVAL_S 0.1 /* status every 0.1 s of model time, as the daemon's 10 Hz */
+#define REPLAY_PERIODS_MAX 256
+
+enum { OUT_SAMPLES, OUT_HARMONICS, OUT_STATUS, N_OUT };
+
+typedef struct {
+    const char *config, *in, *out, *prefix;
+    int block;
+    double tail_s;
+    bool lockstep, quiet;
+    bool want[N_OUT];
+} replay_opts;
+
+typedef struct {
+    replay_opts o;
+    afm_runner *r;
+    lcm_eventlog_t *log;
+    char chan_out[N_OUT][AFMT_CHAN_LEN];
+    char chan_in[6][AFMT_CHAN_LEN]; /* indexed by afm_cmd_kind (1..5) */
+    long long status_every, next_status; /* samples */
+    long long received, rejected, applied, skipped, written;
+    char last_reject[AFM_IO_REASON_LEN];
+    int write_failed;
+    uint8_t *buf;
+    int cap;
+    afm_io_samples rec;                 /* large: one per context */
+    afm_chain_period periods[REPLAY_PERIODS_MAX];
+} replay_ctx;
+
+static void replay_usage(FILE *f) {
+    fprintf(f,
+            "usage: afmtwin replay --config FILE --in LOG --out LOG [--prefix NAME_]\n"
+            "                      [--block N] [--tail S] [--lockstep] [--channels LIST]\n"
+            "                      [--quiet]\n\n"
+            "Runs the commands recorded in an LCM log (lcm-logger's format, e.g. a logged\n"
+            "sweep, or one written with `afmtwin send --log`) through the twin of --config in\n"
+            "model time, as fast as the machine allows, and writes what the daemon would\n"
+            "publish (samples, harmonics, status) to another LCM log. The output is\n"
+            "bit-identical on every run: its time stamps are model time, never the wall clock.\n\n"
+            "Timing: a command logged at time t applies once the twin has run\n"
+            "round((t - t_first) x sample rate) samples, rounded up to a whole block; t_first is\n"
+            "the first command's time. Paused (control pause), model time stands still and\n"
+            "commands apply in log order. Events on other channels are skipped; commands the\n"
+            "daemon would reject are counted and reported in status, as the daemon does.\n\n"
+            "options:\n"
+            "  --config FILE    the twin's config (libconfig; see config/README.md)\n"
+            "  --in LOG         input log: commands on PREFIX + DITHER, SETPOINT, PARAM,\n"
+            "                   CONTROL, TICK\n"
+            "  --out LOG        output log (overwritten): PREFIX + SAMPLES, HARMONICS, STATUS\n"
+            "  --prefix NAME_   channel-name prefix (default %s)\n"
+            "  --block N        samples per block, 1..1048576 (default %d): commands apply and\n"
+            "                   outputs are taken at block boundaries\n"
+            "  --tail S         model seconds to run after the last command (default 0.01)\n"
+            "  --lockstep       the twin advances only by the log's tick commands (applied in\n"
+            "                   log order; log times are ignored)\n"
+            "  --channels LIST  outputs to write, comma-separated subset of\n"
+            "                   samples,harmonics,status (default all)\n"
+            "  --quiet          no summary on stderr\n"
+            "  --help           this text\n\n"
+            "Status messages come every %.1f s of model time and at the end; in them mode is\n"
+            "\"replay\" (or \"lockstep\"), realtime_factor and lag_s are 0. Exit status 0 ok,\n"
+            "1 simulation or file failure, 2 bad usage, a bad config or an unreadable log.\n",
+            AFMT_DEFAULT_PREFIX, REPLAY_DEFAULT_BLOCK, REPLAY_STATUS_INTERVAL_S);
+}
+
+/* ---- output: events stamped with model time ---------------------------------------- */
+
+static int64_t model_us(double t_s) { return (int64_t)llround(t_s * 1e6); }
+
+static void write_event(replay_ctx *x, int ch, int64_t utime, int n) {
+    if (n < 0) {
+        x->write_failed = 1;
+        return;
+    }
+    lcm_eventlog_event_t ev = {.timestamp = utime,
+                               .channellen = (int32_t)strlen(x->chan_out[ch]),
+                               .datalen = n,
+                               .channel = x->chan_out[ch],
+                               .data = x->buf};
+    if (lcm_eventlog_write_event(x->log, &ev))
+        x->write_failed = 1;
+    else
+        x->written++;
+}
+
+/* Encode generated type T into x->buf (grown as needed) and write it. */
+#define WRITE_MSG(x, T, ch, msg)                                                                   \
+    do {                                                                                           \
+        int need_ = T##_encoded_size(msg);                                                         \
+        if (need_ > (x)->cap) {                                                                    \
+            uint8_t *nb_ = realloc((x)->buf, (size_t)need_);                                       \
+            if (!nb_) {                                                                            \
+                (x)->write_failed = 1;                                                             \
+                break;                                                                             \
+            }                                                                                      \
+            (x)->buf = nb_;                                                                        \
+            (x)->cap = need_;                                                                      \
+        }                                                                                          \
+        write_event((x), (ch), (msg)->utime, T##_encode((x)->buf, 0, (x)->cap, (msg)));           \
+    } while (0)
+
+static void emit_samples(replay_ctx *x, int64_t seq) {
+    afm_io_samples *s = &x->rec;
+    for (int st = 0; st < afm_runner_n_streams(x->r); st++) {
+        afm_chain_block b;
+        while (afm_runner_take_block(x->r, st, &b, AFM_IO_MAX_BLOCK) > 0) {
+            if (!x->o.want[OUT_SAMPLES]) continue;
+            s->utime = model_us(b.t_s[0]);
+            s->seq_applied = seq;
+            s->stream = st;
+            s->t0_s = b.t_s[0];
+            s->rate_hz = b.rate_hz;
+            s->n = b.n;
+            for (int i = 0; i < b.n; i++) {
+                s->deflection_m[i] = (float)b.x_m[i];
+                s->obd_m[i] = (float)b.obd_m[i];
+                s->obd_counts[i] = b.obd_counts ? (int32_t)llround(b.obd_counts[i]) : 0;
+                s->force_n[i] = (float)b.f_n[i];
+            }
+            afmtwin_samples_t m = {.utime = s->utime,
+                                   .seq_applied = s->seq_applied,
+                                   .stream = (int8_t)s->stream,
+                                   .t0_s = s->t0_s,
+                                   .rate_hz = s->rate_hz,
+                                   .n = s->n,
+                                   .deflection_m = s->deflection_m,
+                                   .obd_m = s->obd_m,
+                                   .obd_counts = s->obd_counts,
+                                   .force_n = s->force_n};
+            WRITE_MSG(x, afmtwin_samples_t, OUT_SAMPLES, &m);
+        }
+    }
+}
+
+static void emit_harmonics(replay_ctx *x, const afm_runner_status *st) {
+    int np;
+    while ((np = afm_runner_take_periods(x->r, x->periods, REPLAY_PERIODS_MAX)) > 0) {
+        if (!x->o.want[OUT_HARMONICS]) continue;
+        for (int p = 0; p < np; p++) {
+            const afm_harm_result *hr = &x->periods[p].harm;
+            const afm_cycle_metrics *c = &x->periods[p].cycle;
+            int n = hr->n_harmonics;
+            int16_t k[AFM_MAX_HARMONICS];
+            double xa[AFM_MAX_HARMONICS], xp[AFM_MAX_HARMONICS], fa[AFM_MAX_HARMONICS];
+            double fp[AFM_MAX_HARMONICS], pd[AFM_MAX_HARMONICS];
+            for (int i = 0; i < n; i++) {
+                k[i] = (int16_t)hr->h[i].k;
+                xa[i] = hr->h[i].x_amp_m;
+                xp[i] = hr->h[i].x_phase_deg;
+                fa[i] = hr->h[i].f_amp_n;
+                fp[i] = hr->h[i].f_phase_deg;
+                pd[i] = hr->h[i].phase_diff_deg;
+            }
+            afmtwin_harmonics_t m = {
+                .utime = model_us(c->t_start_s + c->duration_s),
+                .seq_applied = st->seq_applied,
+                .t_s = c->t_start_s,
+                .fe_hz = st->fe_hz,
+                .n = (int8_t)n,
+                .k = k,
+                .deflection_amplitude_m = xa,
+                .deflection_phase_deg = xp,
+                .force_amplitude_n = fa,
+                .force_phase_deg = fp,
+                .phase_diff_deg = pd,
+                .lockin_amplitude_m = x->periods[p].lockin_amplitude_m,
+                .lockin_phase_deg = x->periods[p].lockin_phase_deg,
+                .peak_force_n = c->peak_force_n,
+                .min_deflection_m = c->min_deflection_m,
+                .indentation_m = c->indentation_m,
+                .contact_time_s = c->contact_time_s,
+                .pre_contact_velocity_m_s = c->pre_contact_velocity_m_s,
+                .dissipated_energy_j = c->dissipated_energy_j,
+                .mean_deflection_m = c->mean_deflection_m,
+            };
+            WRITE_MSG(x, afmtwin_harmonics_t, OUT_HARMONICS, &m);
+        }
+    }
+}
+
+static void emit_status(replay_ctx *x, const afm_runner_status *st) {
+    if (!x->o.want[OUT_STATUS]) return;
+    afmtwin_status_t m = {
+        .utime = model_us(st->t_s),
+        .seq_applied = st->seq_applied,
+        .model_time_s = st->t_s,
+        .realtime_factor = 0.0,
+        .overruns = 0,
+        .lag_s = 0.0,
+        .received = x->received,
+        .rejected = x->rejected,
+        .last_reject = x->last_reject,
+        .blowups = st->blowups,
+        .mode = x->o.lockstep ? "lockstep" : "replay",
+        .running = st->running ? 1 : 0,
+        .separation_m = st->separation_m,
+        .fe_hz = st->fe_hz,
+        .amplitude_m = st->amplitude_m,
+    };
+    WRITE_MSG(x, afmtwin_status_t, OUT_STATUS, &m);
+}
+
+/* Take every waiting output; a status when its time has come (or force). */
+static void emit_all(replay_ctx *x, bool force_status) {
+    afm_runner_status st;
+    afm_runner_status_get(x->r, &st);
+    emit_harmonics(x, &st);
+    emit_samples(x, st.seq_applied);
+    if (force_status || st.samples >= x->next_status) {
+        emit_status(x, &st);
+        while (x->next_status <= st.samples) x->next_status += x->status_every;
+    }
+}
+
+/* Run block by block until `target` samples since the start (or the twin cannot advance:
+ * paused, or out of tick budget). */
+static void run_to(replay_ctx *x, long long target) {
+    afm_runner_status st;
+    afm_runner_status_get(x->r, &st);
+    long long s = st.samples;
+    while (s < target && !x->write_failed) {
+        long long n = x->o.block - s % x->o.block; /* to the next block boundary */
+        if (n > target - s) n = target - s;
+        long long adv = afm_runner_run(x->r, n);
+        s += adv;
+        if (s % x->o.block == 0 || adv < n) emit_all(x, false);
+        if (adv < n) break;
+    }
+}
+
+/* ---- input ------------------------------------------------------------------------ */
+
+static void reject(replay_ctx *x, const char *channel, const char *why) {
+    x->rejected++;
+    snprintf(x->last_reject, sizeof x->last_reject, "%.60s: %.190s", channel, why);
+}
+
+static void apply_event(replay_ctx *x, afm_cmd_kind kind, const lcm_eventlog_event_t *ev) {
+    const afm_config *cfg = afm_runner_config(x->r);
+    afm_cmd_limits lim = {.sample_rate_hz = cfg->sim.sample_rate_hz};
+    afm_cmd c;
+    char err[AFM_ERR_LEN];
+    x->received++;
+    if (afm_cmd_decode(kind, ev->data, (size_t)ev->datalen, &lim, &c, err, sizeof err)) {
+        reject(x, ev->channel, err);
+        return;
+    }
+    afm_runner_model *model = NULL;
+    bool new_chain = false;
+    if (afm_runner_cmd_needs_model(cfg, &c, &new_chain)) {
+        static afm_config t; /* large */
+        t = *cfg;
+        if (afm_param_apply(&t, &c.u.param, NULL, err, sizeof err) ||
+            !(model = afm_runner_model_build(&t, new_chain, err, sizeof err))) {
+            reject(x, ev->channel, err);
+            return;
+        }
+    }
+    /* Outputs so far carry the old seq_applied. */
+    emit_all(x, false);
+    if (afm_runner_apply(x->r, &c, &model, err, sizeof err))
+        reject(x, ev->channel, err);
+    else
+        x->applied++;
+    afm_runner_model_destroy(&model);
+}
+
+static afm_cmd_kind channel_kind(const replay_ctx *x, const char *channel) {
+    for (int k = AFM_CMD_DITHER; k <= AFM_CMD_TICK; k++)
+        if (!strcmp(channel, x->chan_in[k])) return (afm_cmd_kind)k;
+    return 0;
+}
+
+static int parse_channels(const char *s, bool *want) {
+    static const char *const names[N_OUT] = {"samples", "harmonics", "status"};
+    char buf[128];
+    if (strlen(s) >= sizeof buf) return -1;
+    strcpy(buf, s);
+    for (int i = 0; i < N_OUT; i++) want[i] = false;
+    int n = 0;
+    char *save = NULL;
+    for (char *t = strtok_r(buf, ",", &save); t; t = strtok_r(NULL, ",", &save)) {
+        int k = -1;
+        for (int i = 0; i < N_OUT; i++)
+            if (!strcmp(t, names[i])) k = i;
+        if (k < 0) return -1;
+        want[k] = true;
+        n++;
+    }
+    return n ? 0 : -1;
+}
+
+static int parse_opts(int argc, char **argv, replay_opts *o) {
+    for (int i = 1; i < argc; i++) {
+        const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
+        double d;
+        if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
+            replay_usage(stdout);
+            return 1;
+        } else if (!strcmp(a, "--lockstep")) {
+            o->lockstep = true;
+            continue;
+        } else if (!strcmp(a, "--quiet")) {
+            o->quiet = true;
+            continue;
+        } else if (!v) {
+            fprintf(stderr, "afmtwin replay: unknown or incomplete option '%s' (see --help)\n", a);
+            return 2;
+        } else if (!strcmp(a, "--config")) {
+            o->config = v;
+        } else if (!strcmp(a, "--in")) {
+            o->in = v;
+        } else if (!strcmp(a, "--out")) {
+            o->out = v;
+        } else if (!strcmp(a, "--prefix")) {
+            o->prefix = v;
+        } else if (!strcmp(a, "--block")) {
+            if (afmt_parse_double(v, &d) || d < 1 || d > 1048576 || d != floor(d)) {
+                fprintf(stderr, "afmtwin replay: --block wants an integer in 1..1048576, got '%s'\n",
+                        v);
+                return 2;
+            }
+            o->block = (int)d;
+        } else if (!strcmp(a, "--tail")) {
+            if (afmt_parse_double(v, &d) || !(d >= 0) || d > 1e4) {
+                fprintf(stderr, "afmtwin replay: --tail wants seconds in 0..1e4, got '%s'\n", v);
+                return 2;
+            }
+            o->tail_s = d;
+        } else if (!strcmp(a, "--channels")) {
+            if (parse_channels(v, o->want)) {
+                fprintf(stderr, "afmtwin replay: --channels wants a comma-separated subset of "
+                                "samples,harmonics,status, got '%s'\n", v);
+                return 2;
+            }
+        } else {
+            fprintf(stderr, "afmtwin replay: unknown option '%s' (see --help)\n", a);
+            return 2;
+        }
+        i++;
+    }
+    if (!o->config || !o->in || !o->out) {
+        fprintf(stderr, "afmtwin replay: --config, --in and --out are required (see --help)\n");
+        return 2;
+    }
+    if (!strcmp(o->in, o->out)) {
+        fprintf(stderr, "afmtwin replay: --in and --out name the same file\n");
+        return 2;
+    }
+    return 0;
+}
+
+int afm_cmd_replay(int argc, char **argv) {
+    static replay_ctx x; /* large: the samples record */
+    memset(&x, 0, sizeof x);
+    x.o = (replay_opts){.prefix = AFMT_DEFAULT_PREFIX, .block = REPLAY_DEFAULT_BLOCK,
+                        .tail_s = 0.01, .want = {true, true, true}};
+    int rc = parse_opts(argc, argv, &x.o);
+    if (rc) return rc == 1 ? 0 : rc;
+    char err[AFM_ERR_LEN];
+    static const char *const out_sfx[N_OUT] = {AFMT_CHAN_SAMPLES, AFMT_CHAN_HARMONICS,
+                                               AFMT_CHAN_STATUS};
+    static const char *const in_sfx[6] = {"", AFMT_CHAN_DITHER, AFMT_CHAN_SETPOINT,
+                                          AFMT_CHAN_PARAM, AFMT_CHAN_CONTROL, AFMT_CHAN_TICK};
+    for (int i = 0; i < N_OUT; i++)
+        if (afmt_channel(x.o.prefix, out_sfx[i], x.chan_out[i], err, sizeof err)) goto usage_err;
+    for (int k = 1; k < 6; k++)
+        if (afmt_channel(x.o.prefix, in_sfx[k], x.chan_in[k], err, sizeof err)) goto usage_err;
+
+    static afm_config cfg;
+    if (afm_config_load(x.o.config, &cfg, err, sizeof err)) goto usage_err;
+    lcm_eventlog_t *in = lcm_eventlog_create(x.o.in, "r");
+    if (!in) {
+        fprintf(stderr, "afmtwin replay: cannot read log '%s'\n", x.o.in);
+        return 2;
+    }
+    x.r = afm_runner_create(&cfg, x.o.block, x.o.lockstep, err, sizeof err);
+    if (!x.r) {
+        lcm_eventlog_destroy(in);
+        fprintf(stderr, "afmtwin replay: %s\n", err);
+        return 1;
+    }
+    x.log = lcm_eventlog_create(x.o.out, "w");
+    if (!x.log) {
+        fprintf(stderr, "afmtwin replay: cannot write log '%s'\n", x.o.out);
+        lcm_eventlog_destroy(in);
+        afm_runner_destroy(&x.r);
+        return 1;
+    }
+    double rate = cfg.sim.sample_rate_hz;
+    x.status_every = llround(REPLAY_STATUS_INTERVAL_S * rate);
+    x.next_status = 0;
+    double wall0 = afmt_mono_s();
+    emit_all(&x, true); /* status at model time 0 */
+
+    bool have_first = false;
+    int64_t t_first = 0;
+    long long last_target = 0, events = 0;
+    lcm_eventlog_event_t *ev;
+    while (!x.write_failed && (ev = lcm_eventlog_read_next_event(in)) != NULL) {
+        events++;
+        afm_cmd_kind kind = channel_kind(&x, ev->channel);
+        if (!kind) {
+            x.skipped++;
+            lcm_eventlog_free_event(ev);
+            continue;
+        }
+        if (!have_first) {
+            have_first = true;
+            t_first = ev->timestamp;
+        }
+        if (!x.o.lockstep) {
+            /* samples since the start, rounded up to a block boundary */
+            double dt_us = (double)(ev->timestamp - t_first);
+            long long k = dt_us > 0 ? llround(dt_us * 1e-6 * rate) : 0;
+            k = (k + x.o.block - 1) / x.o.block * x.o.block;
+            if (k > last_target) last_target = k;
+            run_to(&x, last_target);
+        }
+        apply_event(&x, kind, ev);
+        if (x.o.lockstep) {
+            afm_runner_status st;
+            afm_runner_status_get(x.r, &st);
+            long long b = afm_runner_budget(x.r);
+            if (b > 0 && b < (1LL << 60)) run_to(&x, st.samples + b);
+        }
+        lcm_eventlog_free_event(ev);
+    }
+    lcm_eventlog_destroy(in);
+    if (!x.o.lockstep) {
+        long long tail = llround(x.o.tail_s * rate);
+        long long end = last_target + tail;
+        end = (end + x.o.block - 1) / x.o.block * x.o.block;
+        run_to(&x, end);
+    }
+    emit_all(&x, true); /* final status */
+    afm_runner_status st;
+    afm_runner_status_get(x.r, &st);
+    lcm_eventlog_destroy(x.log);
+    free(x.buf);
+    afm_runner_destroy(&x.r);
+    if (x.write_failed) {
+        fprintf(stderr, "afmtwin replay: writing '%s' failed\n", x.o.out);
+        return 1;
+    }
+    if (!x.o.quiet) {
+        double wall = afmt_mono_s() - wall0;
+        fprintf(stderr,
+                "afmtwin replay: %lld events: %lld commands applied, %lld rejected%s%s%s, %lld on "
+                "other channels skipped; model time %.6f s in %.3f s (%.3gx real time), %lld "
+                "output events, %lld blow-ups\n",
+                events, x.applied, x.rejected, x.rejected ? " (last: " : "",
+                x.rejected ? x.last_reject : "", x.rejected ? ")" : "", x.skipped, st.t_s, wall,
+                wall > 0 ? st.t_s / wall : 0.0, x.written, st.blowups);
+    }
+    return 0;
+usage_err:
+    fprintf(stderr, "afmtwin replay: %s\n", err);
+    return 2;
+}

@@ -1,0 +1,410 @@
+/* SPDX-License-Identifier: MIT */
+/* cmd_send.c -- `afmtwin send`: builds one command message (dither, setpoint, param,
+ * control, tick), checks it with the daemon's own validation and publishes it on LCM or
+ * appends it to an LCM log; `send raw` publishes arbitrary bytes (for bad-input tests). */
+#include "afmtwin_cmds.h"
+#include "lcm_tool.h"
+
+#include "afm_cmd.h"
+#include "afm_config.h"
+
+#include "afmtwin_control_t.h"
+#include "afmtwin_dither_t.h"
+#include "afmtwin_param_t.h"
+#include "afmtwin_setpoint_t.h"
+#include "afmtwin_tick_t.h"
+
+#include <lcm/eventlog.h>
+#include <lcm/lcm.h>
+#include <math.h>
+#include <stdbool.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define SEND_MAX_BYTES 65536
+#define SEND_MAX_PARAMS 16
+
+typedef struct {
+    const char *url, *prefix, *channel, *log, *config;
+    double log_time_s; /* NAN: wall clock */
+    int64_t seq, utime;
+    bool have_seq, have_utime;
+    bool no_check, check_only, quiet;
+    long truncate; /* < 0: whole message */
+} send_common;
+
+static void send_usage(FILE *f) {
+    fprintf(f,
+            "usage: afmtwin send KIND [OPTIONS] [COMMON OPTIONS]\n\n"
+            "Publishes one command to the twin (afmtwind) on LCM. Before publishing, the\n"
+            "message is checked with the daemon's own validation: a value the daemon would\n"
+            "reject is reported with the daemon's reason and nothing is sent (exit 2).\n\n"
+            "kinds:\n"
+            "  dither --freq HZ[,HZ..] --amp M[,M..] [--phase RAD[,RAD..]]\n"
+            "        base excitation tones (1..4): frequency 0 < HZ < sample rate / 2,\n"
+            "        amplitude 0 <= M <= 1e-6 m, start phase of new tones (rad, default 0);\n"
+            "        e.g. send dither --freq 338112 --amp 0.087e-9\n"
+            "  setpoint --z M [--ramp M_S]\n"
+            "        tip-sample separation Z, 0 <= M <= 1e-3 m; --ramp > 0 ramps to it at that\n"
+            "        rate (m/s), 0 (default) steps; e.g. send setpoint --z 30e-9 --ramp 1e-6\n"
+            "  param NAME=VALUE [NAME=VALUE ...]\n"
+            "        live change of 1..16 config parameters by key path, e.g.\n"
+            "        send param forces.viscoelastic.eta_pa_s=400 forces.vdw_contact.hamaker_j=1e-19\n"
+            "  control run|pause|reset|step [--n N]\n"
+            "        run, pause, reset to rest, or advance N samples (step, 1 <= N <= 1e9)\n"
+            "  tick --n N\n"
+            "        lockstep mode: advance N samples (1 <= N <= 1e9); e.g. send tick --n 14060\n"
+            "  raw --channel NAME --hex HEX\n"
+            "        publish the bytes HEX as they are (no validation; for bad-input tests)\n\n"
+            "common options:\n"
+            "  --lcm-url URL     LCM provider (default: LCM_DEFAULT_URL or LCM's default)\n"
+            "  --prefix NAME_    channel-name prefix of the twin (default %s)\n"
+            "  --seq N           command sequence number (default: wall-clock microseconds,\n"
+            "                    so that later commands have larger numbers)\n"
+            "  --utime US        sender time stamp in the message (default: wall clock, us)\n"
+            "  --config FILE     the daemon's config, for the limits that depend on it (sample\n"
+            "                    rate); default config/default.conf when readable\n"
+            "  --check           validate only; print 'ok' and exit 0, or the reason and exit 2\n"
+            "  --no-check        publish even what the daemon would reject (bad-input tests)\n"
+            "  --channel NAME    publish on NAME instead of PREFIX + the kind's channel\n"
+            "                    (e.g. a message of the wrong type on a channel)\n"
+            "  --truncate N      publish only the first N bytes of the encoded message\n"
+            "  --log FILE        append the message to the LCM log FILE (lcm-logger format)\n"
+            "                    instead of publishing\n"
+            "  --log-time S      event time stamp in the log, seconds (default: wall clock);\n"
+            "                    replay applies an event at model time t - t(first event)\n"
+            "  --quiet           print nothing on success\n"
+            "  --help            this text\n\n"
+            "Exit status 0 sent, 1 LCM or file failure, 2 bad usage or a value the daemon\n"
+            "would reject.\n",
+            AFMT_DEFAULT_PREFIX);
+}
+
+/* Encode msg of generated type T into buf; byte count or -1. */
+#define ENCODE(T, msg, buf, cap)                                                                   \
+    (T##_encoded_size(msg) > (cap) ? -1 : T##_encode((buf), 0, (cap), (msg)))
+
+static int parse_i64(const char *s, int64_t lo, int64_t hi, int64_t *v) {
+    char *end;
+    if (!s || !*s) return -1;
+    long long x = strtoll(s, &end, 10);
+    if (*end || x < lo || x > hi) return -1;
+    *v = x;
+    return 0;
+}
+
+/* The kind-specific options: dither, setpoint, control, tick (param and raw take their own
+ * positional arguments). NAN / -1: not given. */
+typedef struct {
+    double freq[AFM_MAX_TONES], amp[AFM_MAX_TONES], phase[AFM_MAX_TONES];
+    int n_freq, n_amp, n_phase;
+    double z, ramp;
+    bool have_z;
+    int64_t n;
+    bool have_n;
+    const char *action;
+    const char *names[SEND_MAX_PARAMS];
+    double values[SEND_MAX_PARAMS];
+    char name_buf[SEND_MAX_PARAMS][AFM_CMD_NAME_LEN * 2];
+    int n_params;
+    const char *hex;
+} send_args;
+
+static int bad_value(const char *opt, const char *v, const char *want) {
+    fprintf(stderr, "afmtwin send: %s wants %s, got '%s'\n", opt, want, v);
+    return 2;
+}
+
+/* Common and kind options; positional words go to the param list or the control action. */
+static int parse_args(int argc, char **argv, const char *kind, send_common *o, send_args *a) {
+    for (int i = 2; i < argc; i++) {
+        const char *s = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
+        bool takes = true;
+        if (!strcmp(s, "--lcm-url") && v) o->url = v;
+        else if (!strcmp(s, "--prefix") && v) o->prefix = v;
+        else if (!strcmp(s, "--channel") && v) o->channel = v;
+        else if (!strcmp(s, "--config") && v) o->config = v;
+        else if (!strcmp(s, "--log") && v) o->log = v;
+        else if (!strcmp(s, "--log-time") && v) {
+            if (afmt_parse_double(v, &o->log_time_s) || !isfinite(o->log_time_s) ||
+                o->log_time_s < 0 || o->log_time_s > 9e12)
+                return bad_value(s, v, "seconds >= 0");
+        } else if (!strcmp(s, "--seq") && v) {
+            if (parse_i64(v, INT64_MIN, INT64_MAX, &o->seq)) return bad_value(s, v, "an integer");
+            o->have_seq = true;
+        } else if (!strcmp(s, "--utime") && v) {
+            if (parse_i64(v, INT64_MIN, INT64_MAX, &o->utime)) return bad_value(s, v, "an integer");
+            o->have_utime = true;
+        } else if (!strcmp(s, "--truncate") && v) {
+            int64_t t;
+            if (parse_i64(v, 0, SEND_MAX_BYTES, &t)) return bad_value(s, v, "a byte count >= 0");
+            o->truncate = (long)t;
+        } else if (!strcmp(s, "--freq") && v) {
+            if ((a->n_freq = afmt_parse_list(v, a->freq, AFM_MAX_TONES)) < 1)
+                return bad_value(s, v, "1..4 comma-separated numbers (Hz)");
+        } else if (!strcmp(s, "--amp") && v) {
+            if ((a->n_amp = afmt_parse_list(v, a->amp, AFM_MAX_TONES)) < 1)
+                return bad_value(s, v, "1..4 comma-separated numbers (m)");
+        } else if (!strcmp(s, "--phase") && v) {
+            if ((a->n_phase = afmt_parse_list(v, a->phase, AFM_MAX_TONES)) < 1)
+                return bad_value(s, v, "1..4 comma-separated numbers (rad)");
+        } else if (!strcmp(s, "--z") && v) {
+            if (afmt_parse_double(v, &a->z)) return bad_value(s, v, "a number (m)");
+            a->have_z = true;
+        } else if (!strcmp(s, "--ramp") && v) {
+            if (afmt_parse_double(v, &a->ramp)) return bad_value(s, v, "a number (m/s)");
+        } else if (!strcmp(s, "--n") && v) {
+            if (parse_i64(v, INT64_MIN, INT64_MAX, &a->n)) return bad_value(s, v, "an integer");
+            a->have_n = true;
+        } else if (!strcmp(s, "--hex") && v) {
+            a->hex = v;
+        } else {
+            takes = false;
+            if (!strcmp(s, "--no-check")) o->no_check = true;
+            else if (!strcmp(s, "--check")) o->check_only = true;
+            else if (!strcmp(s, "--quiet")) o->quiet = true;
+            else if (s[0] == '-' && s[1] == '-') {
+                fprintf(stderr, "afmtwin send %s: unknown or incomplete option '%s' (see --help)\n",
+                        kind, s);
+                return 2;
+            } else if (!strcmp(kind, "control") && !a->action) {
+                a->action = s;
+            } else if (!strcmp(kind, "param")) {
+                const char *eq = strchr(s, '=');
+                if (!eq || eq == s || a->n_params >= SEND_MAX_PARAMS ||
+                    (size_t)(eq - s) >= sizeof a->name_buf[0]) {
+                    fprintf(stderr, "afmtwin send param: want NAME=VALUE (at most %d), got '%s'\n",
+                            SEND_MAX_PARAMS, s);
+                    return 2;
+                }
+                int k = a->n_params;
+                memcpy(a->name_buf[k], s, (size_t)(eq - s));
+                a->name_buf[k][eq - s] = 0;
+                if (afmt_parse_double(eq + 1, &a->values[k]))
+                    return bad_value(a->name_buf[k], eq + 1, "a number");
+                a->names[k] = a->name_buf[k];
+                a->n_params++;
+            } else {
+                fprintf(stderr, "afmtwin send %s: unexpected argument '%s' (see --help)\n", kind, s);
+                return 2;
+            }
+        }
+        if (takes) i++;
+    }
+    return 0;
+}
+
+/* Build and encode the message of kind into buf. Returns the byte count, -2 on bad usage
+ * (message printed). */
+static int build(const char *kind, const send_common *o, send_args *a, uint8_t *buf, int cap,
+                 afm_cmd_kind *ck) {
+    int64_t utime = o->have_utime ? o->utime : afmt_wall_us();
+    int64_t seq = o->have_seq ? o->seq : afmt_wall_us();
+    if (!strcmp(kind, "dither")) {
+        if (a->n_freq < 1 || a->n_amp < 1) {
+            fprintf(stderr, "afmtwin send dither: --freq and --amp are required\n");
+            return -2;
+        }
+        if (a->n_amp != a->n_freq || (a->n_phase && a->n_phase != a->n_freq)) {
+            fprintf(stderr, "afmtwin send dither: --freq, --amp (and --phase) need one value "
+                            "per tone\n");
+            return -2;
+        }
+        for (int j = a->n_phase; j < a->n_freq; j++) a->phase[j] = 0.0;
+        afmtwin_dither_t m = {.utime = utime, .seq = seq, .n_tones = (int8_t)a->n_freq,
+                              .frequency_hz = a->freq, .amplitude_m = a->amp,
+                              .phase_rad = a->phase};
+        *ck = AFM_CMD_DITHER;
+        return ENCODE(afmtwin_dither_t, &m, buf, cap);
+    }
+    if (!strcmp(kind, "setpoint")) {
+        if (!a->have_z) {
+            fprintf(stderr, "afmtwin send setpoint: --z is required\n");
+            return -2;
+        }
+        afmtwin_setpoint_t m = {.utime = utime, .seq = seq, .separation_m = a->z,
+                                .ramp_rate_m_s = a->ramp};
+        *ck = AFM_CMD_SETPOINT;
+        return ENCODE(afmtwin_setpoint_t, &m, buf, cap);
+    }
+    if (!strcmp(kind, "param")) {
+        if (a->n_params < 1) {
+            fprintf(stderr, "afmtwin send param: give at least one NAME=VALUE\n");
+            return -2;
+        }
+        afmtwin_param_t m = {.utime = utime, .seq = seq, .n = (int16_t)a->n_params,
+                             .name = (char **)a->names, .value = a->values};
+        *ck = AFM_CMD_PARAM;
+        return ENCODE(afmtwin_param_t, &m, buf, cap);
+    }
+    if (!strcmp(kind, "control")) {
+        static const char *const names[] = {"run", "pause", "reset", "step"};
+        static const int8_t codes[] = {AFMTWIN_CONTROL_T_RUN, AFMTWIN_CONTROL_T_PAUSE,
+                                       AFMTWIN_CONTROL_T_RESET, AFMTWIN_CONTROL_T_STEP};
+        int k = -1;
+        for (int i = 0; i < 4 && a->action; i++)
+            if (!strcmp(a->action, names[i])) k = i;
+        if (k < 0) {
+            fprintf(stderr, "afmtwin send control: want run, pause, reset or step, got '%s'\n",
+                    a->action ? a->action : "");
+            return -2;
+        }
+        if (codes[k] == AFMTWIN_CONTROL_T_STEP && !a->have_n) {
+            fprintf(stderr, "afmtwin send control step: --n N is required\n");
+            return -2;
+        }
+        afmtwin_control_t m = {.utime = utime, .seq = seq, .action = codes[k],
+                               .n_samples = a->have_n ? a->n : 0};
+        *ck = AFM_CMD_CONTROL;
+        return ENCODE(afmtwin_control_t, &m, buf, cap);
+    }
+    if (!strcmp(kind, "tick")) {
+        if (!a->have_n) {
+            fprintf(stderr, "afmtwin send tick: --n N is required\n");
+            return -2;
+        }
+        afmtwin_tick_t m = {.utime = utime, .seq = seq, .n_samples = a->n};
+        *ck = AFM_CMD_TICK;
+        return ENCODE(afmtwin_tick_t, &m, buf, cap);
+    }
+    if (!strcmp(kind, "raw")) {
+        if (!a->hex || !o->channel) {
+            fprintf(stderr, "afmtwin send raw: --channel and --hex are required\n");
+            return -2;
+        }
+        int n = afmt_parse_hex(a->hex, buf, cap);
+        if (n < 0) {
+            fprintf(stderr, "afmtwin send raw: --hex wants pairs of hex digits (at most %d bytes)\n",
+                    cap);
+            return -2;
+        }
+        *ck = 0;
+        return n;
+    }
+    fprintf(stderr, "afmtwin send: unknown kind '%s' (dither, setpoint, param, control, tick, raw)\n",
+            kind);
+    return -2;
+}
+
+static const char *kind_suffix(afm_cmd_kind k) {
+    switch (k) {
+    case AFM_CMD_DITHER: return AFMT_CHAN_DITHER;
+    case AFM_CMD_SETPOINT: return AFMT_CHAN_SETPOINT;
+    case AFM_CMD_PARAM: return AFMT_CHAN_PARAM;
+    case AFM_CMD_CONTROL: return AFMT_CHAN_CONTROL;
+    case AFM_CMD_TICK: return AFMT_CHAN_TICK;
+    default: return "";
+    }
+}
+
+/* The daemon's checks: decode + validate the bytes as it would (afm_cmd_decode), and for
+ * param, apply to a copy of the config (names that do not fit it). 0, or -1 with err. */
+static int daemon_check(afm_cmd_kind ck, const uint8_t *buf, int n, const send_common *o,
+                        char *err, size_t errlen) {
+    static afm_config cfg; /* large: not on the stack */
+    afm_cmd_limits lim = {.sample_rate_hz = 0.0};
+    bool have_cfg = false;
+    const char *path = o->config;
+    if (!path) {
+        FILE *f = fopen("config/default.conf", "r");
+        if (f) {
+            fclose(f);
+            path = "config/default.conf";
+        }
+    }
+    if (path) {
+        if (afm_config_load(path, &cfg, err, errlen)) return -2;
+        lim.sample_rate_hz = cfg.sim.sample_rate_hz;
+        have_cfg = true;
+    }
+    afm_cmd c;
+    if (afm_cmd_decode(ck, buf, (size_t)n, &lim, &c, err, errlen)) return -1;
+    if (ck == AFM_CMD_PARAM && have_cfg &&
+        afm_param_apply(&cfg, &c.u.param, NULL, err, errlen))
+        return -1;
+    return 0;
+}
+
+static int emit(const send_common *o, const char *channel, const uint8_t *buf, int n) {
+    if (o->log) {
+        lcm_eventlog_t *l = lcm_eventlog_create(o->log, "a");
+        if (!l) {
+            fprintf(stderr, "afmtwin send: cannot open log '%s' for appending\n", o->log);
+            return 1;
+        }
+        lcm_eventlog_event_t ev = {
+            .timestamp = isnan(o->log_time_s) ? afmt_wall_us() : (int64_t)llround(o->log_time_s * 1e6),
+            .channellen = (int32_t)strlen(channel), .datalen = n, .channel = (char *)channel,
+            .data = (void *)buf};
+        int rc = lcm_eventlog_write_event(l, &ev);
+        lcm_eventlog_destroy(l);
+        if (rc) {
+            fprintf(stderr, "afmtwin send: writing to log '%s' failed\n", o->log);
+            return 1;
+        }
+        return 0;
+    }
+    lcm_t *lcm = lcm_create(o->url);
+    if (!lcm) {
+        fprintf(stderr, "afmtwin send: cannot open LCM on '%s'\n", o->url ? o->url : "(default)");
+        return 1;
+    }
+    int rc = lcm_publish(lcm, channel, buf, (unsigned)n);
+    lcm_destroy(lcm);
+    if (rc) {
+        fprintf(stderr, "afmtwin send: publishing on %s failed\n", channel);
+        return 1;
+    }
+    return 0;
+}
+
+int afm_cmd_send(int argc, char **argv) {
+    if (argc < 2 || !strcmp(argv[1], "--help") || !strcmp(argv[1], "-h")) {
+        send_usage(argc < 2 ? stderr : stdout);
+        return argc < 2 ? 2 : 0;
+    }
+    const char *kind = argv[1];
+    for (int i = 2; i < argc; i++)
+        if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
+            send_usage(stdout);
+            return 0;
+        }
+    send_common o = {.prefix = AFMT_DEFAULT_PREFIX, .log_time_s = NAN, .truncate = -1};
+    static send_args a; /* zeroed */
+    memset(&a, 0, sizeof a);
+    int rc = parse_args(argc, argv, kind, &o, &a);
+    if (rc) return rc;
+    static uint8_t buf[SEND_MAX_BYTES];
+    afm_cmd_kind ck = 0;
+    int n = build(kind, &o, &a, buf, sizeof buf, &ck);
+    if (n == -2) return 2;
+    if (n < 0) {
+        fprintf(stderr, "afmtwin send %s: the message does not encode (too large?)\n", kind);
+        return 2;
+    }
+    char channel[AFMT_CHAN_LEN], err[AFM_ERR_LEN];
+    if (o.channel) {
+        snprintf(channel, sizeof channel, "%s", o.channel);
+    } else if (afmt_channel(o.prefix, kind_suffix(ck), channel, err, sizeof err)) {
+        fprintf(stderr, "afmtwin send: %s\n", err);
+        return 2;
+    }
+    if (ck && !o.no_check) {
+        int v = daemon_check(ck, buf, n, &o, err, sizeof err);
+        if (v) {
+            fprintf(stderr, "afmtwin send %s: %s%s\n", kind, v == -1 ? "the daemon would reject: " : "",
+                    err);
+            return 2;
+        }
+    }
+    if (o.check_only) {
+        if (!o.quiet) printf("ok\n");
+        return 0;
+    }
+    if (o.truncate >= 0 && o.truncate < n) n = (int)o.truncate;
+    rc = emit(&o, channel, buf, n);
+    if (rc == 0 && !o.quiet)
+        printf("%s %s %d bytes on %s\n", o.log ? "logged" : "sent", kind, n, channel);
+    return rc;
+}

@@ -1,0 +1,83 @@
+/* SPDX-License-Identifier: MIT */
+/* lcm_tool.c -- helpers shared by the LCM subcommands (see lcm_tool.h). */
+#include "lcm_tool.h"
+
+#include <ctype.h>
+#include <errno.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+int afmt_channel(const char *prefix, const char *suffix, char *out, char *err, size_t errlen) {
+    size_t n = prefix ? strlen(prefix) : 0;
+    if (n < 1 || n > 63) {
+        snprintf(err, errlen, "channel prefix must have 1..63 characters, got %zu", n);
+        return -1;
+    }
+    for (size_t i = 0; i < n; i++)
+        if (!isalnum((unsigned char)prefix[i]) && prefix[i] != '_') {
+            snprintf(err, errlen, "channel prefix '%s': only letters, digits and '_' allowed",
+                     prefix);
+            return -1;
+        }
+    snprintf(out, AFMT_CHAN_LEN, "%s%s", prefix, suffix);
+    return 0;
+}
+
+int afmt_parse_double(const char *s, double *v) {
+    if (!s || !*s) return -1;
+    char *end;
+    errno = 0;
+    double x = strtod(s, &end);
+    if (*end || end == s || errno == ERANGE) return -1;
+    *v = x;
+    return 0;
+}
+
+int afmt_parse_list(const char *s, double *v, int max) {
+    char buf[512];
+    if (!s || strlen(s) >= sizeof buf) return -1;
+    strcpy(buf, s);
+    int n = 0;
+    char *save = NULL;
+    for (char *t = strtok_r(buf, ",", &save); t; t = strtok_r(NULL, ",", &save)) {
+        if (n >= max || afmt_parse_double(t, &v[n])) return -1;
+        n++;
+    }
+    return n;
+}
+
+static int hexval(int c) {
+    if (c >= '0' && c <= '9') return c - '0';
+    if (c >= 'a' && c <= 'f') return c - 'a' + 10;
+    if (c >= 'A' && c <= 'F') return c - 'A' + 10;
+    return -1;
+}
+
+int afmt_parse_hex(const char *s, uint8_t *buf, int cap) {
+    int n = 0;
+    while (*s) {
+        if (isspace((unsigned char)*s)) {
+            s++;
+            continue;
+        }
+        int hi = hexval(s[0]), lo = s[1] ? hexval(s[1]) : -1;
+        if (hi < 0 || lo < 0 || n >= cap) return -1;
+        buf[n++] = (uint8_t)(hi * 16 + lo);
+        s += 2;
+    }
+    return n;
+}
+
+double afmt_mono_s(void) {
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+int64_t afmt_wall_us(void) {
+    struct timespec ts;
+    clock_gettime(CLOCK_REALTIME, &ts);
+    return (int64_t)ts.tv_sec * 1000000 + ts.tv_nsec / 1000;
+}

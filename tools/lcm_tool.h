@@ -1,0 +1,39 @@
+/* SPDX-License-Identifier: MIT */
+/* lcm_tool.h -- what the LCM subcommands of `afmtwin` (send, listen, replay, bench-daemon)
+ * share: channel names, strict number parsing, hex decoding, wall and monotonic clocks. */
+#ifndef AFMT_LCM_TOOL_H
+#define AFMT_LCM_TOOL_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#define AFMT_CHAN_LEN 128
+
+/* Channel names: PREFIX + suffix. The daemon's defaults (afmtwind --prefix overrides). */
+#define AFMT_DEFAULT_PREFIX "AFMTWIN_"
+#define AFMT_CHAN_DITHER "DITHER"
+#define AFMT_CHAN_SETPOINT "SETPOINT"
+#define AFMT_CHAN_PARAM "PARAM"
+#define AFMT_CHAN_CONTROL "CONTROL"
+#define AFMT_CHAN_TICK "TICK"
+#define AFMT_CHAN_SAMPLES "SAMPLES"
+#define AFMT_CHAN_HARMONICS "HARMONICS"
+#define AFMT_CHAN_STATUS "STATUS"
+
+/* PREFIX + SUFFIX into out (AFMT_CHAN_LEN). The prefix: 1..63 characters of [A-Za-z0-9_]
+ * (LCM channel names are matched as regular expressions by subscribers, so nothing else is
+ * safe). 0, or -1 with err. */
+int afmt_channel(const char *prefix, const char *suffix, char *out, char *err, size_t errlen);
+
+/* Whole-string number: 0, or -1 (empty, trailing junk, out of range). Accepts nan/inf
+ * spellings, so that callers can test the validation of non-finite values. */
+int afmt_parse_double(const char *s, double *v);
+/* Comma-separated list of up to max numbers: count, or -1. */
+int afmt_parse_list(const char *s, double *v, int max);
+/* Hex string (pairs of hex digits, optional spaces) into buf: byte count, or -1. */
+int afmt_parse_hex(const char *s, uint8_t *buf, int cap);
+
+double afmt_mono_s(void);        /* CLOCK_MONOTONIC, seconds */
+int64_t afmt_wall_us(void);      /* CLOCK_REALTIME, microseconds since the epoch */
+
+#endif
