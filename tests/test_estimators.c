@@ -459,6 +459,77 @@ static void test_phase_tracking(void) {
     check_true(slow_l < total / 1000, "phase tracking: lock-in fast path nearly always");
 }
 
+/* The block functions (afm_harm_push_n, afm_cycle_push_n, afm_lockin_push_n: what the
+ * chain runs) against sample-by-sample pushes: the same state bit for bit, over a clipped
+ * (tapping-like) orbit with contact crossings, two tone changes, a NaN sample and blocks of
+ * odd lengths that end anywhere in a period. */
+static void test_block_equivalence(void) {
+    afm_cfg_drive c = {.separation_m = 30e-9, .n_tones = 1};
+    c.tones[0].amplitude_m = 0.7e-9;
+    c.tones[0].frequency_hz = fe;
+    c.tones[0].phase_rad = 1.0;
+    afm_drive d;
+    afm_drive_init(&d, &c);
+    const int ks[] = {1, 2, 3, 7};
+    afm_harm h1, h2;
+    afm_harm_init(&h1, ks, 4, NULL, 0);
+    afm_harm_init(&h2, ks, 4, NULL, 0);
+    afm_cfg_lockin cl = {.time_constant_s = 10 / fe, .order = 3};
+    afm_lockin l1, l2;
+    afm_lockin_init(&l1, &cl, 1 / fs, NULL, 0);
+    afm_lockin_init(&l2, &cl, 1 / fs, NULL, 0);
+    afm_cycle c1, c2;
+    afm_cycle_init(&c1, -8e-9, 0.98, NULL, 0);
+    afm_cycle_init(&c2, -8e-9, 0.98, NULL, 0);
+    enum { NB = 4000 };
+    static afm_sample s[NB];
+    static double th[NB], x[NB], f[NB];
+    long long rej_h = 0, rej_c = 0, per_h = 0, per_c = 0;
+    int rej_l = 0, rej1 = 0, same = 1;
+    long n0 = 0;
+    for (int blk = 0; blk < 60; blk++) {
+        int nb = 1 + (blk * 997) % NB;
+        for (int i = 0; i < nb; i++, n0++) {
+            double t = 1.5e-6 + (double)n0 / fs;
+            if (n0 == 20000) afm_drive_set_tone(&d, t - 0.4 / fs, 0, 0.7e-9, fe * 1.01);
+            if (n0 == 50000) afm_drive_set_tone(&d, t - 0.3 / fs, 0, 0.7e-9, fe * 0.98);
+            th[i] = afm_drive_phase(&d, 0, t);
+            double w = 2 * pi * fe, a = 10e-9 * sin(th[i] - 0.3), v = 10e-9 * w * cos(th[i] - 0.3);
+            double xc = a < -9e-9 ? -9e-9 + 0.2 * (a + 9e-9) : a; /* flattened bottom */
+            s[i] = (afm_sample){.t_s = t, .x_m = xc, .v_m_s = a < -9e-9 ? 0.2 * v : v,
+                                .f_n = xc < -8e-9 ? 1e-7 * (-8e-9 - xc) / 1e-9 : -1e-10};
+            if (n0 == 33333) s[i].x_m = NAN;
+            x[i] = s[i].x_m;
+            f[i] = s[i].f_n;
+        }
+        for (int i = 0; i < nb; i++) { /* one sample at a time */
+            int a = afm_harm_push(&h1, x[i], f[i], th[i]);
+            int b = afm_cycle_push(&c1, &s[i], th[i]);
+            int e = afm_lockin_push(&l1, x[i], th[i]);
+            rej1 += (a < 0) + (b < 0) + (e < 0);
+        }
+        for (int i = 0, done; i < nb;) { /* blocks */
+            int k = afm_harm_push_n(&h2, x + i, f + i, th + i, nb - i, &done, &rej_h);
+            per_h += done;
+            for (int j = 0; j < k;) {
+                j += afm_cycle_push_n(&c2, s + i + j, th + i + j, k - j, &done, &rej_c);
+                per_c += done;
+            }
+            rej_l += afm_lockin_push_n(&l2, x + i, th + i, k);
+            i += k;
+            if (done && !(h2.periods == per_h)) same = 0;
+        }
+    }
+    same = same && memcmp(&h1, &h2, sizeof h1) == 0 && memcmp(&l1, &l2, sizeof l1) == 0 &&
+           memcmp(&c1, &c2, sizeof c1) == 0;
+    printf("  block functions: %ld samples, %ld harm / %ld cycle periods, rejects %lld %lld %d "
+           "(per sample %d)\n", n0, h1.periods, c1.periods, rej_h, rej_c, rej_l, rej1);
+    check_true(h1.periods > 100 && c1.periods > 100, "block functions: periods completed");
+    check_true(per_h == h1.periods && per_c == c1.periods, "block functions: period flags");
+    check_true(rej_h + rej_c + rej_l == rej1 && rej1 == 3, "block functions: the same rejects");
+    check_true(same, "block functions: state bit for bit as sample-by-sample pushes");
+}
+
 int main(void) {
     test_harm_dft(0);
     test_harm_dft(37);
@@ -475,5 +546,6 @@ int main(void) {
     test_cycle_dip(0.01, "across the boundary");
     test_cycle_errors();
     test_phase_tracking();
+    test_block_equivalence();
     return check_done();
 }

@@ -207,31 +207,51 @@ static void run_stream(stream *s, const double *frames, const double *t, int n) 
         s->t[k] = t[(R - ph - 1) + k * R] - s->delay_s;
 }
 
+/* Append the current estimates as a period record. */
+static void put_period(afm_chain *c) {
+    int w = (c->p_head + c->p_count) % PERIOD_RING;
+    if (c->p_count == PERIOD_RING) {
+        c->p_head = (c->p_head + 1) % PERIOD_RING;
+        c->stats.periods_dropped++;
+    } else {
+        c->p_count++;
+    }
+    afm_chain_period *p = &c->periods[w];
+    p->harm = c->harm.out;
+    if (c->cycle.periods > 0)
+        p->cycle = c->cycle.out;
+    else
+        memset(&p->cycle, 0, sizeof p->cycle);
+    p->lockin_amplitude_m = afm_lockin_amplitude(&c->lockin);
+    p->lockin_phase_deg = afm_lockin_phase_deg(&c->lockin);
+    c->stats.periods++;
+}
+
+/* The estimators over n samples. Tone 0's phase is computed here for the whole block, by
+ * afm_drive_phase's own expression (the same values, without a call per sample). harm and
+ * cycle share the period clock: each run ends at a sample where harm completed a period,
+ * and cycle and lockin are brought to the same sample before the record is written.
+ * estimator_rejects counts, per run, the most samples any one estimator refused. */
 static void estimators(afm_chain *c, const afm_sample *s, const double *obd, int n) {
+    double th[CHUNK], f[CHUNK];
+    const afm_drive *d = c->drive;
+    double ph = d->phase_rad[0], w = d->omega_rad_s[0], t0 = d->t0_s[0];
     for (int i = 0; i < n; i++) {
-        double th = afm_drive_phase(c->drive, 0, s[i].t_s);
-        int rh = afm_harm_push(&c->harm, obd[i], s[i].f_n, th);
-        int rc = afm_cycle_push(&c->cycle, &s[i], th);
-        int rl = afm_lockin_push(&c->lockin, obd[i], th);
-        if (rh < 0 || rc < 0 || rl < 0) c->stats.estimator_rejects++;
-        if (rh == 1) { /* harm and cycle share the period clock: record at harm's end */
-            int w = (c->p_head + c->p_count) % PERIOD_RING;
-            if (c->p_count == PERIOD_RING) {
-                c->p_head = (c->p_head + 1) % PERIOD_RING;
-                c->stats.periods_dropped++;
-            } else {
-                c->p_count++;
-            }
-            afm_chain_period *p = &c->periods[w];
-            p->harm = c->harm.out;
-            if (c->cycle.periods > 0)
-                p->cycle = c->cycle.out;
-            else
-                memset(&p->cycle, 0, sizeof p->cycle);
-            p->lockin_amplitude_m = afm_lockin_amplitude(&c->lockin);
-            p->lockin_phase_deg = afm_lockin_phase_deg(&c->lockin);
-            c->stats.periods++;
+        th[i] = ph + w * (s[i].t_s - t0);
+        f[i] = s[i].f_n;
+    }
+    for (int i = 0; i < n;) {
+        long long rh = 0, rc = 0, rl;
+        int done, dc;
+        int k = afm_harm_push_n(&c->harm, obd + i, f + i, th + i, n - i, &done, &rh);
+        for (int j = 0; j < k;) {
+            j += afm_cycle_push_n(&c->cycle, s + i + j, th + i + j, k - j, &dc, &rc);
         }
+        rl = afm_lockin_push_n(&c->lockin, obd + i, th + i, k);
+        long long r = rh > rc ? rh : rc;
+        c->stats.estimator_rejects += r > rl ? r : rl;
+        if (done) put_period(c);
+        i += k;
     }
 }
 

@@ -101,12 +101,12 @@ AFM_EST_COLD static int step_general(afm_cycle *c, const afm_sample *s, bool had
         if (in0 && in1) {
             cb = 1.0;
         } else if (!in0 && in1) {
-            afm_hermite_crossing(p, s, h, xc, &r_in, &v_in);
+            afm_hermite_crossing_newton(p, s, h, xc, &r_in, &v_in);
             ca = r_in;
             cb = 1.0;
         } else if (in0 && !in1) {
             double v_out;
-            afm_hermite_crossing(p, s, h, xc, &cb, &v_out);
+            afm_hermite_crossing_newton(p, s, h, xc, &cb, &v_out);
         }
         /* integrals of -f v and x over each part */
         double wb[2] = {0.5, 0.5}, wa[2] = {0.0, 0.0};
@@ -193,4 +193,73 @@ int afm_cycle_push(afm_cycle *c, const afm_sample *s, double theta_rad) {
     c->f_prev2 = p->f_n;
     c->prev = *s;
     return 0;
+}
+
+int afm_cycle_push_n(afm_cycle *c, const afm_sample *s, const double *th, int n, int *done,
+                     long long *rejects) {
+    *done = 0;
+    int i = 0;
+    while (i < n) {
+        /* a run of fast-path steps (afm_cycle_push's conditions), state in locals */
+        if (c->active && c->n_prev >= 2) {
+            const afm_phase_track *t = &c->trk;
+            afm_cycle_metrics *m = &c->cur;
+            double nn = t->n, xc = c->x_contact_m, fp2 = c->f_prev2;
+            double pk_max = m->peak_force_n, xmin = m->min_deflection_m;
+            double en = m->dissipated_energy_j, xi = c->x_int, dur = m->duration_s,
+                   ct = m->contact_time_s;
+            const afm_sample *p = &c->prev;
+            int j = i;
+            for (; j < n; j++) {
+                const afm_sample *q = &s[j];
+                double nj = nn + 1.0;
+                if (!(nj <= t->n_end && fabs((th[j] - t->th_ref) - nj * t->dphi) <= t->tol))
+                    break;
+                /* all finite: the products with 0 are all +-0 (NaN otherwise) */
+                double z = (q->t_s * 0.0 + q->x_m * 0.0) + (q->v_m_s * 0.0 + q->f_n * 0.0);
+                if (z != 0.0 || !(q->t_s > p->t_s)) break;
+                double h = q->t_s - p->t_s, h3 = h * (1.0 / 3.0);
+                double xm = q->x_m < xmin ? q->x_m : xmin;
+                double b1 = p->x_m + h3 * p->v_m_s, b2 = q->x_m - h3 * q->v_m_s;
+                bool in0 = p->x_m < xc, in1 = q->x_m < xc;
+                if (in0 != in1 || b1 < xm || b2 < xm) break;
+                if (p->f_n >= fp2 && p->f_n >= q->f_n) {
+                    double pk = afm_parabola_peak(fp2, p->f_n, q->f_n);
+                    if (pk > pk_max) pk_max = pk;
+                }
+                double e0 = -p->f_n * p->v_m_s, e1 = -q->f_n * q->v_m_s;
+                en += h * (0.5 * e0 + 0.5 * e1);
+                xi += h * (0.5 * p->x_m + 0.5 * q->x_m);
+                dur += h;
+                if (in0) ct += h;
+                xmin = xm;
+                if (q->f_n > pk_max) pk_max = q->f_n;
+                fp2 = p->f_n;
+                p = q;
+                nn = nj;
+            }
+            if (j > i) {
+                m->peak_force_n = pk_max;
+                m->min_deflection_m = xmin;
+                m->dissipated_energy_j = en;
+                c->x_int = xi;
+                m->duration_s = dur;
+                m->contact_time_s = ct;
+                c->f_prev2 = fp2;
+                c->prev = *p;
+                c->trk.n = nn;
+                c->trk.th_prev = th[j - 1];
+                i = j;
+                continue;
+            }
+        }
+        int rc = afm_cycle_push(c, &s[i], th[i]);
+        i++;
+        if (rc < 0) (*rejects)++;
+        if (rc == 1) {
+            *done = 1;
+            break;
+        }
+    }
+    return i;
 }

@@ -77,4 +77,12 @@ void afm_cycle_reset(afm_cycle *c);
  * value is not finite, time did not increase, or theta did not increase by less than pi. */
 int afm_cycle_push(afm_cycle *c, const afm_sample *s, double theta_rad);
 
+/* Samples s[i], theta[i], i = 0..n-1, as n calls of afm_cycle_push, stopping after the
+ * sample that completes a period. Returns the samples consumed; *done is 1 if the last
+ * one completed a period (c->out); rejected samples are added to *rejects. Same results
+ * as afm_cycle_push, bit for bit (the fast path reads the previous sample from s[] and
+ * keeps the sums in registers). */
+int afm_cycle_push_n(afm_cycle *c, const afm_sample *s, const double *theta_rad, int n,
+                     int *done, long long *rejects);
+
 #endif

@@ -77,9 +77,9 @@ static void finish_period(afm_harm *h) {
         afm_orbit_harmonic *o = &h->out.h[j - 1];
         double phk = atan2(h->xi[j], h->xr[j]);
         o->k = h->ks[j];
-        o->x_amp_m = scale * hypot(h->xr[j], h->xi[j]);
+        o->x_amp_m = scale * afm_est_hypot(h->xr[j], h->xi[j]);
         o->x_phase_deg = phk * AFM_EST_RAD2DEG;
-        o->f_amp_n = scale * hypot(h->fr[j], h->fi[j]);
+        o->f_amp_n = scale * afm_est_hypot(h->fr[j], h->fi[j]);
         o->f_phase_deg = atan2(h->fi[j], h->fr[j]) * AFM_EST_RAD2DEG;
         o->phase_diff_deg = afm_phase_diff_deg(o->k, phi1, phk);
     }
@@ -185,6 +185,99 @@ int afm_harm_push(afm_harm *h, double x, double f, double theta_rad) {
     h->x_prev = x;
     h->f_prev = f;
     return 0;
+}
+
+/* Fast-path samples in a row from x, f, theta (at most n): finite data, theta on the
+ * tracker's prediction (afm_track_fast's test). */
+static int fast_run(const afm_harm *h, const double *x, const double *f, const double *th,
+                    int n) {
+    const afm_phase_track *t = &h->trk;
+    double nn = t->n;
+    int L = 0;
+    for (; L < n; L++) {
+        nn += 1.0;
+        if (!(nn <= t->n_end && fabs((th[L] - t->th_ref) - nn * t->dphi) <= t->tol) ||
+            !isfinite(x[L]) || !isfinite(f[L]))
+            break;
+    }
+    return L;
+}
+
+#if defined(__AVX__) && defined(__FMA__)
+#include <immintrin.h>
+/* L fast-path samples: per 4-lane group, phasors and sums in registers over the run (the
+ * same operations as afm_harm_push's fast path, so the same roundings). */
+static void fast_block(afm_harm *h, const double *x, const double *f, const double *th,
+                       int L) {
+    (void)th;
+    for (int j = 0; j < h->nl; j += 4) {
+        __m256d er = _mm256_loadu_pd(h->er + j), ei = _mm256_loadu_pd(h->ei + j);
+        __m256d rr = _mm256_loadu_pd(h->rr + j), ri = _mm256_loadu_pd(h->ri + j);
+        if (h->active) {
+            __m256d xr = _mm256_loadu_pd(h->xr + j), xi = _mm256_loadu_pd(h->xi + j);
+            __m256d fr = _mm256_loadu_pd(h->fr + j), fi = _mm256_loadu_pd(h->fi + j);
+            for (int i = 0; i < L; i++) {
+                __m256d a = _mm256_fmadd_pd(er, rr, -(ei * ri));
+                __m256d b = _mm256_fmadd_pd(er, ri, ei * rr);
+                er = a;
+                ei = b;
+                __m256d xv = _mm256_set1_pd(x[i]), fv = _mm256_set1_pd(f[i]);
+                xr = _mm256_fmadd_pd(xv, a, xr);
+                xi = _mm256_fmadd_pd(xv, b, xi);
+                fr = _mm256_fmadd_pd(fv, a, fr);
+                fi = _mm256_fmadd_pd(fv, b, fi);
+            }
+            _mm256_storeu_pd(h->xr + j, xr);
+            _mm256_storeu_pd(h->xi + j, xi);
+            _mm256_storeu_pd(h->fr + j, fr);
+            _mm256_storeu_pd(h->fi + j, fi);
+        } else {
+            for (int i = 0; i < L; i++) {
+                __m256d a = _mm256_fmadd_pd(er, rr, -(ei * ri));
+                __m256d b = _mm256_fmadd_pd(er, ri, ei * rr);
+                er = a;
+                ei = b;
+            }
+        }
+        _mm256_storeu_pd(h->er + j, er);
+        _mm256_storeu_pd(h->ei + j, ei);
+    }
+    if (h->active)
+        for (int i = 0; i < L; i++)
+            h->wsum += 1.0;
+    h->trk.n += (double)L; /* integer-valued: exact */
+}
+#else
+static void fast_block(afm_harm *h, const double *x, const double *f, const double *th,
+                       int L) {
+    for (int i = 0; i < L; i++)
+        afm_harm_push(h, x[i], f[i], th[i]); /* all take the fast path */
+}
+#endif
+
+int afm_harm_push_n(afm_harm *h, const double *x, const double *f, const double *th, int n,
+                    int *done, long long *rejects) {
+    *done = 0;
+    int i = 0;
+    while (i < n) {
+        int L = fast_run(h, x + i, f + i, th + i, n - i);
+        if (L > 0) {
+            fast_block(h, x + i, f + i, th + i, L);
+            i += L;
+            h->trk.th_prev = th[i - 1];
+            h->x_prev = x[i - 1];
+            h->f_prev = f[i - 1];
+            continue;
+        }
+        int rc = afm_harm_push(h, x[i], f[i], th[i]);
+        i++;
+        if (rc < 0) (*rejects)++;
+        if (rc == 1) {
+            *done = 1;
+            break;
+        }
+    }
+    return i;
 }
 
 int afm_harm_default_list(const afm_modal *m, double fe_hz, int *ks) {

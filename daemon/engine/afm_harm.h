@@ -81,6 +81,15 @@ void afm_harm_reset(afm_harm *h);
  * sample (nothing changed then). */
 int afm_harm_push(afm_harm *h, double x, double f, double theta_rad);
 
+/* Samples x[i], f[i], theta[i], i = 0..n-1, as n calls of afm_harm_push, stopping after
+ * the sample that completes a period. Returns the samples consumed (<= n); *done is 1 if
+ * the last of them completed a period (h->out), else 0; rejected samples (-1 from
+ * afm_harm_push) are added to *rejects. Same results as afm_harm_push, bit for bit: runs
+ * of fast-path samples keep the phasors and sums in registers (AVX2, 4 harmonics per
+ * vector). */
+int afm_harm_push_n(afm_harm *h, const double *x, const double *f, const double *theta_rad,
+                    int n, int *done, long long *rejects);
+
 /* Default list when cfg.sim.n_harmonics == 0: 1, 2, 3 and the integers nearest f2/fe and
  * f3/fe (modes 2 and 3 of m, when m has them), de-duplicated, ascending, into ks (room
  * for 5). Returns the count (0 if fe_hz is not > 0). */

@@ -71,6 +71,75 @@ int afm_lockin_push(afm_lockin *l, double u_m, double theta_rad) {
     return 0;
 }
 
+/* L fast-path samples with the cascade of ORDER stages unrolled (the same operations as
+ * afm_lockin_push, so the same roundings). */
+#if defined(__GNUC__)
+#define ALWAYS_INLINE __attribute__((always_inline))
+#else
+#define ALWAYS_INLINE
+#endif
+static inline ALWAYS_INLINE void run_order(afm_lockin *l, const double *u, int L,
+                                           const int order) {
+    double xy[AFM_LOCKIN_MAX_ORDER][2];
+    for (int k = 0; k < order; k++)
+        xy[k][0] = l->xy[k][0], xy[k][1] = l->xy[k][1];
+    double c = l->c, s = l->s, rc = l->rc, rs = l->rs, a = l->alpha;
+    for (int i = 0; i < L; i++) {
+        double cn = fma(c, rc, -s * rs);
+        s = fma(s, rc, c * rs);
+        c = cn;
+        double in0 = 2.0 * u[i] * s, in1 = 2.0 * u[i] * c;
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC unroll 8
+#endif
+        for (int k = 0; k < order; k++) {
+            xy[k][0] = fma(a, in0 - xy[k][0], xy[k][0]);
+            xy[k][1] = fma(a, in1 - xy[k][1], xy[k][1]);
+            in0 = xy[k][0];
+            in1 = xy[k][1];
+        }
+    }
+    for (int k = 0; k < order; k++)
+        l->xy[k][0] = xy[k][0], l->xy[k][1] = xy[k][1];
+    l->c = c;
+    l->s = s;
+}
+
+int afm_lockin_push_n(afm_lockin *l, const double *u, const double *th, int n) {
+    int rej = 0, i = 0;
+    while (i < n) {
+        const afm_phase_track *t = &l->trk;
+        double nn = t->n;
+        int L = 0;
+        for (; i + L < n; L++) {
+            nn += 1.0;
+            if (!(nn <= t->n_end && fabs((th[i + L] - t->th_ref) - nn * t->dphi) <= t->tol) ||
+                !isfinite(u[i + L]))
+                break;
+        }
+        if (L > 0) {
+            switch (l->order) {
+            case 1: run_order(l, u + i, L, 1); break;
+            case 2: run_order(l, u + i, L, 2); break;
+            case 3: run_order(l, u + i, L, 3); break;
+            case 4: run_order(l, u + i, L, 4); break;
+            case 5: run_order(l, u + i, L, 5); break;
+            case 6: run_order(l, u + i, L, 6); break;
+            case 7: run_order(l, u + i, L, 7); break;
+            default: run_order(l, u + i, L, 8); break;
+            }
+            l->trk.n = t->n + (double)L;
+            l->trk.th_prev = th[i + L - 1];
+            l->n += L;
+            i += L;
+            continue;
+        }
+        if (afm_lockin_push(l, u[i], th[i])) rej++;
+        i++;
+    }
+    return rej;
+}
+
 double afm_lockin_x(const afm_lockin *l) {
     return l->xy[l->order - 1][0];
 }

@@ -50,6 +50,11 @@ void afm_lockin_reset(afm_lockin *l);
  * either is not finite. */
 int afm_lockin_push(afm_lockin *l, double u_m, double theta_rad);
 
+/* n samples u[i], theta[i] as n calls of afm_lockin_push (same results, bit for bit; the
+ * runs of fast-path samples keep the filter state in registers). Returns the count of
+ * rejected samples. */
+int afm_lockin_push_n(afm_lockin *l, const double *u_m, const double *theta_rad, int n);
+
 /* In-phase X (with sin theta) and quadrature Y (with cos theta), m. */
 double afm_lockin_x(const afm_lockin *l);
 double afm_lockin_y(const afm_lockin *l);
