@@ -18,9 +18,13 @@ difference). Notes on each table follow the tables (docs/validation-notes.md).
 
 HDR
 echo "$rows" | awk -F'|' '
-  $2 != table { if (table != "") print ""; table = $2;
-                printf "## %s\n\n| item | thesis | ours | diff | tolerance | |\n|---|---|---|---|---|---|\n", table }
-  { printf "| %s | %s | %s | %s | %s | %s |\n", $3, $4, $5, $6, $7, $8 }'
+  NF > 1 { if (!($2 in n)) order[++nt] = $2;
+           row[$2, ++n[$2]] = sprintf("| %s | %s | %s | %s | %s | %s |", $3, $4, $5, $6, $7, $8) }
+  END { for (t = 1; t <= nt; t++) {
+          name = order[t]
+          printf "## %s\n\n| item | thesis | ours | diff | tolerance | |\n|---|---|---|---|---|---|\n", name
+          for (i = 1; i <= n[name]; i++) print row[name, i]
+          print "" } }'
 echo
 [ -f docs/validation-notes.md ] && cat docs/validation-notes.md
 exit 0
