@@ -20,10 +20,15 @@ _Static_assert(AFM_DECIM_CH == 4, "one v4 per frame");
 #define MAX_TAPS 20000  /* per stage */
 
 typedef struct {
-    int r, n, pos, phase; /* factor, taps, write position, inputs since the last output */
-    double *h;            /* taps */
-    v4 *buf;              /* 2n frames: frame k stored at k and k + n */
+    int r, n, phase; /* factor, taps, inputs since the last output */
+    int cap;         /* input frames per pass: lin holds n - 1 + cap frames */
+    double *h;       /* taps */
+    v4 *hv;          /* taps broadcast to all channels (one load per multiply-add) */
+    v4 *lin;         /* the n - 1 previous frames, then this pass's input */
 } stage;
+
+/* Input frames per pass of the first stage (any n is split into passes of this size). */
+#define PASS 512
 
 struct afm_decim {
     int factor, n_st;
@@ -148,8 +153,12 @@ afm_decim *afm_decim_create(int factor, double p, char *err, size_t errlen) {
         s->r = fac[i];
         if (design(s, fpn, 1.0 / s->r - fpn, err, errlen)) goto fail;
         d->n_st = i + 1;
-        s->buf = aligned_alloc(32, 2 * (size_t)s->n * sizeof *s->buf);
-        if (!s->buf) goto oom;
+        s->cap = i == 0 ? PASS : d->st[i - 1].cap / d->st[i - 1].r + 1;
+        s->lin = aligned_alloc(32, ((size_t)s->n - 1 + (size_t)s->cap) * sizeof *s->lin);
+        s->hv = aligned_alloc(32, (size_t)s->n * sizeof *s->hv);
+        if (!s->lin || !s->hv) goto oom;
+        for (int k = 0; k < s->n; k++)
+            s->hv[k] = (v4){s->h[k], s->h[k], s->h[k], s->h[k]};
         d->delay += 0.5 * (s->n - 1) * prev;
         d->cost += (double)s->n / s->r / prev;
         prev *= s->r;
@@ -168,7 +177,8 @@ void afm_decim_destroy(afm_decim **dp) {
     afm_decim *d = *dp;
     for (int i = 0; i < AFM_DECIM_MAX_STAGES; i++) {
         free(d->st[i].h);
-        free(d->st[i].buf);
+        free(d->st[i].hv);
+        free(d->st[i].lin);
     }
     free(d);
     *dp = NULL;
@@ -178,28 +188,63 @@ void afm_decim_destroy(afm_decim **dp) {
 
 static void clear_lines(afm_decim *d) {
     for (int i = 0; i < d->n_st; i++)
-        if (d->st[i].buf) memset(d->st[i].buf, 0, 2 * (size_t)d->st[i].n * sizeof(v4));
+        if (d->st[i].lin) memset(d->st[i].lin, 0, ((size_t)d->st[i].n - 1) * sizeof(v4));
 }
 
 void afm_decim_reset(afm_decim *d) {
     clear_lines(d);
     for (int i = 0; i < d->n_st; i++)
-        d->st[i].pos = d->st[i].phase = 0;
+        d->st[i].phase = 0;
 }
 
+/* acc + h w, fused where the target has FMA (ISO C mode does not contract a * b + c). */
+#if defined(__FMA__)
+#include <immintrin.h>
+static inline v4 madd(v4 h, v4 w, v4 acc) {
+    return (v4)_mm256_fmadd_pd((__m256d)h, (__m256d)w, (__m256d)acc);
+}
+#else
+static inline v4 madd(v4 h, v4 w, v4 acc) { return acc + h * w; }
+#endif
+
 /* Dot product of the taps with the window of the n newest frames (oldest first). */
-static inline v4 dot(const double *h, const v4 *w, int n) {
+static inline v4 dot(const v4 *h, const v4 *w, int n) {
     v4 a0 = {0}, a1 = {0}, a2 = {0}, a3 = {0};
     int k = 0;
     for (; k + 4 <= n; k += 4) {
-        a0 += h[k] * w[k];
-        a1 += h[k + 1] * w[k + 1];
-        a2 += h[k + 2] * w[k + 2];
-        a3 += h[k + 3] * w[k + 3];
+        a0 = madd(h[k], w[k], a0);
+        a1 = madd(h[k + 1], w[k + 1], a1);
+        a2 = madd(h[k + 2], w[k + 2], a2);
+        a3 = madd(h[k + 3], w[k + 3], a3);
     }
     for (; k < n; k++)
-        a0 += h[k] * w[k];
+        a0 = madd(h[k], w[k], a0);
     return (a0 + a1) + (a2 + a3);
+}
+
+/* Stage i has m new frames after its history in lin: compute its outputs (into the next
+ * stage's input, or out), keep the newest n - 1 frames as history. Returns frames written
+ * to out. */
+static int run_stages(afm_decim *d, int i, int m, double *out) {
+    int written = 0;
+    for (; i < d->n_st; i++) {
+        stage *g = &d->st[i];
+        v4 *dst = i + 1 < d->n_st ? d->st[i + 1].lin + (d->st[i + 1].n - 1) : NULL;
+        int k = 0;
+        /* output when the input at index j completes r inputs; its window starts at j */
+        for (int j = g->r - g->phase - 1; j < m; j += g->r) {
+            v4 y = dot(g->hv, g->lin + j, g->n);
+            if (dst)
+                dst[k++] = y;
+            else
+                memcpy(out + (size_t)written++ * AFM_DECIM_CH, &y, sizeof y);
+        }
+        g->phase = (g->phase + m) % g->r;
+        memmove(g->lin, g->lin + m, ((size_t)g->n - 1) * sizeof(v4));
+        if (!dst || k == 0) break;
+        m = k;
+    }
+    return written;
 }
 
 int afm_decim_run(afm_decim *d, const double *in, int n, double *out) {
@@ -215,29 +260,33 @@ int afm_decim_run(afm_decim *d, const double *in, int n, double *out) {
         return n;
     }
     int m = 0;
-    for (int i = 0; i < n; i++) {
-        v4 x;
-        memcpy(&x, in + (size_t)i * AFM_DECIM_CH, sizeof x);
-        v4 z = x * 0.0; /* NaN in a lane for inf or NaN input */
-        if ((z[0] + z[1]) + (z[2] + z[3]) != 0.0) {
+    stage *g0 = &d->st[0];
+    for (int i = 0; i < n;) {
+        /* copy a pass of finite frames behind the first stage's history; a non-finite
+         * frame ends the pass (and is handled after it) */
+        v4 *dst = g0->lin + (g0->n - 1);
+        int len = n - i < g0->cap ? n - i : g0->cap, k = 0;
+        v4 z = {0};
+        for (; k < len; k++) {
+            v4 x;
+            memcpy(&x, in + (size_t)(i + k) * AFM_DECIM_CH, sizeof x);
+            dst[k] = x;
+            z += x * 0.0; /* NaN in a lane after inf or NaN input */
+        }
+        if ((z[0] + z[1]) + (z[2] + z[3]) != 0.0) { /* find the first bad frame */
+            for (k = 0; k < len; k++) {
+                v4 x = dst[k] * 0.0;
+                if ((x[0] + x[1]) + (x[2] + x[3]) != 0.0) break;
+            }
+        }
+        if (k > 0) m += run_stages(d, 0, k, out + (size_t)m * AFM_DECIM_CH);
+        i += k;
+        if (k < len) { /* in[i] is not finite: clear every line, it enters as 0 */
             clear_lines(d);
             d->nonfinite++;
-            x = (v4){0};
-        }
-        int s = 0;
-        for (;;) {
-            stage *g = &d->st[s];
-            g->buf[g->pos] = x;
-            g->buf[g->pos + g->n] = x;
-            if (++g->pos == g->n) g->pos = 0;
-            if (++g->phase < g->r) break;
-            g->phase = 0;
-            x = dot(g->h, g->buf + g->pos, g->n);
-            if (++s == d->n_st) {
-                memcpy(out + (size_t)m * AFM_DECIM_CH, &x, sizeof x);
-                m++;
-                break;
-            }
+            dst[0] = (v4){0};
+            m += run_stages(d, 0, 1, out + (size_t)m * AFM_DECIM_CH);
+            i++;
         }
     }
     return m;

@@ -12,9 +12,10 @@
  * product of costs (taps / input samples) is smallest; each stage is a Kaiser-windowed
  * sinc FIR designed for 86 dB, its response checked on a dense grid (passband and whole
  * stopband) and lengthened until it meets 81 dB and 0.004 dB. A stage computes an output
- * only every R_i inputs (polyphase saving) from a doubled circular delay line (one
- * contiguous dot product, all channels per tap). R = 16, p = 0.8 costs about 12 taps per
- * input sample. R = 1 passes the input through unchanged with no delay.
+ * only every R_i inputs (polyphase saving), one contiguous dot product (all channels per
+ * tap) over a linear buffer: the stage's last n - 1 input frames, then the new input
+ * (copied once per pass of up to 512 frames; no per-sample delay-line writes). R = 16,
+ * p = 0.8 costs about 12 taps per input sample. R = 1 passes the input through unchanged with no delay.
  *
  * Non-finite input: the delay lines of every stage are cleared (the output grid keeps
  * its phase), the sample enters as 0 and afm_decim_nonfinite() counts it.

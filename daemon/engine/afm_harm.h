@@ -28,9 +28,11 @@
  * four multiply-adds per harmonic (vectorised 4 harmonics at a time). e^{-ik theta} is
  * carried by per-harmonic phasors rotated by e^{-ik dphi} (afm_phase_track in
  * afm_est_internal.h: within a few ulps of theta of the supplied phase, else the sample is
- * computed exactly); at each period boundary, after a jump or drift of theta and every
- * 4096 samples they are recomputed exactly from theta mod 2 pi (one sincos and O(log k)
- * complex products per harmonic). */
+ * computed exactly). At a period boundary on the tracker's prediction they keep rotating
+ * (the theta they stand for is carried along and must stay within the tracker's tol of the
+ * supplied one); after a jump or drift of theta, a tolerance miss and every 4096 samples
+ * they are recomputed exactly from theta mod 2 pi (one sincos and O(log k) complex
+ * products per harmonic). */
 #ifndef AFM_HARM_H
 #define AFM_HARM_H
 
@@ -58,6 +60,8 @@ typedef struct {
     double x_prev, f_prev;
     double er[AFM_HARM_LANES], ei[AFM_HARM_LANES]; /* e^{-ik phi} of the last sample */
     double rr[AFM_HARM_LANES], ri[AFM_HARM_LANES]; /* e^{-ik dphi}: one step */
+    double imp_ref;   /* theta the phasors stand for at the tracker's th_ref */
+    double n_sync;    /* samples since the phasors were computed exactly */
     /* running sums of x e^{-ik phi}, f e^{-ik phi}: weight 1 per sample, the ends corrected
      * to the trapezoid with fractional ends at the boundaries */
     double xr[AFM_HARM_LANES], xi[AFM_HARM_LANES];

@@ -78,6 +78,36 @@ int afm_lockin_push(afm_lockin *l, double u_m, double theta_rad) {
 #else
 #define ALWAYS_INLINE
 #endif
+#if defined(__FMA__) && defined(__SSE2__)
+#include <immintrin.h>
+/* Both channels in one 2-lane vector (lane 0 in-phase with sin, lane 1 quadrature with
+ * cos): per lane exactly afm_lockin_push's operations. The phasor (s, c) is rotated as
+ * s' = fma(s, rc, c rs), c' = fma(c, rc, -(s rs)): the swapped vector times (rs, -rs). */
+static inline ALWAYS_INLINE void run_order(afm_lockin *l, const double *u, int L,
+                                           const int order) {
+    __m128d xy[AFM_LOCKIN_MAX_ORDER];
+    for (int k = 0; k < order; k++)
+        xy[k] = _mm_loadu_pd(l->xy[k]);
+    __m128d v = _mm_set_pd(l->c, l->s), rc = _mm_set1_pd(l->rc);
+    __m128d rsm = _mm_set_pd(-l->rs, l->rs), a = _mm_set1_pd(l->alpha);
+    for (int i = 0; i < L; i++) {
+        __m128d t = _mm_mul_pd(_mm_shuffle_pd(v, v, 1), rsm);
+        v = _mm_fmadd_pd(v, rc, t);
+        __m128d in = _mm_mul_pd(_mm_set1_pd(2.0 * u[i]), v);
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC unroll 8
+#endif
+        for (int k = 0; k < order; k++) {
+            xy[k] = _mm_fmadd_pd(a, _mm_sub_pd(in, xy[k]), xy[k]);
+            in = xy[k];
+        }
+    }
+    for (int k = 0; k < order; k++)
+        _mm_storeu_pd(l->xy[k], xy[k]);
+    l->s = _mm_cvtsd_f64(v);
+    l->c = _mm_cvtsd_f64(_mm_unpackhi_pd(v, v));
+}
+#else
 static inline ALWAYS_INLINE void run_order(afm_lockin *l, const double *u, int L,
                                            const int order) {
     double xy[AFM_LOCKIN_MAX_ORDER][2];
@@ -104,6 +134,7 @@ static inline ALWAYS_INLINE void run_order(afm_lockin *l, const double *u, int L
     l->c = c;
     l->s = s;
 }
+#endif
 
 int afm_lockin_push_n(afm_lockin *l, const double *u, const double *th, int n) {
     int rej = 0, i = 0;
