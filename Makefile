@@ -8,7 +8,7 @@ CC      ?= cc
 
 DEB_PKGS := build-essential pkg-config liblcm-dev liblcm-bin libglib2.0-dev libsundials-dev \
             liblapacke-dev libconfig-dev libsystemd-dev libcjson-dev can-utils gnuplot-nox \
-            libfftw3-dev systemd
+            libfftw3-dev systemd qemu-system-x86 busybox-static cpio
 
 CSTD     := -std=c11 -D_POSIX_C_SOURCE=200809L
 WARN     := -Wall -Wextra -Werror -Wshadow -Wstrict-prototypes -Wmissing-prototypes
@@ -39,7 +39,7 @@ TEST_SRC   := $(wildcard tests/test_*.c)
 TEST_BIN   := $(patsubst tests/%.c,$(BUILD)/tests/%,$(TEST_SRC))
 TEST_COMMON := $(BUILD)/obj/tests/check.o $(BUILD)/obj/tests/fixtures.o
 
-.PHONY: all deps run test validate bench install clean format format-check
+.PHONY: all deps run test validate bench install clean format format-check can-probe
 
 LIBS_ALL   := $(if $(IO_OBJ),$(IO_LIB)) $(MSG_LIB) $(ENGINE_LIB)
 
@@ -95,6 +95,18 @@ $(BUILD)/bin/afmtwind: $(DAEMON_OBJ) $(LIBS_ALL)
 $(BUILD)/tests/%: $(BUILD)/obj/tests/%.o $(TEST_COMMON) $(LIBS_ALL)
 	@mkdir -p $(dir $@)
 	$(CC) $(CFLAGS) -o $@ $^ $(LDLIBS)
+
+# The CAN probe that tests/test_can_vm.sh runs inside a VM (static: engine + CAN transport
+# + codec, no LCM). Built by that script; not part of `all`.
+CAN_PROBE  := $(BUILD)/tests/can_vm_probe
+STATIC_LDLIBS := -lsundials_cvode -lsundials_arkode -lsundials_nvecserial -llapacke -llapack \
+            -lblas -lgfortran -lquadmath -lconfig -lfftw3 -lpthread -lm
+can-probe: $(CAN_PROBE)
+$(CAN_PROBE): $(BUILD)/obj/tests/can_vm_probe.o $(BUILD)/obj/tests/check.o \
+              $(BUILD)/obj/daemon/transport/afm_can_codec.o $(BUILD)/obj/daemon/transport/afm_can_io.o \
+              $(ENGINE_LIB)
+	@mkdir -p $(dir $@)
+	$(CC) $(CFLAGS) -static -o $@ $^ $(STATIC_LDLIBS)
 
 # The daemon in the foreground on default.conf (tools/afmtwind-run.sh: LCM's default udpm
 # when this host has a multicast route, else a private network namespace; see README).

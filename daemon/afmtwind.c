@@ -4,6 +4,8 @@
  * shutdown in reverse order. */
 #include "twind.h"
 
+#include "afm_lcm_url.h"
+
 #include <errno.h>
 #include <math.h>
 #include <signal.h>
@@ -23,18 +25,28 @@ static void usage(FILE *f) {
             "usage: afmtwind --config FILE [options]\n"
             "\n"
             "Runs the AFM cantilever twin and talks LCM: commands on PREFIX{DITHER,SETPOINT,\n"
-            "PARAM,CONTROL,TICK}, outputs on PREFIX{SAMPLES,HARMONICS,STATUS}. Foreground;\n"
+            "PARAM,CONTROL,TICK} (--lcm-url), outputs on PREFIX{SAMPLES,HARMONICS,STATUS}\n"
+            "(--lcm-out-url: by default the same udpm group, port + 1). Foreground;\n"
             "one status line a second on stderr. SIGTERM/SIGINT stop (a final status is\n"
             "published), SIGHUP reloads FILE (a bad file keeps the running config).\n"
             "\n"
             "options:\n"
             "  --config FILE          twin configuration (libconfig), required\n"
-            "  --lcm-url URL          LCM provider URL (default: $LCM_DEFAULT_URL or udpm)\n"
+            "  --lcm-url URL          LCM URL of the commands (default: $LCM_DEFAULT_URL or\n"
+            "                         udpm://239.255.76.67:7667?ttl=0)\n"
+            "  --lcm-out-url URL      LCM URL of the outputs (default: --lcm-url with the udpm\n"
+            "                         port + 1, so that the command socket carries commands only)\n"
             "  --mode M               realtime (default), freerun or lockstep\n"
             "  --prefix NAME_         channel prefix (default AFMTWIN_)\n"
-            "  --cpu N                pin the real-time thread to CPU N\n"
+            "  --cpu N                pin the integrator thread to CPU N\n"
+            "  --chain-cpu N          pin the output-chain thread to CPU N\n"
             "  --rt-priority N        SCHED_FIFO priority 1..99 (default 80)\n"
             "  --block-us N           real-time block length in microseconds (default 1000)\n"
+            "  --speed X              realtime: model seconds per wall second (default 1)\n"
+            "  --max-lag-ms N         realtime: when the lag passes N ms the backlog is\n"
+            "                         dropped and counted as a resync (default 100)\n"
+            "  --ring-us N            buffer between integrator and output chain, in model\n"
+            "                         microseconds (default 5000)\n"
             "  --harmonics-every K    publish every K-th period's harmonics (default: auto,\n"
             "                         at most --harmonics-max-hz records a second)\n"
             "  --harmonics-max-hz F   cap for the automatic choice (default 1000)\n"
@@ -78,8 +90,9 @@ static int parse_num(const char *opt, const char *s, double lo, double hi, doubl
 }
 
 static int parse_args(int argc, char **argv, twind_opts *o) {
-    *o = (twind_opts){.prefix = "AFMTWIN_", .mode = TWIND_REALTIME, .cpu = -1,
-                      .rt_priority = 80, .block_s = 1e-3, .harmonics_max_hz = 1000.0};
+    *o = (twind_opts){.prefix = "AFMTWIN_", .mode = TWIND_REALTIME, .cpu = -1, .chain_cpu = -1,
+                      .rt_priority = 80, .block_s = 1e-3, .harmonics_max_hz = 1000.0,
+                      .speed = 1.0, .max_lag_s = 0.1, .ring_s = 5e-3};
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
         double x;
@@ -96,6 +109,20 @@ static int parse_args(int argc, char **argv, twind_opts *o) {
             o->config_path = v;
         } else if (!strcmp(a, "--lcm-url")) {
             o->lcm_url = v;
+        } else if (!strcmp(a, "--lcm-out-url")) {
+            o->lcm_out_url = v;
+        } else if (!strcmp(a, "--chain-cpu")) {
+            if (parse_num(a, v, 0, 1023, &x) || x != floor(x)) return -1;
+            o->chain_cpu = (int)x;
+        } else if (!strcmp(a, "--speed")) {
+            if (parse_num(a, v, 1e-3, 1e3, &x)) return -1;
+            o->speed = x;
+        } else if (!strcmp(a, "--max-lag-ms")) {
+            if (parse_num(a, v, 1, 1e6, &x)) return -1;
+            o->max_lag_s = x * 1e-3;
+        } else if (!strcmp(a, "--ring-us")) {
+            if (parse_num(a, v, 100, 1e6, &x)) return -1;
+            o->ring_s = x * 1e-6;
         } else if (!strcmp(a, "--prefix")) {
             o->prefix = v;
         } else if (!strcmp(a, "--mode")) {
@@ -144,18 +171,23 @@ static void status_line(twind *d, twind_rtf_state *rs, char *buf, size_t len) {
     afm_io_status s;
     twind_status_fill(d, &s, rs);
     twind_snapshot snap;
+    twind_chain_snapshot cs;
     twind_snap_read(d, &snap);
+    twind_csnap_read(d, &cs);
     snprintf(buf, len,
-             "t %.6f s  rtf %.3f  busy %.0f%%  lag %.4f s  overruns %lld  rx %lld  rej %lld  "
-             "blowups %lld  seq %lld  Z %.3f nm  fe %.1f Hz  A %.4g nm  %s",
-             s.model_time_s, s.realtime_factor, 100.0 * snap.busy_fraction, s.lag_s,
-             (long long)s.overruns, (long long)s.received, (long long)s.rejected,
-             (long long)s.blowups, (long long)s.seq_applied, s.separation_m * 1e9, s.fe_hz,
-             s.amplitude_m * 1e9, s.running ? "running" : "paused");
-    if (snap.samples_dropped || snap.harm_dropped || snap.st.chain.periods_dropped) {
+             "t %.6f s  rtf %.3f  busy %.0f%%/%.0f%%  lag %.4f s  overruns %lld  resyncs %lld  "
+             "chain stalls %lld lag %.4f s  rx %lld  applied %lld  rej %lld  blowups %lld  "
+             "seq %lld  Z %.3f nm  fe %.1f Hz  A %.4g nm  %s",
+             s.model_time_s, s.realtime_factor, 100.0 * snap.busy_fraction,
+             100.0 * cs.busy_fraction, s.lag_s, (long long)s.overruns, (long long)s.resyncs,
+             (long long)s.chain_stalls, s.chain_lag_s, (long long)s.received,
+             (long long)s.applied, (long long)s.rejected, (long long)s.blowups,
+             (long long)s.seq_applied, s.separation_m * 1e9, s.fe_hz, s.amplitude_m * 1e9,
+             s.running ? "running" : "paused");
+    if (cs.samples_dropped || cs.harm_dropped || cs.st.chain.periods_dropped) {
         size_t n = strlen(buf);
         snprintf(buf + n, len - n, "  DROPPED: %lld sample blocks, %lld harmonics, %lld periods",
-                 snap.samples_dropped, snap.harm_dropped, snap.st.chain.periods_dropped);
+                 cs.samples_dropped, cs.harm_dropped, cs.st.chain.periods_dropped);
     }
 }
 
@@ -186,13 +218,18 @@ int main(int argc, char **argv) {
     long long block = llround(d.opt.block_s * cfg.sim.sample_rate_hz);
     if (block < 1) block = 1;
     if (block > (1 << 20)) block = 1 << 20;
-    d.runner = afm_runner_create(&cfg, (int)block, d.opt.mode == TWIND_LOCKSTEP, err, sizeof err);
+    long long ring = llround(d.opt.ring_s * cfg.sim.sample_rate_hz / AFM_RUNNER_SLOT_SAMPLES);
+    if (ring < 4) ring = 4;
+    if (ring > 4096) ring = 4096;
+    d.runner = afm_runner_create_pipelined(&cfg, (int)block, d.opt.mode == TWIND_LOCKSTEP, true,
+                                           (int)ring, err, sizeof err);
     if (!d.runner) {
         fprintf(stderr, "afmtwind: %s: %s\n", d.opt.config_path, err);
         return 1;
     }
     pthread_mutex_init(&d.lock, NULL);
     sem_init(&d.out_sem, 0, 0);
+    sem_init(&d.chain_sem, 0, 0);
     if (afm_spsc_init(&d.cmd_q, CMD_Q_LEN, sizeof(twind_cmd_item), err, sizeof err) ||
         afm_spsc_init(&d.trash_q, TRASH_Q_LEN, sizeof(afm_runner_model *), err, sizeof err) ||
         afm_spsc_init(&d.rtrej_q, RTREJ_Q_LEN, sizeof(twind_reason), err, sizeof err) ||
@@ -202,31 +239,56 @@ int main(int argc, char **argv) {
         goto out;
     }
     afm_io_sink sink = twind_sink(&d);
-    d.io = afm_lcm_io_create(d.opt.lcm_url, d.opt.prefix, &sink, err, sizeof err);
+    d.io = afm_lcm_io_create(d.opt.lcm_url, d.opt.lcm_out_url, d.opt.prefix, &sink, err,
+                             sizeof err);
     if (!d.io) {
         fprintf(stderr, "afmtwind: %s\n", err);
         goto out;
     }
-    pthread_t t_rt, t_recv, t_pub;
+    if (cfg.can.enabled) { /* CAN beside LCM, polled on the same receive thread (issue 6) */
+        afm_io *both[2] = {d.io, afm_can_io_create(&cfg.can, &cfg.drive, &sink, err, sizeof err)};
+        if (!both[1]) {
+            fprintf(stderr, "afmtwind: %s\n", err);
+            goto out;
+        }
+        d.io = afm_io_mux_create(both, 2, err, sizeof err);
+        if (!d.io) {
+            fprintf(stderr, "afmtwind: %s\n", err);
+            goto out;
+        }
+        afm_io_status st = {0};
+        d.io->ops->annotate_status(d.io, &st);
+        fprintf(stderr, "afmtwind: CAN input on %s (%s frames, %s ids): %s\n",
+                cfg.can.interface, cfg.can.fd ? "classic and FD" : "classic",
+                cfg.can.extended_ids ? "29-bit" : "11-bit", st.can_state);
+    }
+    pthread_t t_rt, t_chain, t_recv, t_pub;
     if (pthread_create(&t_recv, NULL, twind_recv_main, &d) ||
         pthread_create(&t_pub, NULL, twind_pub_main, &d) ||
+        pthread_create(&t_chain, NULL, twind_chain_main, &d) ||
         pthread_create(&t_rt, NULL, twind_rt_main, &d)) {
         fprintf(stderr, "afmtwind: cannot start threads\n");
         exit(1); /* threads may be running: no orderly way back */
     }
     double fs = cfg.sim.sample_rate_hz;
+    char cmd_u[AFM_LCM_URL_LEN], out_u[AFM_LCM_URL_LEN];
+    if (afm_lcm_urls(d.opt.lcm_url, d.opt.lcm_out_url, cmd_u, out_u, sizeof cmd_u, err,
+                     sizeof err)) /* cannot fail here: the transport resolved them already */
+        snprintf(out_u, sizeof out_u, "?");
     fprintf(stderr,
             "afmtwind: %s, %s mode, %s integrator at %.6g MHz, block %lld samples (%.0f us), "
-            "channels %s*, LCM %s\n",
+            "output chain on a second thread (ring %lld x %d samples), channels %s*, LCM "
+            "commands %s, outputs %s\n",
             d.opt.config_path, twind_mode_name(d.opt.mode),
             afm_sim_integrator_name(afm_runner_sim(d.runner)), fs * 1e-6, block,
-            (double)block / fs * 1e6, d.opt.prefix, d.opt.lcm_url ? d.opt.lcm_url : "default");
+            (double)block / fs * 1e6, ring, AFM_RUNNER_SLOT_SAMPLES, d.opt.prefix, cmd_u, out_u);
     twind_notify_ready();
 
     double t_start = twind_mono_now();
     twind_rtf_state rs = {0, 0, 0};
     long long last_beat = -1;
     int warned = 0;
+    long long last_resyncs = 0;
     for (;;) {
         struct timespec one = {1, 0};
         int sig = sigtimedwait(&sigs, NULL, &one);
@@ -243,12 +305,18 @@ int main(int argc, char **argv) {
             atomic_store(&d.reload, 1);
             continue;
         }
-        char line[512];
+        char line[768];
         status_line(&d, &rs, line, sizeof line);
         if (!d.opt.quiet) fprintf(stderr, "afmtwind: %s\n", line);
         twind_notify_status(line);
         twind_snapshot s;
         twind_snap_read(&d, &s);
+        if (s.resyncs != last_resyncs) /* never silently, also with --quiet */
+            fprintf(stderr, "afmtwind: warning: more than %.0f ms behind real time: dropped the "
+                    "backlog %lld time(s) in the last second (%lld in all, %.4f s of model time "
+                    "skipped)\n", d.opt.max_lag_s * 1e3, s.resyncs - last_resyncs, s.resyncs,
+                    s.resync_dropped_s);
+        last_resyncs = s.resyncs;
         if (s.heartbeat != last_beat) twind_notify_watchdog(); /* only while the loop turns */
         last_beat = s.heartbeat;
         if (d.opt.exit_after_s > 0 && twind_mono_now() - t_start >= d.opt.exit_after_s) {
@@ -259,13 +327,14 @@ int main(int argc, char **argv) {
     twind_notify_stopping();
     atomic_store(&d.stop, 1);
     pthread_join(t_rt, NULL);
+    pthread_join(t_chain, NULL);
     pthread_join(t_pub, NULL);
     pthread_join(t_recv, NULL);
     {
         twind_cmd_item it;
         while (afm_spsc_pop(&d.cmd_q, &it)) /* commands that came too late */
             afm_runner_model_destroy(&it.model);
-        char line[512];
+        char line[768];
         status_line(&d, &rs, line, sizeof line);
         fprintf(stderr, "afmtwind: final: %s\n", line);
     }
@@ -278,6 +347,7 @@ out:
     afm_spsc_destroy(&d.trash_q);
     afm_spsc_destroy(&d.cmd_q);
     sem_destroy(&d.out_sem);
+    sem_destroy(&d.chain_sem);
     afm_runner_destroy(&d.runner);
     return rc;
 }

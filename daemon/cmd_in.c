@@ -111,7 +111,9 @@ static void do_reload(twind *d) {
 
 static void drain_side_queues(twind *d) {
     afm_runner_model *m;
-    while (afm_spsc_pop(&d->trash_q, &m))
+    while (afm_spsc_pop(&d->trash_q, &m)) /* rejected by the RT thread */
+        afm_runner_model_destroy(&m);
+    while (afm_runner_take_trash(d->runner, &m)) /* swapped out, via the chain thread */
         afm_runner_model_destroy(&m);
     twind_reason r;
     while (afm_spsc_pop(&d->rtrej_q, &r))
@@ -129,8 +131,9 @@ void *twind_recv_main(void *arg) {
         if (atomic_exchange(&d->reload, 0)) do_reload(d);
         drain_side_queues(d);
     }
-    /* After the RT thread has stopped: whatever it left behind. */
-    while (!atomic_load_explicit(&d->rt_done, memory_order_acquire)) {
+    /* After the RT and chain threads have stopped: whatever they left behind. */
+    while (!atomic_load_explicit(&d->rt_done, memory_order_acquire) ||
+           !atomic_load_explicit(&d->chain_done, memory_order_acquire)) {
         struct timespec ts = {0, 1000000L};
         nanosleep(&ts, NULL);
     }

@@ -12,7 +12,9 @@
 
 void twind_status_fill(twind *d, afm_io_status *o, twind_rtf_state *rs) {
     twind_snapshot s;
+    twind_chain_snapshot cs;
     twind_snap_read(d, &s);
+    twind_csnap_read(d, &cs);
     double wall = twind_mono_now();
     memset(o, 0, sizeof *o);
     o->utime = twind_utime_now();
@@ -37,6 +39,11 @@ void twind_status_fill(twind *d, afm_io_status *o, twind_rtf_state *rs) {
     o->separation_m = s.st.separation_m;
     o->fe_hz = s.st.fe_hz;
     o->amplitude_m = s.st.amplitude_m;
+    o->applied = s.st.applied;
+    o->resyncs = s.resyncs;
+    o->chain_stalls = s.st.stalls;
+    double lag = s.st.t_s - cs.st.t_s; /* model time integrated but not yet through the chain */
+    o->chain_lag_s = lag > 0 ? lag : 0;
 }
 
 static int drain(twind *d) {
@@ -80,7 +87,7 @@ void *twind_pub_main(void *arg) {
             next_status += STATUS_PERIOD_S;
             if (next_status < now) next_status = now + STATUS_PERIOD_S;
         }
-        if (atomic_load_explicit(&d->rt_done, memory_order_acquire)) break;
+        if (atomic_load_explicit(&d->chain_done, memory_order_acquire)) break;
     }
     drain(d);
     twind_status_fill(d, &st, &rs);

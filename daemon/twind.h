@@ -9,9 +9,13 @@
  *    of the config (shadow), models built for damping/geometry changes and SIGHUP reloads,
  *    all pushed into cmd_q (its only producer); destroys what the RT thread swapped out
  *    (trash_q) and counts the RT thread's rare rejections (rtrej_q).
- *  - rt (rt_loop.c): the runner. Pops cmd_q at block boundaries, runs a block, pushes
- *    samples (samples_q) and harmonics (harm_q), updates the snapshot (seqlock). Never
- *    blocks, locks or allocates.
+ *  - rt (rt_loop.c): the runner's integrator stage. Pops cmd_q at block boundaries,
+ *    integrates a block into the runner's ring (afm_runner, pipelined), paces realtime
+ *    mode, updates the snapshot (seqlock). Never blocks, locks or allocates.
+ *  - chain (chain_loop.c): the runner's output-chain stage, on a second core. Takes the
+ *    ring's sample blocks through OBD, decimators and estimators, pushes samples
+ *    (samples_q) and harmonics (harm_q), updates its own snapshot. Never blocks, locks or
+ *    allocates (it sleeps on chain_sem when the ring is empty).
  *  - publish (publish.c): pops samples_q and harm_q, publishes them, and the status at
  *    10 Hz; the final status at shutdown.
  * Counters the receive thread owns (received, rejected, last reason) sit behind `lock`,
@@ -20,6 +24,7 @@
 #define TWIND_H
 
 #include "afm_io.h"
+#include "afm_io_records.h"
 #include "afm_runner.h"
 #include "afm_spsc.h"
 
@@ -32,10 +37,15 @@ typedef enum { TWIND_REALTIME = 0, TWIND_FREERUN = 1, TWIND_LOCKSTEP = 2 } twind
 
 typedef struct {
     const char *config_path;
-    const char *lcm_url;  /* NULL: LCM's default */
+    const char *lcm_url;  /* commands; NULL: LCM's default */
+    const char *lcm_out_url; /* outputs; NULL: derived from lcm_url (udpm: port + 1) */
     const char *prefix;   /* channel prefix, default "AFMTWIN_" */
     twind_mode mode;
     int cpu;              /* pin the RT thread to this CPU; -1: no pinning */
+    int chain_cpu;        /* pin the chain thread to this CPU; -1: no pinning */
+    double speed;         /* realtime: model seconds per wall second asked (1) */
+    double max_lag_s;     /* realtime: lag beyond which the backlog is dropped (resync) */
+    double ring_s;        /* runner ring between the two stages, model seconds */
     int rt_priority;      /* SCHED_FIFO priority 1..99 */
     double block_s;       /* real-time block length (s) */
     double exit_after_s;  /* > 0: stop after this long (tests) */
@@ -63,24 +73,35 @@ typedef struct {
     long long blocks;          /* blocks run */
     long long overruns;        /* realtime blocks that ended after their deadline */
     double lag_s;              /* wall clock minus model time (realtime mode) */
-    long long samples_dropped; /* sample records lost to a full samples_q */
-    long long harm_dropped;    /* harmonics records lost to a full harm_q */
+    long long resyncs;         /* realtime: backlogs dropped because lag > max_lag_s */
+    double resync_dropped_s;   /* model time not run because of them (wall seconds x speed) */
     long long heartbeat;       /* increases every loop turn (watchdog) */
     double busy_fraction;      /* compute time / wall time over the last second */
 } twind_snapshot;
+
+/* What the chain thread publishes (its own seqlock). */
+typedef struct {
+    afm_runner_chain_status st;
+    long long samples_dropped; /* sample records lost to a full samples_q */
+    long long harm_dropped;    /* harmonics records lost to a full harm_q */
+    double busy_fraction;
+} twind_chain_snapshot;
 
 typedef struct {
     twind_opts opt;
     afm_runner *runner;   /* the RT thread's after start */
     afm_io *io;
     afm_spsc cmd_q, trash_q, rtrej_q, samples_q, harm_q;
-    sem_t out_sem;        /* posted by the RT thread after pushing outputs */
+    sem_t out_sem;        /* posted by the chain thread after pushing outputs */
+    sem_t chain_sem;      /* posted by the RT thread after a block went into the ring */
     atomic_int stop;      /* set by main: all threads finish */
     atomic_int rt_done;   /* set by the RT thread when it has left its loop */
+    atomic_int chain_done; /* set by the chain thread when it has left its loop */
     atomic_int reload;    /* set by main on SIGHUP, taken by the receive thread */
     /* snapshot */
-    atomic_uint snap_seq;
+    atomic_uint snap_seq, csnap_seq;
     twind_snapshot snap;
+    twind_chain_snapshot csnap;
     /* receive-side counters */
     pthread_mutex_t lock;
     long long received, rejected;
@@ -103,6 +124,8 @@ void twind_rt_setup_aux(int priority);
 
 /* rt_loop.c: the real-time thread (arg: twind *). */
 void *twind_rt_main(void *arg);
+/* chain_loop.c: the output-chain thread (arg: twind *). */
+void *twind_chain_main(void *arg);
 
 /* cmd_in.c: the sink the transport calls, and the receive thread (arg: twind *). */
 afm_io_sink twind_sink(twind *d);
@@ -126,22 +149,34 @@ void twind_notify_status(const char *text);
 void twind_notify_watchdog(void);
 void twind_notify_stopping(void);
 
-/* Seqlock snapshot access. */
+/* Seqlock snapshot access (one writer each: the RT thread, the chain thread). */
+#define TWIND_SEQLOCK_WRITE(seqp, dst, src)                                                        \
+    do {                                                                                           \
+        unsigned q_ = atomic_load_explicit(seqp, memory_order_relaxed);                            \
+        atomic_store_explicit(seqp, q_ + 1, memory_order_relaxed);                                 \
+        atomic_thread_fence(memory_order_release);                                                 \
+        *(dst) = *(src);                                                                           \
+        atomic_store_explicit(seqp, q_ + 2, memory_order_release);                                 \
+    } while (0)
+#define TWIND_SEQLOCK_READ(seqp, dst, src)                                                         \
+    for (;;) {                                                                                     \
+        unsigned a_ = atomic_load_explicit(seqp, memory_order_acquire);                            \
+        if (a_ & 1u) continue;                                                                     \
+        *(dst) = *(src);                                                                           \
+        atomic_thread_fence(memory_order_acquire);                                                 \
+        if (atomic_load_explicit(seqp, memory_order_relaxed) == a_) break;                         \
+    }
 static inline void twind_snap_write(twind *d, const twind_snapshot *s) {
-    unsigned q = atomic_load_explicit(&d->snap_seq, memory_order_relaxed);
-    atomic_store_explicit(&d->snap_seq, q + 1, memory_order_relaxed);
-    atomic_thread_fence(memory_order_release);
-    d->snap = *s;
-    atomic_store_explicit(&d->snap_seq, q + 2, memory_order_release);
+    TWIND_SEQLOCK_WRITE(&d->snap_seq, &d->snap, s);
 }
 static inline void twind_snap_read(twind *d, twind_snapshot *s) {
-    for (;;) {
-        unsigned a = atomic_load_explicit(&d->snap_seq, memory_order_acquire);
-        if (a & 1u) continue;
-        *s = d->snap;
-        atomic_thread_fence(memory_order_acquire);
-        if (atomic_load_explicit(&d->snap_seq, memory_order_relaxed) == a) return;
-    }
+    TWIND_SEQLOCK_READ(&d->snap_seq, s, &d->snap);
+}
+static inline void twind_csnap_write(twind *d, const twind_chain_snapshot *s) {
+    TWIND_SEQLOCK_WRITE(&d->csnap_seq, &d->csnap, s);
+}
+static inline void twind_csnap_read(twind *d, twind_chain_snapshot *s) {
+    TWIND_SEQLOCK_READ(&d->csnap_seq, s, &d->csnap);
 }
 
 /* Wall clock now (CLOCK_REALTIME, us) for utime stamps, and CLOCK_MONOTONIC in s. */

@@ -21,9 +21,9 @@ fi
 
 A="$BUILD/bin/afmtwin"
 D="$BUILD/bin/afmtwind"
-# LCM's default group, with 4 MB socket receive buffers: with UDP multicast every process
-# receives every message, the daemon its own output flood too; at the kernel's default
-# 208 kB it lost about 1 command in 50 here while publishing samples.
+# LCM's default group, with 4 MB socket receive buffers (for the listeners, which read
+# the output flood). Commands go to port 7667, outputs to 7668 (the daemon's default: the
+# command URL with port + 1), so the daemon's command socket carries commands only.
 export LCM_DEFAULT_URL='udpm://239.255.76.67:7667?ttl=0&recv_buf_size=4194304'
 pass=0; fail=0
 ok()  { echo "ok   $1"; pass=$((pass+1)); }
@@ -74,9 +74,14 @@ echo "$s" | grep -q '"mode":"realtime"' && ok "realtime mode" || bad "mode: $s"
 
 # --- rates: status at 10 Hz, harmonics every K-th period, over 2 s of wall time ---------
 "$A" listen --channels status,harmonics --json --timeout 2 > "$T/rates.json" 2>/dev/null
+# The rate from the daemon's own time stamps (utime), not from arrival: with both cores
+# taken by the two real-time stages this SCHED_OTHER listener may start or read late.
 ns=$(grep -c '"type":"status"' "$T/rates.json")
-[ "$ns" -ge 17 ] && [ "$ns" -le 23 ] && ok "status rate: $ns in 2 s (10 Hz +- 15 %)" \
-  || bad "status rate: $ns in 2 s, want 20"
+hz=$(grep '"type":"status"' "$T/rates.json" | jnum utime | awk 'NR==1{a=$1} {b=$1; n=NR}
+  END { if (n > 1 && b > a) printf "%.3f\n", (n - 1) / ((b - a) * 1e-6); else print 0 }')
+[ "$ns" -ge 5 ] && awk -v h="$hz" 'BEGIN{exit !(h >= 8.5 && h <= 11.5)}' \
+  && ok "status rate: $hz Hz from the time stamps of $ns messages (10 Hz +- 15 %)" \
+  || bad "status rate: $ns messages, $hz Hz, want 10"
 grep '"type":"harmonics"' "$T/rates.json" | jnum t_s > "$T/ts.txt"
 fe=$(grep -m1 '"type":"harmonics"' "$T/rates.json" | jnum fe_hz)
 res=$(awk -v fe="$fe" -v k=$K '
@@ -195,6 +200,9 @@ sed 's/^  separation_m = 40e-9;/  separation_m = 30e-9;/' config/default.conf > 
 kill -HUP "$DPID"
 s=$(wait_status "z > 2.99e-8 && z < 3.01e-8") && ok "SIGHUP with a good config: Z now 30 nm" \
   || bad "SIGHUP good config: $s; $(tail -3 "$T/daemon.err")"
+# A reload is no sender's command: seq_applied stays that of the last command (5).
+[ "$(echo "$s" | jnum seq_applied)" = 5 ] && ok "SIGHUP keeps seq_applied (5)" \
+  || bad "SIGHUP changed seq_applied: $s"
 cp tests/bad-configs/unknown-key.conf "$T/twin.conf" 2>/dev/null || echo "model = 1;" > "$T/twin.conf"
 n_rej=$(( $(status | jnum rejected) + 1 ))
 kill -HUP "$DPID"
@@ -225,6 +233,22 @@ tl=$(tail -1 "$T/final.json" | jnum model_time_s)
   || bad "final status: last published t '$tl', daemon's final t '$tf'"
 grep -q "rejected: AFMTWIN_SETPOINT" "$T/daemon.err" && ok "rejections logged on stderr" \
   || bad "no rejection lines on stderr"
+
+# --- resync: asked for 10x real time the loop cannot keep up (~1x here); without the
+# policy the lag would grow by ~0.9 s per wall second (> 2 s after 2.5 s). With it the
+# backlog is dropped past --max-lag-ms (counted in status.resyncs): the lag stays below the
+# bound plus one block's compute time (10 ms of model time at 10x: < 0.2 s with margin).
+"$D" --config config/default.conf --speed 10 --max-lag-ms 50 --quiet 2>"$T/resync.err" &
+DPID=$!
+sleep 2.5
+s=$(status)
+rs=$(echo "$s" | jnum resyncs); lag=$(echo "$s" | jnum lag_s)
+gt "${rs:-0}" 2 && awk -v l="$lag" 'BEGIN{exit !(l < 0.2)}' \
+  && ok "resync at --speed 10: $rs backlogs dropped, lag $lag s (bound 50 ms + one block)" \
+  || bad "resync: resyncs '$rs', lag '$lag': $s"
+grep -q "dropped the backlog" "$T/resync.err" && ok "resyncs reported on stderr (also --quiet)" \
+  || bad "no resync warning on stderr: $(tail -2 "$T/resync.err")"
+kill -TERM "$DPID"; wait "$DPID"; DPID=""
 
 echo "$pass passed, $fail failed"
 [ "$fail" -eq 0 ]

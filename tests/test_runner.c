@@ -119,9 +119,14 @@ static afm_cmd script(int k, const afm_config *cfg0, afm_config *shadow, afm_run
 }
 
 /* Run the script in slices of `slice` samples; returns the final status. */
-static afm_runner_status play(const afm_config *cfg, long long slice, outlog *o, int *apply_fail) {
+/* ring > 0: pipelined with a ring of that many items, the chain stage run here after each
+ * slice (and whenever the integrator stage stalls on a full ring). */
+static afm_runner_status play(const afm_config *cfg, long long slice, outlog *o, int *apply_fail,
+                              int ring) {
     char err[AFM_ERR_LEN];
-    afm_runner *r = afm_runner_create(cfg, 4096, false, err, sizeof err);
+    afm_runner *r = ring > 0 ? afm_runner_create_pipelined(cfg, 4096, false, true, ring, err,
+                                                           sizeof err)
+                             : afm_runner_create(cfg, 4096, false, err, sizeof err);
     afm_config shadow = *cfg;
     afm_runner_status st;
     *apply_fail = 0;
@@ -143,6 +148,15 @@ static afm_runner_status play(const afm_config *cfg, long long slice, outlog *o,
         if (total - done < n) n = total - done;
         if (n <= 0 && k >= N_CMDS) break;
         long long adv = afm_runner_run(r, n);
+        while (ring > 0 && adv < n && afm_runner_budget(r) > 0) { /* stalled: chain behind */
+            while (afm_runner_chain_run(r, 0) > 0) drain(r, o);
+            adv += afm_runner_run(r, n - adv);
+        }
+        if (ring > 0) {
+            afm_runner_model *t;
+            while (afm_runner_chain_run(r, 0) > 0) drain(r, o);
+            while (afm_runner_take_trash(r, &t)) afm_runner_model_destroy(&t);
+        }
         if (adv == 0) { /* paused with no budget: nothing to wait for in a test */
             if (k < N_CMDS) done = at[k];
             else break;
@@ -160,8 +174,8 @@ static void test_determinism(const afm_config *cfg) {
     log_init(&a);
     log_init(&b);
     int fa, fb;
-    afm_runner_status sa = play(cfg, 1000, &a, &fa);
-    afm_runner_status sb = play(cfg, 777, &b, &fb);
+    afm_runner_status sa = play(cfg, 1000, &a, &fa, 0);
+    afm_runner_status sb = play(cfg, 777, &b, &fb, 0);
     check_true(fa == 0 && fb == 0, "every scripted command applied");
     printf("  %ld decimated samples, %ld periods; model time %.6f s, %lld samples\n", a.n, a.np,
            sa.t_s, sa.samples);
@@ -183,8 +197,47 @@ static void test_determinism(const afm_config *cfg) {
     /* paused at 80000 with 2 x 5000 steps, run again from 90000: 140000 - 0 samples asked,
      * 10000 of them while paused */
     check_true(sa.samples == total, "samples advanced = asked (steps included)");
+    /* The daemon's two-stage form: the same script through the ring (4 items, so that the
+     * integrator stalls on a full ring again and again) gives the same bits. */
+    outlog c;
+    log_init(&c);
+    int fc;
+    afm_runner_status sc = play(cfg, 5000, &c, &fc, 4); /* 5000 > 4 x 1024 */
+    check_true(fc == 0, "pipelined: every scripted command applied");
+    same = a.n == c.n && !memcmp(a.ns, c.ns, sizeof a.ns);
+    for (int s = 0; s < AFM_MAX_OUTPUTS; s++)
+        for (long i = (long)s * PER; same && i < (long)s * PER + a.ns[s]; i++)
+            same = a.t[i] == c.t[i] && a.x[i] == c.x[i] && a.obd[i] == c.obd[i] && a.f[i] == c.f[i];
+    check_true(same, "pipelined (ring of 4) vs inline: every decimated sample bit-identical");
+    same = a.np == c.np && memcmp(a.per, c.per, (size_t)a.np * sizeof *a.per) == 0;
+    check_true(same, "pipelined vs inline: every period record bit-identical");
+    check_true(sc.t_s == sa.t_s && sc.samples == sa.samples && sc.seq_applied == sa.seq_applied &&
+                   sc.swaps == sa.swaps && sc.stalls > 0,
+               "pipelined: same final status; the integrator stalled on the full ring");
+    printf("  pipelined: %lld stalls on the 4-item ring\n", sc.stalls);
+    log_free(&c);
     log_free(&a);
     log_free(&b);
+}
+
+/* A reload keeps seq_applied (it is no sender's command). */
+static void test_reload_keeps_seq(const afm_config *cfg) {
+    char err[AFM_ERR_LEN];
+    afm_runner *r = afm_runner_create(cfg, 2048, false, err, sizeof err);
+    afm_cmd c = {.kind = AFM_CMD_SETPOINT, .seq = 42, .u.setpoint = {30e-9, 0}};
+    afm_runner_apply(r, &c, NULL, err, sizeof err);
+    afm_runner_run(r, 1000);
+    afm_runner_model *m = afm_runner_model_build(cfg, true, err, sizeof err);
+    afm_cmd rl = {.kind = AFM_CMD_RELOAD, .seq = -1};
+    int rc = afm_runner_apply(r, &rl, &m, err, sizeof err);
+    afm_runner_model_destroy(&m);
+    afm_runner_run(r, 1000);
+    afm_runner_status st;
+    afm_runner_status_get(r, &st);
+    check_true(rc == 0 && st.seq_applied == 42 && st.swaps == 1,
+               "reload applied, seq_applied still 42 (not the reload's -1)");
+    check_true(st.separation_m == cfg->drive.separation_m, "reload: Z from the new config");
+    afm_runner_destroy(&r);
 }
 
 static void test_ramp_and_rejects(const afm_config *cfg) {
@@ -306,6 +359,7 @@ int main(void) {
         return check_done();
     }
     test_determinism(&cfg);
+    test_reload_keeps_seq(&cfg);
     test_ramp_and_rejects(&cfg);
     test_gating(&cfg);
     test_blowup();

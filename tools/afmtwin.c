@@ -20,6 +20,7 @@ static const command commands[] = {
     {"listen", afm_cmd_listen, "print what the daemon publishes (samples, harmonics, status)"},
     {"replay", afm_cmd_replay, "run the commands of an LCM log in model time, outputs to a log"},
     {"bench-daemon", afm_cmd_bench_daemon, "real-time factor and command latency of afmtwind"},
+    {"can-send", afm_cmd_can_send, "encode a command into CAN frames (cansend format), send them"},
 };
 
 static void usage(FILE *f) {

@@ -4,6 +4,8 @@
 #include "afmtwin_cmds.h"
 #include "lcm_tool.h"
 
+#include "afm_lcm_url.h"
+
 #include "afmtwin_harmonics_t.h"
 #include "afmtwin_samples_t.h"
 #include "afmtwin_status_t.h"
@@ -29,7 +31,7 @@ typedef struct {
     long count;        /* 0: no limit */
     double timeout_s;  /* 0: none */
     bool want[N_OUT];
-    const char *url, *prefix, *log;
+    const char *url, *out_url, *prefix, *log;
     long got;          /* messages printed */
     long bad;          /* messages that did not decode */
     char chan[N_OUT][AFMT_CHAN_LEN];
@@ -44,7 +46,8 @@ static void on_signal(int sig) {
 static void listen_usage(FILE *f) {
     fprintf(f,
             "usage: afmtwin listen [--json] [--full] [--count N] [--channels LIST]\n"
-            "                      [--timeout S] [--lcm-url URL] [--prefix NAME_]\n"
+            "                      [--timeout S] [--lcm-url URL] [--lcm-out-url URL]\n"
+            "                      [--prefix NAME_]\n"
             "       afmtwin listen --log FILE [--json] [--full] [--count N] [--channels LIST]\n"
             "                      [--prefix NAME_]\n\n"
             "Prints what the twin (afmtwind, or `afmtwin replay` through lcm-logplayer)\n"
@@ -60,7 +63,11 @@ static void listen_usage(FILE *f) {
             "  --channels LIST  comma-separated subset of samples,harmonics,status (default all)\n"
             "  --timeout S      exit after S seconds (S > 0; default: run until N messages or a\n"
             "                   signal)\n"
-            "  --lcm-url URL    LCM provider (default: LCM_DEFAULT_URL or LCM's default)\n"
+            "  --lcm-url URL    the twin's command URL, as given to afmtwind (default:\n"
+            "                   LCM_DEFAULT_URL or LCM's default); the outputs are read from\n"
+            "                   the output URL derived from it (udpm: port + 1)\n"
+            "  --lcm-out-url URL  read the outputs from this URL instead (afmtwind\n"
+            "                   --lcm-out-url)\n"
             "  --prefix NAME_   channel-name prefix of the twin (default %s)\n"
             "  --log FILE       read the messages from an LCM log (lcm-logger's format, e.g.\n"
             "                   `afmtwin replay --out`) instead of the network, to its end\n"
@@ -228,6 +235,10 @@ static void print_status(const listen_ctx *c, const char *channel, const afmtwin
         json_num(o, "separation_m", m->separation_m);
         json_num(o, "fe_hz", m->fe_hz);
         json_num(o, "amplitude_m", m->amplitude_m);
+        json_int(o, "applied", m->applied);
+        json_int(o, "resyncs", m->resyncs);
+        json_int(o, "chain_stalls", m->chain_stalls);
+        json_num(o, "chain_lag_s", m->chain_lag_s);
         json_print(o);
         return;
     }
@@ -369,6 +380,9 @@ int afm_cmd_listen(int argc, char **argv) {
         } else if (!strcmp(a, "--lcm-url") && v) {
             c.url = v;
             i++;
+        } else if (!strcmp(a, "--lcm-out-url") && v) {
+            c.out_url = v;
+            i++;
         } else if (!strcmp(a, "--log") && v) {
             c.log = v;
             i++;
@@ -388,9 +402,14 @@ int afm_cmd_listen(int argc, char **argv) {
             return 2;
         }
     if (c.log) return listen_log(&c);
-    lcm_t *lcm = lcm_create(c.url);
+    char cmd_u[AFM_LCM_URL_LEN], out_u[AFM_LCM_URL_LEN];
+    if (afm_lcm_urls(c.url, c.out_url, cmd_u, out_u, sizeof cmd_u, err, sizeof err)) {
+        fprintf(stderr, "afmtwin listen: %s\n", err);
+        return 2;
+    }
+    lcm_t *lcm = lcm_create(out_u);
     if (!lcm) {
-        fprintf(stderr, "afmtwin listen: cannot open LCM on '%s'\n", c.url ? c.url : "(default)");
+        fprintf(stderr, "afmtwin listen: cannot open LCM on '%s'\n", out_u);
         return 1;
     }
     for (int i = 0; i < N_OUT; i++) {

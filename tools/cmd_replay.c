@@ -19,9 +19,8 @@
 #include "afm_io.h"
 #include "afm_runner.h"
 
-#include "afmtwin_harmonics_t.h"
-#include "afmtwin_samples_t.h"
-#include "afmtwin_status_t.h"
+#include "afm_io_records.h"
+#include "afm_lcm_encode.h"
 
 #include <lcm/eventlog.h>
 #include <math.h>
@@ -133,33 +132,13 @@ static void write_event(replay_ctx *x, int ch, int64_t utime, int n) {
     } while (0)
 
 static void emit_samples(replay_ctx *x, int64_t seq) {
-    afm_io_samples *s = &x->rec;
     for (int st = 0; st < afm_runner_n_streams(x->r); st++) {
         afm_chain_block b;
         while (afm_runner_take_block(x->r, st, &b, AFM_IO_MAX_BLOCK) > 0) {
             if (!x->o.want[OUT_SAMPLES]) continue;
-            s->utime = model_us(b.t_s[0]);
-            s->seq_applied = seq;
-            s->stream = st;
-            s->t0_s = b.t_s[0];
-            s->rate_hz = b.rate_hz;
-            s->n = b.n;
-            for (int i = 0; i < b.n; i++) {
-                s->deflection_m[i] = (float)b.x_m[i];
-                s->obd_m[i] = (float)b.obd_m[i];
-                s->obd_counts[i] = b.obd_counts ? (int32_t)llround(b.obd_counts[i]) : 0;
-                s->force_n[i] = (float)b.f_n[i];
-            }
-            afmtwin_samples_t m = {.utime = s->utime,
-                                   .seq_applied = s->seq_applied,
-                                   .stream = (int8_t)s->stream,
-                                   .t0_s = s->t0_s,
-                                   .rate_hz = s->rate_hz,
-                                   .n = s->n,
-                                   .deflection_m = s->deflection_m,
-                                   .obd_m = s->obd_m,
-                                   .obd_counts = s->obd_counts,
-                                   .force_n = s->force_n};
+            afm_io_samples_from_block(&x->rec, &b, model_us(b.t_s[0]), seq);
+            afmtwin_samples_t m;
+            afm_lcm_samples_msg(&x->rec, &m);
             WRITE_MSG(x, afmtwin_samples_t, OUT_SAMPLES, &m);
         }
     }
@@ -170,42 +149,13 @@ static void emit_harmonics(replay_ctx *x, const afm_runner_status *st) {
     while ((np = afm_runner_take_periods(x->r, x->periods, REPLAY_PERIODS_MAX)) > 0) {
         if (!x->o.want[OUT_HARMONICS]) continue;
         for (int p = 0; p < np; p++) {
-            const afm_harm_result *hr = &x->periods[p].harm;
             const afm_cycle_metrics *c = &x->periods[p].cycle;
-            int n = hr->n_harmonics;
-            int16_t k[AFM_MAX_HARMONICS];
-            double xa[AFM_MAX_HARMONICS], xp[AFM_MAX_HARMONICS], fa[AFM_MAX_HARMONICS];
-            double fp[AFM_MAX_HARMONICS], pd[AFM_MAX_HARMONICS];
-            for (int i = 0; i < n; i++) {
-                k[i] = (int16_t)hr->h[i].k;
-                xa[i] = hr->h[i].x_amp_m;
-                xp[i] = hr->h[i].x_phase_deg;
-                fa[i] = hr->h[i].f_amp_n;
-                fp[i] = hr->h[i].f_phase_deg;
-                pd[i] = hr->h[i].phase_diff_deg;
-            }
-            afmtwin_harmonics_t m = {
-                .utime = model_us(c->t_start_s + c->duration_s),
-                .seq_applied = st->seq_applied,
-                .t_s = c->t_start_s,
-                .fe_hz = st->fe_hz,
-                .n = (int8_t)n,
-                .k = k,
-                .deflection_amplitude_m = xa,
-                .deflection_phase_deg = xp,
-                .force_amplitude_n = fa,
-                .force_phase_deg = fp,
-                .phase_diff_deg = pd,
-                .lockin_amplitude_m = x->periods[p].lockin_amplitude_m,
-                .lockin_phase_deg = x->periods[p].lockin_phase_deg,
-                .peak_force_n = c->peak_force_n,
-                .min_deflection_m = c->min_deflection_m,
-                .indentation_m = c->indentation_m,
-                .contact_time_s = c->contact_time_s,
-                .pre_contact_velocity_m_s = c->pre_contact_velocity_m_s,
-                .dissipated_energy_j = c->dissipated_energy_j,
-                .mean_deflection_m = c->mean_deflection_m,
-            };
+            afm_io_harmonics h;
+            afm_io_harmonics_from_period(&h, &x->periods[p], st->fe_hz,
+                                         model_us(c->t_start_s + c->duration_s), st->seq_applied);
+            afm_lcm_harm_buf buf;
+            afmtwin_harmonics_t m;
+            afm_lcm_harmonics_msg(&h, &buf, &m);
             WRITE_MSG(x, afmtwin_harmonics_t, OUT_HARMONICS, &m);
         }
     }
@@ -213,23 +163,23 @@ static void emit_harmonics(replay_ctx *x, const afm_runner_status *st) {
 
 static void emit_status(replay_ctx *x, const afm_runner_status *st) {
     if (!x->o.want[OUT_STATUS]) return;
-    afmtwin_status_t m = {
-        .utime = model_us(st->t_s),
-        .seq_applied = st->seq_applied,
-        .model_time_s = st->t_s,
-        .realtime_factor = 0.0,
-        .overruns = 0,
-        .lag_s = 0.0,
-        .received = x->received,
-        .rejected = x->rejected,
-        .last_reject = x->last_reject,
-        .blowups = st->blowups,
-        .mode = x->o.lockstep ? "lockstep" : "replay",
-        .running = st->running ? 1 : 0,
-        .separation_m = st->separation_m,
-        .fe_hz = st->fe_hz,
-        .amplitude_m = st->amplitude_m,
-    };
+    static afm_io_status s; /* large (reason strings) */
+    memset(&s, 0, sizeof s);
+    s.utime = model_us(st->t_s);
+    s.seq_applied = st->seq_applied;
+    s.model_time_s = st->t_s;
+    s.received = x->received;
+    s.rejected = x->rejected;
+    snprintf(s.last_reject, sizeof s.last_reject, "%s", x->last_reject);
+    s.blowups = st->blowups;
+    s.mode = x->o.lockstep ? "lockstep" : "replay";
+    s.running = st->running ? 1 : 0;
+    s.separation_m = st->separation_m;
+    s.fe_hz = st->fe_hz;
+    s.amplitude_m = st->amplitude_m;
+    s.applied = st->applied;
+    afmtwin_status_t m;
+    afm_lcm_status_msg(&s, &m);
     WRITE_MSG(x, afmtwin_status_t, OUT_STATUS, &m);
 }
 

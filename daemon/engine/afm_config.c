@@ -63,6 +63,26 @@ void afm_config_defaults(afm_config *cfg) {
     cfg->output.n_outputs = 1;
     cfg->output.decimation[0] = 16;
     cfg->output.passband_fraction = 0.8;
+
+    /* CAN (issue 6): the default map of docs/can.md, used when a can group is present. */
+    afm_cfg_can *c = &cfg->can;
+    c->enabled = false;
+    snprintf(c->interface, sizeof c->interface, "can0");
+    c->encoding = AFM_CAN_SCALED;
+    c->id[AFM_CAN_DITHER_FREQUENCY] = 0x200;
+    c->id[AFM_CAN_DITHER_AMPLITUDE] = 0x201;
+    c->id[AFM_CAN_DITHER_PHASE] = 0x202;
+    c->id[AFM_CAN_SETPOINT] = 0x210;
+    c->id[AFM_CAN_ENABLE] = 0x220;
+    c->id[AFM_CAN_HEARTBEAT] = 0x701; /* CANopen-style heartbeat of node 1 */
+    c->scale_frequency_hz = 0.01;
+    c->scale_amplitude_m = 1e-15;
+    c->scale_phase_rad = 1e-6;
+    c->scale_separation_m = 1e-12;
+    c->scale_ramp_m_s = 1e-9;
+    c->heartbeat_timeout_s = 0.5;
+    c->reconnect_min_s = 0.1;
+    c->reconnect_max_s = 5.0;
 }
 
 /* ------------------------------------------------------------------ loader */
@@ -629,6 +649,69 @@ static int load_chain(const loader *L, const config_setting_t *root, afm_config 
     return 0;
 }
 
+/* can: optional group (issue 6); enabled defaults to true when the group is present. Ids
+ * and ranges are checked in afm_config_check.c. */
+static const char *const can_id_keys[AFM_CAN_N_SIGNALS + 1] = {
+    "dither_frequency", "dither_amplitude", "dither_phase", "setpoint", "enable", "heartbeat",
+    NULL};
+
+static int load_can(const loader *L, const config_setting_t *root, afm_cfg_can *c) {
+    static const char *const keys[] = {"enabled",         "interface",           "fd",
+                                       "extended_ids",    "byte_order",          "encoding",
+                                       "ids",             "scale",               "heartbeat_timeout_s",
+                                       "reconnect_min_s", "reconnect_max_s",     NULL};
+    static const char *const skeys[] = {"frequency_hz", "amplitude_m", "phase_rad",
+                                        "separation_m", "ramp_m_s",    NULL};
+    static const char *const orders[] = {"little", "big", NULL};
+    static const char *const encodings[] = {"scaled", "float32", NULL};
+    config_setting_t *g, *s;
+    if (get_feature(L, root, "can", &g, &c->enabled)) return -1;
+    if (!g) return 0;
+    int order = c->big_endian ? 1 : 0, enc = (int)c->encoding;
+    if (only_keys(L, g, keys) || get_bool(L, g, "fd", &c->fd) ||
+        get_bool(L, g, "extended_ids", &c->extended_ids) ||
+        get_choice(L, g, "byte_order", false, orders, &order) ||
+        get_choice(L, g, "encoding", false, encodings, &enc) ||
+        get_num(L, g, "heartbeat_timeout_s", false, &c->heartbeat_timeout_s, NULL) ||
+        get_num(L, g, "reconnect_min_s", false, &c->reconnect_min_s, NULL) ||
+        get_num(L, g, "reconnect_max_s", false, &c->reconnect_max_s, NULL) ||
+        member(L, g, "interface", false, &s))
+        return -1;
+    c->big_endian = order == 1;
+    c->encoding = (afm_can_encoding)enc;
+    if (s) {
+        if (config_setting_type(s) != CONFIG_TYPE_STRING)
+            return fail(L, s, NULL, "expected a string (e.g. \"can0\"), got %s", type_name(s));
+        const char *v = config_setting_get_string(s);
+        size_t n = strlen(v);
+        if (n < 1 || n >= sizeof c->interface || strpbrk(v, " \t\n/:"))
+            return fail(L, s, NULL, "\"%s\" is not an interface name (1 to %zu characters, no "
+                        "spaces, '/' or ':')", v, sizeof c->interface - 1);
+        memcpy(c->interface, v, n + 1);
+    }
+    if (get_group(L, g, "ids", false, &s)) return -1;
+    if (s) {
+        if (only_keys(L, s, can_id_keys)) return -1;
+        for (int i = 0; i < AFM_CAN_N_SIGNALS; i++) {
+            config_setting_t *m = config_setting_get_member(s, can_id_keys[i]);
+            int v;
+            if (!m) continue;
+            if (as_int(L, m, &v)) return -1;
+            if (v < 0) return fail(L, m, NULL, "a frame id is >= 0 (got %d)", v);
+            c->id[i] = (unsigned)v;
+        }
+    }
+    if (get_group(L, g, "scale", false, &s)) return -1;
+    if (s && (only_keys(L, s, skeys) ||
+              get_num(L, s, "frequency_hz", false, &c->scale_frequency_hz, NULL) ||
+              get_num(L, s, "amplitude_m", false, &c->scale_amplitude_m, NULL) ||
+              get_num(L, s, "phase_rad", false, &c->scale_phase_rad, NULL) ||
+              get_num(L, s, "separation_m", false, &c->scale_separation_m, NULL) ||
+              get_num(L, s, "ramp_m_s", false, &c->scale_ramp_m_s, NULL)))
+        return -1;
+    return 0;
+}
+
 /* Setting for a path written by afm_config_check_all ("drive.tones[1].frequency_hz"); the deepest
  * existing ancestor when the key itself is absent (a default value). */
 static const config_setting_t *resolve(const config_setting_t *root, const char *path) {
@@ -692,10 +775,11 @@ int afm_config_load(const char *path, afm_config *cfg, char *err, size_t errlen)
     }
     const config_setting_t *root = config_root_setting(&lc);
     static const char *const keys[] = {"model",   "forces", "drive",  "sim", "obd",
-                                       "thermal", "lockin", "output", NULL};
+                                       "thermal", "lockin", "output", "can", NULL};
     if (only_keys(&L, root, keys) || load_model(&L, root, &tmp.model) ||
         load_forces(&L, root, tmp.model.kind, &tmp.forces) || load_drive(&L, root, &tmp.drive) ||
-        load_sim(&L, root, &tmp.sim) || load_chain(&L, root, &tmp))
+        load_sim(&L, root, &tmp.sim) || load_chain(&L, root, &tmp) ||
+        load_can(&L, root, &tmp.can))
         goto out;
 
     char key[KEY_LEN], why[AFM_ERR_LEN];

@@ -144,6 +144,35 @@ typedef struct {
                                             are rejected by >= 80 dB */
 } afm_cfg_output;
 
+/* CAN input from a piezo driver (issue 6; map and frames in docs/can.md). Off unless the
+ * config has a `can` group. Signals, in the order of ids[]: */
+typedef enum {
+    AFM_CAN_DITHER_FREQUENCY = 0, /* [tone u8][3 reserved][frequency: 4 bytes] */
+    AFM_CAN_DITHER_AMPLITUDE = 1, /* [tone u8][3 reserved][amplitude: 4 bytes] */
+    AFM_CAN_DITHER_PHASE = 2,     /* [tone u8][3 reserved][start phase: 4 bytes] */
+    AFM_CAN_SETPOINT = 3,         /* [separation: 4 bytes][ramp rate: 4 bytes] */
+    AFM_CAN_ENABLE = 4,           /* [u8: 1 enable (run), 0 disable (pause)] */
+    AFM_CAN_HEARTBEAT = 5,        /* [u8: driver state, any value] */
+    AFM_CAN_N_SIGNALS = 6
+} afm_can_signal;
+
+typedef enum { AFM_CAN_SCALED = 0, AFM_CAN_FLOAT32 = 1 } afm_can_encoding;
+
+typedef struct {
+    bool enabled;
+    char interface[16];        /* IFNAMSIZ, e.g. "can0", "vcan0" */
+    bool fd;                   /* accept CAN FD frames too (CAN_RAW_FD_FRAMES) */
+    bool extended_ids;         /* 29-bit identifiers (else 11-bit) */
+    bool big_endian;           /* byte order of 4-byte values: false Intel, true Motorola */
+    afm_can_encoding encoding; /* scaled integers (u32, phase i32) or IEEE float32 (SI) */
+    unsigned id[AFM_CAN_N_SIGNALS]; /* frame id per afm_can_signal, all different */
+    /* Scaled encoding: physical value = raw * scale (SI per bit). */
+    double scale_frequency_hz, scale_amplitude_m, scale_phase_rad, scale_separation_m,
+        scale_ramp_m_s;
+    double heartbeat_timeout_s; /* > 0; 0: heartbeat not monitored */
+    double reconnect_min_s, reconnect_max_s; /* retry backoff, doubling from min to max */
+} afm_cfg_can;
+
 typedef struct {
     char path[256]; /* file it came from */
     afm_cfg_model model;
@@ -154,6 +183,7 @@ typedef struct {
     afm_cfg_thermal thermal;
     afm_cfg_lockin lockin;
     afm_cfg_output output;
+    afm_cfg_can can;      /* CAN input (issue 6); can.enabled false without a can group */
 } afm_config;
 
 /* Fill every field with its default (documented in config/README.md). */

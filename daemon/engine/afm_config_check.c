@@ -8,6 +8,7 @@
 #include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
+#include <string.h>
 
 static const double deg = 3.14159265358979323846 / 180.0;
 
@@ -254,9 +255,55 @@ static int check_chain(const afm_config *c, char *key, char *why, size_t why_len
     return 0;
 }
 
+/* can (issue 6): frame ids, scales, timing. Checked whether or not the group is enabled. */
+static int check_can(const afm_config *c, char *key, char *why, size_t why_len) {
+    static const char *const names[AFM_CAN_N_SIGNALS] = {
+        "dither_frequency", "dither_amplitude", "dither_phase", "setpoint", "enable", "heartbeat"};
+    const afm_cfg_can *k = &c->can;
+    size_t n = strnlen(k->interface, sizeof k->interface);
+    NEED(n >= 1 && n < sizeof k->interface, "can.interface",
+         "must be 1 to %zu characters", sizeof k->interface - 1);
+    NEED(k->encoding == AFM_CAN_SCALED || k->encoding == AFM_CAN_FLOAT32, "can.encoding",
+         "unknown encoding %d", (int)k->encoding);
+    unsigned max_id = k->extended_ids ? 0x1FFFFFFFu : 0x7FFu;
+    for (int i = 0; i < AFM_CAN_N_SIGNALS; i++) {
+        char p[64];
+        snprintf(p, sizeof p, "can.ids.%s", names[i]);
+        NEED(k->id[i] <= max_id, p, "0x%X does not fit %s identifier (max 0x%X%s)", k->id[i],
+             k->extended_ids ? "a 29-bit" : "an 11-bit", max_id,
+             k->extended_ids ? "" : "; set extended_ids = true for 29-bit ids");
+        for (int j = 0; j < i; j++)
+            NEED(k->id[j] != k->id[i], p, "0x%X is also the id of %s", k->id[i], names[j]);
+    }
+    const struct {
+        double v, max;
+        const char *path;
+    } sc[] = {{k->scale_frequency_hz, 0.5 * c->sim.sample_rate_hz, "can.scale.frequency_hz"},
+              {k->scale_amplitude_m, MAX_AMPLITUDE_M, "can.scale.amplitude_m"},
+              {k->scale_phase_rad, 6.283185307179586, "can.scale.phase_rad"},
+              {k->scale_separation_m, 1e-3, "can.scale.separation_m"},
+              {k->scale_ramp_m_s, 1.0, "can.scale.ramp_m_s"}};
+    for (size_t i = 0; i < sizeof sc / sizeof sc[0]; i++)
+        NEED(isfinite(sc[i].v) && sc[i].v > 0 && sc[i].v <= sc[i].max, sc[i].path,
+             "value per bit must be in (0, %g] (got %g)", sc[i].max, sc[i].v);
+    NEED(isfinite(k->heartbeat_timeout_s) &&
+             (k->heartbeat_timeout_s == 0 ||
+              (k->heartbeat_timeout_s >= 1e-3 && k->heartbeat_timeout_s <= 3600)),
+         "can.heartbeat_timeout_s", "must be 0 (not monitored) or in [0.001, 3600] s (got %g)",
+         k->heartbeat_timeout_s);
+    NEED(isfinite(k->reconnect_min_s) && k->reconnect_min_s >= 1e-3 && k->reconnect_min_s <= 60,
+         "can.reconnect_min_s", "must be in [0.001, 60] s (got %g)", k->reconnect_min_s);
+    NEED(isfinite(k->reconnect_max_s) && k->reconnect_max_s >= k->reconnect_min_s &&
+             k->reconnect_max_s <= 3600,
+         "can.reconnect_max_s", "must be in [reconnect_min_s = %g, 3600] s (got %g)",
+         k->reconnect_min_s, k->reconnect_max_s);
+    return 0;
+}
+
 int afm_config_check_all(const afm_config *c, char *key, char *why, size_t why_len) {
     if (check_model(c, key, why, why_len) || check_forces(c, key, why, why_len) ||
-        check_drive_sim(c, key, why, why_len) || check_chain(c, key, why, why_len))
+        check_drive_sim(c, key, why, why_len) || check_chain(c, key, why, why_len) ||
+        check_can(c, key, why, why_len))
         return -1;
     return 0;
 }

@@ -1,10 +1,24 @@
 /* SPDX-License-Identifier: MIT */
 /* afm_runner.c -- simulator + output chain driven by commands at block boundaries
- * (contract in afm_runner.h). */
+ * (contract in afm_runner.h).
+ *
+ * Two halves joined by a lock-free ring (afm_spsc) of fixed-size items:
+ *  - the front (integrator side): commands, Z ramp, budgets, the simulator. It writes
+ *    afm_sample blocks straight into ring items (SAMPLES), each stamped with the drive,
+ *    seq_applied and the Z in force for its samples, and turns every change the chain must
+ *    follow into an item in the same order (RESET, FORCES, ATTACH);
+ *  - the back (chain side): the output chain, attached to a mirror of the simulator
+ *    (afm_sim_mirror_create) that the items keep in step; it pushes the samples and
+ *    applies the changes in ring order.
+ * Inline (afm_runner_create) the back runs on the caller's thread right after every item;
+ * pipelined (afm_runner_create_pipelined) on a thread of the caller's. Either way the
+ * chain sees the same calls with the same data in the same order: the outputs are
+ * bit-identical (test_runner checks it). */
 #include "afm_runner.h"
 
 #include "afm_force.h"
 #include "afm_sim_live.h"
+#include "afm_spsc.h"
 #include "afm_twin.h"
 
 #include <limits.h>
@@ -14,6 +28,46 @@
 #include <stdlib.h>
 #include <string.h>
 
+#define SLOT AFM_RUNNER_SLOT_SAMPLES
+#define ZC_MAX (SLOT / AFM_RUNNER_RAMP_SAMPLES + 2) /* Z changes one item can carry */
+#define PENDING_MAX 16  /* change items waiting for ring space (front) */
+#define EVENTS_PER_CMD 2 /* most change items one command makes */
+#define TRASH_CAP 1024
+#define TRASH_HELD 16
+
+enum { IT_SAMPLES, IT_RESET, IT_FORCES, IT_ATTACH };
+
+typedef struct {
+    int at;     /* first sample (index into s) with this Z */
+    double z_m;
+} z_change;
+
+/* One ring item. SAMPLES: n samples s[0..n) run with drive `drive`, Z z0_m then the
+ * changes zc, after the command seq. FORCES: new force constants f. ATTACH: the chain
+ * follows a swapped-in simulator (drive, f, z_m); model: the objects to hand back (and,
+ * when model->chain is set, the chain to swap in). RESET: clear the chain. */
+typedef struct {
+    int kind;
+    int n;
+    int64_t seq;
+    double z0_m;
+    int n_zc;
+    z_change zc[ZC_MAX];
+    afm_drive drive;
+    afm_force_params f;
+    afm_runner_model *model;
+    afm_sample s[SLOT];
+} ring_item;
+
+/* A change item waiting for ring space (no samples). */
+typedef struct {
+    int kind;
+    afm_drive drive;
+    afm_force_params f;
+    double z_m;
+    afm_runner_model *model;
+} pending_item;
+
 struct afm_runner_model {
     afm_config cfg;
     afm_sim *sim;
@@ -21,21 +75,34 @@ struct afm_runner_model {
 };
 
 struct afm_runner {
+    /* front */
     afm_config cfg;
     afm_sim *sim;
-    afm_chain *chain;
-    afm_sample *buf;
     int block_max;
-    bool lockstep, running;
+    bool lockstep, running, pipelined;
     long long step_budget, tick_budget;
     long long samples;
     int64_t seq_applied;
-    /* Z ramp: Z = z0 + dir rate (samples - s0) dt, updated at multiples of RAMP_SAMPLES */
     bool ramping;
     double z0, z_target, z_rate;
     long long s0;
-    long long blowups, applied, swaps;
+    long long blowups, applied, swaps, stalls;
     double last_blowup_t_s;
+    ring_item *open; /* reserved, being filled; committed at the end of every run */
+    pending_item pending[PENDING_MAX];
+    int n_pending;
+    /* between */
+    afm_spsc ring;   /* front -> back */
+    afm_spsc trash;  /* back -> whoever calls afm_runner_take_trash */
+    /* back */
+    afm_chain *chain;
+    afm_sim *mirror;
+    double b_z;
+    int64_t b_seq;
+    double b_fe_hz, b_t_s;
+    long long b_samples, b_items, b_attach_errors, b_trash_lost;
+    afm_runner_model *held[TRASH_HELD]; /* trash waiting for space */
+    int n_held;
 };
 
 static void set_err(char *err, size_t errlen, const char *fmt, ...)
@@ -47,6 +114,8 @@ static void set_err(char *err, size_t errlen, const char *fmt, ...) {
     vsnprintf(err, errlen, fmt, ap);
     va_end(ap);
 }
+
+static const double two_pi = 6.283185307179586476925286766559;
 
 void afm_runner_model_destroy(afm_runner_model **mp) {
     if (!mp || !*mp) return;
@@ -79,11 +148,189 @@ fail:
     return NULL;
 }
 
-afm_runner *afm_runner_create(const afm_config *cfg, int block_max, bool lockstep, char *err,
-                              size_t errlen) {
+/* ---- back: the chain side ----------------------------------------------------------- */
+
+static void back_trash(afm_runner *r, afm_runner_model *m) {
+    while (r->n_held > 0 && afm_spsc_push(&r->trash, &r->held[r->n_held - 1])) r->n_held--;
+    if (afm_spsc_push(&r->trash, &m)) return;
+    if (r->n_held < TRASH_HELD)
+        r->held[r->n_held++] = m;
+    else
+        r->b_trash_lost++; /* leaked rather than blocking: nobody drains the trash */
+}
+
+static void back_separation(afm_runner *r, double z) {
+    r->b_z = z;
+    afm_sim_mirror_set(r->mirror, NULL, NULL, z);
+    afm_chain_set_separation(r->chain, z);
+}
+
+static void back_item(afm_runner *r, ring_item *it) {
+    switch (it->kind) {
+    case IT_SAMPLES: {
+        afm_sim_mirror_set(r->mirror, &it->drive, NULL, r->b_z);
+        if (it->z0_m != r->b_z) back_separation(r, it->z0_m);
+        int from = 0;
+        for (int i = 0; i <= it->n_zc; i++) {
+            int to = i < it->n_zc ? it->zc[i].at : it->n;
+            if (to > from) afm_chain_push(r->chain, it->s + from, to - from);
+            if (i < it->n_zc) back_separation(r, it->zc[i].z_m);
+            from = to;
+        }
+        r->b_seq = it->seq;
+        r->b_fe_hz = it->drive.n > 0 ? it->drive.omega_rad_s[0] / two_pi : 0.0;
+        if (it->n > 0) r->b_t_s = it->s[it->n - 1].t_s;
+        r->b_samples += it->n;
+        break;
+    }
+    case IT_RESET: afm_chain_reset(r->chain); break;
+    case IT_FORCES:
+        afm_sim_mirror_set(r->mirror, NULL, &it->f, r->b_z);
+        afm_chain_set_separation(r->chain, r->b_z); /* a0 may have moved the contact line */
+        break;
+    case IT_ATTACH: {
+        afm_runner_model *m = it->model;
+        afm_sim_mirror_set(r->mirror, &it->drive, &it->f, it->z0_m);
+        r->b_z = it->z0_m;
+        if (m && m->chain) {
+            afm_chain *old = r->chain;
+            r->chain = m->chain;
+            m->chain = old;
+            afm_chain_attach(m->chain, NULL, NULL, 0);
+        }
+        if (afm_chain_attach(r->chain, r->mirror, NULL, 0)) r->b_attach_errors++;
+        if (m) back_trash(r, m);
+        break;
+    }
+    }
+    r->b_items++;
+}
+
+int afm_runner_chain_run(afm_runner *r, int max_items) {
+    int done = 0;
+    ring_item *it;
+    while ((max_items <= 0 || done < max_items) && (it = afm_spsc_peek(&r->ring)) != NULL) {
+        /* Outputs waiting were made after command b_seq: hand them out before samples of a
+         * later command join them. */
+        if (done > 0 && it->kind == IT_SAMPLES && it->seq != r->b_seq) break;
+        back_item(r, it);
+        afm_spsc_release(&r->ring);
+        done++;
+    }
+    return done;
+}
+
+int afm_runner_take_trash(afm_runner *r, afm_runner_model **m) {
+    return afm_spsc_pop(&r->trash, m) ? 1 : 0;
+}
+
+void afm_runner_chain_status_get(const afm_runner *r, afm_runner_chain_status *st) {
+    st->seq_applied = r->b_seq;
+    st->fe_hz = r->b_fe_hz;
+    st->t_s = r->b_t_s;
+    st->samples = r->b_samples;
+    st->attach_errors = r->b_attach_errors;
+    st->trash_lost = r->b_trash_lost;
+    st->chain = afm_chain_stats_get(r->chain);
+}
+
+/* ---- front: ring items -------------------------------------------------------------- */
+
+/* Inline: the back runs here, right away. */
+static void inline_back(afm_runner *r) {
+    if (!r->pipelined) afm_runner_chain_run(r, 0);
+}
+
+static void commit_open(afm_runner *r) {
+    if (!r->open) return;
+    afm_spsc_commit(&r->ring);
+    r->open = NULL;
+    inline_back(r);
+}
+
+/* Move waiting change items into the ring. true when none is left. */
+static bool flush_pending(afm_runner *r) {
+    int i = 0;
+    for (; i < r->n_pending; i++) {
+        ring_item *it = afm_spsc_reserve(&r->ring);
+        if (!it) {
+            inline_back(r);
+            it = afm_spsc_reserve(&r->ring);
+            if (!it) break;
+        }
+        const pending_item *p = &r->pending[i];
+        it->kind = p->kind;
+        it->n = 0;
+        it->n_zc = 0;
+        it->seq = r->seq_applied;
+        it->z0_m = p->z_m;
+        it->drive = p->drive;
+        it->f = p->f;
+        it->model = p->model;
+        afm_spsc_commit(&r->ring);
+        inline_back(r);
+    }
+    if (i > 0) {
+        memmove(r->pending, r->pending + i, (size_t)(r->n_pending - i) * sizeof r->pending[0]);
+        r->n_pending -= i;
+    }
+    return r->n_pending == 0;
+}
+
+/* Queue a change for the chain behind everything produced so far. The caller checked that
+ * there is room (front_room). */
+static void emit(afm_runner *r, int kind, afm_runner_model *m) {
+    commit_open(r);
+    pending_item *p = &r->pending[r->n_pending++];
+    p->kind = kind;
+    p->drive = *afm_sim_drive(r->sim);
+    p->f = *afm_sim_forces(r->sim);
+    p->z_m = afm_sim_separation(r->sim);
+    p->model = m;
+    flush_pending(r);
+}
+
+static bool front_room(const afm_runner *r) {
+    return r->n_pending + EVENTS_PER_CMD <= PENDING_MAX;
+}
+
+/* The item to write samples into (reserving one), or NULL when the ring is full. */
+static ring_item *open_item(afm_runner *r) {
+    ring_item *it = r->open;
+    if (it && (it->n == SLOT || it->n_zc == ZC_MAX)) {
+        commit_open(r);
+        it = NULL;
+    }
+    if (it) return it;
+    it = afm_spsc_reserve(&r->ring);
+    if (!it) {
+        inline_back(r);
+        it = afm_spsc_reserve(&r->ring);
+        if (!it) return NULL;
+    }
+    it->kind = IT_SAMPLES;
+    it->n = 0;
+    it->n_zc = 0;
+    it->seq = r->seq_applied;
+    it->z0_m = afm_sim_separation(r->sim);
+    it->drive = *afm_sim_drive(r->sim);
+    it->model = NULL;
+    r->open = it;
+    return it;
+}
+
+/* ---- create / destroy --------------------------------------------------------------- */
+
+afm_runner *afm_runner_create_pipelined(const afm_config *cfg, int block_max, bool lockstep,
+                                        bool pipelined, int ring_items, char *err,
+                                        size_t errlen) {
     if (!cfg || block_max < 1 || block_max > (1 << 24)) {
         set_err(err, errlen, "runner: no config, or block_max %d not in 1..%d", block_max,
                 1 << 24);
+        return NULL;
+    }
+    if (ring_items < 2 || ring_items > 65536) {
+        set_err(err, errlen, "runner: ring of %d items not in 2..65536", ring_items);
         return NULL;
     }
     afm_runner *r = calloc(1, sizeof *r);
@@ -92,11 +339,9 @@ afm_runner *afm_runner_create(const afm_config *cfg, int block_max, bool lockste
         set_err(err, errlen, "out of memory");
         return NULL;
     }
-    r->buf = malloc((size_t)block_max * sizeof *r->buf);
-    if (!r->buf) {
-        set_err(err, errlen, "runner: cannot allocate %d samples", block_max);
+    if (afm_spsc_init(&r->ring, (size_t)ring_items, sizeof(ring_item), err, errlen) ||
+        afm_spsc_init(&r->trash, TRASH_CAP, sizeof(afm_runner_model *), err, errlen))
         goto fail;
-    }
     m = afm_runner_model_build(cfg, true, err, errlen);
     if (!m) goto fail;
     r->cfg = *cfg;
@@ -105,11 +350,21 @@ afm_runner *afm_runner_create(const afm_config *cfg, int block_max, bool lockste
     m->sim = NULL;
     m->chain = NULL;
     afm_runner_model_destroy(&m);
-    if (afm_chain_attach(r->chain, r->sim, err, errlen)) goto fail;
+    r->mirror = afm_sim_mirror_create(r->sim, err, errlen);
+    if (!r->mirror) goto fail;
+    r->b_z = afm_sim_separation(r->sim);
+    if (afm_chain_attach(r->chain, r->mirror, err, errlen)) goto fail;
     r->block_max = block_max;
     r->lockstep = lockstep;
+    r->pipelined = pipelined;
     r->running = true;
     r->seq_applied = -1;
+    r->b_seq = -1;
+    r->b_t_s = afm_sim_time(r->sim);
+    {
+        const afm_drive *d = afm_sim_drive(r->sim);
+        r->b_fe_hz = d->n > 0 ? d->omega_rad_s[0] / two_pi : 0.0;
+    }
     r->last_blowup_t_s = NAN;
     return r;
 fail:
@@ -117,12 +372,33 @@ fail:
     return NULL;
 }
 
+afm_runner *afm_runner_create(const afm_config *cfg, int block_max, bool lockstep, char *err,
+                              size_t errlen) {
+    return afm_runner_create_pipelined(cfg, block_max, lockstep, false, 4, err, errlen);
+}
+
 void afm_runner_destroy(afm_runner **rp) {
     if (!rp || !*rp) return;
     afm_runner *r = *rp;
+    if (r->ring.slots) { /* models still travelling */
+        if (r->open) afm_spsc_commit(&r->ring);
+        ring_item *it;
+        while ((it = afm_spsc_peek(&r->ring)) != NULL) {
+            if (it->kind == IT_ATTACH) afm_runner_model_destroy(&it->model);
+            afm_spsc_release(&r->ring);
+        }
+    }
+    for (int i = 0; i < r->n_pending; i++) afm_runner_model_destroy(&r->pending[i].model);
+    for (int i = 0; i < r->n_held; i++) afm_runner_model_destroy(&r->held[i]);
+    if (r->trash.slots) {
+        afm_runner_model *m;
+        while (afm_spsc_pop(&r->trash, &m)) afm_runner_model_destroy(&m);
+    }
     afm_chain_destroy(&r->chain);
+    afm_sim_destroy(&r->mirror);
     afm_sim_destroy(&r->sim);
-    free(r->buf);
+    afm_spsc_destroy(&r->ring);
+    afm_spsc_destroy(&r->trash);
     free(r);
     *rp = NULL;
 }
@@ -147,9 +423,9 @@ int afm_runner_cmd_needs_model(const afm_config *cfg, const afm_cmd *c, bool *ne
 
 /* ---- commands ----------------------------------------------------------------------- */
 
+/* Z now; the chain follows with the next samples (their item carries Z). */
 static void set_z(afm_runner *r, double z) {
     afm_sim_set_separation(r->sim, z); /* z is validated */
-    afm_chain_set_separation(r->chain, z);
     r->cfg.drive.separation_m = z;
 }
 
@@ -167,7 +443,7 @@ static int apply_dither(afm_runner *r, const afm_cmd_dither *d, char *err, size_
         }
     }
     for (int j = d->n_tones; j < n_run; j++) /* tones the command leaves out fall silent */
-        afm_sim_set_tone(s, j, 0.0, dr->omega_rad_s[j] / 6.283185307179586476925286766559);
+        afm_sim_set_tone(s, j, 0.0, dr->omega_rad_s[j] / two_pi);
     return 0;
 }
 
@@ -185,7 +461,16 @@ static void apply_setpoint(afm_runner *r, const afm_cmd_setpoint *p) {
     r->s0 = r->samples;
 }
 
-/* Swap model m in: time always continues; `what` as afm_sim_continue. On return m holds the
+/* What afm_chain_attach will check of the new simulator (the chain is the back's). */
+static int attach_ok(const afm_sim *s, char *err, size_t errlen) {
+    const afm_force_params *f = afm_sim_forces(s);
+    afm_cycle tmp;
+    return afm_cycle_init(&tmp, afm_force_contact_x(f, afm_sim_separation(s)), f->cos_alpha,
+                          err, errlen);
+}
+
+/* Swap model m in: time always continues; `what` as afm_sim_continue. m travels to the
+ * back (ATTACH), which swaps its chain in (if any) and hands m back as trash holding the
  * objects swapped out. */
 static int swap_in(afm_runner *r, afm_runner_model *m, unsigned what, char *err, size_t errlen) {
     if (afm_sim_continue(m->sim, r->sim, what) != AFM_SIM_OK) {
@@ -193,17 +478,11 @@ static int swap_in(afm_runner *r, afm_runner_model *m, unsigned what, char *err,
                 "the state over", afm_sim_model(m->sim)->n, afm_sim_model(r->sim)->n);
         return -1;
     }
-    afm_chain *c = m->chain ? m->chain : r->chain;
-    if (afm_chain_attach(c, m->sim, err, errlen)) return -1;
+    if (attach_ok(m->sim, err, errlen)) return -1;
     afm_sim *old_sim = r->sim;
     r->sim = m->sim;
     m->sim = old_sim;
-    if (m->chain) {
-        afm_chain *old_chain = r->chain;
-        r->chain = m->chain;
-        m->chain = old_chain;
-        afm_chain_attach(m->chain, NULL, NULL, 0);
-    }
+    emit(r, IT_ATTACH, m);
     r->swaps++;
     return 0;
 }
@@ -226,8 +505,13 @@ static int apply_param(afm_runner *r, const afm_cmd_param *p, afm_runner_model *
             set_err(err, errlen, "param: a geometry change needs a model with a new chain");
             return -1;
         }
+        if (e == AFM_PARAM_DAMPING && (*model)->chain) {
+            set_err(err, errlen, "param: a damping change keeps the chain; the model has one");
+            return -1;
+        }
         unsigned what = AFM_SIM_KEEP_DRIVE | (e == AFM_PARAM_DAMPING ? AFM_SIM_KEEP_STATE : 0);
         if (swap_in(r, *model, what, err, errlen)) return -1;
+        *model = NULL; /* travelling to the back */
     } else if (e == AFM_PARAM_FORCE) {
         const afm_modal *m = afm_sim_model(r->sim);
         double len = m->beam_length_m > 0 ? m->beam_length_m : t.forces.plate_length_m;
@@ -238,8 +522,7 @@ static int apply_param(afm_runner *r, const afm_cmd_param *p, afm_runner_model *
             set_err(err, errlen, "param: the simulator refused the new force constants");
             return -1;
         }
-        /* a0 may have moved: the contact line of the cycle metrics with it */
-        afm_chain_set_separation(r->chain, afm_sim_separation(r->sim));
+        emit(r, IT_FORCES, NULL);
     }
     r->cfg = t;
     if (has_z) {
@@ -255,6 +538,13 @@ int afm_runner_apply(afm_runner *r, const afm_cmd *c, afm_runner_model **model, 
                      size_t errlen) {
     afm_cmd_limits lim = {.sample_rate_hz = r->cfg.sim.sample_rate_hz};
     if (afm_cmd_validate(c, &lim, err, errlen)) return -1;
+    commit_open(r);
+    flush_pending(r);
+    if (!front_room(r)) {
+        set_err(err, errlen, "%s: the output chain is %d changes behind; command not applied",
+                afm_cmd_kind_name(c->kind), r->n_pending);
+        return -1;
+    }
     switch (c->kind) {
     case AFM_CMD_DITHER:
         if (apply_dither(r, &c->u.dither, err, errlen)) return -1;
@@ -272,7 +562,7 @@ int afm_runner_apply(afm_runner *r, const afm_cmd *c, afm_runner_model **model, 
         case AFM_CTL_PAUSE: r->running = false; break;
         case AFM_CTL_RESET:
             afm_sim_reset(r->sim);
-            afm_chain_reset(r->chain);
+            emit(r, IT_RESET, NULL);
             r->ramping = false;
             break;
         case AFM_CTL_STEP:
@@ -299,13 +589,19 @@ int afm_runner_apply(afm_runner *r, const afm_cmd *c, afm_runner_model **model, 
             set_err(err, errlen, "reload: needs a model with a chain (afm_runner_model_build)");
             return -1;
         }
-        if (swap_in(r, *model, 0, err, errlen)) return -1;
-        r->cfg = (*model)->cfg;
+        {
+            afm_config next = (*model)->cfg;
+            if (swap_in(r, *model, 0, err, errlen)) return -1;
+            *model = NULL;
+            r->cfg = next;
+        }
         r->ramping = false;
         break;
     }
     if (c->kind != AFM_CMD_RELOAD) r->seq_applied = c->seq; /* a reload is no sender's */
     r->applied++;
+    /* Inline: what was swapped out is back already; hand it to the caller. */
+    if (!r->pipelined && model && !*model) afm_runner_take_trash(r, model);
     return 0;
 }
 
@@ -335,31 +631,55 @@ long long afm_runner_run(afm_runner *r, long long n) {
     long long want = n, b = afm_runner_budget(r);
     if (want > b) want = b;
     long long done = 0;
+    if (want > 0 && !flush_pending(r)) {
+        r->stalls++;
+        return 0;
+    }
     while (done < want) {
         if (r->ramping && r->samples % AFM_RUNNER_RAMP_SAMPLES == 0) ramp_update(r);
+        ring_item *it = open_item(r);
+        if (!it) {
+            r->stalls++; /* the chain stage is behind: the caller tries again later */
+            break;
+        }
+        double z = afm_sim_separation(r->sim);
+        double z_last = it->n_zc > 0 ? it->zc[it->n_zc - 1].z_m : it->z0_m;
+        if (z != z_last) {
+            if (it->n == 0) {
+                it->z0_m = z;
+            } else {
+                it->zc[it->n_zc].at = it->n;
+                it->zc[it->n_zc].z_m = z;
+                it->n_zc++;
+            }
+        }
         long long k = want - done;
         if (k > r->block_max) k = r->block_max;
+        if (k > SLOT - it->n) k = SLOT - it->n;
         if (r->ramping) {
             long long to_edge = AFM_RUNNER_RAMP_SAMPLES - r->samples % AFM_RUNNER_RAMP_SAMPLES;
             if (k > to_edge) k = to_edge;
         }
         double t0 = afm_sim_time(r->sim);
-        int rc = afm_sim_run(r->sim, (int)k, r->buf);
+        int rc = afm_sim_run(r->sim, (int)k, it->s + it->n);
         long long adv = k;
         if (rc == AFM_SIM_OK) {
-            afm_chain_push(r->chain, r->buf, (int)k);
+            it->n += (int)k;
         } else {
-            /* The simulator reset itself to rest; its clock counts the steps it took. */
+            /* The simulator reset itself to rest; its clock counts the steps it took. The
+             * samples of this slice are dropped; the chain starts over. */
             adv = llround((afm_sim_time(r->sim) - t0) / afm_sim_dt(r->sim));
             if (adv > k) adv = k;
             r->blowups++;
             r->last_blowup_t_s = afm_sim_time(r->sim);
-            afm_chain_reset(r->chain);
+            if (it->n == 0) r->open = NULL; /* nothing in it: the slot stays free */
+            emit(r, IT_RESET, NULL); /* may stay pending; run flushes it first next time */
             if (adv <= 0) break; /* the integrator cannot even start: report, go no further */
         }
         r->samples += adv;
         done += adv;
     }
+    commit_open(r);
     if (!r->running)
         r->step_budget -= done;
     else if (r->lockstep)
@@ -389,14 +709,20 @@ void afm_runner_status_get(const afm_runner *r, afm_runner_status *st) {
     st->tick_budget = r->tick_budget;
     st->separation_m = afm_sim_separation(r->sim);
     st->separation_target_m = r->ramping ? r->z_target : st->separation_m;
-    st->fe_hz = d->n > 0 ? d->omega_rad_s[0] / 6.283185307179586476925286766559 : 0.0;
+    st->fe_hz = d->n > 0 ? d->omega_rad_s[0] / two_pi : 0.0;
     st->amplitude_m = d->n > 0 ? d->amp_m[0] : 0.0;
     st->blowups = r->blowups;
     st->last_blowup_t_s = r->last_blowup_t_s;
     st->applied = r->applied;
     st->swaps = r->swaps;
-    st->chain = afm_chain_stats_get(r->chain);
+    st->stalls = r->stalls;
+    st->pending = (long long)afm_spsc_count((afm_spsc *)&r->ring) + r->n_pending;
+    if (r->pipelined)
+        memset(&st->chain, 0, sizeof st->chain); /* the chain thread's: chain_status_get */
+    else
+        st->chain = afm_chain_stats_get(r->chain);
 }
 
 const afm_config *afm_runner_config(const afm_runner *r) { return &r->cfg; }
 const afm_sim *afm_runner_sim(const afm_runner *r) { return r->sim; }
+bool afm_runner_pipelined(const afm_runner *r) { return r->pipelined; }

@@ -11,6 +11,17 @@
  * allocates, locks or blocks, except afm_runner_model_build / _destroy, which exist to be
  * called on another thread (or, in replay, inline).
  *
+ * Two stages: the integrator (front: apply, run, budget, status_get) writes its samples,
+ * blocks of AFM_RUNNER_SLOT_SAMPLES, and every change the output chain must follow into a
+ * lock-free ring; the output chain (back: chain_run, take_*, chain_status_get,
+ * take_trash) consumes them in order. afm_runner_create runs the back inline, inside run
+ * and apply, on the caller's thread. afm_runner_create_pipelined(..., true, ...) leaves it
+ * to a second thread: the front's functions on one thread, the back's on one other
+ * (afm_runner_take_trash on any one thread). The chain gets the same calls with the same
+ * data in both cases, so the outputs are bit-identical. Pipelined, run advances fewer
+ * samples than asked when the ring is full (the chain stage is behind: status.stalls),
+ * and never waits.
+ *
  * Determinism: the output depends only on the config and on which commands were applied
  * after how many samples since create. The setpoint ramp moves Z every
  * AFM_RUNNER_RAMP_SAMPLES samples counted from create, so how the caller slices
@@ -31,8 +42,8 @@
  *  - tick: adds n samples to the lockstep budget (see afm_runner_run).
  *  - reload: swaps in *model (built from a whole new config): new simulator and chain,
  *    model time continues, state at rest, drive and Z from the new config.
- * Every applied command but a reload sets seq_applied = its seq; all outputs carry
- * seq_applied.
+ * Every applied command but a reload sets seq_applied = its seq (a reload keeps it); the
+ * outputs carry the seq_applied of the samples they come from (chain_status_get).
  *
  * A numerical blow-up (AFM_SIM_EBLOWUP from the integrator) resets the state to rest and
  * the chain, is counted (status.blowups, last_blowup_t_s); the samples of that slice are
@@ -48,6 +59,7 @@
 #include <stdint.h>
 
 #define AFM_RUNNER_RAMP_SAMPLES 64 /* Z ramp update interval (samples; 4.6 us at 14.06 MHz) */
+#define AFM_RUNNER_SLOT_SAMPLES 1024 /* samples per ring item (73 us at 14.06 MHz) */
 
 typedef struct afm_runner afm_runner;
 /* A simulator (and, for geometry changes and reloads, a chain) built for a config, ready
@@ -59,7 +71,13 @@ typedef struct afm_runner_model afm_runner_model;
  * advances only by tick budget (see afm_runner_run). NULL with err on failure. */
 afm_runner *afm_runner_create(const afm_config *cfg, int block_max, bool lockstep, char *err,
                               size_t errlen);
+/* As afm_runner_create; pipelined: the back runs on another thread (see above), through a
+ * ring of ring_items (2..65536) items of AFM_RUNNER_SLOT_SAMPLES samples (~50 kB each). */
+afm_runner *afm_runner_create_pipelined(const afm_config *cfg, int block_max, bool lockstep,
+                                        bool pipelined, int ring_items, char *err,
+                                        size_t errlen);
 void afm_runner_destroy(afm_runner **r);
+bool afm_runner_pipelined(const afm_runner *r);
 
 /* Build, for a DAMPING / GEOMETRY param command or a reload, the simulator for cfg (the
  * config the command leads to: the caller's copy after afm_param_apply, or the new file),
@@ -76,7 +94,10 @@ int afm_runner_cmd_needs_model(const afm_config *cfg, const afm_cmd *c, bool *ne
 
 /* Apply c now (between runs). model: NULL, or the address of a model handle for the
  * commands that need one; on success it then holds the objects swapped out (destroy them
- * off the real-time thread). 0, or -1 with err and nothing changed. */
+ * off the real-time thread), or, pipelined, NULL: they come out of afm_runner_take_trash
+ * once the chain thread has passed the swap. 0, or -1 with err and nothing changed (*model
+ * still the caller's). Also -1 when the chain stage is so far behind that the changes it
+ * has to follow no longer fit (pipelined only). */
 int afm_runner_apply(afm_runner *r, const afm_cmd *c, afm_runner_model **model, char *err,
                      size_t errlen);
 
@@ -88,8 +109,28 @@ long long afm_runner_run(afm_runner *r, long long n);
 /* Samples the next afm_runner_run would advance at most (LLONG_MAX when not gated). */
 long long afm_runner_budget(const afm_runner *r);
 
-/* Outputs: decimated blocks of stream i and per-period records, as afm_chain_take_block /
- * afm_chain_take_periods (pointers valid until the next run, apply or reset). */
+/* Back, pipelined only (inline, run and apply do it): process up to max_items (<= 0: all)
+ * ring items; stops early before samples that follow a later command than the outputs
+ * waiting, so that the caller takes those first with their seq. Returns items processed
+ * (0: nothing waiting). */
+int afm_runner_chain_run(afm_runner *r, int max_items);
+
+/* Back: the objects a swap replaced (a model handle to afm_runner_model_destroy off the
+ * real-time threads). 1 with *m, 0 when none waits. */
+int afm_runner_take_trash(afm_runner *r, afm_runner_model **m);
+
+typedef struct {
+    int64_t seq_applied; /* seq of the command before the last samples the chain took */
+    double fe_hz;        /* tone 0 frequency of those samples */
+    double t_s;          /* model time of the last sample the chain took */
+    long long samples;   /* samples the chain took */
+    long long attach_errors, trash_lost; /* should stay 0 */
+    afm_chain_stats chain;
+} afm_runner_chain_status;
+void afm_runner_chain_status_get(const afm_runner *r, afm_runner_chain_status *st);
+
+/* Back: decimated blocks of stream i and per-period records, as afm_chain_take_block /
+ * afm_chain_take_periods (pointers valid until the next chain_run, or run / apply inline). */
 int afm_runner_n_streams(const afm_runner *r);
 int afm_runner_take_block(afm_runner *r, int stream, afm_chain_block *b, int max_n);
 int afm_runner_take_periods(afm_runner *r, afm_chain_period *out, int max);
@@ -110,7 +151,10 @@ typedef struct {
     double last_blowup_t_s;  /* model time of the last one (NAN if none) */
     long long applied;       /* commands applied */
     long long swaps;         /* models swapped in (damping, geometry, reload) */
-    afm_chain_stats chain;   /* OBD saturation, ring drops, periods, estimator rejects */
+    long long stalls;        /* runs cut short by a full ring (pipelined: chain behind) */
+    long long pending;       /* ring items the chain has not taken yet (a snapshot) */
+    afm_chain_stats chain;   /* OBD saturation, ring drops, periods, estimator rejects
+                                (inline only; pipelined: afm_runner_chain_status_get) */
 } afm_runner_status;
 
 void afm_runner_status_get(const afm_runner *r, afm_runner_status *st);

@@ -5,6 +5,8 @@
 #include "afm_sim_impl.h"
 
 #include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 static const double two_pi = 6.283185307179586476925286766559;
@@ -65,4 +67,46 @@ int afm_sim_continue(afm_sim *dst, const afm_sim *src, unsigned what) {
     dst->f_last_n = afm_force_tip(&dst->f, dst->z_m, x, v, NULL, NULL);
     dst->be->changed(dst);
     return AFM_SIM_OK;
+}
+
+/* ---- mirror ------------------------------------------------------------------------- */
+
+static int mirror_run(afm_sim *s, int n, afm_sample *out) {
+    (void)s;
+    (void)n;
+    (void)out;
+    return AFM_SIM_EINVAL; /* a mirror has no integrator */
+}
+static int mirror_advance(afm_sim *s) {
+    (void)s;
+    return AFM_SIM_EINVAL;
+}
+static void mirror_changed(afm_sim *s) { (void)s; }
+static void mirror_destroy(afm_sim *s) { (void)s; }
+
+static const afm_sim_backend mirror_backend = {
+    .name = "mirror",
+    .advance = mirror_advance,
+    .run = mirror_run,
+    .changed = mirror_changed,
+    .destroy = mirror_destroy,
+};
+
+afm_sim *afm_sim_mirror_create(const afm_sim *src, char *err, size_t errlen) {
+    afm_sim *m = malloc(sizeof *m);
+    if (!m) {
+        if (err && errlen) snprintf(err, errlen, "sim mirror: out of memory");
+        return NULL;
+    }
+    *m = *src;
+    m->be = &mirror_backend;
+    m->be_state = NULL;
+    return m;
+}
+
+void afm_sim_mirror_set(afm_sim *mirror, const afm_drive *d, const afm_force_params *f,
+                        double z_m) {
+    if (d) mirror->drive = *d;
+    if (f) mirror->f = *f;
+    mirror->z_m = z_m;
 }

@@ -34,4 +34,14 @@ int afm_sim_set_forces(afm_sim *s, const afm_force_params *f);
  * if KEEP_STATE and the mode counts differ. */
 int afm_sim_continue(afm_sim *dst, const afm_sim *src, unsigned what);
 
+/* A mirror of a simulator for a consumer on another thread (the daemon's output-chain
+ * thread attaches its chain to one): a simulator struct that carries src's model, forces,
+ * drive, Z and time at creation, and afterwards whatever the mirror setters put in. It has
+ * no integrator: afm_sim_run on it fails (not AFM_SIM_OK) and advances nothing.
+ * create allocates (off the real-time path); destroy with afm_sim_destroy. NULL with err. */
+afm_sim *afm_sim_mirror_create(const afm_sim *src, char *err, size_t errlen);
+/* Set the mirror's drive, forces and Z (copies; no checks, no allocation). */
+void afm_sim_mirror_set(afm_sim *mirror, const afm_drive *d, const afm_force_params *f,
+                        double z_m);
+
 #endif

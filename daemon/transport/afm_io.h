@@ -54,6 +54,22 @@ typedef struct {
     const char *mode;     /* "realtime", "freerun", "lockstep" */
     int running;
     double separation_m, fe_hz, amplitude_m;
+    /* Pipeline health (issue 5 follow-up): commands applied by the twin, realtime
+     * backlogs dropped (lag beyond the bound), and the output-chain stage: times the
+     * integrator found its ring full (chain behind) and how far it trails (s). */
+    int64_t applied;
+    int64_t resyncs;
+    int64_t chain_stalls;
+    double chain_lag_s;
+    /* CAN input (issue 6): filled by the CAN transport's annotate_status; all zero (and
+     * can_state "") when the daemon has no CAN transport. */
+    char can_state[AFM_IO_REASON_LEN]; /* "ok", or "<state> ...; holding last commands" */
+    int64_t can_frames;     /* data frames received (accepted and rejected) */
+    int64_t can_rejected;   /* frames rejected (codec or daemon) */
+    int64_t can_errors;     /* error frames and socket errors */
+    int64_t can_reconnects; /* socket re-opened after a loss */
+    char can_last_reject[AFM_IO_REASON_LEN];
+    int heartbeat_ok;       /* 1: heartbeat within can.heartbeat_timeout_s (or not monitored) */
 } afm_io_status;
 
 /* What a transport calls on the receive thread. */
@@ -79,6 +95,13 @@ typedef struct {
     int (*publish_harmonics)(afm_io *io, const afm_io_harmonics *h);
     int (*publish_status)(afm_io *io, const afm_io_status *s);
     void (*destroy)(afm_io *io);
+    /* Optional (NULL: none). wait_fd: the descriptor that becomes readable when poll(io, 0)
+     * has work (-1: none now, e.g. while reconnecting), and in *max_wait_ms how long the
+     * caller may wait before calling poll(io, 0) anyway (-1: no limit) -- for afm_io_mux.
+     * Receive thread only. annotate_status: adds the transport's own fields to a status
+     * record; any non-real-time thread. */
+    int (*wait_fd)(afm_io *io, int *max_wait_ms);
+    void (*annotate_status)(afm_io *io, afm_io_status *s);
 } afm_io_ops;
 
 struct afm_io {
@@ -87,12 +110,27 @@ struct afm_io {
     void *impl;
 };
 
-/* LCM transport on url (NULL: LCM's default, i.e. $LCM_DEFAULT_URL or udpm), channels
- * prefix + DITHER, SETPOINT, PARAM, CONTROL, TICK (in) and SAMPLES, HARMONICS, STATUS
- * (out). Every inbound channel is subscribed raw, so that any bytes on it are decoded and
- * judged here. NULL with err. */
-afm_io *afm_lcm_io_create(const char *url, const char *prefix, const afm_io_sink *sink,
-                          char *err, size_t errlen);
+/* LCM transport: two LCM instances, so that the command socket carries commands only
+ * (with udpm every member of a group and port receives everything sent to it, the
+ * daemon's own output flood included). Commands on url (NULL: LCM's default, i.e.
+ * $LCM_DEFAULT_URL or udpm://239.255.76.67:7667?ttl=0), channels prefix + DITHER,
+ * SETPOINT, PARAM, CONTROL, TICK, every one subscribed raw so that any bytes on it are
+ * decoded and judged here; outputs SAMPLES, HARMONICS, STATUS on out_url (NULL: derived
+ * from url by afm_lcm_out_url). NULL with err. */
+afm_io *afm_lcm_io_create(const char *url, const char *out_url, const char *prefix,
+                          const afm_io_sink *sink, char *err, size_t errlen);
+
+/* CAN transport (afm_can_io.c, issue 6): a SocketCAN raw socket on can->interface with the
+ * message map of afm_can_codec.h; dither registers start from drive. Inbound only: the
+ * publish functions do nothing, annotate_status fills the can_* fields. The interface
+ * need not exist yet (it is retried with backoff). NULL with err (bad map, no memory). */
+afm_io *afm_can_io_create(const afm_cfg_can *can, const afm_cfg_drive *drive,
+                          const afm_io_sink *sink, char *err, size_t errlen);
+
+/* Several transports as one (afm_io_mux.c): poll waits on all their wait_fd descriptors
+ * and polls each; publishing goes to all; the status is annotated by all, then published
+ * by all. Takes ownership of io[0..n-1] (destroyed with it, also on failure). n 1..4. */
+afm_io *afm_io_mux_create(afm_io *const *io, int n, char *err, size_t errlen);
 
 static inline void afm_io_destroy(afm_io **io) {
     if (io && *io) {

@@ -1,11 +1,12 @@
 /* SPDX-License-Identifier: MIT */
 /* afm_lcm_io.c -- the LCM transport of the daemon (interface in afm_io.h): raw
- * subscriptions on the command channels, outputs published as the generated types. */
+ * subscriptions on the command channels of one LCM instance, outputs published as the
+ * generated types (afm_lcm_encode.h) on a second one, so that the command socket never
+ * carries the daemon's own outputs (afm_lcm_url.h). */
 #include "afm_io.h"
 
-#include "afmtwin_harmonics_t.h"
-#include "afmtwin_samples_t.h"
-#include "afmtwin_status_t.h"
+#include "afm_lcm_encode.h"
+#include "afm_lcm_url.h"
 
 #include <lcm/lcm.h>
 #include <math.h>
@@ -26,7 +27,8 @@ typedef struct {
 
 struct lcm_io {
     afm_io io;
-    lcm_t *lcm;
+    lcm_t *lcm; /* commands (subscribed) */
+    lcm_t *out; /* outputs (publish only: LCM opens no receive socket for it) */
     in_channel in[5];
     char ch_samples[CH_LEN], ch_harmonics[CH_LEN], ch_status[CH_LEN];
 };
@@ -52,87 +54,36 @@ static int lio_poll(afm_io *io, int timeout_ms) {
 
 static int lio_samples(afm_io *io, const afm_io_samples *s) {
     lcm_io *l = io->impl;
-    afmtwin_samples_t m = {
-        .utime = s->utime,
-        .seq_applied = s->seq_applied,
-        .stream = (int8_t)s->stream,
-        .t0_s = s->t0_s,
-        .rate_hz = s->rate_hz,
-        .n = s->n,
-        .deflection_m = (float *)s->deflection_m,
-        .obd_m = (float *)s->obd_m,
-        .obd_counts = (int32_t *)s->obd_counts,
-        .force_n = (float *)s->force_n,
-    };
-    return afmtwin_samples_t_publish(l->lcm, l->ch_samples, &m) < 0 ? -1 : 0;
+    afmtwin_samples_t m;
+    afm_lcm_samples_msg(s, &m);
+    return afmtwin_samples_t_publish(l->out, l->ch_samples, &m) < 0 ? -1 : 0;
 }
 
 static int lio_harmonics(afm_io *io, const afm_io_harmonics *h) {
     lcm_io *l = io->impl;
-    const afm_harm_result *r = &h->p.harm;
-    const afm_cycle_metrics *c = &h->p.cycle;
-    int n = r->n_harmonics;
-    int16_t k[AFM_MAX_HARMONICS];
-    double xa[AFM_MAX_HARMONICS], xp[AFM_MAX_HARMONICS], fa[AFM_MAX_HARMONICS];
-    double fp[AFM_MAX_HARMONICS], pd[AFM_MAX_HARMONICS];
-    for (int i = 0; i < n; i++) {
-        k[i] = (int16_t)r->h[i].k;
-        xa[i] = r->h[i].x_amp_m;
-        xp[i] = r->h[i].x_phase_deg;
-        fa[i] = r->h[i].f_amp_n;
-        fp[i] = r->h[i].f_phase_deg;
-        pd[i] = r->h[i].phase_diff_deg;
-    }
-    afmtwin_harmonics_t m = {
-        .utime = h->utime,
-        .seq_applied = h->seq_applied,
-        .t_s = c->t_start_s,
-        .fe_hz = h->fe_hz,
-        .n = (int8_t)n,
-        .k = k,
-        .deflection_amplitude_m = xa,
-        .deflection_phase_deg = xp,
-        .force_amplitude_n = fa,
-        .force_phase_deg = fp,
-        .phase_diff_deg = pd,
-        .lockin_amplitude_m = h->p.lockin_amplitude_m,
-        .lockin_phase_deg = h->p.lockin_phase_deg,
-        .peak_force_n = c->peak_force_n,
-        .min_deflection_m = c->min_deflection_m,
-        .indentation_m = c->indentation_m,
-        .contact_time_s = c->contact_time_s,
-        .pre_contact_velocity_m_s = c->pre_contact_velocity_m_s,
-        .dissipated_energy_j = c->dissipated_energy_j,
-        .mean_deflection_m = c->mean_deflection_m,
-    };
-    return afmtwin_harmonics_t_publish(l->lcm, l->ch_harmonics, &m) < 0 ? -1 : 0;
+    afm_lcm_harm_buf b;
+    afmtwin_harmonics_t m;
+    afm_lcm_harmonics_msg(h, &b, &m);
+    return afmtwin_harmonics_t_publish(l->out, l->ch_harmonics, &m) < 0 ? -1 : 0;
 }
 
 static int lio_status(afm_io *io, const afm_io_status *s) {
     lcm_io *l = io->impl;
-    afmtwin_status_t m = {
-        .utime = s->utime,
-        .seq_applied = s->seq_applied,
-        .model_time_s = s->model_time_s,
-        .realtime_factor = s->realtime_factor,
-        .overruns = s->overruns,
-        .lag_s = s->lag_s,
-        .received = s->received,
-        .rejected = s->rejected,
-        .last_reject = (char *)s->last_reject,
-        .blowups = s->blowups,
-        .mode = (char *)s->mode,
-        .running = (int8_t)s->running,
-        .separation_m = s->separation_m,
-        .fe_hz = s->fe_hz,
-        .amplitude_m = s->amplitude_m,
-    };
-    return afmtwin_status_t_publish(l->lcm, l->ch_status, &m) < 0 ? -1 : 0;
+    afmtwin_status_t m;
+    afm_lcm_status_msg(s, &m);
+    return afmtwin_status_t_publish(l->out, l->ch_status, &m) < 0 ? -1 : 0;
+}
+
+static int lio_wait_fd(afm_io *io, int *max_wait_ms) {
+    lcm_io *l = io->impl;
+    if (max_wait_ms) *max_wait_ms = -1;
+    return lcm_get_fileno(l->lcm);
 }
 
 static void lio_destroy(afm_io *io) {
     lcm_io *l = io->impl;
     if (l->lcm) lcm_destroy(l->lcm);
+    if (l->out) lcm_destroy(l->out);
     free(l);
 }
 
@@ -143,10 +94,11 @@ static const afm_io_ops lcm_ops = {
     .publish_harmonics = lio_harmonics,
     .publish_status = lio_status,
     .destroy = lio_destroy,
+    .wait_fd = lio_wait_fd,
 };
 
-afm_io *afm_lcm_io_create(const char *url, const char *prefix, const afm_io_sink *sink,
-                          char *err, size_t errlen) {
+afm_io *afm_lcm_io_create(const char *url, const char *out_url, const char *prefix,
+                          const afm_io_sink *sink, char *err, size_t errlen) {
     static const struct {
         afm_cmd_kind kind;
         const char *name;
@@ -169,11 +121,17 @@ afm_io *afm_lcm_io_create(const char *url, const char *prefix, const afm_io_sink
     l->io.ops = &lcm_ops;
     l->io.sink = *sink;
     l->io.impl = l;
-    l->lcm = lcm_create(url);
-    if (!l->lcm) {
-        snprintf(err, errlen, "lcm_create(%s) failed (for udpm: is there a multicast route? "
-                 "see README, 'Running the daemon')", url ? url : "default URL");
+    char cmd_u[AFM_LCM_URL_LEN], out_u[AFM_LCM_URL_LEN];
+    if (afm_lcm_urls(url, out_url, cmd_u, out_u, sizeof cmd_u, err, errlen)) {
         free(l);
+        return NULL;
+    }
+    l->lcm = lcm_create(cmd_u);
+    l->out = l->lcm ? lcm_create(out_u) : NULL;
+    if (!l->lcm || !l->out) {
+        snprintf(err, errlen, "lcm_create(%s) failed (for udpm: is there a multicast route? "
+                 "see README, 'Running the daemon')", l->lcm ? out_u : cmd_u);
+        lio_destroy(&l->io);
         return NULL;
     }
     for (int i = 0; i < 5; i++) {

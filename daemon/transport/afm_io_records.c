@@ -1,0 +1,30 @@
+/* SPDX-License-Identifier: MIT */
+/* afm_io_records.c -- output records from chain outputs (contract in afm_io_records.h). */
+#include "afm_io_records.h"
+
+#include <math.h>
+
+void afm_io_samples_from_block(afm_io_samples *o, const afm_chain_block *b, int64_t utime,
+                               int64_t seq_applied) {
+    int n = b->n < AFM_IO_MAX_BLOCK ? b->n : AFM_IO_MAX_BLOCK;
+    o->utime = utime;
+    o->seq_applied = seq_applied;
+    o->stream = b->stream;
+    o->t0_s = b->t_s[0];
+    o->rate_hz = b->rate_hz;
+    o->n = n;
+    for (int i = 0; i < n; i++) {
+        o->deflection_m[i] = (float)b->x_m[i];
+        o->obd_m[i] = (float)b->obd_m[i];
+        o->obd_counts[i] = b->obd_counts ? (int32_t)lrint(b->obd_counts[i]) : 0;
+        o->force_n[i] = (float)b->f_n[i];
+    }
+}
+
+void afm_io_harmonics_from_period(afm_io_harmonics *o, const afm_chain_period *p, double fe_hz,
+                                  int64_t utime, int64_t seq_applied) {
+    o->utime = utime;
+    o->seq_applied = seq_applied;
+    o->fe_hz = fe_hz;
+    o->p = *p;
+}

@@ -1,0 +1,18 @@
+/* SPDX-License-Identifier: MIT */
+/* afm_io_records.h -- the output records of afm_io.h from what the runner's chain gives:
+ * one mapping for the daemon's chain thread and `afmtwin replay`. No allocation. */
+#ifndef AFM_IO_RECORDS_H
+#define AFM_IO_RECORDS_H
+
+#include "afm_io.h"
+
+/* A samples record from a chain block (b->n <= AFM_IO_MAX_BLOCK): floats, and the ADC
+ * counts rounded to the nearest integer (0 without ADC). */
+void afm_io_samples_from_block(afm_io_samples *o, const afm_chain_block *b, int64_t utime,
+                               int64_t seq_applied);
+
+/* A harmonics record from one period's estimates. */
+void afm_io_harmonics_from_period(afm_io_harmonics *o, const afm_chain_period *p, double fe_hz,
+                                  int64_t utime, int64_t seq_applied);
+
+#endif
