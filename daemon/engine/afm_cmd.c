@@ -3,6 +3,7 @@
  * daemon/transport/afm_cmd.h; the LCM decoding is in daemon/transport/afm_cmd_lcm.c).
  * It lives in the engine library because afm_runner applies parameters with it. */
 #include "afm_cmd.h"
+#include "afm_err.h"
 
 #include <math.h>
 #include <stdarg.h>
@@ -95,15 +96,6 @@ static const afm_param_def defs[] = {PARAM_LIST(DEF)};
 static const param_ext ext[] = {PARAM_LIST(EXT)};
 #define N_ROWS ((int)(sizeof defs / sizeof defs[0]))
 
-static void set_err(char *err, size_t errlen, const char *fmt, ...)
-    __attribute__((format(printf, 3, 4)));
-static void set_err(char *err, size_t errlen, const char *fmt, ...) {
-    if (!err || !errlen) return;
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(err, errlen, fmt, ap);
-    va_end(ap);
-}
 
 const afm_param_def *afm_param_table(int *n) {
     if (n) *n = N_ROWS;
@@ -134,12 +126,12 @@ void afm_param_name(int entry, int index, char *buf, size_t len) {
 
 int afm_param_lookup(const char *name, int *entry, int *index, char *err, size_t errlen) {
     if (!name || !*name) {
-        set_err(err, errlen, "empty parameter name");
+        afm_err_set(err, errlen, "empty parameter name");
         return -1;
     }
     size_t len = strnlen(name, AFM_CMD_NAME_LEN);
     if (len >= AFM_CMD_NAME_LEN) {
-        set_err(err, errlen, "parameter name too long (max %d characters)", AFM_CMD_NAME_LEN - 1);
+        afm_err_set(err, errlen, "parameter name too long (max %d characters)", AFM_CMD_NAME_LEN - 1);
         return -1;
     }
     const char *br = strchr(name, '[');
@@ -156,16 +148,16 @@ int afm_param_lookup(const char *name, int *entry, int *index, char *err, size_t
         const afm_param_def *d = &defs[i];
         if (strlen(d->name) != base || strncmp(d->name, name, base) != 0) continue;
         if (idx >= 0 && d->n_index == 0) {
-            set_err(err, errlen, "parameter '%s' takes no index", d->name);
+            afm_err_set(err, errlen, "parameter '%s' takes no index", d->name);
             return -1;
         }
         if (idx >= d->n_index && d->n_index > 0) {
-            set_err(err, errlen, "parameter '%s': index %d out of range 0..%d", d->name, idx,
+            afm_err_set(err, errlen, "parameter '%s': index %d out of range 0..%d", d->name, idx,
                     d->n_index - 1);
             return -1;
         }
         if (idx < 0 && d->n_index > 0 && !d->scalar_ok) {
-            set_err(err, errlen, "parameter '%s' needs an index [0..%d]", d->name,
+            afm_err_set(err, errlen, "parameter '%s' needs an index [0..%d]", d->name,
                     d->n_index - 1);
             return -1;
         }
@@ -181,24 +173,24 @@ int afm_param_lookup(const char *name, int *entry, int *index, char *err, size_t
             if (w < 0) break;
             n += (size_t)w;
         }
-        set_err(err, errlen, "unknown parameter '%.*s' (known: %s)", (int)base, name, list);
+        afm_err_set(err, errlen, "unknown parameter '%.*s' (known: %s)", (int)base, name, list);
     }
     return -1;
 bad_index:
-    set_err(err, errlen, "parameter '%s': bad index (want name[N])", name);
+    afm_err_set(err, errlen, "parameter '%s': bad index (want name[N])", name);
     return -1;
 }
 
 static int check_range(const afm_param_def *d, const char *name, double v, char *err,
                        size_t errlen) {
     if (!isfinite(v)) {
-        set_err(err, errlen, "param %s: value is not a finite number", name);
+        afm_err_set(err, errlen, "param %s: value is not a finite number", name);
         return -1;
     }
     bool lo_ok = d->min_open ? v > d->min : v >= d->min;
     bool hi_ok = d->max_open ? v < d->max : v <= d->max;
     if (!lo_ok || !hi_ok) {
-        set_err(err, errlen, "param %s: %g %s out of range %c%g, %g%c", name, v, d->unit,
+        afm_err_set(err, errlen, "param %s: %g %s out of range %c%g, %g%c", name, v, d->unit,
                 d->min_open ? '(' : '[', d->min, d->max, d->max_open ? ')' : ']');
         return -1;
     }
@@ -208,28 +200,28 @@ static int check_range(const afm_param_def *d, const char *name, double v, char 
 static int check_dither(const afm_cmd_dither *d, const afm_cmd_limits *lim, char *err,
                         size_t errlen) {
     if (d->n_tones < 1 || d->n_tones > AFM_MAX_TONES) {
-        set_err(err, errlen, "dither: n_tones %d not in 1..%d", d->n_tones, AFM_MAX_TONES);
+        afm_err_set(err, errlen, "dither: n_tones %d not in 1..%d", d->n_tones, AFM_MAX_TONES);
         return -1;
     }
     double nyq = lim && lim->sample_rate_hz > 0 ? 0.5 * lim->sample_rate_hz : HUGE_VAL;
     for (int j = 0; j < d->n_tones; j++) {
         double f = d->frequency_hz[j], a = d->amplitude_m[j], p = d->phase_rad[j];
         if (!isfinite(f) || !isfinite(a) || !isfinite(p)) {
-            set_err(err, errlen, "dither: tone %d has a non-finite value (f %g Hz, A %g m, "
+            afm_err_set(err, errlen, "dither: tone %d has a non-finite value (f %g Hz, A %g m, "
                     "phase %g rad)", j, f, a, p);
             return -1;
         }
         if (!(a >= 0 && a <= AFM_CMD_MAX_AMPLITUDE_M)) {
-            set_err(err, errlen, "dither: tone %d amplitude_m %g not in 0..%g m", j, a,
+            afm_err_set(err, errlen, "dither: tone %d amplitude_m %g not in 0..%g m", j, a,
                     AFM_CMD_MAX_AMPLITUDE_M);
             return -1;
         }
         if (!(f > 0 && f < nyq)) {
             if (isfinite(nyq))
-                set_err(err, errlen, "dither: tone %d frequency_hz %g must be > 0 and < %g "
+                afm_err_set(err, errlen, "dither: tone %d frequency_hz %g must be > 0 and < %g "
                         "(half the sample rate)", j, f, nyq);
             else
-                set_err(err, errlen, "dither: tone %d frequency_hz %g must be > 0", j, f);
+                afm_err_set(err, errlen, "dither: tone %d frequency_hz %g must be > 0", j, f);
             return -1;
         }
     }
@@ -238,7 +230,7 @@ static int check_dither(const afm_cmd_dither *d, const afm_cmd_limits *lim, char
 
 int afm_cmd_validate(const afm_cmd *c, const afm_cmd_limits *lim, char *err, size_t errlen) {
     if (!c) {
-        set_err(err, errlen, "no command");
+        afm_err_set(err, errlen, "no command");
         return -1;
     }
     switch (c->kind) {
@@ -246,17 +238,17 @@ int afm_cmd_validate(const afm_cmd *c, const afm_cmd_limits *lim, char *err, siz
     case AFM_CMD_SETPOINT: {
         const afm_cmd_setpoint *s = &c->u.setpoint;
         if (!isfinite(s->separation_m) || !isfinite(s->ramp_rate_m_s)) {
-            set_err(err, errlen, "setpoint: non-finite value (separation_m %g, ramp_rate_m_s %g)",
+            afm_err_set(err, errlen, "setpoint: non-finite value (separation_m %g, ramp_rate_m_s %g)",
                     s->separation_m, s->ramp_rate_m_s);
             return -1;
         }
         if (!(s->separation_m >= 0 && s->separation_m <= AFM_CMD_MAX_SEPARATION_M)) {
-            set_err(err, errlen, "setpoint: separation_m %g not in 0..%g m", s->separation_m,
+            afm_err_set(err, errlen, "setpoint: separation_m %g not in 0..%g m", s->separation_m,
                     AFM_CMD_MAX_SEPARATION_M);
             return -1;
         }
         if (!(s->ramp_rate_m_s >= 0 && s->ramp_rate_m_s <= AFM_CMD_MAX_RAMP_M_S)) {
-            set_err(err, errlen, "setpoint: ramp_rate_m_s %g not in 0..%g m/s", s->ramp_rate_m_s,
+            afm_err_set(err, errlen, "setpoint: ramp_rate_m_s %g not in 0..%g m/s", s->ramp_rate_m_s,
                     AFM_CMD_MAX_RAMP_M_S);
             return -1;
         }
@@ -265,26 +257,26 @@ int afm_cmd_validate(const afm_cmd *c, const afm_cmd_limits *lim, char *err, siz
     case AFM_CMD_PARAM: {
         const afm_cmd_param *p = &c->u.param;
         if (p->n < 1 || p->n > AFM_CMD_MAX_PARAMS) {
-            set_err(err, errlen, "param: n %d not in 1..%d", p->n, AFM_CMD_MAX_PARAMS);
+            afm_err_set(err, errlen, "param: n %d not in 1..%d", p->n, AFM_CMD_MAX_PARAMS);
             return -1;
         }
         for (int i = 0; i < p->n; i++) {
             char name[AFM_CMD_NAME_LEN + 16];
             if (p->entry[i] < 0 || p->entry[i] >= N_ROWS) {
-                set_err(err, errlen, "param: entry %d: unknown parameter", i);
+                afm_err_set(err, errlen, "param: entry %d: unknown parameter", i);
                 return -1;
             }
             const afm_param_def *d = &defs[p->entry[i]];
             afm_param_name(p->entry[i], p->index[i], name, sizeof name);
             if ((p->index[i] < 0 && d->n_index > 0 && !d->scalar_ok) ||
                 (p->index[i] >= 0 && p->index[i] >= d->n_index)) {
-                set_err(err, errlen, "param %s: bad index", name);
+                afm_err_set(err, errlen, "param %s: bad index", name);
                 return -1;
             }
             if (check_range(d, name, p->value[i], err, errlen)) return -1;
             for (int k = 0; k < i; k++)
                 if (p->entry[k] == p->entry[i] && p->index[k] == p->index[i]) {
-                    set_err(err, errlen, "param %s: given twice", name);
+                    afm_err_set(err, errlen, "param %s: given twice", name);
                     return -1;
                 }
         }
@@ -293,12 +285,12 @@ int afm_cmd_validate(const afm_cmd *c, const afm_cmd_limits *lim, char *err, siz
     case AFM_CMD_CONTROL: {
         const afm_cmd_control *k = &c->u.control;
         if (k->action < AFM_CTL_RUN || k->action > AFM_CTL_STEP) {
-            set_err(err, errlen, "control: unknown action %d (1 run, 2 pause, 3 reset, 4 step)",
+            afm_err_set(err, errlen, "control: unknown action %d (1 run, 2 pause, 3 reset, 4 step)",
                     k->action);
             return -1;
         }
         if (k->action == AFM_CTL_STEP && (k->n_samples < 1 || k->n_samples > AFM_CMD_MAX_STEP)) {
-            set_err(err, errlen, "control: step n_samples %lld not in 1..%lld", k->n_samples,
+            afm_err_set(err, errlen, "control: step n_samples %lld not in 1..%lld", k->n_samples,
                     AFM_CMD_MAX_STEP);
             return -1;
         }
@@ -306,14 +298,14 @@ int afm_cmd_validate(const afm_cmd *c, const afm_cmd_limits *lim, char *err, siz
     }
     case AFM_CMD_TICK:
         if (c->u.tick.n_samples < 1 || c->u.tick.n_samples > AFM_CMD_MAX_STEP) {
-            set_err(err, errlen, "tick: n_samples %lld not in 1..%lld", c->u.tick.n_samples,
+            afm_err_set(err, errlen, "tick: n_samples %lld not in 1..%lld", c->u.tick.n_samples,
                     AFM_CMD_MAX_STEP);
             return -1;
         }
         return 0;
     case AFM_CMD_RELOAD: return 0;
     }
-    set_err(err, errlen, "unknown command kind %d", (int)c->kind);
+    afm_err_set(err, errlen, "unknown command kind %d", (int)c->kind);
     return -1;
 }
 
@@ -361,7 +353,7 @@ int afm_param_apply(afm_config *cfg, const afm_cmd_param *p, afm_param_effect *e
         afm_param_name(p->entry[i], p->index[i], name, sizeof name);
         const char *why = need_text(r->need, &t);
         if (why) {
-            set_err(err, errlen, "param %s: %s", name, why);
+            afm_err_set(err, errlen, "param %s: %s", name, why);
             return -1;
         }
         double v = p->value[i];
@@ -370,7 +362,7 @@ int afm_param_apply(afm_config *cfg, const afm_cmd_param *p, afm_param_effect *e
         if (def->effect == AFM_PARAM_DAMPING) {
             int k = p->index[i], nm = n_modes(&t);
             if (k >= nm) {
-                set_err(err, errlen, "param %s: the model has %d modes (index 0..%d)", name, nm,
+                afm_err_set(err, errlen, "param %s: the model has %d modes (index 0..%d)", name, nm,
                         nm - 1);
                 return -1;
             }
@@ -389,7 +381,7 @@ int afm_param_apply(afm_config *cfg, const afm_cmd_param *p, afm_param_effect *e
     }
     char why[AFM_ERR_LEN];
     if (afm_config_validate(&t, why, sizeof why)) {
-        set_err(err, errlen, "param: the config would be invalid: %s", why);
+        afm_err_set(err, errlen, "param: the config would be invalid: %s", why);
         return -1;
     }
     *cfg = t;

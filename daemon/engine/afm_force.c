@@ -1,6 +1,7 @@
 /* SPDX-License-Identifier: MIT */
 /* afm_force.c -- tip-sample interaction forces and their partials (contract in afm_force.h). */
 #include "afm_force.h"
+#include "afm_err.h"
 #include "afm_force_inline.h"
 
 #include <math.h>
@@ -9,15 +10,6 @@
 
 static const double pi = 3.14159265358979323846;
 static const double eps0_f_m = 8.8541878128e-12; /* vacuum permittivity (CODATA 2018) */
-
-static void set_err(char *err, size_t errlen, const char *fmt, ...) {
-    if (!err || errlen == 0)
-        return;
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(err, errlen, fmt, ap);
-    va_end(ap);
-}
 
 /* Table 2.3: fc at beta = 0.1, 0.2, ..., 1.0. */
 static const double fc_table[10] = {0.94, 0.87, 0.81, 0.75, 0.69, 0.63, 0.57, 0.52, 0.47, 0.42};
@@ -41,28 +33,28 @@ double afm_force_fc(double beta) {
 static int need_pos(double v, const char *name, const char *why, char *err, size_t errlen) {
     if (isfinite(v) && v > 0.0)
         return 0;
-    set_err(err, errlen, "forces.%s = %g: must be finite and > 0 (%s)", name, v, why);
+    afm_err_set(err, errlen, "forces.%s = %g: must be finite and > 0 (%s)", name, v, why);
     return -1;
 }
 
 static int need_nonneg(double v, const char *name, const char *why, char *err, size_t errlen) {
     if (isfinite(v) && v >= 0.0)
         return 0;
-    set_err(err, errlen, "forces.%s = %g: must be finite and >= 0 (%s)", name, v, why);
+    afm_err_set(err, errlen, "forces.%s = %g: must be finite and >= 0 (%s)", name, v, why);
     return -1;
 }
 
 static int need_finite(double v, const char *name, const char *why, char *err, size_t errlen) {
     if (isfinite(v))
         return 0;
-    set_err(err, errlen, "forces.%s = %g: must be finite (%s)", name, v, why);
+    afm_err_set(err, errlen, "forces.%s = %g: must be finite (%s)", name, v, why);
     return -1;
 }
 
 int afm_force_init(afm_force_params *p, const afm_cfg_forces *cfg, double beam_length_m,
                    double beam_width_m, char *err, size_t errlen) {
     if (!p || !cfg) {
-        set_err(err, errlen, "afm_force_init: NULL argument");
+        afm_err_set(err, errlen, "afm_force_init: NULL argument");
         return -1;
     }
     const afm_cfg_forces *c = cfg;
@@ -70,7 +62,7 @@ int afm_force_init(afm_force_params *p, const afm_cfg_forces *cfg, double beam_l
 
     double alpha = c->inclination_rad;
     if (!(isfinite(alpha) && alpha >= 0.0 && alpha < 0.5 * pi)) {
-        set_err(err, errlen, "forces.inclination_rad = %g: must be in [0, pi/2)", alpha);
+        afm_err_set(err, errlen, "forces.inclination_rad = %g: must be in [0, pi/2)", alpha);
         return -1;
     }
     q.cos_alpha = cos(alpha);
@@ -78,7 +70,7 @@ int afm_force_init(afm_force_params *p, const afm_cfg_forces *cfg, double beam_l
     bool sq_starr = c->squeeze == AFM_SQUEEZE_STARR;
     bool sq_lin = c->squeeze == AFM_SQUEEZE_LINEAR;
     if (!(c->squeeze == AFM_SQUEEZE_NONE || sq_starr || sq_lin)) {
-        set_err(err, errlen, "forces.squeeze = %d: unknown kind (none, starr or linear)",
+        afm_err_set(err, errlen, "forces.squeeze = %d: unknown kind (none, starr or linear)",
                 (int)c->squeeze);
         return -1;
     }
@@ -123,7 +115,7 @@ int afm_force_init(afm_force_params *p, const afm_cfg_forces *cfg, double beam_l
             need_pos(beam_width_m, "plate_width_m", w, err, errlen))
             return -1;
         if (!(isfinite(c->kappa) && c->kappa >= 0.0 && c->kappa <= 1.0)) {
-            set_err(err, errlen, "forces.kappa = %g: must be in [0, 1] (%s)", c->kappa, w);
+            afm_err_set(err, errlen, "forces.kappa = %g: must be in [0, 1] (%s)", c->kappa, w);
             return -1;
         }
         double fc = afm_force_fc(beam_width_m / beam_length_m);
@@ -132,7 +124,7 @@ int afm_force_init(afm_force_params *p, const afm_cfg_forces *cfg, double beam_l
             c->eta0_pa_s * sqrt(2.0 * c->gas_constant_j_kg_k * c->temperature_k) / c->pressure_pa;
         q.sq_offset_m = c->kappa * c->tip_length_m * q.cos_alpha;
         if (!(isfinite(q.sq_coef) && isfinite(q.sq_lambda_m) && q.sq_lambda_m > 0.0)) {
-            set_err(err, errlen, "forces: Starr squeeze-film constants overflow (coef %g, "
+            afm_err_set(err, errlen, "forces: Starr squeeze-film constants overflow (coef %g, "
                     "mean free path %g m)", q.sq_coef, q.sq_lambda_m);
             return -1;
         }
@@ -152,7 +144,7 @@ int afm_force_init(afm_force_params *p, const afm_cfg_forces *cfg, double beam_l
             return -1;
         double th = c->contact_angle_rad;
         if (!(isfinite(th) && th >= 0.0 && th <= pi)) {
-            set_err(err, errlen, "forces.contact_angle_rad = %g: must be in [0, pi] (%s)", th, w);
+            afm_err_set(err, errlen, "forces.contact_angle_rad = %g: must be in [0, pi] (%s)", th, w);
             return -1;
         }
         q.capillary = true;
@@ -167,7 +159,7 @@ int afm_force_init(afm_force_params *p, const afm_cfg_forces *cfg, double beam_l
             return -1;
         double th = c->cone_half_angle_rad;
         if (!(isfinite(th) && th > 0.0 && th < 0.5 * pi)) {
-            set_err(err, errlen, "forces.cone_half_angle_rad = %g: must be in (0, pi/2) (%s)",
+            afm_err_set(err, errlen, "forces.cone_half_angle_rad = %g: must be in (0, pi/2) (%s)",
                     th, w);
             return -1;
         }
@@ -179,7 +171,7 @@ int afm_force_init(afm_force_params *p, const afm_cfg_forces *cfg, double beam_l
         q.es_coef_n = lambda0 * lambda0 / four_pi_e0;
         q.es_cone_m = c->cone_length_m;
         if (!isfinite(q.es_coef_n)) {
-            set_err(err, errlen, "forces: electrostatic coefficient overflows (%g N)",
+            afm_err_set(err, errlen, "forces: electrostatic coefficient overflows (%g N)",
                     q.es_coef_n);
             return -1;
         }
@@ -187,7 +179,7 @@ int afm_force_init(afm_force_params *p, const afm_cfg_forces *cfg, double beam_l
 
     if (!(isfinite(q.vdw_coef) && isfinite(q.f_adhesion_n) && isfinite(q.hertz_coef) &&
           isfinite(q.visco_coef) && isfinite(q.cap_coef_n))) {
-        set_err(err, errlen, "forces: a precomputed coefficient overflows (check magnitudes)");
+        afm_err_set(err, errlen, "forces: a precomputed coefficient overflows (check magnitudes)");
         return -1;
     }
     *p = q;

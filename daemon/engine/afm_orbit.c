@@ -1,6 +1,7 @@
 /* SPDX-License-Identifier: MIT */
 /* afm_orbit.c -- steady-state orbit analysis over drive periods (contract in afm_orbit.h). */
 #include "afm_orbit.h"
+#include "afm_err.h"
 
 #include "afm_est_internal.h"
 
@@ -12,10 +13,6 @@ static const double two_pi = AFM_EST_TWO_PI;
 static const double rad2deg = AFM_EST_RAD2DEG;
 
 #define STENCIL 10 /* points of each end correction; exact for degree < STENCIL */
-
-static void set_err(char *err, size_t errlen, const char *msg) {
-    if (err && errlen) snprintf(err, errlen, "%s", msg);
-}
 
 double afm_orbit_period_s(const afm_drive *d) {
     return d->n > 0 && d->omega_rad_s[0] > 0 ? two_pi / d->omega_rad_s[0] : 0.0;
@@ -248,29 +245,29 @@ static void end_weights(int u0, double frac, bool right, double *w) {
 int afm_orbit_analyse(const afm_sample *buf, int n, const afm_drive *d, int p, double x_contact_m,
                       const int *ks, int nk, afm_orbit *out, char *err, size_t errlen) {
     if (!buf || !d || !out || (nk > 0 && !ks)) {
-        set_err(err, errlen, "afm_orbit_analyse: NULL argument");
+        afm_err_set(err, errlen, "afm_orbit_analyse: NULL argument");
         return -1;
     }
     if (p < 1 || p > AFM_ORBIT_MAX_P) {
-        set_err(err, errlen, "afm_orbit_analyse: periodicity out of 1..AFM_ORBIT_MAX_P");
+        afm_err_set(err, errlen, "afm_orbit_analyse: periodicity out of 1..AFM_ORBIT_MAX_P");
         return -1;
     }
     if (nk < 0 || nk > AFM_MAX_HARMONICS) {
-        set_err(err, errlen, "afm_orbit_analyse: too many harmonics");
+        afm_err_set(err, errlen, "afm_orbit_analyse: too many harmonics");
         return -1;
     }
     for (int j = 0; j < nk; j++)
         if (ks[j] < 1) {
-            set_err(err, errlen, "afm_orbit_analyse: harmonic numbers must be >= 1");
+            afm_err_set(err, errlen, "afm_orbit_analyse: harmonic numbers must be >= 1");
             return -1;
         }
     if (isnan(x_contact_m)) {
-        set_err(err, errlen, "afm_orbit_analyse: contact displacement is NaN");
+        afm_err_set(err, errlen, "afm_orbit_analyse: contact displacement is NaN");
         return -1;
     }
     double h = uniform_step(buf, n), te = afm_orbit_period_s(d);
     if (!(h > 0) || !(te > 0)) {
-        set_err(err, errlen, "afm_orbit_analyse: sample times not uniform, or no tone 0");
+        afm_err_set(err, errlen, "afm_orbit_analyse: sample times not uniform, or no tone 0");
         return -1;
     }
     double w0 = d->omega_rad_s[0];
@@ -282,7 +279,7 @@ int afm_orbit_analyse(const afm_sample *buf, int n, const afm_drive *d, int p, d
     else if (m_hi - m_lo >= p)
         m_a = m_hi - p;
     else {
-        set_err(err, errlen, "afm_orbit_analyse: buffer shorter than p drive periods + margins");
+        afm_err_set(err, errlen, "afm_orbit_analyse: buffer shorter than p drive periods + margins");
         return -1;
     }
     double ta = boundary_time(d, m_a), tb = boundary_time(d, m_a + p);

@@ -1,6 +1,7 @@
 /* SPDX-License-Identifier: MIT */
 /* afm_psd.c -- streaming Welch PSD (Hann, 50 % overlap, one-sided) on FFTW3: afm_psd.h. */
 #include "afm_psd.h"
+#include "afm_err.h"
 
 #include <fftw3.h>
 #include <math.h>
@@ -25,10 +26,6 @@ struct afm_psd {
     long segments;
 };
 
-static void set_err(char *err, size_t errlen, const char *msg) {
-    if (err && errlen) snprintf(err, errlen, "%s", msg);
-}
-
 afm_psd *afm_psd_create(long n_seg, double sample_rate_hz, char *err, size_t errlen) {
     if (n_seg < PSD_MIN_SEG || n_seg > PSD_MAX_SEG || n_seg % 2) {
         if (err && errlen)
@@ -37,7 +34,7 @@ afm_psd *afm_psd_create(long n_seg, double sample_rate_hz, char *err, size_t err
         return NULL;
     }
     if (!(sample_rate_hz > 0) || !isfinite(sample_rate_hz)) {
-        set_err(err, errlen, "psd: sample rate must be finite and > 0");
+        afm_err_set(err, errlen, "psd: sample rate must be finite and > 0");
         return NULL;
     }
     afm_psd *p = calloc(1, sizeof *p);
@@ -65,7 +62,7 @@ afm_psd *afm_psd_create(long n_seg, double sample_rate_hz, char *err, size_t err
     p->scale = 1.0 / (sample_rate_hz * s2);
     return p;
 nomem:
-    set_err(err, errlen, "psd: out of memory");
+    afm_err_set(err, errlen, "psd: out of memory");
     afm_psd_destroy(&p);
     return NULL;
 }

@@ -15,6 +15,7 @@
  * chain sees the same calls with the same data in the same order: the outputs are
  * bit-identical (test_runner checks it). */
 #include "afm_runner.h"
+#include "afm_err.h"
 
 #include "afm_force.h"
 #include "afm_sim_live.h"
@@ -105,15 +106,6 @@ struct afm_runner {
     int n_held;
 };
 
-static void set_err(char *err, size_t errlen, const char *fmt, ...)
-    __attribute__((format(printf, 3, 4)));
-static void set_err(char *err, size_t errlen, const char *fmt, ...) {
-    if (!err || !errlen) return;
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(err, errlen, fmt, ap);
-    va_end(ap);
-}
 
 static const double two_pi = 6.283185307179586476925286766559;
 
@@ -130,7 +122,7 @@ afm_runner_model *afm_runner_model_build(const afm_config *cfg, bool new_chain, 
                                          size_t errlen) {
     afm_runner_model *m = calloc(1, sizeof *m);
     if (!m) {
-        set_err(err, errlen, "out of memory");
+        afm_err_set(err, errlen, "out of memory");
         return NULL;
     }
     m->cfg = *cfg;
@@ -325,18 +317,18 @@ afm_runner *afm_runner_create_pipelined(const afm_config *cfg, int block_max, bo
                                         bool pipelined, int ring_items, char *err,
                                         size_t errlen) {
     if (!cfg || block_max < 1 || block_max > (1 << 24)) {
-        set_err(err, errlen, "runner: no config, or block_max %d not in 1..%d", block_max,
+        afm_err_set(err, errlen, "runner: no config, or block_max %d not in 1..%d", block_max,
                 1 << 24);
         return NULL;
     }
     if (ring_items < 2 || ring_items > 65536) {
-        set_err(err, errlen, "runner: ring of %d items not in 2..65536", ring_items);
+        afm_err_set(err, errlen, "runner: ring of %d items not in 2..65536", ring_items);
         return NULL;
     }
     afm_runner *r = calloc(1, sizeof *r);
     afm_runner_model *m = NULL;
     if (!r) {
-        set_err(err, errlen, "out of memory");
+        afm_err_set(err, errlen, "out of memory");
         return NULL;
     }
     if (afm_spsc_init(&r->ring, (size_t)ring_items, sizeof(ring_item), err, errlen) ||
@@ -438,7 +430,7 @@ static int apply_dither(afm_runner *r, const afm_cmd_dither *d, char *err, size_
                            : afm_sim_start_tone(s, j, d->amplitude_m[j], d->frequency_hz[j],
                                                 d->phase_rad[j]);
         if (rc != AFM_SIM_OK) { /* not reached after afm_cmd_validate with this sample rate */
-            set_err(err, errlen, "dither: tone %d rejected by the simulator", j);
+            afm_err_set(err, errlen, "dither: tone %d rejected by the simulator", j);
             return -1;
         }
     }
@@ -474,7 +466,7 @@ static int attach_ok(const afm_sim *s, char *err, size_t errlen) {
  * objects swapped out. */
 static int swap_in(afm_runner *r, afm_runner_model *m, unsigned what, char *err, size_t errlen) {
     if (afm_sim_continue(m->sim, r->sim, what) != AFM_SIM_OK) {
-        set_err(err, errlen, "the new model has %d modes, the running one %d: cannot carry "
+        afm_err_set(err, errlen, "the new model has %d modes, the running one %d: cannot carry "
                 "the state over", afm_sim_model(m->sim)->n, afm_sim_model(r->sim)->n);
         return -1;
     }
@@ -497,16 +489,16 @@ static int apply_param(afm_runner *r, const afm_cmd_param *p, afm_runner_model *
         if (afm_param_table(NULL)[p->entry[i]].effect == AFM_PARAM_SEPARATION) has_z = true;
     if (e >= AFM_PARAM_DAMPING) {
         if (!model || !*model) {
-            set_err(err, errlen, "param: a %s change needs a model built off the real-time "
+            afm_err_set(err, errlen, "param: a %s change needs a model built off the real-time "
                     "thread (afm_runner_model_build)", e == AFM_PARAM_DAMPING ? "damping" : "geometry");
             return -1;
         }
         if (e == AFM_PARAM_GEOMETRY && !(*model)->chain) {
-            set_err(err, errlen, "param: a geometry change needs a model with a new chain");
+            afm_err_set(err, errlen, "param: a geometry change needs a model with a new chain");
             return -1;
         }
         if (e == AFM_PARAM_DAMPING && (*model)->chain) {
-            set_err(err, errlen, "param: a damping change keeps the chain; the model has one");
+            afm_err_set(err, errlen, "param: a damping change keeps the chain; the model has one");
             return -1;
         }
         unsigned what = AFM_SIM_KEEP_DRIVE | (e == AFM_PARAM_DAMPING ? AFM_SIM_KEEP_STATE : 0);
@@ -519,7 +511,7 @@ static int apply_param(afm_runner *r, const afm_cmd_param *p, afm_runner_model *
         afm_force_params f;
         if (afm_force_init(&f, &t.forces, len, wid, err, errlen)) return -1;
         if (afm_sim_set_forces(r->sim, &f) != AFM_SIM_OK) {
-            set_err(err, errlen, "param: the simulator refused the new force constants");
+            afm_err_set(err, errlen, "param: the simulator refused the new force constants");
             return -1;
         }
         emit(r, IT_FORCES, NULL);
@@ -541,7 +533,7 @@ int afm_runner_apply(afm_runner *r, const afm_cmd *c, afm_runner_model **model, 
     commit_open(r);
     flush_pending(r);
     if (!front_room(r)) {
-        set_err(err, errlen, "%s: the output chain is %d changes behind; command not applied",
+        afm_err_set(err, errlen, "%s: the output chain is %d changes behind; command not applied",
                 afm_cmd_kind_name(c->kind), r->n_pending);
         return -1;
     }
@@ -576,7 +568,7 @@ int afm_runner_apply(afm_runner *r, const afm_cmd *c, afm_runner_model **model, 
         break;
     case AFM_CMD_TICK:
         if (!r->lockstep) {
-            set_err(err, errlen, "tick: the twin is not in lockstep mode");
+            afm_err_set(err, errlen, "tick: the twin is not in lockstep mode");
             return -1;
         }
         if (r->tick_budget > LLONG_MAX - c->u.tick.n_samples)
@@ -586,7 +578,7 @@ int afm_runner_apply(afm_runner *r, const afm_cmd *c, afm_runner_model **model, 
         break;
     case AFM_CMD_RELOAD:
         if (!model || !*model || !(*model)->chain) {
-            set_err(err, errlen, "reload: needs a model with a chain (afm_runner_model_build)");
+            afm_err_set(err, errlen, "reload: needs a model with a chain (afm_runner_model_build)");
             return -1;
         }
         {

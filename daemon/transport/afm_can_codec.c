@@ -2,6 +2,7 @@
 /* afm_can_codec.c -- CAN frames of the piezo-driver map to afm_cmd commands and back
  * (contract in afm_can_codec.h, frame layouts in docs/can.md). */
 #include "afm_can_codec.h"
+#include "afm_err.h"
 
 #include <float.h>
 #include <math.h>
@@ -9,16 +10,6 @@
 #include <stdint.h>
 #include <stdio.h>
 #include <string.h>
-
-static void set_err(char *err, size_t errlen, const char *fmt, ...)
-    __attribute__((format(printf, 3, 4)));
-static void set_err(char *err, size_t errlen, const char *fmt, ...) {
-    if (!err || !errlen) return;
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(err, errlen, fmt, ap);
-    va_end(ap);
-}
 
 static const char *const sig_names[AFM_CAN_N_SIGNALS] = {
     "dither_frequency", "dither_amplitude", "dither_phase", "setpoint", "enable", "heartbeat"};
@@ -89,13 +80,13 @@ static int get_value(const afm_cfg_can *m, afm_can_signal sig, int which, const 
 static int put_value(const afm_cfg_can *m, afm_can_signal sig, int which, double v, uint8_t *b,
                      const char *what, char *err, size_t errlen) {
     if (!isfinite(v)) {
-        set_err(err, errlen, "%s: %s is not a finite number", afm_can_signal_name(sig), what);
+        afm_err_set(err, errlen, "%s: %s is not a finite number", afm_can_signal_name(sig), what);
         return -1;
     }
     uint32_t u;
     if (m->encoding == AFM_CAN_FLOAT32) {
         if (fabs(v) > FLT_MAX) {
-            set_err(err, errlen, "%s: %s %g does not fit a float32", afm_can_signal_name(sig),
+            afm_err_set(err, errlen, "%s: %s %g does not fit a float32", afm_can_signal_name(sig),
                     what, v);
             return -1;
         }
@@ -107,7 +98,7 @@ static int put_value(const afm_cfg_can *m, afm_can_signal sig, int which, double
         double lo = is_signed ? (double)INT32_MIN : 0.0;
         double hi = is_signed ? (double)INT32_MAX : (double)UINT32_MAX;
         if (!(raw >= lo && raw <= hi)) {
-            set_err(err, errlen, "%s: %s %g is outside what the signal carries (%g .. %g at "
+            afm_err_set(err, errlen, "%s: %s %g is outside what the signal carries (%g .. %g at "
                     "%g per bit)", afm_can_signal_name(sig), what, v, lo * s, hi * s, s);
             return -1;
         }
@@ -138,7 +129,7 @@ static afm_can_result dither_cmd(afm_can_signal sig, int t, double v, const afm_
     if (t >= d->n_tones) {
         for (int j = d->n_tones; j <= t; j++)
             if (!(d->frequency_hz[j] > 0)) {
-                set_err(err, errlen, "%s: tone %d would start tone %d, which has no frequency "
+                afm_err_set(err, errlen, "%s: tone %d would start tone %d, which has no frequency "
                         "yet (send tone %d's dither_frequency first)", pre, t, j, j);
                 return AFM_CAN_R_REJECT;
             }
@@ -150,7 +141,7 @@ static afm_can_result dither_cmd(afm_can_signal sig, int t, double v, const afm_
     c.u.dither = *d;
     char why[AFM_ERR_LEN];
     if (afm_cmd_validate(&c, lim, why, sizeof why)) {
-        set_err(err, errlen, "%s: %s", pre, why);
+        afm_err_set(err, errlen, "%s: %s", pre, why);
         return AFM_CAN_R_REJECT;
     }
     *cmd = c;
@@ -164,26 +155,26 @@ afm_can_result afm_can_decode(const afm_cfg_can *map, const afm_can_state *state
                               size_t errlen) {
     char idt[16], pre[64];
     if (!map || !state || !f || !cmd || !next) {
-        set_err(err, errlen, "afm_can_decode: NULL argument");
+        afm_err_set(err, errlen, "afm_can_decode: NULL argument");
         return AFM_CAN_R_REJECT;
     }
     id_text(f->can_id, idt, sizeof idt);
     if (f->can_id & CAN_ERR_FLAG) {
-        set_err(err, errlen, "id %s: error frame, not a command", idt);
+        afm_err_set(err, errlen, "id %s: error frame, not a command", idt);
         return AFM_CAN_R_REJECT;
     }
     if (f->can_id & CAN_RTR_FLAG) {
-        set_err(err, errlen, "id %s: remote (RTR) frame, not a command", idt);
+        afm_err_set(err, errlen, "id %s: remote (RTR) frame, not a command", idt);
         return AFM_CAN_R_REJECT;
     }
     if (fd && !map->fd) {
-        set_err(err, errlen, "id %s: CAN FD frame, but can.fd = false", idt);
+        afm_err_set(err, errlen, "id %s: CAN FD frame, but can.fd = false", idt);
         return AFM_CAN_R_REJECT;
     }
     int s = afm_can_signal_of(map, f->can_id);
     if (s < 0) {
         bool other = ((f->can_id & CAN_EFF_FLAG) != 0) != map->extended_ids;
-        set_err(err, errlen, "id %s: unknown frame id (%s)", idt,
+        afm_err_set(err, errlen, "id %s: unknown frame id (%s)", idt,
                 other ? (map->extended_ids ? "an 11-bit id; the map uses 29-bit ids"
                                            : "a 29-bit id; the map uses 11-bit ids")
                       : "not in the can.ids map");
@@ -193,7 +184,7 @@ afm_can_result afm_can_decode(const afm_cfg_can *map, const afm_can_state *state
     snprintf(pre, sizeof pre, "id %s %s", idt, sig_names[sig]);
     size_t want = signal_len(sig);
     if (f->len != want) {
-        set_err(err, errlen, "%s: length %u, want %zu", pre, (unsigned)f->len, want);
+        afm_err_set(err, errlen, "%s: length %u, want %zu", pre, (unsigned)f->len, want);
         return AFM_CAN_R_REJECT;
     }
     const uint8_t *b = f->data;
@@ -204,21 +195,21 @@ afm_can_result afm_can_decode(const afm_cfg_can *map, const afm_can_state *state
         int t = b[0];
         double v;
         if (t >= AFM_MAX_TONES) {
-            set_err(err, errlen, "%s: tone %d not in 0..%d", pre, t, AFM_MAX_TONES - 1);
+            afm_err_set(err, errlen, "%s: tone %d not in 0..%d", pre, t, AFM_MAX_TONES - 1);
             return AFM_CAN_R_REJECT;
         }
         if (get_value(map, sig, 0, b + 4, &v)) {
-            set_err(err, errlen, "%s: tone %d value is NaN or infinite", pre, t);
+            afm_err_set(err, errlen, "%s: tone %d value is NaN or infinite", pre, t);
             return AFM_CAN_R_REJECT;
         }
         if (sig != AFM_CAN_DITHER_PHASE)
             return dither_cmd(sig, t, v, state, lim, cmd, next, pre, err, errlen);
         if (!(fabs(v) <= AFM_CAN_MAX_PHASE_RAD)) {
-            set_err(err, errlen, "%s: tone %d phase %g rad not in -2 pi .. 2 pi", pre, t, v);
+            afm_err_set(err, errlen, "%s: tone %d phase %g rad not in -2 pi .. 2 pi", pre, t, v);
             return AFM_CAN_R_REJECT;
         }
         if (t < state->dither.n_tones) {
-            set_err(err, errlen, "%s: tone %d is running; the drive is phase-continuous, so a "
+            afm_err_set(err, errlen, "%s: tone %d is running; the drive is phase-continuous, so a "
                     "phase only sets the start of a tone not yet running", pre, t);
             return AFM_CAN_R_REJECT;
         }
@@ -229,7 +220,7 @@ afm_can_result afm_can_decode(const afm_cfg_can *map, const afm_can_state *state
     case AFM_CAN_SETPOINT: {
         double z, r;
         if (get_value(map, sig, 0, b, &z) || get_value(map, sig, 1, b + 4, &r)) {
-            set_err(err, errlen, "%s: value is NaN or infinite", pre);
+            afm_err_set(err, errlen, "%s: value is NaN or infinite", pre);
             return AFM_CAN_R_REJECT;
         }
         afm_cmd c;
@@ -239,7 +230,7 @@ afm_can_result afm_can_decode(const afm_cfg_can *map, const afm_can_state *state
         c.u.setpoint.ramp_rate_m_s = r;
         char why[AFM_ERR_LEN];
         if (afm_cmd_validate(&c, lim, why, sizeof why)) {
-            set_err(err, errlen, "%s: %s", pre, why);
+            afm_err_set(err, errlen, "%s: %s", pre, why);
             return AFM_CAN_R_REJECT;
         }
         *cmd = c;
@@ -248,7 +239,7 @@ afm_can_result afm_can_decode(const afm_cfg_can *map, const afm_can_state *state
     }
     case AFM_CAN_ENABLE: {
         if (b[0] > 1) {
-            set_err(err, errlen, "%s: byte 0x%02X is neither 1 (enable) nor 0 (disable)", pre,
+            afm_err_set(err, errlen, "%s: byte 0x%02X is neither 1 (enable) nor 0 (disable)", pre,
                     b[0]);
             return AFM_CAN_R_REJECT;
         }
@@ -266,14 +257,14 @@ afm_can_result afm_can_decode(const afm_cfg_can *map, const afm_can_state *state
         return AFM_CAN_R_HEARTBEAT;
     case AFM_CAN_N_SIGNALS: break;
     }
-    set_err(err, errlen, "%s: no decoder", pre);
+    afm_err_set(err, errlen, "%s: no decoder", pre);
     return AFM_CAN_R_REJECT;
 }
 
 int afm_can_encode(const afm_cfg_can *map, afm_can_signal sig, int tone, double v0, double v1,
                    struct canfd_frame *f, char *err, size_t errlen) {
     if (!map || !f || (int)sig < 0 || sig >= AFM_CAN_N_SIGNALS) {
-        set_err(err, errlen, "afm_can_encode: bad argument");
+        afm_err_set(err, errlen, "afm_can_encode: bad argument");
         return -1;
     }
     memset(f, 0, sizeof *f);
@@ -285,7 +276,7 @@ int afm_can_encode(const afm_cfg_can *map, afm_can_signal sig, int tone, double 
     case AFM_CAN_DITHER_AMPLITUDE:
     case AFM_CAN_DITHER_PHASE:
         if (tone < 0 || tone >= AFM_MAX_TONES) {
-            set_err(err, errlen, "%s: tone %d not in 0..%d", sig_names[sig], tone,
+            afm_err_set(err, errlen, "%s: tone %d not in 0..%d", sig_names[sig], tone,
                     AFM_MAX_TONES - 1);
             return -1;
         }
@@ -302,14 +293,14 @@ int afm_can_encode(const afm_cfg_can *map, afm_can_signal sig, int tone, double 
                    : 0;
     case AFM_CAN_ENABLE:
         if (v0 != 0 && v0 != 1) {
-            set_err(err, errlen, "enable: %g is neither 1 (enable) nor 0 (disable)", v0);
+            afm_err_set(err, errlen, "enable: %g is neither 1 (enable) nor 0 (disable)", v0);
             return -1;
         }
         f->data[0] = (uint8_t)v0;
         return 0;
     case AFM_CAN_HEARTBEAT:
         if (!(v0 >= 0 && v0 <= 255) || v0 != floor(v0)) {
-            set_err(err, errlen, "heartbeat: state %g is not a byte 0..255", v0);
+            afm_err_set(err, errlen, "heartbeat: state %g is not a byte 0..255", v0);
             return -1;
         }
         f->data[0] = (uint8_t)v0;

@@ -2,6 +2,7 @@
 /* afm_cmd_lcm.c -- inbound LCM messages into afm_cmd: fingerprint, decode (the C types
  * lcm-gen makes from the msgtypes directory) and validation (contract in afm_cmd.h). */
 #include "afm_cmd.h"
+#include "afm_err.h"
 
 #include "afmtwin_control_t.h"
 #include "afmtwin_dither_t.h"
@@ -17,19 +18,10 @@ _Static_assert(AFMTWIN_CONTROL_T_RUN == AFM_CTL_RUN && AFMTWIN_CONTROL_T_PAUSE =
                    AFMTWIN_CONTROL_T_RESET == AFM_CTL_RESET && AFMTWIN_CONTROL_T_STEP == AFM_CTL_STEP,
                "control_t actions and afm_cmd_action must agree");
 
-static void set_err(char *err, size_t errlen, const char *fmt, ...)
-    __attribute__((format(printf, 3, 4)));
-static void set_err(char *err, size_t errlen, const char *fmt, ...) {
-    if (!err || !errlen) return;
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(err, errlen, fmt, ap);
-    va_end(ap);
-}
 
 static int from_dither(const afmtwin_dither_t *m, afm_cmd *c, char *err, size_t errlen) {
     if (m->n_tones < 1 || m->n_tones > AFM_MAX_TONES) {
-        set_err(err, errlen, "dither: n_tones %d not in 1..%d", m->n_tones, AFM_MAX_TONES);
+        afm_err_set(err, errlen, "dither: n_tones %d not in 1..%d", m->n_tones, AFM_MAX_TONES);
         return -1;
     }
     c->u.dither.n_tones = m->n_tones;
@@ -43,7 +35,7 @@ static int from_dither(const afmtwin_dither_t *m, afm_cmd *c, char *err, size_t 
 
 static int from_param(const afmtwin_param_t *m, afm_cmd *c, char *err, size_t errlen) {
     if (m->n < 1 || m->n > AFM_CMD_MAX_PARAMS) {
-        set_err(err, errlen, "param: n %d not in 1..%d", m->n, AFM_CMD_MAX_PARAMS);
+        afm_err_set(err, errlen, "param: n %d not in 1..%d", m->n, AFM_CMD_MAX_PARAMS);
         return -1;
     }
     c->u.param.n = m->n;
@@ -51,7 +43,7 @@ static int from_param(const afmtwin_param_t *m, afm_cmd *c, char *err, size_t er
         char why[AFM_ERR_LEN];
         if (afm_param_lookup(m->name[i], &c->u.param.entry[i], &c->u.param.index[i], why,
                              sizeof why)) {
-            set_err(err, errlen, "param: %s", why);
+            afm_err_set(err, errlen, "param: %s", why);
             return -1;
         }
         c->u.param.value[i] = m->value[i];
@@ -62,7 +54,7 @@ static int from_param(const afmtwin_param_t *m, afm_cmd *c, char *err, size_t er
 int afm_cmd_from_msg(afm_cmd_kind kind, const void *msg, const afm_cmd_limits *lim, afm_cmd *c,
                      char *err, size_t errlen) {
     if (!msg || !c) {
-        set_err(err, errlen, "no message");
+        afm_err_set(err, errlen, "no message");
         return -1;
     }
     memset(c, 0, sizeof *c);
@@ -106,7 +98,7 @@ int afm_cmd_from_msg(afm_cmd_kind kind, const void *msg, const afm_cmd_limits *l
         break;
     }
     default:
-        set_err(err, errlen, "%s commands do not come from messages", afm_cmd_kind_name(kind));
+        afm_err_set(err, errlen, "%s commands do not come from messages", afm_cmd_kind_name(kind));
         return -1;
     }
     return afm_cmd_validate(c, lim, err, errlen);
@@ -134,7 +126,7 @@ static int param_precheck(const unsigned char *b, size_t len, char *err, size_t 
     int n = (int16_t)((uint16_t)b[pos] << 8 | b[pos + 1]);
     pos += 2;
     if (n < 1 || n > AFM_CMD_MAX_PARAMS) {
-        set_err(err, errlen, "param: n %d not in 1..%d", n, AFM_CMD_MAX_PARAMS);
+        afm_err_set(err, errlen, "param: n %d not in 1..%d", n, AFM_CMD_MAX_PARAMS);
         return -1;
     }
     for (int i = 0; i < n; i++) {
@@ -142,12 +134,12 @@ static int param_precheck(const unsigned char *b, size_t len, char *err, size_t 
         uint32_t l = be_u32(b + pos);
         pos += 4;
         if (l < 1 || l > 4096) {
-            set_err(err, errlen, "param: name %d has a bad length %u", i, (unsigned)l);
+            afm_err_set(err, errlen, "param: name %d has a bad length %u", i, (unsigned)l);
             return -1;
         }
         if (len < pos + l) goto trunc;
         if (b[pos + l - 1] != 0 || memchr(b + pos, 0, l - 1)) {
-            set_err(err, errlen, "param: name %d is not a proper string", i);
+            afm_err_set(err, errlen, "param: name %d is not a proper string", i);
             return -1;
         }
         pos += l;
@@ -155,7 +147,7 @@ static int param_precheck(const unsigned char *b, size_t len, char *err, size_t 
     if (len < pos + 8 * (size_t)n) goto trunc;
     return 0;
 trunc:
-    set_err(err, errlen, "param: malformed or truncated message (%zu bytes)", len);
+    afm_err_set(err, errlen, "param: malformed or truncated message (%zu bytes)", len);
     return -1;
 }
 
@@ -165,19 +157,19 @@ trunc:
         T m;                                                                                       \
         memset(&m, 0, sizeof m);                                                                   \
         if (fingerprint(data) != __##T##_get_hash()) {                                             \
-            set_err(err, errlen, "%s: wrong message type on this channel (fingerprint %016llx)", \
+            afm_err_set(err, errlen, "%s: wrong message type on this channel (fingerprint %016llx)", \
                     kindname, (unsigned long long)fingerprint(data));                              \
             return -1;                                                                             \
         }                                                                                          \
         if (kind == AFM_CMD_PARAM && param_precheck(data, len, err, errlen)) return -1;          \
         int used = T##_decode(data, 0, (int)len, &m);                                              \
         if (used < 0) {                                                                            \
-            set_err(err, errlen, "%s: malformed or truncated message (%zu bytes)", kindname, len); \
+            afm_err_set(err, errlen, "%s: malformed or truncated message (%zu bytes)", kindname, len); \
             return -1;                                                                             \
         }                                                                                          \
         int rc = 0;                                                                                \
         if ((size_t)used != len) {                                                                 \
-            set_err(err, errlen, "%s: %zu trailing bytes after the message", kindname,             \
+            afm_err_set(err, errlen, "%s: %zu trailing bytes after the message", kindname,             \
                     len - (size_t)used);                                                           \
             rc = -1;                                                                               \
         } else {                                                                                   \
@@ -191,11 +183,11 @@ int afm_cmd_decode(afm_cmd_kind kind, const void *data, size_t len, const afm_cm
                    afm_cmd *c, char *err, size_t errlen) {
     const char *kn = afm_cmd_kind_name(kind);
     if (!data || len < 8) {
-        set_err(err, errlen, "%s: truncated message (%zu bytes, no fingerprint)", kn, len);
+        afm_err_set(err, errlen, "%s: truncated message (%zu bytes, no fingerprint)", kn, len);
         return -1;
     }
     if (len > (1u << 24)) {
-        set_err(err, errlen, "%s: message too large (%zu bytes)", kn, len);
+        afm_err_set(err, errlen, "%s: message too large (%zu bytes)", kn, len);
         return -1;
     }
     switch (kind) {
@@ -206,6 +198,6 @@ int afm_cmd_decode(afm_cmd_kind kind, const void *data, size_t len, const afm_cm
     case AFM_CMD_TICK: DECODE(afmtwin_tick_t, kn);
     default: break;
     }
-    set_err(err, errlen, "%s commands do not come from messages", kn);
+    afm_err_set(err, errlen, "%s commands do not come from messages", kn);
     return -1;
 }
