@@ -217,18 +217,23 @@ static int get_num(const loader *L, const config_setting_t *g, const char *name,
     return s ? as_number(L, s, out) : 0;
 }
 
-static int as_int(const loader *L, const config_setting_t *s, int *out) {
-    long long v;
+/* Any libconfig integer (int or int64) as long long; -1 with a message otherwise. */
+static int as_integer(const loader *L, const config_setting_t *s, long long *v) {
     switch (config_setting_type(s)) {
     case CONFIG_TYPE_INT:
-        v = config_setting_get_int(s);
-        break;
+        *v = config_setting_get_int(s);
+        return 0;
     case CONFIG_TYPE_INT64:
-        v = config_setting_get_int64(s);
-        break;
+        *v = config_setting_get_int64(s);
+        return 0;
     default:
         return fail(L, s, NULL, "expected an integer, got %s", type_name(s));
     }
+}
+
+static int as_int(const loader *L, const config_setting_t *s, int *out) {
+    long long v = 0;
+    if (as_integer(L, s, &v)) return -1;
     if (v < INT_MIN || v > INT_MAX) return fail(L, s, NULL, "integer out of range");
     *out = (int)v;
     return 0;
@@ -586,17 +591,8 @@ static int get_seed(const loader *L, const config_setting_t *g, const char *name
     config_setting_t *s;
     if (member(L, g, name, false, &s)) return -1;
     if (!s) return 0;
-    long long v;
-    switch (config_setting_type(s)) {
-    case CONFIG_TYPE_INT:
-        v = config_setting_get_int(s);
-        break;
-    case CONFIG_TYPE_INT64:
-        v = config_setting_get_int64(s);
-        break;
-    default:
-        return fail(L, s, NULL, "expected an integer, got %s", type_name(s));
-    }
+    long long v = 0;
+    if (as_integer(L, s, &v)) return -1;
     if (v < 0) return fail(L, s, NULL, "must be >= 0 (got %lld)", v);
     *out = (unsigned long)v;
     return 0;
