@@ -57,9 +57,12 @@ static void usage(FILE *f) {
 
 const char *twind_mode_name(twind_mode m) {
     switch (m) {
-    case TWIND_REALTIME: return "realtime";
-    case TWIND_FREERUN: return "freerun";
-    case TWIND_LOCKSTEP: return "lockstep";
+    case TWIND_REALTIME:
+        return "realtime";
+    case TWIND_FREERUN:
+        return "freerun";
+    case TWIND_LOCKSTEP:
+        return "lockstep";
     }
     return "?";
 }
@@ -90,9 +93,16 @@ static int parse_num(const char *opt, const char *s, double lo, double hi, doubl
 }
 
 static int parse_args(int argc, char **argv, twind_opts *o) {
-    *o = (twind_opts){.prefix = "AFMTWIN_", .mode = TWIND_REALTIME, .cpu = -1, .chain_cpu = -1,
-                      .rt_priority = 80, .block_s = 1e-3, .harmonics_max_hz = 1000.0,
-                      .speed = 1.0, .max_lag_s = 0.1, .ring_s = 5e-3};
+    *o = (twind_opts){.prefix = "AFMTWIN_",
+                      .mode = TWIND_REALTIME,
+                      .cpu = -1,
+                      .chain_cpu = -1,
+                      .rt_priority = 80,
+                      .block_s = 1e-3,
+                      .harmonics_max_hz = 1000.0,
+                      .speed = 1.0,
+                      .max_lag_s = 0.1,
+                      .ring_s = 5e-3};
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
         double x;
@@ -133,7 +143,8 @@ static int parse_args(int argc, char **argv, twind_opts *o) {
             else if (!strcmp(v, "lockstep"))
                 o->mode = TWIND_LOCKSTEP;
             else {
-                fprintf(stderr, "afmtwind: --mode must be realtime, freerun or lockstep, got '%s'\n", v);
+                fprintf(stderr,
+                        "afmtwind: --mode must be realtime, freerun or lockstep, got '%s'\n", v);
                 return -1;
             }
         } else if (!strcmp(a, "--cpu")) {
@@ -180,10 +191,9 @@ static void status_line(twind *d, twind_rtf_state *rs, char *buf, size_t len) {
              "seq %lld  Z %.3f nm  fe %.1f Hz  A %.4g nm  %s",
              s.model_time_s, s.realtime_factor, 100.0 * snap.busy_fraction,
              100.0 * cs.busy_fraction, s.lag_s, (long long)s.overruns, (long long)s.resyncs,
-             (long long)s.chain_stalls, s.chain_lag_s, (long long)s.received,
-             (long long)s.applied, (long long)s.rejected, (long long)s.blowups,
-             (long long)s.seq_applied, s.separation_m * 1e9, s.fe_hz, s.amplitude_m * 1e9,
-             s.running ? "running" : "paused");
+             (long long)s.chain_stalls, s.chain_lag_s, (long long)s.received, (long long)s.applied,
+             (long long)s.rejected, (long long)s.blowups, (long long)s.seq_applied,
+             s.separation_m * 1e9, s.fe_hz, s.amplitude_m * 1e9, s.running ? "running" : "paused");
     if (cs.samples_dropped || cs.harm_dropped || cs.st.chain.periods_dropped) {
         size_t n = strlen(buf);
         snprintf(buf + n, len - n, "  DROPPED: %lld sample blocks, %lld harmonics, %lld periods",
@@ -239,8 +249,8 @@ int main(int argc, char **argv) {
         goto out;
     }
     afm_io_sink sink = twind_sink(&d);
-    d.io = afm_lcm_io_create(d.opt.lcm_url, d.opt.lcm_out_url, d.opt.prefix, &sink, err,
-                             sizeof err);
+    d.io =
+        afm_lcm_io_create(d.opt.lcm_url, d.opt.lcm_out_url, d.opt.prefix, &sink, err, sizeof err);
     if (!d.io) {
         fprintf(stderr, "afmtwind: %s\n", err);
         goto out;
@@ -258,8 +268,8 @@ int main(int argc, char **argv) {
         }
         afm_io_status st = {0};
         d.io->ops->annotate_status(d.io, &st);
-        fprintf(stderr, "afmtwind: CAN input on %s (%s frames, %s ids): %s\n",
-                cfg.can.interface, cfg.can.fd ? "classic and FD" : "classic",
+        fprintf(stderr, "afmtwind: CAN input on %s (%s frames, %s ids): %s\n", cfg.can.interface,
+                cfg.can.fd ? "classic and FD" : "classic",
                 cfg.can.extended_ids ? "29-bit" : "11-bit", st.can_state);
     }
     pthread_t t_rt, t_chain, t_recv, t_pub;
@@ -312,10 +322,11 @@ int main(int argc, char **argv) {
         twind_snapshot s;
         twind_snap_read(&d, &s);
         if (s.resyncs != last_resyncs) /* never silently, also with --quiet */
-            fprintf(stderr, "afmtwind: warning: more than %.0f ms behind real time: dropped the "
+            fprintf(stderr,
+                    "afmtwind: warning: more than %.0f ms behind real time: dropped the "
                     "backlog %lld time(s) in the last second (%lld in all, %.4f s of model time "
-                    "skipped)\n", d.opt.max_lag_s * 1e3, s.resyncs - last_resyncs, s.resyncs,
-                    s.resync_dropped_s);
+                    "skipped)\n",
+                    d.opt.max_lag_s * 1e3, s.resyncs - last_resyncs, s.resyncs, s.resync_dropped_s);
         last_resyncs = s.resyncs;
         if (s.heartbeat != last_beat) twind_notify_watchdog(); /* only while the loop turns */
         last_beat = s.heartbeat;

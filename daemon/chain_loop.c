@@ -16,7 +16,7 @@
 #include <time.h>
 
 #define PERIODS_PER_TAKE 64
-#define ITEMS_PER_TURN 8   /* ring items (8 x 1024 samples) between output pushes */
+#define ITEMS_PER_TURN 8       /* ring items (8 x 1024 samples) between output pushes */
 #define IDLE_WAIT_NS 10000000L /* look at the stop flag every 10 ms when idle */
 
 typedef struct {
@@ -69,7 +69,9 @@ static void push_outputs(chain_ctx *c) {
     sem_post(&d->out_sem); /* wakes the publisher; never blocks */
 }
 
-static double mono(void) { return twind_mono_now(); }
+static double mono(void) {
+    return twind_mono_now();
+}
 
 void *twind_chain_main(void *arg) {
     twind *d = arg;
@@ -78,8 +80,8 @@ void *twind_chain_main(void *arg) {
     /* Below the publish and receive threads (rt_priority - 10): on a two-core machine the
      * two pipeline stages fill both cores when behind, and outputs and commands must still
      * get through; the integrator stays on top. */
-    twind_rt_setup_thread(d->opt.rt_priority > 21 ? d->opt.rt_priority - 20 : 1,
-                          d->opt.chain_cpu, warn, sizeof warn);
+    twind_rt_setup_thread(d->opt.rt_priority > 21 ? d->opt.rt_priority - 20 : 1, d->opt.chain_cpu,
+                          warn, sizeof warn);
     c.busy_t0 = mono();
     afm_runner_chain_status_get(c.r, &c.snap.st);
     twind_csnap_write(d, &c.snap);
@@ -100,7 +102,8 @@ void *twind_chain_main(void *arg) {
         }
         if (atomic_load_explicit(&d->rt_done, memory_order_acquire)) {
             /* The integrator has stopped: take what it left, then stop. */
-            while (afm_runner_chain_run(c.r, ITEMS_PER_TURN) > 0) push_outputs(&c);
+            while (afm_runner_chain_run(c.r, ITEMS_PER_TURN) > 0)
+                push_outputs(&c);
             break;
         }
         struct timespec ts;

@@ -6,7 +6,9 @@
 #include <stdio.h>
 #include <systemd/sd-daemon.h>
 
-void twind_notify_ready(void) { sd_notify(0, "READY=1"); }
+void twind_notify_ready(void) {
+    sd_notify(0, "READY=1");
+}
 
 void twind_notify_status(const char *text) {
     char buf[512];
@@ -14,6 +16,10 @@ void twind_notify_status(const char *text) {
     sd_notify(0, buf);
 }
 
-void twind_notify_watchdog(void) { sd_notify(0, "WATCHDOG=1"); }
+void twind_notify_watchdog(void) {
+    sd_notify(0, "WATCHDOG=1");
+}
 
-void twind_notify_stopping(void) { sd_notify(0, "STOPPING=1"); }
+void twind_notify_stopping(void) {
+    sd_notify(0, "STOPPING=1");
+}

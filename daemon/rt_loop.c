@@ -46,7 +46,9 @@ static void ts_add(struct timespec *t, double s) {
     t->tv_nsec = (long)ns;
 }
 
-static double ts_sec(const struct timespec *t) { return (double)t->tv_sec + 1e-9 * (double)t->tv_nsec; }
+static double ts_sec(const struct timespec *t) {
+    return (double)t->tv_sec + 1e-9 * (double)t->tv_nsec;
+}
 
 /* Models of commands this thread rejected go back to the receive thread for destruction
  * (swapped-out ones come from the runner's trash, via the chain thread). */

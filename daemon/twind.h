@@ -37,21 +37,21 @@ typedef enum { TWIND_REALTIME = 0, TWIND_FREERUN = 1, TWIND_LOCKSTEP = 2 } twind
 
 typedef struct {
     const char *config_path;
-    const char *lcm_url;  /* commands; NULL: LCM's default */
+    const char *lcm_url;     /* commands; NULL: LCM's default */
     const char *lcm_out_url; /* outputs; NULL: derived from lcm_url (udpm: port + 1) */
-    const char *prefix;   /* channel prefix, default "AFMTWIN_" */
+    const char *prefix;      /* channel prefix, default "AFMTWIN_" */
     twind_mode mode;
-    int cpu;              /* pin the RT thread to this CPU; -1: no pinning */
-    int chain_cpu;        /* pin the chain thread to this CPU; -1: no pinning */
-    double speed;         /* realtime: model seconds per wall second asked (1) */
-    double max_lag_s;     /* realtime: lag beyond which the backlog is dropped (resync) */
-    double ring_s;        /* runner ring between the two stages, model seconds */
-    int rt_priority;      /* SCHED_FIFO priority 1..99 */
-    double block_s;       /* real-time block length (s) */
-    double exit_after_s;  /* > 0: stop after this long (tests) */
-    int harmonics_every;  /* publish every k-th period; 0: auto (at most harmonics_max_hz) */
+    int cpu;             /* pin the RT thread to this CPU; -1: no pinning */
+    int chain_cpu;       /* pin the chain thread to this CPU; -1: no pinning */
+    double speed;        /* realtime: model seconds per wall second asked (1) */
+    double max_lag_s;    /* realtime: lag beyond which the backlog is dropped (resync) */
+    double ring_s;       /* runner ring between the two stages, model seconds */
+    int rt_priority;     /* SCHED_FIFO priority 1..99 */
+    double block_s;      /* real-time block length (s) */
+    double exit_after_s; /* > 0: stop after this long (tests) */
+    int harmonics_every; /* publish every k-th period; 0: auto (at most harmonics_max_hz) */
     double harmonics_max_hz;
-    int quiet;            /* no status line */
+    int quiet; /* no status line */
 } twind_opts;
 
 /* cmd_q item: a validated command and, for damping/geometry/reload, the model to swap in.
@@ -70,13 +70,13 @@ typedef struct {
  * or changed under them). */
 typedef struct {
     afm_runner_status st;
-    long long blocks;          /* blocks run */
-    long long overruns;        /* realtime blocks that ended after their deadline */
-    double lag_s;              /* wall clock minus model time (realtime mode) */
-    long long resyncs;         /* realtime: backlogs dropped because lag > max_lag_s */
-    double resync_dropped_s;   /* model time not run because of them (wall seconds x speed) */
-    long long heartbeat;       /* increases every loop turn (watchdog) */
-    double busy_fraction;      /* compute time / wall time over the last second */
+    long long blocks;        /* blocks run */
+    long long overruns;      /* realtime blocks that ended after their deadline */
+    double lag_s;            /* wall clock minus model time (realtime mode) */
+    long long resyncs;       /* realtime: backlogs dropped because lag > max_lag_s */
+    double resync_dropped_s; /* model time not run because of them (wall seconds x speed) */
+    long long heartbeat;     /* increases every loop turn (watchdog) */
+    double busy_fraction;    /* compute time / wall time over the last second */
 } twind_snapshot;
 
 /* What the chain thread publishes (its own seqlock). */
@@ -89,15 +89,15 @@ typedef struct {
 
 typedef struct {
     twind_opts opt;
-    afm_runner *runner;   /* the RT thread's after start */
+    afm_runner *runner; /* the RT thread's after start */
     afm_io *io;
     afm_spsc cmd_q, trash_q, rtrej_q, samples_q, harm_q;
-    sem_t out_sem;        /* posted by the chain thread after pushing outputs */
-    sem_t chain_sem;      /* posted by the RT thread after a block went into the ring */
-    atomic_int stop;      /* set by main: all threads finish */
-    atomic_int rt_done;   /* set by the RT thread when it has left its loop */
+    sem_t out_sem;         /* posted by the chain thread after pushing outputs */
+    sem_t chain_sem;       /* posted by the RT thread after a block went into the ring */
+    atomic_int stop;       /* set by main: all threads finish */
+    atomic_int rt_done;    /* set by the RT thread when it has left its loop */
     atomic_int chain_done; /* set by the chain thread when it has left its loop */
-    atomic_int reload;    /* set by main on SIGHUP, taken by the receive thread */
+    atomic_int reload;     /* set by main on SIGHUP, taken by the receive thread */
     /* snapshot */
     atomic_uint snap_seq, csnap_seq;
     twind_snapshot snap;
@@ -106,7 +106,7 @@ typedef struct {
     pthread_mutex_t lock;
     long long received, rejected;
     char last_reject[AFM_IO_REASON_LEN];
-    afm_config shadow;    /* receive thread only: the config after all queued commands */
+    afm_config shadow; /* receive thread only: the config after all queued commands */
     /* RT scheduling result, for the start-up report */
     char rt_warn[512];
 } twind;

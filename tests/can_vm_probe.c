@@ -175,13 +175,13 @@ int main(int argc, char **argv) {
     memset(&f, 0, sizeof f);
     f.can_id = 0x123;
     f.len = 8;
-    tx(s, &f);                                                   /* unknown id */
+    tx(s, &f); /* unknown id */
     afm_can_encode(m, AFM_CAN_SETPOINT, 0, 40e-9, 0, &f, err, sizeof err);
     f.len = 6;
-    tx(s, &f);                                                   /* wrong length */
-    send_sig(s, m, AFM_CAN_DITHER_FREQUENCY, 0, 8e6, 0);        /* above Nyquist */
-    send_sig(s, m, AFM_CAN_DITHER_AMPLITUDE, 0, 3e-6, 0);       /* too large */
-    send_sig(s, m, AFM_CAN_SETPOINT, 0, 2e-3, 0);               /* Z beyond 1 mm */
+    tx(s, &f);                                            /* wrong length */
+    send_sig(s, m, AFM_CAN_DITHER_FREQUENCY, 0, 8e6, 0);  /* above Nyquist */
+    send_sig(s, m, AFM_CAN_DITHER_AMPLITUDE, 0, 3e-6, 0); /* too large */
+    send_sig(s, m, AFM_CAN_SETPOINT, 0, 2e-3, 0);         /* Z beyond 1 mm */
     pump(io, 0.1);
     status(io, &st);
     afm_runner_status_get(p.r, &rs);

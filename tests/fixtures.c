@@ -17,8 +17,7 @@ afm_modal fixture_model(int nmodes, double q1, double xi_hi) {
         double w = two_pi * f_hz[i];
         m.omega_rad_s[i] = w;
         m.xi[i] = 0.5 / (i == 0 && q1 > 0 ? q1 : qf[i]);
-        if (i >= 2 && xi_hi > 0)
-            m.xi[i] = xi_hi;
+        if (i >= 2 && xi_hi > 0) m.xi[i] = xi_hi;
         m.tip[i] = (i % 2 ? -1.0 : 1.0) * w * sqrt((nmodes == 1 ? 1.0 : share[i]) / ks);
         m.rot[i] = 1.5e4 * m.tip[i];
         m.base_k[i] = -ks * m.tip[i];

@@ -33,9 +33,8 @@ static afm_can_state start_state(void) {
 }
 
 /* Decode f; returns the result and fills cmd/next. */
-static afm_can_result dec(const afm_cfg_can *m, const afm_can_state *s,
-                          const struct canfd_frame *f, bool fd, afm_cmd *cmd, afm_can_state *next,
-                          char *err) {
+static afm_can_result dec(const afm_cfg_can *m, const afm_can_state *s, const struct canfd_frame *f,
+                          bool fd, afm_cmd *cmd, afm_can_state *next, char *err) {
     return afm_can_decode(m, s, f, fd, &lim, cmd, next, NULL, err, AFM_ERR_LEN);
 }
 
@@ -47,8 +46,9 @@ static void test_round_trips(const afm_cfg_can *m, const char *tag) {
     /* Quantisation: half a bit of the scale (scaled) or float32's 2^-24 relative. */
     bool flt = m->encoding == AFM_CAN_FLOAT32;
 
-    check_true(afm_can_encode(m, AFM_CAN_DITHER_FREQUENCY, 0, 300123.45, 0, &f, err,
-                              sizeof err) == 0 && f.len == 8 && f.data[0] == 0,
+    check_true(afm_can_encode(m, AFM_CAN_DITHER_FREQUENCY, 0, 300123.45, 0, &f, err, sizeof err) ==
+                       0 &&
+                   f.len == 8 && f.data[0] == 0,
                "encode dither_frequency");
     snprintf(what, sizeof what, "%s: dither_frequency -> dither command", tag);
     check_true(dec(m, &s, &f, false, &c, &n, err) == AFM_CAN_R_COMMAND && c.kind == AFM_CMD_DITHER,
@@ -87,7 +87,8 @@ static void test_round_trips(const afm_cfg_can *m, const char *tag) {
 
     afm_can_encode(m, AFM_CAN_SETPOINT, 0, 25.5e-9, 2e-6, &f, err, sizeof err);
     snprintf(what, sizeof what, "%s: setpoint -> setpoint command", tag);
-    check_true(dec(m, &s, &f, false, &c, &n, err) == AFM_CAN_R_COMMAND && c.kind == AFM_CMD_SETPOINT,
+    check_true(dec(m, &s, &f, false, &c, &n, err) == AFM_CAN_R_COMMAND &&
+                   c.kind == AFM_CMD_SETPOINT,
                what);
     check_abs(c.u.setpoint.separation_m, 25.5e-9, flt ? 25.5e-9 * 6e-8 : 0.5e-12, "separation");
     check_abs(c.u.setpoint.ramp_rate_m_s, 2e-6, flt ? 2e-6 * 6e-8 : 0.5e-9, "ramp rate");
@@ -103,7 +104,8 @@ static void test_round_trips(const afm_cfg_can *m, const char *tag) {
     afm_can_encode(m, AFM_CAN_HEARTBEAT, 0, 5, 0, &f, err, sizeof err);
     int hb = -1;
     check_true(afm_can_decode(m, &s, &f, false, &lim, &c, &n, &hb, err, sizeof err) ==
-                       AFM_CAN_R_HEARTBEAT && hb == 5,
+                       AFM_CAN_R_HEARTBEAT &&
+                   hb == 5,
                "heartbeat decoded with its state byte");
 }
 
@@ -167,8 +169,7 @@ static void test_bad_frames(void) {
                    strstr(err, "separation_m"),
                "separation 2 mm rejected");
     afm_can_encode(&m, AFM_CAN_SETPOINT, 0, 20e-9, 1.5, &f, err, sizeof err);
-    check_true(dec(&m, &s, &f, false, &c, &n, err) == AFM_CAN_R_REJECT &&
-                   strstr(err, "ramp_rate"),
+    check_true(dec(&m, &s, &f, false, &c, &n, err) == AFM_CAN_R_REJECT && strstr(err, "ramp_rate"),
                "ramp 1.5 m/s rejected");
     afm_can_encode(&m, AFM_CAN_ENABLE, 0, 1, 0, &f, err, sizeof err);
     f.data[0] = 2;
@@ -181,7 +182,8 @@ static void test_bad_frames(void) {
     check_true(dec(&m, &s, &f, true, &c, &n, err) == AFM_CAN_R_REJECT && strstr(err, "FD"),
                "CAN FD frame on a classic map rejected");
     f.can_id = CAN_ERR_FLAG | CAN_ERR_BUSOFF;
-    check_true(dec(&m, &s, &f, false, &c, &n, err) == AFM_CAN_R_REJECT, "error frame not a command");
+    check_true(dec(&m, &s, &f, false, &c, &n, err) == AFM_CAN_R_REJECT,
+               "error frame not a command");
 
     /* NaN with float32 encoding */
     afm_cfg_can mf = m;
@@ -220,7 +222,8 @@ static void test_layout(void) {
     /* 338112 Hz = 33811200 * 0.01 Hz = 0x0203EB00, little-endian at bytes 4..7 */
     afm_can_encode(&m, AFM_CAN_DITHER_FREQUENCY, 0, 338112.0, 0, &f, err, sizeof err);
     afm_can_format(&f, false, txt, sizeof txt);
-    check_true(strcmp(txt, "200#0000000000EB0302") == 0, "dither_frequency 338112 Hz = 200#0000000000EB0302");
+    check_true(strcmp(txt, "200#0000000000EB0302") == 0,
+               "dither_frequency 338112 Hz = 200#0000000000EB0302");
     printf("  %s\n", txt);
     afm_cfg_can mb = m;
     mb.big_endian = true;
@@ -261,7 +264,8 @@ static int load_text(const char *text, afm_config *c, char *err) {
     FILE *f = fdopen(fd, "w");
     fputs("model = { kind = \"lumped\"; lumped = { stiffness_n_m = 40.0; resonance_hz = 3.0e5; };"
           " quality_factor = [400.0]; };\n"
-          "drive = { separation_m = 30e-9; tones = ( { amplitude_m = 1e-9; frequency_hz = 3.0e5; } ); };\n",
+          "drive = { separation_m = 30e-9; tones = ( { amplitude_m = 1e-9; frequency_hz = 3.0e5; } "
+          "); };\n",
           f);
     fputs(text, f);
     fclose(f);

@@ -38,10 +38,13 @@ static void expect(afm_cmd_kind kind, int want_ok, const char *needle, const cha
 
 static void dither(int n, double f0, double a0, double p0, const char *needle, int ok,
                    const char *what) {
-    double f[4] = {f0, 300e3, 300e3, 300e3}, a[4] = {a0, 1e-10, 1e-10, 1e-10},
-           p[4] = {p0, 0, 0, 0};
-    afmtwin_dither_t m = {.utime = 1, .seq = 7, .n_tones = (int8_t)n, .frequency_hz = f,
-                          .amplitude_m = a, .phase_rad = p};
+    double f[4] = {f0, 300e3, 300e3, 300e3}, a[4] = {a0, 1e-10, 1e-10, 1e-10}, p[4] = {p0, 0, 0, 0};
+    afmtwin_dither_t m = {.utime = 1,
+                          .seq = 7,
+                          .n_tones = (int8_t)n,
+                          .frequency_hz = f,
+                          .amplitude_m = a,
+                          .phase_rad = p};
     buf_len = afmtwin_dither_t_encode(buf, 0, sizeof buf, &m);
     expect(AFM_CMD_DITHER, ok, needle, what);
 }
@@ -54,8 +57,8 @@ static void setpoint(double z, double rate, const char *needle, int ok, const ch
 
 static void param(int n, const char **names, const double *values, const char *needle, int ok,
                   const char *what) {
-    afmtwin_param_t m = {.utime = 1, .seq = 9, .n = (int16_t)n, .name = (char **)names,
-                         .value = (double *)values};
+    afmtwin_param_t m = {
+        .utime = 1, .seq = 9, .n = (int16_t)n, .name = (char **)names, .value = (double *)values};
     buf_len = afmtwin_param_t_encode(buf, 0, sizeof buf, &m);
     expect(AFM_CMD_PARAM, ok, needle, what);
 }
@@ -91,20 +94,23 @@ static void test_dither(void) {
     dither(1, 8e6, 1e-10, 0, "half the sample rate", 0, "dither frequency above fs/2");
     /* decoded values */
     double f[2] = {338112, 1e6}, a[2] = {1e-10, 2e-11}, p[2] = {0.5, 1.5};
-    afmtwin_dither_t m = {.utime = 123, .seq = 42, .n_tones = 2, .frequency_hz = f,
-                          .amplitude_m = a, .phase_rad = p};
+    afmtwin_dither_t m = {
+        .utime = 123, .seq = 42, .n_tones = 2, .frequency_hz = f, .amplitude_m = a, .phase_rad = p};
     buf_len = afmtwin_dither_t_encode(buf, 0, sizeof buf, &m);
     afm_cmd c;
     char err[AFM_ERR_LEN];
-    check_true(afm_cmd_decode(AFM_CMD_DITHER, buf, (size_t)buf_len, &lim, &c, err, sizeof err) == 0 &&
+    check_true(afm_cmd_decode(AFM_CMD_DITHER, buf, (size_t)buf_len, &lim, &c, err, sizeof err) ==
+                       0 &&
                    c.kind == AFM_CMD_DITHER && c.seq == 42 && c.utime == 123 &&
                    c.u.dither.n_tones == 2 && c.u.dither.frequency_hz[1] == 1e6 &&
                    c.u.dither.amplitude_m[1] == 2e-11 && c.u.dither.phase_rad[1] == 1.5,
                "dither values decoded exactly");
     /* without a sample rate only f > 0 is checked */
     c.u.dither.frequency_hz[0] = 9e6;
-    check_true(afm_cmd_validate(&c, NULL, err, sizeof err) == 0, "dither 9 MHz valid without limits");
-    check_true(afm_cmd_validate(&c, &lim, err, sizeof err) == -1, "dither 9 MHz invalid at 14.06 MHz");
+    check_true(afm_cmd_validate(&c, NULL, err, sizeof err) == 0,
+               "dither 9 MHz valid without limits");
+    check_true(afm_cmd_validate(&c, &lim, err, sizeof err) == -1,
+               "dither 9 MHz invalid at 14.06 MHz");
 }
 
 static void test_setpoint(void) {
@@ -203,8 +209,8 @@ static void test_malformed(void) {
     buf_len = full + 4;
     expect(AFM_CMD_SETPOINT, 0, "trailing", "setpoint with 4 trailing bytes");
     double f[1] = {3e5}, a[1] = {1e-10}, p[1] = {0};
-    afmtwin_dither_t d = {.seq = 1, .n_tones = 1, .frequency_hz = f, .amplitude_m = a,
-                          .phase_rad = p};
+    afmtwin_dither_t d = {
+        .seq = 1, .n_tones = 1, .frequency_hz = f, .amplitude_m = a, .phase_rad = p};
     full = afmtwin_dither_t_encode(buf, 0, sizeof buf, &d);
     buf_len = full - 8;
     expect(AFM_CMD_DITHER, 0, "truncated", "dither missing its phase");
@@ -234,7 +240,8 @@ static void test_malformed(void) {
         afm_cmd c;
         char err[AFM_ERR_LEN];
         for (int k = AFM_CMD_DITHER; k <= AFM_CMD_TICK; k++)
-            if (afm_cmd_decode((afm_cmd_kind)k, buf, (size_t)buf_len, &lim, &c, err, sizeof err) == 0)
+            if (afm_cmd_decode((afm_cmd_kind)k, buf, (size_t)buf_len, &lim, &c, err, sizeof err) ==
+                0)
                 accepted_garbage++;
     }
     check_true(accepted_garbage == 0, "2000 random bodies x 5 kinds: none accepted, no crash");
@@ -250,7 +257,8 @@ static void test_apply(void) {
     before = cfg;
     afm_cmd c;
     const char *names[] = {"forces.vdw_contact.hamaker_j", "model.damping_ratio[4]"};
-    afmtwin_param_t pm = {.seq = 1, .n = 2, .name = (char **)names, .value = (double[]){2e-19, 0.05}};
+    afmtwin_param_t pm = {
+        .seq = 1, .n = 2, .name = (char **)names, .value = (double[]){2e-19, 0.05}};
     buf_len = afmtwin_param_t_encode(buf, 0, sizeof buf, &pm);
     check_true(afm_cmd_decode(AFM_CMD_PARAM, buf, (size_t)buf_len, &lim, &c, err, sizeof err) == 0,
                "param decoded");

@@ -122,7 +122,8 @@ static void response_case(int R, double p, int kstep) {
         int got = afm_decim_run(d, in, 64, out);
         for (int j = 0; j < got; j++, m++)
             if (m >= skip)
-                maxerr = fmax(maxerr, fabs(out[4 * j + 2] - ((m + 1.0) * R - 1 - afm_decim_delay(d))));
+                maxerr =
+                    fmax(maxerr, fabs(out[4 * j + 2] - ((m + 1.0) * R - 1 - afm_decim_delay(d))));
         n += 64;
     }
     snprintf(what, sizeof what, "R %d: ramp delayed by afm_decim_delay() = %.1f (error %.2e)", R,

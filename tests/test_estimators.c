@@ -33,8 +33,10 @@ static double wrap_rad(double a) {
 static void test_harm_dft(int n0) {
     enum { N = 100, NP = 4 };
     const int ks[] = {1, 2, 3, 5, 7, 11};
-    const double ax[] = {3e-8, 1e-9, 4e-10, 2e-10, 7e-11, 3e-11}, px[] = {0.3, -2.0, 1.1, 2.9, -0.7, 0.2};
-    const double af[] = {5e-9, 3e-9, 2e-9, 1e-9, 5e-10, 2e-10}, pf[] = {-1.0, 0.5, 2.5, -2.9, 1.7, -0.1};
+    const double ax[] = {3e-8, 1e-9, 4e-10, 2e-10, 7e-11, 3e-11},
+                 px[] = {0.3, -2.0, 1.1, 2.9, -0.7, 0.2};
+    const double af[] = {5e-9, 3e-9, 2e-9, 1e-9, 5e-10, 2e-10},
+                 pf[] = {-1.0, 0.5, 2.5, -2.9, 1.7, -0.1};
     const int nk = 6;
     static double x[N * NP + 200], f[N * NP + 200];
     int total = N * NP + n0 + 1;
@@ -81,7 +83,8 @@ static void test_harm_dft(int n0) {
         }
     }
     char what[128];
-    snprintf(what, sizeof what, "DFT: whole periods of %d samples (first sample %d after a boundary)", N, n0);
+    snprintf(what, sizeof what,
+             "DFT: whole periods of %d samples (first sample %d after a boundary)", N, n0);
     /* NP + 1 boundaries pass; the first counts only if theta lands exactly on it */
     check_true(periods == NP || periods == NP - 1, what);
     /* 1e-9 requested; only rounding separates the two sums (~1e-13 for the smallest line) */
@@ -90,7 +93,8 @@ static void test_harm_dft(int n0) {
     check_abs(max_fa, 0, 1e-9, "DFT: force amplitudes, max rel diff");
     check_abs(max_fp, 0, 1e-9, "DFT: force phases, max diff (rad)");
     check_abs(max_pd, 0, 1e-9, "DFT: phase_diff eq. E.13, max diff (rad)");
-    check_true(h.out.samples > N - 1e-9 && h.out.samples < N + 1e-9, "DFT: period length N samples");
+    check_true(h.out.samples > N - 1e-9 && h.out.samples < N + 1e-9,
+               "DFT: period length N samples");
 }
 
 /* Non-integer samples per period, a pure tone locked to the drive phase, through a
@@ -138,8 +142,9 @@ static void test_harm_fractional(void) {
      * plus the other line leaking through the end pieces at about the same order. k = 1:
      * 2.8e-6 at 167 samples; k = 3 (3 % of the signal relative to tone 1's 24x larger
      * amplitude leaking in): bound 24 * 2.5e-5. */
-    printf("  fractional: k1 amp %.2e phase %.2e rad, k2 leak %.2e, k3 amp %.2e phase %.2e, F %.2e\n",
-           e1, ep1, e2, e3, ep3, f1);
+    printf(
+        "  fractional: k1 amp %.2e phase %.2e rad, k2 leak %.2e, k3 amp %.2e phase %.2e, F %.2e\n",
+        e1, ep1, e2, e3, ep3, f1);
     check_abs(e1, 0, 3e-6, "fractional: |x|_1 rel error (pure tone ~1e-6)");
     check_abs(ep1, 0, 3e-6, "fractional: phi_1 error (rad)");
     check_abs(f1, 0, 3e-6, "fractional: |F|_1 rel error");
@@ -172,7 +177,8 @@ static void test_harm_defaults_and_errors(void) {
     afm_harm h;
     char err[AFM_ERR_LEN] = "";
     int bad[] = {1, 0};
-    check_true(afm_harm_init(&h, bad, 2, err, sizeof err) == -1 && err[0], "harm init rejects k = 0");
+    check_true(afm_harm_init(&h, bad, 2, err, sizeof err) == -1 && err[0],
+               "harm init rejects k = 0");
     int good[] = {1, 2};
     afm_harm_init(&h, good, 2, NULL, 0);
     afm_harm_push(&h, 1e-9, 0, 1.0);
@@ -217,7 +223,8 @@ static void test_lockin_filter(int order) {
     check_abs(max_exact, 0, 1e-12, what);
     /* The discretisation holds each stage's input over the step, so every stage leads the
      * continuous one by at most dt / tau of the unit step; tau = 1000 dt. */
-    snprintf(what, sizeof what, "lock-in order %d: vs continuous Erlang step (tol order dt/tau)", order);
+    snprintf(what, sizeof what, "lock-in order %d: vs continuous Erlang step (tol order dt/tau)",
+             order);
     check_abs(max_cont, 0, order * 1e-3, what);
     if (order == 1)
         check_abs(at_tau, 1 - exp(-1.0), 1e-12, "lock-in order 1: 1 - 1/e at t = tau");
@@ -261,7 +268,8 @@ static void test_lockin_oscillator(double r, const char *where) {
     afm_cfg_drive cd = {.separation_m = 1e-6, .n_tones = 1};
     cd.tones[0].amplitude_m = ae;
     cd.tones[0].frequency_hz = r * f0;
-    afm_cfg_sim cs = {.sample_rate_hz = fs, .integrator = AFM_INTEGRATOR_REFERENCE, .ref_rtol = 1e-11};
+    afm_cfg_sim cs = {
+        .sample_rate_hz = fs, .integrator = AFM_INTEGRATOR_REFERENCE, .ref_rtol = 1e-11};
     afm_sim *s = afm_sim_create(&m, &fp, &cd, &cs, err, sizeof err);
     if (!s) {
         check_true(false, err);
@@ -291,7 +299,10 @@ static void test_lockin_oscillator(double r, const char *where) {
     check_rel(afm_lockin_amplitude(&l), amp, 1e-4, what);
     snprintf(what, sizeof what, "lock-in %s: phase lag vs analytic (1e-3 deg)", where);
     check_abs(afm_lockin_phase_deg(&l), lag * 180 / pi, 1e-3, what);
-    snprintf(what, sizeof what, "lock-in %s: lag %s 90 deg", where, r < 1 ? "<" : r > 1 ? ">" : "=");
+    snprintf(what, sizeof what, "lock-in %s: lag %s 90 deg", where,
+             r < 1   ? "<"
+             : r > 1 ? ">"
+                     : "=");
     if (r < 1)
         check_true(afm_lockin_phase_deg(&l) < 89, what);
     else if (r > 1)
@@ -327,8 +338,8 @@ static void test_cycle_dashpot(double samples_per_period, const char *where, dou
             !isnan(c.out.pre_contact_velocity_m_s))
             eT = 1;
     }
-    printf("  dashpot %s: E %.2e mean %.2e min %.2e peak %.2e period %.2e\n", where, eE, eM,
-           eMin, eP, eT);
+    printf("  dashpot %s: E %.2e mean %.2e min %.2e peak %.2e period %.2e\n", where, eE, eM, eMin,
+           eP, eT);
     char what[128];
     snprintf(what, sizeof what, "cycle dashpot %s: >= 10 whole periods", where);
     check_true(periods >= 10, what);
@@ -392,7 +403,8 @@ static void test_cycle_dip(double centre, const char *where) {
 static void test_cycle_errors(void) {
     afm_cycle c;
     char err[AFM_ERR_LEN] = "";
-    check_true(afm_cycle_init(&c, NAN, 1.0, err, sizeof err) == -1 && err[0], "cycle init rejects NaN line");
+    check_true(afm_cycle_init(&c, NAN, 1.0, err, sizeof err) == -1 && err[0],
+               "cycle init rejects NaN line");
     afm_cycle_init(&c, -1e-9, 1.0, NULL, 0);
     afm_sample s = {.t_s = 1e-6, .x_m = 0, .v_m_s = 0, .f_n = 0};
     afm_cycle_push(&c, &s, 1.0);
@@ -449,7 +461,8 @@ static void test_phase_tracking(void) {
         el = fmax(el, hypot(l.c - cos(th), l.s - sin(th)));
     }
     printf("  phase tracking: max |phasor - e^{i theta}| harm %.2e lock-in %.2e; exact samples "
-           "harm %ld lock-in %ld of %ld\n", eh, el, slow_h, slow_l, total);
+           "harm %ld lock-in %ld of %ld\n",
+           eh, el, slow_h, slow_l, total);
     check_true(rejects == 0, "phase tracking: no sample rejected");
     check_abs(eh, 0, 1e-9, "phase tracking: harm phasor vs afm_drive_phase over 1e7 samples (rad)");
     check_abs(el, 0, 1e-9, "phase tracking: lock-in phasor vs afm_drive_phase (rad)");
@@ -496,7 +509,9 @@ static void test_block_equivalence(void) {
             th[i] = afm_drive_phase(&d, 0, t);
             double w = 2 * pi * fe, a = 10e-9 * sin(th[i] - 0.3), v = 10e-9 * w * cos(th[i] - 0.3);
             double xc = a < -9e-9 ? -9e-9 + 0.2 * (a + 9e-9) : a; /* flattened bottom */
-            s[i] = (afm_sample){.t_s = t, .x_m = xc, .v_m_s = a < -9e-9 ? 0.2 * v : v,
+            s[i] = (afm_sample){.t_s = t,
+                                .x_m = xc,
+                                .v_m_s = a < -9e-9 ? 0.2 * v : v,
                                 .f_n = xc < -8e-9 ? 1e-7 * (-8e-9 - xc) / 1e-9 : -1e-10};
             if (n0 == 33333) s[i].x_m = NAN;
             x[i] = s[i].x_m;
@@ -523,7 +538,8 @@ static void test_block_equivalence(void) {
     same = same && memcmp(&h1, &h2, sizeof h1) == 0 && memcmp(&l1, &l2, sizeof l1) == 0 &&
            memcmp(&c1, &c2, sizeof c1) == 0;
     printf("  block functions: %ld samples, %ld harm / %ld cycle periods, rejects %lld %lld %d "
-           "(per sample %d)\n", n0, h1.periods, c1.periods, rej_h, rej_c, rej_l, rej1);
+           "(per sample %d)\n",
+           n0, h1.periods, c1.periods, rej_h, rej_c, rej_l, rej1);
     check_true(h1.periods > 100 && c1.periods > 100, "block functions: periods completed");
     check_true(per_h == h1.periods && per_c == c1.periods, "block functions: period flags");
     check_true(rej_h + rej_c + rej_l == rej1 && rej1 == 3, "block functions: the same rejects");

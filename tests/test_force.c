@@ -48,8 +48,7 @@ static afm_force_params init_ok(const afm_cfg_forces *c, const char *what) {
     afm_force_params p;
     char err[AFM_ERR_LEN] = "";
     int rc = afm_force_init(&p, c, c->plate_length_m, c->plate_width_m, err, sizeof err);
-    if (rc != 0)
-        printf("     init error: %s\n", err);
+    if (rc != 0) printf("     init error: %s\n", err);
     check_true(rc == 0, what);
     return p;
 }
@@ -61,10 +60,12 @@ static void check_partials(const afm_force_params *p, double z, double x, double
     double dfdx, dfdv;
     afm_force_tip(p, z, x, v, &dfdx, &dfdv);
     const double hx = 1e-14, hv = 1e-6 * (fabs(v) + 1e-3);
-    double fdx = (afm_force_tip(p, z, x + hx, v, NULL, NULL) -
-                  afm_force_tip(p, z, x - hx, v, NULL, NULL)) / (2.0 * hx);
-    double fdv = (afm_force_tip(p, z, x, v + hv, NULL, NULL) -
-                  afm_force_tip(p, z, x, v - hv, NULL, NULL)) / (2.0 * hv);
+    double fdx =
+        (afm_force_tip(p, z, x + hx, v, NULL, NULL) - afm_force_tip(p, z, x - hx, v, NULL, NULL)) /
+        (2.0 * hx);
+    double fdv =
+        (afm_force_tip(p, z, x, v + hv, NULL, NULL) - afm_force_tip(p, z, x, v - hv, NULL, NULL)) /
+        (2.0 * hv);
     char buf[160];
     snprintf(buf, sizeof buf, "%s: dF/dx vs central difference", what);
     check_rel(dfdx, fdx, 1e-5, buf);
@@ -85,7 +86,8 @@ static void test_table_4_1_f4(void) {
      * the thesis min(xr) is rounded to 1 pm and its force peak need not sit exactly there). */
     double x = -31.352e-9, z = 30e-9;
     double ca = cos(15.0 * deg), d = x * ca + z, u = 2.4e-10 - d;
-    double hand = 4.0 / 3.0 * 70e9 * sqrt(1e-8) * u * sqrt(u) - 1.29e-19 * 1e-8 / (6 * 2.4e-10 * 2.4e-10);
+    double hand =
+        4.0 / 3.0 * 70e9 * sqrt(1e-8) * u * sqrt(u) - 1.29e-19 * 1e-8 / (6 * 2.4e-10 * 2.4e-10);
     double f = afm_force_tip(&p, z, x, 0.0, NULL, NULL);
     check_rel(hand, 1.0812579386597e-7, 1e-9, "F4: hand formula = 1.0812579e-7 N");
     check_rel(f, hand, 1e-9, "F4: conservative force vs hand formula");
@@ -291,28 +293,75 @@ static void test_reject(void) {
     const afm_cfg_forces g = thesis_cfg();
     double L = g.plate_length_m, W = g.plate_width_m;
     afm_cfg_forces c;
-    c = g; c.radius_m = NAN; expect_reject(c, L, W, "NaN radius");
-    c = g; c.radius_m = 0.0; expect_reject(c, L, W, "zero radius with contact");
-    c = g; c.radius_m = -1e-8; expect_reject(c, L, W, "negative radius");
-    c = g; c.a0_m = 0.0; expect_reject(c, L, W, "a0 = 0");
-    c = g; c.hamaker_j = -1e-19; expect_reject(c, L, W, "negative Hamaker");
-    c = g; c.reduced_modulus_pa = 0.0; expect_reject(c, L, W, "Er = 0");
-    c = g; c.inclination_rad = pi / 2; expect_reject(c, L, W, "alpha = 90 deg");
-    c = g; c.inclination_rad = INFINITY; expect_reject(c, L, W, "alpha infinite");
-    c = g; c.viscoelastic = true; c.eta_pa_s = -1; expect_reject(c, L, W, "negative eta");
-    c = g; c.squeeze = (afm_squeeze_kind)7; expect_reject(c, L, W, "unknown squeeze kind");
-    c = g; c.squeeze = AFM_SQUEEZE_STARR; c.pressure_pa = 0; expect_reject(c, L, W, "p = 0");
-    c = g; c.squeeze = AFM_SQUEEZE_STARR; c.kappa = 1.5; expect_reject(c, L, W, "kappa > 1");
-    c = g; c.squeeze = AFM_SQUEEZE_STARR; expect_reject(c, L, 0.0, "plate width 0");
-    c = g; c.squeeze = AFM_SQUEEZE_STARR; expect_reject(c, NAN, W, "plate length NaN");
-    c = g; c.squeeze = AFM_SQUEEZE_LINEAR; c.p1_n_s_m2 = NAN; expect_reject(c, L, W, "p1 NaN");
-    c = g; c.capillary = true; c.meniscus_d_m = 0; expect_reject(c, L, W, "meniscus d = 0");
-    c = g; c.capillary = true; c.contact_angle_rad = 4.0; expect_reject(c, L, W, "theta > pi");
-    c = g; c.electrostatic = true; c.cone_half_angle_rad = 0;
+    c = g;
+    c.radius_m = NAN;
+    expect_reject(c, L, W, "NaN radius");
+    c = g;
+    c.radius_m = 0.0;
+    expect_reject(c, L, W, "zero radius with contact");
+    c = g;
+    c.radius_m = -1e-8;
+    expect_reject(c, L, W, "negative radius");
+    c = g;
+    c.a0_m = 0.0;
+    expect_reject(c, L, W, "a0 = 0");
+    c = g;
+    c.hamaker_j = -1e-19;
+    expect_reject(c, L, W, "negative Hamaker");
+    c = g;
+    c.reduced_modulus_pa = 0.0;
+    expect_reject(c, L, W, "Er = 0");
+    c = g;
+    c.inclination_rad = pi / 2;
+    expect_reject(c, L, W, "alpha = 90 deg");
+    c = g;
+    c.inclination_rad = INFINITY;
+    expect_reject(c, L, W, "alpha infinite");
+    c = g;
+    c.viscoelastic = true;
+    c.eta_pa_s = -1;
+    expect_reject(c, L, W, "negative eta");
+    c = g;
+    c.squeeze = (afm_squeeze_kind)7;
+    expect_reject(c, L, W, "unknown squeeze kind");
+    c = g;
+    c.squeeze = AFM_SQUEEZE_STARR;
+    c.pressure_pa = 0;
+    expect_reject(c, L, W, "p = 0");
+    c = g;
+    c.squeeze = AFM_SQUEEZE_STARR;
+    c.kappa = 1.5;
+    expect_reject(c, L, W, "kappa > 1");
+    c = g;
+    c.squeeze = AFM_SQUEEZE_STARR;
+    expect_reject(c, L, 0.0, "plate width 0");
+    c = g;
+    c.squeeze = AFM_SQUEEZE_STARR;
+    expect_reject(c, NAN, W, "plate length NaN");
+    c = g;
+    c.squeeze = AFM_SQUEEZE_LINEAR;
+    c.p1_n_s_m2 = NAN;
+    expect_reject(c, L, W, "p1 NaN");
+    c = g;
+    c.capillary = true;
+    c.meniscus_d_m = 0;
+    expect_reject(c, L, W, "meniscus d = 0");
+    c = g;
+    c.capillary = true;
+    c.contact_angle_rad = 4.0;
+    expect_reject(c, L, W, "theta > pi");
+    c = g;
+    c.electrostatic = true;
+    c.cone_half_angle_rad = 0;
     expect_reject(c, L, W, "cone angle 0");
-    c = g; c.electrostatic = true; c.cone_length_m = -1; expect_reject(c, L, W, "cone l < 0");
+    c = g;
+    c.electrostatic = true;
+    c.cone_length_m = -1;
+    expect_reject(c, L, W, "cone l < 0");
     /* What is not used is not checked: no contact, no radius needed. */
-    c = g; c.vdw_contact = false; c.radius_m = 0.0;
+    c = g;
+    c.vdw_contact = false;
+    c.radius_m = 0.0;
     init_ok(&c, "accept radius 0 when no term needs it");
 }
 

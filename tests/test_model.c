@@ -146,8 +146,7 @@ static void analytic(void) {
     const afm_cfg_beam *b = &cfg.model.beam;
     afm_modal m;
     char err[AFM_ERR_LEN];
-    if (!check_true(afm_model_build(&cfg.model, &m, err, sizeof err) == 0, "modal build"))
-        return;
+    if (!check_true(afm_model_build(&cfg.model, &m, err, sizeof err) == 0, "modal build")) return;
     /* Cubic Hermite elements are exact for a static tip load: k = 3 E I / L^3 (uniform). */
     double I = b->width_m[0] * pow(b->height_m[0], 3) / 12.0;
     check_rel(m.static_stiffness_n_m, 3 * b->youngs_modulus_pa * I / pow(b->length_m, 3), 1e-9,
@@ -182,7 +181,8 @@ static void analytic(void) {
     /* Lumped model: f0 and k as configured. */
     cfg = load("config/thesis-1dof.conf");
     if (check_true(afm_model_build(&cfg.model, &m, err, sizeof err) == 0, "1-DOF build")) {
-        check_rel(m.omega_rad_s[0], 6.283185307179586 * cfg.model.lumped.resonance_hz, 1e-12, "1-DOF w0");
+        check_rel(m.omega_rad_s[0], 6.283185307179586 * cfg.model.lumped.resonance_hz, 1e-12,
+                  "1-DOF w0");
         check_rel(m.static_stiffness_n_m, 40.0, 1e-12, "1-DOF k (Table C.1)");
     }
 }

@@ -31,8 +31,12 @@ static void fft(double *re, double *im, int n) {
             j ^= bit;
         j ^= bit;
         if (i < j) {
-            double t = re[i]; re[i] = re[j]; re[j] = t;
-            t = im[i]; im[i] = im[j]; im[j] = t;
+            double t = re[i];
+            re[i] = re[j];
+            re[j] = t;
+            t = im[i];
+            im[i] = im[j];
+            im[j] = t;
         }
     }
     for (int len = 2; len <= n; len <<= 1) {
@@ -91,7 +95,8 @@ static void calibration(void) {
         x += m.tip[i] * m.tip[i] / (m.omega_rad_s[i] * m.omega_rad_s[i]);
         th += m.rot[i] * m.tip[i] / (m.omega_rad_s[i] * m.omega_rad_s[i]);
     }
-    printf("  static tip load: theta/x = %.6g 1/m  g_static = %.5f\n", th / x, th / x * o.cal_m_rad);
+    printf("  static tip load: theta/x = %.6g 1/m  g_static = %.5f\n", th / x,
+           th / x * o.cal_m_rad);
     /* Disabled sensor passes x; lumped model (no slope) reads x. */
     cfg.obd.enabled = false;
     afm_obd_init(&o, &cfg, &m, err, sizeof err);
@@ -185,9 +190,9 @@ static void adc(void) {
         double v;
         int counts;
         long long sat;
-    } cases[] = {{3.4 * lsb, 3, 0},  {-3.6 * lsb, -4, 0}, {127.4 * lsb, 127, 0},
-                 {127.6 * lsb, 127, 1}, {2e-6, 127, 2},    {-128.4 * lsb, -128, 2},
-                 {-128.6 * lsb, -128, 3}, {-5e-6, -128, 4}, {0.0, 0, 4}};
+    } cases[] = {{3.4 * lsb, 3, 0},       {-3.6 * lsb, -4, 0}, {127.4 * lsb, 127, 0},
+                 {127.6 * lsb, 127, 1},   {2e-6, 127, 2},      {-128.4 * lsb, -128, 2},
+                 {-128.6 * lsb, -128, 3}, {-5e-6, -128, 4},    {0.0, 0, 4}};
     int ok = 1;
     for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
         afm_sample s = {0};
@@ -234,8 +239,8 @@ static void chain(void) {
     while (t_i < n_total) {
         for (int i = 0; i < BLK; i++, t_i++) {
             double t = t_i / fs, x = A * sin(2 * pi * f * t);
-            s[i] = (afm_sample){.t_s = t, .x_m = x, .theta_rad = x / cal, .f_n = 1e-9 * x / A,
-                                .base_m = 0};
+            s[i] = (afm_sample){
+                .t_s = t, .x_m = x, .theta_rad = x / cal, .f_n = 1e-9 * x / A, .base_m = 0};
         }
         afm_chain_push(c, s, BLK);
         for (int k = 0; k < 2; k++) {

@@ -32,8 +32,6 @@
 static const double two_pi = 6.283185307179586476925286766559;
 static const double rate_hz = 14.06e6;
 
-
-
 /* DMT + vdW + viscoelastic tip of numerics.md: Ha 1.52e-19 J, R 8 nm, a0 0.476 nm,
  * Er 120 GPa, eta 800 Pa s. */
 static afm_force_params tapping_forces(void) {
@@ -387,7 +385,8 @@ static void free_vs_cvode_case(const char *label, bool starr, double z, double t
     }
     double amp = 0.5 * (xmax - xmin), gap = (xmin - afm_force_contact_x(&f, z)) * f.cos_alpha;
     printf("     %s: amplitude %.2f nm, closest gap above a0 %.2f nm, strongest pull %.3g nN, "
-           "error_rel %.2e\n", label, amp * 1e9, gap * 1e9, -fmin_n * 1e9, emax / amp);
+           "error_rel %.2e\n",
+           label, amp * 1e9, gap * 1e9, -fmin_n * 1e9, emax / amp);
     snprintf(what, sizeof what, "%s: the tip comes within 5 nm of contact, no contact", label);
     check_true(gap > 0 && gap < 5e-9, what);
     snprintf(what, sizeof what, "%s: max |x_rt - x_cvode| / amplitude", label);

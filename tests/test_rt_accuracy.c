@@ -20,8 +20,8 @@
 
 typedef struct {
     const char *name, *config;
-    double ae_m, z_m;     /* overrides (0 = keep the config's) */
-    const double *path;   /* forward sweep to the operating point (last entry) */
+    double ae_m, z_m;   /* overrides (0 = keep the config's) */
+    const double *path; /* forward sweep to the operating point (last entry) */
     int n_path;
 } tap_case;
 
@@ -46,16 +46,15 @@ static int run(afm_sim *s, afm_sample *buf, int n) {
 static void one_case(const tap_case *c) {
     static afm_config cfg;
     char err[AFM_ERR_LEN], what[160];
-    if (!check_true(afm_config_load(c->config, &cfg, err, sizeof err) == 0, c->config))
-        return;
+    if (!check_true(afm_config_load(c->config, &cfg, err, sizeof err) == 0, c->config)) return;
     if (c->ae_m > 0) cfg.drive.tones[0].amplitude_m = c->ae_m;
     if (c->z_m > 0) cfg.drive.separation_m = c->z_m;
     cfg.sim.integrator = AFM_INTEGRATOR_RT;
     afm_sim *rt = afm_twin_create(&cfg, NULL, NULL, err, sizeof err);
     afm_sweep w;
     static const int ks[2] = {1, 6};
-    if (!check_true(rt && afm_sweep_init(&w, cfg.sim.sample_rate_hz, c->path[0] * 0.9, 1e-7,
-                                         20000, ks, 2, err, sizeof err) == 0,
+    if (!check_true(rt && afm_sweep_init(&w, cfg.sim.sample_rate_hz, c->path[0] * 0.9, 1e-7, 20000,
+                                         ks, 2, err, sizeof err) == 0,
                     "rt twin"))
         return;
     /* Settle with rt along the path (rt jitters ~1e-5 in contact: 1e-7 is not met, the
@@ -69,8 +68,7 @@ static void one_case(const tap_case *c) {
     afm_sim *ref = afm_twin_fork(rt, &ref_cfg, err, sizeof err);
     afm_sim *rt2 = afm_twin_fork(rt, &cfg.sim, err, sizeof err);
     afm_sim_destroy(&rt);
-    if (!check_true(ref && rt2, "forked rt and reference"))
-        return;
+    if (!check_true(ref && rt2, "forked rt and reference")) return;
     double per = cfg.sim.sample_rate_hz / c->path[c->n_path - 1];
     int n = (int)ceil(N_PERIODS * per);
     if (!check_true(n <= MAX_BUF && run(rt2, buf_rt, n) == n && run(ref, buf_ref, n) == n,

@@ -24,7 +24,7 @@
 
 typedef struct {
     double *t, *x, *obd, *f;
-    long n;        /* all streams */
+    long n;                   /* all streams */
     long ns[AFM_MAX_OUTPUTS]; /* per stream: stream s fills [s * PER, s * PER + ns[s]) */
     afm_chain_period *per;
     long np;
@@ -74,7 +74,8 @@ static int lookup(const char *name, int *e, int *i) {
 
 /* The script: command k applied when the runner has advanced at[k] samples. */
 #define N_CMDS 9
-static const long long at[N_CMDS] = {10000, 30000, 45000, 60000, 80000, 80000, 80000, 90000, 110000};
+static const long long at[N_CMDS] = {10000, 30000, 45000, 60000, 80000,
+                                     80000, 80000, 90000, 110000};
 static const long long total = 140000;
 
 static afm_cmd script(int k, const afm_config *cfg0, afm_config *shadow, afm_runner_model **m) {
@@ -100,11 +101,26 @@ static afm_cmd script(int k, const afm_config *cfg0, afm_config *shadow, afm_run
         lookup("model.damping_ratio[0]", &e, &i);
         c.u.param = (afm_cmd_param){1, {e}, {i}, {0.002}};
         break;
-    case 4: c.kind = AFM_CMD_CONTROL; c.u.control = (afm_cmd_control){AFM_CTL_PAUSE, 0}; break;
-    case 5: c.kind = AFM_CMD_CONTROL; c.u.control = (afm_cmd_control){AFM_CTL_STEP, 5000}; break;
-    case 6: c.kind = AFM_CMD_CONTROL; c.u.control = (afm_cmd_control){AFM_CTL_STEP, 5000}; break;
-    case 7: c.kind = AFM_CMD_CONTROL; c.u.control = (afm_cmd_control){AFM_CTL_RUN, 0}; break;
-    case 8: c.kind = AFM_CMD_CONTROL; c.u.control = (afm_cmd_control){AFM_CTL_RESET, 0}; break;
+    case 4:
+        c.kind = AFM_CMD_CONTROL;
+        c.u.control = (afm_cmd_control){AFM_CTL_PAUSE, 0};
+        break;
+    case 5:
+        c.kind = AFM_CMD_CONTROL;
+        c.u.control = (afm_cmd_control){AFM_CTL_STEP, 5000};
+        break;
+    case 6:
+        c.kind = AFM_CMD_CONTROL;
+        c.u.control = (afm_cmd_control){AFM_CTL_STEP, 5000};
+        break;
+    case 7:
+        c.kind = AFM_CMD_CONTROL;
+        c.u.control = (afm_cmd_control){AFM_CTL_RUN, 0};
+        break;
+    case 8:
+        c.kind = AFM_CMD_CONTROL;
+        c.u.control = (afm_cmd_control){AFM_CTL_RESET, 0};
+        break;
     }
     (void)cfg0;
     if (c.kind == AFM_CMD_PARAM) {
@@ -124,9 +140,9 @@ static afm_cmd script(int k, const afm_config *cfg0, afm_config *shadow, afm_run
 static afm_runner_status play(const afm_config *cfg, long long slice, outlog *o, int *apply_fail,
                               int ring) {
     char err[AFM_ERR_LEN];
-    afm_runner *r = ring > 0 ? afm_runner_create_pipelined(cfg, 4096, false, true, ring, err,
-                                                           sizeof err)
-                             : afm_runner_create(cfg, 4096, false, err, sizeof err);
+    afm_runner *r = ring > 0
+                        ? afm_runner_create_pipelined(cfg, 4096, false, true, ring, err, sizeof err)
+                        : afm_runner_create(cfg, 4096, false, err, sizeof err);
     afm_config shadow = *cfg;
     afm_runner_status st;
     *apply_fail = 0;
@@ -149,17 +165,22 @@ static afm_runner_status play(const afm_config *cfg, long long slice, outlog *o,
         if (n <= 0 && k >= N_CMDS) break;
         long long adv = afm_runner_run(r, n);
         while (ring > 0 && adv < n && afm_runner_budget(r) > 0) { /* stalled: chain behind */
-            while (afm_runner_chain_run(r, 0) > 0) drain(r, o);
+            while (afm_runner_chain_run(r, 0) > 0)
+                drain(r, o);
             adv += afm_runner_run(r, n - adv);
         }
         if (ring > 0) {
             afm_runner_model *t;
-            while (afm_runner_chain_run(r, 0) > 0) drain(r, o);
-            while (afm_runner_take_trash(r, &t)) afm_runner_model_destroy(&t);
+            while (afm_runner_chain_run(r, 0) > 0)
+                drain(r, o);
+            while (afm_runner_take_trash(r, &t))
+                afm_runner_model_destroy(&t);
         }
         if (adv == 0) { /* paused with no budget: nothing to wait for in a test */
-            if (k < N_CMDS) done = at[k];
-            else break;
+            if (k < N_CMDS)
+                done = at[k];
+            else
+                break;
         }
         done += adv;
         drain(r, o);
@@ -190,7 +211,8 @@ static void test_determinism(const afm_config *cfg) {
     check_true(sa.t_s == sb.t_s && sa.samples == sb.samples && sa.seq_applied == sb.seq_applied &&
                    sa.separation_m == sb.separation_m && sa.swaps == sb.swaps,
                "final status identical");
-    check_true(sa.seq_applied == 108 && sa.applied == N_CMDS, "seq_applied echoes the last command (108)");
+    check_true(sa.seq_applied == 108 && sa.applied == N_CMDS,
+               "seq_applied echoes the last command (108)");
     check_true(sa.separation_m == 30e-9, "Z ramp ended exactly at the target 30 nm");
     check_true(sa.swaps == 1, "the damping change swapped one model in");
     check_rel(sa.fe_hz, 340112, 1e-12, "tone 0 frequency after the dither command");
@@ -259,14 +281,16 @@ static void test_ramp_and_rejects(const afm_config *cfg) {
     int rc = afm_runner_apply(r, &t, NULL, err, sizeof err);
     printf("  tick outside lockstep: %s\n", err);
     afm_runner_status_get(r, &st);
-    check_true(rc == -1 && st.seq_applied == 5 && st.tick_budget == 0, "tick outside lockstep rejected, nothing changed");
+    check_true(rc == -1 && st.seq_applied == 5 && st.tick_budget == 0,
+               "tick outside lockstep rejected, nothing changed");
     int e, i;
     lookup("model.damping_ratio[0]", &e, &i);
     afm_cmd p = {.kind = AFM_CMD_PARAM, .seq = 7, .u.param = {1, {e}, {i}, {0.01}}};
     rc = afm_runner_apply(r, &p, NULL, err, sizeof err);
     printf("  damping without a model: %s\n", err);
     afm_runner_status_get(r, &st);
-    check_true(rc == -1 && st.seq_applied == 5 && afm_runner_config(r)->model.damping_ratio[0] == 0.0012,
+    check_true(rc == -1 && st.seq_applied == 5 &&
+                   afm_runner_config(r)->model.damping_ratio[0] == 0.0012,
                "damping change without a model rejected, config unchanged");
     afm_cmd bad = {.kind = AFM_CMD_SETPOINT, .seq = 8, .u.setpoint = {NAN, 0}};
     rc = afm_runner_apply(r, &bad, NULL, err, sizeof err);
@@ -339,7 +363,8 @@ static void test_blowup(void) {
     printf("  runaway: %lld blow-ups in %.4f s model time, last at %.6f s; %ld samples out\n",
            st.blowups, st.t_s, st.last_blowup_t_s, o.n);
     check_true(st.blowups >= 2, "runaway: blow-ups reported (more than one: it restarts)");
-    check_true(adv == 409600 && st.samples == 409600, "every asked sample advanced despite blow-ups");
+    check_true(adv == 409600 && st.samples == 409600,
+               "every asked sample advanced despite blow-ups");
     check_abs(st.t_s, 409600 / 14.06e6, 1e-12, "model time continuous through the resets");
     check_true(o.n > 1000, "outputs keep coming after a blow-up");
     bool finite = true;

@@ -91,7 +91,8 @@ static void stress(int in_place) {
     }
     pthread_join(t, NULL);
     char name[200];
-    snprintf(name, sizeof name, "%s: %llu items in order (out of order %llu, torn %llu), queue empty after",
+    snprintf(name, sizeof name,
+             "%s: %llu items in order (out of order %llu, torn %llu), queue empty after",
              in_place ? "reserve/commit + peek/release" : "push/pop", (unsigned long long)N_ITEMS,
              (unsigned long long)bad_order, (unsigned long long)torn);
     check_true(bad_order == 0 && torn == 0 && afm_spsc_count(&q) == 0 && !afm_spsc_pop(&q, &it),
@@ -104,7 +105,8 @@ int main(void) {
     char err[256];
     check_true(afm_spsc_init(&q, 0, 8, err, sizeof err) == -1, "capacity 0 rejected");
     check_true(afm_spsc_init(&q, 5, 0, err, sizeof err) == -1, "item size 0 rejected");
-    check_true(afm_spsc_init(&q, 5, sizeof(int), err, sizeof err) == 0 && afm_spsc_capacity(&q) == 8,
+    check_true(afm_spsc_init(&q, 5, sizeof(int), err, sizeof err) == 0 &&
+                   afm_spsc_capacity(&q) == 8,
                "capacity 5 rounds up to 8");
     int v, ok = 1;
     check_true(!afm_spsc_pop(&q, &v) && afm_spsc_peek(&q) == NULL, "empty: pop and peek fail");
@@ -112,7 +114,8 @@ int main(void) {
         ok &= afm_spsc_push(&q, &i);
     check_true(ok && afm_spsc_count(&q) == 8, "8 pushes fill it");
     v = 99;
-    check_true(!afm_spsc_push(&q, &v) && afm_spsc_reserve(&q) == NULL, "full: push and reserve fail");
+    check_true(!afm_spsc_push(&q, &v) && afm_spsc_reserve(&q) == NULL,
+               "full: push and reserve fail");
     for (int i = 0; i < 8; i++)
         ok &= afm_spsc_pop(&q, &v) && v == i;
     check_true(ok && afm_spsc_count(&q) == 0, "8 pops return them in order");

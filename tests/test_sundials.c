@@ -19,7 +19,6 @@
 static const double two_pi = 6.283185307179586476925286766559;
 static const double rate_hz = 14.06e6;
 
-
 /* No tip force at all (every flag off). */
 
 static afm_cfg_sim sim_cfg(afm_integrator_kind k) {
@@ -270,7 +269,8 @@ int main(void) {
     const double amp1[1] = {0.1e-9};
     const int div2[2] = {38, 6};
     const double amp2[2] = {0.1e-9, 0.5e-9};
-    afm_modal m1 = fixture_model(1, 0, 0), m1lo = fixture_model(1, 10, 0), m4 = fixture_model(4, 0, 0);
+    afm_modal m1 = fixture_model(1, 0, 0), m1lo = fixture_model(1, 10, 0),
+              m4 = fixture_model(4, 0, 0);
     /* Tolerances. CVODE at rtol 1e-10 over ~30 periods of a Q 427 oscillator: the global
      * error grows about linearly with the number of steps (~1e4 here), so ~1e-7 of the
      * amplitude is expected (measured 2e-7); 1e-6 leaves room. BDF and Adams at 1e-12 agree

@@ -39,13 +39,15 @@ static void psd_units(void) {
     afm_rng r;
     afm_rng_seed(&r, 7);
     const double sigma = 3e-9;
-    for (long i = 0; i < nsamp; i++) x[i] = sigma * afm_rng_normal(&r);
+    for (long i = 0; i < nsamp; i++)
+        x[i] = sigma * afm_rng_normal(&r);
     long got = afm_psd_push(p, x, nsamp);
     /* 2^21 samples in half-overlapped 4096-sample segments: 2 * 512 - 1 = 1023. */
     check_true(got == 1023 && afm_psd_segments(p) == 1023, "1023 segments from 2^21 samples");
     afm_psd_get(p, out);
     double mean = 0;
-    for (long k = 10; k < nseg / 2 - 10; k++) mean += out[k];
+    for (long k = 10; k < nseg / 2 - 10; k++)
+        mean += out[k];
     mean /= (double)(nseg / 2 - 20);
     /* ~2000 bins x 1023 segments: the mean level has a relative error ~ 1e-3. */
     check_rel(mean, 2 * sigma * sigma / fs, 5e-3, "white noise reads 2 s^2 / fs (m^2/Hz)");
@@ -53,7 +55,8 @@ static void psd_units(void) {
     /* A bad block changes nothing. */
     double bad[3] = {1e-9, NAN, 1e-9}, before = out[100];
     check_true(afm_psd_push(p, bad, 3) == -1, "NaN sample refused");
-    check_true(afm_psd_push(p, NULL, 5) == -1 && afm_psd_push(p, x, -1) == -1, "NULL/negative n refused");
+    check_true(afm_psd_push(p, NULL, 5) == -1 && afm_psd_push(p, x, -1) == -1,
+               "NULL/negative n refused");
     afm_psd_get(p, out);
     check_true(afm_psd_segments(p) == 1023 && out[100] == before, "refused blocks change nothing");
 
@@ -61,12 +64,14 @@ static void psd_units(void) {
     afm_psd_reset(p);
     check_true(afm_psd_get(p, out) == -1, "no segment after reset: get refused");
     const double a = 2e-9, f = 123456.7;
-    for (long i = 0; i < 8 * nseg; i++) x[i] = a * sin(2 * pi * f * (double)i / fs + 0.3);
+    for (long i = 0; i < 8 * nseg; i++)
+        x[i] = a * sin(2 * pi * f * (double)i / fs + 0.3);
     for (long i = 0; i < 8 * nseg; i += 1000) /* odd block sizes */
         afm_psd_push(p, x + i, i + 1000 <= 8 * nseg ? 1000 : 8 * nseg - i);
     afm_psd_get(p, out);
     double pw = 0;
-    for (long k = 0; k < nseg / 2 + 1; k++) pw += out[k] * afm_psd_df_hz(p);
+    for (long k = 0; k < nseg / 2 + 1; k++)
+        pw += out[k] * afm_psd_df_hz(p);
     /* Hann leakage outside the bins summed is nil (all bins are summed); the per-segment
      * mean removal takes away < (A / (pi f T_seg))^2 / ... ~ 1e-7 of the power. */
     check_rel(pw, a * a / 2, 1e-4, "sine integrates to A^2/2 (Parseval)");
@@ -94,7 +99,7 @@ static void osc_init(osc *o, double f_hz, double q, double k_n_m, double t_k, do
     o->phi[1][0] = -e * w * w * s / wd;
     o->phi[1][1] = e * (c - xi * w / wd * s);
     double sx = AFM_KB_J_K * t_k / k_n_m, sv = w * w * sx; /* variances */
-    double (*p)[2] = o->phi;
+    double(*p)[2] = o->phi;
     double q11 = sx - (p[0][0] * p[0][0] * sx + p[0][1] * p[0][1] * sv);
     double q21 = -(p[1][0] * p[0][0] * sx + p[1][1] * p[0][1] * sv);
     double q22 = sv - (p[1][0] * p[1][0] * sx + p[1][1] * p[1][1] * sv);
@@ -142,8 +147,8 @@ static void synthetic(double floor_frac) {
     }
     afm_psd_get(p, psd);
     afm_thermfit fit;
-    int rc = afm_thermfit_mode(psd, afm_psd_n_bins(p), afm_psd_df_hz(p), tk, 50e3, 200e3, 0,
-                               &fit, err, sizeof err);
+    int rc = afm_thermfit_mode(psd, afm_psd_n_bins(p), afm_psd_df_hz(p), tk, 50e3, 200e3, 0, &fit,
+                               err, sizeof err);
     snprintf(what, sizeof what, "synthetic fit converges (floor %g of peak)", floor_frac);
     if (check_true(rc == 0, what)) {
         printf("  f %.6g Hz (se %.2g)  Q %.5g (se %.2g)  k %.5g N/m (se %.2g)  floor %.4g "
@@ -170,7 +175,8 @@ static void synthetic(double floor_frac) {
 static void fit_bad_input(void) {
     char err[256] = "";
     double psd[64];
-    for (int i = 0; i < 64; i++) psd[i] = 1e-26;
+    for (int i = 0; i < 64; i++)
+        psd[i] = 1e-26;
     afm_thermfit fit = {.f_hz = -1};
     check_true(afm_thermfit_mode(psd, 64, 10, 295, 100, 500, 0, &fit, err, sizeof err) == -1,
                "flat spectrum: no peak, refused");
@@ -196,11 +202,12 @@ static void tune_check(double fs_hz, double seconds, double seg_s, int mode, dou
         return;
     cfg.sim.sample_rate_hz = fs_hz;
     for (int j = 0; j < cfg.drive.n_tones; j++) /* keep the (silent) tones below Nyquist */
-        if (cfg.drive.tones[j].frequency_hz >= fs_hz / 2) cfg.drive.tones[j].frequency_hz = fs_hz / 4;
+        if (cfg.drive.tones[j].frequency_hz >= fs_hz / 2)
+            cfg.drive.tones[j].frequency_hz = fs_hz / 4;
     long nseg = 2 * (long)floor(seg_s * fs_hz / 2 + 0.5);
     int rc = afm_thermfit_tune(&cfg, seconds, nseg, false, mode, &res, NULL, err, sizeof err);
-    snprintf(what, sizeof what, "nchv tune at %g MHz, %g s: mode %d fitted", fs_hz / 1e6,
-             seconds, mode);
+    snprintf(what, sizeof what, "nchv tune at %g MHz, %g s: mode %d fitted", fs_hz / 1e6, seconds,
+             mode);
     if (!check_true(rc == 0 && res.n_modes >= mode, what)) {
         printf("  (%s%s)\n", rc ? err : "", res.skipped);
         return;

@@ -30,8 +30,8 @@ static afm_sim *twin(const char *path, afm_sweep *w, const int *ks, int nk) {
     }
     cfg.sim.integrator = AFM_INTEGRATOR_REFERENCE;
     afm_sim *s = afm_twin_create(&cfg, NULL, NULL, err, sizeof err);
-    if (!s || afm_sweep_init(w, cfg.sim.sample_rate_hz, 75e3, 1e-6, 4000, ks, nk, err,
-                             sizeof err) != 0) {
+    if (!s ||
+        afm_sweep_init(w, cfg.sim.sample_rate_hz, 75e3, 1e-6, 4000, ks, nk, err, sizeof err) != 0) {
         printf("cannot create the twin of %s: %s\n", path, err);
         afm_sim_destroy(&s);
         return NULL;
@@ -41,14 +41,12 @@ static afm_sim *twin(const char *path, afm_sweep *w, const int *ks, int nk) {
 
 static const afm_orbit_harmonic *harm(const afm_orbit *o, int k) {
     for (int i = 0; i < o->n_harmonics; i++)
-        if (o->harmonics[i].k == k)
-            return &o->harmonics[i];
+        if (o->harmonics[i].k == k) return &o->harmonics[i];
     return NULL;
 }
 
 /* An FFT modulus of the thesis: within tol, or explained by scalloping (see top). */
-static void amplitude(const char *table, const char *item, double ours, double thesis,
-                      double tol) {
+static void amplitude(const char *table, const char *item, double ours, double thesis, double tol) {
     if (fabs(ours - thesis) <= tol * thesis) {
         check_thesis(table, item, ours, thesis, tol);
         return;
@@ -90,13 +88,11 @@ static void contacts(const char *table, const char *point, const afm_orbit *o,
                      const contact_row *rows, int n) {
     char item[96];
     snprintf(item, sizeof item, "%s: number of contacts per orbit", point);
-    if (!check_thesis_abs(table, item, o->n_contacts, n, 0, ""))
-        return;
+    if (!check_thesis_abs(table, item, o->n_contacts, n, 0, "")) return;
     for (int i = 0; i < n; i++) {
         /* the thesis lists the contacts of a period-doubled orbit largest force first */
         int j = i;
-        if (n == 2 && (o->contacts[0].max_force_n < o->contacts[1].max_force_n))
-            j = 1 - i;
+        if (n == 2 && (o->contacts[0].max_force_n < o->contacts[1].max_force_n)) j = 1 - i;
         const afm_orbit_contact *c = &o->contacts[j];
         snprintf(item, sizeof item, "%s contact %d: min(xr) (nm)", point, i + 1);
         check_thesis(table, item, c->min_deflection_m * 1e9, rows[i].min_nm, 5e-3);
@@ -115,8 +111,10 @@ static void walk(afm_sim *s, afm_sweep *w, const double *path, int n, double ae,
     for (int i = 0; i < n; i++) {
         int rc = afm_sweep_step(w, s, path[i], ae, &o, err, sizeof err);
         printf("# fe %.0f Hz: %s, p %d, %d periods, min %.4f nm, %d contacts\n", path[i],
-               rc == 1 ? "settled" : rc == 0 ? "NOT settled" : err, w->st.p, w->st.periods,
-               o.min_deflection_m * 1e9, o.n_contacts);
+               rc == 1   ? "settled"
+               : rc == 0 ? "NOT settled"
+                         : err,
+               w->st.p, w->st.periods, o.min_deflection_m * 1e9, o.n_contacts);
         if (rc < 0) {
             check_true(false, err);
             return;
@@ -128,15 +126,14 @@ static void walk(afm_sim *s, afm_sweep *w, const double *path, int n, double ae,
 /* ---- Table 4.1 / E.2: 4-DOF, Ae 0.7 nm, Z 30 nm ---- */
 
 static void t41_lower(int idx, const afm_orbit *o, int p) {
-    if (idx != 4)
-        return;
+    if (idx != 4) return;
     static const contact_row f4[1] = {{-31.352, -5.55340, 1.08321}};
     check_thesis_abs("Table 4.1", "F4 (84.053 kHz, lower branch): periodicity", p, 1, 0, "");
     contacts("Table 4.1", "F4", o, f4, 1);
-    check_thesis("Table 4.1", "F4: min(xr) over the orbit (nm)", o->min_deflection_m * 1e9,
-                 -31.352, 5e-3);
-    check_thesis("Table 4.1", "F4: max(Fts) over the orbit (1e-7 N)", o->max_force_n * 1e7,
-                 1.08321, 5e-2);
+    check_thesis("Table 4.1", "F4: min(xr) over the orbit (nm)", o->min_deflection_m * 1e9, -31.352,
+                 5e-3);
+    check_thesis("Table 4.1", "F4: max(Fts) over the orbit (1e-7 N)", o->max_force_n * 1e7, 1.08321,
+                 5e-2);
     amplitude("Table E.2", "F4 amplitude of xr at S1 (m)", harm(o, 1)->x_amp_m, 2.3921e-8, 0.02);
     amplitude("Table E.2", "F4 amplitude of xr at S6 (m)", harm(o, 6)->x_amp_m, 1.0226e-9, 0.10);
     phase("Table E.2", "F4 (dphi)S6 (deg)", harm(o, 6)->phase_diff_deg, 272.4, true);
@@ -152,8 +149,7 @@ static void t41_doubled(int idx, const afm_orbit *o, int p) {
     static const char *name[3] = {"F1 (82.437 kHz)", "F2 (83.245 kHz)", "F3 (84.053 kHz)"};
     const contact_row *rows[3] = {f1, f2, f3};
     int k = idx - 2;
-    if (k < 0)
-        return;
+    if (k < 0) return;
     char item[96];
     snprintf(item, sizeof item, "%s: periodicity (period doubling)", name[k]);
     check_thesis_abs("Table 4.1", item, p, 2, 0, "");
@@ -170,8 +166,7 @@ static void table_4_1(void) {
     static const int ks[2] = {1, 6};
     afm_sweep w;
     afm_sim *s = twin("config/thesis-fig-4-2.conf", &w, ks, 2);
-    if (!check_true(s != NULL, "fig 4-2 twin"))
-        return;
+    if (!check_true(s != NULL, "fig 4-2 twin")) return;
     /* Lower contact branch: forward sweep in 900 Hz steps from 80.453 kHz. */
     static const double lower[5] = {80453, 81353, 82253, 83153, 84053};
     walk(s, &w, lower, 5, 0.7e-9, t41_lower);
@@ -201,8 +196,7 @@ static void t43(int idx, const afm_orbit *o, int p) {
     static const double d6[3] = {219.1, 38.9, 56.9}, d17[3] = {101.4, 99.7, 23.7};
     static const char *name[3] = {"F1 (83.084 kHz)", "F2 (83.649 kHz)", "F3 (84.862 kHz)"};
     int k = idx == T43_F1 ? 0 : idx == T43_F2 ? 1 : idx == T43_F3 ? 2 : -1;
-    if (k < 0)
-        return;
+    if (k < 0) return;
     char item[96];
     snprintf(item, sizeof item, "%s: periodicity", name[k]);
     check_thesis_abs("Table 4.3", item, p, 1, 0, "");
@@ -223,8 +217,7 @@ static void table_4_3(void) {
     static const int ks[3] = {1, 6, 17};
     afm_sweep w;
     afm_sim *s = twin("config/thesis-fig-4-13.conf", &w, ks, 3);
-    if (!check_true(s != NULL, "fig 4-13 twin"))
-        return;
+    if (!check_true(s != NULL, "fig 4-13 twin")) return;
     walk(s, &w, t43_path, (int)(sizeof t43_path / sizeof t43_path[0]), 1.4e-9, t43);
     afm_sim_destroy(&s);
     afm_sweep_destroy(&w);

@@ -15,7 +15,8 @@ static const command commands[] = {
     {"modes", afm_cmd_modes, "eigenfrequencies, MAC, stiffness and effective mass of a model"},
     {"sweep", afm_cmd_sweep, "stepwise frequency sweep to steady state, with harmonics"},
     {"bench", afm_cmd_bench, "integrator speed and accuracy side by side"},
-    {"thermal", afm_cmd_thermal, "thermal tune: PSD of the Brownian motion, eq. 5.1 fit of f, Q, k"},
+    {"thermal", afm_cmd_thermal,
+     "thermal tune: PSD of the Brownian motion, eq. 5.1 fit of f, Q, k"},
     {"send", afm_cmd_send, "publish one command to the daemon (validated as the daemon does)"},
     {"listen", afm_cmd_listen, "print what the daemon publishes (samples, harmonics, status)"},
     {"replay", afm_cmd_replay, "run the commands of an LCM log in model time, outputs to a log"},
@@ -41,8 +42,7 @@ int main(int argc, char **argv) {
         return 0;
     }
     for (size_t i = 0; i < sizeof commands / sizeof commands[0]; i++)
-        if (!strcmp(argv[1], commands[i].name))
-            return commands[i].run(argc - 1, argv + 1);
+        if (!strcmp(argv[1], commands[i].name)) return commands[i].run(argc - 1, argv + 1);
     fprintf(stderr, "afmtwin: unknown command '%s'\n", argv[1]);
     usage(stderr);
     return 2;

@@ -241,8 +241,8 @@ static const char *rc_text(int rc) {
 /* Time the rt integrator and the output chain on s's running orbit: every block of CHUNK
  * samples is integrated, then pushed through the chain, each timed on its own, over
  * `runs` runs of nsamp samples. Medians per run. */
-static void time_chain(afm_sim *s, const afm_config *cfg0, const afm_modal *m, long nsamp,
-                       int runs, bench_result *res) {
+static void time_chain(afm_sim *s, const afm_config *cfg0, const afm_modal *m, long nsamp, int runs,
+                       bench_result *res) {
     afm_config cfg = *cfg0;
     cfg.obd.enabled = true;
     cfg.obd.noise_density_m_rthz = CHAIN_NOISE_M_RTHZ;

@@ -40,7 +40,7 @@
 #define BD_URL "udpm://239.255.76.67:7667?ttl=0&recv_buf_size=4194304"
 #define BD_OUT_URL "udpm://239.255.76.67:7668?ttl=0&recv_buf_size=4194304"
 #define BD_MAX_CMDS 100000
-#define BD_WAIT_S 0.25 /* a command not seen applied by then counts as lost */
+#define BD_WAIT_S 0.25          /* a command not seen applied by then counts as lost */
 #define BD_TAP_FREQ_HZ 338112.0 /* model f1 of the NCHV beam (`afmtwin modes`) */
 #define BD_TAP_AMP_M 0.087e-9   /* 50 nm free amplitude at f1 (config/default.conf) */
 #define BD_TAP_Z_M 35e-9        /* Z = 0.7 x free amplitude */
@@ -71,28 +71,27 @@ typedef struct {
 } bd_state;
 
 static void bd_usage(FILE *f) {
-    fprintf(f,
-            "usage: afmtwin bench-daemon [--daemon PATH] [--config FILE]... [--commands N]\n"
-            "                            [--seconds S] [--json] [--no-netns]\n\n"
-            "Benchmarks the running daemon from outside, over LCM, inside a private network\n"
-            "namespace (unshare -n; loopback with a multicast route, nothing else):\n"
-            "  real-time factor  model seconds per wall second while tapping with all outputs\n"
-            "                    on (samples of every stream, harmonics, status), with the\n"
-            "                    daemon's overruns and lag\n"
-            "  latency           from sending a setpoint to the first samples message that\n"
-            "                    carries its seq (p50, p99, max over N commands); the daemon's\n"
-            "                    goal is p99 within one output block + 200 us\n\n"
-            "options:\n"
-            "  --daemon PATH   afmtwind to run (default: afmtwind next to this afmtwin)\n"
-            "  --config FILE   config to run (repeatable; default config/nchv.conf and\n"
-            "                  config/default.conf); the twin is set to tap: tone 0 at\n"
-            "                  338.112 kHz, 0.087 nm (50 nm free), Z 35 nm\n"
-            "  --commands N    setpoint commands for the latency (default 1000, >= 10)\n"
-            "  --seconds S     real-time factor window (default 5)\n"
-            "  --json          one JSON object per config\n"
-            "  --no-netns      run in the current network namespace (already private)\n"
-            "  --help          this text\n\n"
-            "Exit status 0 when every run completed (whatever the numbers), 1 otherwise.\n");
+    fprintf(f, "usage: afmtwin bench-daemon [--daemon PATH] [--config FILE]... [--commands N]\n"
+               "                            [--seconds S] [--json] [--no-netns]\n\n"
+               "Benchmarks the running daemon from outside, over LCM, inside a private network\n"
+               "namespace (unshare -n; loopback with a multicast route, nothing else):\n"
+               "  real-time factor  model seconds per wall second while tapping with all outputs\n"
+               "                    on (samples of every stream, harmonics, status), with the\n"
+               "                    daemon's overruns and lag\n"
+               "  latency           from sending a setpoint to the first samples message that\n"
+               "                    carries its seq (p50, p99, max over N commands); the daemon's\n"
+               "                    goal is p99 within one output block + 200 us\n\n"
+               "options:\n"
+               "  --daemon PATH   afmtwind to run (default: afmtwind next to this afmtwin)\n"
+               "  --config FILE   config to run (repeatable; default config/nchv.conf and\n"
+               "                  config/default.conf); the twin is set to tap: tone 0 at\n"
+               "                  338.112 kHz, 0.087 nm (50 nm free), Z 35 nm\n"
+               "  --commands N    setpoint commands for the latency (default 1000, >= 10)\n"
+               "  --seconds S     real-time factor window (default 5)\n"
+               "  --json          one JSON object per config\n"
+               "  --no-netns      run in the current network namespace (already private)\n"
+               "  --help          this text\n\n"
+               "Exit status 0 when every run completed (whatever the numbers), 1 otherwise.\n");
 }
 
 /* ---- LCM handlers ---------------------------------------------------------------------- */
@@ -222,7 +221,7 @@ static void bench_config(const bd_opts *o, const char *config, bd_result *r) {
     char errfile[] = "/tmp/afmtwin-bench-daemon.XXXXXX";
     int efd = mkstemp(errfile);
     if (efd >= 0) close(efd);
-    lcm_t *lcm = lcm_create(BD_OUT_URL); /* outputs in */
+    lcm_t *lcm = lcm_create(BD_OUT_URL);          /* outputs in */
     lcm_t *cmd = lcm ? lcm_create(BD_URL) : NULL; /* commands out (never subscribed) */
     if (!lcm || !cmd) {
         snprintf(r->err, sizeof r->err, "lcm_create(%s) failed (no multicast route?)", BD_URL);
@@ -246,7 +245,8 @@ static void bench_config(const bd_opts *o, const char *config, bd_result *r) {
         goto out;
     }
     /* up? */
-    for (int i = 0; i < 50 && s.n_status == 0; i++) pump(lcm, 0.1);
+    for (int i = 0; i < 50 && s.n_status == 0; i++)
+        pump(lcm, 0.1);
     if (s.n_status == 0) {
         snprintf(r->err, sizeof r->err, "no status from %s within 5 s", o->daemon);
         goto stop;
@@ -254,8 +254,12 @@ static void bench_config(const bd_opts *o, const char *config, bd_result *r) {
     r->block_s = block_from_errfile(errfile);
     /* tap */
     double f = BD_TAP_FREQ_HZ, a = BD_TAP_AMP_M, ph = 0;
-    afmtwin_dither_t dm = {.utime = afmt_wall_us(), .seq = 1, .n_tones = 1,
-                           .frequency_hz = &f, .amplitude_m = &a, .phase_rad = &ph};
+    afmtwin_dither_t dm = {.utime = afmt_wall_us(),
+                           .seq = 1,
+                           .n_tones = 1,
+                           .frequency_hz = &f,
+                           .amplitude_m = &a,
+                           .phase_rad = &ph};
     afmtwin_setpoint_t sp = {.utime = afmt_wall_us(), .seq = 2, .separation_m = BD_TAP_Z_M};
     afmtwin_dither_t_publish(cmd, "AFMTWIN_DITHER", &dm);
     afmtwin_setpoint_t_publish(cmd, "AFMTWIN_SETPOINT", &sp);
@@ -282,14 +286,15 @@ static void bench_config(const bd_opts *o, const char *config, bd_result *r) {
     for (int i = 0; i < o->commands; i++) {
         lcg = lcg * 6364136223846793005ULL + 1442695040888963407ULL;
         pump(lcm, (double)(lcg >> 40) / (double)(1ULL << 24) * 2e-3);
-        afmtwin_setpoint_t c = {.utime = afmt_wall_us(), .seq = 100 + i,
-                                .separation_m = (i & 1) ? 35.5e-9 : 35e-9};
+        afmtwin_setpoint_t c = {
+            .utime = afmt_wall_us(), .seq = 100 + i, .separation_m = (i & 1) ? 35.5e-9 : 35e-9};
         s.want_seq = c.seq;
         s.got = false;
         double t0 = afmt_mono_s();
         afmtwin_setpoint_t_publish(cmd, "AFMTWIN_SETPOINT", &c);
         r->sent++;
-        while (!s.got && afmt_mono_s() - t0 < BD_WAIT_S) lcm_handle_timeout(lcm, 100);
+        while (!s.got && afmt_mono_s() - t0 < BD_WAIT_S)
+            lcm_handle_timeout(lcm, 100);
         if (s.got)
             lat[r->n_lat++] = s.t_got - t0;
         else
@@ -297,7 +302,8 @@ static void bench_config(const bd_opts *o, const char *config, bd_result *r) {
     }
     if (r->n_lat > 0) {
         double sum = 0;
-        for (int i = 0; i < r->n_lat; i++) sum += lat[i];
+        for (int i = 0; i < r->n_lat; i++)
+            sum += lat[i];
         qsort(lat, (size_t)r->n_lat, sizeof lat[0], cmp_d);
         r->p50 = lat[(r->n_lat - 1) / 2];
         r->p99 = lat[(int)ceil(0.99 * r->n_lat) - 1];
@@ -309,8 +315,8 @@ static void bench_config(const bd_opts *o, const char *config, bd_result *r) {
     pump(lcm, 0.3);
     long long applied0 = s.last_applied, received0 = s.last_received;
     for (int i = 0; i < o->commands; i++) {
-        afmtwin_setpoint_t c = {.utime = afmt_wall_us(), .seq = 1000000 + i,
-                                .separation_m = (i & 1) ? 35.5e-9 : 35e-9};
+        afmtwin_setpoint_t c = {
+            .utime = afmt_wall_us(), .seq = 1000000 + i, .separation_m = (i & 1) ? 35.5e-9 : 35e-9};
         afmtwin_setpoint_t_publish(cmd, "AFMTWIN_SETPOINT", &c);
         r->sent++;
         pump(lcm, 100e-6);
@@ -361,12 +367,15 @@ static int reexec_in_netns(int argc, char **argv) {
     args[k++] = self;
     args[k++] = "bench-daemon";
     args[k++] = "--inside";
-    for (int i = 1; i < argc && k < 62; i++) args[k++] = argv[i];
+    for (int i = 1; i < argc && k < 62; i++)
+        args[k++] = argv[i];
     args[k] = NULL;
     fflush(stdout);
     execvp("unshare", args);
-    fprintf(stderr, "afmtwin bench-daemon: cannot run unshare: %s (try --no-netns inside a "
-                    "private namespace)\n", strerror(errno));
+    fprintf(stderr,
+            "afmtwin bench-daemon: cannot run unshare: %s (try --no-netns inside a "
+            "private namespace)\n",
+            strerror(errno));
     return 1;
 }
 
@@ -439,8 +448,7 @@ int afm_cmd_bench_daemon(int argc, char **argv) {
         printf("\nafmtwin bench-daemon: afmtwind in realtime mode over LCM (private network "
                "namespace), tapping at %.3f kHz, %.3g nm base amplitude, Z %.0f nm; %g s "
                "real-time window, %d setpoint commands\n",
-               BD_TAP_FREQ_HZ * 1e-3, BD_TAP_AMP_M * 1e9, BD_TAP_Z_M * 1e9, o.seconds,
-               o.commands);
+               BD_TAP_FREQ_HZ * 1e-3, BD_TAP_AMP_M * 1e9, BD_TAP_Z_M * 1e9, o.seconds, o.commands);
     int rc = 0;
     for (int c = 0; c < o.n_configs; c++) {
         bd_result r;
@@ -480,8 +488,7 @@ int afm_cmd_bench_daemon(int argc, char **argv) {
                "(%d commands, %d not seen applied within %.0f ms)"
                "; goal p99 <= %.3f ms: %s\n",
                r.p50 * 1e3, r.p99 * 1e3, r.max * 1e3, r.mean * 1e3, r.n_lat, r.lost,
-               BD_WAIT_S * 1e3, goal * 1e3,
-               r.p99 <= goal ? "met" : "MISSED");
+               BD_WAIT_S * 1e3, goal * 1e3, r.p99 <= goal ? "met" : "MISSED");
         printf("  commands under load (%lld setpoints 100 us apart, all outputs on): received "
                "%lld, applied %lld, lost %lld; in all sent %lld, the daemon received %lld, "
                "applied %lld, rejected %lld\n",

@@ -192,7 +192,7 @@ int afm_cmd_can_send(int argc, char **argv) {
     }
     if (fd && !m->fd && check) {
         fprintf(stderr, "afmtwin can-send: --fd, but the map has can.fd = false (the daemon "
-                "would not read FD frames)\n");
+                        "would not read FD frames)\n");
         return 2;
     }
     /* The daemon's decoder, from the config's registers, frame after frame. */

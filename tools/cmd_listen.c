@@ -28,12 +28,12 @@ static const char *const out_name[N_OUT] = {"samples", "harmonics", "status"};
 
 typedef struct {
     bool json, full;
-    long count;        /* 0: no limit */
-    double timeout_s;  /* 0: none */
+    long count;       /* 0: no limit */
+    double timeout_s; /* 0: none */
     bool want[N_OUT];
     const char *url, *out_url, *prefix, *log;
-    long got;          /* messages printed */
-    long bad;          /* messages that did not decode */
+    long got; /* messages printed */
+    long bad; /* messages that did not decode */
     char chan[N_OUT][AFMT_CHAN_LEN];
 } listen_ctx;
 
@@ -124,12 +124,14 @@ static void json_stats(cJSON *o, const char *k, arr_stats s) {
 
 static void json_farr(cJSON *o, const char *k, const float *v, int n) {
     cJSON *a = cJSON_AddArrayToObject(o, k);
-    for (int i = 0; i < n; i++) cJSON_AddItemToArray(a, isfinite(v[i]) ? cJSON_CreateNumber(v[i]) : cJSON_CreateNull());
+    for (int i = 0; i < n; i++)
+        cJSON_AddItemToArray(a, isfinite(v[i]) ? cJSON_CreateNumber(v[i]) : cJSON_CreateNull());
 }
 
 static void json_darr(cJSON *o, const char *k, const double *v, int n) {
     cJSON *a = cJSON_AddArrayToObject(o, k);
-    for (int i = 0; i < n; i++) cJSON_AddItemToArray(a, isfinite(v[i]) ? cJSON_CreateNumber(v[i]) : cJSON_CreateNull());
+    for (int i = 0; i < n; i++)
+        cJSON_AddItemToArray(a, isfinite(v[i]) ? cJSON_CreateNumber(v[i]) : cJSON_CreateNull());
 }
 
 static void json_print(cJSON *o) {
@@ -167,7 +169,8 @@ static void print_samples(const listen_ctx *c, const char *channel, const afmtwi
             json_farr(a, "deflection_m", m->deflection_m, m->n);
             json_farr(a, "obd_m", m->obd_m, m->n);
             cJSON *ca = cJSON_AddArrayToObject(a, "obd_counts");
-            for (int i = 0; i < m->n; i++) cJSON_AddItemToArray(ca, cJSON_CreateNumber(m->obd_counts[i]));
+            for (int i = 0; i < m->n; i++)
+                cJSON_AddItemToArray(ca, cJSON_CreateNumber(m->obd_counts[i]));
             json_farr(a, "force_n", m->force_n, m->n);
         }
         json_print(o);
@@ -183,14 +186,16 @@ static void print_samples(const listen_ctx *c, const char *channel, const afmtwi
                    m->force_n[i]);
 }
 
-static void print_harmonics(const listen_ctx *c, const char *channel, const afmtwin_harmonics_t *m) {
+static void print_harmonics(const listen_ctx *c, const char *channel,
+                            const afmtwin_harmonics_t *m) {
     if (c->json) {
         cJSON *o = json_head(channel, "harmonics", m->utime, m->seq_applied);
         json_num(o, "t_s", m->t_s);
         json_num(o, "fe_hz", m->fe_hz);
         cJSON_AddNumberToObject(o, "n", m->n);
         cJSON *k = cJSON_AddArrayToObject(o, "k");
-        for (int i = 0; i < m->n; i++) cJSON_AddItemToArray(k, cJSON_CreateNumber(m->k[i]));
+        for (int i = 0; i < m->n; i++)
+            cJSON_AddItemToArray(k, cJSON_CreateNumber(m->k[i]));
         json_darr(o, "deflection_amplitude_m", m->deflection_amplitude_m, m->n);
         json_darr(o, "deflection_phase_deg", m->deflection_phase_deg, m->n);
         json_darr(o, "force_amplitude_n", m->force_amplitude_n, m->n);
@@ -214,8 +219,8 @@ static void print_harmonics(const listen_ctx *c, const char *channel, const afmt
            m->lockin_phase_deg, m->peak_force_n * 1e9, m->min_deflection_m * 1e9,
            m->contact_time_s * 1e9);
     for (int i = 0; i < m->n; i++)
-        printf("%s k%d %.4g nm %.2f deg", i ? "," : ";", m->k[i], m->deflection_amplitude_m[i] * 1e9,
-               m->deflection_phase_deg[i]);
+        printf("%s k%d %.4g nm %.2f deg", i ? "," : ";", m->k[i],
+               m->deflection_amplitude_m[i] * 1e9, m->deflection_phase_deg[i]);
     printf("\n");
 }
 
@@ -304,8 +309,10 @@ static int listen_log(listen_ctx *c) {
     }
     lcm_eventlog_event_t *ev;
     while ((c->count == 0 || c->got < c->count) && (ev = lcm_eventlog_read_next_event(l))) {
-        lcm_recv_buf_t rb = {.data = ev->data, .data_size = (uint32_t)ev->datalen,
-                             .recv_utime = ev->timestamp, .lcm = NULL};
+        lcm_recv_buf_t rb = {.data = ev->data,
+                             .data_size = (uint32_t)ev->datalen,
+                             .recv_utime = ev->timestamp,
+                             .lcm = NULL};
         on_message(&rb, ev->channel, c);
         lcm_eventlog_free_event(ev);
     }
@@ -319,7 +326,8 @@ static int listen_log(listen_ctx *c) {
 }
 
 static int parse_channels(const char *s, bool *want) {
-    for (int i = 0; i < N_OUT; i++) want[i] = false;
+    for (int i = 0; i < N_OUT; i++)
+        want[i] = false;
     char buf[128];
     if (strlen(s) >= sizeof buf) return -1;
     strcpy(buf, s);
@@ -344,7 +352,8 @@ static double mono_s(void) {
 
 int afm_cmd_listen(int argc, char **argv) {
     listen_ctx c = {.prefix = AFMT_DEFAULT_PREFIX};
-    for (int i = 0; i < N_OUT; i++) c.want[i] = true;
+    for (int i = 0; i < N_OUT; i++)
+        c.want[i] = true;
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
         if (!strcmp(a, "--help") || !strcmp(a, "-h")) {

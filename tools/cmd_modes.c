@@ -11,19 +11,19 @@
 #include <string.h>
 
 static void modes_usage(FILE *f) {
-    fprintf(f,
-            "usage: afmtwin modes --config FILE [--json]\n\n"
-            "Builds the reduced-order model of FILE and prints:\n"
-            "  analytical  clamped-free Euler-Bernoulli frequencies (uniform beams, no tip mass)\n"
-            "  unreduced   full FEM frequencies (clamped base, with tip mass)\n"
-            "  reduced     frequencies of the Rubin method-2 model (nk + 2 modes)\n"
-            "  MAC         reduced modes (rows) against unreduced modes (columns), eq. 3.8-3.10\n"
-            "  static tip stiffness (N/m) and the effective mass of mode 1 at the tip (eq. 2.14)\n\n"
-            "options:\n"
-            "  --config FILE  libconfig model file (see config/README.md)\n"
-            "  --json         one JSON object: frequencies_hz {analytical, unreduced, reduced},\n"
-            "                 mac, tip_static_stiffness_n_per_m, effective_mass_kg\n"
-            "  --help         this text\n");
+    fprintf(
+        f, "usage: afmtwin modes --config FILE [--json]\n\n"
+           "Builds the reduced-order model of FILE and prints:\n"
+           "  analytical  clamped-free Euler-Bernoulli frequencies (uniform beams, no tip mass)\n"
+           "  unreduced   full FEM frequencies (clamped base, with tip mass)\n"
+           "  reduced     frequencies of the Rubin method-2 model (nk + 2 modes)\n"
+           "  MAC         reduced modes (rows) against unreduced modes (columns), eq. 3.8-3.10\n"
+           "  static tip stiffness (N/m) and the effective mass of mode 1 at the tip (eq. 2.14)\n\n"
+           "options:\n"
+           "  --config FILE  libconfig model file (see config/README.md)\n"
+           "  --json         one JSON object: frequencies_hz {analytical, unreduced, reduced},\n"
+           "                 mac, tip_static_stiffness_n_per_m, effective_mass_kg\n"
+           "  --help         this text\n");
 }
 
 static cJSON *array_of(const double *v, int n) {
@@ -42,8 +42,7 @@ static int print_json(const afm_modes_report *r) {
     cJSON_AddNumberToObject(o, "tip_static_stiffness_n_per_m", r->static_stiffness_n_m);
     cJSON_AddNumberToObject(o, "effective_mass_kg", r->effective_mass_kg);
     char *s = cJSON_PrintUnformatted(o);
-    if (s)
-        puts(s);
+    if (s) puts(s);
     free(s);
     cJSON_Delete(o);
     return s ? 0 : 1;
@@ -55,9 +54,18 @@ static void print_text(const char *path, const afm_modes_report *r) {
     int n = r->n_reduced > r->n_unreduced ? r->n_reduced : r->n_unreduced;
     for (int i = 0; i < n; i++) {
         printf("%4d", i + 1);
-        if (i < r->n_analytical) printf(" %16.8g", r->analytical_hz[i]); else printf(" %16s", "-");
-        if (i < r->n_unreduced) printf(" %16.8g", r->unreduced_hz[i]); else printf(" %16s", "-");
-        if (i < r->n_reduced) printf(" %16.8g", r->reduced_hz[i]); else printf(" %16s", "-");
+        if (i < r->n_analytical)
+            printf(" %16.8g", r->analytical_hz[i]);
+        else
+            printf(" %16s", "-");
+        if (i < r->n_unreduced)
+            printf(" %16.8g", r->unreduced_hz[i]);
+        else
+            printf(" %16s", "-");
+        if (i < r->n_reduced)
+            printf(" %16.8g", r->reduced_hz[i]);
+        else
+            printf(" %16s", "-");
         printf("\n");
     }
     if (r->n_unreduced > 0) {
@@ -105,8 +113,7 @@ int afm_cmd_modes(int argc, char **argv) {
         fprintf(stderr, "afmtwin modes: %s\n", err);
         return 1;
     }
-    if (json)
-        return print_json(&rep);
+    if (json) return print_json(&rep);
     print_text(path, &rep);
     return 0;
 }

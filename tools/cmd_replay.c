@@ -29,7 +29,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#define REPLAY_DEFAULT_BLOCK 1024   /* samples per block: 72.8 us at 14.06 MHz */
+#define REPLAY_DEFAULT_BLOCK 1024    /* samples per block: 72.8 us at 14.06 MHz */
 #define REPLAY_STATUS_INTERVAL_S 0.1 /* status every 0.1 s of model time, as the daemon's 10 Hz */
 #define REPLAY_PERIODS_MAX 256
 
@@ -48,14 +48,14 @@ typedef struct {
     afm_runner *r;
     lcm_eventlog_t *log;
     char chan_out[N_OUT][AFMT_CHAN_LEN];
-    char chan_in[6][AFMT_CHAN_LEN]; /* indexed by afm_cmd_kind (1..5) */
+    char chan_in[6][AFMT_CHAN_LEN];      /* indexed by afm_cmd_kind (1..5) */
     long long status_every, next_status; /* samples */
     long long received, rejected, applied, skipped, written;
     char last_reject[AFM_IO_REASON_LEN];
     int write_failed;
     uint8_t *buf;
     int cap;
-    afm_io_samples rec;                 /* large: one per context */
+    afm_io_samples rec; /* large: one per context */
     afm_chain_period periods[REPLAY_PERIODS_MAX];
 } replay_ctx;
 
@@ -97,7 +97,9 @@ static void replay_usage(FILE *f) {
 
 /* ---- output: events stamped with model time ---------------------------------------- */
 
-static int64_t model_us(double t_s) { return (int64_t)llround(t_s * 1e6); }
+static int64_t model_us(double t_s) {
+    return (int64_t)llround(t_s * 1e6);
+}
 
 static void write_event(replay_ctx *x, int ch, int64_t utime, int n) {
     if (n < 0) {
@@ -128,7 +130,7 @@ static void write_event(replay_ctx *x, int ch, int64_t utime, int n) {
             (x)->buf = nb_;                                                                        \
             (x)->cap = need_;                                                                      \
         }                                                                                          \
-        write_event((x), (ch), (msg)->utime, T##_encode((x)->buf, 0, (x)->cap, (msg)));           \
+        write_event((x), (ch), (msg)->utime, T##_encode((x)->buf, 0, (x)->cap, (msg)));            \
     } while (0)
 
 static void emit_samples(replay_ctx *x, int64_t seq) {
@@ -191,7 +193,8 @@ static void emit_all(replay_ctx *x, bool force_status) {
     emit_samples(x, st.seq_applied);
     if (force_status || st.samples >= x->next_status) {
         emit_status(x, &st);
-        while (x->next_status <= st.samples) x->next_status += x->status_every;
+        while (x->next_status <= st.samples)
+            x->next_status += x->status_every;
     }
 }
 
@@ -259,7 +262,8 @@ static int parse_channels(const char *s, bool *want) {
     char buf[128];
     if (strlen(s) >= sizeof buf) return -1;
     strcpy(buf, s);
-    for (int i = 0; i < N_OUT; i++) want[i] = false;
+    for (int i = 0; i < N_OUT; i++)
+        want[i] = false;
     int n = 0;
     char *save = NULL;
     for (char *t = strtok_r(buf, ",", &save); t; t = strtok_r(NULL, ",", &save)) {
@@ -299,8 +303,8 @@ static int parse_opts(int argc, char **argv, replay_opts *o) {
             o->prefix = v;
         } else if (!strcmp(a, "--block")) {
             if (afmt_parse_double(v, &d) || d < 1 || d > 1048576 || d != floor(d)) {
-                fprintf(stderr, "afmtwin replay: --block wants an integer in 1..1048576, got '%s'\n",
-                        v);
+                fprintf(stderr,
+                        "afmtwin replay: --block wants an integer in 1..1048576, got '%s'\n", v);
                 return 2;
             }
             o->block = (int)d;
@@ -312,8 +316,10 @@ static int parse_opts(int argc, char **argv, replay_opts *o) {
             o->tail_s = d;
         } else if (!strcmp(a, "--channels")) {
             if (parse_channels(v, o->want)) {
-                fprintf(stderr, "afmtwin replay: --channels wants a comma-separated subset of "
-                                "samples,harmonics,status, got '%s'\n", v);
+                fprintf(stderr,
+                        "afmtwin replay: --channels wants a comma-separated subset of "
+                        "samples,harmonics,status, got '%s'\n",
+                        v);
                 return 2;
             }
         } else {
@@ -336,15 +342,21 @@ static int parse_opts(int argc, char **argv, replay_opts *o) {
 int afm_cmd_replay(int argc, char **argv) {
     static replay_ctx x; /* large: the samples record */
     memset(&x, 0, sizeof x);
-    x.o = (replay_opts){.prefix = AFMT_DEFAULT_PREFIX, .block = REPLAY_DEFAULT_BLOCK,
-                        .tail_s = 0.01, .want = {true, true, true}};
+    x.o = (replay_opts){.prefix = AFMT_DEFAULT_PREFIX,
+                        .block = REPLAY_DEFAULT_BLOCK,
+                        .tail_s = 0.01,
+                        .want = {true, true, true}};
     int rc = parse_opts(argc, argv, &x.o);
     if (rc) return rc == 1 ? 0 : rc;
     char err[AFM_ERR_LEN];
     static const char *const out_sfx[N_OUT] = {AFMT_CHAN_SAMPLES, AFMT_CHAN_HARMONICS,
                                                AFMT_CHAN_STATUS};
-    static const char *const in_sfx[6] = {"", AFMT_CHAN_DITHER, AFMT_CHAN_SETPOINT,
-                                          AFMT_CHAN_PARAM, AFMT_CHAN_CONTROL, AFMT_CHAN_TICK};
+    static const char *const in_sfx[6] = {"",
+                                          AFMT_CHAN_DITHER,
+                                          AFMT_CHAN_SETPOINT,
+                                          AFMT_CHAN_PARAM,
+                                          AFMT_CHAN_CONTROL,
+                                          AFMT_CHAN_TICK};
     for (int i = 0; i < N_OUT; i++)
         if (afmt_channel(x.o.prefix, out_sfx[i], x.chan_out[i], err, sizeof err)) goto usage_err;
     for (int k = 1; k < 6; k++)

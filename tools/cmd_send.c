@@ -35,51 +35,52 @@ typedef struct {
 } send_common;
 
 static void send_usage(FILE *f) {
-    fprintf(f,
-            "usage: afmtwin send KIND [OPTIONS] [COMMON OPTIONS]\n\n"
-            "Publishes one command to the twin (afmtwind) on LCM. Before publishing, the\n"
-            "message is checked with the daemon's own validation: a value the daemon would\n"
-            "reject is reported with the daemon's reason and nothing is sent (exit 2).\n\n"
-            "kinds:\n"
-            "  dither --freq HZ[,HZ..] --amp M[,M..] [--phase RAD[,RAD..]]\n"
-            "        base excitation tones (1..4): frequency 0 < HZ < sample rate / 2,\n"
-            "        amplitude 0 <= M <= 1e-6 m, start phase of new tones (rad, default 0);\n"
-            "        e.g. send dither --freq 338112 --amp 0.087e-9\n"
-            "  setpoint --z M [--ramp M_S]\n"
-            "        tip-sample separation Z, 0 <= M <= 1e-3 m; --ramp > 0 ramps to it at that\n"
-            "        rate (m/s), 0 (default) steps; e.g. send setpoint --z 30e-9 --ramp 1e-6\n"
-            "  param NAME=VALUE [NAME=VALUE ...]\n"
-            "        live change of 1..16 config parameters by key path, e.g.\n"
-            "        send param forces.viscoelastic.eta_pa_s=400 forces.vdw_contact.hamaker_j=1e-19\n"
-            "  control run|pause|reset|step [--n N]\n"
-            "        run, pause, reset to rest, or advance N samples (step, 1 <= N <= 1e9)\n"
-            "  tick --n N\n"
-            "        lockstep mode: advance N samples (1 <= N <= 1e9); e.g. send tick --n 14060\n"
-            "  raw --channel NAME --hex HEX\n"
-            "        publish the bytes HEX as they are (no validation; for bad-input tests)\n\n"
-            "common options:\n"
-            "  --lcm-url URL     the twin's command URL, as given to afmtwind --lcm-url\n"
-            "                    (default: LCM_DEFAULT_URL or LCM's default)\n"
-            "  --prefix NAME_    channel-name prefix of the twin (default %s)\n"
-            "  --seq N           command sequence number (default: wall-clock microseconds,\n"
-            "                    so that later commands have larger numbers)\n"
-            "  --utime US        sender time stamp in the message (default: wall clock, us)\n"
-            "  --config FILE     the daemon's config, for the limits that depend on it (sample\n"
-            "                    rate); default config/default.conf when readable\n"
-            "  --check           validate only; print 'ok' and exit 0, or the reason and exit 2\n"
-            "  --no-check        publish even what the daemon would reject (bad-input tests)\n"
-            "  --channel NAME    publish on NAME instead of PREFIX + the kind's channel\n"
-            "                    (e.g. a message of the wrong type on a channel)\n"
-            "  --truncate N      publish only the first N bytes of the encoded message\n"
-            "  --log FILE        append the message to the LCM log FILE (lcm-logger format)\n"
-            "                    instead of publishing\n"
-            "  --log-time S      event time stamp in the log, seconds (default: wall clock);\n"
-            "                    replay applies an event at model time t - t(first event)\n"
-            "  --quiet           print nothing on success\n"
-            "  --help            this text\n\n"
-            "Exit status 0 sent, 1 LCM or file failure, 2 bad usage or a value the daemon\n"
-            "would reject.\n",
-            AFMT_DEFAULT_PREFIX);
+    fprintf(
+        f,
+        "usage: afmtwin send KIND [OPTIONS] [COMMON OPTIONS]\n\n"
+        "Publishes one command to the twin (afmtwind) on LCM. Before publishing, the\n"
+        "message is checked with the daemon's own validation: a value the daemon would\n"
+        "reject is reported with the daemon's reason and nothing is sent (exit 2).\n\n"
+        "kinds:\n"
+        "  dither --freq HZ[,HZ..] --amp M[,M..] [--phase RAD[,RAD..]]\n"
+        "        base excitation tones (1..4): frequency 0 < HZ < sample rate / 2,\n"
+        "        amplitude 0 <= M <= 1e-6 m, start phase of new tones (rad, default 0);\n"
+        "        e.g. send dither --freq 338112 --amp 0.087e-9\n"
+        "  setpoint --z M [--ramp M_S]\n"
+        "        tip-sample separation Z, 0 <= M <= 1e-3 m; --ramp > 0 ramps to it at that\n"
+        "        rate (m/s), 0 (default) steps; e.g. send setpoint --z 30e-9 --ramp 1e-6\n"
+        "  param NAME=VALUE [NAME=VALUE ...]\n"
+        "        live change of 1..16 config parameters by key path, e.g.\n"
+        "        send param forces.viscoelastic.eta_pa_s=400 forces.vdw_contact.hamaker_j=1e-19\n"
+        "  control run|pause|reset|step [--n N]\n"
+        "        run, pause, reset to rest, or advance N samples (step, 1 <= N <= 1e9)\n"
+        "  tick --n N\n"
+        "        lockstep mode: advance N samples (1 <= N <= 1e9); e.g. send tick --n 14060\n"
+        "  raw --channel NAME --hex HEX\n"
+        "        publish the bytes HEX as they are (no validation; for bad-input tests)\n\n"
+        "common options:\n"
+        "  --lcm-url URL     the twin's command URL, as given to afmtwind --lcm-url\n"
+        "                    (default: LCM_DEFAULT_URL or LCM's default)\n"
+        "  --prefix NAME_    channel-name prefix of the twin (default %s)\n"
+        "  --seq N           command sequence number (default: wall-clock microseconds,\n"
+        "                    so that later commands have larger numbers)\n"
+        "  --utime US        sender time stamp in the message (default: wall clock, us)\n"
+        "  --config FILE     the daemon's config, for the limits that depend on it (sample\n"
+        "                    rate); default config/default.conf when readable\n"
+        "  --check           validate only; print 'ok' and exit 0, or the reason and exit 2\n"
+        "  --no-check        publish even what the daemon would reject (bad-input tests)\n"
+        "  --channel NAME    publish on NAME instead of PREFIX + the kind's channel\n"
+        "                    (e.g. a message of the wrong type on a channel)\n"
+        "  --truncate N      publish only the first N bytes of the encoded message\n"
+        "  --log FILE        append the message to the LCM log FILE (lcm-logger format)\n"
+        "                    instead of publishing\n"
+        "  --log-time S      event time stamp in the log, seconds (default: wall clock);\n"
+        "                    replay applies an event at model time t - t(first event)\n"
+        "  --quiet           print nothing on success\n"
+        "  --help            this text\n\n"
+        "Exit status 0 sent, 1 LCM or file failure, 2 bad usage or a value the daemon\n"
+        "would reject.\n",
+        AFMT_DEFAULT_PREFIX);
 }
 
 /* Encode msg of generated type T into buf; byte count or -1. */
@@ -122,11 +123,16 @@ static int parse_args(int argc, char **argv, const char *kind, send_common *o, s
     for (int i = 2; i < argc; i++) {
         const char *s = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
         bool takes = true;
-        if (!strcmp(s, "--lcm-url") && v) o->url = v;
-        else if (!strcmp(s, "--prefix") && v) o->prefix = v;
-        else if (!strcmp(s, "--channel") && v) o->channel = v;
-        else if (!strcmp(s, "--config") && v) o->config = v;
-        else if (!strcmp(s, "--log") && v) o->log = v;
+        if (!strcmp(s, "--lcm-url") && v)
+            o->url = v;
+        else if (!strcmp(s, "--prefix") && v)
+            o->prefix = v;
+        else if (!strcmp(s, "--channel") && v)
+            o->channel = v;
+        else if (!strcmp(s, "--config") && v)
+            o->config = v;
+        else if (!strcmp(s, "--log") && v)
+            o->log = v;
         else if (!strcmp(s, "--log-time") && v) {
             if (afmt_parse_double(v, &o->log_time_s) || !isfinite(o->log_time_s) ||
                 o->log_time_s < 0 || o->log_time_s > 9e12)
@@ -162,9 +168,12 @@ static int parse_args(int argc, char **argv, const char *kind, send_common *o, s
             a->hex = v;
         } else {
             takes = false;
-            if (!strcmp(s, "--no-check")) o->no_check = true;
-            else if (!strcmp(s, "--check")) o->check_only = true;
-            else if (!strcmp(s, "--quiet")) o->quiet = true;
+            if (!strcmp(s, "--no-check"))
+                o->no_check = true;
+            else if (!strcmp(s, "--check"))
+                o->check_only = true;
+            else if (!strcmp(s, "--quiet"))
+                o->quiet = true;
             else if (s[0] == '-' && s[1] == '-') {
                 fprintf(stderr, "afmtwin send %s: unknown or incomplete option '%s' (see --help)\n",
                         kind, s);
@@ -187,7 +196,8 @@ static int parse_args(int argc, char **argv, const char *kind, send_common *o, s
                 a->names[k] = a->name_buf[k];
                 a->n_params++;
             } else {
-                fprintf(stderr, "afmtwin send %s: unexpected argument '%s' (see --help)\n", kind, s);
+                fprintf(stderr, "afmtwin send %s: unexpected argument '%s' (see --help)\n", kind,
+                        s);
                 return 2;
             }
         }
@@ -212,9 +222,13 @@ static int build(const char *kind, const send_common *o, send_args *a, uint8_t *
                             "per tone\n");
             return -2;
         }
-        for (int j = a->n_phase; j < a->n_freq; j++) a->phase[j] = 0.0;
-        afmtwin_dither_t m = {.utime = utime, .seq = seq, .n_tones = (int8_t)a->n_freq,
-                              .frequency_hz = a->freq, .amplitude_m = a->amp,
+        for (int j = a->n_phase; j < a->n_freq; j++)
+            a->phase[j] = 0.0;
+        afmtwin_dither_t m = {.utime = utime,
+                              .seq = seq,
+                              .n_tones = (int8_t)a->n_freq,
+                              .frequency_hz = a->freq,
+                              .amplitude_m = a->amp,
                               .phase_rad = a->phase};
         *ck = AFM_CMD_DITHER;
         return ENCODE(afmtwin_dither_t, &m, buf, cap);
@@ -224,8 +238,8 @@ static int build(const char *kind, const send_common *o, send_args *a, uint8_t *
             fprintf(stderr, "afmtwin send setpoint: --z is required\n");
             return -2;
         }
-        afmtwin_setpoint_t m = {.utime = utime, .seq = seq, .separation_m = a->z,
-                                .ramp_rate_m_s = a->ramp};
+        afmtwin_setpoint_t m = {
+            .utime = utime, .seq = seq, .separation_m = a->z, .ramp_rate_m_s = a->ramp};
         *ck = AFM_CMD_SETPOINT;
         return ENCODE(afmtwin_setpoint_t, &m, buf, cap);
     }
@@ -234,8 +248,11 @@ static int build(const char *kind, const send_common *o, send_args *a, uint8_t *
             fprintf(stderr, "afmtwin send param: give at least one NAME=VALUE\n");
             return -2;
         }
-        afmtwin_param_t m = {.utime = utime, .seq = seq, .n = (int16_t)a->n_params,
-                             .name = (char **)a->names, .value = a->values};
+        afmtwin_param_t m = {.utime = utime,
+                             .seq = seq,
+                             .n = (int16_t)a->n_params,
+                             .name = (char **)a->names,
+                             .value = a->values};
         *ck = AFM_CMD_PARAM;
         return ENCODE(afmtwin_param_t, &m, buf, cap);
     }
@@ -255,8 +272,8 @@ static int build(const char *kind, const send_common *o, send_args *a, uint8_t *
             fprintf(stderr, "afmtwin send control step: --n N is required\n");
             return -2;
         }
-        afmtwin_control_t m = {.utime = utime, .seq = seq, .action = codes[k],
-                               .n_samples = a->have_n ? a->n : 0};
+        afmtwin_control_t m = {
+            .utime = utime, .seq = seq, .action = codes[k], .n_samples = a->have_n ? a->n : 0};
         *ck = AFM_CMD_CONTROL;
         return ENCODE(afmtwin_control_t, &m, buf, cap);
     }
@@ -276,33 +293,40 @@ static int build(const char *kind, const send_common *o, send_args *a, uint8_t *
         }
         int n = afmt_parse_hex(a->hex, buf, cap);
         if (n < 0) {
-            fprintf(stderr, "afmtwin send raw: --hex wants pairs of hex digits (at most %d bytes)\n",
-                    cap);
+            fprintf(stderr,
+                    "afmtwin send raw: --hex wants pairs of hex digits (at most %d bytes)\n", cap);
             return -2;
         }
         *ck = 0;
         return n;
     }
-    fprintf(stderr, "afmtwin send: unknown kind '%s' (dither, setpoint, param, control, tick, raw)\n",
+    fprintf(stderr,
+            "afmtwin send: unknown kind '%s' (dither, setpoint, param, control, tick, raw)\n",
             kind);
     return -2;
 }
 
 static const char *kind_suffix(afm_cmd_kind k) {
     switch (k) {
-    case AFM_CMD_DITHER: return AFMT_CHAN_DITHER;
-    case AFM_CMD_SETPOINT: return AFMT_CHAN_SETPOINT;
-    case AFM_CMD_PARAM: return AFMT_CHAN_PARAM;
-    case AFM_CMD_CONTROL: return AFMT_CHAN_CONTROL;
-    case AFM_CMD_TICK: return AFMT_CHAN_TICK;
-    default: return "";
+    case AFM_CMD_DITHER:
+        return AFMT_CHAN_DITHER;
+    case AFM_CMD_SETPOINT:
+        return AFMT_CHAN_SETPOINT;
+    case AFM_CMD_PARAM:
+        return AFMT_CHAN_PARAM;
+    case AFM_CMD_CONTROL:
+        return AFMT_CHAN_CONTROL;
+    case AFM_CMD_TICK:
+        return AFMT_CHAN_TICK;
+    default:
+        return "";
     }
 }
 
 /* The daemon's checks: decode + validate the bytes as it would (afm_cmd_decode), and for
  * param, apply to a copy of the config (names that do not fit it). 0, or -1 with err. */
-static int daemon_check(afm_cmd_kind ck, const uint8_t *buf, int n, const send_common *o,
-                        char *err, size_t errlen) {
+static int daemon_check(afm_cmd_kind ck, const uint8_t *buf, int n, const send_common *o, char *err,
+                        size_t errlen) {
     static afm_config cfg; /* large: not on the stack */
     afm_cmd_limits lim = {.sample_rate_hz = 0.0};
     bool have_cfg = false;
@@ -321,8 +345,7 @@ static int daemon_check(afm_cmd_kind ck, const uint8_t *buf, int n, const send_c
     }
     afm_cmd c;
     if (afm_cmd_decode(ck, buf, (size_t)n, &lim, &c, err, errlen)) return -1;
-    if (ck == AFM_CMD_PARAM && have_cfg &&
-        afm_param_apply(&cfg, &c.u.param, NULL, err, errlen))
+    if (ck == AFM_CMD_PARAM && have_cfg && afm_param_apply(&cfg, &c.u.param, NULL, err, errlen))
         return -1;
     return 0;
 }
@@ -334,10 +357,13 @@ static int emit(const send_common *o, const char *channel, const uint8_t *buf, i
             fprintf(stderr, "afmtwin send: cannot open log '%s' for appending\n", o->log);
             return 1;
         }
-        lcm_eventlog_event_t ev = {
-            .timestamp = isnan(o->log_time_s) ? afmt_wall_us() : (int64_t)llround(o->log_time_s * 1e6),
-            .channellen = (int32_t)strlen(channel), .datalen = n, .channel = (char *)channel,
-            .data = (void *)buf};
+        lcm_eventlog_event_t ev = {.timestamp = isnan(o->log_time_s)
+                                                    ? afmt_wall_us()
+                                                    : (int64_t)llround(o->log_time_s * 1e6),
+                                   .channellen = (int32_t)strlen(channel),
+                                   .datalen = n,
+                                   .channel = (char *)channel,
+                                   .data = (void *)buf};
         int rc = lcm_eventlog_write_event(l, &ev);
         lcm_eventlog_destroy(l);
         if (rc) {
@@ -394,8 +420,8 @@ int afm_cmd_send(int argc, char **argv) {
     if (ck && !o.no_check) {
         int v = daemon_check(ck, buf, n, &o, err, sizeof err);
         if (v) {
-            fprintf(stderr, "afmtwin send %s: %s%s\n", kind, v == -1 ? "the daemon would reject: " : "",
-                    err);
+            fprintf(stderr, "afmtwin send %s: %s%s\n", kind,
+                    v == -1 ? "the daemon would reject: " : "", err);
             return 2;
         }
     }

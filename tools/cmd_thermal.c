@@ -37,35 +37,36 @@ typedef struct {
 typedef afm_thermfit_mode_result mode_result;
 
 static void thermal_usage(FILE *f) {
-    fprintf(f,
-            "usage: afmtwin thermal --config FILE --seconds S [--modes N] [--segment-s X]\n"
-            "                       [--signal x|obd] [--psd OUT] [--json]\n\n"
-            "Thermal tune (thesis section 5.2): simulates the cantilever's Brownian motion at\n"
-            "the config's thermal.temperature_k (thermal noise forced on), with the drive off,\n"
-            "the sample 1 mm away and all tip-sample forces switched off, for S seconds at the\n"
-            "OBD sample rate; takes the Welch PSD (Hann, 50%% overlap, one-sided, m^2/Hz) and\n"
-            "fits eq. 5.1 to each of the first N modes below the Nyquist frequency:\n"
-            "  d(f)^2 = 2 kB T / (pi k_n f_n Q_n) / ((f^2/f_n^2 - 1)^2 + (f/(f_n Q_n))^2) + d_ds^2\n"
-            "and compares f_n, Q_n, k_n with the model's f_n = w_n / 2pi, Q_n = 1 / (2 xi_n),\n"
-            "k_n = w_n^2 / tip_n^2 (the modal stiffness at the tip).\n\n"
-            "options:\n"
-            "  --config FILE   libconfig model file (see config/README.md)\n"
-            "  --seconds S     simulated time (0 < S <= %g). The statistical error of k_1 and\n"
-            "                  Q_1 is about 1 / sqrt(pi f_1 / Q_1 * S): 0.6 %% for NCHV at 10 s\n"
-            "  --modes N       fit at most N modes (default %d)\n"
-            "  --segment-s X   Welch segment length in s (default min(%g, S / %d)); the\n"
-            "                  resolution 1/X should be well below the narrowest f_n / Q_n\n"
-            "  --signal x|obd  x: the tip displacement (default); obd: the OBD sensor's\n"
-            "                  calibrated reading with its noise floor and ADC (config obd\n"
-            "                  group). It reads mode n with the gain g_n of docs/obd.md, so the\n"
-            "                  model value shown for k_n is then k_n / g_n^2\n"
-            "  --psd OUT       also write the PSD: columns f_hz, psd_m2_per_hz\n"
-            "  --json          one JSON object: run parameters and \"modes\": [{n, f_hz, q,\n"
-            "                  k_n_per_m, floor_m_rthz, model_f_hz, model_q, model_k_n_per_m,\n"
-            "                  rel_err_f, rel_err_q, rel_err_k, se_f_hz, se_q, se_k_n_per_m,\n"
-            "                  fit_lo_hz, fit_hi_hz, linewidth_bins}]\n"
-            "  --help          this text\n",
-            MAX_SECONDS, DEFAULT_MODES, DEFAULT_SEGMENT_S, MIN_SEGMENTS);
+    fprintf(
+        f,
+        "usage: afmtwin thermal --config FILE --seconds S [--modes N] [--segment-s X]\n"
+        "                       [--signal x|obd] [--psd OUT] [--json]\n\n"
+        "Thermal tune (thesis section 5.2): simulates the cantilever's Brownian motion at\n"
+        "the config's thermal.temperature_k (thermal noise forced on), with the drive off,\n"
+        "the sample 1 mm away and all tip-sample forces switched off, for S seconds at the\n"
+        "OBD sample rate; takes the Welch PSD (Hann, 50%% overlap, one-sided, m^2/Hz) and\n"
+        "fits eq. 5.1 to each of the first N modes below the Nyquist frequency:\n"
+        "  d(f)^2 = 2 kB T / (pi k_n f_n Q_n) / ((f^2/f_n^2 - 1)^2 + (f/(f_n Q_n))^2) + d_ds^2\n"
+        "and compares f_n, Q_n, k_n with the model's f_n = w_n / 2pi, Q_n = 1 / (2 xi_n),\n"
+        "k_n = w_n^2 / tip_n^2 (the modal stiffness at the tip).\n\n"
+        "options:\n"
+        "  --config FILE   libconfig model file (see config/README.md)\n"
+        "  --seconds S     simulated time (0 < S <= %g). The statistical error of k_1 and\n"
+        "                  Q_1 is about 1 / sqrt(pi f_1 / Q_1 * S): 0.6 %% for NCHV at 10 s\n"
+        "  --modes N       fit at most N modes (default %d)\n"
+        "  --segment-s X   Welch segment length in s (default min(%g, S / %d)); the\n"
+        "                  resolution 1/X should be well below the narrowest f_n / Q_n\n"
+        "  --signal x|obd  x: the tip displacement (default); obd: the OBD sensor's\n"
+        "                  calibrated reading with its noise floor and ADC (config obd\n"
+        "                  group). It reads mode n with the gain g_n of docs/obd.md, so the\n"
+        "                  model value shown for k_n is then k_n / g_n^2\n"
+        "  --psd OUT       also write the PSD: columns f_hz, psd_m2_per_hz\n"
+        "  --json          one JSON object: run parameters and \"modes\": [{n, f_hz, q,\n"
+        "                  k_n_per_m, floor_m_rthz, model_f_hz, model_q, model_k_n_per_m,\n"
+        "                  rel_err_f, rel_err_q, rel_err_k, se_f_hz, se_q, se_k_n_per_m,\n"
+        "                  fit_lo_hz, fit_hi_hz, linewidth_bins}]\n"
+        "  --help          this text\n",
+        MAX_SECONDS, DEFAULT_MODES, DEFAULT_SEGMENT_S, MIN_SEGMENTS);
 }
 
 static int parse_double(const char *s, double *out) {
@@ -136,18 +137,18 @@ static int parse_args(int argc, char **argv, thermal_opts *o) {
     return 0;
 }
 
-static void print_text(const thermal_opts *o, const afm_config *c, long nsamp, long nseg,
-                       double df, long segs, double elapsed_s, const mode_result *r, int nr) {
+static void print_text(const thermal_opts *o, const afm_config *c, long nsamp, long nseg, double df,
+                       long segs, double elapsed_s, const mode_result *r, int nr) {
     printf("thermal tune of %s: %g s at %g Hz (%ld samples, %.1f s CPU), T = %g K, signal %s\n"
            "Welch PSD: Hann segments of %ld samples (df = %.4g Hz), 50%% overlap, %ld averaged\n\n",
-           o->config, o->seconds, c->sim.sample_rate_hz, nsamp, elapsed_s,
-           c->thermal.temperature_k, o->obd ? "obd" : "x", nseg, df, segs);
+           o->config, o->seconds, c->sim.sample_rate_hz, nsamp, elapsed_s, c->thermal.temperature_k,
+           o->obd ? "obd" : "x", nseg, df, segs);
     printf("%4s %14s %14s %9s %9s %9s %9s %11s %11s %9s %12s\n", "mode", "f_hz", "model_f_hz",
            "err_f", "q", "model_q", "err_q", "k_n_per_m", "model_k", "err_k", "floor_m_rthz");
     for (int i = 0; i < nr; i++) {
         const afm_thermfit *f = &r[i].fit;
-        printf("%4d %14.8g %14.8g %+9.2e %9.5g %9.5g %+9.2e %11.5g %11.5g %+9.2e %12.4g\n",
-               r[i].n, f->f_hz, r[i].model_f_hz, f->f_hz / r[i].model_f_hz - 1, f->q, r[i].model_q,
+        printf("%4d %14.8g %14.8g %+9.2e %9.5g %9.5g %+9.2e %11.5g %11.5g %+9.2e %12.4g\n", r[i].n,
+               f->f_hz, r[i].model_f_hz, f->f_hz / r[i].model_f_hz - 1, f->q, r[i].model_q,
                f->q / r[i].model_q - 1, f->k_n_m, r[i].model_k_n_m, f->k_n_m / r[i].model_k_n_m - 1,
                sqrt(fmax(f->floor_m2_hz, 0)));
     }
@@ -162,8 +163,8 @@ static void print_text(const thermal_opts *o, const afm_config *c, long nsamp, l
     }
 }
 
-static int print_json(const thermal_opts *o, const afm_config *c, long nsamp, long nseg,
-                      double df, long segs, const mode_result *r, int nr) {
+static int print_json(const thermal_opts *o, const afm_config *c, long nsamp, long nseg, double df,
+                      long segs, const mode_result *r, int nr) {
     cJSON *j = cJSON_CreateObject(), *ms = cJSON_CreateArray();
     cJSON_AddStringToObject(j, "config", o->config);
     cJSON_AddNumberToObject(j, "seconds", o->seconds);
@@ -225,8 +226,8 @@ int afm_cmd_thermal(int argc, char **argv) {
         return 2;
     }
     const double fs = cfg.sim.sample_rate_hz;
-    double seg_s = isnan(o.segment_s) ? fmin(DEFAULT_SEGMENT_S, o.seconds / MIN_SEGMENTS)
-                                      : o.segment_s;
+    double seg_s =
+        isnan(o.segment_s) ? fmin(DEFAULT_SEGMENT_S, o.seconds / MIN_SEGMENTS) : o.segment_s;
     long nseg = 2 * (long)floor(seg_s * fs / 2 + 0.5);
     long nsamp = (long)floor(o.seconds * fs + 0.5);
     if (nseg < 16 || nseg > nsamp) {
@@ -253,7 +254,8 @@ int afm_cmd_thermal(int argc, char **argv) {
             goto fail;
         }
         fprintf(f, "# f_hz psd_m2_per_hz (afmtwin thermal, %s, %g s)\n", o.config, o.seconds);
-        for (long k = 1; k <= nseg / 2; k++) fprintf(f, "%.10g %.6e\n", (double)k * df, psd[k]);
+        for (long k = 1; k <= nseg / 2; k++)
+            fprintf(f, "%.10g %.6e\n", (double)k * df, psd[k]);
         fclose(f);
     }
     if (o.json)

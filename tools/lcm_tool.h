@@ -33,7 +33,7 @@ int afmt_parse_list(const char *s, double *v, int max);
 /* Hex string (pairs of hex digits, optional spaces) into buf: byte count, or -1. */
 int afmt_parse_hex(const char *s, uint8_t *buf, int cap);
 
-double afmt_mono_s(void);        /* CLOCK_MONOTONIC, seconds */
-int64_t afmt_wall_us(void);      /* CLOCK_REALTIME, microseconds since the epoch */
+double afmt_mono_s(void);   /* CLOCK_MONOTONIC, seconds */
+int64_t afmt_wall_us(void); /* CLOCK_REALTIME, microseconds since the epoch */
 
 #endif

@@ -12,17 +12,17 @@
 #include <stdlib.h>
 #include <string.h>
 
-#define CHUNK 512          /* full-rate samples processed per inner pass */
-#define RING_SECONDS 0.05  /* each stream's ring holds this much output... */
-#define RING_MIN 1024      /* ...but at least this many samples... */
-#define RING_MAX 131072    /* ...and at most this many */
-#define PERIOD_RING 1024   /* period records */
+#define CHUNK 512         /* full-rate samples processed per inner pass */
+#define RING_SECONDS 0.05 /* each stream's ring holds this much output... */
+#define RING_MIN 1024     /* ...but at least this many samples... */
+#define RING_MAX 131072   /* ...and at most this many */
+#define PERIOD_RING 1024  /* period records */
 
 enum { CH_X, CH_OBD, CH_F, CH_BASE };
 
 typedef struct {
-    int factor;    /* R from the input */
-    int src;       /* stream it is decimated from, -1 = the input */
+    int factor; /* R from the input */
+    int src;    /* stream it is decimated from, -1 = the input */
     int src_factor;
     afm_decim *dec;
     double delay_s; /* this decimator's group delay in seconds */
@@ -75,8 +75,7 @@ afm_chain *afm_chain_create(const afm_config *cfg, const afm_modal *m, char *err
     for (int i = 0; i < o->n_outputs; i++)
         c->order[i] = i;
     for (int i = 1; i < o->n_outputs; i++) /* insertion sort by factor (stable) */
-        for (int j = i; j > 0 && o->decimation[c->order[j]] < o->decimation[c->order[j - 1]];
-             j--) {
+        for (int j = i; j > 0 && o->decimation[c->order[j]] < o->decimation[c->order[j - 1]]; j--) {
             int tmp = c->order[j];
             c->order[j] = c->order[j - 1];
             c->order[j - 1] = tmp;
@@ -106,8 +105,7 @@ afm_chain *afm_chain_create(const afm_config *cfg, const afm_modal *m, char *err
         double **arrs[] = {&s->rt, &s->rx, &s->robd, &s->rcnt, &s->rf, &s->rbase};
         for (int a = 0; a < 6; a++)
             *arrs[a] = malloc((size_t)s->cap * sizeof(double));
-        if (!s->frames || !s->t || !s->rt || !s->rx || !s->robd || !s->rcnt || !s->rf ||
-            !s->rbase)
+        if (!s->frames || !s->t || !s->rt || !s->rx || !s->robd || !s->rcnt || !s->rf || !s->rbase)
             goto oom;
     }
     c->in_frames = malloc(CHUNK * AFM_DECIM_CH * sizeof *c->in_frames);
@@ -335,11 +333,15 @@ void afm_chain_reset(afm_chain *c) {
     c->p_head = c->p_count = 0;
 }
 
-int afm_chain_n_streams(const afm_chain *c) { return c->n_streams; }
+int afm_chain_n_streams(const afm_chain *c) {
+    return c->n_streams;
+}
 afm_chain_stats afm_chain_stats_get(const afm_chain *c) {
     afm_chain_stats s = c->stats;
     for (int i = 0; i < c->n_streams; i++)
         s.nonfinite += afm_decim_nonfinite(c->st[i].dec);
     return s;
 }
-const afm_obd *afm_chain_obd(const afm_chain *c) { return &c->obd; }
+const afm_obd *afm_chain_obd(const afm_chain *c) {
+    return &c->obd;
+}

@@ -38,11 +38,11 @@ typedef struct afm_chain afm_chain;
 /* A run of consecutive decimated samples of one stream. The pointers point into the
  * chain's ring and stay valid until the next afm_chain_push or afm_chain_reset. */
 typedef struct {
-    int stream;        /* index into cfg.output.decimation */
-    int decimation;    /* R */
-    double rate_hz;    /* sample_rate_hz / R */
-    int n;             /* samples in this block (0: nothing waiting) */
-    const double *t_s; /* model time each sample represents; t_s[i] = t_s[0] + i / rate_hz */
+    int stream;               /* index into cfg.output.decimation */
+    int decimation;           /* R */
+    double rate_hz;           /* sample_rate_hz / R */
+    int n;                    /* samples in this block (0: nothing waiting) */
+    const double *t_s;        /* model time each sample represents; t_s[i] = t_s[0] + i / rate_hz */
     const double *x_m;        /* tip displacement (deflection), m */
     const double *obd_m;      /* OBD signal, calibrated m */
     const double *obd_counts; /* OBD signal in ADC counts (fractional once decimated);
@@ -53,20 +53,20 @@ typedef struct {
 
 /* One drive period's estimates. */
 typedef struct {
-    afm_harm_result harm;     /* harmonics of the OBD signal (x fields) and force (f) */
-    afm_cycle_metrics cycle;  /* tapping metrics of the true tip motion */
+    afm_harm_result harm;      /* harmonics of the OBD signal (x fields) and force (f) */
+    afm_cycle_metrics cycle;   /* tapping metrics of the true tip motion */
     double lockin_amplitude_m; /* lock-in R on the OBD signal at the period's end */
     double lockin_phase_deg;   /* lag behind the drive */
 } afm_chain_period;
 
 typedef struct {
-    long long pushed;          /* full-rate samples taken */
-    long long obd_saturated;   /* ADC clamps */
-    long long nonfinite;       /* non-finite frames met by the decimators (summed) */
+    long long pushed;                   /* full-rate samples taken */
+    long long obd_saturated;            /* ADC clamps */
+    long long nonfinite;                /* non-finite frames met by the decimators (summed) */
     long long dropped[AFM_MAX_OUTPUTS]; /* decimated samples lost to a full ring */
-    long long periods;         /* period records produced */
-    long long periods_dropped; /* period records lost to a full ring */
-    long long estimator_rejects; /* samples an estimator refused (non-finite, time jump) */
+    long long periods;                  /* period records produced */
+    long long periods_dropped;          /* period records lost to a full ring */
+    long long estimator_rejects;        /* samples an estimator refused (non-finite, time jump) */
 } afm_chain_stats;
 
 /* Build the chain for cfg (obd, output, lockin, sim.harmonics) on model m. NULL with err. */

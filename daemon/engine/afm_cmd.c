@@ -15,8 +15,17 @@
 static const double deg = 3.14159265358979323846 / 180.0;
 
 /* What the running config must have for a name to mean anything. */
-enum { NEED_NONE, NEED_BEAM, NEED_LUMPED, NEED_VDW, NEED_VISCO, NEED_STARR, NEED_LINEAR,
-       NEED_CAP, NEED_ES };
+enum {
+    NEED_NONE,
+    NEED_BEAM,
+    NEED_LUMPED,
+    NEED_VDW,
+    NEED_VISCO,
+    NEED_STARR,
+    NEED_LINEAR,
+    NEED_CAP,
+    NEED_ES
+};
 /* How the value maps to the config field. */
 enum { CONV_NONE, CONV_DEG, CONV_Q };
 
@@ -29,73 +38,73 @@ typedef struct {
 /* Ranges: physically meaningful bounds wide enough for any AFM probe; the whole config is
  * re-validated after the change (afm_config_validate) as well.
  * X(name, n_index, scalar_ok, min, max, min_open, max_open, effect, unit, field, need, conv) */
-#define PARAM_LIST(X) \
-    X("drive.separation_m", 0, false, 0, AFM_CMD_MAX_SEPARATION_M, false, false, \
-        AFM_PARAM_SEPARATION, "m", drive.separation_m, NEED_NONE, CONV_NONE) \
-    X("forces.radius_m", 0, false, 0, 1e-6, true, false, AFM_PARAM_FORCE, "m", \
-        forces.radius_m, NEED_NONE, CONV_NONE) \
-    X("forces.vdw_contact.hamaker_j", 0, false, 0, 1e-17, false, false, AFM_PARAM_FORCE, "J", \
-        forces.hamaker_j, NEED_VDW, CONV_NONE) \
-    X("forces.vdw_contact.a0_m", 0, false, 0, 1e-8, true, false, AFM_PARAM_FORCE, "m", \
-        forces.a0_m, NEED_VDW, CONV_NONE) \
-    X("forces.vdw_contact.reduced_modulus_pa", 0, false, 0, 1e13, true, false, \
-        AFM_PARAM_FORCE, "Pa", forces.reduced_modulus_pa, NEED_VDW, CONV_NONE) \
-    X("forces.viscoelastic.eta_pa_s", 0, false, 0, 1e6, false, false, AFM_PARAM_FORCE, "Pa s", \
-        forces.eta_pa_s, NEED_VISCO, CONV_NONE) \
-    X("forces.squeeze.p1_n_s_m2", 0, false, -1, 1, false, false, AFM_PARAM_FORCE, "N s/m^2", \
-        forces.p1_n_s_m2, NEED_LINEAR, CONV_NONE) \
-    X("forces.squeeze.p2_n_s_m", 0, false, -1e-3, 1e-3, false, false, AFM_PARAM_FORCE, \
-        "N s/m", forces.p2_n_s_m, NEED_LINEAR, CONV_NONE) \
-    X("forces.squeeze.eta0_pa_s", 0, false, 0, 1, true, false, AFM_PARAM_FORCE, "Pa s", \
-        forces.eta0_pa_s, NEED_STARR, CONV_NONE) \
-    X("forces.squeeze.temperature_k", 0, false, 0, 1e4, true, false, AFM_PARAM_FORCE, "K", \
-        forces.temperature_k, NEED_STARR, CONV_NONE) \
-    X("forces.squeeze.pressure_pa", 0, false, 0, 1e8, true, false, AFM_PARAM_FORCE, "Pa", \
-        forces.pressure_pa, NEED_STARR, CONV_NONE) \
-    X("forces.squeeze.kappa", 0, false, 0, 1, false, false, AFM_PARAM_FORCE, "", \
-        forces.kappa, NEED_STARR, CONV_NONE) \
-    X("forces.squeeze.tip_length_m", 0, false, 0, 1e-3, true, false, AFM_PARAM_FORCE, "m", \
-        forces.tip_length_m, NEED_STARR, CONV_NONE) \
-    X("forces.capillary.surface_energy_j_m2", 0, false, 0, 1, false, false, AFM_PARAM_FORCE, \
-        "J/m^2", forces.surface_energy_j_m2, NEED_CAP, CONV_NONE) \
-    X("forces.capillary.contact_angle_deg", 0, false, 0, 180, false, false, AFM_PARAM_FORCE, \
-        "deg", forces.contact_angle_rad, NEED_CAP, CONV_DEG) \
-    X("forces.capillary.meniscus_d_m", 0, false, 0, 1e-6, true, false, AFM_PARAM_FORCE, "m", \
-        forces.meniscus_d_m, NEED_CAP, CONV_NONE) \
-    X("forces.electrostatic.voltage_v", 0, false, -1e3, 1e3, false, false, AFM_PARAM_FORCE, \
-        "V", forces.voltage_v, NEED_ES, CONV_NONE) \
-    X("forces.electrostatic.cone_half_angle_deg", 0, false, 0, 90, true, true, \
-        AFM_PARAM_FORCE, "deg", forces.cone_half_angle_rad, NEED_ES, CONV_DEG) \
-    X("forces.electrostatic.cone_length_m", 0, false, 0, 1e-3, true, false, AFM_PARAM_FORCE, \
-        "m", forces.cone_length_m, NEED_ES, CONV_NONE) \
-    X("model.damping_ratio", AFM_MAX_MODES, false, 0, 1, true, true, AFM_PARAM_DAMPING, "", \
-        model.damping_ratio, NEED_NONE, CONV_NONE) \
-    X("model.quality_factor", AFM_MAX_MODES, false, 0.5, 1e9, true, false, AFM_PARAM_DAMPING, \
-        "", model.damping_ratio, NEED_NONE, CONV_Q) \
-    X("model.beam.youngs_modulus_pa", 0, false, 0, 1e13, true, false, AFM_PARAM_GEOMETRY, \
-        "Pa", model.beam.youngs_modulus_pa, NEED_BEAM, CONV_NONE) \
-    X("model.beam.density_kg_m3", 0, false, 0, 1e5, true, false, AFM_PARAM_GEOMETRY, \
-        "kg/m^3", model.beam.density_kg_m3, NEED_BEAM, CONV_NONE) \
-    X("model.beam.length_m", 0, false, 0, 1e-2, true, false, AFM_PARAM_GEOMETRY, "m", \
-        model.beam.length_m, NEED_BEAM, CONV_NONE) \
-    X("model.beam.width_m", 2, true, 0, 1e-3, true, false, AFM_PARAM_GEOMETRY, "m", \
-        model.beam.width_m, NEED_BEAM, CONV_NONE) \
-    X("model.beam.height_m", 2, true, 0, 1e-3, true, false, AFM_PARAM_GEOMETRY, "m", \
-        model.beam.height_m, NEED_BEAM, CONV_NONE) \
-    X("model.beam.tip_mass_kg", 0, false, 0, 1e-6, false, false, AFM_PARAM_GEOMETRY, "kg", \
-        model.beam.tip_mass_kg, NEED_BEAM, CONV_NONE) \
-    X("model.lumped.stiffness_n_m", 0, false, 0, 1e6, true, false, AFM_PARAM_GEOMETRY, "N/m", \
-        model.lumped.stiffness_n_m, NEED_LUMPED, CONV_NONE) \
-    X("model.lumped.resonance_hz", 0, false, 0, 1e9, true, false, AFM_PARAM_GEOMETRY, "Hz", \
-        model.lumped.resonance_hz, NEED_LUMPED, CONV_NONE)
+#define PARAM_LIST(X)                                                                              \
+    X("drive.separation_m", 0, false, 0, AFM_CMD_MAX_SEPARATION_M, false, false,                   \
+      AFM_PARAM_SEPARATION, "m", drive.separation_m, NEED_NONE, CONV_NONE)                         \
+    X("forces.radius_m", 0, false, 0, 1e-6, true, false, AFM_PARAM_FORCE, "m", forces.radius_m,    \
+      NEED_NONE, CONV_NONE)                                                                        \
+    X("forces.vdw_contact.hamaker_j", 0, false, 0, 1e-17, false, false, AFM_PARAM_FORCE, "J",      \
+      forces.hamaker_j, NEED_VDW, CONV_NONE)                                                       \
+    X("forces.vdw_contact.a0_m", 0, false, 0, 1e-8, true, false, AFM_PARAM_FORCE, "m",             \
+      forces.a0_m, NEED_VDW, CONV_NONE)                                                            \
+    X("forces.vdw_contact.reduced_modulus_pa", 0, false, 0, 1e13, true, false, AFM_PARAM_FORCE,    \
+      "Pa", forces.reduced_modulus_pa, NEED_VDW, CONV_NONE)                                        \
+    X("forces.viscoelastic.eta_pa_s", 0, false, 0, 1e6, false, false, AFM_PARAM_FORCE, "Pa s",     \
+      forces.eta_pa_s, NEED_VISCO, CONV_NONE)                                                      \
+    X("forces.squeeze.p1_n_s_m2", 0, false, -1, 1, false, false, AFM_PARAM_FORCE, "N s/m^2",       \
+      forces.p1_n_s_m2, NEED_LINEAR, CONV_NONE)                                                    \
+    X("forces.squeeze.p2_n_s_m", 0, false, -1e-3, 1e-3, false, false, AFM_PARAM_FORCE, "N s/m",    \
+      forces.p2_n_s_m, NEED_LINEAR, CONV_NONE)                                                     \
+    X("forces.squeeze.eta0_pa_s", 0, false, 0, 1, true, false, AFM_PARAM_FORCE, "Pa s",            \
+      forces.eta0_pa_s, NEED_STARR, CONV_NONE)                                                     \
+    X("forces.squeeze.temperature_k", 0, false, 0, 1e4, true, false, AFM_PARAM_FORCE, "K",         \
+      forces.temperature_k, NEED_STARR, CONV_NONE)                                                 \
+    X("forces.squeeze.pressure_pa", 0, false, 0, 1e8, true, false, AFM_PARAM_FORCE, "Pa",          \
+      forces.pressure_pa, NEED_STARR, CONV_NONE)                                                   \
+    X("forces.squeeze.kappa", 0, false, 0, 1, false, false, AFM_PARAM_FORCE, "", forces.kappa,     \
+      NEED_STARR, CONV_NONE)                                                                       \
+    X("forces.squeeze.tip_length_m", 0, false, 0, 1e-3, true, false, AFM_PARAM_FORCE, "m",         \
+      forces.tip_length_m, NEED_STARR, CONV_NONE)                                                  \
+    X("forces.capillary.surface_energy_j_m2", 0, false, 0, 1, false, false, AFM_PARAM_FORCE,       \
+      "J/m^2", forces.surface_energy_j_m2, NEED_CAP, CONV_NONE)                                    \
+    X("forces.capillary.contact_angle_deg", 0, false, 0, 180, false, false, AFM_PARAM_FORCE,       \
+      "deg", forces.contact_angle_rad, NEED_CAP, CONV_DEG)                                         \
+    X("forces.capillary.meniscus_d_m", 0, false, 0, 1e-6, true, false, AFM_PARAM_FORCE, "m",       \
+      forces.meniscus_d_m, NEED_CAP, CONV_NONE)                                                    \
+    X("forces.electrostatic.voltage_v", 0, false, -1e3, 1e3, false, false, AFM_PARAM_FORCE, "V",   \
+      forces.voltage_v, NEED_ES, CONV_NONE)                                                        \
+    X("forces.electrostatic.cone_half_angle_deg", 0, false, 0, 90, true, true, AFM_PARAM_FORCE,    \
+      "deg", forces.cone_half_angle_rad, NEED_ES, CONV_DEG)                                        \
+    X("forces.electrostatic.cone_length_m", 0, false, 0, 1e-3, true, false, AFM_PARAM_FORCE, "m",  \
+      forces.cone_length_m, NEED_ES, CONV_NONE)                                                    \
+    X("model.damping_ratio", AFM_MAX_MODES, false, 0, 1, true, true, AFM_PARAM_DAMPING, "",        \
+      model.damping_ratio, NEED_NONE, CONV_NONE)                                                   \
+    X("model.quality_factor", AFM_MAX_MODES, false, 0.5, 1e9, true, false, AFM_PARAM_DAMPING, "",  \
+      model.damping_ratio, NEED_NONE, CONV_Q)                                                      \
+    X("model.beam.youngs_modulus_pa", 0, false, 0, 1e13, true, false, AFM_PARAM_GEOMETRY, "Pa",    \
+      model.beam.youngs_modulus_pa, NEED_BEAM, CONV_NONE)                                          \
+    X("model.beam.density_kg_m3", 0, false, 0, 1e5, true, false, AFM_PARAM_GEOMETRY, "kg/m^3",     \
+      model.beam.density_kg_m3, NEED_BEAM, CONV_NONE)                                              \
+    X("model.beam.length_m", 0, false, 0, 1e-2, true, false, AFM_PARAM_GEOMETRY, "m",              \
+      model.beam.length_m, NEED_BEAM, CONV_NONE)                                                   \
+    X("model.beam.width_m", 2, true, 0, 1e-3, true, false, AFM_PARAM_GEOMETRY, "m",                \
+      model.beam.width_m, NEED_BEAM, CONV_NONE)                                                    \
+    X("model.beam.height_m", 2, true, 0, 1e-3, true, false, AFM_PARAM_GEOMETRY, "m",               \
+      model.beam.height_m, NEED_BEAM, CONV_NONE)                                                   \
+    X("model.beam.tip_mass_kg", 0, false, 0, 1e-6, false, false, AFM_PARAM_GEOMETRY, "kg",         \
+      model.beam.tip_mass_kg, NEED_BEAM, CONV_NONE)                                                \
+    X("model.lumped.stiffness_n_m", 0, false, 0, 1e6, true, false, AFM_PARAM_GEOMETRY, "N/m",      \
+      model.lumped.stiffness_n_m, NEED_LUMPED, CONV_NONE)                                          \
+    X("model.lumped.resonance_hz", 0, false, 0, 1e9, true, false, AFM_PARAM_GEOMETRY, "Hz",        \
+      model.lumped.resonance_hz, NEED_LUMPED, CONV_NONE)
 
-#define DEF(nm, nidx, sc, lo, hi, lo_open, hi_open, eff, unit, fld, need, conv) \
+#define DEF(nm, nidx, sc, lo, hi, lo_open, hi_open, eff, unit, fld, need, conv)                    \
     {nm, nidx, sc, lo, hi, lo_open, hi_open, eff, unit},
-#define EXT(nm, nidx, sc, lo, hi, lo_open, hi_open, eff, unit, fld, need, conv) {OFF(fld), need, conv},
+#define EXT(nm, nidx, sc, lo, hi, lo_open, hi_open, eff, unit, fld, need, conv)                    \
+    {OFF(fld), need, conv},
 static const afm_param_def defs[] = {PARAM_LIST(DEF)};
 static const param_ext ext[] = {PARAM_LIST(EXT)};
 #define N_ROWS ((int)(sizeof defs / sizeof defs[0]))
-
 
 const afm_param_def *afm_param_table(int *n) {
     if (n) *n = N_ROWS;
@@ -104,12 +113,18 @@ const afm_param_def *afm_param_table(int *n) {
 
 const char *afm_cmd_kind_name(afm_cmd_kind k) {
     switch (k) {
-    case AFM_CMD_DITHER: return "dither";
-    case AFM_CMD_SETPOINT: return "setpoint";
-    case AFM_CMD_PARAM: return "param";
-    case AFM_CMD_CONTROL: return "control";
-    case AFM_CMD_TICK: return "tick";
-    case AFM_CMD_RELOAD: return "reload";
+    case AFM_CMD_DITHER:
+        return "dither";
+    case AFM_CMD_SETPOINT:
+        return "setpoint";
+    case AFM_CMD_PARAM:
+        return "param";
+    case AFM_CMD_CONTROL:
+        return "control";
+    case AFM_CMD_TICK:
+        return "tick";
+    case AFM_CMD_RELOAD:
+        return "reload";
     }
     return "?";
 }
@@ -131,7 +146,8 @@ int afm_param_lookup(const char *name, int *entry, int *index, char *err, size_t
     }
     size_t len = strnlen(name, AFM_CMD_NAME_LEN);
     if (len >= AFM_CMD_NAME_LEN) {
-        afm_err_set(err, errlen, "parameter name too long (max %d characters)", AFM_CMD_NAME_LEN - 1);
+        afm_err_set(err, errlen, "parameter name too long (max %d characters)",
+                    AFM_CMD_NAME_LEN - 1);
         return -1;
     }
     const char *br = strchr(name, '[');
@@ -153,12 +169,12 @@ int afm_param_lookup(const char *name, int *entry, int *index, char *err, size_t
         }
         if (idx >= d->n_index && d->n_index > 0) {
             afm_err_set(err, errlen, "parameter '%s': index %d out of range 0..%d", d->name, idx,
-                    d->n_index - 1);
+                        d->n_index - 1);
             return -1;
         }
         if (idx < 0 && d->n_index > 0 && !d->scalar_ok) {
             afm_err_set(err, errlen, "parameter '%s' needs an index [0..%d]", d->name,
-                    d->n_index - 1);
+                        d->n_index - 1);
             return -1;
         }
         *entry = i;
@@ -191,7 +207,7 @@ static int check_range(const afm_param_def *d, const char *name, double v, char 
     bool hi_ok = d->max_open ? v < d->max : v <= d->max;
     if (!lo_ok || !hi_ok) {
         afm_err_set(err, errlen, "param %s: %g %s out of range %c%g, %g%c", name, v, d->unit,
-                d->min_open ? '(' : '[', d->min, d->max, d->max_open ? ')' : ']');
+                    d->min_open ? '(' : '[', d->min, d->max, d->max_open ? ')' : ']');
         return -1;
     }
     return 0;
@@ -207,19 +223,23 @@ static int check_dither(const afm_cmd_dither *d, const afm_cmd_limits *lim, char
     for (int j = 0; j < d->n_tones; j++) {
         double f = d->frequency_hz[j], a = d->amplitude_m[j], p = d->phase_rad[j];
         if (!isfinite(f) || !isfinite(a) || !isfinite(p)) {
-            afm_err_set(err, errlen, "dither: tone %d has a non-finite value (f %g Hz, A %g m, "
-                    "phase %g rad)", j, f, a, p);
+            afm_err_set(err, errlen,
+                        "dither: tone %d has a non-finite value (f %g Hz, A %g m, "
+                        "phase %g rad)",
+                        j, f, a, p);
             return -1;
         }
         if (!(a >= 0 && a <= AFM_CMD_MAX_AMPLITUDE_M)) {
             afm_err_set(err, errlen, "dither: tone %d amplitude_m %g not in 0..%g m", j, a,
-                    AFM_CMD_MAX_AMPLITUDE_M);
+                        AFM_CMD_MAX_AMPLITUDE_M);
             return -1;
         }
         if (!(f > 0 && f < nyq)) {
             if (isfinite(nyq))
-                afm_err_set(err, errlen, "dither: tone %d frequency_hz %g must be > 0 and < %g "
-                        "(half the sample rate)", j, f, nyq);
+                afm_err_set(err, errlen,
+                            "dither: tone %d frequency_hz %g must be > 0 and < %g "
+                            "(half the sample rate)",
+                            j, f, nyq);
             else
                 afm_err_set(err, errlen, "dither: tone %d frequency_hz %g must be > 0", j, f);
             return -1;
@@ -234,22 +254,24 @@ int afm_cmd_validate(const afm_cmd *c, const afm_cmd_limits *lim, char *err, siz
         return -1;
     }
     switch (c->kind) {
-    case AFM_CMD_DITHER: return check_dither(&c->u.dither, lim, err, errlen);
+    case AFM_CMD_DITHER:
+        return check_dither(&c->u.dither, lim, err, errlen);
     case AFM_CMD_SETPOINT: {
         const afm_cmd_setpoint *s = &c->u.setpoint;
         if (!isfinite(s->separation_m) || !isfinite(s->ramp_rate_m_s)) {
-            afm_err_set(err, errlen, "setpoint: non-finite value (separation_m %g, ramp_rate_m_s %g)",
-                    s->separation_m, s->ramp_rate_m_s);
+            afm_err_set(err, errlen,
+                        "setpoint: non-finite value (separation_m %g, ramp_rate_m_s %g)",
+                        s->separation_m, s->ramp_rate_m_s);
             return -1;
         }
         if (!(s->separation_m >= 0 && s->separation_m <= AFM_CMD_MAX_SEPARATION_M)) {
             afm_err_set(err, errlen, "setpoint: separation_m %g not in 0..%g m", s->separation_m,
-                    AFM_CMD_MAX_SEPARATION_M);
+                        AFM_CMD_MAX_SEPARATION_M);
             return -1;
         }
         if (!(s->ramp_rate_m_s >= 0 && s->ramp_rate_m_s <= AFM_CMD_MAX_RAMP_M_S)) {
-            afm_err_set(err, errlen, "setpoint: ramp_rate_m_s %g not in 0..%g m/s", s->ramp_rate_m_s,
-                    AFM_CMD_MAX_RAMP_M_S);
+            afm_err_set(err, errlen, "setpoint: ramp_rate_m_s %g not in 0..%g m/s",
+                        s->ramp_rate_m_s, AFM_CMD_MAX_RAMP_M_S);
             return -1;
         }
         return 0;
@@ -286,12 +308,12 @@ int afm_cmd_validate(const afm_cmd *c, const afm_cmd_limits *lim, char *err, siz
         const afm_cmd_control *k = &c->u.control;
         if (k->action < AFM_CTL_RUN || k->action > AFM_CTL_STEP) {
             afm_err_set(err, errlen, "control: unknown action %d (1 run, 2 pause, 3 reset, 4 step)",
-                    k->action);
+                        k->action);
             return -1;
         }
         if (k->action == AFM_CTL_STEP && (k->n_samples < 1 || k->n_samples > AFM_CMD_MAX_STEP)) {
             afm_err_set(err, errlen, "control: step n_samples %lld not in 1..%lld", k->n_samples,
-                    AFM_CMD_MAX_STEP);
+                        AFM_CMD_MAX_STEP);
             return -1;
         }
         return 0;
@@ -299,11 +321,12 @@ int afm_cmd_validate(const afm_cmd *c, const afm_cmd_limits *lim, char *err, siz
     case AFM_CMD_TICK:
         if (c->u.tick.n_samples < 1 || c->u.tick.n_samples > AFM_CMD_MAX_STEP) {
             afm_err_set(err, errlen, "tick: n_samples %lld not in 1..%lld", c->u.tick.n_samples,
-                    AFM_CMD_MAX_STEP);
+                        AFM_CMD_MAX_STEP);
             return -1;
         }
         return 0;
-    case AFM_CMD_RELOAD: return 0;
+    case AFM_CMD_RELOAD:
+        return 0;
     }
     afm_err_set(err, errlen, "unknown command kind %d", (int)c->kind);
     return -1;
@@ -327,14 +350,18 @@ static const char *need_text(int need, const afm_config *cfg) {
         return cfg->model.kind == AFM_MODEL_BEAM ? NULL : "the model is lumped, not a beam";
     case NEED_LUMPED:
         return cfg->model.kind == AFM_MODEL_LUMPED ? NULL : "the model is a beam, not lumped";
-    case NEED_VDW: return f->vdw_contact ? NULL : "vdw_contact forces are off in this config";
-    case NEED_VISCO: return f->viscoelastic ? NULL : "viscoelastic forces are off in this config";
+    case NEED_VDW:
+        return f->vdw_contact ? NULL : "vdw_contact forces are off in this config";
+    case NEED_VISCO:
+        return f->viscoelastic ? NULL : "viscoelastic forces are off in this config";
     case NEED_STARR:
         return f->squeeze == AFM_SQUEEZE_STARR ? NULL : "squeeze model is not \"starr\"";
     case NEED_LINEAR:
         return f->squeeze == AFM_SQUEEZE_LINEAR ? NULL : "squeeze model is not \"linear\"";
-    case NEED_CAP: return f->capillary ? NULL : "capillary forces are off in this config";
-    case NEED_ES: return f->electrostatic ? NULL : "electrostatic forces are off in this config";
+    case NEED_CAP:
+        return f->capillary ? NULL : "capillary forces are off in this config";
+    case NEED_ES:
+        return f->electrostatic ? NULL : "electrostatic forces are off in this config";
     }
     return NULL;
 }
@@ -363,7 +390,7 @@ int afm_param_apply(afm_config *cfg, const afm_cmd_param *p, afm_param_effect *e
             int k = p->index[i], nm = n_modes(&t);
             if (k >= nm) {
                 afm_err_set(err, errlen, "param %s: the model has %d modes (index 0..%d)", name, nm,
-                        nm - 1);
+                            nm - 1);
                 return -1;
             }
             /* Modes past the list take its last value: materialise them up to k. */

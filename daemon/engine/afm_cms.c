@@ -46,8 +46,7 @@ int afm_cms_reduce(const afm_fem *fem, int nk, afm_cms *out, char *err, size_t e
             MB[r * ny + c] = fem->M[fr * n + fc];
             KB[r * ny + c] = fem->K[fr * n + fc];
         }
-    if (afm_la_eig(ny, KB, MB, lam, V, err, errlen) != 0)
-        goto done;
+    if (afm_la_eig(ny, KB, MB, lam, V, err, errlen) != 0) goto done;
     if (!(fabs(lam[0]) < 1e-5 * lam[1])) { /* dsygv noise grows with element count */
         snprintf(err, errlen, "CMS: guided-free beam has no rigid-body mode (w0^2 = %g)", lam[0]);
         goto done;
@@ -103,7 +102,6 @@ done:
     free(lam);
     free(PB);
     free(pr);
-    if (rc != 0)
-        afm_cms_destroy(out);
+    if (rc != 0) afm_cms_destroy(out);
     return rc;
 }

@@ -13,9 +13,9 @@
 #include "afm_fem.h"
 
 typedef struct {
-    int ny;    /* guided-free DOF (th1 removed) */
-    int nz;    /* reduced coordinates nk + 3 */
-    double *T; /* ny x nz: y (in u1, u2, th2, ..., thp order) = T z_R */
+    int ny;          /* guided-free DOF (th1 removed) */
+    int nz;          /* reduced coordinates nk + 3 */
+    double *T;       /* ny x nz: y (in u1, u2, th2, ..., thp order) = T z_R */
     double *MR, *KR; /* nz x nz reduced matrices (eq. D.30) */
 } afm_cms;
 

@@ -6,8 +6,9 @@
  * of the right type, required keys must be present, and values with no struct field of
  * their own (quality factors, tip/sample moduli) are range-checked on the spot. Then the
  * filled struct goes through the same checks afm_config_validate() runs after CLI
- * overrides (afm_config_check.c); that pass names the failing key by its config path, and the loader turns
- * the path back into a line number. Every failure leaves the caller's struct untouched. */
+ * overrides (afm_config_check.c); that pass names the failing key by its config path, and the
+ * loader turns the path back into a line number. Every failure leaves the caller's struct
+ * untouched. */
 #include "afm_config.h"
 #include "afm_config_impl.h"
 
@@ -602,8 +603,8 @@ static int get_seed(const loader *L, const config_setting_t *g, const char *name
  * says enabled = false; thermal is off unless its group is present (enabled defaults to
  * true then, as for the force features). */
 static int load_chain(const loader *L, const config_setting_t *root, afm_config *c) {
-    static const char *const okeys[] = {"enabled",      "noise_density_m_rthz", "adc_bits",
-                                        "full_scale_m", "seed",                 NULL};
+    static const char *const okeys[] = {
+        "enabled", "noise_density_m_rthz", "adc_bits", "full_scale_m", "seed", NULL};
     static const char *const tkeys[] = {"enabled", "temperature_k", "seed", NULL};
     static const char *const lkeys[] = {"time_constant_s", "order", NULL};
     static const char *const outkeys[] = {"decimation", "passband_fraction", NULL};
@@ -647,15 +648,19 @@ static int load_chain(const loader *L, const config_setting_t *root, afm_config 
 
 /* can: optional group (issue 6); enabled defaults to true when the group is present. Ids
  * and ranges are checked in afm_config_check.c. */
-static const char *const can_id_keys[AFM_CAN_N_SIGNALS + 1] = {
-    "dither_frequency", "dither_amplitude", "dither_phase", "setpoint", "enable", "heartbeat",
-    NULL};
+static const char *const can_id_keys[AFM_CAN_N_SIGNALS + 1] = {"dither_frequency",
+                                                               "dither_amplitude",
+                                                               "dither_phase",
+                                                               "setpoint",
+                                                               "enable",
+                                                               "heartbeat",
+                                                               NULL};
 
 static int load_can(const loader *L, const config_setting_t *root, afm_cfg_can *c) {
-    static const char *const keys[] = {"enabled",         "interface",           "fd",
-                                       "extended_ids",    "byte_order",          "encoding",
-                                       "ids",             "scale",               "heartbeat_timeout_s",
-                                       "reconnect_min_s", "reconnect_max_s",     NULL};
+    static const char *const keys[] = {
+        "enabled",         "interface", "fd",    "extended_ids",        "byte_order",
+        "encoding",        "ids",       "scale", "heartbeat_timeout_s", "reconnect_min_s",
+        "reconnect_max_s", NULL};
     static const char *const skeys[] = {"frequency_hz", "amplitude_m", "phase_rad",
                                         "separation_m", "ramp_m_s",    NULL};
     static const char *const orders[] = {"little", "big", NULL};
@@ -681,8 +686,10 @@ static int load_can(const loader *L, const config_setting_t *root, afm_cfg_can *
         const char *v = config_setting_get_string(s);
         size_t n = strlen(v);
         if (n < 1 || n >= sizeof c->interface || strpbrk(v, " \t\n/:"))
-            return fail(L, s, NULL, "\"%s\" is not an interface name (1 to %zu characters, no "
-                        "spaces, '/' or ':')", v, sizeof c->interface - 1);
+            return fail(L, s, NULL,
+                        "\"%s\" is not an interface name (1 to %zu characters, no "
+                        "spaces, '/' or ':')",
+                        v, sizeof c->interface - 1);
         memcpy(c->interface, v, n + 1);
     }
     if (get_group(L, g, "ids", false, &s)) return -1;
@@ -774,8 +781,7 @@ int afm_config_load(const char *path, afm_config *cfg, char *err, size_t errlen)
                                        "thermal", "lockin", "output", "can", NULL};
     if (only_keys(&L, root, keys) || load_model(&L, root, &tmp.model) ||
         load_forces(&L, root, tmp.model.kind, &tmp.forces) || load_drive(&L, root, &tmp.drive) ||
-        load_sim(&L, root, &tmp.sim) || load_chain(&L, root, &tmp) ||
-        load_can(&L, root, &tmp.can))
+        load_sim(&L, root, &tmp.sim) || load_chain(&L, root, &tmp) || load_can(&L, root, &tmp.can))
         goto out;
 
     char key[KEY_LEN], why[AFM_ERR_LEN];

@@ -22,8 +22,16 @@
 #define AFM_ERR_LEN 512      /* size of every error-message buffer */
 
 typedef enum { AFM_MODEL_BEAM = 0, AFM_MODEL_LUMPED = 1 } afm_model_kind;
-typedef enum { AFM_SQUEEZE_NONE = 0, AFM_SQUEEZE_STARR = 1, AFM_SQUEEZE_LINEAR = 2 } afm_squeeze_kind;
-typedef enum { AFM_INTEGRATOR_RT = 0, AFM_INTEGRATOR_REFERENCE = 1, AFM_INTEGRATOR_ARKODE_ERK = 2 } afm_integrator_kind;
+typedef enum {
+    AFM_SQUEEZE_NONE = 0,
+    AFM_SQUEEZE_STARR = 1,
+    AFM_SQUEEZE_LINEAR = 2
+} afm_squeeze_kind;
+typedef enum {
+    AFM_INTEGRATOR_RT = 0,
+    AFM_INTEGRATOR_REFERENCE = 1,
+    AFM_INTEGRATOR_ARKODE_ERK = 2
+} afm_integrator_kind;
 
 /* Euler-Bernoulli beam (thesis ch. 3.2, Table E.1). Width and height vary linearly from
  * the clamp (index 0) to the free end (index 1); equal values give a uniform beam. */
@@ -60,38 +68,38 @@ typedef struct {
 
 /* Tip-sample forces (eq. 3.2, 3.3, 3.6, 5.3, 2.18-2.20). d = x cos(alpha) + Z. */
 typedef struct {
-    double inclination_rad;   /* alpha; config key inclination_deg */
-    double radius_m;          /* R */
-    bool vdw_contact;         /* vdW + Hertz/DMT contact (eq. 3.2) */
-    double hamaker_j;         /* Ha */
-    double a0_m;              /* intermolecular distance a0 */
-    double reduced_modulus_pa;/* Er; given directly or from tip/sample moduli (eq. 2.22) */
-    bool viscoelastic;        /* eq. 3.3 term */
-    double eta_pa_s;          /* eta_n, normal viscosity of the contact */
+    double inclination_rad;    /* alpha; config key inclination_deg */
+    double radius_m;           /* R */
+    bool vdw_contact;          /* vdW + Hertz/DMT contact (eq. 3.2) */
+    double hamaker_j;          /* Ha */
+    double a0_m;               /* intermolecular distance a0 */
+    double reduced_modulus_pa; /* Er; given directly or from tip/sample moduli (eq. 2.22) */
+    bool viscoelastic;         /* eq. 3.3 term */
+    double eta_pa_s;           /* eta_n, normal viscosity of the contact */
     afm_squeeze_kind squeeze;
-    double eta0_pa_s;         /* Starr: medium viscosity at STP (air 1.81e-5) */
+    double eta0_pa_s;           /* Starr: medium viscosity at STP (air 1.81e-5) */
     double gas_constant_j_kg_k; /* Starr: R_a for Kn (air 286.9) */
-    double temperature_k;     /* Starr: T for Kn (default 293.15) */
-    double pressure_pa;       /* Starr: p_a for Kn (default 101325) */
-    double kappa;             /* Starr: fraction of tip length in h (eq. 3.6), 0..1 */
-    double tip_length_m;      /* l */
-    double plate_length_m;    /* Starr: L of the squeezing plate (beam length; set from model) */
-    double plate_width_m;     /* Starr: W (mean beam width; set from model) */
+    double temperature_k;       /* Starr: T for Kn (default 293.15) */
+    double pressure_pa;         /* Starr: p_a for Kn (default 101325) */
+    double kappa;               /* Starr: fraction of tip length in h (eq. 3.6), 0..1 */
+    double tip_length_m;        /* l */
+    double plate_length_m;      /* Starr: L of the squeezing plate (beam length; set from model) */
+    double plate_width_m;       /* Starr: W (mean beam width; set from model) */
     double p1_n_s_m2, p2_n_s_m; /* linear fit csq = p1 (Z + x) + p2 (eq. 5.3) */
-    bool capillary;           /* eq. 2.18 */
+    bool capillary;             /* eq. 2.18 */
     double surface_energy_j_m2; /* gamma_L */
     double contact_angle_rad;   /* theta; config key contact_angle_deg */
     double meniscus_d_m;        /* d of Fig. 2.3 */
-    bool electrostatic;       /* eq. 2.19-2.20 */
+    bool electrostatic;         /* eq. 2.19-2.20 */
     double voltage_v;           /* Delta V */
     double cone_half_angle_rad; /* theta of eq. 2.20; config key cone_half_angle_deg */
     double cone_length_m;       /* l of eq. 2.19 */
 } afm_cfg_forces;
 
 typedef struct {
-    double amplitude_m; /* A_j >= 0 */
-    double frequency_hz;/* f_j > 0, below half the sample rate */
-    double phase_rad;   /* phi_j; config key phase_deg */
+    double amplitude_m;  /* A_j >= 0 */
+    double frequency_hz; /* f_j > 0, below half the sample rate */
+    double phase_rad;    /* phi_j; config key phase_deg */
 } afm_cfg_tone;
 
 /* Base excitation x_dit(t) = sum_j A_j sin(2 pi f_j t + phi_j) and the set-point Z. */
@@ -106,8 +114,8 @@ typedef struct {
     afm_integrator_kind integrator;
     int rt_substeps_contact; /* substeps per sample while in contact (rt); default set by engine */
     double ref_rtol;         /* CVODE relative tolerance; default 1e-10 */
-    int n_harmonics;                  /* 0: the estimators choose 1, 2, 3 and the harmonics
-                                         nearest f2/fe and f3/fe */
+    int n_harmonics;         /* 0: the estimators choose 1, 2, 3 and the harmonics
+                                nearest f2/fe and f3/fe */
     int harmonics[AFM_MAX_HARMONICS]; /* harmonic numbers k >= 1 to estimate */
 } afm_cfg_sim;
 
@@ -137,11 +145,11 @@ typedef struct {
 #define AFM_MAX_OUTPUTS 4
 /* Decimated output streams: integer factors from the OBD sample rate. */
 typedef struct {
-    int n_outputs;                       /* 1..AFM_MAX_OUTPUTS */
-    int decimation[AFM_MAX_OUTPUTS];     /* R >= 1 (1 = no decimation) */
-    double passband_fraction;            /* kept band, as a fraction of the output Nyquist
-                                            rate (0 < p < 1, default 0.8); aliases into it
-                                            are rejected by >= 80 dB */
+    int n_outputs;                   /* 1..AFM_MAX_OUTPUTS */
+    int decimation[AFM_MAX_OUTPUTS]; /* R >= 1 (1 = no decimation) */
+    double passband_fraction;        /* kept band, as a fraction of the output Nyquist
+                                        rate (0 < p < 1, default 0.8); aliases into it
+                                        are rejected by >= 80 dB */
 } afm_cfg_output;
 
 /* CAN input from a piezo driver (issue 6; map and frames in docs/can.md). Off unless the
@@ -160,16 +168,16 @@ typedef enum { AFM_CAN_SCALED = 0, AFM_CAN_FLOAT32 = 1 } afm_can_encoding;
 
 typedef struct {
     bool enabled;
-    char interface[16];        /* IFNAMSIZ, e.g. "can0", "vcan0" */
-    bool fd;                   /* accept CAN FD frames too (CAN_RAW_FD_FRAMES) */
-    bool extended_ids;         /* 29-bit identifiers (else 11-bit) */
-    bool big_endian;           /* byte order of 4-byte values: false Intel, true Motorola */
-    afm_can_encoding encoding; /* scaled integers (u32, phase i32) or IEEE float32 (SI) */
+    char interface[16];             /* IFNAMSIZ, e.g. "can0", "vcan0" */
+    bool fd;                        /* accept CAN FD frames too (CAN_RAW_FD_FRAMES) */
+    bool extended_ids;              /* 29-bit identifiers (else 11-bit) */
+    bool big_endian;                /* byte order of 4-byte values: false Intel, true Motorola */
+    afm_can_encoding encoding;      /* scaled integers (u32, phase i32) or IEEE float32 (SI) */
     unsigned id[AFM_CAN_N_SIGNALS]; /* frame id per afm_can_signal, all different */
     /* Scaled encoding: physical value = raw * scale (SI per bit). */
     double scale_frequency_hz, scale_amplitude_m, scale_phase_rad, scale_separation_m,
         scale_ramp_m_s;
-    double heartbeat_timeout_s; /* > 0; 0: heartbeat not monitored */
+    double heartbeat_timeout_s;              /* > 0; 0: heartbeat not monitored */
     double reconnect_min_s, reconnect_max_s; /* retry backoff, doubling from min to max */
 } afm_cfg_can;
 
@@ -183,7 +191,7 @@ typedef struct {
     afm_cfg_thermal thermal;
     afm_cfg_lockin lockin;
     afm_cfg_output output;
-    afm_cfg_can can;      /* CAN input (issue 6); can.enabled false without a can group */
+    afm_cfg_can can; /* CAN input (issue 6); can.enabled false without a can group */
 } afm_config;
 
 /* Fill every field with its default (documented in config/README.md). */

@@ -12,14 +12,15 @@
 
 static const double deg = 3.14159265358979323846 / 180.0;
 
-#define MAX_AMPLITUDE_M 1e-6   /* larger dither amplitudes are not tapping mode */
-#define MAX_HARMONIC 64        /* highest harmonic number an estimator may track */
-#define MAX_SUBSTEPS 1000      /* rt_substeps_contact upper bound */
-#define MAX_FULL_SCALE_M 1e-3  /* OBD ADC range: beyond a millimetre is a typo */
+#define MAX_AMPLITUDE_M 1e-6  /* larger dither amplitudes are not tapping mode */
+#define MAX_HARMONIC 64       /* highest harmonic number an estimator may track */
+#define MAX_SUBSTEPS 1000     /* rt_substeps_contact upper bound */
+#define MAX_FULL_SCALE_M 1e-3 /* OBD ADC range: beyond a millimetre is a typo */
 #define MAX_TEMPERATURE_K 1e4
-#define MAX_DECIMATION 65536   /* AFM_DECIM_MAX_FACTOR */
-#define MAX_PASSBAND 0.95      /* AFM_DECIM_MAX_PASSBAND: the anti-alias transition band
-                                  shrinks to nothing as the fraction approaches 1 */
+#define MAX_DECIMATION 65536 /* AFM_DECIM_MAX_FACTOR */
+#define MAX_PASSBAND                                                                               \
+    0.95 /* AFM_DECIM_MAX_PASSBAND: the anti-alias transition band                                 \
+            shrinks to nothing as the fraction approaches 1 */
 #define KEY_LEN AFM_CONFIG_KEY_LEN
 
 /* Write the failing key path and the reason; always returns -1. */
@@ -261,8 +262,8 @@ static int check_can(const afm_config *c, char *key, char *why, size_t why_len) 
         "dither_frequency", "dither_amplitude", "dither_phase", "setpoint", "enable", "heartbeat"};
     const afm_cfg_can *k = &c->can;
     size_t n = strnlen(k->interface, sizeof k->interface);
-    NEED(n >= 1 && n < sizeof k->interface, "can.interface",
-         "must be 1 to %zu characters", sizeof k->interface - 1);
+    NEED(n >= 1 && n < sizeof k->interface, "can.interface", "must be 1 to %zu characters",
+         sizeof k->interface - 1);
     NEED(k->encoding == AFM_CAN_SCALED || k->encoding == AFM_CAN_FLOAT32, "can.encoding",
          "unknown encoding %d", (int)k->encoding);
     unsigned max_id = k->extended_ids ? 0x1FFFFFFFu : 0x7FFu;
@@ -325,4 +326,3 @@ int afm_config_validate(const afm_config *cfg, char *err, size_t errlen) {
     }
     return -1;
 }
-

@@ -162,8 +162,8 @@ AFM_EST_COLD static int push_slow(afm_cycle *c, const afm_sample *s, double thet
 }
 
 int afm_cycle_push(afm_cycle *c, const afm_sample *s, double theta_rad) {
-    if (!s || !isfinite(s->t_s) || !isfinite(s->x_m) || !isfinite(s->v_m_s) ||
-        !isfinite(s->f_n) || (c->n_prev > 0 && !(s->t_s > c->prev.t_s)))
+    if (!s || !isfinite(s->t_s) || !isfinite(s->x_m) || !isfinite(s->v_m_s) || !isfinite(s->f_n) ||
+        (c->n_prev > 0 && !(s->t_s > c->prev.t_s)))
         return -1;
     if (!afm_track_fast(&c->trk, theta_rad)) return push_slow(c, s, theta_rad);
     /* No boundary in the step. The common case needs compares and adds only: the sample
@@ -213,8 +213,7 @@ int afm_cycle_push_n(afm_cycle *c, const afm_sample *s, const double *th, int n,
             for (; j < n; j++) {
                 const afm_sample *q = &s[j];
                 double nj = nn + 1.0;
-                if (!(nj <= t->n_end && fabs((th[j] - t->th_ref) - nj * t->dphi) <= t->tol))
-                    break;
+                if (!(nj <= t->n_end && fabs((th[j] - t->th_ref) - nj * t->dphi) <= t->tol)) break;
                 /* all finite: the products with 0 are all +-0 (NaN otherwise) */
                 double z = (q->t_s * 0.0 + q->x_m * 0.0) + (q->v_m_s * 0.0 + q->f_n * 0.0);
                 if (z != 0.0 || !(q->t_s > p->t_s)) break;

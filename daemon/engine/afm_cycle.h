@@ -6,8 +6,8 @@
  * Layer "estimators". Fed sample by sample (afm_sample: t, x, v, f) with the exact drive
  * phase theta of tone 0 at the sample time (afm_drive_phase(afm_sim_drive(s), 0, t)).
  * Periods are the intervals between theta = 2 pi m (as afm_harm and afm_orbit; only theta
- * mod 2 pi is used); the first, partial period is skipped. Contact: gap d = x cos(alpha) + Z below a0, i.e. x below
- * x_contact = (a0 - Z) / cos(alpha) (afm_force_contact_x; -HUGE_VAL: never).
+ * mod 2 pi is used); the first, partial period is skipped. Contact: gap d = x cos(alpha) + Z below
+ * a0, i.e. x below x_contact = (a0 - Z) / cos(alpha) (afm_force_contact_x; -HUGE_VAL: never).
  *
  * Per period [Ta, Tb):
  *  peak_force_n       max of f: the sample maximum, refined by the parabola through a local
@@ -36,9 +36,9 @@
 #include "afm_est_internal.h"
 
 typedef struct {
-    long period;        /* sequence number: 0 for the first whole period since init/reset */
-    double t_start_s;   /* Ta (linear between the samples around it) */
-    double duration_s;  /* Tb - Ta */
+    long period;       /* sequence number: 0 for the first whole period since init/reset */
+    double t_start_s;  /* Ta (linear between the samples around it) */
+    double duration_s; /* Tb - Ta */
     double peak_force_n;
     double min_deflection_m;
     double indentation_m;
@@ -53,12 +53,12 @@ typedef struct {
     double x_contact_m, cos_alpha;
     afm_phase_track trk;
     bool active;
-    afm_sample prev;    /* last sample */
-    double f_prev2;     /* f of the sample before prev (for the parabola) */
-    int n_prev;         /* samples seen, capped at 2 */
+    afm_sample prev;       /* last sample */
+    double f_prev2;        /* f of the sample before prev (for the parabola) */
+    int n_prev;            /* samples seen, capped at 2 */
     afm_cycle_metrics cur; /* accumulating (integrals unnormalised until the end) */
-    double x_int;       /* int x dt so far */
-    long periods;       /* completed periods since init/reset */
+    double x_int;          /* int x dt so far */
+    long periods;          /* completed periods since init/reset */
     afm_cycle_metrics out; /* last completed period (valid if periods > 0) */
 } afm_cycle;
 
@@ -82,7 +82,7 @@ int afm_cycle_push(afm_cycle *c, const afm_sample *s, double theta_rad);
  * one completed a period (c->out); rejected samples are added to *rejects. Same results
  * as afm_cycle_push, bit for bit (the fast path reads the previous sample from s[] and
  * keeps the sums in registers). */
-int afm_cycle_push_n(afm_cycle *c, const afm_sample *s, const double *theta_rad, int n,
-                     int *done, long long *rejects);
+int afm_cycle_push_n(afm_cycle *c, const afm_sample *s, const double *theta_rad, int n, int *done,
+                     long long *rejects);
 
 #endif

@@ -101,7 +101,8 @@ static int design(stage *s, double fp, double fs, char *err, size_t errlen) {
         n += n / 12 + 2;
     }
     if (err && errlen)
-        snprintf(err, errlen, "decimator: no FIR of at most %d taps meets the spec (band edges %g, %g)",
+        snprintf(err, errlen,
+                 "decimator: no FIR of at most %d taps meets the spec (band edges %g, %g)",
                  MAX_TAPS, fp, fs);
     return -1;
 }
@@ -204,7 +205,9 @@ static inline v4 madd(v4 h, v4 w, v4 acc) {
     return (v4)_mm256_fmadd_pd((__m256d)h, (__m256d)w, (__m256d)acc);
 }
 #else
-static inline v4 madd(v4 h, v4 w, v4 acc) { return acc + h * w; }
+static inline v4 madd(v4 h, v4 w, v4 acc) {
+    return acc + h * w;
+}
 #endif
 
 /* Dot product of the taps with the window of the n newest frames (oldest first). */
@@ -294,10 +297,18 @@ int afm_decim_run(afm_decim *d, const double *in, int n, double *out) {
 
 /* ------------------------------------------------------------------ queries */
 
-int afm_decim_factor(const afm_decim *d) { return d->factor; }
-double afm_decim_delay(const afm_decim *d) { return d->delay; }
-long long afm_decim_nonfinite(const afm_decim *d) { return d->nonfinite; }
-double afm_decim_cost(const afm_decim *d) { return d->cost; }
+int afm_decim_factor(const afm_decim *d) {
+    return d->factor;
+}
+double afm_decim_delay(const afm_decim *d) {
+    return d->delay;
+}
+long long afm_decim_nonfinite(const afm_decim *d) {
+    return d->nonfinite;
+}
+double afm_decim_cost(const afm_decim *d) {
+    return d->cost;
+}
 
 int afm_decim_phase(const afm_decim *d) {
     int ph = 0, mul = 1;

@@ -15,7 +15,8 @@
  * only every R_i inputs (polyphase saving), one contiguous dot product (all channels per
  * tap) over a linear buffer: the stage's last n - 1 input frames, then the new input
  * (copied once per pass of up to 512 frames; no per-sample delay-line writes). R = 16,
- * p = 0.8 costs about 12 taps per input sample. R = 1 passes the input through unchanged with no delay.
+ * p = 0.8 costs about 12 taps per input sample. R = 1 passes the input through unchanged with no
+ * delay.
  *
  * Non-finite input: the delay lines of every stage are cleared (the output grid keeps
  * its phase), the sample enters as 0 and afm_decim_nonfinite() counts it.
@@ -25,7 +26,7 @@
 
 #include <stddef.h>
 
-#define AFM_DECIM_CH 4         /* channels per frame, interleaved */
+#define AFM_DECIM_CH 4 /* channels per frame, interleaved */
 #define AFM_DECIM_MAX_STAGES 4
 #define AFM_DECIM_MAX_FACTOR 65536
 #define AFM_DECIM_MAX_PASSBAND 0.95

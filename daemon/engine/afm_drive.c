@@ -29,21 +29,17 @@ double afm_drive_x(const afm_drive *d, double t_s, double *acc) {
         x += s;
         a -= d->omega_rad_s[j] * d->omega_rad_s[j] * s;
     }
-    if (acc)
-        *acc = a;
+    if (acc) *acc = a;
     return x;
 }
 
 void afm_drive_set_tone(afm_drive *d, double t_s, int j, double amp_m, double freq_hz) {
-    if (j < 0 || j >= AFM_MAX_TONES)
-        return;
+    if (j < 0 || j >= AFM_MAX_TONES) return;
     double theta = (j < d->n) ? afm_drive_phase(d, j, t_s) : 0.0;
     d->phase_rad[j] = fmod(theta, two_pi);
-    if (d->phase_rad[j] < 0)
-        d->phase_rad[j] += two_pi;
+    if (d->phase_rad[j] < 0) d->phase_rad[j] += two_pi;
     d->t0_s[j] = t_s;
     d->amp_m[j] = amp_m;
     d->omega_rad_s[j] = two_pi * freq_hz;
-    if (j >= d->n)
-        d->n = j + 1;
+    if (j >= d->n) d->n = j + 1;
 }

@@ -10,11 +10,11 @@
 #include "afm_config.h"
 
 typedef struct {
-    int n;                          /* active tones */
-    double amp_m[AFM_MAX_TONES];    /* A_j */
+    int n;                             /* active tones */
+    double amp_m[AFM_MAX_TONES];       /* A_j */
     double omega_rad_s[AFM_MAX_TONES]; /* w_j */
-    double phase_rad[AFM_MAX_TONES];/* phi_j: phase at t0_j, kept in [0, 2 pi) */
-    double t0_s[AFM_MAX_TONES];     /* t0_j */
+    double phase_rad[AFM_MAX_TONES];   /* phi_j: phase at t0_j, kept in [0, 2 pi) */
+    double t0_s[AFM_MAX_TONES];        /* t0_j */
 } afm_drive;
 
 void afm_drive_init(afm_drive *d, const afm_cfg_drive *cfg);

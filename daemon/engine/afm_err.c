@@ -6,8 +6,7 @@
 #include <stdio.h>
 
 void afm_err_set(char *err, size_t errlen, const char *fmt, ...) {
-    if (!err || !errlen)
-        return;
+    if (!err || !errlen) return;
     va_list ap;
     va_start(ap, fmt);
     vsnprintf(err, errlen, fmt, ap);

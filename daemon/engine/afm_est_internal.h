@@ -91,8 +91,8 @@ static inline void afm_hermite_crossing(const afm_sample *s0, const afm_sample *
 /* The same crossing as afm_hermite_crossing (to within 1e-15 of the step) by safeguarded
  * Newton from the secant guess: a bracket [lo, hi] is kept and a Newton step leaving it,
  * is replaced by bisection. Typically 3-4 cubic evaluations instead of ~50. */
-static inline void afm_hermite_crossing_newton(const afm_sample *s0, const afm_sample *s1,
-                                               double h, double xc, double *frac, double *v) {
+static inline void afm_hermite_crossing_newton(const afm_sample *s0, const afm_sample *s1, double h,
+                                               double xc, double *frac, double *v) {
     /* Exactly one root unless the Bernstein control polygon x0, x0 + h v0 / 3,
      * x1 - h v1 / 3, x1 changes sign more than once: then bisection picks the root. */
     double g0 = s0->x_m - xc, g1 = s1->x_m - xc;
@@ -177,12 +177,12 @@ static inline double afm_phase_diff_deg(int k, double phi1_rad, double phik_rad)
  * from the last resynchronisation (th_ref, exact) and a phase-step estimate dphi. The
  * sample takes the fast path when the supplied theta is within tol of the prediction
  * (tol = 2e-11 rad + 8 eps |theta| + the noise floor observed in theta, at most 1e-6 rad:
- * a few ulps of theta, or of omega t when t is large and theta small) and n <= n_end: for a clock, the
- * predicted theta mod 2 pi p_ref + n dphi stays more than 2 tol + 1e-12 below 2 pi (and
- * dphi > 4 tol + 1e-12 keeps it above 0). Then theta mod 2 pi = p_ref + (theta - th_ref)
- * exactly, so no period boundary lies in the step and the step is in (0, pi): the answer of
- * the exact clock is known without computing it, and an estimator's phasors rotated by
- * e^{i dphi} since th_ref are within tol (plus rounding) of e^{i theta}.
+ * a few ulps of theta, or of omega t when t is large and theta small) and n <= n_end: for a clock,
+ * the predicted theta mod 2 pi p_ref + n dphi stays more than 2 tol + 1e-12 below 2 pi (and dphi >
+ * 4 tol + 1e-12 keeps it above 0). Then theta mod 2 pi = p_ref + (theta - th_ref) exactly, so no
+ * period boundary lies in the step and the step is in (0, pi): the answer of the exact clock is
+ * known without computing it, and an estimator's phasors rotated by e^{i dphi} since th_ref are
+ * within tol (plus rounding) of e^{i theta}.
  *
  * Slow path (afm_track_check + afm_track_advance, one or two exact reductions mod 2 pi): the
  * first sample, the sample after each period boundary, a jump of theta (afm_drive re-wraps
@@ -197,19 +197,19 @@ static inline double afm_phase_diff_deg(int k, double phi1_rad, double phik_rad)
  * than tol / 8 (so an estimator's per-step rotations are rarely recomputed). A non-clock
  * tracker (the lock-in) accepts any finite theta and never looks at theta mod 2 pi. */
 typedef struct {
-    bool clock;       /* period clock: monotone phase, boundaries (harm, cycle) */
-    bool started;     /* a sample has been accepted since init/reset */
-    bool locked;      /* dphi is known: the fast path may run */
-    double th_prev;   /* theta of the last accepted sample, as supplied */
-    double th_ref;    /* theta at the last resynchronisation */
-    double p_ref;     /* th_ref mod 2 pi (clock), else 0 */
-    double n;         /* steps since the resynchronisation */
-    double dphi;      /* phase step, rad */
-    double nb;        /* steps behind the dphi estimate (capped) */
-    double tol;       /* |theta - th_ref - n dphi| allowed on the fast path; -1: none */
-    double noise;     /* observed noise floor of theta (rad), see afm_track_advance */
-    double n_end;     /* fast path for n <= n_end: for a clock, p_ref + n dphi stays more
-                       * than 2 tol + 1e-12 below 2 pi; at most the window below */
+    bool clock;     /* period clock: monotone phase, boundaries (harm, cycle) */
+    bool started;   /* a sample has been accepted since init/reset */
+    bool locked;    /* dphi is known: the fast path may run */
+    double th_prev; /* theta of the last accepted sample, as supplied */
+    double th_ref;  /* theta at the last resynchronisation */
+    double p_ref;   /* th_ref mod 2 pi (clock), else 0 */
+    double n;       /* steps since the resynchronisation */
+    double dphi;    /* phase step, rad */
+    double nb;      /* steps behind the dphi estimate (capped) */
+    double tol;     /* |theta - th_ref - n dphi| allowed on the fast path; -1: none */
+    double noise;   /* observed noise floor of theta (rad), see afm_track_advance */
+    double n_end;   /* fast path for n <= n_end: for a clock, p_ref + n dphi stays more
+                     * than 2 tol + 1e-12 below 2 pi; at most the window below */
 } afm_phase_track;
 
 /* Resynchronise at least every so many steps (rounding of the rotations; the rate estimate
@@ -218,11 +218,12 @@ typedef struct {
 #define AFM_TRACK_WINDOW_FREE 1024.0
 #define AFM_TRACK_MAX_BASELINE 4096.0
 
-#define AFM_CLOCK_BAD (-1)   /* theta non-finite, or (clock) a phase step not in (0, pi) */
-#define AFM_CLOCK_NONE 0     /* no boundary in (previous sample, this one] */
-#define AFM_CLOCK_CROSS 1    /* boundary in (previous, this]: *frac in (0, 1] of the step
-                              * lies before it */
-#define AFM_CLOCK_START 2    /* first sample, exactly on a boundary */
+#define AFM_CLOCK_BAD (-1) /* theta non-finite, or (clock) a phase step not in (0, pi) */
+#define AFM_CLOCK_NONE 0   /* no boundary in (previous sample, this one] */
+#define AFM_CLOCK_CROSS                                                                            \
+    1                     /* boundary in (previous, this]: *frac in (0, 1] of the step             \
+                           * lies before it */
+#define AFM_CLOCK_START 2 /* first sample, exactly on a boundary */
 
 static inline void afm_track_init(afm_phase_track *t, bool clock) {
     t->clock = clock;
@@ -241,7 +242,6 @@ static inline bool afm_track_fast(afm_phase_track *t, double th) {
     t->th_prev = th;
     return true;
 }
-
 
 /* Slow path, part 1: check theta without changing anything: AFM_CLOCK_BAD or
  * AFM_CLOCK_NONE; *p gets theta mod 2 pi (clock; 0 otherwise). */
@@ -307,8 +307,7 @@ static inline int afm_track_advance(afm_phase_track *t, double th, double p, dou
         *rate_changed = true;
     }
     double tol = 2e-11 + 1.8e-15 * fabs(th) + t->noise;
-    if (t->locked && t->clock &&
-        !(t->dphi > 4.0 * tol + 1e-12 && t->dphi < AFM_EST_PI - 4.0 * tol))
+    if (t->locked && t->clock && !(t->dphi > 4.0 * tol + 1e-12 && t->dphi < AFM_EST_PI - 4.0 * tol))
         t->locked = false;
     t->started = true;
     t->th_prev = t->th_ref = th;
@@ -322,7 +321,8 @@ static inline int afm_track_advance(afm_phase_track *t, double th, double p, dou
         double lim = AFM_EST_TWO_PI - (2.0 * tol + 1e-12);
         double m = floor((lim - p) / t->dphi);
         if (m > AFM_TRACK_WINDOW_CLOCK) m = AFM_TRACK_WINDOW_CLOCK;
-        while (m > 0 && !(p + m * t->dphi < lim)) m -= 1.0; /* rounding of the division */
+        while (m > 0 && !(p + m * t->dphi < lim))
+            m -= 1.0; /* rounding of the division */
         t->n_end = m > 0 ? m : 0.0;
     }
     return rc;

@@ -6,8 +6,8 @@
 #include <stdlib.h>
 
 /* 5-point Gauss-Legendre on [0, 1]: exact for polynomials up to degree 9. */
-static const double gl_x[5] = {0.04691007703066800, 0.23076534494715845, 0.5,
-                               0.76923465505284155, 0.95308992296933200};
+static const double gl_x[5] = {0.04691007703066800, 0.23076534494715845, 0.5, 0.76923465505284155,
+                               0.95308992296933200};
 static const double gl_w[5] = {0.11846344252809454, 0.23931433524968324, 0.28444444444444444,
                                0.23931433524968324, 0.11846344252809454};
 
@@ -52,8 +52,7 @@ int afm_fem_assemble(const afm_cfg_beam *b, afm_fem *fem, char *err, size_t errl
         double me[16], ke[16];
         afm_fem_element(b->youngs_modulus_pa, b->density_kg_m3, le, w0, w1, h0, h1, me, ke);
         /* mass of the element: rho * integral of w h (w, h linear) */
-        mass += b->density_kg_m3 * le *
-                (w0 * h0 / 3 + (w0 * h1 + w1 * h0) / 6 + w1 * h1 / 3);
+        mass += b->density_kg_m3 * le * (w0 * h0 / 3 + (w0 * h1 + w1 * h0) / 6 + w1 * h1 / 3);
         for (int i = 0; i < 4; i++)
             for (int j = 0; j < 4; j++) {
                 int gi = 2 * e + i, gj = 2 * e + j;

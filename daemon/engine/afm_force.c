@@ -15,38 +15,31 @@ static const double eps0_f_m = 8.8541878128e-12; /* vacuum permittivity (CODATA 
 static const double fc_table[10] = {0.94, 0.87, 0.81, 0.75, 0.69, 0.63, 0.57, 0.52, 0.47, 0.42};
 
 double afm_force_fc(double beta) {
-    if (isnan(beta))
-        return beta;
-    if (beta <= 0.1)
-        return fc_table[0];
-    if (beta >= 1.0)
-        return fc_table[9];
+    if (isnan(beta)) return beta;
+    if (beta <= 0.1) return fc_table[0];
+    if (beta >= 1.0) return fc_table[9];
     double s = (beta - 0.1) * 10.0; /* in (0, 9) */
     int i = (int)s;
-    if (i > 8)
-        i = 8;
+    if (i > 8) i = 8;
     double t = s - i;
     return fc_table[i] + t * (fc_table[i + 1] - fc_table[i]);
 }
 
 /* Validation helpers: each returns 0 if ok, else -1 with err naming the field. */
 static int need_pos(double v, const char *name, const char *why, char *err, size_t errlen) {
-    if (isfinite(v) && v > 0.0)
-        return 0;
+    if (isfinite(v) && v > 0.0) return 0;
     afm_err_set(err, errlen, "forces.%s = %g: must be finite and > 0 (%s)", name, v, why);
     return -1;
 }
 
 static int need_nonneg(double v, const char *name, const char *why, char *err, size_t errlen) {
-    if (isfinite(v) && v >= 0.0)
-        return 0;
+    if (isfinite(v) && v >= 0.0) return 0;
     afm_err_set(err, errlen, "forces.%s = %g: must be finite and >= 0 (%s)", name, v, why);
     return -1;
 }
 
 static int need_finite(double v, const char *name, const char *why, char *err, size_t errlen) {
-    if (isfinite(v))
-        return 0;
+    if (isfinite(v)) return 0;
     afm_err_set(err, errlen, "forces.%s = %g: must be finite (%s)", name, v, why);
     return -1;
 }
@@ -71,18 +64,16 @@ int afm_force_init(afm_force_params *p, const afm_cfg_forces *cfg, double beam_l
     bool sq_lin = c->squeeze == AFM_SQUEEZE_LINEAR;
     if (!(c->squeeze == AFM_SQUEEZE_NONE || sq_starr || sq_lin)) {
         afm_err_set(err, errlen, "forces.squeeze = %d: unknown kind (none, starr or linear)",
-                (int)c->squeeze);
+                    (int)c->squeeze);
         return -1;
     }
 
     /* a0 bounds every term near the sample (Hertz branch, D = max(d, a0), Starr's h floor). */
-    bool need_a0 = c->vdw_contact || c->viscoelastic || c->capillary || c->electrostatic ||
-                   sq_starr;
+    bool need_a0 =
+        c->vdw_contact || c->viscoelastic || c->capillary || c->electrostatic || sq_starr;
     bool need_r = c->vdw_contact || c->viscoelastic || c->capillary;
-    if (need_a0 && need_pos(c->a0_m, "a0_m", "intermolecular distance", err, errlen))
-        return -1;
-    if (need_r && need_pos(c->radius_m, "radius_m", "tip radius", err, errlen))
-        return -1;
+    if (need_a0 && need_pos(c->a0_m, "a0_m", "intermolecular distance", err, errlen)) return -1;
+    if (need_r && need_pos(c->radius_m, "radius_m", "tip radius", err, errlen)) return -1;
     /* Kept when valid even if unused, so afm_force_contact_x stays meaningful. */
     q.a0_m = (need_a0 || (isfinite(c->a0_m) && c->a0_m > 0.0)) ? c->a0_m : 0.0;
 
@@ -97,8 +88,7 @@ int afm_force_init(afm_force_params *p, const afm_cfg_forces *cfg, double beam_l
     }
 
     if (c->viscoelastic) {
-        if (need_nonneg(c->eta_pa_s, "eta_pa_s", "viscoelastic", err, errlen))
-            return -1;
+        if (need_nonneg(c->eta_pa_s, "eta_pa_s", "viscoelastic", err, errlen)) return -1;
         q.viscoelastic = true;
         q.visco_coef = c->eta_pa_s * sqrt(c->radius_m);
     }
@@ -124,8 +114,10 @@ int afm_force_init(afm_force_params *p, const afm_cfg_forces *cfg, double beam_l
             c->eta0_pa_s * sqrt(2.0 * c->gas_constant_j_kg_k * c->temperature_k) / c->pressure_pa;
         q.sq_offset_m = c->kappa * c->tip_length_m * q.cos_alpha;
         if (!(isfinite(q.sq_coef) && isfinite(q.sq_lambda_m) && q.sq_lambda_m > 0.0)) {
-            afm_err_set(err, errlen, "forces: Starr squeeze-film constants overflow (coef %g, "
-                    "mean free path %g m)", q.sq_coef, q.sq_lambda_m);
+            afm_err_set(err, errlen,
+                        "forces: Starr squeeze-film constants overflow (coef %g, "
+                        "mean free path %g m)",
+                        q.sq_coef, q.sq_lambda_m);
             return -1;
         }
     } else if (sq_lin) {
@@ -144,7 +136,8 @@ int afm_force_init(afm_force_params *p, const afm_cfg_forces *cfg, double beam_l
             return -1;
         double th = c->contact_angle_rad;
         if (!(isfinite(th) && th >= 0.0 && th <= pi)) {
-            afm_err_set(err, errlen, "forces.contact_angle_rad = %g: must be in [0, pi] (%s)", th, w);
+            afm_err_set(err, errlen, "forces.contact_angle_rad = %g: must be in [0, pi] (%s)", th,
+                        w);
             return -1;
         }
         q.capillary = true;
@@ -160,7 +153,7 @@ int afm_force_init(afm_force_params *p, const afm_cfg_forces *cfg, double beam_l
         double th = c->cone_half_angle_rad;
         if (!(isfinite(th) && th > 0.0 && th < 0.5 * pi)) {
             afm_err_set(err, errlen, "forces.cone_half_angle_rad = %g: must be in (0, pi/2) (%s)",
-                    th, w);
+                        th, w);
             return -1;
         }
         double ct = cos(th);
@@ -172,7 +165,7 @@ int afm_force_init(afm_force_params *p, const afm_cfg_forces *cfg, double beam_l
         q.es_cone_m = c->cone_length_m;
         if (!isfinite(q.es_coef_n)) {
             afm_err_set(err, errlen, "forces: electrostatic coefficient overflows (%g N)",
-                    q.es_coef_n);
+                        q.es_coef_n);
             return -1;
         }
     }
@@ -189,8 +182,8 @@ int afm_force_init(afm_force_params *p, const afm_cfg_forces *cfg, double beam_l
 /* The one evaluation both public functions use, so their totals agree bit for bit (the
  * formulas are in afm_force_inline.h, shared with the rt integrator).
  * part[0..2] = conservative, viscoelastic, squeeze; *jx, *jv = partials of the total. */
-static inline double eval(const afm_force_params *p, double z, double x, double v,
-                          double part[3], double *jx, double *jv) {
+static inline double eval(const afm_force_params *p, double z, double x, double v, double part[3],
+                          double *jx, double *jv) {
     double kx, kv, sx, sv;
     double fn = afm_force_near_terms(p, x * p->cos_alpha + z, v, &part[0], &part[1], &kx, &kv);
     part[2] = afm_force_squeeze_term(p, z, x, v, &sx, &sv);
@@ -199,14 +192,12 @@ static inline double eval(const afm_force_params *p, double z, double x, double 
     return fn + part[2];
 }
 
-double afm_force_tip(const afm_force_params *p, double z_m, double x_m, double v_m_s,
-                     double *dfdx, double *dfdv) {
+double afm_force_tip(const afm_force_params *p, double z_m, double x_m, double v_m_s, double *dfdx,
+                     double *dfdv) {
     double part[3], jx, jv;
     double f = eval(p, z_m, x_m, v_m_s, part, &jx, &jv);
-    if (dfdx)
-        *dfdx = jx;
-    if (dfdv)
-        *dfdv = jv;
+    if (dfdx) *dfdx = jx;
+    if (dfdv) *dfdv = jv;
     return f;
 }
 

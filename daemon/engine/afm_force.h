@@ -27,27 +27,27 @@ typedef struct {
     double cos_alpha;
     double a0_m;
     bool vdw_contact;
-    double vdw_coef;      /* Ha R / 6, N m^2 */
-    double f_adhesion_n;  /* Ha R / (6 a0^2) */
-    double hertz_coef;    /* 4/3 Er sqrt(R), N m^-1.5 */
+    double vdw_coef;     /* Ha R / 6, N m^2 */
+    double f_adhesion_n; /* Ha R / (6 a0^2) */
+    double hertz_coef;   /* 4/3 Er sqrt(R), N m^-1.5 */
     bool viscoelastic;
-    double visco_coef;    /* eta sqrt(R), N s m^-1.5 */
+    double visco_coef; /* eta sqrt(R), N s m^-1.5 */
     afm_squeeze_kind squeeze;
-    double sq_coef;       /* eta0 L W^3 fc(beta), N s m^2 (Starr) */
-    double sq_lambda_m;   /* mean free path (Starr) */
-    double sq_offset_m;   /* kappa l cos(alpha) (Starr) */
-    double p1, p2;        /* linear fit */
+    double sq_coef;     /* eta0 L W^3 fc(beta), N s m^2 (Starr) */
+    double sq_lambda_m; /* mean free path (Starr) */
+    double sq_offset_m; /* kappa l cos(alpha) (Starr) */
+    double p1, p2;      /* linear fit */
     bool capillary;
-    double cap_coef_n;    /* 4 pi R gamma cos(theta) */
+    double cap_coef_n; /* 4 pi R gamma cos(theta) */
     double cap_d_m;
     bool electrostatic;
-    double es_coef_n;     /* lambda0^2 / (4 pi e0) */
-    double es_cone_m;     /* cone length l */
+    double es_coef_n; /* lambda0^2 / (4 pi e0) */
+    double es_cone_m; /* cone length l */
 } afm_force_params;
 
 /* The parts, for reporting and for energy bookkeeping (N). */
 typedef struct {
-    double conservative_n;  /* vdW + Hertz/DMT + capillary + electrostatic */
+    double conservative_n; /* vdW + Hertz/DMT + capillary + electrostatic */
     double viscoelastic_n;
     double squeeze_n;
     double total_n;
@@ -64,8 +64,8 @@ int afm_force_init(afm_force_params *p, const afm_cfg_forces *cfg, double beam_l
 /* Total force on the tip (N) at separation z_m, tip displacement x_m, velocity v_m_s;
  * if dfdx / dfdv are non-NULL they receive the partial derivatives (N/m, N s/m). These
  * are one-sided at d = a0 where the Hertz term has its 3/2-power kink. */
-double afm_force_tip(const afm_force_params *p, double z_m, double x_m, double v_m_s,
-                     double *dfdx, double *dfdv);
+double afm_force_tip(const afm_force_params *p, double z_m, double x_m, double v_m_s, double *dfdx,
+                     double *dfdv);
 
 /* Same value split into parts. */
 void afm_force_parts_at(const afm_force_params *p, double z_m, double x_m, double v_m_s,

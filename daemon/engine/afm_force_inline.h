@@ -44,8 +44,8 @@ static inline double afm_force_out_terms(const afm_force_params *p, double d, do
 /* The same in contact (d < a0): DMT/Hertz, viscoelastic (into *fvis), and the capillary
  * and electrostatic forces frozen at D = a0. *fcons, *fvis the parts, *jx, *jv the slopes
  * of their sum. */
-static inline void afm_force_in_terms(const afm_force_params *p, double d, double v,
-                                      double *fcons, double *fvis, double *jx, double *jv) {
+static inline void afm_force_in_terms(const afm_force_params *p, double d, double v, double *fcons,
+                                      double *fvis, double *jx, double *jv) {
     const double ca = p->cos_alpha;
     double fc = 0.0, kx = 0.0, fvi = 0.0, kv = 0.0;
     double u = p->a0_m - d;
@@ -90,7 +90,7 @@ static inline double afm_force_near_terms(const afm_force_params *p, double d, d
 static inline double afm_force_starr_c(const afm_force_params *p, double h, double *dcdh) {
     double ih = 1.0 / h;
     double knp = pow(p->sq_lambda_m * ih, AFM_VEIJOLA_B); /* Kn^1.159 */
-    double gi = 1.0 / (1.0 + AFM_VEIJOLA_A * knp);         /* eta_e / eta0 */
+    double gi = 1.0 / (1.0 + AFM_VEIJOLA_A * knp);        /* eta_e / eta0 */
     double c = p->sq_coef * gi * ih * ih * ih;
     /* dc/dh = c (-3/h + A B Kn^B / (h (1 + A Kn^B))) */
     *dcdh = c * ih * (-3.0 + AFM_VEIJOLA_A * AFM_VEIJOLA_B * knp * gi);
@@ -104,8 +104,8 @@ static inline double afm_force_starr_h(const afm_force_params *p, double z, doub
 }
 
 /* The squeeze-film force -c v; *kx, *kv receive its partials. */
-static inline double afm_force_squeeze_term(const afm_force_params *p, double z, double x,
-                                            double v, double *kx, double *kv) {
+static inline double afm_force_squeeze_term(const afm_force_params *p, double z, double x, double v,
+                                            double *kx, double *kv) {
     *kx = *kv = 0.0;
     if (p->squeeze == AFM_SQUEEZE_STARR) {
         double h = afm_force_starr_h(p, z, x);

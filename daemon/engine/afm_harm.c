@@ -84,7 +84,8 @@ static inline __m256d atan2_v4(__m256d y, __m256d x) {
     __m256d t = _mm256_div_pd(mn, mx);
     __m256d big = _mm256_cmp_pd(t, _mm256_set1_pd(0.66), _CMP_GT_OQ);
     __m256d one = _mm256_set1_pd(1.0);
-    __m256d tr = _mm256_blendv_pd(t, _mm256_div_pd(_mm256_sub_pd(t, one), _mm256_add_pd(t, one)), big);
+    __m256d tr =
+        _mm256_blendv_pd(t, _mm256_div_pd(_mm256_sub_pd(t, one), _mm256_add_pd(t, one)), big);
     __m256d z = _mm256_mul_pd(tr, tr);
     __m256d p = _mm256_set1_pd(-8.750608600031904122785E-1);
     p = _mm256_fmadd_pd(p, z, _mm256_set1_pd(-1.615753718733365076637E1));
@@ -102,10 +103,12 @@ static inline __m256d atan2_v4(__m256d y, __m256d x) {
     r = _mm256_add_pd(r, _mm256_and_pd(big, _mm256_set1_pd(7.85398163397448278999E-1)));
     /* |y| > |x|: pi/2 - r */
     __m256d steep = _mm256_cmp_pd(ay, ax, _CMP_GT_OQ);
-    __m256d r2 = _mm256_add_pd(_mm256_sub_pd(_mm256_set1_pd(1.57079632679489655800), r), _mm256_set1_pd(6.123233995736765886130E-17));
+    __m256d r2 = _mm256_add_pd(_mm256_sub_pd(_mm256_set1_pd(1.57079632679489655800), r),
+                               _mm256_set1_pd(6.123233995736765886130E-17));
     r = _mm256_blendv_pd(r, r2, steep);
     /* x < 0: pi - r */
-    __m256d r3 = _mm256_add_pd(_mm256_sub_pd(_mm256_set1_pd(3.14159265358979311600), r), _mm256_set1_pd(1.2246467991473531772E-16));
+    __m256d r3 = _mm256_add_pd(_mm256_sub_pd(_mm256_set1_pd(3.14159265358979311600), r),
+                               _mm256_set1_pd(1.2246467991473531772E-16));
     r = _mm256_blendv_pd(r, r3, x);
     return _mm256_or_pd(r, _mm256_and_pd(sgn, y));
 }
@@ -121,11 +124,11 @@ static void polar(const double *re, const double *im, int n, double *ph, double 
         __m256d q = _mm256_add_pd(_mm256_mul_pd(x, x), _mm256_mul_pd(y, y)); /* as afm_est_hypot */
         __m256d sgn = _mm256_set1_pd(-0.0);
         __m256d mx = _mm256_max_pd(_mm256_andnot_pd(sgn, x), _mm256_andnot_pd(sgn, y));
-        __m256d ok = _mm256_and_pd(
-            _mm256_and_pd(_mm256_cmp_pd(mx, _mm256_setzero_pd(), _CMP_GT_OQ),
-                          _mm256_cmp_pd(mx, _mm256_set1_pd(HUGE_VAL), _CMP_LT_OQ)),
-            _mm256_and_pd(_mm256_cmp_pd(q, _mm256_set1_pd(1e-290), _CMP_GT_OQ),
-                          _mm256_cmp_pd(q, _mm256_set1_pd(1e290), _CMP_LT_OQ)));
+        __m256d ok =
+            _mm256_and_pd(_mm256_and_pd(_mm256_cmp_pd(mx, _mm256_setzero_pd(), _CMP_GT_OQ),
+                                        _mm256_cmp_pd(mx, _mm256_set1_pd(HUGE_VAL), _CMP_LT_OQ)),
+                          _mm256_and_pd(_mm256_cmp_pd(q, _mm256_set1_pd(1e-290), _CMP_GT_OQ),
+                                        _mm256_cmp_pd(q, _mm256_set1_pd(1e290), _CMP_LT_OQ)));
         if (_mm256_movemask_pd(ok) == 15) {
             _mm256_storeu_pd(ph + j, atan2_v4(y, x));
             _mm256_storeu_pd(mag + j, _mm256_sqrt_pd(q));
@@ -287,8 +290,7 @@ int afm_harm_push(afm_harm *h, double x, double f, double theta_rad) {
 
 /* Fast-path samples in a row from x, f, theta (at most n): finite data, theta on the
  * tracker's prediction (afm_track_fast's test). */
-static int fast_run(const afm_harm *h, const double *x, const double *f, const double *th,
-                    int n) {
+static int fast_run(const afm_harm *h, const double *x, const double *f, const double *th, int n) {
     const afm_phase_track *t = &h->trk;
     double nn = t->n;
     int L = 0;
@@ -305,8 +307,7 @@ static int fast_run(const afm_harm *h, const double *x, const double *f, const d
 #include <immintrin.h>
 /* L fast-path samples: per 4-lane group, phasors and sums in registers over the run (the
  * same operations as afm_harm_push's fast path, so the same roundings). */
-static void fast_block(afm_harm *h, const double *x, const double *f, const double *th,
-                       int L) {
+static void fast_block(afm_harm *h, const double *x, const double *f, const double *th, int L) {
     (void)th;
     for (int j = 0; j < h->nl; j += 4) {
         __m256d er = _mm256_loadu_pd(h->er + j), ei = _mm256_loadu_pd(h->ei + j);
@@ -346,8 +347,7 @@ static void fast_block(afm_harm *h, const double *x, const double *f, const doub
     h->trk.n += (double)L; /* integer-valued: exact */
 }
 #else
-static void fast_block(afm_harm *h, const double *x, const double *f, const double *th,
-                       int L) {
+static void fast_block(afm_harm *h, const double *x, const double *f, const double *th, int L) {
     for (int i = 0; i < L; i++)
         afm_harm_push(h, x[i], f[i], th[i]); /* all take the fast path */
 }

@@ -41,8 +41,8 @@
 #include "afm_orbit.h"
 
 typedef struct {
-    long period;       /* sequence number: 0 for the first whole period since init/reset */
-    double samples;    /* its length in sample intervals (fractional) */
+    long period;    /* sequence number: 0 for the first whole period since init/reset */
+    double samples; /* its length in sample intervals (fractional) */
     int n_harmonics;
     afm_orbit_harmonic h[AFM_MAX_HARMONICS]; /* in the order they were configured */
 } afm_harm_result;
@@ -52,23 +52,23 @@ typedef struct {
 #define AFM_HARM_LANES ((AFM_MAX_HARMONICS + 1 + 3) / 4 * 4)
 
 typedef struct {
-    int nk;                            /* configured harmonics */
-    int nl;                            /* lanes in use: nk + 1 rounded up to 4 */
-    int ks[AFM_HARM_LANES];            /* [0] = 1 (for phi_1), then the configured ones */
+    int nk;                 /* configured harmonics */
+    int nl;                 /* lanes in use: nk + 1 rounded up to 4 */
+    int ks[AFM_HARM_LANES]; /* [0] = 1 (for phi_1), then the configured ones */
     afm_phase_track trk;
-    bool active;                       /* inside a period that started at a boundary */
+    bool active; /* inside a period that started at a boundary */
     double x_prev, f_prev;
     double er[AFM_HARM_LANES], ei[AFM_HARM_LANES]; /* e^{-ik phi} of the last sample */
     double rr[AFM_HARM_LANES], ri[AFM_HARM_LANES]; /* e^{-ik dphi}: one step */
-    double imp_ref;   /* theta the phasors stand for at the tracker's th_ref */
-    double n_sync;    /* samples since the phasors were computed exactly */
+    double imp_ref; /* theta the phasors stand for at the tracker's th_ref */
+    double n_sync;  /* samples since the phasors were computed exactly */
     /* running sums of x e^{-ik phi}, f e^{-ik phi}: weight 1 per sample, the ends corrected
      * to the trapezoid with fractional ends at the boundaries */
     double xr[AFM_HARM_LANES], xi[AFM_HARM_LANES];
     double fr[AFM_HARM_LANES], fi[AFM_HARM_LANES];
-    double wsum;                       /* sample intervals accumulated */
-    long periods;                      /* completed periods since init/reset */
-    afm_harm_result out;               /* the last completed period (valid if periods > 0) */
+    double wsum;         /* sample intervals accumulated */
+    long periods;        /* completed periods since init/reset */
+    afm_harm_result out; /* the last completed period (valid if periods > 0) */
 } afm_harm;
 
 /* ks[0..nk): harmonic numbers 1..AFM_HARM_MAX_K, nk 1..AFM_MAX_HARMONICS. 0, or -1 with err
@@ -91,8 +91,8 @@ int afm_harm_push(afm_harm *h, double x, double f, double theta_rad);
  * afm_harm_push) are added to *rejects. Same results as afm_harm_push, bit for bit: runs
  * of fast-path samples keep the phasors and sums in registers (AVX2, 4 harmonics per
  * vector). */
-int afm_harm_push_n(afm_harm *h, const double *x, const double *f, const double *theta_rad,
-                    int n, int *done, long long *rejects);
+int afm_harm_push_n(afm_harm *h, const double *x, const double *f, const double *theta_rad, int n,
+                    int *done, long long *rejects);
 
 /* Default list when cfg.sim.n_harmonics == 0: 1, 2, 3 and the integers nearest f2/fe and
  * f3/fe (modes 2 and 3 of m, when m has them), de-duplicated, ascending, into ks (room

@@ -28,13 +28,11 @@ int afm_la_eig(int n, const double *K, const double *M, double *lambda, double *
 
 void afm_la_congruence(int n, int m, const double *A, const double *B, double *C) {
     double *BA = calloc((size_t)n * (size_t)m, sizeof(double));
-    if (!BA)
-        return;
+    if (!BA) return;
     for (int i = 0; i < n; i++)
         for (int k = 0; k < n; k++) {
             double b = B[i * n + k];
-            if (b == 0.0)
-                continue;
+            if (b == 0.0) continue;
             for (int j = 0; j < m; j++)
                 BA[i * m + j] += b * A[k * m + j];
         }

@@ -83,8 +83,7 @@ int afm_lockin_push(afm_lockin *l, double u_m, double theta_rad) {
 /* Both channels in one 2-lane vector (lane 0 in-phase with sin, lane 1 quadrature with
  * cos): per lane exactly afm_lockin_push's operations. The phasor (s, c) is rotated as
  * s' = fma(s, rc, c rs), c' = fma(c, rc, -(s rs)): the swapped vector times (rs, -rs). */
-static inline ALWAYS_INLINE void run_order(afm_lockin *l, const double *u, int L,
-                                           const int order) {
+static inline ALWAYS_INLINE void run_order(afm_lockin *l, const double *u, int L, const int order) {
     __m128d xy[AFM_LOCKIN_MAX_ORDER];
     for (int k = 0; k < order; k++)
         xy[k] = _mm_loadu_pd(l->xy[k]);
@@ -108,8 +107,7 @@ static inline ALWAYS_INLINE void run_order(afm_lockin *l, const double *u, int L
     l->c = _mm_cvtsd_f64(_mm_unpackhi_pd(v, v));
 }
 #else
-static inline ALWAYS_INLINE void run_order(afm_lockin *l, const double *u, int L,
-                                           const int order) {
+static inline ALWAYS_INLINE void run_order(afm_lockin *l, const double *u, int L, const int order) {
     double xy[AFM_LOCKIN_MAX_ORDER][2];
     for (int k = 0; k < order; k++)
         xy[k][0] = l->xy[k][0], xy[k][1] = l->xy[k][1];
@@ -150,14 +148,30 @@ int afm_lockin_push_n(afm_lockin *l, const double *u, const double *th, int n) {
         }
         if (L > 0) {
             switch (l->order) {
-            case 1: run_order(l, u + i, L, 1); break;
-            case 2: run_order(l, u + i, L, 2); break;
-            case 3: run_order(l, u + i, L, 3); break;
-            case 4: run_order(l, u + i, L, 4); break;
-            case 5: run_order(l, u + i, L, 5); break;
-            case 6: run_order(l, u + i, L, 6); break;
-            case 7: run_order(l, u + i, L, 7); break;
-            default: run_order(l, u + i, L, 8); break;
+            case 1:
+                run_order(l, u + i, L, 1);
+                break;
+            case 2:
+                run_order(l, u + i, L, 2);
+                break;
+            case 3:
+                run_order(l, u + i, L, 3);
+                break;
+            case 4:
+                run_order(l, u + i, L, 4);
+                break;
+            case 5:
+                run_order(l, u + i, L, 5);
+                break;
+            case 6:
+                run_order(l, u + i, L, 6);
+                break;
+            case 7:
+                run_order(l, u + i, L, 7);
+                break;
+            default:
+                run_order(l, u + i, L, 8);
+                break;
             }
             l->trk.n = t->n + (double)L;
             l->trk.th_prev = th[i + L - 1];

@@ -38,10 +38,8 @@ static void reduced_destroy(reduced_beam *r) {
 
 static int reduced_build(const afm_cfg_beam *b, reduced_beam *r, char *err, size_t errlen) {
     memset(r, 0, sizeof *r);
-    if (afm_fem_assemble(b, &r->fem, err, errlen) != 0)
-        return -1;
-    if (afm_cms_reduce(&r->fem, b->n_kept, &r->cms, err, errlen) != 0)
-        goto fail;
+    if (afm_fem_assemble(b, &r->fem, err, errlen) != 0) return -1;
+    if (afm_cms_reduce(&r->fem, b->n_kept, &r->cms, err, errlen) != 0) goto fail;
     int nz = r->cms.nz, nr = nz - 1;
     r->nr = nr;
     r->Mr = malloc(sizeof(double) * (size_t)(nr * nr));
@@ -63,8 +61,7 @@ static int reduced_build(const afm_cfg_beam *b, reduced_beam *r, char *err, size
         r->kb[i] = r->cms.KR[(i + 1) * nz];
         r->mb[i] = r->cms.MR[(i + 1) * nz];
     }
-    if (afm_la_eig(nr, r->Kr, r->Mr, r->lam, r->Phi, err, errlen) != 0)
-        goto fail;
+    if (afm_la_eig(nr, r->Kr, r->Mr, r->lam, r->Phi, err, errlen) != 0) goto fail;
     return 0;
 fail:
     reduced_destroy(r);
@@ -72,8 +69,7 @@ fail:
 }
 
 static double xi_of_mode(const afm_cfg_model *cfg, int i) {
-    if (cfg->n_damping <= 0)
-        return 0.0;
+    if (cfg->n_damping <= 0) return 0.0;
     return cfg->damping_ratio[i < cfg->n_damping ? i : cfg->n_damping - 1];
 }
 
@@ -99,8 +95,7 @@ static int build_lumped(const afm_cfg_model *cfg, afm_modal *m, char *err, size_
 
 int afm_model_build(const afm_cfg_model *cfg, afm_modal *m, char *err, size_t errlen) {
     memset(m, 0, sizeof *m);
-    if (cfg->kind == AFM_MODEL_LUMPED)
-        return build_lumped(cfg, m, err, errlen);
+    if (cfg->kind == AFM_MODEL_LUMPED) return build_lumped(cfg, m, err, errlen);
     const afm_cfg_beam *b = &cfg->beam;
     if (b->n_kept + 2 > AFM_MAX_MODES) {
         snprintf(err, errlen, "model: %d kept modes exceed the limit of %d", b->n_kept,
@@ -108,8 +103,7 @@ int afm_model_build(const afm_cfg_model *cfg, afm_modal *m, char *err, size_t er
         return -1;
     }
     reduced_beam r;
-    if (reduced_build(b, &r, err, errlen) != 0)
-        return -1;
+    if (reduced_build(b, &r, err, errlen) != 0) return -1;
     int nr = r.nr, ny = r.cms.ny, nz = r.cms.nz;
     const double *trot = &r.cms.T[(ny - 1) * nz]; /* row of the tip rotation thp */
     m->n = nr;
@@ -156,8 +150,7 @@ static double clamped_free_root(int n) {
 static int report_beam(const afm_cfg_model *cfg, afm_modes_report *rep, char *err, size_t errlen) {
     const afm_cfg_beam *b = &cfg->beam;
     reduced_beam r;
-    if (reduced_build(b, &r, err, errlen) != 0)
-        return -1;
+    if (reduced_build(b, &r, err, errlen) != 0) return -1;
     int n = r.fem.n, nc = n - 2, nr = r.nr, ny = r.cms.ny, nz = r.cms.nz, rc = -1;
     double *Kc = malloc(sizeof(double) * (size_t)(nc * nc));
     double *Mc = malloc(sizeof(double) * (size_t)(nc * nc));
@@ -174,8 +167,7 @@ static int report_beam(const afm_cfg_model *cfg, afm_modes_report *rep, char *er
             Kc[i * nc + j] = r.fem.K[(i + 2) * n + (j + 2)];
             Mc[i * nc + j] = r.fem.M[(i + 2) * n + (j + 2)];
         }
-    if (afm_la_eig(nc, Kc, Mc, lc, Vc, err, errlen) != 0)
-        goto done;
+    if (afm_la_eig(nc, Kc, Mc, lc, Vc, err, errlen) != 0) goto done;
     rep->n_reduced = nr;
     rep->n_unreduced = nc < nr ? nc : nr;
     for (int i = 0; i < nr; i++)
@@ -205,8 +197,7 @@ static int report_beam(const afm_cfg_model *cfg, afm_modes_report *rep, char *er
     double phitip = Vc[(nc - 2) * nc + 0];
     rep->effective_mass_kg = 1.0 / (phitip * phitip);
     afm_modal m;
-    if (afm_model_build(cfg, &m, err, errlen) != 0)
-        goto done;
+    if (afm_model_build(cfg, &m, err, errlen) != 0) goto done;
     rep->static_stiffness_n_m = m.static_stiffness_n_m;
     rep->beam_mass_kg = r.fem.beam_mass_kg;
     /* Analytical clamped-free Euler-Bernoulli (eq. 3.7), uniform beams, no tip mass. */
@@ -235,8 +226,7 @@ int afm_model_report(const afm_cfg_model *cfg, afm_modes_report *rep, char *err,
     memset(rep, 0, sizeof *rep);
     if (cfg->kind == AFM_MODEL_LUMPED) {
         afm_modal m;
-        if (afm_model_build(cfg, &m, err, errlen) != 0)
-            return -1;
+        if (afm_model_build(cfg, &m, err, errlen) != 0) return -1;
         rep->n_reduced = 1;
         rep->reduced_hz[0] = m.omega_rad_s[0] / two_pi;
         rep->static_stiffness_n_m = m.static_stiffness_n_m;

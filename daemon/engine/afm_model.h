@@ -20,17 +20,17 @@
 #include "afm_config.h"
 
 typedef struct {
-    int n;                           /* number of modes (nk + 2 for beams, 1 lumped) */
+    int n;                             /* number of modes (nk + 2 for beams, 1 lumped) */
     double omega_rad_s[AFM_MAX_MODES]; /* ascending */
-    double xi[AFM_MAX_MODES];        /* modal damping ratio */
-    double tip[AFM_MAX_MODES];       /* tip displacement per unit q_i */
-    double rot[AFM_MAX_MODES];       /* tip rotation per unit q_i */
-    double base_k[AFM_MAX_MODES];    /* modal force per unit base displacement, N/(m kg^0.5)... */
-    double base_m[AFM_MAX_MODES];    /* ...and per unit base acceleration */
-    double rot_base;                 /* quasi-static tip rotation per unit base displacement */
-    double static_stiffness_n_m;     /* tip force / tip displacement, clamped base, static */
-    double beam_length_m;            /* L (0 for lumped) */
-    double beam_mean_width_m;        /* mean W (0 for lumped) */
+    double xi[AFM_MAX_MODES];          /* modal damping ratio */
+    double tip[AFM_MAX_MODES];         /* tip displacement per unit q_i */
+    double rot[AFM_MAX_MODES];         /* tip rotation per unit q_i */
+    double base_k[AFM_MAX_MODES];      /* modal force per unit base displacement, N/(m kg^0.5)... */
+    double base_m[AFM_MAX_MODES];      /* ...and per unit base acceleration */
+    double rot_base;                   /* quasi-static tip rotation per unit base displacement */
+    double static_stiffness_n_m;       /* tip force / tip displacement, clamped base, static */
+    double beam_length_m;              /* L (0 for lumped) */
+    double beam_mean_width_m;          /* mean W (0 for lumped) */
 } afm_modal;
 
 /* Build the modal form. 0 on success, -1 with err. */
@@ -40,13 +40,13 @@ int afm_model_build(const afm_cfg_model *cfg, afm_modal *m, char *err, size_t er
  * the FEM parts; n_analytical is 0 unless the beam is uniform. */
 typedef struct {
     int n_analytical, n_unreduced, n_reduced;
-    double analytical_hz[AFM_MAX_MODES];  /* clamped-free Euler-Bernoulli, no tip mass */
-    double unreduced_hz[AFM_MAX_MODES];   /* full FEM, clamped, with tip mass (lowest ones) */
-    double reduced_hz[AFM_MAX_MODES];     /* Rubin method 2 */
+    double analytical_hz[AFM_MAX_MODES];      /* clamped-free Euler-Bernoulli, no tip mass */
+    double unreduced_hz[AFM_MAX_MODES];       /* full FEM, clamped, with tip mass (lowest ones) */
+    double reduced_hz[AFM_MAX_MODES];         /* Rubin method 2 */
     double mac[AFM_MAX_MODES][AFM_MAX_MODES]; /* [reduced i][unreduced j], eq. 3.8-3.10 */
-    double static_stiffness_n_m;          /* tip static stiffness */
-    double effective_mass_kg;             /* eq. 2.14 for mode 1 at the tip (unreduced) */
-    double beam_mass_kg;                  /* mass of the beam alone */
+    double static_stiffness_n_m;              /* tip static stiffness */
+    double effective_mass_kg;                 /* eq. 2.14 for mode 1 at the tip (unreduced) */
+    double beam_mass_kg;                      /* mass of the beam alone */
 } afm_modes_report;
 
 int afm_model_report(const afm_cfg_model *cfg, afm_modes_report *r, char *err, size_t errlen);

@@ -39,14 +39,14 @@
 
 typedef struct {
     bool enabled;
-    bool use_slope;      /* false for a model without slope (lumped): reads x */
-    double cal_m_rad;    /* tip_1 / rot_1 */
-    double sigma_m;      /* noise standard deviation per sample (calibrated m) */
-    int adc_bits;        /* 0: no ADC */
-    double lsb_m;        /* ADC step (m), 0 without ADC */
-    double inv_lsb;      /* 1 / lsb_m */
+    bool use_slope;              /* false for a model without slope (lumped): reads x */
+    double cal_m_rad;            /* tip_1 / rot_1 */
+    double sigma_m;              /* noise standard deviation per sample (calibrated m) */
+    int adc_bits;                /* 0: no ADC */
+    double lsb_m;                /* ADC step (m), 0 without ADC */
+    double inv_lsb;              /* 1 / lsb_m */
     double count_min, count_max; /* clamp limits (counts) */
-    long long n_saturated; /* samples clamped since init / reset_counters */
+    long long n_saturated;       /* samples clamped since init / reset_counters */
     afm_rng rng;
 } afm_obd;
 

@@ -279,7 +279,8 @@ int afm_orbit_analyse(const afm_sample *buf, int n, const afm_drive *d, int p, d
     else if (m_hi - m_lo >= p)
         m_a = m_hi - p;
     else {
-        afm_err_set(err, errlen, "afm_orbit_analyse: buffer shorter than p drive periods + margins");
+        afm_err_set(err, errlen,
+                    "afm_orbit_analyse: buffer shorter than p drive periods + margins");
         return -1;
     }
     double ta = boundary_time(d, m_a), tb = boundary_time(d, m_a + p);

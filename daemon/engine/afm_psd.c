@@ -13,16 +13,16 @@
 #define PSD_MAX_SEG (1L << 28)
 
 struct afm_psd {
-    long n, half, nb;  /* segment length N, hop N/2, bins N/2 + 1 */
+    long n, half, nb; /* segment length N, hop N/2, bins N/2 + 1 */
     double fs_hz;
-    double scale;      /* 1 / (fs sum w^2) */
-    double *buf;       /* the segment being filled: fill samples so far */
+    double scale; /* 1 / (fs sum w^2) */
+    double *buf;  /* the segment being filled: fill samples so far */
     long fill;
     double *win;       /* periodic Hann */
     double *in;        /* fftw_malloc: windowed segment */
     fftw_complex *out; /* fftw_malloc: N/2 + 1 */
     fftw_plan plan;
-    double *sum;       /* sum over segments of |X_k|^2 */
+    double *sum; /* sum over segments of |X_k|^2 */
     long segments;
 };
 
@@ -83,9 +83,11 @@ void afm_psd_destroy(afm_psd **pp) {
 /* Window, transform and accumulate the full segment in buf. */
 static void psd_segment(afm_psd *p) {
     double mean = 0;
-    for (long j = 0; j < p->n; j++) mean += p->buf[j];
+    for (long j = 0; j < p->n; j++)
+        mean += p->buf[j];
     mean /= (double)p->n;
-    for (long j = 0; j < p->n; j++) p->in[j] = (p->buf[j] - mean) * p->win[j];
+    for (long j = 0; j < p->n; j++)
+        p->in[j] = (p->buf[j] - mean) * p->win[j];
     fftw_execute(p->plan);
     for (long k = 0; k < p->nb; k++) {
         double re = p->out[k][0], im = p->out[k][1];
@@ -123,11 +125,21 @@ void afm_psd_reset(afm_psd *p) {
     memset(p->sum, 0, (size_t)p->nb * sizeof *p->sum);
 }
 
-long afm_psd_segments(const afm_psd *p) { return p->segments; }
-long afm_psd_n_bins(const afm_psd *p) { return p->nb; }
-long afm_psd_seg_len(const afm_psd *p) { return p->n; }
-double afm_psd_df_hz(const afm_psd *p) { return p->fs_hz / (double)p->n; }
-double afm_psd_sample_rate_hz(const afm_psd *p) { return p->fs_hz; }
+long afm_psd_segments(const afm_psd *p) {
+    return p->segments;
+}
+long afm_psd_n_bins(const afm_psd *p) {
+    return p->nb;
+}
+long afm_psd_seg_len(const afm_psd *p) {
+    return p->n;
+}
+double afm_psd_df_hz(const afm_psd *p) {
+    return p->fs_hz / (double)p->n;
+}
+double afm_psd_sample_rate_hz(const afm_psd *p) {
+    return p->fs_hz;
+}
 
 int afm_psd_get(const afm_psd *p, double *out) {
     if (!p || !out || p->segments == 0) return -1;

@@ -16,9 +16,9 @@
 #define AFM_RNG_ZIG_N 256 /* ziggurat layers */
 
 typedef struct {
-    uint64_t s[4];                    /* xoshiro256** state, never all zero */
-    double zx[AFM_RNG_ZIG_N + 1];     /* layer edges x_i (x_0 = V / f(R) for the base) */
-    double zr[AFM_RNG_ZIG_N];         /* x_{i+1} / x_i: the rectangle-only fraction */
+    uint64_t s[4];                /* xoshiro256** state, never all zero */
+    double zx[AFM_RNG_ZIG_N + 1]; /* layer edges x_i (x_0 = V / f(R) for the base) */
+    double zr[AFM_RNG_ZIG_N];     /* x_{i+1} / x_i: the rectangle-only fraction */
 } afm_rng;
 
 /* Seed (any value, 0 included): the state is expanded from seed with splitmix64. */

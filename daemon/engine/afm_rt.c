@@ -82,7 +82,7 @@ typedef struct {
     double wd[AFM_MAX_TONES];
     double cq_re[AFM_MAX_TONES][AFM_MAX_MODES], cq_im[AFM_MAX_TONES][AFM_MAX_MODES];
     double th_re[AFM_MAX_TONES], th_im[AFM_MAX_TONES]; /* theta = rot . qh + Im(th z) */
-    double xc;      /* tip x at which the gap is a0 */
+    double xc;                                         /* tip x at which the gap is a0 */
     bool kinked;    /* the force has a kink at d = a0 (contact, capillary, electrostatic) */
     double ftol;    /* Newton tolerance on F (N) */
     double clear_k; /* 4/27 dt: the Hermite path's largest dip per unit end speed */
@@ -97,8 +97,8 @@ typedef struct {
 
 /* Starr squeeze film from the interpolant; *kx, *kv its partials (afm_force_squeeze_term
  * outside the window). */
-static inline double rt_squeeze(const afm_sim *s, const rt_state *r, double x, double v,
-                                double *kx, double *kv) {
+static inline double rt_squeeze(const afm_sim *s, const rt_state *r, double x, double v, double *kx,
+                                double *kv) {
     const afm_force_params *p = &s->f;
     double dcdh, c = afm_rt_starr_eval(&r->starr, afm_force_starr_h(p, s->z_m, x), &dcdh);
     if (c >= 0.0) {
@@ -110,8 +110,8 @@ static inline double rt_squeeze(const afm_sim *s, const rt_state *r, double x, d
 }
 
 /* Total tip force at (x, v) and its partials: afm_force_tip, inlined. */
-static inline double rt_force(const afm_sim *s, const rt_state *r, double x, double v,
-                              double *fx, double *fv) {
+static inline double rt_force(const afm_sim *s, const rt_state *r, double x, double v, double *fx,
+                              double *fv) {
     const afm_force_params *p = &s->f;
     double fc, fvi, kx, kv;
     double f = afm_force_near_terms(p, fma(x, p->cos_alpha, s->z_m), v, &fc, &fvi, &kx, &kv);
@@ -139,9 +139,10 @@ static inline double rt_force(const afm_sim *s, const rt_state *r, double x, dou
  * newest reciprocal slope rj = 1 / g'(F) known before it (a chord step: out of contact g'
  * is 1 to 1e-5, so this is Newton there), which keeps the division off the critical path;
  * a bracket turns a step that leaves it into bisection. Leaves f's partials and rj in o. */
-static inline __attribute__((always_inline)) double
-rt_solve_in(const afm_sim *s, const rt_state *r, double xs, double vs, double gx, double gv,
-            double F, double rj, rt_snap *o) {
+static inline __attribute__((always_inline)) double rt_solve_in(const afm_sim *s, const rt_state *r,
+                                                                double xs, double vs, double gx,
+                                                                double gv, double F, double rj,
+                                                                rt_snap *o) {
     double fx, fv;
     double f = rt_force(s, r, fma(gx, F, xs), fma(gv, F, vs), &fx, &fv);
     double res = F - f, fn = fma(-res, rj, F);
@@ -193,9 +194,10 @@ static __attribute__((noinline)) double rt_solve(const afm_sim *s, const rt_stat
 }
 
 /* Out of contact, d = x cos(alpha) + Z >= a0: the force terms valid there, inlined. */
-static inline __attribute__((always_inline)) double
-rt_force_out(const afm_sim *s, const rt_state *r, double x, double v, double d, double *fx,
-             double *fv) {
+static inline __attribute__((always_inline)) double rt_force_out(const afm_sim *s,
+                                                                 const rt_state *r, double x,
+                                                                 double v, double d, double *fx,
+                                                                 double *fv) {
     const afm_force_params *p = &s->f;
     double f = afm_force_out_terms(p, d, fx);
     *fv = 0.0;
@@ -219,9 +221,10 @@ rt_force_out(const afm_sim *s, const rt_state *r, double x, double v, double d, 
  * one chord correction with the reciprocal slope rj of the step before (a linearly
  * implicit step). Its convergence estimate is checked off the critical path; a step that
  * fails it, or whose guess is in contact, goes to rt_solve. */
-static inline __attribute__((always_inline)) double
-rt_solve_fast(const afm_sim *s, const rt_state *r, double xs, double vs, double gx, double gv,
-              double F, double rj, rt_snap *o) {
+static inline __attribute__((always_inline)) double rt_solve_fast(const afm_sim *s,
+                                                                  const rt_state *r, double xs,
+                                                                  double vs, double gx, double gv,
+                                                                  double F, double rj, rt_snap *o) {
     const afm_force_params *p = &s->f;
     double x = fma(gx, F, xs), v = fma(gv, F, vs);
     double d = fma(x, p->cos_alpha, s->z_m);
@@ -255,9 +258,13 @@ static inline rt_v4 rt_fma4(rt_v4 a, rt_v4 b, rt_v4 c) {
 #endif
 }
 
-static inline rt_v4 rt_splat(double x) { return (rt_v4){x, x, x, x}; }
+static inline rt_v4 rt_splat(double x) {
+    return (rt_v4){x, x, x, x};
+}
 
-static inline double rt_hsum(rt_v4 a) { return (a[0] + a[1]) + (a[2] + a[3]); }
+static inline double rt_hsum(rt_v4 a) {
+    return (a[0] + a[1]) + (a[2] + a[3]);
+}
 
 /* rt_hsum of a and b at once (one horizontal add), same rounding. */
 static inline void rt_hsum2(rt_v4 a, rt_v4 b, double *sa, double *sb) {
@@ -294,8 +301,8 @@ static void rt_predict(const rt_state *r, rt_snap *st) {
 
 /* The thermal increment of a piece of k cells: (nq, nv) per mode (zero past n) and its tip
  * sums (*xq, *xv). */
-static inline void rt_thermal_draw(const rt_state *r, int k, double *nq, double *nv,
-                                   double *xq, double *xv) {
+static inline void rt_thermal_draw(const rt_state *r, int k, double *nq, double *nv, double *xq,
+                                   double *xv) {
     const int np = r->np;
     const double *l = r->lth + 3 * (size_t)np * (size_t)(k - 1);
     double sx = 0.0, sv = 0.0;
@@ -318,9 +325,10 @@ static inline void rt_thermal_draw(const rt_state *r, int k, double *nq, double 
  * n rounded up to 4, with zero coefficients past n. A full step (k = ncell) takes x*, v*
  * from in's predictor; a shorter piece from its own tip-weighted rows. Every piece leaves
  * the predictor of a following full step in o. noise: add the thermal increment. */
-static inline __attribute__((always_inline)) void
-rt_piece_t(const afm_sim *s, const rt_state *r, const rt_snap *in, rt_snap *o, int k,
-           const int np, const int nt, const bool fast, const bool noise) {
+static inline __attribute__((always_inline)) void rt_piece_t(const afm_sim *s, const rt_state *r,
+                                                             const rt_snap *in, rt_snap *o, int k,
+                                                             const int np, const int nt,
+                                                             const bool fast, const bool noise) {
     const afm_rt_prop *P = &r->prop[k - 1], *PF = &r->prop[r->ncell - 1];
     const double *c = P->c, *cf = PF->c;
     const double F0 = in->f;
@@ -372,7 +380,8 @@ rt_piece_t(const afm_sim *s, const rt_state *r, const rt_snap *in, rt_snap *o, i
     rt_v4 xn4 = rt_splat(0.0), vn4 = rt_splat(0.0);
     for (int i = 0; i < np; i += 4) {
         rt_v4 q = RT_V4(in->q + i), v = RT_V4(in->v + i);
-        rt_v4 a = rt_fma4(RT_V4(c + i), q, rt_fma4(RT_V4(c + np + i), v, RT_V4(c + 4 * np + i) * f0));
+        rt_v4 a =
+            rt_fma4(RT_V4(c + i), q, rt_fma4(RT_V4(c + np + i), v, RT_V4(c + 4 * np + i) * f0));
         rt_v4 w = rt_fma4(RT_V4(c + 2 * np + i), q,
                           rt_fma4(RT_V4(c + 3 * np + i), v, RT_V4(c + 5 * np + i) * f0));
         if (noise) {
@@ -527,9 +536,9 @@ static __attribute__((noinline)) rt_snap *rt_contact(const afm_sim *s, const rt_
 /* n output steps (afm_sim_backend.run), with the common sizes (up to 8 modes, one tone)
  * and the thermal switch as constants so that the full step's loops unroll and the
  * phasors stay in registers. */
-static inline __attribute__((always_inline)) int
-rt_run_t(afm_sim *s, rt_state *r, int n, afm_sample *out, const int np, const int nt,
-         const bool noise) {
+static inline __attribute__((always_inline)) int rt_run_t(afm_sim *s, rt_state *r, int n,
+                                                          afm_sample *out, const int np,
+                                                          const int nt, const bool noise) {
     int rc = AFM_SIM_OK;
     for (int k = 0; k < n; k++) {
         rt_snap *a = &r->buf[r->cur], *b = &r->buf[r->cur ^ 1];
@@ -541,8 +550,7 @@ rt_run_t(afm_sim *s, rt_state *r, int n, afm_sample *out, const int np, const in
         if (!contact) {
             rt_piece_t(s, r, a, b, r->ncell, np, nt, true, noise);
             if (r->kinked) {
-                double low =
-                    (a->x < b->x ? a->x : b->x) - r->clear_k * (fabs(a->xd) + fabs(b->xd));
+                double low = (a->x < b->x ? a->x : b->x) - r->clear_k * (fabs(a->xd) + fabs(b->xd));
                 contact = low < r->xc && rt_crossing(r, a, b, s->dt_s) >= 0;
             }
         }

@@ -117,8 +117,8 @@ void afm_rt_coef_drive(afm_rt_prop *p, int ntones, const double *wd, const doubl
     }
 }
 
-void afm_rt_coef_thermal(const afm_rt_prop *p, int n, int np, const double *w,
-                         const double *xi, double kt_j, double *l11, double *l21, double *l22) {
+void afm_rt_coef_thermal(const afm_rt_prop *p, int n, int np, const double *w, const double *xi,
+                         double kt_j, double *l11, double *l21, double *l22) {
     for (int i = 0; i < np; i++)
         l11[i] = l21[i] = l22[i] = 0.0;
     const double *c = p->c;

@@ -65,8 +65,8 @@ void afm_rt_coef_drive(afm_rt_prop *p, int ntones, const double *wd, const doubl
  * mode decays strongly over the step (2 xi w tau > 0.5), Van Loan's exponential elsewhere
  * (no cancellation). Writes the Cholesky factor: (dq, dv) = (l11 n1, l21 n1 + l22 n2) with
  * n1, n2 standard normal. Needs afm_rt_coef_modes first (uses Phi). */
-void afm_rt_coef_thermal(const afm_rt_prop *p, int n, int np, const double *w,
-                         const double *xi, double kt_j, double *l11, double *l21, double *l22);
+void afm_rt_coef_thermal(const afm_rt_prop *p, int n, int np, const double *w, const double *xi,
+                         double kt_j, double *l11, double *l21, double *l22);
 
 /* Steady-state response of one mode to the base tone A sin(theta), theta' = wd:
  * q_p = Im(c e^{i theta}); returns c as (re, im). The modal force amplitude is

@@ -31,7 +31,7 @@
 
 #define SLOT AFM_RUNNER_SLOT_SAMPLES
 #define ZC_MAX (SLOT / AFM_RUNNER_RAMP_SAMPLES + 2) /* Z changes one item can carry */
-#define PENDING_MAX 16  /* change items waiting for ring space (front) */
+#define PENDING_MAX 16   /* change items waiting for ring space (front) */
 #define EVENTS_PER_CMD 2 /* most change items one command makes */
 #define TRASH_CAP 1024
 #define TRASH_HELD 16
@@ -39,7 +39,7 @@
 enum { IT_SAMPLES, IT_RESET, IT_FORCES, IT_ATTACH };
 
 typedef struct {
-    int at;     /* first sample (index into s) with this Z */
+    int at; /* first sample (index into s) with this Z */
     double z_m;
 } z_change;
 
@@ -93,8 +93,8 @@ struct afm_runner {
     pending_item pending[PENDING_MAX];
     int n_pending;
     /* between */
-    afm_spsc ring;   /* front -> back */
-    afm_spsc trash;  /* back -> whoever calls afm_runner_take_trash */
+    afm_spsc ring;  /* front -> back */
+    afm_spsc trash; /* back -> whoever calls afm_runner_take_trash */
     /* back */
     afm_chain *chain;
     afm_sim *mirror;
@@ -105,7 +105,6 @@ struct afm_runner {
     afm_runner_model *held[TRASH_HELD]; /* trash waiting for space */
     int n_held;
 };
-
 
 static const double two_pi = 6.283185307179586476925286766559;
 
@@ -143,7 +142,8 @@ fail:
 /* ---- back: the chain side ----------------------------------------------------------- */
 
 static void back_trash(afm_runner *r, afm_runner_model *m) {
-    while (r->n_held > 0 && afm_spsc_push(&r->trash, &r->held[r->n_held - 1])) r->n_held--;
+    while (r->n_held > 0 && afm_spsc_push(&r->trash, &r->held[r->n_held - 1]))
+        r->n_held--;
     if (afm_spsc_push(&r->trash, &m)) return;
     if (r->n_held < TRASH_HELD)
         r->held[r->n_held++] = m;
@@ -175,7 +175,9 @@ static void back_item(afm_runner *r, ring_item *it) {
         r->b_samples += it->n;
         break;
     }
-    case IT_RESET: afm_chain_reset(r->chain); break;
+    case IT_RESET:
+        afm_chain_reset(r->chain);
+        break;
     case IT_FORCES:
         afm_sim_mirror_set(r->mirror, NULL, &it->f, r->b_z);
         afm_chain_set_separation(r->chain, r->b_z); /* a0 may have moved the contact line */
@@ -314,11 +316,10 @@ static ring_item *open_item(afm_runner *r) {
 /* ---- create / destroy --------------------------------------------------------------- */
 
 afm_runner *afm_runner_create_pipelined(const afm_config *cfg, int block_max, bool lockstep,
-                                        bool pipelined, int ring_items, char *err,
-                                        size_t errlen) {
+                                        bool pipelined, int ring_items, char *err, size_t errlen) {
     if (!cfg || block_max < 1 || block_max > (1 << 24)) {
         afm_err_set(err, errlen, "runner: no config, or block_max %d not in 1..%d", block_max,
-                1 << 24);
+                    1 << 24);
         return NULL;
     }
     if (ring_items < 2 || ring_items > 65536) {
@@ -380,11 +381,14 @@ void afm_runner_destroy(afm_runner **rp) {
             afm_spsc_release(&r->ring);
         }
     }
-    for (int i = 0; i < r->n_pending; i++) afm_runner_model_destroy(&r->pending[i].model);
-    for (int i = 0; i < r->n_held; i++) afm_runner_model_destroy(&r->held[i]);
+    for (int i = 0; i < r->n_pending; i++)
+        afm_runner_model_destroy(&r->pending[i].model);
+    for (int i = 0; i < r->n_held; i++)
+        afm_runner_model_destroy(&r->held[i]);
     if (r->trash.slots) {
         afm_runner_model *m;
-        while (afm_spsc_pop(&r->trash, &m)) afm_runner_model_destroy(&m);
+        while (afm_spsc_pop(&r->trash, &m))
+            afm_runner_model_destroy(&m);
     }
     afm_chain_destroy(&r->chain);
     afm_sim_destroy(&r->mirror);
@@ -457,8 +461,8 @@ static void apply_setpoint(afm_runner *r, const afm_cmd_setpoint *p) {
 static int attach_ok(const afm_sim *s, char *err, size_t errlen) {
     const afm_force_params *f = afm_sim_forces(s);
     afm_cycle tmp;
-    return afm_cycle_init(&tmp, afm_force_contact_x(f, afm_sim_separation(s)), f->cos_alpha,
-                          err, errlen);
+    return afm_cycle_init(&tmp, afm_force_contact_x(f, afm_sim_separation(s)), f->cos_alpha, err,
+                          errlen);
 }
 
 /* Swap model m in: time always continues; `what` as afm_sim_continue. m travels to the
@@ -466,8 +470,10 @@ static int attach_ok(const afm_sim *s, char *err, size_t errlen) {
  * objects swapped out. */
 static int swap_in(afm_runner *r, afm_runner_model *m, unsigned what, char *err, size_t errlen) {
     if (afm_sim_continue(m->sim, r->sim, what) != AFM_SIM_OK) {
-        afm_err_set(err, errlen, "the new model has %d modes, the running one %d: cannot carry "
-                "the state over", afm_sim_model(m->sim)->n, afm_sim_model(r->sim)->n);
+        afm_err_set(err, errlen,
+                    "the new model has %d modes, the running one %d: cannot carry "
+                    "the state over",
+                    afm_sim_model(m->sim)->n, afm_sim_model(r->sim)->n);
         return -1;
     }
     if (attach_ok(m->sim, err, errlen)) return -1;
@@ -479,8 +485,8 @@ static int swap_in(afm_runner *r, afm_runner_model *m, unsigned what, char *err,
     return 0;
 }
 
-static int apply_param(afm_runner *r, const afm_cmd_param *p, afm_runner_model **model,
-                       char *err, size_t errlen) {
+static int apply_param(afm_runner *r, const afm_cmd_param *p, afm_runner_model **model, char *err,
+                       size_t errlen) {
     afm_config t = r->cfg;
     afm_param_effect e;
     if (afm_param_apply(&t, p, &e, err, errlen)) return -1;
@@ -489,8 +495,10 @@ static int apply_param(afm_runner *r, const afm_cmd_param *p, afm_runner_model *
         if (afm_param_table(NULL)[p->entry[i]].effect == AFM_PARAM_SEPARATION) has_z = true;
     if (e >= AFM_PARAM_DAMPING) {
         if (!model || !*model) {
-            afm_err_set(err, errlen, "param: a %s change needs a model built off the real-time "
-                    "thread (afm_runner_model_build)", e == AFM_PARAM_DAMPING ? "damping" : "geometry");
+            afm_err_set(err, errlen,
+                        "param: a %s change needs a model built off the real-time "
+                        "thread (afm_runner_model_build)",
+                        e == AFM_PARAM_DAMPING ? "damping" : "geometry");
             return -1;
         }
         if (e == AFM_PARAM_GEOMETRY && !(*model)->chain) {
@@ -534,14 +542,16 @@ int afm_runner_apply(afm_runner *r, const afm_cmd *c, afm_runner_model **model, 
     flush_pending(r);
     if (!front_room(r)) {
         afm_err_set(err, errlen, "%s: the output chain is %d changes behind; command not applied",
-                afm_cmd_kind_name(c->kind), r->n_pending);
+                    afm_cmd_kind_name(c->kind), r->n_pending);
         return -1;
     }
     switch (c->kind) {
     case AFM_CMD_DITHER:
         if (apply_dither(r, &c->u.dither, err, errlen)) return -1;
         break;
-    case AFM_CMD_SETPOINT: apply_setpoint(r, &c->u.setpoint); break;
+    case AFM_CMD_SETPOINT:
+        apply_setpoint(r, &c->u.setpoint);
+        break;
     case AFM_CMD_PARAM:
         if (apply_param(r, &c->u.param, model, err, errlen)) return -1;
         break;
@@ -551,7 +561,9 @@ int afm_runner_apply(afm_runner *r, const afm_cmd *c, afm_runner_model **model, 
             r->running = true;
             r->step_budget = 0;
             break;
-        case AFM_CTL_PAUSE: r->running = false; break;
+        case AFM_CTL_PAUSE:
+            r->running = false;
+            break;
         case AFM_CTL_RESET:
             afm_sim_reset(r->sim);
             emit(r, IT_RESET, NULL);
@@ -665,7 +677,7 @@ long long afm_runner_run(afm_runner *r, long long n) {
             r->blowups++;
             r->last_blowup_t_s = afm_sim_time(r->sim);
             if (it->n == 0) r->open = NULL; /* nothing in it: the slot stays free */
-            emit(r, IT_RESET, NULL); /* may stay pending; run flushes it first next time */
+            emit(r, IT_RESET, NULL);        /* may stay pending; run flushes it first next time */
             if (adv <= 0) break; /* the integrator cannot even start: report, go no further */
         }
         r->samples += adv;
@@ -679,7 +691,9 @@ long long afm_runner_run(afm_runner *r, long long n) {
     return done;
 }
 
-int afm_runner_n_streams(const afm_runner *r) { return afm_chain_n_streams(r->chain); }
+int afm_runner_n_streams(const afm_runner *r) {
+    return afm_chain_n_streams(r->chain);
+}
 
 int afm_runner_take_block(afm_runner *r, int stream, afm_chain_block *b, int max_n) {
     return afm_chain_take_block(r->chain, stream, b, max_n);
@@ -715,6 +729,12 @@ void afm_runner_status_get(const afm_runner *r, afm_runner_status *st) {
         st->chain = afm_chain_stats_get(r->chain);
 }
 
-const afm_config *afm_runner_config(const afm_runner *r) { return &r->cfg; }
-const afm_sim *afm_runner_sim(const afm_runner *r) { return r->sim; }
-bool afm_runner_pipelined(const afm_runner *r) { return r->pipelined; }
+const afm_config *afm_runner_config(const afm_runner *r) {
+    return &r->cfg;
+}
+const afm_sim *afm_runner_sim(const afm_runner *r) {
+    return r->sim;
+}
+bool afm_runner_pipelined(const afm_runner *r) {
+    return r->pipelined;
+}

@@ -58,7 +58,7 @@
 
 #include <stdint.h>
 
-#define AFM_RUNNER_RAMP_SAMPLES 64 /* Z ramp update interval (samples; 4.6 us at 14.06 MHz) */
+#define AFM_RUNNER_RAMP_SAMPLES 64   /* Z ramp update interval (samples; 4.6 us at 14.06 MHz) */
 #define AFM_RUNNER_SLOT_SAMPLES 1024 /* samples per ring item (73 us at 14.06 MHz) */
 
 typedef struct afm_runner afm_runner;
@@ -74,8 +74,7 @@ afm_runner *afm_runner_create(const afm_config *cfg, int block_max, bool lockste
 /* As afm_runner_create; pipelined: the back runs on another thread (see above), through a
  * ring of ring_items (2..65536) items of AFM_RUNNER_SLOT_SAMPLES samples (~50 kB each). */
 afm_runner *afm_runner_create_pipelined(const afm_config *cfg, int block_max, bool lockstep,
-                                        bool pipelined, int ring_items, char *err,
-                                        size_t errlen);
+                                        bool pipelined, int ring_items, char *err, size_t errlen);
 void afm_runner_destroy(afm_runner **r);
 bool afm_runner_pipelined(const afm_runner *r);
 
@@ -136,25 +135,25 @@ int afm_runner_take_block(afm_runner *r, int stream, afm_chain_block *b, int max
 int afm_runner_take_periods(afm_runner *r, afm_chain_period *out, int max);
 
 typedef struct {
-    int64_t seq_applied;     /* seq of the last command applied (-1: none yet) */
-    long long samples;       /* samples advanced since create */
-    double t_s;              /* model time */
-    double dt_s;             /* sample interval */
-    bool running;            /* not paused */
+    int64_t seq_applied; /* seq of the last command applied (-1: none yet) */
+    long long samples;   /* samples advanced since create */
+    double t_s;          /* model time */
+    double dt_s;         /* sample interval */
+    bool running;        /* not paused */
     bool lockstep;
     long long step_budget, tick_budget;
-    double separation_m;     /* current Z */
+    double separation_m;        /* current Z */
     double separation_target_m; /* ramp target (= separation_m when not ramping) */
-    double fe_hz;            /* tone 0 frequency */
-    double amplitude_m;      /* tone 0 amplitude */
-    long long blowups;       /* numerical blow-ups (state reset) */
-    double last_blowup_t_s;  /* model time of the last one (NAN if none) */
-    long long applied;       /* commands applied */
-    long long swaps;         /* models swapped in (damping, geometry, reload) */
-    long long stalls;        /* runs cut short by a full ring (pipelined: chain behind) */
-    long long pending;       /* ring items the chain has not taken yet (a snapshot) */
-    afm_chain_stats chain;   /* OBD saturation, ring drops, periods, estimator rejects
-                                (inline only; pipelined: afm_runner_chain_status_get) */
+    double fe_hz;               /* tone 0 frequency */
+    double amplitude_m;         /* tone 0 amplitude */
+    long long blowups;          /* numerical blow-ups (state reset) */
+    double last_blowup_t_s;     /* model time of the last one (NAN if none) */
+    long long applied;          /* commands applied */
+    long long swaps;            /* models swapped in (damping, geometry, reload) */
+    long long stalls;           /* runs cut short by a full ring (pipelined: chain behind) */
+    long long pending;          /* ring items the chain has not taken yet (a snapshot) */
+    afm_chain_stats chain;      /* OBD saturation, ring drops, periods, estimator rejects
+                                   (inline only; pipelined: afm_runner_chain_status_get) */
 } afm_runner_status;
 
 void afm_runner_status_get(const afm_runner *r, afm_runner_status *st);

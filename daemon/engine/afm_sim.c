@@ -9,9 +9,12 @@
 
 static const afm_sim_backend *backend_for(afm_integrator_kind k) {
     switch (k) {
-    case AFM_INTEGRATOR_RT: return &afm_rt_backend;
-    case AFM_INTEGRATOR_REFERENCE: return &afm_cvode_backend;
-    case AFM_INTEGRATOR_ARKODE_ERK: return &afm_arkode_erk_backend;
+    case AFM_INTEGRATOR_RT:
+        return &afm_rt_backend;
+    case AFM_INTEGRATOR_REFERENCE:
+        return &afm_cvode_backend;
+    case AFM_INTEGRATOR_ARKODE_ERK:
+        return &afm_arkode_erk_backend;
     }
     return NULL;
 }
@@ -68,8 +71,7 @@ afm_sim *afm_sim_create(const afm_modal *m, const afm_force_params *f, const afm
 }
 
 void afm_sim_destroy(afm_sim **sp) {
-    if (!sp || !*sp)
-        return;
+    if (!sp || !*sp) return;
     afm_sim *s = *sp;
     s->be->destroy(s);
     free(s);
@@ -81,8 +83,7 @@ static bool state_finite(const afm_sim *s) {
     if (s->be_fills_tip)
         return isfinite(s->x_last_m) && isfinite(s->v_last_m) && fabs(s->x_last_m) < 1e-3;
     for (int i = 0; i < s->m.n; i++)
-        if (!isfinite(s->q[i]) || !isfinite(s->qd[i]))
-            return false;
+        if (!isfinite(s->q[i]) || !isfinite(s->qd[i])) return false;
     /* Runaway: a tip excursion of a millimetre is no cantilever any more. */
     return fabs(afm_sim_tip_x(s, s->q)) < 1e-3;
 }
@@ -141,8 +142,7 @@ int afm_sim_set_tone(afm_sim *s, int j, double amp_m, double freq_hz) {
 }
 
 int afm_sim_set_separation(afm_sim *s, double z_m) {
-    if (!isfinite(z_m) || z_m < 0 || z_m > 1e-3)
-        return AFM_SIM_EINVAL;
+    if (!isfinite(z_m) || z_m < 0 || z_m > 1e-3) return AFM_SIM_EINVAL;
     s->z_m = z_m;
     s->be->changed(s);
     return AFM_SIM_OK;
@@ -174,13 +174,27 @@ int afm_sim_set_thermal(afm_sim *s, const afm_cfg_thermal *t, char *err, size_t 
     return AFM_SIM_OK;
 }
 
-double afm_sim_time(const afm_sim *s) { return s->t_s; }
-double afm_sim_dt(const afm_sim *s) { return s->dt_s; }
-double afm_sim_separation(const afm_sim *s) { return s->z_m; }
-const afm_drive *afm_sim_drive(const afm_sim *s) { return &s->drive; }
-const afm_modal *afm_sim_model(const afm_sim *s) { return &s->m; }
-const afm_force_params *afm_sim_forces(const afm_sim *s) { return &s->f; }
-const char *afm_sim_integrator_name(const afm_sim *s) { return s->be->name; }
+double afm_sim_time(const afm_sim *s) {
+    return s->t_s;
+}
+double afm_sim_dt(const afm_sim *s) {
+    return s->dt_s;
+}
+double afm_sim_separation(const afm_sim *s) {
+    return s->z_m;
+}
+const afm_drive *afm_sim_drive(const afm_sim *s) {
+    return &s->drive;
+}
+const afm_modal *afm_sim_model(const afm_sim *s) {
+    return &s->m;
+}
+const afm_force_params *afm_sim_forces(const afm_sim *s) {
+    return &s->f;
+}
+const char *afm_sim_integrator_name(const afm_sim *s) {
+    return s->be->name;
+}
 
 void afm_sim_get_state(const afm_sim *s, double *q, double *qd) {
     for (int i = 0; i < s->m.n; i++) {

@@ -35,13 +35,13 @@ struct afm_sim {
     afm_force_params f;
     afm_drive drive;
     afm_cfg_sim cfg;
-    double z_m;   /* separation Z */
-    double dt_s;  /* output step */
-    double t_s;   /* model time */
-    long step;    /* output steps taken since create; t_s = t_start + step * dt */
+    double z_m;  /* separation Z */
+    double dt_s; /* output step */
+    double t_s;  /* model time */
+    long step;   /* output steps taken since create; t_s = t_start + step * dt */
     double t_start_s;
     double q[AFM_MAX_MODES], qd[AFM_MAX_MODES];
-    double f_last_n; /* tip force at the current state */
+    double f_last_n;         /* tip force at the current state */
     afm_cfg_thermal thermal; /* Langevin force settings (afm_sim_set_thermal; off at create) */
     /* A backend that sets be_fills_tip keeps these at the current state in advance and
      * changed (the rt backend does); afm_sim_run then takes the output from them instead of

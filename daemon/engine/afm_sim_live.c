@@ -81,8 +81,12 @@ static int mirror_advance(afm_sim *s) {
     (void)s;
     return AFM_SIM_EINVAL;
 }
-static void mirror_changed(afm_sim *s) { (void)s; }
-static void mirror_destroy(afm_sim *s) { (void)s; }
+static void mirror_changed(afm_sim *s) {
+    (void)s;
+}
+static void mirror_destroy(afm_sim *s) {
+    (void)s;
+}
 
 static const afm_sim_backend mirror_backend = {
     .name = "mirror",

@@ -41,7 +41,6 @@ int afm_sim_continue(afm_sim *dst, const afm_sim *src, unsigned what);
  * create allocates (off the real-time path); destroy with afm_sim_destroy. NULL with err. */
 afm_sim *afm_sim_mirror_create(const afm_sim *src, char *err, size_t errlen);
 /* Set the mirror's drive, forces and Z (copies; no checks, no allocation). */
-void afm_sim_mirror_set(afm_sim *mirror, const afm_drive *d, const afm_force_params *f,
-                        double z_m);
+void afm_sim_mirror_set(afm_sim *mirror, const afm_drive *d, const afm_force_params *f, double z_m);
 
 #endif

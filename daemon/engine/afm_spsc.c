@@ -20,7 +20,8 @@ int afm_spsc_init(afm_spsc *q, size_t capacity, size_t item_size, char *err, siz
     size_t stride = (item_size + 63) & ~(size_t)63;
     unsigned char *slots = aligned_alloc(64, cap * stride);
     if (!slots) {
-        if (err && errlen) snprintf(err, errlen, "spsc: cannot allocate %zu x %zu bytes", cap, stride);
+        if (err && errlen)
+            snprintf(err, errlen, "spsc: cannot allocate %zu x %zu bytes", cap, stride);
         return -1;
     }
     memset(slots, 0, cap * stride);

@@ -33,7 +33,9 @@ typedef struct {
 int afm_spsc_init(afm_spsc *q, size_t capacity, size_t item_size, char *err, size_t errlen);
 void afm_spsc_destroy(afm_spsc *q);
 
-static inline size_t afm_spsc_capacity(const afm_spsc *q) { return q->mask + 1; }
+static inline size_t afm_spsc_capacity(const afm_spsc *q) {
+    return q->mask + 1;
+}
 
 /* Items waiting (exact for either side's own view; a snapshot for anyone else). */
 static inline size_t afm_spsc_count(afm_spsc *q) {

@@ -14,7 +14,7 @@
 #include <string.h>
 #include <time.h>
 
-#define TF_NP 4             /* parameters: f, Q, k, F */
+#define TF_NP 4 /* parameters: f, Q, k, F */
 #define TF_MIN_BINS 8
 #define TF_MAX_ITER 300
 #define TF_DEFAULT_WIDTHS 25.0
@@ -52,29 +52,35 @@ static int tf_solve(const double a[TF_NP][TF_NP], const double *g, double lambda
         s[i] = 1.0 / sqrt(a[i][i]);
     }
     for (int i = 0; i < TF_NP; i++)
-        for (int j = 0; j < TF_NP; j++) m[i][j] = a[i][j] * s[i] * s[j] + (i == j ? lambda : 0.0);
+        for (int j = 0; j < TF_NP; j++)
+            m[i][j] = a[i][j] * s[i] * s[j] + (i == j ? lambda : 0.0);
     for (int j = 0; j < TF_NP; j++) { /* Cholesky, lower triangle in place */
         double d = m[j][j];
-        for (int k = 0; k < j; k++) d -= m[j][k] * m[j][k];
+        for (int k = 0; k < j; k++)
+            d -= m[j][k] * m[j][k];
         if (!(d > 1e-300)) return -1;
         m[j][j] = sqrt(d);
         for (int i = j + 1; i < TF_NP; i++) {
             double v = m[i][j];
-            for (int k = 0; k < j; k++) v -= m[i][k] * m[j][k];
+            for (int k = 0; k < j; k++)
+                v -= m[i][k] * m[j][k];
             m[i][j] = v / m[j][j];
         }
     }
     for (int i = 0; i < TF_NP; i++) {
         double v = g[i] * s[i];
-        for (int k = 0; k < i; k++) v -= m[i][k] * y[k];
+        for (int k = 0; k < i; k++)
+            v -= m[i][k] * y[k];
         y[i] = v / m[i][i];
     }
     for (int i = TF_NP - 1; i >= 0; i--) {
         double v = y[i];
-        for (int k = i + 1; k < TF_NP; k++) v -= m[k][i] * x[k];
+        for (int k = i + 1; k < TF_NP; k++)
+            v -= m[k][i] * x[k];
         x[i] = v / m[i][i];
     }
-    for (int i = 0; i < TF_NP; i++) x[i] *= s[i];
+    for (int i = 0; i < TF_NP; i++)
+        x[i] *= s[i];
     return 0;
 }
 
@@ -103,18 +109,21 @@ static double tf_cost(const tf_data *dt, const double *p, const double *wp) {
 static void tf_normal(const tf_data *dt, const double *p, double a[TF_NP][TF_NP], double *g) {
     for (int i = 0; i < TF_NP; i++) {
         g[i] = 0;
-        for (int j = 0; j < TF_NP; j++) a[i][j] = 0;
+        for (int j = 0; j < TF_NP; j++)
+            a[i][j] = 0;
     }
     for (long i = dt->i0; i <= dt->i1; i++) {
         double d[TF_NP], m = tf_eval(p, dt->c, (double)i * dt->df, d);
         double w = 1.0 / (m * m), r = dt->psd[i] - m;
         for (int j = 0; j < TF_NP; j++) {
             g[j] += w * d[j] * r;
-            for (int k = 0; k <= j; k++) a[j][k] += w * d[j] * d[k];
+            for (int k = 0; k <= j; k++)
+                a[j][k] += w * d[j] * d[k];
         }
     }
     for (int j = 0; j < TF_NP; j++)
-        for (int k = j + 1; k < TF_NP; k++) a[j][k] = a[k][j];
+        for (int k = j + 1; k < TF_NP; k++)
+            a[j][k] = a[k][j];
 }
 
 /* Levenberg-Marquardt from p (updated in place). Returns iterations, or -1. */
@@ -131,12 +140,14 @@ static int tf_lm(const tf_data *dt, double *p, double peak) {
                 lambda *= 10;
                 continue;
             }
-            for (int j = 0; j < TF_NP; j++) pt[j] = p[j] + x[j];
+            for (int j = 0; j < TF_NP; j++)
+                pt[j] = p[j] + x[j];
             double s1 = (pt[0] > 0 && pt[1] > 0 && pt[2] > 0) ? tf_cost(dt, pt, p) : -1;
             if (s1 >= 0 && s1 <= s0) break;
             lambda *= 4;
         }
-        for (int j = 0; j < TF_NP; j++) p[j] = pt[j];
+        for (int j = 0; j < TF_NP; j++)
+            p[j] = pt[j];
         lambda = fmax(lambda / 3, 1e-12);
         if (fabs(x[0]) < 1e-12 * p[0] && fabs(x[1]) < 1e-9 * p[1] && fabs(x[2]) < 1e-9 * p[2] &&
             fabs(x[3]) < 1e-9 * peak)
@@ -145,16 +156,20 @@ static int tf_lm(const tf_data *dt, double *p, double peak) {
     return -1;
 }
 
-static long tf_bin_up(double f, double df) { return (long)ceil(f / df - 1e-9); }
-static long tf_bin_down(double f, double df) { return (long)floor(f / df + 1e-9); }
+static long tf_bin_up(double f, double df) {
+    return (long)ceil(f / df - 1e-9);
+}
+static long tf_bin_down(double f, double df) {
+    return (long)floor(f / df + 1e-9);
+}
 
 int afm_thermfit_mode(const double *psd, long n_bins, double df_hz, double temperature_k,
                       double band_lo_hz, double band_hi_hz, double window_linewidths,
                       afm_thermfit *out, char *err, size_t errlen) {
-#define TF_FAIL(...)                                                                           \
-    do {                                                                                       \
-        if (err && errlen) snprintf(err, errlen, __VA_ARGS__);                                 \
-        return -1;                                                                             \
+#define TF_FAIL(...)                                                                               \
+    do {                                                                                           \
+        if (err && errlen) snprintf(err, errlen, __VA_ARGS__);                                     \
+        return -1;                                                                                 \
     } while (0)
     if (!psd || !out || n_bins < TF_MIN_BINS + 1) TF_FAIL("thermfit: no PSD or too few bins");
     if (!(df_hz > 0) || !isfinite(df_hz)) TF_FAIL("thermfit: bin spacing must be > 0");
@@ -170,7 +185,8 @@ int afm_thermfit_mode(const double *psd, long n_bins, double df_hz, double tempe
         TF_FAIL("thermfit: band [%g, %g] Hz holds %ld bins of %g Hz, need >= %d", band_lo_hz,
                 band_hi_hz, b1 - b0 + 1 > 0 ? b1 - b0 + 1 : 0, df_hz, TF_MIN_BINS);
     for (long i = b0; i <= b1; i++)
-        if (!isfinite(psd[i]) || psd[i] < 0) TF_FAIL("thermfit: PSD bin %ld is not finite and >= 0", i);
+        if (!isfinite(psd[i]) || psd[i] < 0)
+            TF_FAIL("thermfit: PSD bin %ld is not finite and >= 0", i);
 
     /* Start values from a smoothed spectrum: running means over s = 3, 9, 27, ... bins;
      * the largest s whose half-power width is still >= 4 s (so the smoothing does not set
@@ -182,7 +198,8 @@ int afm_thermfit_mode(const double *psd, long n_bins, double df_hz, double tempe
         double pk = -1, pmin = INFINITY;
         /* running mean of sw bins centred on i, by a sliding sum */
         double acc = 0;
-        for (long k = b0; k < b0 + sw - 1 && k <= b1; k++) acc += psd[k];
+        for (long k = b0; k < b0 + sw - 1 && k <= b1; k++)
+            acc += psd[k];
         for (long i = b0 + h; i <= b1 - h; i++) {
             acc += psd[i + h];
             double v = acc / (double)sw;
@@ -194,11 +211,12 @@ int afm_thermfit_mode(const double *psd, long n_bins, double df_hz, double tempe
         double base = 0.5 * pmin, half = base + 0.5 * (pk - base);
         /* half-power points of the same running mean, walked in steps of s / 2 */
         double a = (double)b0 * df_hz, b = (double)b1 * df_hz;
-#define TF_AVG(i, out)                                                                         \
-    do {                                                                                       \
-        double t_ = 0;                                                                         \
-        for (long k_ = (i) - h; k_ <= (i) + h; k_++) t_ += psd[k_];                            \
-        (out) = t_ / (double)sw;                                                               \
+#define TF_AVG(i, out)                                                                             \
+    do {                                                                                           \
+        double t_ = 0;                                                                             \
+        for (long k_ = (i)-h; k_ <= (i) + h; k_++)                                                 \
+            t_ += psd[k_];                                                                         \
+        (out) = t_ / (double)sw;                                                                   \
     } while (0)
         for (long i = ipk, step = h > 0 ? h : 1; i - step - h >= b0; i -= step) {
             double v;
@@ -235,18 +253,20 @@ int afm_thermfit_mode(const double *psd, long n_bins, double df_hz, double tempe
         if (dt.i0 < b0) dt.i0 = b0;
         if (dt.i1 > b1) dt.i1 = b1;
         if (dt.i1 - dt.i0 + 1 < TF_MIN_BINS)
-            TF_FAIL("thermfit: fit window around %g Hz holds fewer than %d bins", p[0], TF_MIN_BINS);
+            TF_FAIL("thermfit: fit window around %g Hz holds fewer than %d bins", p[0],
+                    TF_MIN_BINS);
         int n = tf_lm(&dt, p, pmax);
         if (n < 0) TF_FAIL("thermfit: no convergence near %g Hz", f0);
         iters += n;
         if (!(p[0] > (double)b0 * df_hz && p[0] < (double)b1 * df_hz))
-            TF_FAIL("thermfit: fitted resonance %g Hz left the band [%g, %g] Hz", p[0],
-                    band_lo_hz, band_hi_hz);
+            TF_FAIL("thermfit: fitted resonance %g Hz left the band [%g, %g] Hz", p[0], band_lo_hz,
+                    band_hi_hz);
     }
 
     if (p[0] / p[1] < 2.0 * df_hz)
         TF_FAIL("thermfit: peak at %g Hz is narrower (%g Hz) than 2 bins of %g Hz: not resolved "
-                "(longer segments) or not a resonance", p[0], p[0] / p[1], df_hz);
+                "(longer segments) or not a resonance",
+                p[0], p[0] / p[1], df_hz);
 
     /* Statistical errors: covariance = scatter^2 * bin correlation * (J' W J)^-1. */
     double a[TF_NP][TF_NP], g[TF_NP], s2 = 0;
@@ -266,10 +286,19 @@ int afm_thermfit_mode(const double *psd, long n_bins, double df_hz, double tempe
                     : NAN;
     }
     afm_thermfit r = {
-        .f_hz = p[0], .q = p[1], .k_n_m = p[2], .floor_m2_hz = p[3],
-        .se_f_hz = se[0], .se_q = se[1], .se_k_n_m = se[2], .se_floor_m2_hz = se[3],
-        .fit_lo_hz = (double)dt.i0 * df_hz, .fit_hi_hz = (double)dt.i1 * df_hz,
-        .n_bins = nb, .iterations = iters, .rel_scatter = sqrt(s2),
+        .f_hz = p[0],
+        .q = p[1],
+        .k_n_m = p[2],
+        .floor_m2_hz = p[3],
+        .se_f_hz = se[0],
+        .se_q = se[1],
+        .se_k_n_m = se[2],
+        .se_floor_m2_hz = se[3],
+        .fit_lo_hz = (double)dt.i0 * df_hz,
+        .fit_hi_hz = (double)dt.i1 * df_hz,
+        .n_bins = nb,
+        .iterations = iters,
+        .rel_scatter = sqrt(s2),
         .linewidth_bins = p[0] / p[1] / df_hz,
     };
     *out = r;
@@ -284,7 +313,8 @@ static const double tf_two_pi = 6.283185307179586476925286766559;
 
 void afm_thermfit_tune_config(afm_config *c) {
     c->thermal.enabled = true;
-    for (int j = 0; j < c->drive.n_tones; j++) c->drive.tones[j].amplitude_m = 0;
+    for (int j = 0; j < c->drive.n_tones; j++)
+        c->drive.tones[j].amplitude_m = 0;
     c->drive.separation_m = 1e-3;
     c->forces.vdw_contact = false;
     c->forces.viscoelastic = false;
@@ -294,8 +324,8 @@ void afm_thermfit_tune_config(afm_config *c) {
 }
 
 int afm_thermfit_tune(const afm_config *cfg_in, double seconds, long seg_len, bool obd,
-                      int max_modes, afm_thermfit_tune_result *out, double **psd_out,
-                      char *err, size_t errlen) {
+                      int max_modes, afm_thermfit_tune_result *out, double **psd_out, char *err,
+                      size_t errlen) {
     afm_config *cfg = malloc(sizeof *cfg);
     afm_modal *m = malloc(sizeof *m);
     afm_obd *ob = malloc(sizeof *ob);
@@ -321,7 +351,8 @@ int afm_thermfit_tune(const afm_config *cfg_in, double seconds, long seg_len, bo
     if (seg_len < 16 || seg_len % 2 || seg_len > nsamp) {
         snprintf(err, errlen,
                  "thermal tune: segment of %ld samples must be even, >= 16 and no longer "
-                 "than the run (%ld samples)", seg_len, nsamp);
+                 "than the run (%ld samples)",
+                 seg_len, nsamp);
         goto done;
     }
     if (max_modes < 1) {
@@ -382,10 +413,10 @@ int afm_thermfit_tune(const afm_config *cfg_in, double seconds, long seg_len, bo
         r->model_f_hz = fn;
         r->model_q = 1 / (2 * m->xi[i]);
         r->gain = obd ? afm_obd_mode_gain(ob, m, i) : 1.0;
-        r->model_k_n_m = m->omega_rad_s[i] * m->omega_rad_s[i] / (m->tip[i] * m->tip[i]) /
-                         (r->gain * r->gain);
-        if (afm_thermfit_mode(psd, afm_psd_n_bins(p), res->df_hz, cfg->thermal.temperature_k,
-                              lo, hi, 0, &r->fit, e, sizeof e) == 0) {
+        r->model_k_n_m =
+            m->omega_rad_s[i] * m->omega_rad_s[i] / (m->tip[i] * m->tip[i]) / (r->gain * r->gain);
+        if (afm_thermfit_mode(psd, afm_psd_n_bins(p), res->df_hz, cfg->thermal.temperature_k, lo,
+                              hi, 0, &r->fit, e, sizeof e) == 0) {
             res->n_modes++;
         } else if (used < sizeof res->skipped) {
             int w = snprintf(res->skipped + used, sizeof res->skipped - used, "%smode %d: %s",

@@ -37,10 +37,10 @@
 #define AFM_KB_J_K 1.380649e-23 /* Boltzmann constant (exact, SI 2019) */
 
 typedef struct {
-    double f_hz;          /* f_n */
-    double q;             /* Q_n */
-    double k_n_m;         /* k_n */
-    double floor_m2_hz;   /* F = d_ds,n^2; may come out slightly negative (noise) */
+    double f_hz;        /* f_n */
+    double q;           /* Q_n */
+    double k_n_m;       /* k_n */
+    double floor_m2_hz; /* F = d_ds,n^2; may come out slightly negative (noise) */
     /* Approximate 1-sigma statistical errors from the curvature of the likelihood, scaled
      * by the observed scatter of P/M and by the bin correlation of the Hann window (a
      * smooth function of the bins has 1.94 times the variance it would have with
@@ -49,9 +49,9 @@ typedef struct {
     double fit_lo_hz, fit_hi_hz; /* window used */
     long n_bins;                 /* bins in it */
     int iterations;              /* LM iterations of both passes */
-    double rel_scatter;  /* rms of P/M - 1 over the window: ~ 1/sqrt(0.947 K) if it fits */
-    double linewidth_bins; /* f_n / Q_n / df: below ~30 the Hann window's smoothing biases
-                              Q_n low by about 4/3 / linewidth_bins^2 */
+    double rel_scatter;          /* rms of P/M - 1 over the window: ~ 1/sqrt(0.947 K) if it fits */
+    double linewidth_bins;       /* f_n / Q_n / df: below ~30 the Hann window's smoothing biases
+                                    Q_n low by about 4/3 / linewidth_bins^2 */
 } afm_thermfit;
 
 /* The model M(f) in m^2/Hz for the parameters of r (f_hz, q, k_n_m, floor_m2_hz). */
@@ -82,19 +82,19 @@ int afm_thermfit_mode(const double *psd, long n_bins, double df_hz, double tempe
  * between the geometric means of its model neighbours' frequencies. */
 
 typedef struct {
-    int n;                 /* mode number, 1 = fundamental */
+    int n; /* mode number, 1 = fundamental */
     afm_thermfit fit;
-    double model_f_hz;     /* w_n / 2 pi */
-    double model_q;        /* 1 / (2 xi_n) */
-    double model_k_n_m;    /* w_n^2 / tip_n^2, divided by gain^2 for the OBD signal */
-    double gain;           /* reading per unit mode-n tip displacement: 1 for x, g_n (afm_obd) */
+    double model_f_hz;  /* w_n / 2 pi */
+    double model_q;     /* 1 / (2 xi_n) */
+    double model_k_n_m; /* w_n^2 / tip_n^2, divided by gain^2 for the OBD signal */
+    double gain;        /* reading per unit mode-n tip displacement: 1 for x, g_n (afm_obd) */
 } afm_thermfit_mode_result;
 
 typedef struct {
     long n_samples, seg_len, segments;
     double df_hz;
-    double cpu_s;          /* CPU time of the simulation and PSD */
-    int n_modes;           /* fitted modes in modes[] */
+    double cpu_s; /* CPU time of the simulation and PSD */
+    int n_modes;  /* fitted modes in modes[] */
     afm_thermfit_mode_result modes[AFM_MAX_MODES];
     char skipped[AFM_ERR_LEN]; /* why modes below Nyquist were not fitted ("" if none) */
 } afm_thermfit_tune_result;
@@ -108,8 +108,7 @@ void afm_thermfit_tune_config(afm_config *cfg);
  * most max_modes modes. psd_out (may be NULL) receives a malloc'd copy of the PSD
  * (seg_len / 2 + 1 bins, caller frees). 0 with out filled (n_modes may be 0: see
  * skipped), or -1 with err (bad input, simulation failure, no memory). */
-int afm_thermfit_tune(const afm_config *cfg, double seconds, long seg_len, bool obd,
-                      int max_modes, afm_thermfit_tune_result *out, double **psd_out,
-                      char *err, size_t errlen);
+int afm_thermfit_tune(const afm_config *cfg, double seconds, long seg_len, bool obd, int max_modes,
+                      afm_thermfit_tune_result *out, double **psd_out, char *err, size_t errlen);
 
 #endif

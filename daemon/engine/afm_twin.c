@@ -19,20 +19,16 @@ afm_sim *afm_twin_create(const afm_config *cfg, afm_modal *m_out, afm_force_para
         return NULL;
     }
     *m = zero_modal;
-    if (afm_model_build(&cfg->model, m, err, errlen) != 0)
-        goto done;
+    if (afm_model_build(&cfg->model, m, err, errlen) != 0) goto done;
     /* Starr's squeezing plate is the beam itself; the lumped model names its own. */
     double len = m->beam_length_m > 0 ? m->beam_length_m : cfg->forces.plate_length_m;
     double wid = m->beam_mean_width_m > 0 ? m->beam_mean_width_m : cfg->forces.plate_width_m;
-    if (afm_force_init(&f, &cfg->forces, len, wid, err, errlen) != 0)
-        goto done;
+    if (afm_force_init(&f, &cfg->forces, len, wid, err, errlen) != 0) goto done;
     s = afm_sim_create(m, &f, &cfg->drive, &cfg->sim, err, errlen);
     if (s && cfg->thermal.enabled && afm_sim_set_thermal(s, &cfg->thermal, err, errlen) != 0)
         afm_sim_destroy(&s);
-    if (s && m_out)
-        *m_out = *m;
-    if (s && f_out)
-        *f_out = f;
+    if (s && m_out) *m_out = *m;
+    if (s && f_out) *f_out = f;
 done:
     free(m);
     return s;
@@ -59,8 +55,7 @@ afm_sim *afm_twin_fork(const afm_sim *src, const afm_cfg_sim *sim, char *err, si
 int afm_sweep_init(afm_sweep *w, double sample_rate_hz, double fe_min_hz, double tol_rel,
                    int max_periods, const int *ks, int nk, char *err, size_t errlen) {
     memset(w, 0, sizeof *w);
-    if (nk < 0 || nk > AFM_MAX_HARMONICS || !(tol_rel > 0) || max_periods < 2 ||
-        !(fe_min_hz > 0)) {
+    if (nk < 0 || nk > AFM_MAX_HARMONICS || !(tol_rel > 0) || max_periods < 2 || !(fe_min_hz > 0)) {
         snprintf(err, errlen, "sweep: bad harmonics count, tolerance, period cap or frequency");
         return -1;
     }
@@ -84,15 +79,19 @@ void afm_sweep_destroy(afm_sweep *w) {
 
 static const char *sim_rc_text(int rc) {
     switch (rc) {
-    case AFM_SIM_EINVAL: return "value rejected (NaN, or out of range)";
-    case AFM_SIM_EBLOWUP: return "numerical blow-up (state reset to rest)";
-    case AFM_SIM_ESOLVER: return "SUNDIALS solver failure (state reset to rest)";
-    default: return "unknown failure";
+    case AFM_SIM_EINVAL:
+        return "value rejected (NaN, or out of range)";
+    case AFM_SIM_EBLOWUP:
+        return "numerical blow-up (state reset to rest)";
+    case AFM_SIM_ESOLVER:
+        return "SUNDIALS solver failure (state reset to rest)";
+    default:
+        return "unknown failure";
     }
 }
 
-int afm_sweep_step(afm_sweep *w, afm_sim *s, double fe_hz, double amp_m, afm_orbit *out,
-                   char *err, size_t errlen) {
+int afm_sweep_step(afm_sweep *w, afm_sim *s, double fe_hz, double amp_m, afm_orbit *out, char *err,
+                   size_t errlen) {
     int rc = afm_sim_set_tone(s, 0, amp_m, fe_hz);
     if (rc != AFM_SIM_OK) {
         snprintf(err, errlen, "cannot set %g Hz, %g m: %s", fe_hz, amp_m, sim_rc_text(rc));
@@ -113,8 +112,7 @@ int afm_sweep_step(afm_sweep *w, afm_sim *s, double fe_hz, double amp_m, afm_orb
             if (i < w->st.n) w->on_samples(w->on_samples_ctx, s, w->st.buf + i, w->st.n - i);
         }
         if (settled != 0) break;
-        if (w->on_period)
-            w->on_period(w->on_period_ctx, &w->st, fe_hz);
+        if (w->on_period) w->on_period(w->on_period_ctx, &w->st, fe_hz);
     }
     if (settled < 0) {
         snprintf(err, errlen, "at %g Hz after %d periods: %s", fe_hz, w->st.periods,

@@ -52,7 +52,7 @@ void afm_sweep_destroy(afm_sweep *w);
 /* Set tone 0 to (amp_m, fe_hz) phase-continuously, dwell until the orbit is steady (or
  * max_periods), then analyse it into out. Returns 1 settled, 0 gave up at max_periods
  * (out analysed over the best periodicity), negative on failure (err says why). */
-int afm_sweep_step(afm_sweep *w, afm_sim *s, double fe_hz, double amp_m, afm_orbit *out,
-                   char *err, size_t errlen);
+int afm_sweep_step(afm_sweep *w, afm_sim *s, double fe_hz, double amp_m, afm_orbit *out, char *err,
+                   size_t errlen);
 
 #endif

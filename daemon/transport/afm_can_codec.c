@@ -54,11 +54,16 @@ static void put_u32(uint8_t *b, uint32_t v, bool big) {
 /* Scale (SI per bit) of a 4-byte value: which = 0 the first, 1 the second of the frame. */
 static double scale_of(const afm_cfg_can *m, afm_can_signal sig, int which) {
     switch (sig) {
-    case AFM_CAN_DITHER_FREQUENCY: return m->scale_frequency_hz;
-    case AFM_CAN_DITHER_AMPLITUDE: return m->scale_amplitude_m;
-    case AFM_CAN_DITHER_PHASE: return m->scale_phase_rad;
-    case AFM_CAN_SETPOINT: return which ? m->scale_ramp_m_s : m->scale_separation_m;
-    default: return 1.0;
+    case AFM_CAN_DITHER_FREQUENCY:
+        return m->scale_frequency_hz;
+    case AFM_CAN_DITHER_AMPLITUDE:
+        return m->scale_amplitude_m;
+    case AFM_CAN_DITHER_PHASE:
+        return m->scale_phase_rad;
+    case AFM_CAN_SETPOINT:
+        return which ? m->scale_ramp_m_s : m->scale_separation_m;
+    default:
+        return 1.0;
     }
 }
 
@@ -87,7 +92,7 @@ static int put_value(const afm_cfg_can *m, afm_can_signal sig, int which, double
     if (m->encoding == AFM_CAN_FLOAT32) {
         if (fabs(v) > FLT_MAX) {
             afm_err_set(err, errlen, "%s: %s %g does not fit a float32", afm_can_signal_name(sig),
-                    what, v);
+                        what, v);
             return -1;
         }
         float f = (float)v;
@@ -98,8 +103,10 @@ static int put_value(const afm_cfg_can *m, afm_can_signal sig, int which, double
         double lo = is_signed ? (double)INT32_MIN : 0.0;
         double hi = is_signed ? (double)INT32_MAX : (double)UINT32_MAX;
         if (!(raw >= lo && raw <= hi)) {
-            afm_err_set(err, errlen, "%s: %s %g is outside what the signal carries (%g .. %g at "
-                    "%g per bit)", afm_can_signal_name(sig), what, v, lo * s, hi * s, s);
+            afm_err_set(err, errlen,
+                        "%s: %s %g is outside what the signal carries (%g .. %g at "
+                        "%g per bit)",
+                        afm_can_signal_name(sig), what, v, lo * s, hi * s, s);
             return -1;
         }
         u = is_signed ? (uint32_t)(int32_t)raw : (uint32_t)raw;
@@ -129,8 +136,10 @@ static afm_can_result dither_cmd(afm_can_signal sig, int t, double v, const afm_
     if (t >= d->n_tones) {
         for (int j = d->n_tones; j <= t; j++)
             if (!(d->frequency_hz[j] > 0)) {
-                afm_err_set(err, errlen, "%s: tone %d would start tone %d, which has no frequency "
-                        "yet (send tone %d's dither_frequency first)", pre, t, j, j);
+                afm_err_set(err, errlen,
+                            "%s: tone %d would start tone %d, which has no frequency "
+                            "yet (send tone %d's dither_frequency first)",
+                            pre, t, j, j);
                 return AFM_CAN_R_REJECT;
             }
         d->n_tones = t + 1;
@@ -175,9 +184,9 @@ afm_can_result afm_can_decode(const afm_cfg_can *map, const afm_can_state *state
     if (s < 0) {
         bool other = ((f->can_id & CAN_EFF_FLAG) != 0) != map->extended_ids;
         afm_err_set(err, errlen, "id %s: unknown frame id (%s)", idt,
-                other ? (map->extended_ids ? "an 11-bit id; the map uses 29-bit ids"
-                                           : "a 29-bit id; the map uses 11-bit ids")
-                      : "not in the can.ids map");
+                    other ? (map->extended_ids ? "an 11-bit id; the map uses 29-bit ids"
+                                               : "a 29-bit id; the map uses 11-bit ids")
+                          : "not in the can.ids map");
         return AFM_CAN_R_REJECT;
     }
     afm_can_signal sig = (afm_can_signal)s;
@@ -209,8 +218,10 @@ afm_can_result afm_can_decode(const afm_cfg_can *map, const afm_can_state *state
             return AFM_CAN_R_REJECT;
         }
         if (t < state->dither.n_tones) {
-            afm_err_set(err, errlen, "%s: tone %d is running; the drive is phase-continuous, so a "
-                    "phase only sets the start of a tone not yet running", pre, t);
+            afm_err_set(err, errlen,
+                        "%s: tone %d is running; the drive is phase-continuous, so a "
+                        "phase only sets the start of a tone not yet running",
+                        pre, t);
             return AFM_CAN_R_REJECT;
         }
         *next = *state;
@@ -240,7 +251,7 @@ afm_can_result afm_can_decode(const afm_cfg_can *map, const afm_can_state *state
     case AFM_CAN_ENABLE: {
         if (b[0] > 1) {
             afm_err_set(err, errlen, "%s: byte 0x%02X is neither 1 (enable) nor 0 (disable)", pre,
-                    b[0]);
+                        b[0]);
             return AFM_CAN_R_REJECT;
         }
         afm_cmd c;
@@ -255,7 +266,8 @@ afm_can_result afm_can_decode(const afm_cfg_can *map, const afm_can_state *state
         if (state_byte) *state_byte = b[0];
         *next = *state;
         return AFM_CAN_R_HEARTBEAT;
-    case AFM_CAN_N_SIGNALS: break;
+    case AFM_CAN_N_SIGNALS:
+        break;
     }
     afm_err_set(err, errlen, "%s: no decoder", pre);
     return AFM_CAN_R_REJECT;
@@ -277,7 +289,7 @@ int afm_can_encode(const afm_cfg_can *map, afm_can_signal sig, int tone, double 
     case AFM_CAN_DITHER_PHASE:
         if (tone < 0 || tone >= AFM_MAX_TONES) {
             afm_err_set(err, errlen, "%s: tone %d not in 0..%d", sig_names[sig], tone,
-                    AFM_MAX_TONES - 1);
+                        AFM_MAX_TONES - 1);
             return -1;
         }
         f->data[0] = (uint8_t)tone;
@@ -305,7 +317,8 @@ int afm_can_encode(const afm_cfg_can *map, afm_can_signal sig, int tone, double 
         }
         f->data[0] = (uint8_t)v0;
         return 0;
-    case AFM_CAN_N_SIGNALS: break;
+    case AFM_CAN_N_SIGNALS:
+        break;
     }
     return -1;
 }

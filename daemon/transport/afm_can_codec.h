@@ -36,10 +36,10 @@
 #define AFM_CAN_MAX_PHASE_RAD 6.283185307179586 /* |start phase| limit (2 pi) */
 
 typedef enum {
-    AFM_CAN_R_REJECT = -1,   /* err says why; nothing changed */
-    AFM_CAN_R_COMMAND = 0,   /* *cmd is a validated command; keep *next if it is taken */
-    AFM_CAN_R_STORED = 1,    /* a start phase stored in *next; no command */
-    AFM_CAN_R_HEARTBEAT = 2  /* the driver's heartbeat; *state_byte says its state */
+    AFM_CAN_R_REJECT = -1,  /* err says why; nothing changed */
+    AFM_CAN_R_COMMAND = 0,  /* *cmd is a validated command; keep *next if it is taken */
+    AFM_CAN_R_STORED = 1,   /* a start phase stored in *next; no command */
+    AFM_CAN_R_HEARTBEAT = 2 /* the driver's heartbeat; *state_byte says its state */
 } afm_can_result;
 
 /* The driver's registers as the twin last took them from CAN. */

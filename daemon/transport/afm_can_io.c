@@ -40,17 +40,17 @@ typedef enum { BUS_OK = 0, BUS_WARNING = 1, BUS_PASSIVE = 2, BUS_OFF = 3 } bus_s
 typedef struct {
     afm_io io;
     afm_cfg_can map;
-    char channel[40];      /* "CAN vcan0", the channel name of rejections */
-    int sock;              /* -1 while closed */
-    afm_can_state regs;    /* the driver's registers as the twin took them */
+    char channel[40];             /* "CAN vcan0", the channel name of rejections */
+    int sock;                     /* -1 while closed */
+    afm_can_state regs;           /* the driver's registers as the twin took them */
     double retry_at_s, backoff_s; /* CLOCK_MONOTONIC */
-    bool lost;             /* had a socket and lost it: the next open is a reconnect */
-    double last_hb_s;      /* < 0: no heartbeat yet */
+    bool lost;                    /* had a socket and lost it: the next open is a reconnect */
+    double last_hb_s;             /* < 0: no heartbeat yet */
     bus_state bus;
     /* shared with annotate_status */
     pthread_mutex_t lock;
     int64_t frames, rejected, errors, reconnects;
-    char down[160];        /* why the socket is closed ("" when open) */
+    char down[160]; /* why the socket is closed ("" when open) */
     char last_reject[AFM_IO_REASON_LEN];
 } can_io;
 
@@ -135,7 +135,9 @@ static void lose(can_io *c, int e, double now) {
     c->errors++;
     c->lost = true;
     snprintf(c->down, sizeof c->down, "%s: %s%s", c->map.interface, strerror(e),
-             e == ENETDOWN ? " (ENETDOWN)" : e == ENODEV ? " (ENODEV)" : "");
+             e == ENETDOWN ? " (ENETDOWN)"
+             : e == ENODEV ? " (ENODEV)"
+                           : "");
     c->backoff_s = c->map.reconnect_min_s;
     c->retry_at_s = now + c->backoff_s;
     pthread_mutex_unlock(&c->lock);
@@ -194,7 +196,9 @@ static void on_frame(can_io *c, const struct canfd_frame *f, bool fd, double now
         else
             count_reject(c, "refused by the daemon (its reason is in last_reject)");
         break;
-    case AFM_CAN_R_STORED: c->regs = next; break;
+    case AFM_CAN_R_STORED:
+        c->regs = next;
+        break;
     case AFM_CAN_R_HEARTBEAT:
         pthread_mutex_lock(&c->lock);
         c->last_hb_s = now;
@@ -335,7 +339,8 @@ afm_io *afm_can_io_create(const afm_cfg_can *can, const afm_cfg_drive *drive,
     if (!can->interface[0] || !(can->reconnect_min_s > 0) ||
         !(can->reconnect_max_s >= can->reconnect_min_s) || !(can->heartbeat_timeout_s >= 0) ||
         drive->n_tones < 1 || drive->n_tones > AFM_MAX_TONES) {
-        snprintf(err, errlen, "CAN map: bad interface, reconnect or heartbeat settings, or "
+        snprintf(err, errlen,
+                 "CAN map: bad interface, reconnect or heartbeat settings, or "
                  "drive (run afm_config_validate first)");
         return NULL;
     }

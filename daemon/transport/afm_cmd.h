@@ -34,12 +34,12 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#define AFM_CMD_MAX_PARAMS 16          /* names per param message */
-#define AFM_CMD_MAX_AMPLITUDE_M 1e-6   /* dither amplitude limit (as afm_sim_set_tone) */
-#define AFM_CMD_MAX_SEPARATION_M 1e-3  /* Z limit (as afm_sim_set_separation) */
-#define AFM_CMD_MAX_RAMP_M_S 1.0       /* Z ramp rate limit: 1 m/s is no Z stage */
-#define AFM_CMD_MAX_STEP 1000000000LL  /* STEP and tick n_samples upper bound */
-#define AFM_CMD_NAME_LEN 64            /* longest param name + 1 */
+#define AFM_CMD_MAX_PARAMS 16         /* names per param message */
+#define AFM_CMD_MAX_AMPLITUDE_M 1e-6  /* dither amplitude limit (as afm_sim_set_tone) */
+#define AFM_CMD_MAX_SEPARATION_M 1e-3 /* Z limit (as afm_sim_set_separation) */
+#define AFM_CMD_MAX_RAMP_M_S 1.0      /* Z ramp rate limit: 1 m/s is no Z stage */
+#define AFM_CMD_MAX_STEP 1000000000LL /* STEP and tick n_samples upper bound */
+#define AFM_CMD_NAME_LEN 64           /* longest param name + 1 */
 
 typedef enum {
     AFM_CMD_DITHER = 1,
@@ -69,21 +69,21 @@ typedef enum {
 } afm_param_effect;
 
 typedef struct {
-    int n_tones;                          /* 1..AFM_MAX_TONES */
+    int n_tones; /* 1..AFM_MAX_TONES */
     double frequency_hz[AFM_MAX_TONES];
     double amplitude_m[AFM_MAX_TONES];
-    double phase_rad[AFM_MAX_TONES];      /* used only by tones this command starts */
+    double phase_rad[AFM_MAX_TONES]; /* used only by tones this command starts */
 } afm_cmd_dither;
 
 typedef struct {
-    double separation_m;   /* target Z, m */
-    double ramp_rate_m_s;  /* 0: step; > 0: ramp at this rate */
+    double separation_m;  /* target Z, m */
+    double ramp_rate_m_s; /* 0: step; > 0: ramp at this rate */
 } afm_cmd_setpoint;
 
 typedef struct {
     int n;
-    int entry[AFM_CMD_MAX_PARAMS]; /* index into afm_param_table() */
-    int index[AFM_CMD_MAX_PARAMS]; /* array element ([i]), -1 for a scalar name */
+    int entry[AFM_CMD_MAX_PARAMS];    /* index into afm_param_table() */
+    int index[AFM_CMD_MAX_PARAMS];    /* array element ([i]), -1 for a scalar name */
     double value[AFM_CMD_MAX_PARAMS]; /* in the name's unit (degrees for *_deg) */
 } afm_cmd_param;
 
@@ -138,11 +138,11 @@ int afm_cmd_from_msg(afm_cmd_kind kind, const void *msg, const afm_cmd_limits *l
 /* ---- parameter names ------------------------------------------------------------------ */
 
 typedef struct {
-    const char *name;    /* config key path, e.g. "forces.vdw_contact.hamaker_j" */
-    int n_index;         /* 0: scalar; else the name takes [0 .. n_index-1] (and, if
-                            scalar_ok, also the bare name: sets every element) */
+    const char *name; /* config key path, e.g. "forces.vdw_contact.hamaker_j" */
+    int n_index;      /* 0: scalar; else the name takes [0 .. n_index-1] (and, if
+                         scalar_ok, also the bare name: sets every element) */
     bool scalar_ok;
-    double min, max;     /* allowed values, inclusive unless *_open */
+    double min, max; /* allowed values, inclusive unless *_open */
     bool min_open, max_open;
     afm_param_effect effect;
     const char *unit;

@@ -15,9 +15,9 @@
 #include <string.h>
 
 _Static_assert(AFMTWIN_CONTROL_T_RUN == AFM_CTL_RUN && AFMTWIN_CONTROL_T_PAUSE == AFM_CTL_PAUSE &&
-                   AFMTWIN_CONTROL_T_RESET == AFM_CTL_RESET && AFMTWIN_CONTROL_T_STEP == AFM_CTL_STEP,
+                   AFMTWIN_CONTROL_T_RESET == AFM_CTL_RESET &&
+                   AFMTWIN_CONTROL_T_STEP == AFM_CTL_STEP,
                "control_t actions and afm_cmd_action must agree");
-
 
 static int from_dither(const afmtwin_dither_t *m, afm_cmd *c, char *err, size_t errlen) {
     if (m->n_tones < 1 || m->n_tones > AFM_MAX_TONES) {
@@ -157,20 +157,22 @@ trunc:
         T m;                                                                                       \
         memset(&m, 0, sizeof m);                                                                   \
         if (fingerprint(data) != __##T##_get_hash()) {                                             \
-            afm_err_set(err, errlen, "%s: wrong message type on this channel (fingerprint %016llx)", \
-                    kindname, (unsigned long long)fingerprint(data));                              \
+            afm_err_set(err, errlen,                                                               \
+                        "%s: wrong message type on this channel (fingerprint %016llx)", kindname,  \
+                        (unsigned long long)fingerprint(data));                                    \
             return -1;                                                                             \
         }                                                                                          \
-        if (kind == AFM_CMD_PARAM && param_precheck(data, len, err, errlen)) return -1;          \
+        if (kind == AFM_CMD_PARAM && param_precheck(data, len, err, errlen)) return -1;            \
         int used = T##_decode(data, 0, (int)len, &m);                                              \
         if (used < 0) {                                                                            \
-            afm_err_set(err, errlen, "%s: malformed or truncated message (%zu bytes)", kindname, len); \
+            afm_err_set(err, errlen, "%s: malformed or truncated message (%zu bytes)", kindname,   \
+                        len);                                                                      \
             return -1;                                                                             \
         }                                                                                          \
         int rc = 0;                                                                                \
         if ((size_t)used != len) {                                                                 \
-            afm_err_set(err, errlen, "%s: %zu trailing bytes after the message", kindname,             \
-                    len - (size_t)used);                                                           \
+            afm_err_set(err, errlen, "%s: %zu trailing bytes after the message", kindname,         \
+                        len - (size_t)used);                                                       \
             rc = -1;                                                                               \
         } else {                                                                                   \
             rc = afm_cmd_from_msg(kind, &m, lim, c, err, errlen);                                  \
@@ -191,12 +193,18 @@ int afm_cmd_decode(afm_cmd_kind kind, const void *data, size_t len, const afm_cm
         return -1;
     }
     switch (kind) {
-    case AFM_CMD_DITHER: DECODE(afmtwin_dither_t, kn);
-    case AFM_CMD_SETPOINT: DECODE(afmtwin_setpoint_t, kn);
-    case AFM_CMD_PARAM: DECODE(afmtwin_param_t, kn);
-    case AFM_CMD_CONTROL: DECODE(afmtwin_control_t, kn);
-    case AFM_CMD_TICK: DECODE(afmtwin_tick_t, kn);
-    default: break;
+    case AFM_CMD_DITHER:
+        DECODE(afmtwin_dither_t, kn);
+    case AFM_CMD_SETPOINT:
+        DECODE(afmtwin_setpoint_t, kn);
+    case AFM_CMD_PARAM:
+        DECODE(afmtwin_param_t, kn);
+    case AFM_CMD_CONTROL:
+        DECODE(afmtwin_control_t, kn);
+    case AFM_CMD_TICK:
+        DECODE(afmtwin_tick_t, kn);
+    default:
+        break;
     }
     afm_err_set(err, errlen, "%s commands do not come from messages", kn);
     return -1;

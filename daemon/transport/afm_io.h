@@ -18,16 +18,16 @@
 
 #include <stdint.h>
 
-#define AFM_IO_MAX_BLOCK 2048  /* samples per samples record */
-#define AFM_IO_REASON_LEN 256  /* rejection reasons in status */
+#define AFM_IO_MAX_BLOCK 2048 /* samples per samples record */
+#define AFM_IO_REASON_LEN 256 /* rejection reasons in status */
 
 typedef struct {
-    int64_t utime;        /* publish time stamp, us (wall clock; model time in replay) */
+    int64_t utime; /* publish time stamp, us (wall clock; model time in replay) */
     int64_t seq_applied;
-    int stream;           /* output stream index */
-    double t0_s;          /* model time of the first sample */
+    int stream;  /* output stream index */
+    double t0_s; /* model time of the first sample */
     double rate_hz;
-    int n;                /* 1..AFM_IO_MAX_BLOCK */
+    int n; /* 1..AFM_IO_MAX_BLOCK */
     float deflection_m[AFM_IO_MAX_BLOCK];
     float obd_m[AFM_IO_MAX_BLOCK];
     int32_t obd_counts[AFM_IO_MAX_BLOCK]; /* 0 without ADC */
@@ -37,8 +37,8 @@ typedef struct {
 typedef struct {
     int64_t utime;
     int64_t seq_applied;
-    double fe_hz;         /* tone 0 frequency when the period ended */
-    afm_chain_period p;   /* t_s = p.cycle.t_start_s */
+    double fe_hz;       /* tone 0 frequency when the period ended */
+    afm_chain_period p; /* t_s = p.cycle.t_start_s */
 } afm_io_harmonics;
 
 typedef struct {
@@ -51,7 +51,7 @@ typedef struct {
     int64_t received, rejected;
     char last_reject[AFM_IO_REASON_LEN];
     int64_t blowups;
-    const char *mode;     /* "realtime", "freerun", "lockstep" */
+    const char *mode; /* "realtime", "freerun", "lockstep" */
     int running;
     double separation_m, fe_hz, amplitude_m;
     /* Pipeline health (issue 5 follow-up): commands applied by the twin, realtime
@@ -64,12 +64,12 @@ typedef struct {
     /* CAN input (issue 6): filled by the CAN transport's annotate_status; all zero (and
      * can_state "") when the daemon has no CAN transport. */
     char can_state[AFM_IO_REASON_LEN]; /* "ok", or "<state> ...; holding last commands" */
-    int64_t can_frames;     /* data frames received (accepted and rejected) */
-    int64_t can_rejected;   /* frames rejected (codec or daemon) */
-    int64_t can_errors;     /* error frames and socket errors */
-    int64_t can_reconnects; /* socket re-opened after a loss */
+    int64_t can_frames;                /* data frames received (accepted and rejected) */
+    int64_t can_rejected;              /* frames rejected (codec or daemon) */
+    int64_t can_errors;                /* error frames and socket errors */
+    int64_t can_reconnects;            /* socket re-opened after a loss */
     char can_last_reject[AFM_IO_REASON_LEN];
-    int heartbeat_ok;       /* 1: heartbeat within can.heartbeat_timeout_s (or not monitored) */
+    int heartbeat_ok; /* 1: heartbeat within can.heartbeat_timeout_s (or not monitored) */
 } afm_io_status;
 
 /* What a transport calls on the receive thread. */

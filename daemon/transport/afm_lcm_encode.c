@@ -20,8 +20,7 @@ void afm_lcm_samples_msg(const afm_io_samples *s, afmtwin_samples_t *m) {
     };
 }
 
-void afm_lcm_harmonics_msg(const afm_io_harmonics *h, afm_lcm_harm_buf *b,
-                           afmtwin_harmonics_t *m) {
+void afm_lcm_harmonics_msg(const afm_io_harmonics *h, afm_lcm_harm_buf *b, afmtwin_harmonics_t *m) {
     const afm_harm_result *r = &h->p.harm;
     const afm_cycle_metrics *c = &h->p.cycle;
     int n = r->n_harmonics;

@@ -109,8 +109,10 @@ afm_io *afm_lcm_io_create(const char *url, const char *out_url, const char *pref
                 {AFM_CMD_TICK, "TICK"}};
     if (!prefix) prefix = "AFMTWIN_";
     if (strlen(prefix) > 64 || strpbrk(prefix, " \t\n.*?[]()") != NULL) {
-        snprintf(err, errlen, "bad channel prefix '%s' (at most 64 characters, no spaces or "
-                 "regex characters)", prefix);
+        snprintf(err, errlen,
+                 "bad channel prefix '%s' (at most 64 characters, no spaces or "
+                 "regex characters)",
+                 prefix);
         return NULL;
     }
     lcm_io *l = calloc(1, sizeof *l);
@@ -129,8 +131,10 @@ afm_io *afm_lcm_io_create(const char *url, const char *out_url, const char *pref
     l->lcm = lcm_create(cmd_u);
     l->out = l->lcm ? lcm_create(out_u) : NULL;
     if (!l->lcm || !l->out) {
-        snprintf(err, errlen, "lcm_create(%s) failed (for udpm: is there a multicast route? "
-                 "see README, 'Running the daemon')", l->lcm ? out_u : cmd_u);
+        snprintf(err, errlen,
+                 "lcm_create(%s) failed (for udpm: is there a multicast route? "
+                 "see README, 'Running the daemon')",
+                 l->lcm ? out_u : cmd_u);
         lio_destroy(&l->io);
         return NULL;
     }

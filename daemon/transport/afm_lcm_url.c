@@ -33,12 +33,14 @@ int afm_lcm_out_url(const char *cmd_url, char *out, size_t len, char *err, size_
     char *end = NULL;
     long port = colon ? strtol(colon + 1, &end, 10) : -1;
     if (!colon || end != host + hl || port < 1 || port > 65534) {
-        snprintf(err, errlen, "LCM URL '%s': udpm needs ADDR:PORT with a port in 1..65534 (the "
-                 "outputs go to PORT + 1)", cmd_url);
+        snprintf(err, errlen,
+                 "LCM URL '%s': udpm needs ADDR:PORT with a port in 1..65534 (the "
+                 "outputs go to PORT + 1)",
+                 cmd_url);
         return -1;
     }
-    int n = snprintf(out, len, "%s%.*s:%ld%s", udpm, (int)(colon - host), host, port + 1,
-                     q ? q : "");
+    int n =
+        snprintf(out, len, "%s%.*s:%ld%s", udpm, (int)(colon - host), host, port + 1, q ? q : "");
     if (n < 0 || (size_t)n >= len) {
         snprintf(err, errlen, "LCM URL too long");
         return -1;
@@ -46,8 +48,8 @@ int afm_lcm_out_url(const char *cmd_url, char *out, size_t len, char *err, size_
     return 0;
 }
 
-int afm_lcm_urls(const char *url, const char *out_url, char *cmd, char *out, size_t len,
-                 char *err, size_t errlen) {
+int afm_lcm_urls(const char *url, const char *out_url, char *cmd, char *out, size_t len, char *err,
+                 size_t errlen) {
     if (afm_lcm_cmd_url(url, cmd, len, err, errlen)) return -1;
     if (out_url && *out_url) return copy(out_url, out, len, err, errlen);
     return afm_lcm_out_url(cmd, out, len, err, errlen);

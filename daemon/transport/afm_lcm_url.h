@@ -21,7 +21,7 @@ int afm_lcm_cmd_url(const char *url, char *out, size_t len, char *err, size_t er
 int afm_lcm_out_url(const char *cmd_url, char *out, size_t len, char *err, size_t errlen);
 
 /* Both at once: out_url given -> taken as it is; else derived. */
-int afm_lcm_urls(const char *url, const char *out_url, char *cmd, char *out, size_t len,
-                 char *err, size_t errlen);
+int afm_lcm_urls(const char *url, const char *out_url, char *cmd, char *out, size_t len, char *err,
+                 size_t errlen);
 
 #endif
