@@ -34,3 +34,15 @@ afm_force_params fixture_no_forces(void) {
     f.squeeze = AFM_SQUEEZE_NONE;
     return f;
 }
+
+double complex fixture_mode_h(const afm_modal *m, int i, double w_rad_s) {
+    double re, im;
+    afm_model_mode_response(m, i, w_rad_s, &re, &im);
+    return re + I * im;
+}
+
+double complex fixture_tip_gain(const afm_modal *m, double w_rad_s) {
+    double re, im;
+    afm_model_tip_response(m, w_rad_s, &re, &im);
+    return re + I * im;
+}

@@ -4,6 +4,8 @@
 #define AFM_TEST_FIXTURES_H
 
 #include "afm_force.h"
+
+#include <complex.h>
 #include "afm_model.h"
 
 /* The 4-mode model of ../shared/notes/numerics.md: 370 kHz, 2.27, 6.4, 14 MHz, Q 427, 291,
@@ -14,6 +16,10 @@
  * nmodes (1..4) keeps the first modes (nmodes = 1: mode 1 with all the compliance).
  * q1 > 0 overrides Q of mode 1; xi_hi > 0 overrides xi of modes 3 and 4. */
 afm_modal fixture_model(int nmodes, double q1, double xi_hi);
+
+/* afm_model_mode_response / afm_model_tip_response as complex numbers. */
+double complex fixture_mode_h(const afm_modal *m, int i, double w_rad_s);
+double complex fixture_tip_gain(const afm_modal *m, double w_rad_s);
 
 /* All tip forces off (the force module then returns exactly 0). */
 afm_force_params fixture_no_forces(void);

@@ -75,24 +75,11 @@ static afm_cfg_drive one_tone(double amp_m, double freq_hz, double phase_rad, do
     return d;
 }
 
-static double complex mode_h(const afm_modal *m, int i, double wd) {
-    double w = m->omega_rad_s[i];
-    return (-m->base_k[i] + m->base_m[i] * wd * wd) /
-           (w * w - wd * wd + 2.0 * I * m->xi[i] * w * wd);
-}
-
-static double complex tip_gain(const afm_modal *m, double wd) {
-    double complex g = 0;
-    for (int i = 0; i < m->n; i++)
-        g += m->tip[i] * mode_h(m, i, wd);
-    return g;
-}
-
 /* Exact q(t) of one underdamped mode from (q0, v0) at t0 under the tone A sin(th0 +
  * wd (t - t0)), no tip force. */
 static double mode_exact(const afm_modal *m, int i, double q0, double v0, double amp, double wd,
                          double th0, double tau) {
-    double complex c = amp * mode_h(m, i, wd);
+    double complex c = amp * fixture_mode_h(m, i, wd);
     double qp0 = cimag(c * cexp(I * th0)), vp0 = cimag(I * wd * c * cexp(I * th0));
     double w = m->omega_rad_s[i], xi = m->xi[i], wdd = w * sqrt(1.0 - xi * xi);
     double h0 = q0 - qp0, hv0 = v0 - vp0;
@@ -122,7 +109,7 @@ static void linear_transient_case(void) {
     afm_sim *s = afm_sim_create(&m, &f, &dc, &sc, err, sizeof err);
     if (!check_true(s != NULL, "linear 1 mode: create")) return;
     double wd = two_pi * dc.tones[0].frequency_hz;
-    double amp = cabs(1e-9 * tip_gain(&m, wd)), emax = 0.0;
+    double amp = cabs(1e-9 * fixture_tip_gain(&m, wd)), emax = 0.0;
     check_true(afm_sim_run(s, NBUF, buf) == AFM_SIM_OK, "linear 1 mode: run");
     for (int k = 0; k < NBUF; k++) {
         double x = m.tip[0] * mode_exact(&m, 0, 0.0, 0.0, 1e-9, wd, 0.7, buf[k].t_s);
@@ -151,7 +138,7 @@ static void linear_frf_case(const char *label, double xi_hi) {
     snprintf(what, sizeof what, "%s: run %ld samples (rc %d)", label, settle + nfit, rc);
     check_true(rc == AFM_SIM_OK, what);
     const afm_drive *d = afm_sim_drive(s);
-    double complex g = tip_gain(&m, d->omega_rad_s[0]);
+    double complex g = fixture_tip_gain(&m, d->omega_rad_s[0]);
     double a = 0, b = 0;
     for (int k = 0; k < nfit; k++) {
         double th = afm_drive_phase(d, 0, buf[k].t_s);
@@ -189,7 +176,7 @@ static void tone_change_case(void) {
     check_abs(remainder(afm_drive_phase(afm_sim_drive(s), 0, t0) - th0, two_pi), 0.0, 1e-12,
               "tone change: drive phase continuous (rad)");
     afm_sim_run(s, 4000, buf2);
-    double wd = two_pi * 341.7e3, amp = cabs(1.3e-9 * tip_gain(&m, wd)), emax = 0.0;
+    double wd = two_pi * 341.7e3, amp = cabs(1.3e-9 * fixture_tip_gain(&m, wd)), emax = 0.0;
     for (int k = 0; k < 4000; k++) {
         double x = m.tip[0] * mode_exact(&m, 0, q0, v0, 1.3e-9, wd, th0, buf2[k].t_s - t0);
         emax = fmax(emax, fabs(buf2[k].x_m - x));
@@ -211,7 +198,7 @@ static void tapping_case(int substeps, double tol) {
     afm_force_params f = tapping_forces();
     const int div = 38;
     double wd = two_pi * rate_hz / div;
-    double a_base = 50e-9 / cabs(tip_gain(&m, wd)); /* 50 nm free amplitude */
+    double a_base = 50e-9 / cabs(fixture_tip_gain(&m, wd)); /* 50 nm free amplitude */
     afm_cfg_drive dc = one_tone(a_base, rate_hz / div, 0.0, 30e-9);
     char err[AFM_ERR_LEN], what[256];
     afm_cfg_sim sc = sim_cfg(AFM_INTEGRATOR_RT, substeps);
@@ -266,7 +253,8 @@ static void nan_case(void) {
     afm_modal m = fixture_model(4, 0, 0);
     afm_force_params f = tapping_forces();
     f.hertz_coef = NAN;
-    afm_cfg_drive dc = one_tone(50e-9 / cabs(tip_gain(&m, two_pi * 370e3)), 370e3, 0, 30e-9);
+    afm_cfg_drive dc =
+        one_tone(50e-9 / cabs(fixture_tip_gain(&m, two_pi * 370e3)), 370e3, 0, 30e-9);
     afm_cfg_sim sc = sim_cfg(AFM_INTEGRATOR_RT, 0);
     char err[AFM_ERR_LEN];
     afm_sim *s = afm_sim_create(&m, &f, &dc, &sc, err, sizeof err);
@@ -361,7 +349,7 @@ static void free_vs_cvode_case(const char *label, bool starr, double z, double t
     afm_force_params f = starr ? starr_forces(true) : tapping_forces();
     const int div = 38;
     double wd = two_pi * rate_hz / div;
-    double a_base = 50e-9 / cabs(tip_gain(&m, wd));
+    double a_base = 50e-9 / cabs(fixture_tip_gain(&m, wd));
     afm_cfg_drive dc = one_tone(a_base, rate_hz / div, 0.0, z);
     char err[AFM_ERR_LEN], what[256];
     afm_cfg_sim sc = sim_cfg(AFM_INTEGRATOR_RT, 0);
@@ -521,7 +509,7 @@ static void thermal_seed_case(void) {
     afm_modal m = fixture_model(4, 0, 0);
     afm_force_params f = tapping_forces();
     double wd = m.omega_rad_s[0];
-    afm_cfg_drive dc = one_tone(40e-9 / cabs(tip_gain(&m, wd)), wd / two_pi, 0, 30e-9);
+    afm_cfg_drive dc = one_tone(40e-9 / cabs(fixture_tip_gain(&m, wd)), wd / two_pi, 0, 30e-9);
     afm_cfg_sim sc = sim_cfg(AFM_INTEGRATOR_RT, 0);
     char err[AFM_ERR_LEN] = "";
     afm_cfg_thermal th = {.enabled = true, .temperature_k = 300.0, .seed = 7};
@@ -621,7 +609,7 @@ static void measure_config(const char *path, int substeps, double free_amp_m, do
     if (free_amp_m > 0) { /* drive at mode 1 with the base amplitude for free_amp_m */
         double wd = m.omega_rad_s[0];
         cfg.drive.tones[0].frequency_hz = wd / two_pi;
-        cfg.drive.tones[0].amplitude_m = free_amp_m / cabs(tip_gain(&m, wd));
+        cfg.drive.tones[0].amplitude_m = free_amp_m / cabs(fixture_tip_gain(&m, wd));
     }
     if (z_m > 0) cfg.drive.separation_m = z_m;
     afm_cfg_sim sc = cfg.sim;

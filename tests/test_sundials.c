@@ -31,26 +31,14 @@ static afm_cfg_sim sim_cfg(afm_integrator_kind k) {
     return c;
 }
 
-static double complex mode_h(const afm_modal *m, int i, double w_drive) {
-    double w = m->omega_rad_s[i];
-    return (-m->base_k[i] + m->base_m[i] * w_drive * w_drive) /
-           (w * w - w_drive * w_drive + 2.0 * I * m->xi[i] * w * w_drive);
-}
-
-static double complex tip_gain(const afm_modal *m, double w_drive) {
-    double complex g = 0;
-    for (int i = 0; i < m->n; i++)
-        g += m->tip[i] * mode_h(m, i, w_drive);
-    return g;
-}
-
 /* Analytic steady state of the linear model under drive d at time t. */
 static void steady_state(const afm_modal *m, const afm_drive *d, double t, double *q, double *qd) {
     for (int i = 0; i < m->n; i++) {
         q[i] = qd[i] = 0.0;
         for (int j = 0; j < d->n; j++) {
             double w = d->omega_rad_s[j];
-            double complex z = d->amp_m[j] * mode_h(m, i, w) * cexp(I * afm_drive_phase(d, j, t));
+            double complex z =
+                d->amp_m[j] * fixture_mode_h(m, i, w) * cexp(I * afm_drive_phase(d, j, t));
             q[i] += cimag(z);
             qd[i] += cimag(I * w * z);
         }
@@ -60,8 +48,8 @@ static void steady_state(const afm_modal *m, const afm_drive *d, double t, doubl
 static double analytic_x(const afm_modal *m, const afm_drive *d, double t) {
     double x = 0.0;
     for (int j = 0; j < d->n; j++) {
-        double complex z =
-            d->amp_m[j] * tip_gain(m, d->omega_rad_s[j]) * cexp(I * afm_drive_phase(d, j, t));
+        double complex z = d->amp_m[j] * fixture_tip_gain(m, d->omega_rad_s[j]) *
+                           cexp(I * afm_drive_phase(d, j, t));
         x += cimag(z);
     }
     return x;
@@ -126,7 +114,7 @@ static void frf_case(const char *label, afm_integrator_kind kind, const afm_moda
     check_true(rc == AFM_SIM_OK, what);
     double xamp = 0.0, emax = 0.0;
     for (int j = 0; j < ntones; j++)
-        xamp += d->amp_m[j] * cabs(tip_gain(m, d->omega_rad_s[j]));
+        xamp += d->amp_m[j] * cabs(fixture_tip_gain(m, d->omega_rad_s[j]));
     for (int k = 0; k < n_fit; k++)
         emax = fmax(emax, fabs(buf[k].x_m - analytic_x(m, d, buf[k].t_s)));
     snprintf(what, sizeof what, "%s: max |x - x_analytic| / amplitude", label);
@@ -134,7 +122,7 @@ static void frf_case(const char *label, afm_integrator_kind kind, const afm_moda
     for (int j = 0; j < ntones; j++) {
         double a, ph;
         fit_tone(buf, n_fit, d, j, &a, &ph);
-        double complex g = tip_gain(m, d->omega_rad_s[j]);
+        double complex g = fixture_tip_gain(m, d->omega_rad_s[j]);
         snprintf(what, sizeof what, "%s: tone %d (%.4g Hz) amplitude (m)", label, j,
                  d->omega_rad_s[j] / two_pi);
         check_rel(a, d->amp_m[j] * cabs(g), tol, what);

@@ -131,14 +131,10 @@ static int cmp_double(const void *a, const void *b) {
 
 /* |x_tip / ub| of the linear model (no tip force) for a base tone at w rad/s:
  * |sum_i tip_i (-base_k_i + base_m_i w^2) / (w_i^2 - w^2 + 2 i xi_i w_i w)|. */
+/* |x_tip / x_base| of the linear model at w (free amplitude per base amplitude). */
 static double linear_gain(const afm_modal *m, double w) {
-    double re = 0.0, im = 0.0;
-    for (int i = 0; i < m->n; i++) {
-        double wi = m->omega_rad_s[i], num = m->tip[i] * (-m->base_k[i] + m->base_m[i] * w * w);
-        double dr = wi * wi - w * w, di = 2.0 * m->xi[i] * wi * w, den = dr * dr + di * di;
-        re += num * dr / den;
-        im -= num * di / den;
-    }
+    double re, im;
+    afm_model_tip_response(m, w, &re, &im);
     return hypot(re, im);
 }
 

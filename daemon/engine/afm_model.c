@@ -93,6 +93,26 @@ static int build_lumped(const afm_cfg_model *cfg, afm_modal *m, char *err, size_
     return 0;
 }
 
+void afm_model_mode_response(const afm_modal *m, int i, double w_rad_s, double *re, double *im) {
+    double w = m->omega_rad_s[i], wd = w_rad_s;
+    double num = -m->base_k[i] + m->base_m[i] * wd * wd; /* base acceleration is -wd^2 u */
+    double dr = w * w - wd * wd, di = 2.0 * m->xi[i] * w * wd, den = dr * dr + di * di;
+    *re = num * dr / den;
+    *im = -num * di / den;
+}
+
+void afm_model_tip_response(const afm_modal *m, double w_rad_s, double *re, double *im) {
+    double gr = 0.0, gi = 0.0;
+    for (int i = 0; i < m->n; i++) {
+        double hr, hi;
+        afm_model_mode_response(m, i, w_rad_s, &hr, &hi);
+        gr += m->tip[i] * hr;
+        gi += m->tip[i] * hi;
+    }
+    *re = gr;
+    *im = gi;
+}
+
 int afm_model_build(const afm_cfg_model *cfg, afm_modal *m, char *err, size_t errlen) {
     memset(m, 0, sizeof *m);
     if (cfg->kind == AFM_MODEL_LUMPED) return build_lumped(cfg, m, err, errlen);

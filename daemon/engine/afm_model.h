@@ -33,6 +33,12 @@ typedef struct {
     double beam_mean_width_m;          /* mean W (0 for lumped) */
 } afm_modal;
 
+/* Linear steady state with the tip forces off: a base motion ux1 = Re(A e^{i w t}) gives
+ * q_i = Re(A H_i e^{i w t}) and x_tip = Re(A G e^{i w t}). These write H_i (mode i, in
+ * m kg^0.5 per m of base) and G = sum_i tip_i H_i (m of tip per m of base) as (re, im). */
+void afm_model_mode_response(const afm_modal *m, int i, double w_rad_s, double *re, double *im);
+void afm_model_tip_response(const afm_modal *m, double w_rad_s, double *re, double *im);
+
 /* Build the modal form. 0 on success, -1 with err. */
 int afm_model_build(const afm_cfg_model *cfg, afm_modal *m, char *err, size_t errlen);
 

@@ -606,8 +606,11 @@ static void rt_changed(afm_sim *s) {
         r->th_re[j] = m->rot_base * s->drive.amp_m[j];
         r->th_im[j] = 0.0;
         for (int i = 0; i < m->n; i++) {
-            afm_rt_coef_particular(m->omega_rad_s[i], m->xi[i], m->base_k[i], m->base_m[i],
-                                   s->drive.amp_m[j], r->wd[j], &r->cq_re[j][i], &r->cq_im[j][i]);
+            /* q_p = Im(A H e^{i theta}) for the base tone A sin(theta) */
+            double hr, hi;
+            afm_model_mode_response(m, i, r->wd[j], &hr, &hi);
+            r->cq_re[j][i] = s->drive.amp_m[j] * hr;
+            r->cq_im[j][i] = s->drive.amp_m[j] * hi;
             cx_re[j] += m->tip[i] * r->cq_re[j][i];
             cx_im[j] += m->tip[i] * r->cq_im[j][i];
             r->th_re[j] += m->rot[i] * r->cq_re[j][i];

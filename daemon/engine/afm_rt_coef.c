@@ -162,15 +162,6 @@ void afm_rt_coef_thermal(const afm_rt_prop *p, int n, int np, const double *w, c
     }
 }
 
-void afm_rt_coef_particular(double w, double xi, double base_k, double base_m, double amp_m,
-                            double wd, double *c_re, double *c_im) {
-    double p = (-base_k + wd * wd * base_m) * amp_m;
-    double dr = w * w - wd * wd, di = 2.0 * xi * w * wd;
-    double den = dr * dr + di * di;
-    *c_re = p * dr / den;
-    *c_im = -p * di / den;
-}
-
 void afm_rt_starr_build(afm_rt_starr *st, const afm_force_params *p, double z_m) {
     const int nn = 5;
     const double pi = 3.14159265358979323846;

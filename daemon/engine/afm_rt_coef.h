@@ -68,12 +68,6 @@ void afm_rt_coef_drive(afm_rt_prop *p, int ntones, const double *wd, const doubl
 void afm_rt_coef_thermal(const afm_rt_prop *p, int n, int np, const double *w, const double *xi,
                          double kt_j, double *l11, double *l21, double *l22);
 
-/* Steady-state response of one mode to the base tone A sin(theta), theta' = wd:
- * q_p = Im(c e^{i theta}); returns c as (re, im). The modal force amplitude is
- * (-base_k + wd^2 base_m) A (the base acceleration is -wd^2 A sin(theta)). */
-void afm_rt_coef_particular(double w, double xi, double base_k, double base_m, double amp_m,
-                            double wd, double *c_re, double *c_im);
-
 /* exp(A) of an n x n row-major matrix (n <= 8), scaling and squaring with a Taylor series
  * of the scaled matrix; relative accuracy about 1e-15 for the well-scaled, dissipative
  * matrices used here. */
