@@ -249,6 +249,10 @@ int main(int argc, char **argv) {
         goto out;
     }
     afm_io_sink sink = twind_sink(&d);
+    /* The transports may start threads of their own (LCM's receive thread): they inherit the
+     * receive thread's real-time priority from here, or a busy integrator and chain would
+     * keep them off the CPU and delay commands by up to a block (measured: p99 ~1 ms). */
+    twind_rt_setup_aux(d.opt.rt_priority - 10);
     d.io =
         afm_lcm_io_create(d.opt.lcm_url, d.opt.lcm_out_url, d.opt.prefix, &sink, err, sizeof err);
     if (!d.io) {

@@ -5,9 +5,17 @@
  * harmonics records to the publish thread's rings.
  *
  * Never locks or allocates; its only wait is sem_timedwait on chain_sem while the ring is
- * empty (the integrator posts it after every block), so it sleeps exactly when there is
- * nothing to do. Records carry the seq_applied of the samples they come from: the runner
- * stops before samples of a later command, and the records waiting are pushed first. */
+ * empty (the integrator posts it after every ring item), so it sleeps exactly when there
+ * is nothing to do. Records carry the seq_applied of the samples they come from: the runner
+ * stops before samples of a later command, and the records waiting are pushed first.
+ *
+ * When outputs go out: items are processed one at a time as they arrive, and what they
+ * produced is handed to the publisher (i) once a block (block_s of model time) has
+ * accumulated, (ii) right before samples of a later command (so no message mixes two
+ * commands), and (iii) right after the first item of a new command, so that a controller
+ * sees the effect of its command about one item (73 us) after it is applied rather than a
+ * block later; and (iv) when the integrator is idle: in lockstep whenever the ring is
+ * empty (the ticks so far are done), otherwise after IDLE_WAIT_NS without items. */
 #include "twind.h"
 
 #include <errno.h>
@@ -16,7 +24,7 @@
 #include <time.h>
 
 #define PERIODS_PER_TAKE 64
-#define ITEMS_PER_TURN 8       /* ring items (8 x 1024 samples) between output pushes */
+#define ITEMS_PER_TURN 8       /* ring items (8 x 1024 samples) per turn at stop */
 #define IDLE_WAIT_NS 10000000L /* look at the stop flag every 10 ms when idle */
 
 typedef struct {
@@ -24,6 +32,9 @@ typedef struct {
     afm_runner *r;
     twind_chain_snapshot snap;
     long long period_count; /* periods seen (for harmonics_every) */
+    int64_t pushed_seq;     /* seq_applied at the last push */
+    double pushed_t_s;      /* model time of the last sample processed at the last push */
+    bool waiting;           /* items processed since the last push */
     double busy_acc, busy_t0;
 } chain_ctx;
 
@@ -65,8 +76,19 @@ static void push_outputs(chain_ctx *c) {
         }
     }
     c->snap.st = st;
+    c->pushed_seq = st.seq_applied;
+    c->pushed_t_s = st.t_s;
+    c->waiting = false;
     twind_csnap_write(d, &c->snap);
     sem_post(&d->out_sem); /* wakes the publisher; never blocks */
+}
+
+/* Rules (i)-(iii) of the header: push now? */
+static bool push_due(chain_ctx *c) {
+    afm_runner_chain_status st;
+    afm_runner_chain_status_get(c->r, &st);
+    return st.seq_applied != c->pushed_seq || st.t_s - c->pushed_t_s >= c->d->opt.block_s ||
+           afm_runner_chain_seq_next(c->r);
 }
 
 static double mono(void) {
@@ -75,7 +97,7 @@ static double mono(void) {
 
 void *twind_chain_main(void *arg) {
     twind *d = arg;
-    chain_ctx c = {.d = d, .r = d->runner};
+    chain_ctx c = {.d = d, .r = d->runner, .pushed_seq = -1};
     char warn[256] = "";
     /* Below the publish and receive threads (rt_priority - 10): on a two-core machine the
      * two pipeline stages fill both cores when behind, and outputs and commands must still
@@ -88,10 +110,13 @@ void *twind_chain_main(void *arg) {
     for (;;) {
         double t0 = mono();
         int n, any = 0;
-        while ((n = afm_runner_chain_run(c.r, ITEMS_PER_TURN)) > 0) {
+        while ((n = afm_runner_chain_run(c.r, 1)) > 0) {
             any = 1;
-            push_outputs(&c);
+            c.waiting = true;
+            if (push_due(&c)) push_outputs(&c);
         }
+        /* (iv) in lockstep: the ring is empty, so the ticks so far are all done */
+        if (c.waiting && d->opt.mode == TWIND_LOCKSTEP) push_outputs(&c);
         double t1 = mono();
         if (any) c.busy_acc += t1 - t0;
         if (t1 - c.busy_t0 >= 1.0) {
@@ -113,8 +138,11 @@ void *twind_chain_main(void *arg) {
             ts.tv_sec++;
             ts.tv_nsec -= 1000000000L;
         }
-        while (sem_timedwait(&d->chain_sem, &ts) != 0 && errno == EINTR) {
+        int w;
+        while ((w = sem_timedwait(&d->chain_sem, &ts)) != 0 && errno == EINTR) {
         }
+        /* (iv): nothing came for IDLE_WAIT_NS (paused, single steps) */
+        if (w != 0 && c.waiting) push_outputs(&c);
     }
     push_outputs(&c);
     atomic_store_explicit(&d->chain_done, 1, memory_order_release);

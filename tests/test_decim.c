@@ -2,7 +2,9 @@
 /* test_decim.c -- afm_decim frequency response: sinusoids in the kept band come out with
  * gain 1 within 0.01 dB; every image that folds into the kept band (fs_out k +- f, up to
  * the input Nyquist rate) is rejected by >= 80 dB; the group delay is what
- * afm_decim_delay says; R = 1 passes through; non-finite input resets and is counted.
+ * afm_decim_delay says; R = 1 passes through; non-finite input resets and is counted; the
+ * zero-copy input (afm_decim_in / afm_decim_commit) and any split of the input into calls
+ * give the same output bits as afm_decim_run in whole passes.
  *
  * Amplitudes are measured by a least-squares fit of a cos + b sin + c at the known output
  * frequency over 400 output samples taken after the filter's transient: exact for a pure
@@ -13,6 +15,7 @@
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
 
 static const double pi = 3.14159265358979323846;
 
@@ -183,7 +186,55 @@ static void nonfinite(void) {
     afm_decim_destroy(&d);
 }
 
+/* The same input (noise-like, 4 channels, a NaN frame when nan) through one decimator in
+ * run calls of 2000 (several passes each), one in run calls of 1, 3, 7, 64, ..., and one
+ * through afm_decim_in / afm_decim_commit in calls of up to room frames (all_finite set
+ * when no NaN went in). */
+static void splits_case(int R, double p, int nan) {
+    enum { N = 20000 };
+    char err[256], what[200];
+    static double in[4 * N], out[3][4 * (N + 64)];
+    long got[3] = {0, 0, 0}, nf[3];
+    for (int i = 0; i < 4 * N; i++)
+        in[i] = sin(0.37 * i) + 0.5 * cos(1.91 * i * i / (4.0 * N));
+    if (nan) in[4 * 777 + 2] = NAN;
+    for (int v = 0; v < 3; v++) {
+        afm_decim *d = afm_decim_create(R, p, err, sizeof err);
+        if (!check_true(d != NULL, "splits: create")) return;
+        static const int sizes[] = {1, 3, 7, 64, 511, 2, 300};
+        for (long i = 0, k = 0; i < N; k++) {
+            long n = v == 0 ? 2000 : v == 1 ? sizes[k % 7] : 500 - 37 * (k % 5);
+            if (n > N - i) n = N - i;
+            if (v < 2) {
+                got[v] += afm_decim_run(d, in + 4 * i, (int)n, out[v] + 4 * got[v]);
+            } else {
+                int room;
+                double *dst = afm_decim_in(d, &room);
+                if (n > room) n = room;
+                memcpy(dst, in + 4 * i, (size_t)n * 4 * sizeof *dst);
+                int fin = !(nan && i <= 777 && 777 < i + n);
+                got[v] += afm_decim_commit(d, (int)n, fin, out[v] + 4 * got[v]);
+            }
+            i += n;
+        }
+        nf[v] = afm_decim_nonfinite(d);
+        afm_decim_destroy(&d);
+    }
+    int same = got[0] == N / R && got[1] == got[0] && got[2] == got[0] && nf[0] == nan &&
+               nf[1] == nan && nf[2] == nan;
+    for (int v = 1; v < 3 && same; v++)
+        same = memcmp(out[0], out[v], 4 * (size_t)got[0] * sizeof(double)) == 0;
+    snprintf(what, sizeof what,
+             "R %d p %g%s: runs of 2000, of 1..511, zero-copy commits: the same %ld outputs", R, p,
+             nan ? " (a NaN frame)" : "", got[0]);
+    check_true(same, what);
+}
+
 int main(void) {
+    splits_case(16, 0.8, 0);
+    splits_case(16, 0.8, 1);
+    splits_case(5, 0.9, 0);
+    splits_case(256, 0.8, 1);
     passthrough();
     nonfinite();
     response_case(16, 0.8, 1);

@@ -97,6 +97,73 @@ static void test_harm_dft(int n0) {
                "DFT: period length N samples");
 }
 
+/* The DFT check for harmonic lists of 1 to 16 harmonics, with and without harmonic 1 (then
+ * carried in an extra lane for phi_1), i.e. 1 to 5 groups of 4 lanes, fed by
+ * afm_harm_push_n in blocks of 1..61 samples (what the chain runs); every line k = 1..17 is
+ * in the signal. */
+static void test_harm_dft_lanes(const int *ks, int nk, const char *what_list) {
+    enum { N = 100, NP = 4, N0 = 13, KMAX = 17 };
+    static double x[N * NP + N0 + 1], f[N * NP + N0 + 1], th[N * NP + N0 + 1];
+    const int total = N * NP + N0 + 1;
+    for (int n = 0; n < total; n++) {
+        x[n] = 1e-9;
+        f[n] = -2e-9;
+        for (int k = 1; k <= KMAX; k++) {
+            double a = 2 * pi * k * (double)(n - N0) / N;
+            x[n] += 3e-8 / k * cos(a + 0.37 * k);
+            f[n] += 5e-9 / (k * k) * cos(a - 0.61 * k);
+        }
+        th[n] = 2 * pi * (double)(n - N0) / N + 2 * pi * 3;
+    }
+    afm_harm h;
+    check_true(afm_harm_init(&h, ks, nk, NULL, 0) == 0, "harm init");
+    int periods = 0;
+    long long rej = 0;
+    double max_amp = 0, max_ph = 0, max_fa = 0, max_fp = 0, max_pd = 0;
+    for (int n = 0, b = 0; n < total; b++) {
+        int done, want = 1 + (b * 29) % 61;
+        n += afm_harm_push_n(&h, x + n, f + n, th + n, want < total - n ? want : total - n, &done,
+                             &rej);
+        if (!done) continue;
+        periods++;
+        /* sample n - 1 completed the period [n - 1 - N, n - 1); phi_1 from the DFT at k = 1 */
+        const double *xp = x + n - 1 - N, *fp = f + n - 1 - N;
+        double phi1 = 0;
+        for (int j = -1; j < nk; j++) {
+            int k = j < 0 ? 1 : ks[j];
+            double xr = 0, xi = 0, fr = 0, fi = 0;
+            for (int i = 0; i < N; i++) {
+                double a = 2 * pi * k * (double)i / N;
+                xr += xp[i] * cos(a);
+                xi -= xp[i] * sin(a);
+                fr += fp[i] * cos(a);
+                fi -= fp[i] * sin(a);
+            }
+            double ph = atan2(xi, xr);
+            if (j < 0) {
+                phi1 = ph;
+                continue;
+            }
+            double pd = fmod(k * (pi - phi1) + ph, 2 * pi);
+            if (pd < 0) pd += 2 * pi;
+            const afm_orbit_harmonic *o = &h.out.h[j];
+            max_amp = fmax(max_amp, fabs(o->x_amp_m / (2 * hypot(xr, xi) / N) - 1) + (o->k != k));
+            max_ph = fmax(max_ph, fabs(wrap_rad(o->x_phase_deg * pi / 180 - ph)));
+            max_fa = fmax(max_fa, fabs(o->f_amp_n / (2 * hypot(fr, fi) / N) - 1));
+            max_fp = fmax(max_fp, fabs(wrap_rad(o->f_phase_deg * pi / 180 - atan2(fi, fr))));
+            max_pd = fmax(max_pd, fabs(wrap_rad((o->phase_diff_deg * pi / 180) - pd)));
+        }
+    }
+    char what[160];
+    snprintf(what, sizeof what, "DFT %s: %d periods through push_n, none rejected", what_list, NP);
+    check_true(periods == NP && rej == 0 && h.out.n_harmonics == nk, what);
+    /* as test_harm_dft: rounding only (lines down to 5e-9 / 17^2 = 1.7e-11 of ~6e-8) */
+    snprintf(what, sizeof what, "DFT %s: amplitudes x, F, max rel diff", what_list);
+    check_abs(fmax(max_amp, max_fa), 0, 1e-9, what);
+    snprintf(what, sizeof what, "DFT %s: phases x, F, phase_diff, max diff (rad)", what_list);
+    check_abs(fmax(max_ph, fmax(max_fp, max_pd)), 0, 1e-9, what);
+}
+
 /* Non-integer samples per period, a pure tone locked to the drive phase, through a
  * phase-continuous frequency change: fractional-end trapezoid to ~1e-6. */
 static void test_harm_fractional(void) {
@@ -203,6 +270,7 @@ static void test_lockin_filter(int order) {
     double max_exact = 0, max_cont = 0, at_tau = 0;
     /* exact discrete response y_n = sum_{j<n} alpha^m C(j+m-1, m-1) beta^j */
     double sum = 0, term = pow(alpha, order); /* j = 0 */
+    static double exact[10001];
     for (int n = 1; n <= 10000; n++) {
         afm_lockin_push(&l, 0.5, pi / 2);
         sum += term;
@@ -215,12 +283,34 @@ static void test_lockin_filter(int order) {
         }
         cont = 1 - exp(-tt) * cont;
         max_exact = fmax(max_exact, fabs(y - sum));
+        exact[n] = sum;
         max_cont = fmax(max_cont, fabs(y - cont));
         if (n == 1000) at_tau = y;
     }
     char what[128];
     snprintf(what, sizeof what, "lock-in order %d: step response = exact discrete cascade", order);
     check_abs(max_exact, 0, 1e-12, what);
+    /* the same step through afm_lockin_push_n in blocks of 1..150 samples (block updates of
+     * up to AFM_LOCKIN_TAB samples): the exact response at every block end, same tolerance */
+    {
+        afm_lockin lb;
+        afm_lockin_init(&lb, &c, dt, NULL, 0);
+        static double ub[10000], tb[10000];
+        for (int n = 0; n < 10000; n++)
+            ub[n] = 0.5, tb[n] = pi / 2;
+        double max_blk = 0;
+        int rej = 0;
+        for (int n0 = 0, b = 0; n0 < 10000; b++) {
+            int k = 1 + (b * 37) % 150;
+            if (k > 10000 - n0) k = 10000 - n0;
+            rej += afm_lockin_push_n(&lb, ub + n0, tb + n0, k);
+            n0 += k;
+            max_blk = fmax(max_blk, fabs(afm_lockin_x(&lb) - exact[n0]));
+        }
+        snprintf(what, sizeof what, "lock-in order %d: push_n in blocks = exact discrete cascade",
+                 order);
+        check_abs(max_blk + rej, 0, 1e-12, what);
+    }
     /* The discretisation holds each stage's input over the step, so every stage leads the
      * continuous one by at most dt / tau of the unit step; tau = 1000 dt. */
     snprintf(what, sizeof what, "lock-in order %d: vs continuous Erlang step (tol order dt/tau)",
@@ -241,6 +331,58 @@ static void test_lockin_filter(int order) {
     check_true(afm_lockin_init(&l, &bad, dt, err, sizeof err) == -1 && err[0] &&
                    memcmp(&before, &l, sizeof l) == 0,
                "lock-in rejects tau = 0, unchanged");
+}
+
+/* Short time constants: the block update's length limit ln 2 / (2 alpha) falls below
+ * AFM_LOCKIN_TAB (tau = 20 dt: 7 samples) or below 4 (tau = 2 dt: every sample by the
+ * recursion). A step at theta = pi/2 through afm_lockin_push_n in blocks of 1..97 samples
+ * must give the exact discrete response (as test_lockin_filter) at every block end, and a
+ * rotating reference (0.3 rad per sample) the same state as pushes, bit for bit. */
+static void test_lockin_short_tau(int order, double tau_dt) {
+    enum { NS = 3000 };
+    const double dt = 1.0 / fs;
+    afm_cfg_lockin c = {.time_constant_s = tau_dt * dt, .order = order};
+    afm_lockin l1, l2;
+    afm_lockin_init(&l1, &c, dt, NULL, 0);
+    afm_lockin_init(&l2, &c, dt, NULL, 0);
+    double alpha = -expm1(-1.0 / tau_dt), beta = 1 - alpha;
+    static double u[NS], th[NS], exact[NS + 1];
+    double sum = 0, term = pow(alpha, order);
+    for (int n = 1; n <= NS; n++) {
+        u[n - 1] = 0.5;
+        th[n - 1] = pi / 2;
+        sum += term;
+        term *= beta * (double)(n - 1 + order) / (double)n;
+        exact[n] = sum;
+    }
+    double max_err = 0;
+    int rej = 0;
+    for (int n0 = 0, b = 0; n0 < NS; b++) {
+        int k = 1 + (b * 41) % 97;
+        if (k > NS - n0) k = NS - n0;
+        rej += afm_lockin_push_n(&l1, u + n0, th + n0, k);
+        n0 += k;
+        max_err = fmax(max_err, fabs(afm_lockin_x(&l1) - exact[n0]));
+    }
+    char what[128];
+    snprintf(what, sizeof what, "lock-in order %d, tau %g dt: push_n step = exact discrete cascade",
+             order, tau_dt);
+    check_abs(max_err + rej, 0, 1e-12, what);
+    afm_lockin_reset(&l1);
+    for (int n = 0; n < NS; n++) {
+        th[n] = 1.0 + 0.3 * n;
+        u[n] = 1e-9 * sin(th[n] - 0.7) + 2e-10 * cos(3 * th[n]);
+        afm_lockin_push(&l2, u[n], th[n]);
+    }
+    for (int n0 = 0, b = 0; n0 < NS; b++) {
+        int k = 1 + (b * 41) % 97;
+        if (k > NS - n0) k = NS - n0;
+        afm_lockin_push_n(&l1, u + n0, th + n0, k);
+        n0 += k;
+    }
+    snprintf(what, sizeof what,
+             "lock-in order %d, tau %g dt: push_n in blocks = pushes, bit for bit", order, tau_dt);
+    check_true(memcmp(&l1, &l2, sizeof l1) == 0, what);
 }
 
 /* Linear 1-mode oscillator (lumped, Q = 100, f0 = 300 kHz, base excitation) at r = fe/f0,
@@ -457,8 +599,12 @@ static void test_phase_tracking(void) {
         slow_h += h.trk.n == 0;
         slow_l += l.trk.n == 0;
         double p = fmod(th, 2 * pi);
-        eh = fmax(eh, hypot(h.er[0] - cos(p), h.ei[0] + sin(p)));
-        el = fmax(el, hypot(l.c - cos(th), l.s - sin(th)));
+        double hr, hi;
+        afm_harm_phasor1(&h, &hr, &hi);
+        eh = fmax(eh, hypot(hr - cos(p), hi + sin(p)));
+        double lc, ls;
+        afm_lockin_phasor(&l, &lc, &ls);
+        el = fmax(el, hypot(lc - cos(th), ls - sin(th)));
     }
     printf("  phase tracking: max |phasor - e^{i theta}| harm %.2e lock-in %.2e; exact samples "
            "harm %ld lock-in %ld of %ld\n",
@@ -549,10 +695,23 @@ static void test_block_equivalence(void) {
 int main(void) {
     test_harm_dft(0);
     test_harm_dft(37);
+    {
+        static const int k3[] = {3}, k8[] = {1, 2, 3, 4, 5, 6, 7, 8},
+                         k10[] = {2, 3, 4, 5, 6, 7, 8, 9, 10, 11},
+                         k16[] = {16, 15, 14, 13, 12, 11, 10, 9, 8, 7, 6, 5, 4, 3, 2, 1},
+                         k17[] = {2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 17};
+        test_harm_dft_lanes(k3, 1, "{3}");
+        test_harm_dft_lanes(k8, 8, "{1..8}");
+        test_harm_dft_lanes(k10, 10, "{2..11}");
+        test_harm_dft_lanes(k16, 16, "{16..1}");
+        test_harm_dft_lanes(k17, 16, "{2..17}");
+    }
     test_harm_fractional();
     test_harm_defaults_and_errors();
     test_lockin_filter(1);
     test_lockin_filter(4);
+    test_lockin_short_tau(4, 20.0);
+    test_lockin_short_tau(3, 2.0);
     test_lockin_oscillator(1.0, "at resonance");
     test_lockin_oscillator(0.99, "below resonance");
     test_lockin_oscillator(1.01, "above resonance");

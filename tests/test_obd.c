@@ -5,10 +5,17 @@
  *    higher modes' factors g_n are printed (docs/obd.md quotes them);
  *  - noise: the averaged periodogram of the sensor output is flat at the configured
  *    one-sided density D^2 (400 periodograms x 511 bins: statistical error ~0.2 %, checked
- *    to 2 %); normal deviates have mean 0, variance 1, P(|z| > 3) = 0.0026998;
+ *    to 2 %); normal deviates, one at a time and in bulk (afm_rng_normal_fill), have mean
+ *    0, variance 1, fourth moment 3, the normal CDF and tails, and (bulk) no correlation
+ *    between neighbours or between the two deviates of one draw;
  *  - ADC: the step is 2 full_scale / 2^bits, rounding and clamping exact, clamps counted;
+ *  - block reads: afm_obd_read_block gives afm_obd_read's bits and clamp counts for every
+ *    sensor variant (noise, ADC, none, disabled, lumped; NaN and infinite input) however the
+ *    samples are split into calls;
  *  - chain: a tone through default.conf's streams (16, 256) comes out with gain 1 and
- *    time stamps that line up with the input (group delay removed) to 1e-4. */
+ *    time stamps that line up with the input (group delay removed) to 1e-4; the outputs do
+ *    not depend on how the input is split into pushes; NaN samples are counted by the
+ *    decimators and the outputs stay finite. */
 #include "afm_chain.h"
 #include "afm_config.h"
 #include "afm_model.h"
@@ -174,6 +181,63 @@ static void noise(void) {
     check_true(same, "same seed, same sequence");
 }
 
+/* Bulk normals: 4e6 deviates (standard errors: mean 5e-4, variance 7e-4, fourth moment
+ * 5e-3, a CDF point <= 2.5e-4, P(|z| > 3) 2.6e-5, P(|z| > 4) 4e-6, a correlation 5e-4);
+ * tolerances ~6 standard errors. */
+static void bulk_normals(void) {
+    enum { N = 4000000, LAGS = 8 };
+    static double z[N];
+    afm_rng r;
+    afm_rng_seed(&r, 2024);
+    afm_rng_normal_fill(&r, z, N);
+    double sum = 0, sq = 0, q4 = 0, lag[LAGS + 1] = {0}, alag4 = 0, asum = 0, asq = 0;
+    const double xs[] = {-2.0, -1.0, -0.5, 0.0, 0.5, 1.0, 2.0};
+    long below[7] = {0}, tail3 = 0, tail4 = 0;
+    for (long i = 0; i < N; i++) {
+        double v = z[i], a = fabs(v);
+        sum += v;
+        sq += v * v;
+        q4 += v * v * v * v;
+        asum += a;
+        asq += a * a;
+        tail3 += a > 3.0;
+        tail4 += a > 4.0;
+        for (int k = 0; k < 7; k++)
+            below[k] += v < xs[k];
+        for (int k = 1; k <= LAGS && i + k < N; k++)
+            lag[k] += v * z[i + k];
+        if (i + 4 < N) alag4 += a * fabs(z[i + 4]);
+    }
+    check_abs(sum / N, 0, 3e-3, "bulk normal: mean 0");
+    check_abs(sq / N, 1, 4e-3, "bulk normal: variance 1");
+    check_abs(q4 / N, 3, 0.03, "bulk normal: fourth moment 3");
+    check_abs((double)tail3 / N, 0.0026998, 1.5e-4, "bulk normal: P(|z| > 3)");
+    check_abs((double)tail4 / N, 6.3342e-5, 2.5e-5, "bulk normal: P(|z| > 4)");
+    double worst_cdf = 0;
+    for (int k = 0; k < 7; k++) /* Phi(x) = erfc(-x / sqrt 2) / 2 */
+        worst_cdf = fmax(worst_cdf, fabs((double)below[k] / N - 0.5 * erfc(-xs[k] / sqrt(2.0))));
+    check_abs(worst_cdf, 0, 1.5e-3, "bulk normal: CDF at -2 .. 2 (worst error)");
+    double worst_lag = 0;
+    for (int k = 1; k <= LAGS; k++)
+        worst_lag = fmax(worst_lag, fabs(lag[k] / (N - k)));
+    check_abs(worst_lag, 0, 3e-3, "bulk normal: correlation at lags 1..8 (worst)");
+    /* lag 4: the two deviates of one 64-bit draw; |z| catches dependence beyond linear */
+    double ma = asum / N, va = asq / N - ma * ma;
+    check_abs((alag4 / (N - 4) - ma * ma) / va, 0, 3e-3,
+              "bulk normal: |z| of the two halves of a draw uncorrelated");
+    /* the sequence does not depend on how it is split into calls */
+    afm_rng a;
+    afm_rng_seed(&a, 2024);
+    static double y[4096];
+    for (int k = 0; k < 4096;) {
+        int m = 8 * (1 + k % 5);
+        if (m > 4096 - k) m = 4096 - k;
+        afm_rng_normal_fill(&a, y + k, m);
+        k += m;
+    }
+    check_true(memcmp(y, z, sizeof y) == 0, "bulk normal: the same sequence in calls of 8 .. 40");
+}
+
 static void adc(void) {
     afm_config cfg;
     afm_modal m;
@@ -213,6 +277,82 @@ static void adc(void) {
     int32_t cnt;
     afm_obd_read(&o, &s, &cnt);
     check_true(cnt == INT32_MAX && o.n_saturated == 1, "32-bit ADC clamps at INT32_MAX");
+}
+
+/* One sensor variant: afm_obd_read sample by sample against afm_obd_read_block in uneven
+ * calls on an identically initialised sensor: same bits (NaN where NaN), same clamps. */
+static int block_case(const afm_config *cfg, const afm_modal *m, const char *what) {
+    enum { N = 3000 };
+    static afm_sample s[N];
+    static double one[N], blk[N];
+    char err[AFM_ERR_LEN], msg[200];
+    afm_obd a, b;
+    if (afm_obd_init(&a, cfg, m, err, sizeof err) || afm_obd_init(&b, cfg, m, err, sizeof err))
+        return check_true(false, err);
+    double fs_m = cfg->obd.full_scale_m;
+    for (int i = 0; i < N; i++) { /* sweeps past the full scale both ways */
+        double v = 1.3 * fs_m * sin(0.01 * i);
+        s[i] = (afm_sample){.t_s = i * 1e-7, .x_m = v, .theta_rad = v / a.cal_m_rad};
+        if (!a.use_slope) s[i].theta_rad = 0.0;
+    }
+    s[17].theta_rad = s[17].x_m = NAN;
+    s[18].theta_rad = s[18].x_m = INFINITY;
+    s[19].theta_rad = s[19].x_m = -INFINITY;
+    int32_t cnt;
+    for (int i = 0; i < N; i++)
+        one[i] = afm_obd_read(&a, &s[i], &cnt);
+    static const int sizes[] = {1, 3, 7, 512, 13, 600, 2, 1000, 5};
+    for (int i = 0, k = 0; i < N; k++) {
+        int n = sizes[k % 9] < N - i ? sizes[k % 9] : N - i;
+        afm_obd_read_block(&b, s + i, n, blk + i);
+        i += n;
+    }
+    int same = a.n_saturated == b.n_saturated;
+    for (int i = 0; i < N; i++)
+        same &= isnan(one[i]) ? isnan(blk[i]) : memcmp(&one[i], &blk[i], sizeof one[i]) == 0;
+    snprintf(msg, sizeof msg, "block read = per-sample reads, %s (%lld clamps)", what,
+             a.n_saturated);
+    return check_true(same, msg);
+}
+
+static void block_reads(void) {
+    afm_config cfg;
+    afm_modal m;
+    if (setup("config/nchv.conf", &cfg, &m)) return;
+    cfg.obd.enabled = true;
+    cfg.obd.full_scale_m = 200e-9;
+    cfg.obd.noise_density_m_rthz = 50e-15;
+    cfg.obd.adc_bits = 16;
+    block_case(&cfg, &m, "noise + 16-bit ADC");
+    cfg.obd.adc_bits = 0;
+    block_case(&cfg, &m, "noise, no ADC");
+    cfg.obd.noise_density_m_rthz = 0;
+    cfg.obd.adc_bits = 12;
+    block_case(&cfg, &m, "12-bit ADC, no noise");
+    cfg.obd.adc_bits = 0;
+    block_case(&cfg, &m, "no noise, no ADC");
+    cfg.obd.enabled = false;
+    block_case(&cfg, &m, "disabled");
+    afm_config lc;
+    afm_modal lm;
+    if (setup("config/thesis-1dof.conf", &lc, &lm) == 0) {
+        lc.obd.enabled = true;
+        lc.obd.full_scale_m = 200e-9;
+        lc.obd.noise_density_m_rthz = 50e-15;
+        lc.obd.adc_bits = 16;
+        block_case(&lc, &lm, "lumped model (reads x), noise + ADC");
+    }
+    /* NaN input: a NaN reading and counts 0, not a clamp; infinite input clamps */
+    afm_obd o;
+    char err[AFM_ERR_LEN];
+    cfg.obd.enabled = true;
+    cfg.obd.adc_bits = 16;
+    afm_obd_init(&o, &cfg, &m, err, sizeof err);
+    afm_sample sn = {.theta_rad = NAN}, si = {.theta_rad = INFINITY};
+    int32_t cn = 1, ci = 0;
+    double vn = afm_obd_read(&o, &sn, &cn), vi = afm_obd_read(&o, &si, &ci);
+    check_true(isnan(vn) && cn == 0 && vi == 32767 * o.lsb_m && ci == 32767 && o.n_saturated == 1,
+               "NaN theta reads NaN (no clamp), +inf clamps to 32767 counts (one clamp)");
 }
 
 /* A tone at 20 kHz (in the 256 stream's band: 0.8 x 27.5 kHz) through default.conf's chain. */
@@ -267,10 +407,102 @@ static void chain(void) {
     check_true(c == NULL, "chain: destroy clears the pointer");
 }
 
+/* Everything a chain stream produced (t, x, obd, counts, f, base per sample). */
+typedef struct {
+    long n[2];
+    double *v[2];
+} chain_log;
+
+static void drain(afm_chain *c, chain_log *g) {
+    afm_chain_block b;
+    for (int k = 0; k < 2; k++)
+        while (afm_chain_take_block(c, k, &b, 0) > 0)
+            for (int i = 0; i < b.n; i++, g->n[k]++) {
+                double *w = g->v[k] + 6 * g->n[k];
+                w[0] = b.t_s[i];
+                w[1] = b.x_m[i];
+                w[2] = b.obd_m[i];
+                w[3] = b.obd_counts ? b.obd_counts[i] : 0;
+                w[4] = b.f_n[i];
+                w[5] = b.base_m[i];
+            }
+}
+
+/* default.conf's chain (16-bit ADC, 50 fm/rtHz noise) fed a tone: the same input pushed in
+ * one call per 4096 samples and in calls of 1, 7, 13, 512, 1000, 3 samples gives the same
+ * outputs bit for bit; NaN samples (theta, x) are counted once each by the first-stage
+ * decimator, infinite theta as a clamp, and every output stays finite. */
+static void chain_slices(void) {
+    afm_config cfg;
+    afm_modal m;
+    char err[AFM_ERR_LEN];
+    if (setup("config/default.conf", &cfg, &m)) return;
+    enum { N = 40000 };
+    static afm_sample s[N];
+    const double fs = cfg.sim.sample_rate_hz, cal = m.tip[0] / m.rot[0];
+    for (int i = 0; i < N; i++) {
+        double t = i / fs, x = 20e-9 * sin(2 * pi * 300e3 * t);
+        s[i] = (afm_sample){.t_s = t,
+                            .x_m = x,
+                            .theta_rad = x / cal,
+                            .f_n = 1e-9 * cos(x),
+                            .base_m = 1e-10 * sin(2 * pi * 300e3 * t)};
+    }
+    chain_log g[2];
+    for (int r = 0; r < 2; r++) {
+        g[r].n[0] = g[r].n[1] = 0;
+        g[r].v[0] = malloc(6 * (N / 16 + 8) * sizeof(double));
+        g[r].v[1] = malloc(6 * (N / 256 + 8) * sizeof(double));
+        afm_chain *c = afm_chain_create(&cfg, &m, err, sizeof err);
+        if (!check_true(c != NULL, "slices: create")) return;
+        static const int sizes[] = {1, 7, 13, 512, 1000, 3};
+        for (int i = 0, k = 0; i < N; k++) {
+            int n = r == 0 ? 4096 : sizes[k % 6];
+            if (n > N - i) n = N - i;
+            afm_chain_push(c, s + i, n);
+            drain(c, &g[r]);
+            i += n;
+        }
+        afm_chain_destroy(&c);
+    }
+    bool same = g[0].n[0] == g[1].n[0] && g[0].n[1] == g[1].n[1] && g[0].n[0] == N / 16 &&
+                g[0].n[1] == N / 256;
+    for (int k = 0; k < 2 && same; k++)
+        same = memcmp(g[0].v[k], g[1].v[k], 6 * (size_t)g[0].n[k] * sizeof(double)) == 0;
+    check_true(same, "chain: pushes of 4096 vs 1, 7, 13, 512, 1000, 3 samples: identical outputs");
+
+    /* non-finite samples */
+    s[1000].theta_rad = NAN;
+    s[3000].x_m = NAN;
+    s[5000].theta_rad = INFINITY;
+    afm_chain *c = afm_chain_create(&cfg, &m, err, sizeof err);
+    if (!check_true(c != NULL, "nan: create")) return;
+    g[0].n[0] = g[0].n[1] = 0;
+    for (int i = 0; i < N; i += 1000)
+        afm_chain_push(c, s + i, 1000);
+    drain(c, &g[0]);
+    afm_chain_stats st = afm_chain_stats_get(c);
+    bool finite = true;
+    for (int k = 0; k < 2; k++)
+        for (long i = 0; i < 6 * g[0].n[k]; i++)
+            finite &= isfinite(g[0].v[k][i]);
+    check_true(st.nonfinite == 2 && st.obd_saturated == 1 && st.pushed == N,
+               "chain: 2 NaN samples counted by the decimators, +inf theta as 1 clamp");
+    check_true(finite && g[0].n[0] == N / 16 && g[0].n[1] == N / 256,
+               "chain: after NaN input every output finite, none missing");
+    afm_chain_destroy(&c);
+    for (int r = 0; r < 2; r++)
+        for (int k = 0; k < 2; k++)
+            free(g[r].v[k]);
+}
+
 int main(void) {
     calibration();
     noise();
+    bulk_normals();
     adc();
+    block_reads();
     chain();
+    chain_slices();
     return check_done();
 }

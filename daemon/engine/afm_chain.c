@@ -8,9 +8,14 @@
 #include "afm_lockin.h"
 
 #include <math.h>
+#include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+
+#if defined(__AVX2__) && defined(__FMA__)
+#include <immintrin.h>
+#endif
 
 #define CHUNK 512         /* full-rate samples processed per inner pass */
 #define RING_SECONDS 0.05 /* each stream's ring holds this much output... */
@@ -20,6 +25,16 @@
 
 enum { CH_X, CH_OBD, CH_F, CH_BASE };
 
+/* pack_frames reads (x, v, f, theta) and (v, f, theta, base) as two 4-double runs of a sample. */
+_Static_assert(offsetof(afm_sample, v_m_s) == offsetof(afm_sample, x_m) + sizeof(double) &&
+                   offsetof(afm_sample, f_n) == offsetof(afm_sample, x_m) + 2 * sizeof(double) &&
+                   offsetof(afm_sample, theta_rad) ==
+                       offsetof(afm_sample, x_m) + 3 * sizeof(double) &&
+                   offsetof(afm_sample, base_m) == offsetof(afm_sample, x_m) + 4 * sizeof(double),
+               "afm_sample: x, v, f, theta, base consecutive");
+_Static_assert(CH_X == 0 && CH_OBD == 1 && CH_F == 2 && CH_BASE == 3 && AFM_DECIM_CH == 4,
+               "frame = (x, obd, f, base)");
+
 typedef struct {
     int factor; /* R from the input */
     int src;    /* stream it is decimated from, -1 = the input */
@@ -28,7 +43,8 @@ typedef struct {
     double delay_s; /* this decimator's group delay in seconds */
     double dt_src;  /* sample interval of its source */
     double *frames; /* (CHUNK + 1) frames of this pass's output */
-    double *t;      /* their times */
+    double *t;      /* their times (the model time of the sample completing each, minus the
+                       delay) */
     int n_frames;
     /* ring (structure of arrays) */
     int cap, head, count;
@@ -40,8 +56,8 @@ struct afm_chain {
     int n_streams;
     stream st[AFM_MAX_OUTPUTS];
     int order[AFM_MAX_OUTPUTS]; /* streams by ascending factor */
-    double *in_frames;          /* CHUNK frames */
-    double *in_t;
+    int primary;                /* the input-fed stream whose decimator input the frames are
+                                   packed into (the other input-fed ones copy from there) */
     double fs;
     /* estimators */
     bool attached;
@@ -108,10 +124,15 @@ afm_chain *afm_chain_create(const afm_config *cfg, const afm_modal *m, char *err
         if (!s->frames || !s->t || !s->rt || !s->rx || !s->robd || !s->rcnt || !s->rf || !s->rbase)
             goto oom;
     }
-    c->in_frames = malloc(CHUNK * AFM_DECIM_CH * sizeof *c->in_frames);
-    c->in_t = malloc(CHUNK * sizeof *c->in_t);
-    c->periods = malloc(PERIOD_RING * sizeof *c->periods);
-    if (!c->in_frames || !c->in_t || !c->periods) goto oom;
+    c->primary = c->order[0]; /* the smallest factor is always decimated from the input */
+    int room;
+    afm_decim_in(c->st[c->primary].dec, &room);
+    if (room < CHUNK) {
+        fail_msg(err, errlen, "decimator input smaller than a pass");
+        goto fail;
+    }
+    c->periods = calloc(PERIOD_RING, sizeof *c->periods);
+    if (!c->periods) goto oom;
 
     /* Estimators: initialised now, run once attached. */
     int ks[AFM_MAX_HARMONICS], nk = cfg->sim.n_harmonics;
@@ -145,8 +166,6 @@ void afm_chain_destroy(afm_chain **cp) {
         free(s->rf);
         free(s->rbase);
     }
-    free(c->in_frames);
-    free(c->in_t);
     free(c->periods);
     free(c);
     *cp = NULL;
@@ -178,31 +197,126 @@ int afm_chain_set_separation(afm_chain *c, double z_m) {
 /* Append this pass's output of stream s to its ring (dropping the oldest when full). */
 static void ring_put(afm_chain *c, int idx) {
     stream *s = &c->st[idx];
-    double inv_lsb = c->obd.adc_bits > 0 ? c->obd.inv_lsb : 0.0;
-    for (int k = 0; k < s->n_frames; k++) {
-        const double *f = s->frames + (size_t)k * AFM_DECIM_CH;
-        int w = s->head;
-        s->rt[w] = s->t[k];
-        s->rx[w] = f[CH_X];
-        s->robd[w] = f[CH_OBD];
-        s->rcnt[w] = f[CH_OBD] * inv_lsb;
-        s->rf[w] = f[CH_F];
-        s->rbase[w] = f[CH_BASE];
-        if (++s->head == s->cap) s->head = 0;
-        if (s->count == s->cap)
-            c->stats.dropped[idx]++;
-        else
-            s->count++;
+    const double inv_lsb = c->obd.adc_bits > 0 ? c->obd.inv_lsb : 0.0;
+    const int cap = s->cap, nf = s->n_frames;
+    const double *f = s->frames, *t = s->t;
+    double *rt = s->rt, *rx = s->rx, *robd = s->robd, *rcnt = s->rcnt, *rf = s->rf,
+           *rbase = s->rbase;
+    int w = s->head;
+    for (int k = 0; k < nf;) { /* in runs up to the end of the ring */
+        int run = nf - k < cap - w ? nf - k : cap - w;
+        double *t_ = rt + w, *x_ = rx + w, *o_ = robd + w, *c_ = rcnt + w, *f_ = rf + w,
+               *b_ = rbase + w;
+        for (int j = 0; j < run; j++, f += AFM_DECIM_CH) {
+            double tj = t[k + j], x = f[CH_X], o = f[CH_OBD], fn = f[CH_F], b = f[CH_BASE];
+            t_[j] = tj;
+            x_[j] = x;
+            o_[j] = o;
+            c_[j] = o * inv_lsb;
+            f_[j] = fn;
+            b_[j] = b;
+        }
+        k += run;
+        w = w + run == cap ? 0 : w + run;
+    }
+    s->head = w;
+    if (nf > cap - s->count) { /* the oldest were overwritten */
+        c->stats.dropped[idx] += nf - (cap - s->count);
+        s->count = cap;
+    } else {
+        s->count += nf;
     }
 }
 
-/* Decimate frames (n, times t) of the source into stream s's pass buffer. */
-static void run_stream(stream *s, const double *frames, const double *t, int n) {
-    int R = afm_decim_factor(s->dec), ph = afm_decim_phase(s->dec);
-    s->n_frames = afm_decim_run(s->dec, frames, n, s->frames);
-    /* output k is completed by source sample (R - ph - 1) + k R */
+/* Time stamps of stream s's n_frames new outputs: output k is completed by source sample
+ * (R - ph - 1) + k R (ph: the decimator's phase before the pass), at time t_src(i) (the
+ * input samples' own t_s, or the source stream's stamps). */
+static void stamp_input(stream *s, const afm_sample *p, int ph) {
+    int R = afm_decim_factor(s->dec);
     for (int k = 0; k < s->n_frames; k++)
-        s->t[k] = t[(R - ph - 1) + k * R] - s->delay_s;
+        s->t[k] = p[(R - ph - 1) + k * R].t_s - s->delay_s;
+}
+static void stamp_cascade(stream *s, const double *t_src, int ph) {
+    int R = afm_decim_factor(s->dec);
+    for (int k = 0; k < s->n_frames; k++)
+        s->t[k] = t_src[(R - ph - 1) + k * R] - s->delay_s;
+}
+
+/* Frames (x, obd, f, base) of n samples into dst (AFM_DECIM_CH doubles each, 32-byte
+ * aligned). Returns 1 when every channel of every frame is finite (x 0 is 0 for finite x and
+ * NaN for inf and NaN: the sum of those over the frames is 0 exactly when all are finite). */
+static int pack_frames(double *dst, const afm_sample *p, const double *obd, int n) {
+#if defined(__AVX2__) && defined(__FMA__)
+    enum { S = sizeof(afm_sample) / sizeof(double) };
+    const __m256d zero = _mm256_setzero_pd();
+    __m256d z0 = zero, z1 = zero;
+    const double *x = (const double *)p + offsetof(afm_sample, x_m) / sizeof(double);
+#define PACK(i, z)                                                                                 \
+    do {                                                                                           \
+        __m256d f =                                                                                \
+            _mm256_blend_pd(_mm256_loadu_pd(x + (i)*S), _mm256_loadu_pd(x + (i)*S + 1), 0x8);      \
+        f = _mm256_blend_pd(f, _mm256_broadcast_sd(obd + (i)), 0x2);                               \
+        _mm256_store_pd(dst + (i)*AFM_DECIM_CH, f);                                                \
+        z = _mm256_fmadd_pd(f, zero, z);                                                           \
+    } while (0)
+    for (; n >= 8; n -= 8, x += 8 * S, obd += 8, dst += 8 * AFM_DECIM_CH) {
+        PACK(0, z0);
+        PACK(1, z1);
+        PACK(2, z0);
+        PACK(3, z1);
+        PACK(4, z0);
+        PACK(5, z1);
+        PACK(6, z0);
+        PACK(7, z1);
+    }
+    for (; n > 0; n--, x += S, obd++, dst += AFM_DECIM_CH)
+        PACK(0, z0);
+#undef PACK
+    double z[4];
+    _mm256_storeu_pd(z, _mm256_add_pd(z0, z1));
+    return (z[0] + z[1]) + (z[2] + z[3]) == 0.0;
+#else
+    double z = 0.0;
+    for (int i = 0; i < n; i++) {
+        double *f = dst + (size_t)i * AFM_DECIM_CH;
+        f[CH_X] = p[i].x_m;
+        f[CH_OBD] = obd[i];
+        f[CH_F] = p[i].f_n;
+        f[CH_BASE] = p[i].base_m;
+        z += ((f[0] * 0.0 + f[1] * 0.0) + (f[2] * 0.0 + f[3] * 0.0));
+    }
+    return z == 0.0;
+#endif
+}
+
+/* The decimators and rings over n samples (their OBD readings obd): the frames go straight
+ * into the primary stream's decimator; the other input-fed streams filter them from there
+ * before the primary's commit (which moves its buffer), then the cascaded ones run in
+ * ascending factor order (their sources come first). */
+static void run_streams(afm_chain *c, const afm_sample *p, const double *obd, int n) {
+    stream *pr = &c->st[c->primary];
+    double *in = afm_decim_in(pr->dec, NULL);
+    int finite = pack_frames(in, p, obd, n);
+    for (int q = 1; q < c->n_streams; q++) {
+        stream *st = &c->st[c->order[q]];
+        if (st->src >= 0) continue;
+        int ph = afm_decim_phase(st->dec);
+        st->n_frames = afm_decim_run(st->dec, in, n, st->frames);
+        stamp_input(st, p, ph);
+    }
+    int ph = afm_decim_phase(pr->dec);
+    pr->n_frames = afm_decim_commit(pr->dec, n, finite, pr->frames);
+    stamp_input(pr, p, ph);
+    for (int q = 1; q < c->n_streams; q++) {
+        stream *st = &c->st[c->order[q]];
+        if (st->src < 0) continue;
+        const stream *src = &c->st[st->src];
+        ph = afm_decim_phase(st->dec);
+        st->n_frames = afm_decim_run(st->dec, src->frames, src->n_frames, st->frames);
+        stamp_cascade(st, src->t, ph);
+    }
+    for (int q = 0; q < c->n_streams; q++)
+        ring_put(c, c->order[q]);
 }
 
 /* Append the current estimates as a period record. */
@@ -215,13 +329,19 @@ static void put_period(afm_chain *c) {
         c->p_count++;
     }
     afm_chain_period *p = &c->periods[w];
-    p->harm = c->harm.out;
+    /* The harmonics past n_harmonics are zero in c->harm.out (afm_harm clears them) and in
+     * the ring (calloc; n_harmonics never changes): copy the rest only. */
+    int nh = c->harm.out.n_harmonics;
+    if (nh >= 0 && nh <= AFM_MAX_HARMONICS)
+        memcpy(&p->harm, &c->harm.out,
+               offsetof(afm_harm_result, h) + (size_t)nh * sizeof p->harm.h[0]);
+    else
+        p->harm = c->harm.out;
     if (c->cycle.periods > 0)
         p->cycle = c->cycle.out;
     else
         memset(&p->cycle, 0, sizeof p->cycle);
-    p->lockin_amplitude_m = afm_lockin_amplitude(&c->lockin);
-    p->lockin_phase_deg = afm_lockin_phase_deg(&c->lockin);
+    afm_lockin_polar(&c->lockin, &p->lockin_amplitude_m, &p->lockin_phase_deg);
     c->stats.periods++;
 }
 
@@ -234,7 +354,19 @@ static void estimators(afm_chain *c, const afm_sample *s, const double *obd, int
     double th[CHUNK], f[CHUNK];
     const afm_drive *d = c->drive;
     double ph = d->phase_rad[0], w = d->omega_rad_s[0], t0 = d->t0_s[0];
-    for (int i = 0; i < n; i++) {
+    int i0 = 0;
+#if defined(__AVX2__) && defined(__FMA__)
+    /* four samples at a time, the same operations (no contraction): the same bits */
+    const __m256d vph = _mm256_set1_pd(ph), vw = _mm256_set1_pd(w), vt0 = _mm256_set1_pd(t0);
+    for (; i0 + 4 <= n; i0 += 4) {
+        const afm_sample *q = s + i0;
+        __m256d t = _mm256_set_pd(q[3].t_s, q[2].t_s, q[1].t_s, q[0].t_s);
+        __m256d fv = _mm256_set_pd(q[3].f_n, q[2].f_n, q[1].f_n, q[0].f_n);
+        _mm256_storeu_pd(th + i0, _mm256_add_pd(vph, _mm256_mul_pd(vw, _mm256_sub_pd(t, vt0))));
+        _mm256_storeu_pd(f + i0, fv);
+    }
+#endif
+    for (int i = i0; i < n; i++) {
         th[i] = ph + w * (s[i].t_s - t0);
         f[i] = s[i].f_n;
     }
@@ -259,29 +391,11 @@ int afm_chain_push(afm_chain *c, const afm_sample *s, int n) {
         int k = n - done < CHUNK ? n - done : CHUNK;
         const afm_sample *p = s + done;
         long long sat0 = c->obd.n_saturated;
-        for (int i = 0; i < k; i++) {
-            int32_t cnt;
-            double *f = c->in_frames + (size_t)i * AFM_DECIM_CH;
-            obd_buf[i] = afm_obd_read(&c->obd, &p[i], &cnt);
-            f[CH_X] = p[i].x_m;
-            f[CH_OBD] = obd_buf[i];
-            f[CH_F] = p[i].f_n;
-            f[CH_BASE] = p[i].base_m;
-            c->in_t[i] = p[i].t_s;
-        }
+        afm_obd_read_block(&c->obd, p, k, obd_buf);
         c->stats.obd_saturated += c->obd.n_saturated - sat0;
         c->obd.n_saturated = sat0;
         if (c->attached) estimators(c, p, obd_buf, k);
-        for (int q = 0; q < c->n_streams; q++) {
-            stream *st = &c->st[c->order[q]];
-            if (st->src < 0) {
-                run_stream(st, c->in_frames, c->in_t, k);
-            } else {
-                const stream *src = &c->st[st->src];
-                run_stream(st, src->frames, src->t, src->n_frames);
-            }
-            ring_put(c, c->order[q]);
-        }
+        run_streams(c, p, obd_buf, k);
         c->stats.pushed += k;
         done += k;
     }

@@ -7,6 +7,8 @@
  * afm_cycle). Per full-rate sample s (afm_sample, sample rate cfg.sim.sample_rate_hz):
  *   obd_m = afm_obd_read(s)    (calibrated slope + noise + ADC; x when obd is disabled)
  *   frame = (x_m, obd_m, f_n, base_m) -> decimator of each stream -> ring of the stream
+ * computed a block at a time (afm_obd_read_block; the frames go straight into the first
+ * decimator's input), with the same results however the samples are split into pushes.
  * Streams are cfg.output.decimation[i] (i = stream index). A stream whose factor is a
  * multiple of a smaller stream's factor is decimated from that stream (cascade: the
  * 256 stream costs 1/16 of what it would from the input). Each decimated sample is time

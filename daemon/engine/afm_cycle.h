@@ -28,8 +28,9 @@
  * linear interpolant of the integrand), as afm_harm.
  *
  * Nothing allocates; O(1) per sample: compares and adds, except at a boundary, a contact
- * crossing (one bisection on a cubic) and a step whose Hermite cubic may dip below the
- * running minimum (its stationary points); see afm_phase_track in afm_est_internal.h. */
+ * crossing (a root of the cubic: two Halley steps from a quadratic guess, to ~1e-15 of the
+ * step) and a step whose Hermite cubic may dip below the running minimum (its stationary
+ * points); see afm_phase_track in afm_est_internal.h. */
 #ifndef AFM_CYCLE_H
 #define AFM_CYCLE_H
 
@@ -49,6 +50,11 @@ typedef struct {
     double mean_deflection_m;
 } afm_cycle_metrics;
 
+/* The integrals are accumulated in an order fixed by the sample stream alone (not by how it
+ * is cut into calls), so that afm_cycle_push and afm_cycle_push_n give the same bits: each
+ * sample of the period adds w f v and w x, w = t_next - t_before (twice its trapezoid
+ * weight), to the sums of its index mod 4; the last sample before a boundary and the
+ * boundary step's parts are added when the period ends. */
 typedef struct {
     double x_contact_m, cos_alpha;
     afm_phase_track trk;
@@ -56,8 +62,16 @@ typedef struct {
     afm_sample prev;       /* last sample */
     double f_prev2;        /* f of the sample before prev (for the parabola) */
     int n_prev;            /* samples seen, capped at 2 */
-    afm_cycle_metrics cur; /* accumulating (integrals unnormalised until the end) */
-    double x_int;          /* int x dt so far */
+    long k;                /* index of prev in the current period (0: its first sample) */
+    double t_before;       /* time of the sample before prev (prev's own when k = 0) */
+    double t_first;        /* time of the period's first sample */
+    double t_in;           /* while prev is in contact: the contact's whole steps start here */
+    double sum_fv[4];      /* sums of w f v by sample index mod 4 */
+    double sum_x[4];       /* sums of w x by sample index mod 4 */
+    double smin;           /* minimum of x over the period's samples so far */
+    afm_cycle_metrics cur; /* accumulating: duration, energy: the start step's part; peak,
+                            * minimum (first sample, Hermite minima), contacts so far */
+    double x_int;          /* int x dt over the start step's part */
     long periods;          /* completed periods since init/reset */
     afm_cycle_metrics out; /* last completed period (valid if periods > 0) */
 } afm_cycle;
@@ -80,8 +94,11 @@ int afm_cycle_push(afm_cycle *c, const afm_sample *s, double theta_rad);
 /* Samples s[i], theta[i], i = 0..n-1, as n calls of afm_cycle_push, stopping after the
  * sample that completes a period. Returns the samples consumed; *done is 1 if the last
  * one completed a period (c->out); rejected samples are added to *rejects. Same results
- * as afm_cycle_push, bit for bit (the fast path reads the previous sample from s[] and
- * keeps the sums in registers). */
+ * and state as afm_cycle_push, bit for bit (so independent of how a stream is cut into
+ * calls): on the tracker's fast path it takes runs of samples 4 at a time (AVX) into the
+ * sums by index mod 4 and a few flags per step (contact crossing, local maximum of f, a
+ * Bernstein control point that may lie below the samples' minimum), then handles the
+ * flagged steps in order. */
 int afm_cycle_push_n(afm_cycle *c, const afm_sample *s, const double *theta_rad, int n, int *done,
                      long long *rejects);
 

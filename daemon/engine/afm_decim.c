@@ -21,10 +21,17 @@ _Static_assert(AFM_DECIM_CH == 4, "one v4 per frame");
 
 typedef struct {
     int r, n, phase; /* factor, taps, inputs since the last output */
-    int cap;         /* input frames per pass: lin holds n - 1 + cap frames */
+    int cap;         /* input frames per pass (at most) */
+    int len, pos;    /* lin holds len frames; the window history starts at pos */
+    int hb;          /* halfband (r = 2, n = 4 np - 1, taps at even offsets from the centre 0) */
+    int np;          /* taps pairs the kernel sums (halfband: the nonzero ones) */
     double *h;       /* taps */
-    v4 *hv;          /* taps broadcast to all channels (one load per multiply-add) */
-    v4 *lin;         /* the n - 1 previous frames, then this pass's input */
+    v4 *g;           /* kernel coefficients broadcast to all channels: g[q] multiplies pair q
+                        (halfband: taps c -+ (2 q + 1), else q and n - 1 - q), g[np] the
+                        centre tap (0 for even n) */
+    v4 *lin;         /* at pos: the n - 1 previous frames, then this pass's input (the
+                        window slides on; the history moves back to 0 when a pass would not
+                        fit: one move of n - 1 frames per max(cap, 2 (n - 1)) inputs) */
 } stage;
 
 /* Input frames per pass of the first stage (any n is split into passes of this size). */
@@ -34,6 +41,7 @@ struct afm_decim {
     int factor, n_st;
     double delay, cost;
     long long nonfinite;
+    v4 *pass; /* factor 1: the input buffer of afm_decim_in */
     stage st[AFM_DECIM_MAX_STAGES];
 };
 
@@ -85,8 +93,81 @@ static int meets_spec(const double *h, int n, double fp, double fs) {
     return 1;
 }
 
+/* Kaiser window w(r) for r in [-1, 1], shape beta, i0b = I0(beta). */
+static double kaiser(double beta, double i0b, double r) {
+    return bessel_i0(beta * sqrt(fmax(0.0, 1.0 - r * r))) / i0b;
+}
+
+/* Halfband taps, n = 4 np - 1: centre 1/2, zeros at even offsets, the odd ones a Kaiser
+ * (beta) windowed sinc at a quarter of the rate scaled to sum 1/2 (unit gain at DC, and
+ * H(f) + H(1/2 - f) = 1 exactly). */
+static void halfband_taps(double *h, int n, double beta) {
+    int c = (n - 1) / 2;
+    double i0b = bessel_i0(beta), sum = 0;
+    for (int k = 0; k < n; k++) {
+        int t = k - c, a = t < 0 ? -t : t;
+        h[k] = 0.0;
+        if (a % 2 == 0) continue;
+        h[k] = ((a / 2) % 2 ? -1.0 : 1.0) / (pi * a) * kaiser(beta, i0b, (double)t / c);
+        sum += h[k];
+    }
+    for (int k = 0; k < n; k++)
+        h[k] *= 0.5 / sum;
+    h[c] = 0.5;
+}
+
+/* The maximally flat halfband of n = 4 np - 1 taps (the Lagrange interpolator of the
+ * midpoint from the 2 np odd neighbours, halved): a zero of order 2 np at 1/2 and a flat
+ * passband, shorter than a windowed sinc where the transition band is wide. */
+static void lagrange_taps(double *h, int n) {
+    int c = (n - 1) / 2, np = (n + 1) / 4;
+    for (int k = 0; k < n; k++)
+        h[k] = 0.0;
+    for (int j = 0; j < np; j++) { /* node x_j = 2 j + 1 and its mirror -x_j */
+        double xj = 2 * j + 1, w = 1.0;
+        for (int m = 0; m < np; m++) { /* product over the other 2 np - 1 nodes +-x_m */
+            double xm = 2 * m + 1;
+            if (m != j) w *= (xm * xm) / (xm * xm - xj * xj); /* (0 - x)(0 + x) pairs */
+        }
+        w *= 0.5; /* the mirror node -x_j: (0 + x_j) / (x_j + x_j) */
+        h[c - (2 * j + 1)] = h[c + (2 * j + 1)] = 0.5 * w;
+    }
+    h[c] = 0.5;
+}
+
+/* Halfband stage for edges fp and 1/2 - fp: the shortest n = 4 np - 1 for which the
+ * maximally flat design or some window shape (Kaiser beta of 80 to 100 dB) meets the spec,
+ * searched from a little below the Kaiser estimate. 0, or -1 when none up to MAX_TAPS does. */
+static int design_halfband(stage *s, double fp) {
+    double fs = 0.5 - fp;
+    int est = kaiser_taps(fp, fs), np = (int)(0.7 * est + 1) / 4;
+    if (np < 1) np = 1;
+    for (; 4 * np - 1 <= MAX_TAPS; np++) {
+        int n = 4 * np - 1;
+        double *h = malloc((size_t)n * sizeof *h);
+        if (!h) return -1;
+        for (int v = -1; v <= 20; v++) { /* maximally flat, then Kaiser for 80 .. 100 dB */
+            if (v < 0)
+                lagrange_taps(h, n);
+            else
+                halfband_taps(h, n, 0.1102 * (80.0 + v - 8.7));
+            if (meets_spec(h, n, fp, fs)) {
+                s->h = h;
+                s->n = n;
+                s->hb = 1;
+                s->np = np;
+                return 0;
+            }
+        }
+        free(h);
+        if (n > 4 * est) break; /* the estimate is never this far off: give up */
+    }
+    return -1;
+}
+
 /* Design stage taps for edges fp < fs (cycles per stage input sample). */
 static int design(stage *s, double fp, double fs, char *err, size_t errlen) {
+    if (s->r == 2 && design_halfband(s, fp) == 0) return 0;
     int n = kaiser_taps(fp, fs);
     for (int tries = 0; tries < 30 && n <= MAX_TAPS; tries++) {
         s->h = malloc((size_t)n * sizeof *s->h);
@@ -94,6 +175,8 @@ static int design(stage *s, double fp, double fs, char *err, size_t errlen) {
         kaiser_sinc(s->h, n, 0.5 * (fp + fs));
         if (meets_spec(s->h, n, fp, fs)) {
             s->n = n;
+            s->hb = 0;
+            s->np = n / 2;
             return 0;
         }
         free(s->h);
@@ -107,8 +190,19 @@ static int design(stage *s, double fp, double fs, char *err, size_t errlen) {
     return -1;
 }
 
-/* Cheapest split of the remaining factor rem (stages after a product prev): multiply-adds
- * per input sample, plus 1.5 for each stage's delay-line writes. fp in input cycles/sample. */
+/* Instructions per output of a stage of n taps and factor r (the kernels below): a
+ * halfband sums about 2.5 per nonzero pair, a general stage 3 per pair, plus the output's
+ * own overhead. */
+static double stage_cost(int n, int r) {
+    if (r == 2) {
+        int np = (n + 4) / 4; /* n rounded up to 4 np - 1 */
+        return 2.5 * np + 4.5;
+    }
+    return 1.5 * n + 8.0;
+}
+
+/* Cheapest split of the remaining factor rem (stages after a product prev): instructions
+ * per input sample. fp in input cycles/sample. */
 static double best_split(int rem, int prev, double fp, int depth, int *fac, int *nfac) {
     double best = INFINITY;
     int tmp[AFM_DECIM_MAX_STAGES], ntmp;
@@ -117,8 +211,7 @@ static double best_split(int rem, int prev, double fp, int depth, int *fac, int 
         if (d != rem && depth + 1 >= AFM_DECIM_MAX_STAGES) continue;
         double fin = 1.0 / prev; /* stage input rate */
         double fpn = fp / fin, fsn = 1.0 / d - fpn;
-        int taps = kaiser_taps(fpn, fsn);
-        double c = ((double)taps / d + 1.5) / prev;
+        double c = stage_cost(kaiser_taps(fpn, fsn), d) / d / prev;
         ntmp = 0;
         if (d != rem) c += best_split(rem / d, prev * d, fp, depth + 1, tmp, &ntmp);
         if (c < best) {
@@ -143,7 +236,11 @@ afm_decim *afm_decim_create(int factor, double p, char *err, size_t errlen) {
     afm_decim *d = calloc(1, sizeof *d);
     if (!d) goto oom;
     d->factor = factor;
-    if (factor == 1) return d;
+    if (factor == 1) {
+        d->pass = aligned_alloc(32, PASS * sizeof *d->pass);
+        if (!d->pass) goto oom;
+        return d;
+    }
     int fac[AFM_DECIM_MAX_STAGES], nfac = 0;
     double fp = 0.5 * p / factor; /* kept band edge, cycles per input sample */
     best_split(factor, 1, fp, 0, fac, &nfac);
@@ -155,13 +252,19 @@ afm_decim *afm_decim_create(int factor, double p, char *err, size_t errlen) {
         if (design(s, fpn, 1.0 / s->r - fpn, err, errlen)) goto fail;
         d->n_st = i + 1;
         s->cap = i == 0 ? PASS : d->st[i - 1].cap / d->st[i - 1].r + 1;
-        s->lin = aligned_alloc(32, ((size_t)s->n - 1 + (size_t)s->cap) * sizeof *s->lin);
-        s->hv = aligned_alloc(32, (size_t)s->n * sizeof *s->hv);
-        if (!s->lin || !s->hv) goto oom;
-        for (int k = 0; k < s->n; k++)
-            s->hv[k] = (v4){s->h[k], s->h[k], s->h[k], s->h[k]};
+        s->len = s->n - 1 + s->cap + (s->cap > 2 * (s->n - 1) ? s->cap : 2 * (s->n - 1));
+        s->lin = aligned_alloc(32, (size_t)s->len * sizeof *s->lin);
+        s->g = aligned_alloc(32, ((size_t)s->np + 1) * sizeof *s->g);
+        if (!s->lin || !s->g) goto oom;
+        int c = (s->n - 1) / 2;
+        for (int q = 0; q < s->np; q++) {
+            double h = s->hb ? s->h[c - 1 - 2 * q] : s->h[q];
+            s->g[q] = (v4){h, h, h, h};
+        }
+        double hc = s->n % 2 ? s->h[c] : 0.0;
+        s->g[s->np] = (v4){hc, hc, hc, hc};
         d->delay += 0.5 * (s->n - 1) * prev;
-        d->cost += (double)s->n / s->r / prev;
+        d->cost += (double)(s->hb ? 2 * s->np + 1 : s->n) / s->r / prev;
         prev *= s->r;
     }
     afm_decim_reset(d);
@@ -178,9 +281,10 @@ void afm_decim_destroy(afm_decim **dp) {
     afm_decim *d = *dp;
     for (int i = 0; i < AFM_DECIM_MAX_STAGES; i++) {
         free(d->st[i].h);
-        free(d->st[i].hv);
+        free(d->st[i].g);
         free(d->st[i].lin);
     }
+    free(d->pass);
     free(d);
     *dp = NULL;
 }
@@ -189,13 +293,24 @@ void afm_decim_destroy(afm_decim **dp) {
 
 static void clear_lines(afm_decim *d) {
     for (int i = 0; i < d->n_st; i++)
-        if (d->st[i].lin) memset(d->st[i].lin, 0, ((size_t)d->st[i].n - 1) * sizeof(v4));
+        if (d->st[i].lin)
+            memset(d->st[i].lin + d->st[i].pos, 0, ((size_t)d->st[i].n - 1) * sizeof(v4));
 }
 
 void afm_decim_reset(afm_decim *d) {
-    clear_lines(d);
     for (int i = 0; i < d->n_st; i++)
-        d->st[i].phase = 0;
+        d->st[i].phase = d->st[i].pos = 0;
+    clear_lines(d);
+}
+
+/* Where stage g's next input (up to cap frames) goes, after moving the history back to the
+ * start of lin if they would not fit. */
+static v4 *stage_in(stage *g) {
+    if (g->pos + g->n - 1 + g->cap > g->len) {
+        memmove(g->lin, g->lin + g->pos, ((size_t)g->n - 1) * sizeof(v4));
+        g->pos = 0;
+    }
+    return g->lin + g->pos + (g->n - 1);
 }
 
 /* acc + h w, fused where the target has FMA (ISO C mode does not contract a * b + c). */
@@ -210,87 +325,198 @@ static inline v4 madd(v4 h, v4 w, v4 acc) {
 }
 #endif
 
-/* Dot product of the taps with the window of the n newest frames (oldest first). */
-static inline v4 dot(const v4 *h, const v4 *w, int n) {
-    v4 a0 = {0}, a1 = {0}, a2 = {0}, a3 = {0};
+static inline void put(double *dst, int k, v4 y) {
+    memcpy(dst + (size_t)k * AFM_DECIM_CH, &y, sizeof y);
+}
+
+/* One halfband output over the window w (n = 4 np - 1 frames, oldest first): the centre
+ * term, then the pairs q = 0, 1, ... (the order every halfband output is summed in). */
+static inline v4 hb_one(const v4 *w, const v4 *g, int np) {
+    v4 a = g[np] * w[2 * np - 1];
+    for (int q = 0; q < np; q++)
+        a = madd(g[q], w[2 * np - 2 - 2 * q] + w[2 * np + 2 * q], a);
+    return a;
+}
+
+/* Halfband outputs at window starts j, j + 2, ... < m of the frames lin (coefficients gq)
+ * into dst, np a constant after inlining (fully unrolled: every frame offset a constant).
+ * Four outputs at a time share their loads: pair q of output u adds frames
+ * 2 (np - 1 - q + u) and 2 (np + q + u) of the first window. Every output is summed exactly
+ * as hb_one sums it. Returns the outputs written. */
+static inline __attribute__((always_inline)) int hb_run_np(const v4 *restrict lin, int j, int m,
+                                                           double *restrict dst,
+                                                           const v4 *restrict gq, const int np) {
+    const v4 hc = gq[np];
     int k = 0;
-    for (; k + 4 <= n; k += 4) {
-        a0 = madd(h[k], w[k], a0);
-        a1 = madd(h[k + 1], w[k + 1], a1);
-        a2 = madd(h[k + 2], w[k + 2], a2);
-        a3 = madd(h[k + 3], w[k + 3], a3);
+    for (; j + 6 < m; j += 8, k += 4) {
+        const v4 *w = lin + j;
+        v4 a0 = hc * w[2 * np - 1], a1 = hc * w[2 * np + 1], a2 = hc * w[2 * np + 3],
+           a3 = hc * w[2 * np + 5];
+#pragma GCC unroll 32
+        for (int q = 0; q < np; q++) {
+            v4 c = gq[q];
+            a0 = madd(c, w[2 * (np - 1 - q)] + w[2 * (np + q)], a0);
+            a1 = madd(c, w[2 * (np - q)] + w[2 * (np + q + 1)], a1);
+            a2 = madd(c, w[2 * (np + 1 - q)] + w[2 * (np + q + 2)], a2);
+            a3 = madd(c, w[2 * (np + 2 - q)] + w[2 * (np + q + 3)], a3);
+        }
+        put(dst, k, a0);
+        put(dst, k + 1, a1);
+        put(dst, k + 2, a2);
+        put(dst, k + 3, a3);
     }
-    for (; k < n; k++)
-        a0 = madd(h[k], w[k], a0);
-    return (a0 + a1) + (a2 + a3);
+    for (; j < m; j += 2)
+        put(dst, k++, hb_one(lin + j, gq, np));
+    return k;
+}
+
+/* hb_run_np for the stage's np: specialised up to 16 pairs (63 taps), a loop beyond. */
+static int hb_run(const stage *g, int j, int m, double *dst) {
+    const v4 *lin = g->lin + g->pos, *gq = g->g;
+    switch (g->np) {
+#define HB_CASE(P)                                                                                 \
+    case P:                                                                                        \
+        return hb_run_np(lin, j, m, dst, gq, P);
+        HB_CASE(1)
+        HB_CASE(2)
+        HB_CASE(3)
+        HB_CASE(4)
+        HB_CASE(5)
+        HB_CASE(6)
+        HB_CASE(7)
+        HB_CASE(8)
+        HB_CASE(9)
+        HB_CASE(10)
+        HB_CASE(11)
+        HB_CASE(12)
+        HB_CASE(13)
+        HB_CASE(14)
+        HB_CASE(15)
+        HB_CASE(16)
+#undef HB_CASE
+    default: {
+        int k = 0;
+        for (; j < m; j += 2)
+            put(dst, k++, hb_one(lin + j, gq, g->np));
+        return k;
+    }
+    }
+}
+
+/* General symmetric outputs at window starts j, j + r, ... < m: pairs q and n - 1 - q
+ * summed first, four accumulators over q mod 4, then the centre tap for odd n. */
+static int sym_run(const stage *g, int j, int m, double *restrict dst) {
+    const int n = g->n, np = g->np, r = g->r;
+    const v4 *restrict gq = g->g, *restrict lin = g->lin + g->pos;
+    int k = 0;
+    for (; j < m; j += r) {
+        const v4 *w = lin + j;
+        v4 a0 = {0}, a1 = {0}, a2 = {0}, a3 = {0};
+        int q = 0;
+        for (; q + 4 <= np; q += 4) {
+            a0 = madd(gq[q], w[q] + w[n - 1 - q], a0);
+            a1 = madd(gq[q + 1], w[q + 1] + w[n - 2 - q], a1);
+            a2 = madd(gq[q + 2], w[q + 2] + w[n - 3 - q], a2);
+            a3 = madd(gq[q + 3], w[q + 3] + w[n - 4 - q], a3);
+        }
+        for (; q < np; q++)
+            a0 = madd(gq[q], w[q] + w[n - 1 - q], a0);
+        v4 y = (a0 + a1) + (a2 + a3);
+        if (n % 2) y = madd(gq[np], w[np], y);
+        put(dst, k++, y);
+    }
+    return k;
 }
 
 /* Stage i has m new frames after its history in lin: compute its outputs (into the next
- * stage's input, or out), keep the newest n - 1 frames as history. Returns frames written
- * to out. */
+ * stage's input, or out), slide the window on by m (the newest n - 1 frames are the
+ * history). Returns frames written to out. */
 static int run_stages(afm_decim *d, int i, int m, double *out) {
     int written = 0;
     for (; i < d->n_st; i++) {
         stage *g = &d->st[i];
-        v4 *dst = i + 1 < d->n_st ? d->st[i + 1].lin + (d->st[i + 1].n - 1) : NULL;
-        int k = 0;
+        int last = i + 1 == d->n_st;
+        double *dst =
+            last ? out + (size_t)written * AFM_DECIM_CH : (double *)stage_in(&d->st[i + 1]);
         /* output when the input at index j completes r inputs; its window starts at j */
-        for (int j = g->r - g->phase - 1; j < m; j += g->r) {
-            v4 y = dot(g->hv, g->lin + j, g->n);
-            if (dst)
-                dst[k++] = y;
-            else
-                memcpy(out + (size_t)written++ * AFM_DECIM_CH, &y, sizeof y);
-        }
+        int j = g->r - g->phase - 1;
+        int k = g->hb ? hb_run(g, j, m, dst) : sym_run(g, j, m, dst);
         g->phase = (g->phase + m) % g->r;
-        memmove(g->lin, g->lin + m, ((size_t)g->n - 1) * sizeof(v4));
-        if (!dst || k == 0) break;
+        g->pos += m;
+        if (last) written += k;
+        if (last || k == 0) break;
         m = k;
     }
     return written;
 }
 
-int afm_decim_run(afm_decim *d, const double *in, int n, double *out) {
-    if (d->factor == 1) {
-        if (out != in) memmove(out, in, (size_t)n * AFM_DECIM_CH * sizeof *in);
-        for (int i = 0; i < n; i++) {
-            double *f = out + (size_t)i * AFM_DECIM_CH;
-            if (!(isfinite(f[0]) && isfinite(f[1]) && isfinite(f[2]) && isfinite(f[3]))) {
-                f[0] = f[1] = f[2] = f[3] = 0.0;
-                d->nonfinite++;
-            }
-        }
-        return n;
+/* Index of the first frame of f[0 .. n-1] with a non-finite channel, n if none. */
+static int first_nonfinite(const v4 *f, int n) {
+    v4 z0 = {0}, z1 = {0}, zero = {0};
+    int k = 0;
+    for (; k + 2 <= n; k += 2) { /* x 0 is 0 for finite x, NaN for inf and NaN */
+        z0 = madd(f[k], zero, z0);
+        z1 = madd(f[k + 1], zero, z1);
     }
-    int m = 0;
-    stage *g0 = &d->st[0];
-    for (int i = 0; i < n;) {
-        /* copy a pass of finite frames behind the first stage's history; a non-finite
-         * frame ends the pass (and is handled after it) */
-        v4 *dst = g0->lin + (g0->n - 1);
-        int len = n - i < g0->cap ? n - i : g0->cap, k = 0;
-        v4 z = {0};
-        for (; k < len; k++) {
-            v4 x;
-            memcpy(&x, in + (size_t)(i + k) * AFM_DECIM_CH, sizeof x);
-            dst[k] = x;
-            z += x * 0.0; /* NaN in a lane after inf or NaN input */
-        }
-        if ((z[0] + z[1]) + (z[2] + z[3]) != 0.0) { /* find the first bad frame */
-            for (k = 0; k < len; k++) {
-                v4 x = dst[k] * 0.0;
-                if ((x[0] + x[1]) + (x[2] + x[3]) != 0.0) break;
-            }
-        }
-        if (k > 0) m += run_stages(d, 0, k, out + (size_t)m * AFM_DECIM_CH);
-        i += k;
-        if (k < len) { /* in[i] is not finite: clear every line, it enters as 0 */
-            clear_lines(d);
+    if (k < n) z0 = madd(f[k], zero, z0);
+    z0 += z1;
+    if ((z0[0] + z0[1]) + (z0[2] + z0[3]) == 0.0) return n;
+    for (k = 0; k < n; k++) {
+        v4 x = f[k] * 0.0;
+        if ((x[0] + x[1]) + (x[2] + x[3]) != 0.0) break;
+    }
+    return k;
+}
+
+double *afm_decim_in(afm_decim *d, int *room) {
+    if (room) *room = d->factor == 1 ? PASS : d->st[0].cap;
+    return (double *)(d->factor == 1 ? d->pass : stage_in(&d->st[0]));
+}
+
+/* factor 1: in to out, non-finite frames zeroed and counted. */
+static int pass_through(afm_decim *d, const double *in, int n, double *out) {
+    if (out != in) memmove(out, in, (size_t)n * AFM_DECIM_CH * sizeof *in);
+    for (int i = 0; i < n; i++) {
+        double *f = out + (size_t)i * AFM_DECIM_CH;
+        if (!(isfinite(f[0]) && isfinite(f[1]) && isfinite(f[2]) && isfinite(f[3]))) {
+            f[0] = f[1] = f[2] = f[3] = 0.0;
             d->nonfinite++;
-            dst[0] = (v4){0};
-            m += run_stages(d, 0, 1, out + (size_t)m * AFM_DECIM_CH);
-            i++;
         }
+    }
+    return n;
+}
+
+int afm_decim_commit(afm_decim *d, int n, int all_finite, double *out) {
+    if (d->factor == 1) return pass_through(d, (const double *)d->pass, n, out);
+    if (all_finite) return run_stages(d, 0, n, out);
+    /* The frames stay where they were written: every run of the first stage slides its
+     * window on by the frames it took, so the next input slot is always the next frame. */
+    v4 *in = d->st[0].lin + d->st[0].pos + (d->st[0].n - 1);
+    int written = 0;
+    for (int i = 0; i < n;) {
+        int k = i + first_nonfinite(in + i, n - i);
+        if (k > i) written += run_stages(d, 0, k - i, out + (size_t)written * AFM_DECIM_CH);
+        if (k == n) break;
+        /* in[k] is not finite: clear every line, it enters as 0 */
+        clear_lines(d);
+        d->nonfinite++;
+        in[k] = (v4){0};
+        written += run_stages(d, 0, 1, out + (size_t)written * AFM_DECIM_CH);
+        i = k + 1;
+    }
+    return written;
+}
+
+int afm_decim_run(afm_decim *d, const double *in, int n, double *out) {
+    if (d->factor == 1) return pass_through(d, in, n, out);
+    int m = 0;
+    for (int i = 0; i < n;) {
+        int room;
+        double *dst = afm_decim_in(d, &room);
+        int len = n - i < room ? n - i : room;
+        memcpy(dst, in + (size_t)i * AFM_DECIM_CH, (size_t)len * AFM_DECIM_CH * sizeof *in);
+        m += afm_decim_commit(d, len, 0, out + (size_t)m * AFM_DECIM_CH);
+        i += len;
     }
     return m;
 }

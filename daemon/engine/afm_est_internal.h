@@ -1,9 +1,10 @@
 /* SPDX-License-Identifier: MIT */
 /* afm_est_internal.h -- small helpers shared by the estimators (afm_orbit, afm_harm,
  * afm_cycle, afm_lockin): cubic Hermite pieces in (x, v), contact-line crossings, the 3-point
- * peak, the thesis App. E.4 phase difference and the drive-phase tracker (period clock).
- * Internal: not installed, not part of any contract; everything is static inline so each
- * user gets its own copy. */
+ * peak, the thesis App. E.4 phase difference, the drive-phase tracker (period clock) with
+ * its vectorised run check (afm_track_run), and 4-lane vector helpers (afm_v4). Internal:
+ * not installed, not part of any contract; everything is static inline so each user gets
+ * its own copy. */
 #ifndef AFM_EST_INTERNAL_H
 #define AFM_EST_INTERNAL_H
 
@@ -337,6 +338,182 @@ static inline void afm_split_weights(double s, double w_before[2], double w_afte
     w_before[1] = 0.5 * s * s;
     w_after[0] = 0.5 * (1.0 - s) * (1.0 - s);
     w_after[1] = 0.5 * (1.0 - s * s);
+}
+
+/* 4 doubles side by side (afm_harm's harmonic lanes, afm_lockin's filter stages): AVX
+ * registers when the target has AVX and FMA, else plain arrays. Both give the same results:
+ * each operation rounds once per lane, afm_v4_fma included (fma of libm otherwise). */
+#if defined(__AVX__) && defined(__FMA__)
+#include <immintrin.h>
+#define AFM_EST_AVX 1
+typedef __m256d afm_v4;
+static inline afm_v4 afm_v4_ld(const double *p) {
+    return _mm256_loadu_pd(p);
+}
+static inline void afm_v4_st(double *p, afm_v4 a) {
+    _mm256_storeu_pd(p, a);
+}
+static inline afm_v4 afm_v4_set1(double a) {
+    return _mm256_set1_pd(a);
+}
+static inline afm_v4 afm_v4_add(afm_v4 a, afm_v4 b) {
+    return _mm256_add_pd(a, b);
+}
+static inline afm_v4 afm_v4_sub(afm_v4 a, afm_v4 b) {
+    return _mm256_sub_pd(a, b);
+}
+static inline afm_v4 afm_v4_mul(afm_v4 a, afm_v4 b) {
+    return _mm256_mul_pd(a, b);
+}
+/* a b + c, c - a b and a b - c, one rounding */
+static inline afm_v4 afm_v4_fma(afm_v4 a, afm_v4 b, afm_v4 c) {
+    return _mm256_fmadd_pd(a, b, c);
+}
+static inline afm_v4 afm_v4_fnma(afm_v4 a, afm_v4 b, afm_v4 c) {
+    return _mm256_fnmadd_pd(a, b, c);
+}
+static inline afm_v4 afm_v4_fms(afm_v4 a, afm_v4 b, afm_v4 c) {
+    return _mm256_fmsub_pd(a, b, c);
+}
+#else
+typedef struct {
+    double v[4];
+} afm_v4;
+static inline afm_v4 afm_v4_ld(const double *p) {
+    afm_v4 r;
+    for (int l = 0; l < 4; l++)
+        r.v[l] = p[l];
+    return r;
+}
+static inline void afm_v4_st(double *p, afm_v4 a) {
+    for (int l = 0; l < 4; l++)
+        p[l] = a.v[l];
+}
+static inline afm_v4 afm_v4_set1(double a) {
+    afm_v4 r = {{a, a, a, a}};
+    return r;
+}
+static inline afm_v4 afm_v4_add(afm_v4 a, afm_v4 b) {
+    for (int l = 0; l < 4; l++)
+        a.v[l] += b.v[l];
+    return a;
+}
+static inline afm_v4 afm_v4_sub(afm_v4 a, afm_v4 b) {
+    for (int l = 0; l < 4; l++)
+        a.v[l] -= b.v[l];
+    return a;
+}
+static inline afm_v4 afm_v4_mul(afm_v4 a, afm_v4 b) {
+    for (int l = 0; l < 4; l++)
+        a.v[l] *= b.v[l];
+    return a;
+}
+static inline afm_v4 afm_v4_fma(afm_v4 a, afm_v4 b, afm_v4 c) {
+    for (int l = 0; l < 4; l++)
+        c.v[l] = fma(a.v[l], b.v[l], c.v[l]);
+    return c;
+}
+static inline afm_v4 afm_v4_fnma(afm_v4 a, afm_v4 b, afm_v4 c) {
+    for (int l = 0; l < 4; l++)
+        c.v[l] = fma(-a.v[l], b.v[l], c.v[l]);
+    return c;
+}
+static inline afm_v4 afm_v4_fms(afm_v4 a, afm_v4 b, afm_v4 c) {
+    for (int l = 0; l < 4; l++)
+        c.v[l] = fma(a.v[l], b.v[l], -c.v[l]);
+    return c;
+}
+#endif
+
+/* Complex products on 4 lanes (re, im apart), rounded as (a + i b) (c + i d) =
+ * fma(a, c, -(b d)) + i fma(a, d, b c). */
+static inline void afm_v4_cmul(afm_v4 a, afm_v4 b, afm_v4 c, afm_v4 d, afm_v4 *re, afm_v4 *im) {
+    *re = afm_v4_fms(a, c, afm_v4_mul(b, d));
+    *im = afm_v4_fma(a, d, afm_v4_mul(b, c));
+}
+
+/* How many of th[0..nmax) take the tracker's fast path in a row (afm_track_fast's test,
+ * (theta - th_ref) - n dphi within tol and n <= n_end, evaluated with the same roundings),
+ * with a[i] and, if b is not NULL, b[i] finite. Nothing changes: the caller then advances
+ * t->n by the count and sets t->th_prev. 8 samples per step with AVX. */
+#if defined(__GNUC__)
+#define AFM_EST_INLINE __attribute__((always_inline))
+#else
+#define AFM_EST_INLINE
+#endif
+#if defined(AFM_EST_AVX)
+/* |theta - prediction| <= tol on 4 lanes, NaN (so false) where a or b is not finite */
+static inline AFM_EST_INLINE __m256d afm_track_ok4(__m256d th, __m256d a, __m256d b, __m256d nn,
+                                                   __m256d ref, __m256d dp, __m256d tol,
+                                                   const bool use_b) {
+    const __m256d zero = _mm256_setzero_pd();
+    __m256d e = _mm256_sub_pd(_mm256_sub_pd(th, ref), _mm256_mul_pd(nn, dp));
+    e = _mm256_fmadd_pd(a, zero, e);
+    if (use_b) e = _mm256_fmadd_pd(b, zero, e);
+    return _mm256_cmp_pd(_mm256_andnot_pd(_mm256_set1_pd(-0.0), e), tol, _CMP_LE_OQ);
+}
+static inline AFM_EST_INLINE int afm_track_run_avx(const afm_phase_track *t, const double *th,
+                                                   const double *a, const double *b, int nmax,
+                                                   const bool use_b) {
+    double room = t->n_end - t->n; /* integer-valued, as n */
+    if (!(room >= 1.0) || nmax <= 0) return 0;
+    int lim = room < (double)nmax ? (int)room : nmax;
+    const __m256d ref = _mm256_set1_pd(t->th_ref), dp = _mm256_set1_pd(t->dphi);
+    const __m256d tol = _mm256_set1_pd(t->tol), zero = _mm256_setzero_pd();
+    const __m256d four = _mm256_set1_pd(4.0), eight = _mm256_set1_pd(8.0);
+    __m256d nn = _mm256_add_pd(_mm256_set1_pd(t->n), _mm256_set_pd(4.0, 3.0, 2.0, 1.0));
+    int i = 0;
+    for (; i + 8 <= lim; i += 8) {
+        __m256d ok0 = afm_track_ok4(_mm256_loadu_pd(th + i), _mm256_loadu_pd(a + i),
+                                    use_b ? _mm256_loadu_pd(b + i) : zero, nn, ref, dp, tol, use_b);
+        __m256d ok1 = afm_track_ok4(_mm256_loadu_pd(th + i + 4), _mm256_loadu_pd(a + i + 4),
+                                    use_b ? _mm256_loadu_pd(b + i + 4) : zero,
+                                    _mm256_add_pd(nn, four), ref, dp, tol, use_b);
+        if (_mm256_movemask_pd(_mm256_and_pd(ok0, ok1)) != 15) break;
+        nn = _mm256_add_pd(nn, eight);
+    }
+    for (;; i += 4) { /* the rest, or the step of 8 that failed: 4 at a time */
+        int left = lim - i;
+        if (left <= 0) return lim;
+        __m256d x, y, z;
+        if (left >= 4) {
+            x = _mm256_loadu_pd(th + i);
+            y = _mm256_loadu_pd(a + i);
+            z = use_b ? _mm256_loadu_pd(b + i) : zero;
+        } else {
+            __m256i m = _mm256_cmpgt_epi64(_mm256_set1_epi64x(left), _mm256_set_epi64x(3, 2, 1, 0));
+            x = _mm256_maskload_pd(th + i, m);
+            y = _mm256_maskload_pd(a + i, m);
+            z = use_b ? _mm256_maskload_pd(b + i, m) : zero;
+        }
+        int msk = _mm256_movemask_pd(afm_track_ok4(x, y, z, nn, ref, dp, tol, use_b));
+        if (msk != 15) {
+            int k = __builtin_ctz((unsigned)~msk);
+            return i + (k < left ? k : left);
+        }
+        nn = _mm256_add_pd(nn, four);
+    }
+}
+#endif
+
+static inline AFM_EST_INLINE int afm_track_run(const afm_phase_track *t, const double *th,
+                                               const double *a, const double *b, int nmax) {
+#if defined(AFM_EST_AVX)
+    return b ? afm_track_run_avx(t, th, a, b, nmax, true)
+             : afm_track_run_avx(t, th, a, NULL, nmax, false);
+#else
+    double room = t->n_end - t->n; /* integer-valued, as n */
+    if (!(room >= 1.0) || nmax <= 0) return 0;
+    int lim = room < (double)nmax ? (int)room : nmax;
+    double nn = t->n;
+    for (int i = 0; i < lim; i++) {
+        nn += 1.0;
+        if (!(fabs((th[i] - t->th_ref) - nn * t->dphi) <= t->tol) || !isfinite(a[i]) ||
+            (b && !isfinite(b[i])))
+            return i;
+    }
+    return lim;
+#endif
 }
 
 #endif

@@ -214,6 +214,11 @@ int afm_runner_chain_run(afm_runner *r, int max_items) {
     return done;
 }
 
+bool afm_runner_chain_seq_next(afm_runner *r) {
+    const ring_item *it = afm_spsc_peek(&r->ring);
+    return it && it->kind == IT_SAMPLES && it->seq != r->b_seq;
+}
+
 int afm_runner_take_trash(afm_runner *r, afm_runner_model **m) {
     return afm_spsc_pop(&r->trash, m) ? 1 : 0;
 }

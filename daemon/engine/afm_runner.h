@@ -113,6 +113,9 @@ long long afm_runner_budget(const afm_runner *r);
  * waiting, so that the caller takes those first with their seq. Returns items processed
  * (0: nothing waiting). */
 int afm_runner_chain_run(afm_runner *r, int max_items);
+/* Back: true when the next waiting item holds samples of a later command than the
+ * outputs waiting now (afm_runner_chain_run would stop before it): hand those out first. */
+bool afm_runner_chain_seq_next(afm_runner *r);
 
 /* Back: the objects a swap replaced (a model handle to afm_runner_model_destroy off the
  * real-time threads). 1 with *m, 0 when none waits. */
