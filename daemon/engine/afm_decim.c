@@ -12,6 +12,11 @@ static const double pi = 3.14159265358979323846;
 /* One frame of all channels: a 256-bit vector (GNU vector extension, gcc and clang), so a
  * tap is one multiply-add for every channel. */
 typedef double v4 __attribute__((vector_size(32)));
+#if !defined(__AVX__) && defined(__GNUC__) && !defined(__clang__)
+/* Without AVX, gcc warns that passing v4 by value has another ABI; every such function here
+ * is static, so no other object file sees that ABI. */
+#pragma GCC diagnostic ignored "-Wpsabi"
+#endif
 _Static_assert(AFM_DECIM_CH == 4, "one v4 per frame");
 
 #define DESIGN_DB 86.0  /* Kaiser design attenuation */

@@ -248,6 +248,11 @@ static inline __attribute__((always_inline)) double rt_solve_fast(const afm_sim 
  * auto-vectoriser, which at -O2 turned these loops into memcpy calls and scalar code);
  * aligned(8) and may_alias make loads from any double array legal. */
 typedef double rt_v4 __attribute__((vector_size(32), aligned(8), may_alias));
+#if !defined(__AVX__) && defined(__GNUC__) && !defined(__clang__)
+/* Without AVX, gcc warns that passing rt_v4 by value has another ABI; every such function
+ * here is static, so no other object file sees that ABI. */
+#pragma GCC diagnostic ignored "-Wpsabi"
+#endif
 #define RT_V4(p) (*(const rt_v4 *)(const void *)(p))
 #define RT_V4W(p) (*(rt_v4 *)(void *)(p))
 
