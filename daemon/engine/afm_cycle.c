@@ -195,20 +195,18 @@ static double hermite_min(const afm_sample *p, const afm_sample *q, double h, do
     return xmin;
 }
 
-/* Minimum of xmin and the step's Hermite cubic at its stationary points inside (0, 1); none
- * when the cubic is monotone (Bernstein control points x0, x0 + h v0 / 3, x1 - h v1 / 3,
- * x1 in order). */
+/* Minimum of xmin and the step's Hermite cubic at its stationary points inside (0, 1), for
+ * a step with a Bernstein control point (x0 + h v0 / 3 or x1 - h v1 / 3) below both ends:
+ * the control polygon then changes direction, so the cubic is not monotone (no test). */
 static double step_min(const afm_sample *p, const afm_sample *q, double xmin) {
-    double h = q->t_s - p->t_s, h3 = h * (1.0 / 3.0);
-    double b1 = fma(h3, p->v_m_s, p->x_m), b2 = fma(-h3, q->v_m_s, q->x_m);
-    if (hermite_monotone(p->x_m, b1, b2, q->x_m)) return xmin;
-    return hermite_min(p, q, h, 0.0, 1.0, xmin);
+    return hermite_min(p, q, q->t_s - p->t_s, 0.0, 1.0, xmin);
 }
 
 /* A step from c->prev to s inside the active period (no boundary): the previous sample's
  * trapezoid weight into the sums of its index, s's x into the samples' minimum, and the
  * step's flags: the parabola at a local maximum of f at prev, a Bernstein control point
- * below that minimum (the Hermite minimum, step_min), a contact crossing (its part of the
+ * below both ends of the step (the cubic may dip below them: its minimum, step_min;
+ * otherwise the cubic stays above the samples' minimum), a contact crossing (its part of the
  * step; the whole steps of a contact are added when it ends, as one difference of times).
  * The runs (run_block, run_events) do the same, operation for operation. */
 static void step_plain(afm_cycle *c, const afm_sample *s) {
@@ -220,7 +218,8 @@ static void step_plain(afm_cycle *c, const afm_sample *s) {
     c->sum_x[l] = fma(w, p->x_m, c->sum_x[l]);
     if (s->x_m < c->smin) c->smin = s->x_m;
     double b1 = fma(h3, p->v_m_s, p->x_m), b2 = fma(-h3, s->v_m_s, s->x_m);
-    if ((b1 < b2 ? b1 : b2) < c->smin) m->min_deflection_m = step_min(p, s, m->min_deflection_m);
+    if ((b1 < b2 ? b1 : b2) < (p->x_m < s->x_m ? p->x_m : s->x_m))
+        m->min_deflection_m = step_min(p, s, m->min_deflection_m);
     if (c->n_prev >= 2 && p->f_n >= c->f_prev2 && p->f_n >= s->f_n) {
         double pk = parabola(c->f_prev2, p->f_n, s->f_n);
         if (pk > m->peak_force_n) m->peak_force_n = pk;
@@ -470,7 +469,7 @@ int afm_cycle_push(afm_cycle *c, const afm_sample *s, double theta_rad) {
  * with the period active and the history full: step_plain for each, 4 steps at a time
  * (AVX). The sums and minima by index mod 4 are 4 vector lanes (rotated to the run's first
  * sample), the flags (local maximum of f, contact crossing, Bernstein control point below
- * the minimum) are recorded per block of 4 steps and handled after the sums, in order,
+ * both ends of the step) are recorded per block of 4 steps and handled after the sums, in order,
  * with step_plain's arithmetic: the state after a run is the state after its samples'
  * afm_cycle_push, bit for bit. A run stops before a sample whose theta is off the
  * tracker's line or whose step is not positive; a run with a value that is not finite
@@ -514,14 +513,12 @@ typedef struct {
 typedef struct {
     int n_ev;                     /* flagged blocks */
     unsigned ev[RUN_MAX / 4 + 1]; /* first step << 12 | mn << 8 | cr << 4 | lm */
-    double xm[RUN_MAX / 4 + 1];   /* with mn: the samples' minimum before the block */
 } run_flags;
 
 /* The flagged steps, in order: step k joins sample k - 1 (p) to sample k (q); in block
  * record e, bit l of lm / cr / mn flags step k0 + l. lm: f has a local maximum at p (>= both
  * neighbours): the parabola; cr: p and q lie on opposite sides of the contact line; mn: a
- * Bernstein control point below the minimum of the samples of its lane (so possibly below
- * the samples' minimum, which decides, as in step_plain): step_min. As step_plain. */
+ * Bernstein control point below both p and q: step_min. As step_plain. */
 static CYCLE_NOINLINE void run_events(run_state *r, const run_flags *fl) {
     const afm_sample *s = r->s;
     for (int e = 0; e < fl->n_ev; e++) {
@@ -556,18 +553,9 @@ static CYCLE_NOINLINE void run_events(run_state *r, const run_flags *fl) {
                 r->ct += (p->t_s - r->t_in) + h * fr;
             }
         }
-        if (ev >> 8 & 15u) { /* the samples' minimum at each step: as step_plain's */
-            double sm = fl->xm[e];
-            int j = k0;
-            for (unsigned mn = ev >> 8 & 15u; mn; mn &= mn - 1) {
-                int k = k0 + lowest_bit(mn);
-                for (; j <= k; j++)
-                    if (s[j].x_m < sm) sm = s[j].x_m;
-                const afm_sample *p = k ? s + k - 1 : r->p0, *q = s + k;
-                double h3 = (q->t_s - p->t_s) * (1.0 / 3.0);
-                double b1 = fma(h3, p->v_m_s, p->x_m), b2 = fma(-h3, q->v_m_s, q->x_m);
-                if ((b1 < b2 ? b1 : b2) < sm) r->xmin = step_min(p, q, r->xmin);
-            }
+        for (unsigned mn = ev >> 8 & 15u; mn; mn &= mn - 1) {
+            int k = k0 + lowest_bit(mn);
+            r->xmin = step_min(k ? s + k - 1 : r->p0, s + k, r->xmin);
         }
     }
 }
@@ -635,7 +623,7 @@ static CYCLE_INLINE int run_block(run_vec *w, run_flags *out, const run_consts *
         _mm256_and_pd(_mm256_cmp_pd(Fp, Fpp, _CMP_GE_OQ), _mm256_cmp_pd(Fp, F, _CMP_GE_OQ));
     __m256d H3 = _mm256_mul_pd(H, k->third), XM = _mm256_min_pd(w->xm, Xq);
     __m256d bmin = _mm256_min_pd(_mm256_fmadd_pd(H3, Vp, Xp), _mm256_fnmadd_pd(H3, V, X));
-    __m256d mn = _mm256_cmp_pd(bmin, XM, _CMP_LT_OQ);
+    __m256d mn = _mm256_cmp_pd(bmin, _mm256_min_pd(Xp, X), _CMP_LT_OQ);
     __m256d any = _mm256_or_pd(_mm256_or_pd(bad, mn), _mm256_or_pd(cr, lm));
     unsigned valid = nv < 4 ? (1u << nv) - 1u : 15u;
     if (nv < 4 ? ((unsigned)_mm256_movemask_pd(any) & valid) != 0 : !_mm256_testz_pd(any, any)) {
@@ -645,7 +633,6 @@ static CYCLE_INLINE int run_block(run_vec *w, run_flags *out, const run_consts *
                  l = (unsigned)_mm256_movemask_pd(lm) & valid,
                  n = (unsigned)_mm256_movemask_pd(mn) & valid;
         if (c | l | n) {
-            if (n) out->xm[out->n_ev] = hmin4(w->xm);
             out->ev[out->n_ev++] = (unsigned)k0 << 12 | n << 8 | c << 4 | l;
         }
     }

@@ -29,8 +29,9 @@
  *
  * Nothing allocates; O(1) per sample: compares and adds, except at a boundary, a contact
  * crossing (a root of the cubic: two Halley steps from a quadratic guess, to ~1e-15 of the
- * step) and a step whose Hermite cubic may dip below the running minimum (its stationary
- * points); see afm_phase_track in afm_est_internal.h. */
+ * step) and a step whose Hermite cubic may dip below both its ends (a Bernstein control
+ * point below them, ~once a period: its stationary points); see afm_phase_track in
+ * afm_est_internal.h. */
 #ifndef AFM_CYCLE_H
 #define AFM_CYCLE_H
 
@@ -97,7 +98,7 @@ int afm_cycle_push(afm_cycle *c, const afm_sample *s, double theta_rad);
  * and state as afm_cycle_push, bit for bit (so independent of how a stream is cut into
  * calls): on the tracker's fast path it takes runs of samples 4 at a time (AVX) into the
  * sums by index mod 4 and a few flags per step (contact crossing, local maximum of f, a
- * Bernstein control point that may lie below the samples' minimum), then handles the
+ * Bernstein control point below both ends of the step), then handles the
  * flagged steps in order. */
 int afm_cycle_push_n(afm_cycle *c, const afm_sample *s, const double *theta_rad, int n, int *done,
                      long long *rejects);

@@ -8,6 +8,12 @@
 #define RE(j) (((j) >> 2) * 8 + ((j)&3)) /* lane j in a grouped complex array */
 #define IM(j) (RE(j) + 4)
 
+#if defined(__GNUC__)
+#define ALWAYS_INLINE __attribute__((always_inline))
+#else
+#define ALWAYS_INLINE
+#endif
+
 /* Empty state for the harmonic list already in h (nk, nl, ks). */
 static void clear_state(afm_harm *h) {
     afm_track_init(&h->trk, true);
@@ -248,12 +254,10 @@ static void phase_diff4(const double *kd, double a, const double *ph, double *pd
 #endif
 }
 
-/* Phases atan2(im, re) (rad) and magnitudes |re + i im| (afm_est_hypot's value) of the 4
- * lanes of one group of a grouped complex array (z: 4 real parts, then 4 imaginary). */
-static inline void polar4(const double *z, double *ph, double *mag) {
+/* Phases atan2(y, x) (rad) and magnitudes |x + i y| (afm_est_hypot's value) of 4 lanes. */
+static inline void polar4v(afm_v4 x, afm_v4 y, double *ph, double *mag) {
 #if defined(AFM_EST_AVX)
     const double *k = harm_consts();
-    __m256d x = _mm256_loadu_pd(z), y = _mm256_loadu_pd(z + 4);
     __m256d q = _mm256_add_pd(_mm256_mul_pd(x, x), _mm256_mul_pd(y, y)); /* as afm_est_hypot */
     /* q in (1e-290, 1e290): afm_est_hypot's sqrt, and max(|x|, |y|) > 0 and finite */
     __m256d ok = _mm256_and_pd(_mm256_cmp_pd(q, KV(k, K_QMIN), _CMP_GT_OQ),
@@ -264,48 +268,68 @@ static inline void polar4(const double *z, double *ph, double *mag) {
         return;
     }
 #endif
+    double z[8];
+    afm_v4_st(z, x);
+    afm_v4_st(z + 4, y);
     polar_scalar(z, ph, mag);
 }
 
-/* The period just completed (sums in sx, sf; its length in sample intervals) into h->out:
- * polar form, eq. E.12-E.13 and the records, 4 lanes at a time. */
-static void finish_period(afm_harm *h, double samples) {
+/* The period just completed into h->out: the phases (rad) and magnitudes of its sums, sx on
+ * every lane into pxs, axs and sf on the configured ones into pfs, afs (polar4v); its length
+ * in sample intervals. Eq. E.12-E.13 and the records, 4 lanes at a time. */
+static void finish_period(afm_harm *h, double samples, const double *pxs, const double *axs,
+                          const double *pfs, const double *afs) {
     const double scale = 2.0 / samples;
-    double pxs[AFM_HARM_LANES], axs[AFM_HARM_LANES];
-    for (int j = 0; j < h->nl; j += 4)
-        polar4(h->sx + 2 * j, pxs + j, axs + j);
     const double a = AFM_EST_PI - pxs[h->lane1]; /* pi - phi_1 */
     h->out.period = h->periods;
     h->out.samples = samples;
     h->out.n_harmonics = h->nk;
+    const afm_v4 sc = afm_v4_set1(scale), r2d = afm_v4_set1(AFM_EST_RAD2DEG);
+#if defined(AFM_EST_AVX)
+    /* whole groups in registers: eq. E.12-E.13 as phase_diff4 (kd a, then + phi_k; reduced
+     * as afm_clock_wrap), the 4 x 4 transpose into the contiguous fields x_amp_m ..
+     * f_phase_deg */
+    const double *k = harm_consts();
+    const __m256d av = _mm256_set1_pd(a), two_pi = KV(k, K_2PI), one = KV(k, K_ONE);
+    int j = 0;
+    for (; j + 4 <= h->nk; j += 4) {
+        __m256d phx = _mm256_loadu_pd(pxs + j);
+        __m256d vv = _mm256_add_pd(_mm256_mul_pd(_mm256_loadu_pd(h->kd + j), av), phx);
+        __m256d m = _mm256_floor_pd(_mm256_mul_pd(vv, KV(k, K_INV2PI)));
+        __m256d w = _mm256_fnmadd_pd(m, two_pi, vv);
+        __m256d lo = _mm256_cmp_pd(w, _mm256_setzero_pd(), _CMP_LT_OQ);
+        __m256d hi = _mm256_cmp_pd(w, two_pi, _CMP_GE_OQ);
+        m = _mm256_sub_pd(_mm256_add_pd(m, _mm256_and_pd(hi, one)), _mm256_and_pd(lo, one));
+        __m256d deg = _mm256_mul_pd(_mm256_fnmadd_pd(m, two_pi, vv), KV(k, K_R2D));
+        __m256d pd = _mm256_andnot_pd(_mm256_cmp_pd(deg, KV(k, K_360), _CMP_GE_OQ), deg);
+        __m256d r0 = _mm256_mul_pd(_mm256_loadu_pd(axs + j), sc), r1 = _mm256_mul_pd(phx, r2d);
+        __m256d r2 = _mm256_mul_pd(_mm256_loadu_pd(afs + j), sc);
+        __m256d r3 = _mm256_mul_pd(_mm256_loadu_pd(pfs + j), r2d);
+        __m256d t0 = _mm256_unpacklo_pd(r0, r1), t1 = _mm256_unpackhi_pd(r0, r1);
+        __m256d t2 = _mm256_unpacklo_pd(r2, r3), t3 = _mm256_unpackhi_pd(r2, r3);
+        afm_orbit_harmonic *o = h->out.h + j;
+        _mm256_storeu_pd(&o[0].x_amp_m, _mm256_permute2f128_pd(t0, t2, 0x20));
+        _mm256_storeu_pd(&o[1].x_amp_m, _mm256_permute2f128_pd(t1, t3, 0x20));
+        _mm256_storeu_pd(&o[2].x_amp_m, _mm256_permute2f128_pd(t0, t2, 0x31));
+        _mm256_storeu_pd(&o[3].x_amp_m, _mm256_permute2f128_pd(t1, t3, 0x31));
+        __m128d plo = _mm256_castpd256_pd128(pd), phi = _mm256_extractf128_pd(pd, 1);
+        _mm_storel_pd(&o[0].phase_diff_deg, plo);
+        _mm_storeh_pd(&o[1].phase_diff_deg, plo);
+        _mm_storel_pd(&o[2].phase_diff_deg, phi);
+        _mm_storeh_pd(&o[3].phase_diff_deg, phi);
+    }
+    for (; j < h->nk; j += 4) {
+#else
     for (int j = 0; j < h->nk; j += 4) {
+#endif
         double px[4], ax[4], pf[4], af[4], pd[4];
-        memcpy(px, pxs + j, sizeof px);
-        memcpy(ax, axs + j, sizeof ax);
-        polar4(h->sf + 2 * j, pf, af);
-        phase_diff4(h->kd + j, a, px, pd);
-        afm_v4 sc = afm_v4_set1(scale), r2d = afm_v4_set1(AFM_EST_RAD2DEG);
-        afm_v4_st(ax, afm_v4_mul(afm_v4_ld(ax), sc));
-        afm_v4_st(af, afm_v4_mul(afm_v4_ld(af), sc));
-        afm_v4_st(px, afm_v4_mul(afm_v4_ld(px), r2d));
-        afm_v4_st(pf, afm_v4_mul(afm_v4_ld(pf), r2d));
+        phase_diff4(h->kd + j, a, pxs + j, pd);
+        afm_v4_st(ax, afm_v4_mul(afm_v4_ld(axs + j), sc));
+        afm_v4_st(af, afm_v4_mul(afm_v4_ld(afs + j), sc));
+        afm_v4_st(px, afm_v4_mul(afm_v4_ld(pxs + j), r2d));
+        afm_v4_st(pf, afm_v4_mul(afm_v4_ld(pfs + j), r2d));
         afm_orbit_harmonic *o = h->out.h + j;
         int n = h->nk - j < 4 ? h->nk - j : 4;
-#if defined(AFM_EST_AVX)
-        if (n == 4) { /* the fields x_amp_m .. f_phase_deg are contiguous: a 4 x 4 transpose */
-            __m256d r0 = _mm256_loadu_pd(ax), r1 = _mm256_loadu_pd(px);
-            __m256d r2 = _mm256_loadu_pd(af), r3 = _mm256_loadu_pd(pf);
-            __m256d t0 = _mm256_unpacklo_pd(r0, r1), t1 = _mm256_unpackhi_pd(r0, r1);
-            __m256d t2 = _mm256_unpacklo_pd(r2, r3), t3 = _mm256_unpackhi_pd(r2, r3);
-            _mm256_storeu_pd(&o[0].x_amp_m, _mm256_permute2f128_pd(t0, t2, 0x20));
-            _mm256_storeu_pd(&o[1].x_amp_m, _mm256_permute2f128_pd(t1, t3, 0x20));
-            _mm256_storeu_pd(&o[2].x_amp_m, _mm256_permute2f128_pd(t0, t2, 0x31));
-            _mm256_storeu_pd(&o[3].x_amp_m, _mm256_permute2f128_pd(t1, t3, 0x31));
-            for (int l = 0; l < 4; l++)
-                o[l].phase_diff_deg = pd[l];
-            continue;
-        }
-#endif
         for (int l = 0; l < n; l++) {
             o[l].x_amp_m = ax[l];
             o[l].x_phase_deg = px[l];
@@ -320,124 +344,129 @@ static void finish_period(afm_harm *h, double samples) {
 /* A sample off the fast path, by the exact clock: theta mod 2 pi; boundaries, fractional
  * ends, resynchronisation of the phasors. Returns -1 (rejected, nothing changed), 0, or 1 (a
  * period completed). */
-static int push_slow(afm_harm *h, double x, double f, double theta_rad) {
+static int harm_push_slow(afm_harm *h, double x, double f, double theta_rad) {
     if (!isfinite(x) || !isfinite(f)) return -1;
     double phi; /* phase since the last boundary; at a boundary e^{-ik phi} is the same for
                  * both periods since k is an integer */
-    if (afm_track_check(&h->trk, theta_rad, &phi) != AFM_CLOCK_NONE) return -1;
-    const bool had_prev = h->trk.started, active = h->active;
-    bool rate_changed;
-    double frac = 1.0;
-    /* On the tracker's prediction (only the boundary ended the fast path): the phasors
-     * rotate one more step and then stand for imp, which must be within tol of theta. */
     const afm_phase_track *t = &h->trk;
-    double n1 = t->n + 1.0, imp = h->imp_ref + n1 * t->dphi, tol = t->tol;
-    bool rotate = t->locked && h->n_sync + n1 <= AFM_TRACK_WINDOW_CLOCK &&
-                  fabs((theta_rad - t->th_ref) - n1 * t->dphi) <= tol &&
-                  fabs(theta_rad - imp) <= tol;
+    const double n1 = t->n + 1.0, imp = h->imp_ref + n1 * t->dphi, tol = t->tol;
+    /* On the tracker's prediction (only the boundary or the window ended the fast path):
+     * theta - theta_prev is dphi within 2 tol (theta_prev was on it too), and a locked clock
+     * has dphi in (4 tol, pi - 4 tol), so the step passes afm_track_check (theta mod 2 pi is
+     * exact, the step rounds by less than tol): only theta mod 2 pi is needed. */
+    const bool on_pred = t->locked && fabs((theta_rad - t->th_ref) - n1 * t->dphi) <= tol;
+    if (on_pred)
+        phi = afm_clock_wrap(theta_rad);
+    else if (afm_track_check(&h->trk, theta_rad, &phi) != AFM_CLOCK_NONE)
+        return -1;
+    const bool had_prev = h->trk.started, active = h->active;
+    /* the phasors rotate one more step and then stand for imp, which must be within tol of
+     * theta */
+    const bool rotate =
+        on_pred && h->n_sync + n1 <= AFM_TRACK_WINDOW_CLOCK && fabs(theta_rad - imp) <= tol;
     const int st = 2 * h->nl;
     const double *tm = h->tab + (size_t)(int)(t->n - h->nbase) * st; /* previous sample */
-    /* One pass over the lanes: the previous sample's phasor ep = b T[m]; the phasor for this
-     * sample on the rotation, b T[m + 1] times e^{-ik e} ~ 1 - i k e for the residual e =
-     * theta - imp (|k e| < 1e-6: the dropped terms are below 1e-12 of it); the chunk into
-     * the period sums. */
-    double ep[2 * AFM_HARM_LANES], p[2 * AFM_HARM_LANES];
-    const afm_v4 e = afm_v4_set1(theta_rad - imp);
-    for (int g = 0; g < st; g += 8) {
-        afm_v4 br = afm_v4_ld(h->b + g), bi = afm_v4_ld(h->b + g + 4), re, im;
-        afm_v4_cmul(br, bi, afm_v4_ld(tm + g), afm_v4_ld(tm + g + 4), &re, &im);
-        afm_v4_st(ep + g, re);
-        afm_v4_st(ep + g + 4, im);
-        afm_v4_cmul(br, bi, afm_v4_ld(tm + st + g), afm_v4_ld(tm + st + g + 4), &re, &im);
-        afm_v4 ke = afm_v4_mul(afm_v4_ld(h->kd + g / 2), e);
-        afm_v4_st(p + g, afm_v4_fma(ke, im, re));
-        afm_v4_st(p + g + 4, afm_v4_fnma(ke, re, im));
-        if (active) { /* s += b c */
-            afm_v4 cr = afm_v4_ld(h->cx + g), ci = afm_v4_ld(h->cx + g + 4);
-            afm_v4_st(h->sx + g, afm_v4_fma(br, cr, afm_v4_fnma(bi, ci, afm_v4_ld(h->sx + g))));
-            afm_v4_st(h->sx + g + 4,
-                      afm_v4_fma(br, ci, afm_v4_fma(bi, cr, afm_v4_ld(h->sx + g + 4))));
-            cr = afm_v4_ld(h->cf + g);
-            ci = afm_v4_ld(h->cf + g + 4);
-            afm_v4_st(h->sf + g, afm_v4_fma(br, cr, afm_v4_fnma(bi, ci, afm_v4_ld(h->sf + g))));
-            afm_v4_st(h->sf + g + 4,
-                      afm_v4_fma(br, ci, afm_v4_fma(bi, cr, afm_v4_ld(h->sf + g + 4))));
-        }
-    }
-    int ev = afm_track_advance(&h->trk, theta_rad, phi, &frac, &rate_changed);
-    if (rotate && h->trk.locked) {
-        h->n_sync += n1;
-    } else {
-        phasors_exact(h, phi, p);
+    bool rate_changed;
+    double frac = 1.0;
+    const int ev = afm_track_advance(&h->trk, theta_rad, phi, &frac, &rate_changed);
+    double pex[2 * AFM_HARM_LANES];
+    const bool exact = !(rotate && h->trk.locked);
+    if (exact) {
+        phasors_exact(h, phi, pex);
         h->n_sync = 0.0;
+    } else {
+        h->n_sync += n1;
     }
     h->imp_ref = theta_rad;
-    if (h->trk.locked && rate_changed) build_table(h);
-
-    int done = 0;
-    if (had_prev && active) {
-        if (ev == AFM_CLOCK_CROSS) {
-            /* the previous sample already has weight 1 (0.5 from each side); the step's
-             * part before the boundary is wb[0] g_prev + wb[1] g_cur */
-            double wb[2], wa[2];
-            afm_split_weights(frac, wb, wa);
-            afm_v4 xp = afm_v4_set1((wb[0] - 0.5) * h->x_prev), xc = afm_v4_set1(wb[1] * x);
-            afm_v4 fp = afm_v4_set1((wb[0] - 0.5) * h->f_prev), fc = afm_v4_set1(wb[1] * f);
-            for (int g = 0; g < st; g += 4) {
-                afm_v4 e0 = afm_v4_ld(ep + g), e1 = afm_v4_ld(p + g);
-                afm_v4_st(h->sx + g, afm_v4_fma(xc, e1, afm_v4_fma(xp, e0, afm_v4_ld(h->sx + g))));
-                afm_v4_st(h->sf + g, afm_v4_fma(fc, e1, afm_v4_fma(fp, e0, afm_v4_ld(h->sf + g))));
-            }
-            finish_period(h, (h->wsum + h->nsteps) + frac);
-            done = 1;
-        } else {
-            h->nsteps += 1.0;
-        }
-    }
-    /* This sample into the chunk sums (c = w x: the phasor of the new chunk base is its own),
-     * and the new period's sums if one starts: at this sample, or inside the step just
-     * taken; this sample then gets the after-boundary weight plus 0.5 from the next step. */
-    double wx = active ? x : 0.0, wf = active ? f : 0.0; /* weight 1 (nothing before the first
-                                                          * boundary) */
+    /* cross: this step ends the period (the previous sample already has weight 1, 0.5 from
+     * each side; the step's part before the boundary is wb[0] g_prev + wb[1] g_cur); start:
+     * a period starts at this sample or inside the step just taken: this sample gets the
+     * after-boundary weight plus 0.5 from the next step, the previous one wa[0]. */
+    const bool cross = had_prev && active && ev == AFM_CLOCK_CROSS;
     const bool start = ev == AFM_CLOCK_START || (ev == AFM_CLOCK_CROSS && had_prev);
-    double wa[2] = {0.0, 0.0};
+    double wb[2] = {0.0, 0.0}, wa[2] = {0.0, 0.0};
+    if (ev == AFM_CLOCK_CROSS) afm_split_weights(frac, wb, wa);
+    if (had_prev && active && !cross) h->nsteps += 1.0;
+    const double samples = (h->wsum + h->nsteps) + frac;
+    /* this sample into the new chunk sums (c = w x: the phasor of the new chunk base is its
+     * own); weight 1, nothing before the first boundary */
+    double wx = active ? x : 0.0, wf = active ? f : 0.0;
     if (start) {
-        double wb[2];
-        if (ev == AFM_CLOCK_CROSS) afm_split_weights(frac, wb, wa);
         wx = (wa[1] + 0.5) * x;
         wf = (wa[1] + 0.5) * f;
         h->wsum = ev == AFM_CLOCK_CROSS ? 1.0 - frac : 0.0;
         h->nsteps = 0.0;
         h->active = true;
     }
-    const afm_v4 xc = afm_v4_set1(wx), fc = afm_v4_set1(wf), zero = afm_v4_set1(0.0);
-    const afm_v4 xp = afm_v4_set1(wa[0] * h->x_prev), fp = afm_v4_set1(wa[0] * h->f_prev);
+    /* One pass over the lanes: the previous sample's phasor ep = b T[m]; the phasor p for
+     * this sample on the rotation, b T[m + 1] times e^{-ik e} ~ 1 - i k e for the residual
+     * e = theta - imp (|k e| < 1e-6: the dropped terms are below 1e-12 of it), or exact; the
+     * chunk into the period sums (s += b c); the ends of a completed period and its polar
+     * form; the new period's sums; the new chunk. */
+    const afm_v4 e = afm_v4_set1(theta_rad - imp), zero = afm_v4_set1(0.0);
+    const afm_v4 kxp = afm_v4_set1((wb[0] - 0.5) * h->x_prev), kxc = afm_v4_set1(wb[1] * x);
+    const afm_v4 kfp = afm_v4_set1((wb[0] - 0.5) * h->f_prev), kfc = afm_v4_set1(wb[1] * f);
+    const afm_v4 nxp = afm_v4_set1(wa[0] * h->x_prev), nfp = afm_v4_set1(wa[0] * h->f_prev);
+    const afm_v4 wxv = afm_v4_set1(wx), wfv = afm_v4_set1(wf);
+    double pxs[AFM_HARM_LANES], axs[AFM_HARM_LANES], pfs[AFM_HARM_LANES], afs[AFM_HARM_LANES];
     for (int g = 0; g < st; g += 8) {
-        if (start) {
-            afm_v4 er = afm_v4_ld(ep + g), ei = afm_v4_ld(ep + g + 4);
-            afm_v4_st(h->sx + g, afm_v4_mul(xp, er));
-            afm_v4_st(h->sx + g + 4, afm_v4_mul(xp, ei));
-            afm_v4_st(h->sf + g, afm_v4_mul(fp, er));
-            afm_v4_st(h->sf + g + 4, afm_v4_mul(fp, ei));
+        const afm_v4 br = afm_v4_ld(h->b + g), bi = afm_v4_ld(h->b + g + 4);
+        afm_v4 er, ei, pr, pi;
+        afm_v4_cmul(br, bi, afm_v4_ld(tm + g), afm_v4_ld(tm + g + 4), &er, &ei);
+        if (exact) {
+            pr = afm_v4_ld(pex + g);
+            pi = afm_v4_ld(pex + g + 4);
+        } else {
+            afm_v4 re, im;
+            afm_v4_cmul(br, bi, afm_v4_ld(tm + st + g), afm_v4_ld(tm + st + g + 4), &re, &im);
+            afm_v4 ke = afm_v4_mul(afm_v4_ld(h->kd + g / 2), e);
+            pr = afm_v4_fma(ke, im, re);
+            pi = afm_v4_fnma(ke, re, im);
         }
-        afm_v4_st(h->cx + g, xc);
+        afm_v4 sxr = afm_v4_ld(h->sx + g), sxi = afm_v4_ld(h->sx + g + 4);
+        afm_v4 sfr = afm_v4_ld(h->sf + g), sfi = afm_v4_ld(h->sf + g + 4);
+        if (active) {
+            afm_v4 cr = afm_v4_ld(h->cx + g), ci = afm_v4_ld(h->cx + g + 4);
+            sxr = afm_v4_fma(br, cr, afm_v4_fnma(bi, ci, sxr));
+            sxi = afm_v4_fma(br, ci, afm_v4_fma(bi, cr, sxi));
+            cr = afm_v4_ld(h->cf + g);
+            ci = afm_v4_ld(h->cf + g + 4);
+            sfr = afm_v4_fma(br, cr, afm_v4_fnma(bi, ci, sfr));
+            sfi = afm_v4_fma(br, ci, afm_v4_fma(bi, cr, sfi));
+        }
+        if (cross) {
+            sxr = afm_v4_fma(kxc, pr, afm_v4_fma(kxp, er, sxr));
+            sxi = afm_v4_fma(kxc, pi, afm_v4_fma(kxp, ei, sxi));
+            sfr = afm_v4_fma(kfc, pr, afm_v4_fma(kfp, er, sfr));
+            sfi = afm_v4_fma(kfc, pi, afm_v4_fma(kfp, ei, sfi));
+            polar4v(sxr, sxi, pxs + g / 2, axs + g / 2);
+            if (g / 2 < h->nk) polar4v(sfr, sfi, pfs + g / 2, afs + g / 2);
+        }
+        if (start) {
+            sxr = afm_v4_mul(nxp, er);
+            sxi = afm_v4_mul(nxp, ei);
+            sfr = afm_v4_mul(nfp, er);
+            sfi = afm_v4_mul(nfp, ei);
+        }
+        afm_v4_st(h->sx + g, sxr);
+        afm_v4_st(h->sx + g + 4, sxi);
+        afm_v4_st(h->sf + g, sfr);
+        afm_v4_st(h->sf + g + 4, sfi);
+        afm_v4_st(h->cx + g, wxv);
         afm_v4_st(h->cx + g + 4, zero);
-        afm_v4_st(h->cf + g, fc);
+        afm_v4_st(h->cf + g, wfv);
         afm_v4_st(h->cf + g + 4, zero);
-        afm_v4_st(h->b + g, afm_v4_ld(p + g));
-        afm_v4_st(h->b + g + 4, afm_v4_ld(p + g + 4));
+        afm_v4_st(h->b + g, pr);
+        afm_v4_st(h->b + g + 4, pi);
     }
+    if (cross) finish_period(h, samples, pxs, axs, pfs, afs);
+    if (h->trk.locked && rate_changed) build_table(h); /* after the pass: tm points into it */
     h->nbase = 0.0;
     h->x_prev = x;
     h->f_prev = f;
-    return done;
+    return cross ? 1 : 0;
 }
 
-#if defined(__GNUC__)
-#define ALWAYS_INLINE __attribute__((always_inline))
-#else
-#define ALWAYS_INLINE
-#endif
 _Static_assert(AFM_HARM_LANES <= 20, "chunk_sig keeps at most 5 groups of lanes in registers");
 
 /* c[0..2 nl) += sum_i v[i] T[m0 + i] over n samples, NG groups of 4 lanes (nl = 4 NG): the
@@ -452,6 +481,15 @@ static inline ALWAYS_INLINE void chunk_sig(double *c, const double *tab, const d
         acc[g] = afm_v4_ld(c + 4 * g);
     const double *tp = tab;
     int i = 0;
+    for (; i + 8 <= n; i += 8, tp += 8 * 8 * NG) {
+#pragma GCC unroll 8
+        for (int u = 0; u < 8; u++) {
+            afm_v4 vu = afm_v4_set1(v[i + u]);
+#pragma GCC unroll 10
+            for (int g = 0; g < 2 * NG; g++)
+                acc[g] = afm_v4_fma(vu, afm_v4_ld(tp + 8 * NG * u + 4 * g), acc[g]);
+        }
+    }
     for (; i + 4 <= n; i += 4, tp += 4 * 8 * NG) {
         afm_v4 v0 = afm_v4_set1(v[i]), v1 = afm_v4_set1(v[i + 1]);
         afm_v4 v2 = afm_v4_set1(v[i + 2]), v3 = afm_v4_set1(v[i + 3]);
@@ -554,7 +592,7 @@ int afm_harm_push_n(afm_harm *h, const double *x, const double *f, const double 
             h->f_prev = f[i - 1];
             if (i == n) break;
         }
-        int rc = push_slow(h, x[i], f[i], th[i]);
+        int rc = harm_push_slow(h, x[i], f[i], th[i]);
         i++;
         if (rc < 0) (*rejects)++;
         if (rc == 1) {

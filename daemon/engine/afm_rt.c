@@ -366,10 +366,12 @@ rt_piece_t(const afm_sim *s, const rt_state *r, const rt_snap *in, rt_snap *o, i
         xs += xq;
         vs += xv;
     }
-    if (in->rk == k)
+    if (in->rk == k) {
         rj = in->rj;
-    else
-        rj = 1.0 / fmax(1.0 - in->fx * P->gx - in->fv * P->gv, 0.25);
+    } else {
+        double jj = 1.0 - in->fx * P->gx - in->fv * P->gv; /* fmax(jj, 0.25), inlined */
+        rj = 1.0 / (jj > 0.25 ? jj : 0.25);
+    }
     /* The force first (the critical path); the modal update below does not wait for it
      * until its last multiply-add. */
     /* In contact the force changes fast: the iteration starts from the force extrapolated
@@ -569,53 +571,77 @@ static inline __attribute__((always_inline)) int rt_run_t(afm_sim *s, rt_state *
                                                           afm_sample *out, const int np,
                                                           const int nt, const bool noise) {
     int rc = AFM_SIM_OK;
-    /* The clock, the buffer index and the resync count live in registers over the block. */
+    /* The clock, the buffer index and the resync count live in registers over the block; the
+     * block is cut into segments that end before the next phasor resync, so the inner loop
+     * tests neither. Blow-up: |x| is tested every sample (a non-finite q_i, v or F reaches x
+     * within one step: x is a sum over every mode, affine in the last force); x', F once per
+     * segment, after its last sample. */
     long step = s->step, since = r->since_sync;
+    double stepd = (double)step; /* the step count as a double (exact below 2^53) */
     const double t0 = s->t_start_s, dt = s->dt_s;
     int cur = r->cur;
-    for (int k = 0; k < n; k++) {
-        rt_snap *a = &r->buf[cur], *b = &r->buf[cur ^ 1];
+    const double gx_full = r->prop[r->ncell - 1].gx;
+    for (int k = 0; k < n && rc == AFM_SIM_OK;) {
         if (__builtin_expect(++since >= RT_RESYNC, 0)) {
             s->step = step;
-            s->t_s = t0 + (double)step * dt;
-            rt_sync_phasors(s, r, a);
+            s->t_s = t0 + stepd * dt;
+            rt_sync_phasors(s, r, &r->buf[cur]);
             since = r->since_sync;
-            rt_predict(r, a);
+            rt_predict(r, &r->buf[cur]);
         }
-        bool contact = r->kinked && a->x < r->xc;
-        if (!contact) {
-            rt_piece_t(s, r, a, b, r->ncell, np, nt, true, noise, true);
-            if (r->kinked) {
-                double low = (a->x < b->x ? a->x : b->x) - r->clear_k * (fabs(a->xd) + fabs(b->xd));
-                contact = low < r->xc && rt_crossing_cell(r, a, b, dt, false) >= 0;
+        /* this step and the next m - 1 keep ++since below RT_RESYNC */
+        int m = n - k < RT_RESYNC - since ? n - k : (int)(RT_RESYNC - since);
+        int j = 0;
+        rt_snap *a = &r->buf[cur], *const b0 = &r->buf[0], *const b1 = &r->buf[1];
+        const rt_snap *b = a;
+        afm_sample *o = out ? out + k : NULL;
+        for (; j < m; j++) {
+            rt_snap *bb = a == b0 ? b1 : b0;
+            /* in contact at the start, or predicted to end there (the end's x with F held at
+             * F0: a free step would be redone in substeps anyway) */
+            bool contact = r->kinked && (a->x < r->xc || fma(gx_full, a->f, a->xn) < r->xc);
+            if (!contact) {
+                rt_piece_t(s, r, a, bb, r->ncell, np, nt, true, noise, true);
+                if (r->kinked) {
+                    double low =
+                        (a->x < bb->x ? a->x : bb->x) - r->clear_k * (fabs(a->xd) + fabs(bb->xd));
+                    contact = low < r->xc && rt_crossing_cell(r, a, bb, dt, false) >= 0;
+                }
+            }
+            if (contact) bb = rt_contact(s, r, a, bb);
+            a = bb;
+            b = bb;
+            stepd += 1.0;
+            /* A tip excursion of a millimetre is no cantilever any more. */
+            if (!(fabs(b->x) < 1e-3)) {
+                rc = AFM_SIM_EBLOWUP;
+                j++;
+                break;
+            }
+            if (o) {
+                rt_v4 th4 = rt_splat(0.0);
+                for (int i = 0; i < np; i += 4)
+                    th4 = rt_fma4(RT_V4(r->rot + i), RT_V4(b->q + i), th4);
+                double th = rt_hsum(th4), u = 0.0;
+                for (int jt = 0; jt < nt; jt++) {
+                    th += r->th_re[jt] * b->z_im[jt] + r->th_im[jt] * b->z_re[jt];
+                    u += s->drive.amp_m[jt] * b->z_im[jt];
+                }
+                o->t_s = t0 + stepd * dt;
+                o->x_m = b->x;
+                o->v_m_s = b->xd;
+                o->f_n = b->f;
+                o->theta_rad = th;
+                o->base_m = u;
+                o++;
             }
         }
-        if (contact) b = rt_contact(s, r, a, b);
-        cur = (int)(b - r->buf);
-        step++;
-        /* x and v are sums over every mode: a non-finite q_i shows in them. A tip excursion
-         * of a millimetre is no cantilever any more. */
-        if (!(fabs(b->x) < 1e-3 && fabs(b->xd) < HUGE_VAL && fabs(b->f) < HUGE_VAL)) {
+        cur = a == b0 ? 0 : 1;
+        if (rc == AFM_SIM_OK && !(fabs(b->xd) < HUGE_VAL && fabs(b->f) < HUGE_VAL))
             rc = AFM_SIM_EBLOWUP;
-            break;
-        }
-        if (out) {
-            afm_sample *o = &out[k];
-            rt_v4 th4 = rt_splat(0.0);
-            for (int i = 0; i < np; i += 4)
-                th4 = rt_fma4(RT_V4(r->rot + i), RT_V4(b->q + i), th4);
-            double th = rt_hsum(th4), u = 0.0;
-            for (int j = 0; j < nt; j++) {
-                th += r->th_re[j] * b->z_im[j] + r->th_im[j] * b->z_re[j];
-                u += s->drive.amp_m[j] * b->z_im[j];
-            }
-            o->t_s = t0 + (double)step * dt;
-            o->x_m = b->x;
-            o->v_m_s = b->xd;
-            o->f_n = b->f;
-            o->theta_rad = th;
-            o->base_m = u;
-        }
+        step += j;
+        since += j - 1;
+        k += j;
     }
     s->step = step;
     s->t_s = t0 + (double)step * dt;
