@@ -18,24 +18,6 @@
 #define CYCLE_NOINLINE
 #endif
 
-/* floor(x) inline (SSE4.1 round; libm's floor is a call): the same value. */
-static CYCLE_INLINE double floor_fast(double x) {
-#if defined(__SSE4_1__)
-    __m128d q = _mm_set_sd(x);
-    return _mm_cvtsd_f64(_mm_round_sd(q, q, _MM_FROUND_TO_NEG_INF | _MM_FROUND_NO_EXC));
-#else
-    return floor(x);
-#endif
-}
-
-/* afm_parabola_peak, inline. */
-static CYCLE_INLINE double parabola(double fm, double f0, double fp) {
-    double den = fm - 2.0 * f0 + fp;
-    if (!(den < 0) || fm > f0 || fp > f0) return f0;
-    double delta = 0.5 * (fm - fp) / den;
-    return f0 - 0.25 * (fm - fp) * delta;
-}
-
 /* *d = *s (afm_sample: 6 doubles) without the string copy the compiler picks. */
 static CYCLE_INLINE void copy_sample(afm_sample *d, const afm_sample *s) {
 #if defined(__AVX__)
@@ -221,7 +203,7 @@ static void step_plain(afm_cycle *c, const afm_sample *s) {
     if ((b1 < b2 ? b1 : b2) < (p->x_m < s->x_m ? p->x_m : s->x_m))
         m->min_deflection_m = step_min(p, s, m->min_deflection_m);
     if (c->n_prev >= 2 && p->f_n >= c->f_prev2 && p->f_n >= s->f_n) {
-        double pk = parabola(c->f_prev2, p->f_n, s->f_n);
+        double pk = afm_parabola_peak(c->f_prev2, p->f_n, s->f_n);
         if (pk > m->peak_force_n) m->peak_force_n = pk;
     }
     if (s->f_n > m->peak_force_n) m->peak_force_n = s->f_n;
@@ -289,7 +271,7 @@ static int step_boundary(afm_cycle *c, const afm_sample *s, double frac, bool ha
         double rx = (c->sum_x[0] + c->sum_x[1]) + (c->sum_x[2] + c->sum_x[3]);
         double peak = m->peak_force_n;
         if (c->n_prev >= 2) {
-            double pk = parabola(c->f_prev2, p->f_n, s->f_n);
+            double pk = afm_parabola_peak(c->f_prev2, p->f_n, s->f_n);
             if (pk > peak) peak = pk;
         }
         double xmin = m->min_deflection_m < c->smin ? m->min_deflection_m : c->smin;
@@ -364,85 +346,11 @@ static int step_general(afm_cycle *c, const afm_sample *s, bool had_prev, int ev
     return 0;
 }
 
-/* afm_clock_wrap with floor inline: the same value. */
-static CYCLE_INLINE double wrap_2pi(double th) {
-    if (!(fabs(th) < 0x1p52)) return afm_clock_wrap(th);
-    double m = floor_fast(th * (1.0 / AFM_EST_TWO_PI));
-    double ph = fma(-m, AFM_EST_TWO_PI, th);
-    if (ph < 0) {
-        ph = fma(-(m - 1.0), AFM_EST_TWO_PI, th);
-    } else if (ph >= AFM_EST_TWO_PI) {
-        ph = fma(-(m + 1.0), AFM_EST_TWO_PI, th);
-    }
-    return ph;
-}
-
-/* afm_track_check then afm_track_advance (afm_est_internal.h) for the cycle's clock
- * tracker, in one: the same checks, result and tracker state, with theta_prev reduced mod
- * 2 pi once. AFM_CLOCK_BAD (nothing changed), else as afm_track_advance (*frac for a
- * boundary). */
-static int clock_step(afm_phase_track *t, double th, double *frac) {
-    if (!isfinite(th)) return AFM_CLOCK_BAD;
-    double p = wrap_2pi(th), pp = 0.0;
-    int rc = AFM_CLOCK_NONE;
-    if (t->started) {
-        pp = wrap_2pi(t->th_prev);
-        double d = p - pp;
-        if (d < 0) d += AFM_EST_TWO_PI;
-        if (!(d > 0 && d < AFM_EST_PI)) return AFM_CLOCK_BAD;
-        if (p < pp) {
-            *frac = (AFM_EST_TWO_PI - pp) / (p + AFM_EST_TWO_PI - pp);
-            if (*frac > 1.0) *frac = 1.0;
-            rc = AFM_CLOCK_CROSS;
-        }
-    } else if (p == 0.0) {
-        rc = AFM_CLOCK_START;
-    }
-    double n = t->n + 1.0;
-    double err = (th - t->th_ref) - n * t->dphi;
-    bool drift = t->locked && n <= t->n_end && fabs(err) > t->tol; /* not boundary/window */
-    if (!t->started) {
-        t->locked = false;
-    } else if (t->locked && fabs((th - t->th_prev) - t->dphi) <= 4.0 * t->tol) {
-        t->noise = drift ? fmin(fmax(t->noise, 2.0 * fabs(err)), 1e-6) : 0.97 * t->noise;
-        double d = (t->dphi * t->nb + (th - t->th_ref)) / (t->nb + n);
-        double tol = 2e-11 + 1.8e-15 * fabs(th) + t->noise;
-        double win = AFM_TRACK_WINDOW_CLOCK;
-        if (t->dphi > 0 && AFM_EST_TWO_PI / t->dphi < win) win = AFM_EST_TWO_PI / t->dphi;
-        if (fabs(d - t->dphi) * win > 0.125 * tol) t->dphi = d;
-        t->nb = t->nb + n < AFM_TRACK_MAX_BASELINE ? t->nb + n : AFM_TRACK_MAX_BASELINE;
-    } else if (t->locked) {
-        t->locked = false;
-    } else {
-        t->dphi = th - t->th_prev;
-        t->nb = 1.0;
-        t->locked = true;
-    }
-    double tol = 2e-11 + 1.8e-15 * fabs(th) + t->noise;
-    if (t->locked && !(t->dphi > 4.0 * tol + 1e-12 && t->dphi < AFM_EST_PI - 4.0 * tol))
-        t->locked = false;
-    t->started = true;
-    t->th_prev = t->th_ref = th;
-    t->p_ref = p;
-    t->n = 0.0;
-    t->tol = t->locked ? tol : -1.0;
-    t->n_end = 0.0;
-    if (t->locked) {
-        double lim = AFM_EST_TWO_PI - (2.0 * tol + 1e-12);
-        double m = floor_fast((lim - p) / t->dphi);
-        if (m > AFM_TRACK_WINDOW_CLOCK) m = AFM_TRACK_WINDOW_CLOCK;
-        while (m > 0 && !(p + m * t->dphi < lim))
-            m -= 1.0; /* rounding of the division */
-        t->n_end = m > 0 ? m : 0.0;
-    }
-    return rc;
-}
-
 /* The sample by the exact clock (checked: the sample itself is valid). */
 static int push_slow(afm_cycle *c, const afm_sample *s, double theta_rad) {
     double frac = 1.0;
     bool had_prev = c->trk.started;
-    int ev = clock_step(&c->trk, theta_rad, &frac);
+    int ev = afm_track_step(&c->trk, theta_rad, &frac);
     if (ev == AFM_CLOCK_BAD) return -1;
     return step_general(c, s, had_prev, ev, frac);
 }
@@ -534,7 +442,7 @@ static CYCLE_NOINLINE void run_events(run_state *r, const run_flags *fl) {
                 fm = k ? r->p0->f_n : r->f_m2;
                 f0 = k ? s[0].f_n : r->p0->f_n;
             }
-            double pk = parabola(fm, f0, fp);
+            double pk = afm_parabola_peak(fm, f0, fp);
             if (pk > r->pk) r->pk = pk;
         }
         for (unsigned cr = ev >> 4 & 15u; cr; cr &= cr - 1) {

@@ -11,6 +11,9 @@
 #include "afm_sim.h"
 
 #include <math.h>
+#if defined(__SSE4_1__)
+#include <immintrin.h>
+#endif
 #include <stdbool.h>
 
 /* Slow paths of the estimators: kept out of line so that the per-sample fast path stays a
@@ -136,6 +139,16 @@ static inline double afm_parabola_peak(double fm, double f0, double fp) {
     return f0 - 0.25 * (fm - fp) * delta;
 }
 
+/* floor(x), inline (one rounding instruction where SSE4.1 is there): the same value. */
+static inline double afm_floor(double x) {
+#if defined(__SSE4_1__)
+    __m128d q = _mm_set_sd(x);
+    return _mm_cvtsd_f64(_mm_round_sd(q, q, _MM_FROUND_TO_NEG_INF | _MM_FROUND_NO_EXC));
+#else
+    return floor(x);
+#endif
+}
+
 /* theta mod 2 pi in [0, 2 pi), bit for bit fmod(theta, 2 pi) (+ 2 pi if negative) for
  * |theta| < 2^52: the remainder theta - m 2 pi is exactly representable, so the one
  * rounding of fma(-m, 2 pi, theta) is exact once m is right (corrected by one if the
@@ -145,7 +158,7 @@ static inline double afm_clock_wrap(double th) {
         double ph = fmod(th, AFM_EST_TWO_PI);
         return ph < 0 ? ph + AFM_EST_TWO_PI : ph;
     }
-    double m = floor(th * (1.0 / AFM_EST_TWO_PI));
+    double m = afm_floor(th * (1.0 / AFM_EST_TWO_PI));
     double ph = fma(-m, AFM_EST_TWO_PI, th);
     if (ph < 0) {
         ph = fma(-(m - 1.0), AFM_EST_TWO_PI, th);
@@ -320,7 +333,67 @@ static inline int afm_track_advance(afm_phase_track *t, double th, double p, dou
         t->n_end = AFM_TRACK_WINDOW_FREE;
     } else if (t->locked) {
         double lim = AFM_EST_TWO_PI - (2.0 * tol + 1e-12);
-        double m = floor((lim - p) / t->dphi);
+        double m = afm_floor((lim - p) / t->dphi);
+        if (m > AFM_TRACK_WINDOW_CLOCK) m = AFM_TRACK_WINDOW_CLOCK;
+        while (m > 0 && !(p + m * t->dphi < lim))
+            m -= 1.0; /* rounding of the division */
+        t->n_end = m > 0 ? m : 0.0;
+    }
+    return rc;
+}
+
+/* afm_track_check then afm_track_advance for a clock tracker, in one: the same checks, result and
+ * tracker state, with theta_prev reduced mod 2 pi once. AFM_CLOCK_BAD (nothing changed), else as
+ * afm_track_advance (*frac for a boundary). */
+static inline int afm_track_step(afm_phase_track *t, double th, double *frac) {
+    if (!isfinite(th)) return AFM_CLOCK_BAD;
+    double p = afm_clock_wrap(th), pp = 0.0;
+    int rc = AFM_CLOCK_NONE;
+    if (t->started) {
+        pp = afm_clock_wrap(t->th_prev);
+        double d = p - pp;
+        if (d < 0) d += AFM_EST_TWO_PI;
+        if (!(d > 0 && d < AFM_EST_PI)) return AFM_CLOCK_BAD;
+        if (p < pp) {
+            *frac = (AFM_EST_TWO_PI - pp) / (p + AFM_EST_TWO_PI - pp);
+            if (*frac > 1.0) *frac = 1.0;
+            rc = AFM_CLOCK_CROSS;
+        }
+    } else if (p == 0.0) {
+        rc = AFM_CLOCK_START;
+    }
+    double n = t->n + 1.0;
+    double err = (th - t->th_ref) - n * t->dphi;
+    bool drift = t->locked && n <= t->n_end && fabs(err) > t->tol; /* not boundary/window */
+    if (!t->started) {
+        t->locked = false;
+    } else if (t->locked && fabs((th - t->th_prev) - t->dphi) <= 4.0 * t->tol) {
+        t->noise = drift ? fmin(fmax(t->noise, 2.0 * fabs(err)), 1e-6) : 0.97 * t->noise;
+        double d = (t->dphi * t->nb + (th - t->th_ref)) / (t->nb + n);
+        double tol = 2e-11 + 1.8e-15 * fabs(th) + t->noise;
+        double win = AFM_TRACK_WINDOW_CLOCK;
+        if (t->dphi > 0 && AFM_EST_TWO_PI / t->dphi < win) win = AFM_EST_TWO_PI / t->dphi;
+        if (fabs(d - t->dphi) * win > 0.125 * tol) t->dphi = d;
+        t->nb = t->nb + n < AFM_TRACK_MAX_BASELINE ? t->nb + n : AFM_TRACK_MAX_BASELINE;
+    } else if (t->locked) {
+        t->locked = false;
+    } else {
+        t->dphi = th - t->th_prev;
+        t->nb = 1.0;
+        t->locked = true;
+    }
+    double tol = 2e-11 + 1.8e-15 * fabs(th) + t->noise;
+    if (t->locked && !(t->dphi > 4.0 * tol + 1e-12 && t->dphi < AFM_EST_PI - 4.0 * tol))
+        t->locked = false;
+    t->started = true;
+    t->th_prev = t->th_ref = th;
+    t->p_ref = p;
+    t->n = 0.0;
+    t->tol = t->locked ? tol : -1.0;
+    t->n_end = 0.0;
+    if (t->locked) {
+        double lim = AFM_EST_TWO_PI - (2.0 * tol + 1e-12);
+        double m = afm_floor((lim - p) / t->dphi);
         if (m > AFM_TRACK_WINDOW_CLOCK) m = AFM_TRACK_WINDOW_CLOCK;
         while (m > 0 && !(p + m * t->dphi < lim))
             m -= 1.0; /* rounding of the division */
