@@ -272,27 +272,12 @@ static inline int afm_track_check(const afm_phase_track *t, double th, double *p
     return AFM_CLOCK_NONE;
 }
 
-/* Slow path, part 2: advance to theta (checked, p from afm_track_check) and resynchronise.
- * Returns AFM_CLOCK_NONE/CROSS/START (always NONE for a non-clock); *frac as for CROSS;
- * *rate_changed set when dphi took a new value (the caller's per-step rotation must be
- * recomputed from it; only meaningful while t->locked). */
-static inline int afm_track_advance(afm_phase_track *t, double th, double p, double *frac,
-                                    bool *rate_changed) {
-    int rc = AFM_CLOCK_NONE;
+/* The common end of afm_track_advance and afm_track_step: the rate estimate, the lock and
+ * the resynchronisation at theta (p = theta mod 2 pi for a clock, else 0); *rate_changed as
+ * for afm_track_advance. */
+static inline void afm_track_resync(afm_phase_track *t, double th, double p, bool *rate_changed) {
     double n = t->n + 1.0;
     *rate_changed = false;
-    if (t->clock) {
-        if (!t->started) {
-            if (p == 0.0) rc = AFM_CLOCK_START;
-        } else {
-            double pp = afm_clock_wrap(t->th_prev);
-            if (p < pp) {
-                *frac = (AFM_EST_TWO_PI - pp) / (p + AFM_EST_TWO_PI - pp);
-                if (*frac > 1.0) *frac = 1.0;
-                rc = AFM_CLOCK_CROSS;
-            }
-        }
-    }
     double err = (th - t->th_ref) - n * t->dphi;
     bool drift = t->locked && n <= t->n_end && fabs(err) > t->tol; /* not boundary/window */
     if (!t->started) {
@@ -339,6 +324,28 @@ static inline int afm_track_advance(afm_phase_track *t, double th, double p, dou
             m -= 1.0; /* rounding of the division */
         t->n_end = m > 0 ? m : 0.0;
     }
+}
+
+/* Slow path, part 2: advance to theta (checked, p from afm_track_check) and resynchronise.
+ * Returns AFM_CLOCK_NONE/CROSS/START (always NONE for a non-clock); *frac as for CROSS;
+ * *rate_changed set when dphi took a new value (the caller's per-step rotation must be
+ * recomputed from it; only meaningful while t->locked). */
+static inline int afm_track_advance(afm_phase_track *t, double th, double p, double *frac,
+                                    bool *rate_changed) {
+    int rc = AFM_CLOCK_NONE;
+    if (t->clock) {
+        if (!t->started) {
+            if (p == 0.0) rc = AFM_CLOCK_START;
+        } else {
+            double pp = afm_clock_wrap(t->th_prev);
+            if (p < pp) {
+                *frac = (AFM_EST_TWO_PI - pp) / (p + AFM_EST_TWO_PI - pp);
+                if (*frac > 1.0) *frac = 1.0;
+                rc = AFM_CLOCK_CROSS;
+            }
+        }
+    }
+    afm_track_resync(t, th, p, rate_changed);
     return rc;
 }
 
@@ -362,43 +369,8 @@ static inline int afm_track_step(afm_phase_track *t, double th, double *frac) {
     } else if (p == 0.0) {
         rc = AFM_CLOCK_START;
     }
-    double n = t->n + 1.0;
-    double err = (th - t->th_ref) - n * t->dphi;
-    bool drift = t->locked && n <= t->n_end && fabs(err) > t->tol; /* not boundary/window */
-    if (!t->started) {
-        t->locked = false;
-    } else if (t->locked && fabs((th - t->th_prev) - t->dphi) <= 4.0 * t->tol) {
-        t->noise = drift ? fmin(fmax(t->noise, 2.0 * fabs(err)), 1e-6) : 0.97 * t->noise;
-        double d = (t->dphi * t->nb + (th - t->th_ref)) / (t->nb + n);
-        double tol = 2e-11 + 1.8e-15 * fabs(th) + t->noise;
-        double win = AFM_TRACK_WINDOW_CLOCK;
-        if (t->dphi > 0 && AFM_EST_TWO_PI / t->dphi < win) win = AFM_EST_TWO_PI / t->dphi;
-        if (fabs(d - t->dphi) * win > 0.125 * tol) t->dphi = d;
-        t->nb = t->nb + n < AFM_TRACK_MAX_BASELINE ? t->nb + n : AFM_TRACK_MAX_BASELINE;
-    } else if (t->locked) {
-        t->locked = false;
-    } else {
-        t->dphi = th - t->th_prev;
-        t->nb = 1.0;
-        t->locked = true;
-    }
-    double tol = 2e-11 + 1.8e-15 * fabs(th) + t->noise;
-    if (t->locked && !(t->dphi > 4.0 * tol + 1e-12 && t->dphi < AFM_EST_PI - 4.0 * tol))
-        t->locked = false;
-    t->started = true;
-    t->th_prev = t->th_ref = th;
-    t->p_ref = p;
-    t->n = 0.0;
-    t->tol = t->locked ? tol : -1.0;
-    t->n_end = 0.0;
-    if (t->locked) {
-        double lim = AFM_EST_TWO_PI - (2.0 * tol + 1e-12);
-        double m = afm_floor((lim - p) / t->dphi);
-        if (m > AFM_TRACK_WINDOW_CLOCK) m = AFM_TRACK_WINDOW_CLOCK;
-        while (m > 0 && !(p + m * t->dphi < lim))
-            m -= 1.0; /* rounding of the division */
-        t->n_end = m > 0 ? m : 0.0;
-    }
+    bool rate_changed;
+    afm_track_resync(t, th, p, &rate_changed);
     return rc;
 }
 
