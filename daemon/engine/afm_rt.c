@@ -328,21 +328,45 @@ static inline void rt_thermal_draw(const rt_state *r, int k, double *nq, double 
     *xv = sv;
 }
 
+/* What the free step needs of the step before and leaves for the next, carried in registers
+ * from sample to sample (rt_run_t) so that the chain from one force to the next does not go
+ * through a store and a load: tip position, velocity and force, the predictor x*, v* of the
+ * next full step and its reciprocal slope rj. */
+typedef struct {
+    double x, xd, f, xn, vn, rj;
+} rt_tip;
+
+/* rt_tip of st for a following full step. */
+static inline rt_tip rt_tip_of(const rt_state *r, const rt_snap *st) {
+    const afm_rt_prop *P = &r->prop[r->ncell - 1];
+    double rj = st->rj;
+    if (st->rk != r->ncell) {
+        double jj = 1.0 - st->fx * P->gx - st->fv * P->gv; /* fmax(jj, 0.25), inlined */
+        rj = 1.0 / (jj > 0.25 ? jj : 0.25);
+    }
+    return (rt_tip){st->x, st->xd, st->f, st->xn, st->vn, rj};
+}
+
 /* Advance in by k cells (tau = k dt / ncell) into o; o may be in. Mode arrays run to np =
  * n rounded up to 4, with zero coefficients past n. A full step (k = ncell) takes x*, v*
  * from in's predictor; a shorter piece from its own tip-weighted rows. pred: also leave the
  * predictor of a following full step in o (the free step does; contact pieces leave it to
- * one rt_predict after the sample's last piece). noise: add the thermal increment. */
+ * one rt_predict after the sample's last piece). noise: add the thermal increment. fast (the
+ * free step, k = ncell, pred): in's tip values come from *ti, and o's go to *to as well. */
 static inline __attribute__((always_inline)) void
 rt_piece_t(const afm_sim *s, const rt_state *r, const rt_snap *in, rt_snap *o, int k, const int np,
-           const int nt, const bool fast, const bool noise, const bool pred) {
+           const int nt, const bool fast, const bool noise, const bool pred, const rt_tip *ti,
+           rt_tip *to) {
     const afm_rt_prop *P = &r->prop[k - 1], *PF = &r->prop[r->ncell - 1];
     const double *c = P->c, *cf = PF->c;
-    const double F0 = in->f;
+    const double F0 = fast ? ti->f : in->f;
     double xs, vs, rj;
     double nq[AFM_MAX_MODES] __attribute__((aligned(32)));
     double nv[AFM_MAX_MODES] __attribute__((aligned(32)));
-    if (k == r->ncell) {
+    if (fast) {
+        xs = ti->xn;
+        vs = ti->vn;
+    } else if (k == r->ncell) {
         xs = in->xn;
         vs = in->vn;
     } else {
@@ -366,7 +390,9 @@ rt_piece_t(const afm_sim *s, const rt_state *r, const rt_snap *in, rt_snap *o, i
         xs += xq;
         vs += xv;
     }
-    if (in->rk == k) {
+    if (fast) {
+        rj = ti->rj;
+    } else if (in->rk == k) {
         rj = in->rj;
     } else {
         double jj = 1.0 - in->fx * P->gx - in->fv * P->gv; /* fmax(jj, 0.25), inlined */
@@ -416,13 +442,15 @@ rt_piece_t(const afm_sim *s, const rt_state *r, const rt_snap *in, rt_snap *o, i
     }
     o->rk = k;
     o->dfc = dfc;
-    o->x = fma(P->gx, F1, xs);
-    o->xd = fma(P->gv, F1, vs);
+    const double x1 = fma(P->gx, F1, xs), v1 = fma(P->gv, F1, vs);
+    o->x = x1;
+    o->xd = v1;
     if (pred) {
         double xh, vh;
         rt_hsum2(xn4, vn4, &xh, &vh);
         o->xn = fma(P->hx, F1, xn + xh);
         o->vn = fma(P->hv, F1, vn + vh);
+        if (fast) *to = (rt_tip){x1, v1, F1, o->xn, o->vn, o->rj};
     }
     o->f = F1;
 }
@@ -432,13 +460,13 @@ rt_piece_t(const afm_sim *s, const rt_state *r, const rt_snap *in, rt_snap *o, i
 static __attribute__((noinline)) void rt_piece(const afm_sim *s, const rt_state *r,
                                                const rt_snap *in, rt_snap *o, int k) {
     if (r->noise)
-        rt_piece_t(s, r, in, o, k, r->np, r->ntones, false, true, false);
+        rt_piece_t(s, r, in, o, k, r->np, r->ntones, false, true, false, NULL, NULL);
     else if (r->ntones == 1 && r->np == 4)
-        rt_piece_t(s, r, in, o, k, 4, 1, false, false, false);
+        rt_piece_t(s, r, in, o, k, 4, 1, false, false, false, NULL, NULL);
     else if (r->ntones == 1 && r->np == 8)
-        rt_piece_t(s, r, in, o, k, 8, 1, false, false, false);
+        rt_piece_t(s, r, in, o, k, 8, 1, false, false, false, NULL, NULL);
     else
-        rt_piece_t(s, r, in, o, k, r->np, r->ntones, false, false, false);
+        rt_piece_t(s, r, in, o, k, r->np, r->ntones, false, false, false, NULL, NULL);
 }
 
 /* ---- contact location on the cubic Hermite path x(sigma), sigma in [0, 1] ---- */
@@ -581,6 +609,7 @@ static inline __attribute__((always_inline)) int rt_run_t(afm_sim *s, rt_state *
     const double t0 = s->t_start_s, dt = s->dt_s;
     int cur = r->cur;
     const double gx_full = r->prop[r->ncell - 1].gx;
+    rt_tip ta = rt_tip_of(r, &r->buf[cur]), tb; /* the tip at a and at bb, in registers */
     for (int k = 0; k < n && rc == AFM_SIM_OK;) {
         if (__builtin_expect(++since >= RT_RESYNC, 0)) {
             s->step = step;
@@ -588,6 +617,7 @@ static inline __attribute__((always_inline)) int rt_run_t(afm_sim *s, rt_state *
             rt_sync_phasors(s, r, &r->buf[cur]);
             since = r->since_sync;
             rt_predict(r, &r->buf[cur]);
+            ta = rt_tip_of(r, &r->buf[cur]);
         }
         /* this step and the next m - 1 keep ++since below RT_RESYNC */
         int m = n - k < RT_RESYNC - since ? n - k : (int)(RT_RESYNC - since);
@@ -599,21 +629,25 @@ static inline __attribute__((always_inline)) int rt_run_t(afm_sim *s, rt_state *
             rt_snap *bb = a == b0 ? b1 : b0;
             /* in contact at the start, or predicted to end there (the end's x with F held at
              * F0: a free step would be redone in substeps anyway) */
-            bool contact = r->kinked && (a->x < r->xc || fma(gx_full, a->f, a->xn) < r->xc);
+            bool contact = r->kinked && (ta.x < r->xc || fma(gx_full, ta.f, ta.xn) < r->xc);
             if (!contact) {
-                rt_piece_t(s, r, a, bb, r->ncell, np, nt, true, noise, true);
+                rt_piece_t(s, r, a, bb, r->ncell, np, nt, true, noise, true, &ta, &tb);
                 if (r->kinked) {
                     double low =
-                        (a->x < bb->x ? a->x : bb->x) - r->clear_k * (fabs(a->xd) + fabs(bb->xd));
+                        (ta.x < tb.x ? ta.x : tb.x) - r->clear_k * (fabs(ta.xd) + fabs(tb.xd));
                     contact = low < r->xc && rt_crossing_cell(r, a, bb, dt, false) >= 0;
                 }
             }
-            if (contact) bb = rt_contact(s, r, a, bb);
+            if (contact) {
+                bb = rt_contact(s, r, a, bb);
+                tb = rt_tip_of(r, bb);
+            }
             a = bb;
             b = bb;
+            ta = tb;
             stepd += 1.0;
             /* A tip excursion of a millimetre is no cantilever any more. */
-            if (!(fabs(b->x) < 1e-3)) {
+            if (!(fabs(ta.x) < 1e-3)) {
                 rc = AFM_SIM_EBLOWUP;
                 j++;
                 break;
@@ -628,9 +662,9 @@ static inline __attribute__((always_inline)) int rt_run_t(afm_sim *s, rt_state *
                     u += s->drive.amp_m[jt] * b->z_im[jt];
                 }
                 o->t_s = t0 + stepd * dt;
-                o->x_m = b->x;
-                o->v_m_s = b->xd;
-                o->f_n = b->f;
+                o->x_m = ta.x;
+                o->v_m_s = ta.xd;
+                o->f_n = ta.f;
                 o->theta_rad = th;
                 o->base_m = u;
                 o++;
