@@ -65,11 +65,12 @@ typedef struct {
     double q[AFM_MAX_MODES], v[AFM_MAX_MODES];       /* homogeneous part qh, qh' */
     double z_re[AFM_MAX_TONES], z_im[AFM_MAX_TONES]; /* e^{i theta_j} */
     double x, xd, f;                                 /* tip displacement, velocity, force */
-    double xn, vn; /* x*, v* of a full step from here: the tip without its F1 response */
-    double fx, fv; /* df/dx, df/dv from the last force evaluation */
-    double rj;     /* 1 / (1 - fx gx - fv gv) there, for the step length rk... */
-    int rk;        /* ...in cells (0: none) */
-    double dfc;    /* force change per cell over the piece that ended here (N) */
+    double xn, vn;     /* x*, v* of a full step from here: the tip without its F1 response */
+    double xg, vg, dg; /* x, v, d at that step's first guess (F held at f): rt_tip */
+    double fx, fv;     /* df/dx, df/dv from the last force evaluation */
+    double rj;         /* 1 / (1 - fx gx - fv gv) there, for the step length rk... */
+    int rk;            /* ...in cells (0: none) */
+    double dfc;        /* force change per cell over the piece that ended here (N) */
 } rt_snap;
 
 typedef struct {
@@ -84,8 +85,10 @@ typedef struct {
     double cq_re[AFM_MAX_TONES][AFM_MAX_MODES], cq_im[AFM_MAX_TONES][AFM_MAX_MODES];
     double th_re[AFM_MAX_TONES], th_im[AFM_MAX_TONES]; /* theta = rot . qh + Im(th z) */
     double xc;                                         /* tip x at which the gap is a0 */
-    bool kinked; /* the force has a kink at d = a0 (contact, capillary, electrostatic) */
-    double ftol; /* Newton tolerance on F (N) */
+    double cos_alpha, z_m; /* d = x cos(alpha) + Z (copies of s->f's and s's) */
+    double ghx, ghv, ghd;  /* full step: gx + hx, gv + hv, (gx + hx) cos(alpha) */
+    bool kinked;           /* the force has a kink at d = a0 (contact, capillary, electrostatic) */
+    double ftol;           /* Newton tolerance on F (N) */
     double inv_cells[RT_MAX_SUBSTEPS * RT_GRID + 1]; /* 1 / k */
     double clear_k; /* 4/27 dt: the Hermite path's largest dip per unit end speed */
     afm_rt_starr starr;
@@ -222,14 +225,13 @@ static inline __attribute__((always_inline)) double rt_force_out(const afm_sim *
 /* rt_solve for a step that starts out of contact: one force evaluation at the guess F and
  * one chord correction with the reciprocal slope rj of the step before (a linearly
  * implicit step). Its convergence estimate is checked off the critical path; a step that
- * fails it, or whose guess is in contact, goes to rt_solve. */
-static inline __attribute__((always_inline)) double rt_solve_fast(const afm_sim *s,
-                                                                  const rt_state *r, double xs,
-                                                                  double vs, double gx, double gv,
-                                                                  double F, double rj, rt_snap *o) {
+ * fails it, or whose guess is in contact, goes to rt_solve. x, v and d = x cos(alpha) + Z
+ * at the guess (xs + gx F, vs + gv F) are the caller's (rt_tip: one multiply-add from the
+ * last force). */
+static inline __attribute__((always_inline)) double
+rt_solve_fast(const afm_sim *s, const rt_state *r, double xs, double vs, double gx, double gv,
+              double F, double rj, double x, double v, double d, rt_snap *o) {
     const afm_force_params *p = &s->f;
-    double x = fma(gx, F, xs), v = fma(gv, F, vs);
-    double d = fma(x, p->cos_alpha, s->z_m);
     if (__builtin_expect(!(d >= p->a0_m), 0)) return rt_solve(s, r, xs, vs, gx, gv, F, rj, o);
     double fx, fv;
     double f = rt_force_out(s, r, x, v, d, &fx, &fv);
@@ -286,7 +288,13 @@ static inline void rt_hsum2(rt_v4 a, rt_v4 b, double *sa, double *sb) {
 #endif
 }
 
-/* x*, v* of a full step from st (the tip at the step's end without its F1 response). */
+/* d = x cos(alpha) + Z. */
+static inline double rt_gap(const rt_state *r, double x) {
+    return fma(x, r->cos_alpha, r->z_m);
+}
+
+/* x*, v* of a full step from st (the tip at the step's end without its F1 response), and
+ * x, v, d at its first guess. */
 static void rt_predict(const rt_state *r, rt_snap *st) {
     const afm_rt_prop *P = &r->prop[r->ncell - 1];
     const int np = r->np;
@@ -304,6 +312,9 @@ static void rt_predict(const rt_state *r, rt_snap *st) {
     }
     st->xn = xs;
     st->vn = vs;
+    st->xg = fma(P->gx, st->f, xs);
+    st->vg = fma(P->gv, st->f, vs);
+    st->dg = rt_gap(r, st->xg);
 }
 
 /* The thermal increment of a piece of k cells: (nq, nv) per mode (zero past n) and its tip
@@ -334,6 +345,7 @@ static inline void rt_thermal_draw(const rt_state *r, int k, double *nq, double 
  * next full step and its reciprocal slope rj. */
 typedef struct {
     double x, xd, f, xn, vn, rj;
+    double xg, vg, dg; /* x, v and d at the free step's guess (F held): xn + gx f, ... */
 } rt_tip;
 
 /* rt_tip of st for a following full step. */
@@ -344,7 +356,7 @@ static inline rt_tip rt_tip_of(const rt_state *r, const rt_snap *st) {
         double jj = 1.0 - st->fx * P->gx - st->fv * P->gv; /* fmax(jj, 0.25), inlined */
         rj = 1.0 / (jj > 0.25 ? jj : 0.25);
     }
-    return (rt_tip){st->x, st->xd, st->f, st->xn, st->vn, rj};
+    return (rt_tip){st->x, st->xd, st->f, st->xn, st->vn, rj, st->xg, st->vg, st->dg};
 }
 
 /* Advance in by k cells (tau = k dt / ncell) into o; o may be in. Mode arrays run to np =
@@ -402,7 +414,7 @@ rt_piece_t(const afm_sim *s, const rt_state *r, const rt_snap *in, rt_snap *o, i
      * until its last multiply-add. */
     /* In contact the force changes fast: the iteration starts from the force extrapolated
      * along the last piece's slope (about one force evaluation fewer per piece). */
-    double F1 = fast ? rt_solve_fast(s, r, xs, vs, P->gx, P->gv, F0, rj, o)
+    double F1 = fast ? rt_solve_fast(s, r, xs, vs, P->gx, P->gv, F0, rj, ti->xg, ti->vg, ti->dg, o)
                      : rt_solve_in(s, r, xs, vs, P->gx, P->gv, fma(in->dfc, (double)k, F0), rj, o);
     const double dfc = (F1 - F0) * r->inv_cells[k];
     double zr1[AFM_MAX_TONES], zi1[AFM_MAX_TONES];
@@ -448,9 +460,15 @@ rt_piece_t(const afm_sim *s, const rt_state *r, const rt_snap *in, rt_snap *o, i
     if (pred) {
         double xh, vh;
         rt_hsum2(xn4, vn4, &xh, &vh);
-        o->xn = fma(P->hx, F1, xn + xh);
-        o->vn = fma(P->hv, F1, vn + vh);
-        if (fast) *to = (rt_tip){x1, v1, F1, o->xn, o->vn, o->rj};
+        const double xr = xn + xh, vr = vn + vh;
+        o->xn = fma(P->hx, F1, xr);
+        o->vn = fma(P->hv, F1, vr);
+        /* The next guess straight from F1 (one multiply-add each, not two: the force chain
+         * from one step to the next is shorter; the same point up to rounding). */
+        o->xg = fma(r->ghx, F1, xr);
+        o->vg = fma(r->ghv, F1, vr);
+        o->dg = fma(r->ghd, F1, rt_gap(r, xr));
+        if (fast) *to = (rt_tip){x1, v1, F1, o->xn, o->vn, o->rj, o->xg, o->vg, o->dg};
     }
     o->f = F1;
 }
@@ -719,6 +737,12 @@ static void rt_changed(afm_sim *s) {
     for (int k = 0; k < r->ncell; k++)
         afm_rt_coef_drive(&r->prop[k], r->ntones, r->wd, cx_re, cx_im);
     r->xc = afm_force_contact_x(&s->f, s->z_m);
+    r->cos_alpha = s->f.cos_alpha;
+    r->z_m = s->z_m;
+    const afm_rt_prop *PF = &r->prop[r->ncell - 1];
+    r->ghx = PF->gx + PF->hx;
+    r->ghv = PF->gv + PF->hv;
+    r->ghd = r->ghx * r->cos_alpha;
     afm_rt_starr_build(&r->starr, &s->f, s->z_m);
     rt_snap *st = &r->buf[r->cur];
     rt_sync_phasors(s, r, st);
