@@ -497,7 +497,7 @@ typedef struct {
  * valid sample's own weight waits for its next step, as in step_plain). Returns 4 when
  * taken, else the first lane off the fast path (theta off the tracker's line, a step not
  * positive): nothing added. */
-static CYCLE_INLINE int run_block(run_vec *w, run_flags *out, const run_consts *k,
+static CYCLE_INLINE int run_block(run_vec *w, unsigned *ev, int *n_ev, const run_consts *k,
                                   const afm_sample *const a[4], const double *th4, int k0, int nv) {
     __m256d u0 = _mm256_insertf128_pd(_mm256_castpd128_pd256(_mm_loadu_pd(&a[0]->t_s)),
                                       _mm_loadu_pd(&a[2]->t_s), 1);
@@ -537,12 +537,10 @@ static CYCLE_INLINE int run_block(run_vec *w, run_flags *out, const run_consts *
     if (nv < 4 ? ((unsigned)_mm256_movemask_pd(any) & valid) != 0 : !_mm256_testz_pd(any, any)) {
         unsigned b = (unsigned)_mm256_movemask_pd(bad) & valid;
         if (b) return lowest_bit(b);
-        unsigned c = (unsigned)_mm256_movemask_pd(cr) & valid,
-                 l = (unsigned)_mm256_movemask_pd(lm) & valid,
-                 n = (unsigned)_mm256_movemask_pd(mn) & valid;
-        if (c | l | n) {
-            out->ev[out->n_ev++] = (unsigned)k0 << 12 | n << 8 | c << 4 | l;
-        }
+        unsigned e = (unsigned)_mm256_movemask_pd(mn) << 8 | (unsigned)_mm256_movemask_pd(cr) << 4 |
+                     (unsigned)_mm256_movemask_pd(lm);
+        if (nv < 4) e &= valid * 0x111u;
+        if (e) ev[(*n_ev)++] = (unsigned)k0 << 12 | e;
     }
     w->fv = _mm256_fmadd_pd(W, _mm256_mul_pd(Fp, Vp), w->fv);
     w->xs = _mm256_fmadd_pd(W, Xp, w->xs);
@@ -574,8 +572,8 @@ static inline void lanes_to(double *a, long o, __m256d v) {
 
 /* The sums over the first samples of s[0 .. m-1] that pass the fast-path test (theta on
  * the tracker's line, a positive step): returns how many; the lanes in w. */
-static CYCLE_NOINLINE int run_sums_of(const run_state *r, const afm_cycle *c, const afm_sample *s,
-                                      const double *th, int m, run_vec *wo, run_flags *out) {
+static CYCLE_INLINE int run_sums_of(const run_state *r, const afm_cycle *c, const afm_sample *s,
+                                    const double *th, int m, run_vec *wo, run_flags *out) {
     const afm_sample *p0 = r->p0;
     const afm_phase_track *tk = &c->trk;
     double n0 = tk->n;
@@ -596,14 +594,13 @@ static CYCLE_NOINLINE int run_sums_of(const run_state *r, const afm_cycle *c, co
     w.fv = lanes_from(c->sum_fv, c->k); /* lane l: the sample k + l (p0 is lane 0) */
     w.xs = lanes_from(c->sum_x, c->k);
     w.xm = _mm256_set1_pd(c->smin); /* lane l: the samples k + 1 + l mod 4 and before */
-    out->n_ev = 0;
-    int j = 0, l = 4;
+    int n_ev = 0, j = 0, l = 4;
     for (; j + 8 <= m; j += 8) { /* two blocks a step (no register moves) */
         const afm_sample *a[4] = {s + j, s + j + 1, s + j + 2, s + j + 3};
-        l = run_block(&w, out, &k, a, th + j, j, 4);
+        l = run_block(&w, out->ev, &n_ev, &k, a, th + j, j, 4);
         if (l < 4) break;
         const afm_sample *b[4] = {s + j + 4, s + j + 5, s + j + 6, s + j + 7};
-        l = run_block(&w, out, &k, b, th + j + 4, j + 4, 4);
+        l = run_block(&w, out->ev, &n_ev, &k, b, th + j + 4, j + 4, 4);
         if (l < 4) {
             j += 4;
             break;
@@ -611,7 +608,7 @@ static CYCLE_NOINLINE int run_sums_of(const run_state *r, const afm_cycle *c, co
     }
     for (; l == 4 && j + 4 <= m; j += 4) {
         const afm_sample *a[4] = {s + j, s + j + 1, s + j + 2, s + j + 3};
-        l = run_block(&w, out, &k, a, th + j, j, 4);
+        l = run_block(&w, out->ev, &n_ev, &k, a, th + j, j, 4);
         if (l < 4) break;
     }
     if (l < 4) { /* w as before the block, from the samples (not kept in registers) */
@@ -628,10 +625,11 @@ static CYCLE_NOINLINE int run_sums_of(const run_state *r, const afm_cycle *c, co
         int v = m - j, l1 = v > 1 ? j + 1 : m - 1, l2 = v > 2 ? j + 2 : m - 1;
         const afm_sample *a[4] = {s + j, s + l1, s + l2, s + m - 1};
         double t4[4] = {th[j], th[l1], th[l2], th[m - 1]};
-        l = run_block(&w, out, &k, a, t4, j, v);
+        l = run_block(&w, out->ev, &n_ev, &k, a, t4, j, v);
         if (l == 4) break;
         m = j + l;
     }
+    out->n_ev = n_ev;
     *wo = w;
     return m;
 }
@@ -701,6 +699,7 @@ int afm_cycle_push_n(afm_cycle *c, const afm_sample *s, const double *th, int n,
         bool off = false; /* the next sample is off the fast path (a boundary, mostly) */
         if (one_by_one == 0 && c->active && c->n_prev >= 2) {
             double room = c->trk.n_end - c->trk.n;
+            off = !(room >= 1.0);
 #if defined(__AVX__) && defined(__FMA__)
             int m = n - i < RUN_MAX ? n - i : RUN_MAX;
             if (room < m) m = room > 0 ? (int)room : 0;
@@ -708,12 +707,14 @@ int afm_cycle_push_n(afm_cycle *c, const afm_sample *s, const double *th, int n,
                 int k = run(c, s + i, th + i, m);
                 if (k > 0) {
                     i += k;
-                    continue;
+                    /* a run that took the whole room: the next sample is off the fast path */
+                    if (!(room == (double)k && i < n)) continue;
+                    off = true;
+                } else {
+                    one_by_one = -k;
                 }
-                one_by_one = -k;
             }
 #endif
-            off = !(room >= 1.0);
         }
         int rc = off ? push_exact(c, &s[i], th[i]) : afm_cycle_push(c, &s[i], th[i]);
         i++;
