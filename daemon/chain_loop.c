@@ -63,9 +63,10 @@ static void push_outputs(chain_ctx *c) {
     }
     afm_chain_period p[PERIODS_PER_TAKE];
     int n;
-    while ((n = afm_runner_take_periods(c->r, p, PERIODS_PER_TAKE)) > 0) {
+    while ((n = afm_runner_take_periods_raw(c->r, p, PERIODS_PER_TAKE)) > 0) {
         for (int i = 0; i < n; i++) {
             if (c->period_count++ % every != 0) continue;
+            afm_runner_period_finish(c->r, &p[i]); /* the polar form of the published ones */
             afm_io_harmonics *h = afm_spsc_reserve(&d->harm_q);
             if (!h) {
                 c->snap.harm_dropped++;

@@ -115,17 +115,26 @@ static void test_harm_dft_lanes(const int *ks, int nk, const char *what_list) {
         }
         th[n] = 2 * pi * (double)(n - N0) / N + 2 * pi * 3;
     }
-    afm_harm h;
+    afm_harm h, hd; /* hd deferred: its polar form by afm_harm_polar, as the chain does */
     check_true(afm_harm_init(&h, ks, nk, NULL, 0) == 0, "harm init");
+    afm_harm_init(&hd, ks, nk, NULL, 0);
+    afm_harm_set_deferred(&hd, true);
     int periods = 0;
-    long long rej = 0;
+    bool same_deferred = true;
+    long long rej = 0, rej_d = 0;
     double max_amp = 0, max_ph = 0, max_fa = 0, max_fp = 0, max_pd = 0;
     for (int n = 0, b = 0; n < total; b++) {
-        int done, want = 1 + (b * 29) % 61;
-        n += afm_harm_push_n(&h, x + n, f + n, th + n, want < total - n ? want : total - n, &done,
-                             &rej);
+        int done, done_d, want = 1 + (b * 29) % 61;
+        int m = want < total - n ? want : total - n;
+        int md = afm_harm_push_n(&hd, x + n, f + n, th + n, m, &done_d, &rej_d);
+        int c = afm_harm_push_n(&h, x + n, f + n, th + n, m, &done, &rej);
+        n += c;
+        same_deferred = same_deferred && md == c && done_d == done;
         if (!done) continue;
         periods++;
+        afm_harm_polar(&hd, &hd.out);
+        same_deferred = same_deferred && hd.out.samples == h.out.samples &&
+                        !memcmp(hd.out.h, h.out.h, (size_t)nk * sizeof h.out.h[0]);
         /* sample n - 1 completed the period [n - 1 - N, n - 1); phi_1 from the DFT at k = 1 */
         const double *xp = x + n - 1 - N, *fp = f + n - 1 - N;
         double phi1 = 0;
@@ -157,6 +166,9 @@ static void test_harm_dft_lanes(const int *ks, int nk, const char *what_list) {
     char what[160];
     snprintf(what, sizeof what, "DFT %s: %d periods through push_n, none rejected", what_list, NP);
     check_true(periods == NP && rej == 0 && h.out.n_harmonics == nk, what);
+    snprintf(what, sizeof what, "DFT %s: deferred + afm_harm_polar = immediate, bit for bit",
+             what_list);
+    check_true(same_deferred && rej_d == 0, what);
     /* as test_harm_dft: rounding only (lines down to 5e-9 / 17^2 = 1.7e-11 of ~6e-8) */
     snprintf(what, sizeof what, "DFT %s: amplitudes x, F, max rel diff", what_list);
     check_abs(fmax(max_amp, max_fa), 0, 1e-9, what);

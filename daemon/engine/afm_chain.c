@@ -143,6 +143,7 @@ afm_chain *afm_chain_create(const afm_config *cfg, const afm_modal *m, char *err
     if (afm_harm_init(&c->harm, ks, nk, err, errlen) ||
         afm_lockin_init(&c->lockin, &cfg->lockin, 1.0 / c->fs, err, errlen))
         goto fail;
+    afm_harm_set_deferred(&c->harm, true); /* polar form when a record is finished */
     return c;
 oom:
     fail_msg(err, errlen, "out of memory");
@@ -329,19 +330,15 @@ static void put_period(afm_chain *c) {
         c->p_count++;
     }
     afm_chain_period *p = &c->periods[w];
-    /* The harmonics past n_harmonics are zero in c->harm.out (afm_harm clears them) and in
-     * the ring (calloc; n_harmonics never changes): copy the rest only. */
-    int nh = c->harm.out.n_harmonics;
-    if (nh >= 0 && nh <= AFM_MAX_HARMONICS)
-        memcpy(&p->harm, &c->harm.out,
-               offsetof(afm_harm_result, h) + (size_t)nh * sizeof p->harm.h[0]);
-    else
-        p->harm = c->harm.out;
+    /* The header and the sums of the lanes in use (afm_harm is deferred: h[] is filled by
+     * afm_chain_period_finish). */
+    memcpy(&p->harm, &c->harm.out,
+           offsetof(afm_harm_result, raw) + (size_t)(4 * c->harm.nl) * sizeof p->harm.raw[0]);
     if (c->cycle.periods > 0)
         p->cycle = c->cycle.out;
     else
         memset(&p->cycle, 0, sizeof p->cycle);
-    afm_lockin_polar(&c->lockin, &p->lockin_amplitude_m, &p->lockin_phase_deg);
+    afm_lockin_xy(&c->lockin, &p->lockin_x_m, &p->lockin_y_m);
     c->stats.periods++;
 }
 
@@ -426,7 +423,19 @@ int afm_chain_available(const afm_chain *c, int i) {
     return (i < 0 || i >= c->n_streams) ? 0 : c->st[i].count;
 }
 
+void afm_chain_period_finish(const afm_chain *c, afm_chain_period *p) {
+    afm_harm_polar(&c->harm, &p->harm);
+    afm_lockin_polar_of(p->lockin_x_m, p->lockin_y_m, &p->lockin_amplitude_m, &p->lockin_phase_deg);
+}
+
 int afm_chain_take_periods(afm_chain *c, afm_chain_period *out, int max) {
+    int n = afm_chain_take_periods_raw(c, out, max);
+    for (int i = 0; i < n; i++)
+        afm_chain_period_finish(c, &out[i]);
+    return n;
+}
+
+int afm_chain_take_periods_raw(afm_chain *c, afm_chain_period *out, int max) {
     int n = 0;
     while (n < max && c->p_count > 0) {
         out[n++] = c->periods[c->p_head];

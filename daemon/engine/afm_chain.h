@@ -19,7 +19,11 @@
  * phase of tone 0, afm_harm (harmonics of the OBD signal and of the force: cfg.sim.
  * harmonics, or afm_harm_default_list when n_harmonics is 0), afm_cycle (tapping metrics
  * on the true tip motion x, v, f) and afm_lockin (on the OBD signal). One afm_chain_period
- * record per completed drive period goes to a ring the caller drains.
+ * record per completed drive period goes to a ring the caller drains. The records are
+ * kept in Cartesian form (the harmonics' sums, the lock-in's X and Y); the amplitudes and
+ * phases are computed when a record is taken with afm_chain_take_periods, or only for the
+ * records a caller publishes (afm_chain_take_periods_raw, then afm_chain_period_finish):
+ * a daemon that publishes one period in hundreds skips the others' arctangents.
  *
  * Rings never block: when one is full the oldest entries are dropped and counted
  * (afm_chain_stats). create allocates everything; push, take, reset never allocate. */
@@ -53,12 +57,16 @@ typedef struct {
     const double *base_m;     /* base (dither) displacement, m */
 } afm_chain_block;
 
-/* One drive period's estimates. */
+/* One drive period's estimates. The polar fields (harm.h[], lockin_amplitude_m,
+ * lockin_phase_deg) are valid once finished (afm_chain_period_finish; records from
+ * afm_chain_take_periods are). */
 typedef struct {
     afm_harm_result harm;      /* harmonics of the OBD signal (x fields) and force (f) */
     afm_cycle_metrics cycle;   /* tapping metrics of the true tip motion */
-    double lockin_amplitude_m; /* lock-in R on the OBD signal at the period's end */
-    double lockin_phase_deg;   /* lag behind the drive */
+    double lockin_x_m;         /* lock-in X and Y on the OBD signal at the period's end */
+    double lockin_y_m;         /* (afm_lockin_xy) */
+    double lockin_amplitude_m; /* lock-in R = hypot(X, Y) */
+    double lockin_phase_deg;   /* lag behind the drive, atan2(-Y, X) in degrees */
 } afm_chain_period;
 
 typedef struct {
@@ -90,8 +98,14 @@ int afm_chain_push(afm_chain *c, const afm_sample *s, int n);
 int afm_chain_take_block(afm_chain *c, int stream, afm_chain_block *b, int max_n);
 /* Samples waiting in stream i. */
 int afm_chain_available(const afm_chain *c, int stream);
-/* Copy up to max completed-period records (oldest first) into out; returns the count. */
+/* Copy up to max completed-period records (oldest first) into out, finished; returns the
+ * count. */
 int afm_chain_take_periods(afm_chain *c, afm_chain_period *out, int max);
+/* The same, not finished: the polar fields are undefined until afm_chain_period_finish. */
+int afm_chain_take_periods_raw(afm_chain *c, afm_chain_period *out, int max);
+/* Fill p's polar fields from its sums and X, Y (p taken from c). The same values as
+ * afm_harm_push and afm_lockin_polar give at that period's end, bit for bit. */
+void afm_chain_period_finish(const afm_chain *c, afm_chain_period *p);
 
 /* Clear filters, estimators and rings (after a simulator reset). Stats are kept. */
 void afm_chain_reset(afm_chain *c);

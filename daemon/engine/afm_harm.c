@@ -274,16 +274,25 @@ static inline void polar4v(afm_v4 x, afm_v4 y, double *ph, double *mag) {
     polar_scalar(z, ph, mag);
 }
 
-/* The period just completed into h->out: the phases (rad) and magnitudes of its sums, sx on
- * every lane into pxs, axs and sf on the configured ones into pfs, afs (polar4v); its length
- * in sample intervals. Eq. E.12-E.13 and the records, 4 lanes at a time. */
-static void finish_period(afm_harm *h, double samples, const double *pxs, const double *axs,
-                          const double *pfs, const double *afs) {
-    const double scale = 2.0 / samples;
+void afm_harm_set_deferred(afm_harm *h, bool deferred) {
+    h->deferred = deferred;
+}
+
+/* The polar form of a completed period's sums: the phases (rad) and magnitudes of x on every
+ * lane (pxs, axs) and of f on the configured ones (pfs, afs) by polar4v, then eq.
+ * E.12-E.13 and the records, 4 lanes at a time. */
+void afm_harm_polar(const afm_harm *h, afm_harm_result *r) {
+    double pxs[AFM_HARM_LANES], axs[AFM_HARM_LANES], pfs[AFM_HARM_LANES], afs[AFM_HARM_LANES];
+    for (int l = 0; l < h->nl; l += 4) {
+        const double *z = r->raw + 4 * l;
+        polar4v(afm_v4_ld(z), afm_v4_ld(z + 4), pxs + l, axs + l);
+        if (l < h->nk) polar4v(afm_v4_ld(z + 8), afm_v4_ld(z + 12), pfs + l, afs + l);
+    }
+    const double scale = 2.0 / r->samples;
     const double a = AFM_EST_PI - pxs[h->lane1]; /* pi - phi_1 */
-    h->out.period = h->periods;
-    h->out.samples = samples;
-    h->out.n_harmonics = h->nk;
+    r->n_harmonics = h->nk;
+    for (int j = 0; j < h->nk; j++)
+        r->h[j].k = h->ks[j];
     const afm_v4 sc = afm_v4_set1(scale), r2d = afm_v4_set1(AFM_EST_RAD2DEG);
 #if defined(AFM_EST_AVX)
     /* whole groups in registers: eq. E.12-E.13 as phase_diff4 (kd a, then + phi_k; reduced
@@ -307,7 +316,7 @@ static void finish_period(afm_harm *h, double samples, const double *pxs, const 
         __m256d r3 = _mm256_mul_pd(_mm256_loadu_pd(pfs + j), r2d);
         __m256d t0 = _mm256_unpacklo_pd(r0, r1), t1 = _mm256_unpackhi_pd(r0, r1);
         __m256d t2 = _mm256_unpacklo_pd(r2, r3), t3 = _mm256_unpackhi_pd(r2, r3);
-        afm_orbit_harmonic *o = h->out.h + j;
+        afm_orbit_harmonic *o = r->h + j;
         _mm256_storeu_pd(&o[0].x_amp_m, _mm256_permute2f128_pd(t0, t2, 0x20));
         _mm256_storeu_pd(&o[1].x_amp_m, _mm256_permute2f128_pd(t1, t3, 0x20));
         _mm256_storeu_pd(&o[2].x_amp_m, _mm256_permute2f128_pd(t0, t2, 0x31));
@@ -328,7 +337,7 @@ static void finish_period(afm_harm *h, double samples, const double *pxs, const 
         afm_v4_st(af, afm_v4_mul(afm_v4_ld(afs + j), sc));
         afm_v4_st(px, afm_v4_mul(afm_v4_ld(pxs + j), r2d));
         afm_v4_st(pf, afm_v4_mul(afm_v4_ld(pfs + j), r2d));
-        afm_orbit_harmonic *o = h->out.h + j;
+        afm_orbit_harmonic *o = r->h + j;
         int n = h->nk - j < 4 ? h->nk - j : 4;
         for (int l = 0; l < n; l++) {
             o[l].x_amp_m = ax[l];
@@ -338,7 +347,6 @@ static void finish_period(afm_harm *h, double samples, const double *pxs, const 
             o[l].phase_diff_deg = pd[l];
         }
     }
-    h->periods++;
 }
 
 /* A sample off the fast path, by the exact clock: theta mod 2 pi; boundaries, fractional
@@ -408,7 +416,6 @@ static int harm_push_slow(afm_harm *h, double x, double f, double theta_rad) {
     const afm_v4 kfp = afm_v4_set1((wb[0] - 0.5) * h->f_prev), kfc = afm_v4_set1(wb[1] * f);
     const afm_v4 nxp = afm_v4_set1(wa[0] * h->x_prev), nfp = afm_v4_set1(wa[0] * h->f_prev);
     const afm_v4 wxv = afm_v4_set1(wx), wfv = afm_v4_set1(wf);
-    double pxs[AFM_HARM_LANES], axs[AFM_HARM_LANES], pfs[AFM_HARM_LANES], afs[AFM_HARM_LANES];
     for (int g = 0; g < st; g += 8) {
         const afm_v4 br = afm_v4_ld(h->b + g), bi = afm_v4_ld(h->b + g + 4);
         afm_v4 er, ei, pr, pi;
@@ -439,8 +446,11 @@ static int harm_push_slow(afm_harm *h, double x, double f, double theta_rad) {
             sxi = afm_v4_fma(kxc, pi, afm_v4_fma(kxp, ei, sxi));
             sfr = afm_v4_fma(kfc, pr, afm_v4_fma(kfp, er, sfr));
             sfi = afm_v4_fma(kfc, pi, afm_v4_fma(kfp, ei, sfi));
-            polar4v(sxr, sxi, pxs + g / 2, axs + g / 2);
-            if (g / 2 < h->nk) polar4v(sfr, sfi, pfs + g / 2, afs + g / 2);
+            double *z = h->out.raw + 2 * g;
+            afm_v4_st(z, sxr);
+            afm_v4_st(z + 4, sxi);
+            afm_v4_st(z + 8, sfr);
+            afm_v4_st(z + 12, sfi);
         }
         if (start) {
             sxr = afm_v4_mul(nxp, er);
@@ -459,7 +469,13 @@ static int harm_push_slow(afm_harm *h, double x, double f, double theta_rad) {
         afm_v4_st(h->b + g, pr);
         afm_v4_st(h->b + g + 4, pi);
     }
-    if (cross) finish_period(h, samples, pxs, axs, pfs, afs);
+    if (cross) {
+        h->out.period = h->periods;
+        h->out.samples = samples;
+        h->out.n_harmonics = h->nk;
+        if (!h->deferred) afm_harm_polar(h, &h->out);
+        h->periods++;
+    }
     if (h->trk.locked && rate_changed) build_table(h); /* after the pass: tm points into it */
     h->nbase = 0.0;
     h->x_prev = x;

@@ -47,18 +47,22 @@
 #include "afm_model.h"
 #include "afm_orbit.h"
 
-typedef struct {
-    long period;    /* sequence number: 0 for the first whole period since init/reset */
-    double samples; /* its length in sample intervals (fractional) */
-    int n_harmonics;
-    afm_orbit_harmonic h[AFM_MAX_HARMONICS]; /* in the order they were configured */
-} afm_harm_result;
-
 /* Harmonic lanes: the configured harmonics in their order, then harmonic 1 if it is not
  * among them (for phi_1), padded to a multiple of 4 (pads have k = 0: e^0 = 1, never
  * reported). Complex arrays over the lanes are kept by groups of 4 lanes: 4 real parts, then
  * 4 imaginary parts (lane j at (j / 4) * 8 + j % 4, its imaginary part 4 further). */
 #define AFM_HARM_LANES ((AFM_MAX_HARMONICS + 1 + 3) / 4 * 4)
+
+typedef struct {
+    long period;    /* sequence number: 0 for the first whole period since init/reset */
+    double samples; /* its length in sample intervals (fractional) */
+    int n_harmonics;
+    /* The period's sums of x e^{-ik phi} and f e^{-ik phi} (trapezoid with fractional ends,
+     * unscaled) by groups of 4 lanes: group g at raw + 16 g holds x's 4 real parts, x's 4
+     * imaginary parts, then f's. h[] is their polar form (afm_harm_polar). */
+    double raw[4 * AFM_HARM_LANES];
+    afm_orbit_harmonic h[AFM_MAX_HARMONICS]; /* in the order they were configured */
+} afm_harm_result;
 /* Steps of the phasor table: e^{-ik m dphi} for m = 0..AFM_HARM_TAB. */
 #define AFM_HARM_TAB 64
 
@@ -85,6 +89,7 @@ typedef struct {
     double wsum;         /* sample intervals of the period's first (partial) step */
     double nsteps;       /* whole steps since then */
     long periods;        /* completed periods since init/reset */
+    bool deferred;       /* out.h[] left to afm_harm_polar (afm_harm_set_deferred) */
     afm_harm_result out; /* the last completed period (valid if periods > 0) */
     /* e^{-ik m dphi} for the tracker's dphi, m = 0..AFM_HARM_TAB: entry m at m * 2 nl */
     double tab[(AFM_HARM_TAB + 1) * 2 * AFM_HARM_LANES];
@@ -112,6 +117,15 @@ int afm_harm_push(afm_harm *h, double x, double f, double theta_rad);
  * samples at a time and summed with the sums in registers (AVX2, 4 harmonics per vector). */
 int afm_harm_push_n(afm_harm *h, const double *x, const double *f, const double *theta_rad, int n,
                     int *done, long long *rejects);
+
+/* deferred: completed periods carry their sums (out.raw) only, and out.h[] is left as it
+ * was until the caller asks for it with afm_harm_polar (a chain that publishes one period in
+ * many skips the arctangents of the others). Off after init. */
+void afm_harm_set_deferred(afm_harm *h, bool deferred);
+
+/* r->h[0 .. n_harmonics) from r->raw, for a record h made (its harmonic list): the values
+ * afm_harm_push leaves in h->out when not deferred, bit for bit. */
+void afm_harm_polar(const afm_harm *h, afm_harm_result *r);
 
 /* e^{-i phi} of the last sample as the estimator carries it (harmonic 1's phasor, phi =
  * theta mod 2 pi): what the phase-tracking test compares with the supplied theta. */

@@ -338,11 +338,19 @@ double afm_lockin_phase_deg(const afm_lockin *l) {
     return atan2(-y, x) * 57.295779513082320876798154814105;
 }
 
+void afm_lockin_polar_of(double x_m, double y_m, double *amplitude_m, double *phase_deg) {
+    *amplitude_m = hypot(x_m, y_m);
+    *phase_deg = atan2(-y_m, x_m) * 57.295779513082320876798154814105;
+}
+
 void afm_lockin_polar(const afm_lockin *l, double *amplitude_m, double *phase_deg) {
     double x, y;
     current(l, &x, &y);
-    *amplitude_m = hypot(x, y);
-    *phase_deg = atan2(-y, x) * 57.295779513082320876798154814105;
+    afm_lockin_polar_of(x, y, amplitude_m, phase_deg);
+}
+
+void afm_lockin_xy(const afm_lockin *l, double *x_m, double *y_m) {
+    current(l, x_m, y_m);
 }
 
 void afm_lockin_phasor(const afm_lockin *l, double *c, double *s) {

@@ -92,6 +92,9 @@ double afm_lockin_amplitude(const afm_lockin *l);
 double afm_lockin_phase_deg(const afm_lockin *l);
 /* afm_lockin_amplitude and afm_lockin_phase_deg at once (the filter output evaluated once). */
 void afm_lockin_polar(const afm_lockin *l, double *amplitude_m, double *phase_deg);
+/* X and Y at once; afm_lockin_polar_of(X, Y) is afm_lockin_polar's result, bit for bit. */
+void afm_lockin_xy(const afm_lockin *l, double *x_m, double *y_m);
+void afm_lockin_polar_of(double x_m, double y_m, double *amplitude_m, double *phase_deg);
 /* cos, sin of theta of the last sample as the lock-in carries it (for tests). */
 void afm_lockin_phasor(const afm_lockin *l, double *c, double *s);
 

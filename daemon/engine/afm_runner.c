@@ -708,6 +708,14 @@ int afm_runner_take_periods(afm_runner *r, afm_chain_period *out, int max) {
     return afm_chain_take_periods(r->chain, out, max);
 }
 
+int afm_runner_take_periods_raw(afm_runner *r, afm_chain_period *out, int max) {
+    return afm_chain_take_periods_raw(r->chain, out, max);
+}
+
+void afm_runner_period_finish(const afm_runner *r, afm_chain_period *p) {
+    afm_chain_period_finish(r->chain, p);
+}
+
 void afm_runner_status_get(const afm_runner *r, afm_runner_status *st) {
     const afm_drive *d = afm_sim_drive(r->sim);
     st->seq_applied = r->seq_applied;

@@ -136,6 +136,10 @@ void afm_runner_chain_status_get(const afm_runner *r, afm_runner_chain_status *s
 int afm_runner_n_streams(const afm_runner *r);
 int afm_runner_take_block(afm_runner *r, int stream, afm_chain_block *b, int max_n);
 int afm_runner_take_periods(afm_runner *r, afm_chain_period *out, int max);
+/* afm_chain_take_periods_raw and afm_chain_period_finish on the runner's chain: take every
+ * record, finish the ones to publish. */
+int afm_runner_take_periods_raw(afm_runner *r, afm_chain_period *out, int max);
+void afm_runner_period_finish(const afm_runner *r, afm_chain_period *p);
 
 typedef struct {
     int64_t seq_applied; /* seq of the last command applied (-1: none yet) */
