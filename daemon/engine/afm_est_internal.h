@@ -487,12 +487,14 @@ static inline void afm_v4_cmul(afm_v4 a, afm_v4 b, afm_v4 c, afm_v4 d, afm_v4 *r
 #define AFM_EST_INLINE
 #endif
 #if defined(AFM_EST_AVX)
-/* |theta - prediction| <= tol on 4 lanes, NaN (so false) where a or b is not finite */
+/* |theta - prediction| <= tol on 4 lanes, NaN (so false) where a or b is not finite. The
+ * error as (th_ref - theta) + n dphi: exactly -((theta - th_ref) - n dphi) (rounding to nearest
+ * is symmetric), and theta can be the subtraction's memory operand. */
 static inline AFM_EST_INLINE __m256d afm_track_ok4(__m256d th, __m256d a, __m256d b, __m256d nn,
                                                    __m256d ref, __m256d dp, __m256d tol,
                                                    const bool use_b) {
     const __m256d zero = _mm256_setzero_pd();
-    __m256d e = _mm256_sub_pd(_mm256_sub_pd(th, ref), _mm256_mul_pd(nn, dp));
+    __m256d e = _mm256_add_pd(_mm256_sub_pd(ref, th), _mm256_mul_pd(nn, dp));
     e = _mm256_fmadd_pd(a, zero, e);
     if (use_b) e = _mm256_fmadd_pd(b, zero, e);
     return _mm256_cmp_pd(_mm256_andnot_pd(_mm256_set1_pd(-0.0), e), tol, _CMP_LE_OQ);
