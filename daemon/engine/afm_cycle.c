@@ -191,6 +191,26 @@ static double step_min(const afm_sample *p, const afm_sample *q, double xmin) {
  * otherwise the cubic stays above the samples' minimum), a contact crossing (its part of the
  * step; the whole steps of a contact are added when it ends, as one difference of times).
  * The runs (run_block, run_events) do the same, operation for operation. */
+/* A step p -> q (length h) across the contact line xc: the contact time *ct (the step's part
+ * in contact; an outward step adds the whole steps since *t_in as well), and for an inward
+ * crossing inside the step the count *nc and, at the first, the pre-contact velocity *v_in.
+ * step_plain and run_events keep these in different places. */
+static CYCLE_INLINE void cross_step(const afm_sample *p, const afm_sample *q, double h, double xc,
+                                    double *ct, double *t_in, int *nc, double *v_in) {
+    double fr, v;
+    crossing(p, q, h, xc, &fr, &v);
+    if (q->x_m < xc) { /* inward: [fr, 1] of the step is in contact */
+        *ct += h * overlap(fr, 1.0, 0.0, 1.0);
+        if (fr >= 0.0 && fr < 1.0) {
+            if (*nc == 0) *v_in = v;
+            (*nc)++;
+        }
+        *t_in = q->t_s;
+    } else { /* outward: the whole steps since t_in, then [0, fr] */
+        *ct += (p->t_s - *t_in) + h * fr;
+    }
+}
+
 static void step_plain(afm_cycle *c, const afm_sample *s) {
     afm_cycle_metrics *m = &c->cur;
     const afm_sample *p = &c->prev;
@@ -208,20 +228,9 @@ static void step_plain(afm_cycle *c, const afm_sample *s) {
     }
     if (s->f_n > m->peak_force_n) m->peak_force_n = s->f_n;
     double xc = c->x_contact_m;
-    if ((p->x_m < xc) != (s->x_m < xc)) {
-        double fr, v;
-        crossing(p, s, h, xc, &fr, &v);
-        if (s->x_m < xc) { /* inward: [fr, 1] of the step is in contact */
-            m->contact_time_s += h * overlap(fr, 1.0, 0.0, 1.0);
-            if (fr >= 0.0 && fr < 1.0) {
-                if (m->n_contacts == 0) m->pre_contact_velocity_m_s = v;
-                m->n_contacts++;
-            }
-            c->t_in = s->t_s;
-        } else { /* outward: the whole steps since t_in, then [0, fr] */
-            m->contact_time_s += (p->t_s - c->t_in) + h * fr;
-        }
-    }
+    if ((p->x_m < xc) != (s->x_m < xc))
+        cross_step(p, s, h, xc, &m->contact_time_s, &c->t_in, &m->n_contacts,
+                   &m->pre_contact_velocity_m_s);
     c->f_prev2 = p->f_n;
     c->t_before = p->t_s;
     c->k++;
@@ -448,18 +457,7 @@ static CYCLE_NOINLINE void run_events(run_state *r, const run_flags *fl) {
         for (unsigned cr = ev >> 4 & 15u; cr; cr &= cr - 1) {
             int k = k0 + lowest_bit(cr);
             const afm_sample *p = k ? s + k - 1 : r->p0, *q = s + k;
-            double h = q->t_s - p->t_s, fr, v;
-            crossing(p, q, h, r->xc, &fr, &v);
-            if (q->x_m < r->xc) { /* inward: [fr, 1] of the step is in contact */
-                r->ct += h * overlap(fr, 1.0, 0.0, 1.0);
-                if (fr >= 0.0 && fr < 1.0) {
-                    if (r->nc == 0) r->v_in = v;
-                    r->nc++;
-                }
-                r->t_in = q->t_s;
-            } else { /* outward: the whole steps since t_in, then [0, fr] */
-                r->ct += (p->t_s - r->t_in) + h * fr;
-            }
+            cross_step(p, q, q->t_s - p->t_s, r->xc, &r->ct, &r->t_in, &r->nc, &r->v_in);
         }
         for (unsigned mn = ev >> 8 & 15u; mn; mn &= mn - 1) {
             int k = k0 + lowest_bit(mn);
