@@ -348,14 +348,16 @@ typedef struct {
     double xg, vg, dg; /* x, v and d at the free step's guess (F held): xn + gx f, ... */
 } rt_tip;
 
+/* The reciprocal slope of a piece with coefficients P that starts where the force's partials
+ * are fx, fv: 1 / max(1 - fx gx - fv gv, 1/4). */
+static inline double rt_slope(const afm_rt_prop *P, double fx, double fv) {
+    double jj = 1.0 - fx * P->gx - fv * P->gv; /* fmax(jj, 0.25), inlined */
+    return 1.0 / (jj > 0.25 ? jj : 0.25);
+}
+
 /* rt_tip of st for a following full step. */
 static inline rt_tip rt_tip_of(const rt_state *r, const rt_snap *st) {
-    const afm_rt_prop *P = &r->prop[r->ncell - 1];
-    double rj = st->rj;
-    if (st->rk != r->ncell) {
-        double jj = 1.0 - st->fx * P->gx - st->fv * P->gv; /* fmax(jj, 0.25), inlined */
-        rj = 1.0 / (jj > 0.25 ? jj : 0.25);
-    }
+    double rj = st->rk == r->ncell ? st->rj : rt_slope(&r->prop[r->ncell - 1], st->fx, st->fv);
     return (rt_tip){st->x, st->xd, st->f, st->xn, st->vn, rj, st->xg, st->vg, st->dg};
 }
 
@@ -404,11 +406,8 @@ rt_piece_t(const afm_sim *s, const rt_state *r, const rt_snap *in, rt_snap *o, i
     }
     if (fast) {
         rj = ti->rj;
-    } else if (in->rk == k) {
-        rj = in->rj;
     } else {
-        double jj = 1.0 - in->fx * P->gx - in->fv * P->gv; /* fmax(jj, 0.25), inlined */
-        rj = 1.0 / (jj > 0.25 ? jj : 0.25);
+        rj = in->rk == k ? in->rj : rt_slope(P, in->fx, in->fv);
     }
     /* The force first (the critical path); the modal update below does not wait for it
      * until its last multiply-add. */
