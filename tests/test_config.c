@@ -204,6 +204,7 @@ static void bad_configs(void) {
     expect_bad("obd-full-scale-type", "obd.full_scale_m", "expected a number");
     expect_bad("thermal-temperature", "thermal.temperature_k", "must be > 0");
     expect_bad("lockin-order", "lockin.order", "[1, 8]");
+    expect_bad("rt-substeps", "sim.rt_substeps_contact", "[0, 64]");
     expect_bad("lockin-tau-short", "lockin.time_constant_s", "one sample interval");
     expect_bad("output-decimation-zero", "output.decimation[1]", "[1, 65536]");
     expect_bad("output-decimation-float", "output.decimation[0]", "expected an integer");

@@ -15,11 +15,12 @@
 #include <stdbool.h>
 #include <stddef.h>
 
-#define AFM_MAX_MODES 24     /* most modes a reduced model may keep (nk + 2) */
-#define AFM_MAX_ELEMENTS 400 /* most FEM beam elements */
-#define AFM_MAX_TONES 4      /* most dither tones */
-#define AFM_MAX_HARMONICS 16 /* most harmonics an estimator tracks */
-#define AFM_ERR_LEN 512      /* size of every error-message buffer */
+#define AFM_MAX_MODES 24       /* most modes a reduced model may keep (nk + 2) */
+#define AFM_MAX_ELEMENTS 400   /* most FEM beam elements */
+#define AFM_MAX_TONES 4        /* most dither tones */
+#define AFM_MAX_RT_SUBSTEPS 64 /* most contact substeps per sample (sim.rt_substeps_contact) */
+#define AFM_MAX_HARMONICS 16   /* most harmonics an estimator tracks */
+#define AFM_ERR_LEN 512        /* size of every error-message buffer */
 
 typedef enum { AFM_MODEL_BEAM = 0, AFM_MODEL_LUMPED = 1 } afm_model_kind;
 typedef enum {

@@ -14,7 +14,6 @@ static const double deg = 3.14159265358979323846 / 180.0;
 
 #define MAX_AMPLITUDE_M 1e-6  /* larger dither amplitudes are not tapping mode */
 #define MAX_HARMONIC 64       /* highest harmonic number an estimator may track */
-#define MAX_SUBSTEPS 1000     /* rt_substeps_contact upper bound */
 #define MAX_FULL_SCALE_M 1e-3 /* OBD ADC range: beyond a millimetre is a typo */
 #define MAX_TEMPERATURE_K 1e4
 #define MAX_DECIMATION 65536 /* AFM_DECIM_MAX_FACTOR */
@@ -184,9 +183,9 @@ static int check_drive_sim(const afm_config *c, char *key, char *why, size_t why
     NEED(s->integrator == AFM_INTEGRATOR_RT || s->integrator == AFM_INTEGRATOR_REFERENCE ||
              s->integrator == AFM_INTEGRATOR_ARKODE_ERK,
          "sim.integrator", "unknown integrator %d", (int)s->integrator);
-    NEED(s->rt_substeps_contact >= 0 && s->rt_substeps_contact <= MAX_SUBSTEPS,
-         "sim.rt_substeps_contact", "must be in [0, %d] (0 = engine default), got %d", MAX_SUBSTEPS,
-         s->rt_substeps_contact);
+    NEED(s->rt_substeps_contact >= 0 && s->rt_substeps_contact <= AFM_MAX_RT_SUBSTEPS,
+         "sim.rt_substeps_contact", "must be in [0, %d] (0 = engine default), got %d",
+         AFM_MAX_RT_SUBSTEPS, s->rt_substeps_contact);
     NEED(isfinite(s->ref_rtol) && s->ref_rtol > 0 && s->ref_rtol < 1e-2, "sim.ref_rtol",
          "must be in (0, 1e-2) (got %g)", s->ref_rtol);
     NEED(s->n_harmonics >= 0 && s->n_harmonics <= AFM_MAX_HARMONICS, "sim.harmonics",

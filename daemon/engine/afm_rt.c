@@ -55,7 +55,7 @@
 
 #define RT_GRID 8             /* table cells per contact substep: crossing resolution */
 #define RT_DEFAULT_SUBSTEPS 4 /* substeps per sample in contact (measured, numerics.md) */
-#define RT_MAX_SUBSTEPS 64
+#define RT_MAX_SUBSTEPS AFM_MAX_RT_SUBSTEPS
 #define RT_RESYNC 4096 /* steps between phasor resynchronisations */
 #define RT_NEWTON_MAX 12
 #define RT_KB_J_K 1.380649e-23 /* Boltzmann constant (exact, SI 2019) */
