@@ -80,6 +80,8 @@ DPID=$!
 s=$(wait_status "t > 0.05") && ok "daemon up, status arrives: $(echo "$s" | cut -c1-120)" \
   || { bad "no status from the daemon: $(cat "$T/daemon.err")"; echo "$pass passed, $fail failed"; exit 1; }
 echo "$s" | grep -q '"mode":"realtime"' && ok "realtime mode" || bad "mode: $s"
+[ "$(echo "$s" | jstr can_state)" = off ] && [ "$(echo "$s" | jnum can_frames)" = 0 ] &&
+  ok "status shows the CAN input as off (no can group)" || bad "CAN fields: $s"
 
 # --- rates: status at 10 Hz, harmonics every K-th period, over 2 s of wall time ---------
 listen --channels status,harmonics --json --timeout 2 > "$T/rates.json" 2>/dev/null

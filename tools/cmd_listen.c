@@ -244,6 +244,13 @@ static void print_status(const listen_ctx *c, const char *channel, const afmtwin
         json_int(o, "resyncs", m->resyncs);
         json_int(o, "chain_stalls", m->chain_stalls);
         json_num(o, "chain_lag_s", m->chain_lag_s);
+        cJSON_AddStringToObject(o, "can_state", m->can_state ? m->can_state : "");
+        json_int(o, "can_frames", m->can_frames);
+        json_int(o, "can_rejected", m->can_rejected);
+        json_int(o, "can_errors", m->can_errors);
+        json_int(o, "can_reconnects", m->can_reconnects);
+        cJSON_AddStringToObject(o, "can_last_reject", m->can_last_reject ? m->can_last_reject : "");
+        cJSON_AddNumberToObject(o, "heartbeat_ok", m->heartbeat_ok);
         json_print(o);
         return;
     }
@@ -256,6 +263,14 @@ static void print_status(const listen_ctx *c, const char *channel, const afmtwin
            m->last_reject && m->last_reject[0] ? m->last_reject : "",
            m->last_reject && m->last_reject[0] ? ")" : "", m->separation_m * 1e9, m->fe_hz,
            m->amplitude_m * 1e9);
+    if (m->can_state && m->can_state[0] && strcmp(m->can_state, "off") != 0)
+        printf("          CAN %s, heartbeat %s, frames %lld rejected %lld errors %lld reconnects "
+               "%lld%s%s%s\n",
+               m->can_state, m->heartbeat_ok ? "ok" : "missing", (long long)m->can_frames,
+               (long long)m->can_rejected, (long long)m->can_errors, (long long)m->can_reconnects,
+               m->can_last_reject && m->can_last_reject[0] ? " (last: " : "",
+               m->can_last_reject && m->can_last_reject[0] ? m->can_last_reject : "",
+               m->can_last_reject && m->can_last_reject[0] ? ")" : "");
 }
 
 /* One handler for all three channels: the channel name says the type. A message that does
