@@ -199,6 +199,13 @@ static void status_line(twind *d, twind_rtf_state *rs, char *buf, size_t len) {
         snprintf(buf + n, len - n, "  DROPPED: %lld sample blocks, %lld harmonics, %lld periods",
                  cs.samples_dropped, cs.harm_dropped, cs.st.chain.periods_dropped);
     }
+    if (s.can_state[0]) { /* a CAN transport is running */
+        size_t n = strlen(buf);
+        snprintf(buf + n, len - n,
+                 "  CAN %s, heartbeat %s, frames %lld rej %lld errors %lld reconnects %lld",
+                 s.can_state, s.heartbeat_ok ? "ok" : "missing", (long long)s.can_frames,
+                 (long long)s.can_rejected, (long long)s.can_errors, (long long)s.can_reconnects);
+    }
 }
 
 int main(int argc, char **argv) {
