@@ -114,6 +114,11 @@ static void json_int(cJSON *o, const char *k, int64_t v) {
     cJSON_AddRawToObject(o, k, buf);
 }
 
+/* A string field; a missing (NULL) string as "". */
+static void json_str(cJSON *o, const char *k, const char *v) {
+    cJSON_AddStringToObject(o, k, v ? v : "");
+}
+
 static void json_stats(cJSON *o, const char *k, arr_stats s) {
     cJSON *j = cJSON_AddObjectToObject(o, k);
     json_num(j, "min", s.min);
@@ -233,9 +238,9 @@ static void print_status(const listen_ctx *c, const char *channel, const afmtwin
         json_num(o, "lag_s", m->lag_s);
         json_int(o, "received", m->received);
         json_int(o, "rejected", m->rejected);
-        cJSON_AddStringToObject(o, "last_reject", m->last_reject ? m->last_reject : "");
+        json_str(o, "last_reject", m->last_reject);
         json_int(o, "blowups", m->blowups);
-        cJSON_AddStringToObject(o, "mode", m->mode ? m->mode : "");
+        json_str(o, "mode", m->mode);
         cJSON_AddNumberToObject(o, "running", m->running);
         json_num(o, "separation_m", m->separation_m);
         json_num(o, "fe_hz", m->fe_hz);
@@ -244,12 +249,12 @@ static void print_status(const listen_ctx *c, const char *channel, const afmtwin
         json_int(o, "resyncs", m->resyncs);
         json_int(o, "chain_stalls", m->chain_stalls);
         json_num(o, "chain_lag_s", m->chain_lag_s);
-        cJSON_AddStringToObject(o, "can_state", m->can_state ? m->can_state : "");
+        json_str(o, "can_state", m->can_state);
         json_int(o, "can_frames", m->can_frames);
         json_int(o, "can_rejected", m->can_rejected);
         json_int(o, "can_errors", m->can_errors);
         json_int(o, "can_reconnects", m->can_reconnects);
-        cJSON_AddStringToObject(o, "can_last_reject", m->can_last_reject ? m->can_last_reject : "");
+        json_str(o, "can_last_reject", m->can_last_reject);
         cJSON_AddNumberToObject(o, "heartbeat_ok", m->heartbeat_ok);
         json_print(o);
         return;
