@@ -535,28 +535,29 @@ static inline ALWAYS_INLINE void chunk_sig(double *c, const double *tab, const d
 
 /* Samples x[0..n), f[0..n) at table entries m0, m0 + 1, ... (m0 + n - 1 <= AFM_HARM_TAB)
  * into the chunk sums. */
+static inline ALWAYS_INLINE void chunk_xf(afm_harm *h, const double *tp, const double *x,
+                                          const double *f, int n, const int NG) {
+    chunk_sig(h->cx, tp, x, n, NG);
+    chunk_sig(h->cf, tp, f, n, NG);
+}
+
 static void chunk_add(afm_harm *h, const double *x, const double *f, int n, int m0) {
     const double *tp = h->tab + (size_t)m0 * 2 * h->nl;
-    switch (h->nl / 4) {
+    switch (h->nl / 4) { /* the group count as a constant: chunk_sig keeps its sums in registers */
     case 1:
-        chunk_sig(h->cx, tp, x, n, 1);
-        chunk_sig(h->cf, tp, f, n, 1);
+        chunk_xf(h, tp, x, f, n, 1);
         break;
     case 2:
-        chunk_sig(h->cx, tp, x, n, 2);
-        chunk_sig(h->cf, tp, f, n, 2);
+        chunk_xf(h, tp, x, f, n, 2);
         break;
     case 3:
-        chunk_sig(h->cx, tp, x, n, 3);
-        chunk_sig(h->cf, tp, f, n, 3);
+        chunk_xf(h, tp, x, f, n, 3);
         break;
     case 4:
-        chunk_sig(h->cx, tp, x, n, 4);
-        chunk_sig(h->cf, tp, f, n, 4);
+        chunk_xf(h, tp, x, f, n, 4);
         break;
     default:
-        chunk_sig(h->cx, tp, x, n, 5);
-        chunk_sig(h->cf, tp, f, n, 5);
+        chunk_xf(h, tp, x, f, n, 5);
         break;
     }
 }
