@@ -113,6 +113,45 @@ last=$("$A" listen --log "$T/out5.log" --channels status --json | tail -1)
 "$A" replay --in "$T/sweep.log" --out "$T/x.log" 2>/dev/null
 [ $? -eq 2 ] && ok "missing --config: exit 2" || bad "missing --config: not exit 2"
 "$A" replay --help | grep -q -- "--lockstep" && ok "replay --help" || bad "replay --help"
+# 3. Crafted logs (issue 13): every event header is checked before anything is allocated.
+# put_be64 FILE OFFSET VALUE: overwrite 8 bytes big-endian (VALUE as 16 hex digits).
+put_hex() { printf "$(echo "$3" | sed 's/../\\x&/g')" | dd of="$1" bs=1 seek="$2" conv=notrunc 2>/dev/null; }
+"$A" send setpoint --z 30e-9 --seq 1 --log "$T/one.log" --log-time 0 --quiet
+"$A" send setpoint --z 31e-9 --seq 2 --log "$T/one.log" --log-time 0.001 --quiet
+ev1=$(( $(stat -c %s "$T/one.log") / 2 ))  # both events have the same size
+# (a) data length 0x7fffffff in the second event: liblcm's reader callocs it and freads
+# into NULL; ours says where and why.
+cp "$T/one.log" "$T/huge.log"; put_hex "$T/huge.log" $((ev1 + 24)) 7fffffff
+out=$("$A" replay --config config/default.conf --in "$T/huge.log" --out "$T/o.log" 2>&1); rc=$?
+[ $rc -eq 2 ] && echo "$out" | grep -q "bad data length 2147483647" \
+  && ok "replay of a log with datalen 0x7fffffff: exit 2, '$(echo "$out" | tail -1)'" \
+  || bad "replay, datalen 0x7fffffff: exit $rc: $out"
+out=$("$A" listen --log "$T/huge.log" 2>&1 >/dev/null); rc=$?
+[ $rc -eq 1 ] && echo "$out" | grep -q "bad data length" \
+  && ok "listen --log of it: exit 1, '$(echo "$out" | tail -1)'" || bad "listen --log, datalen 0x7fffffff: exit $rc: $out"
+# (b) a data length past the end of the file (a log cut short)
+cp "$T/one.log" "$T/cut.log"; truncate -s $(( 2 * ev1 - 5 )) "$T/cut.log"
+out=$("$A" replay --config config/default.conf --in "$T/cut.log" --out "$T/o.log" 2>&1); rc=$?
+[ $rc -eq 2 ] && echo "$out" | grep -q "truncated event" && ok "replay of a cut log: exit 2, says truncated" \
+  || bad "replay of a cut log: exit $rc: $out"
+# (c) time stamps whose difference overflows int64: INT64_MIN then INT64_MAX
+cp "$T/one.log" "$T/wrap.log"; put_hex "$T/wrap.log" 12 8000000000000000
+put_hex "$T/wrap.log" $((ev1 + 12)) 7fffffffffffffff
+out=$("$A" replay --config config/default.conf --in "$T/wrap.log" --out "$T/o.log" 2>&1); rc=$?
+[ $rc -eq 2 ] && echo "$out" | grep -q "not a replayable log" \
+  && ok "replay, time stamps INT64_MIN then INT64_MAX: exit 2, no overflow" || bad "replay, wrapping time stamps: exit $rc: $out"
+# (d) a gap of 9e12 s, which llround turned into a negative sample count (ignored silently)
+"$A" send setpoint --z 30e-9 --seq 1 --log "$T/gap.log" --log-time 0 --quiet
+"$A" send setpoint --z 31e-9 --seq 2 --log "$T/gap.log" --log-time 9e12 --quiet
+out=$("$A" replay --config config/default.conf --in "$T/gap.log" --out "$T/o.log" 2>&1); rc=$?
+[ $rc -eq 2 ] && echo "$out" | grep -q "more than 1e+06 s after" \
+  && ok "replay, a 9e12 s gap: exit 2, reported" || bad "replay, a 9e12 s gap: exit $rc: $out"
+# (e) junk before an event is skipped and said
+{ printf 'junkjunk'; cat "$T/one.log"; } > "$T/junk.log"
+out=$("$A" replay --config config/default.conf --in "$T/junk.log" --out "$T/o.log" --tail 0.001 2>&1); rc=$?
+[ $rc -eq 0 ] && echo "$out" | grep -q "skipped 8 bytes" && echo "$out" | grep -q "2 commands applied" \
+  && ok "replay, 8 junk bytes before the first event: skipped, counted, 2 applied" || bad "replay, junk: exit $rc: $out"
+
 
 echo "$pass passed, $fail failed"
 [ "$fail" -eq 0 ]

@@ -104,10 +104,8 @@ static void bd_usage(FILE *f) {
 
 /* ---- LCM handlers ---------------------------------------------------------------------- */
 
-static void on_status(const lcm_recv_buf_t *rb, const char *ch, const afmtwin_status_t *m,
-                      void *u) {
-    (void)rb;
-    (void)ch;
+static void on_status(const void *msg, void *u) {
+    const afmtwin_status_t *m = msg;
     bd_state *s = u;
     double now = afmt_mono_s();
     if (s->n_status++ == 0) {
@@ -129,10 +127,8 @@ static void on_status(const lcm_recv_buf_t *rb, const char *ch, const afmtwin_st
     s->last_received = m->received;
 }
 
-static void on_harm(const lcm_recv_buf_t *rb, const char *ch, const afmtwin_harmonics_t *m,
-                    void *u) {
-    (void)rb;
-    (void)ch;
+static void on_harm(const void *msg, void *u) {
+    const afmtwin_harmonics_t *m = msg;
     bd_state *s = u;
     s->contact_time_s = m->contact_time_s;
     s->indentation_m = m->indentation_m;
@@ -140,10 +136,8 @@ static void on_harm(const lcm_recv_buf_t *rb, const char *ch, const afmtwin_harm
     s->n_harm++;
 }
 
-static void on_samples(const lcm_recv_buf_t *rb, const char *ch, const afmtwin_samples_t *m,
-                       void *u) {
-    (void)rb;
-    (void)ch;
+static void on_samples(const void *msg, void *u) {
+    const afmtwin_samples_t *m = msg;
     bd_state *s = u;
     if (!s->got && s->want_seq >= 0 && m->seq_applied == s->want_seq) {
         s->got = true;
@@ -254,15 +248,14 @@ static void bench_config(const bd_opts *o, const char *config, bd_result *r) {
         return;
     }
     bd_state s = {.want_seq = -1};
-    afmtwin_status_t_subscription_t *s1 =
-        afmtwin_status_t_subscribe(lcm, "AFMTWIN_STATUS", on_status, &s);
-    afmtwin_harmonics_t_subscription_t *s2 =
-        afmtwin_harmonics_t_subscribe(lcm, "AFMTWIN_HARMONICS", on_harm, &s);
-    afmtwin_samples_t_subscription_t *s3 =
-        afmtwin_samples_t_subscribe(lcm, "AFMTWIN_SAMPLES", on_samples, &s);
-    afmtwin_status_t_subscription_set_queue_capacity(s1, 1000);
-    afmtwin_harmonics_t_subscription_set_queue_capacity(s2, 10000);
-    afmtwin_samples_t_subscription_set_queue_capacity(s3, 10000);
+    /* Raw subscriptions behind the wire checks (lcm_tool.h): crafted output messages are
+     * counted, never decoded unchecked. */
+    afmt_checked_sub subs[3] = {{&afm_wire_status_t, on_status, &s, 0},
+                                {&afm_wire_harmonics_t, on_harm, &s, 0},
+                                {&afm_wire_samples_t, on_samples, &s, 0}};
+    afmt_subscribe_checked(lcm, "AFMTWIN_STATUS", &subs[0], 1000);
+    afmt_subscribe_checked(lcm, "AFMTWIN_HARMONICS", &subs[1], 10000);
+    afmt_subscribe_checked(lcm, "AFMTWIN_SAMPLES", &subs[2], 10000);
     pid_t pid = start_daemon(o, config, errfile);
     if (pid < 0) {
         snprintf(r->err, sizeof r->err, "fork failed");

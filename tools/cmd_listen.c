@@ -4,14 +4,17 @@
 #include "afmtwin_cmds.h"
 #include "lcm_tool.h"
 
+#include "afm_config.h"
+#include "afm_err.h"
+#include "afm_lcm_log.h"
 #include "afm_lcm_url.h"
+#include "afm_lcm_wire.h"
 
 #include "afmtwin_harmonics_t.h"
 #include "afmtwin_samples_t.h"
 #include "afmtwin_status_t.h"
 
 #include <cjson/cJSON.h>
-#include <lcm/eventlog.h>
 #include <lcm/lcm.h>
 #include <math.h>
 #include <signal.h>
@@ -32,8 +35,11 @@ typedef struct {
     double timeout_s; /* 0: none */
     bool want[N_OUT];
     const char *url, *out_url, *prefix, *log;
-    long got; /* messages printed */
-    long bad; /* messages that did not decode */
+    long got;          /* messages printed */
+    long bad;          /* messages that did not decode */
+    long bad_quiet;    /* ... of which not reported on stderr (throttled) */
+    double bad_t0;     /* start of the current second of stderr reports */
+    int bad_in_second; /* reports in it */
     char chan[N_OUT][AFMT_CHAN_LEN];
 } listen_ctx;
 
@@ -114,9 +120,16 @@ static void json_int(cJSON *o, const char *k, int64_t v) {
     cJSON_AddRawToObject(o, k, buf);
 }
 
-/* A string field; a missing (NULL) string as "". */
+/* A string field from the network, as printable ASCII (afm_err_printable); a missing
+ * (NULL) string as "". */
+#define SHOW_LEN 1024
+static const char *show(char *buf, const char *v) {
+    return afm_err_printable(buf, SHOW_LEN, v ? v : "", SHOW_LEN);
+}
+
 static void json_str(cJSON *o, const char *k, const char *v) {
-    cJSON_AddStringToObject(o, k, v ? v : "");
+    char b[SHOW_LEN];
+    cJSON_AddStringToObject(o, k, show(b, v));
 }
 
 static void json_stats(cJSON *o, const char *k, arr_stats s) {
@@ -259,27 +272,57 @@ static void print_status(const listen_ctx *c, const char *channel, const afmtwin
         json_print(o);
         return;
     }
+    char lr[SHOW_LEN], mode[SHOW_LEN], cs[SHOW_LEN], clr[SHOW_LEN];
+    show(lr, m->last_reject);
+    show(mode, m->mode);
+    show(cs, m->can_state);
+    show(clr, m->can_last_reject);
     printf("status    seq %lld t %.6f s %s %s RT %.4g lag %.3g s overruns %lld blowups %lld "
            "received %lld rejected %lld%s%s%s Z %.4g nm fe %.6g Hz Ae %.4g nm\n",
-           (long long)m->seq_applied, m->model_time_s, m->mode ? m->mode : "?",
+           (long long)m->seq_applied, m->model_time_s, mode[0] ? mode : "?",
            m->running ? "running" : "paused", m->realtime_factor, m->lag_s, (long long)m->overruns,
            (long long)m->blowups, (long long)m->received, (long long)m->rejected,
-           m->last_reject && m->last_reject[0] ? " (last: " : "",
-           m->last_reject && m->last_reject[0] ? m->last_reject : "",
-           m->last_reject && m->last_reject[0] ? ")" : "", m->separation_m * 1e9, m->fe_hz,
+           lr[0] ? " (last: " : "", lr, lr[0] ? ")" : "", m->separation_m * 1e9, m->fe_hz,
            m->amplitude_m * 1e9);
-    if (m->can_state && m->can_state[0] && strcmp(m->can_state, "off") != 0)
+    if (cs[0] && strcmp(cs, "off") != 0)
         printf("          CAN %s, heartbeat %s, frames %lld rejected %lld errors %lld reconnects "
                "%lld%s%s%s\n",
-               m->can_state, m->heartbeat_ok ? "ok" : "missing", (long long)m->can_frames,
+               cs, m->heartbeat_ok ? "ok" : "missing", (long long)m->can_frames,
                (long long)m->can_rejected, (long long)m->can_errors, (long long)m->can_reconnects,
-               m->can_last_reject && m->can_last_reject[0] ? " (last: " : "",
-               m->can_last_reject && m->can_last_reject[0] ? m->can_last_reject : "",
-               m->can_last_reject && m->can_last_reject[0] ? ")" : "");
+               clr[0] ? " (last: " : "", clr, clr[0] ? ")" : "");
 }
 
-/* One handler for all three channels: the channel name says the type. A message that does
- * not decode (wrong type, truncated) is reported on stderr and not counted. */
+static double mono_s(void) {
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return ts.tv_sec + 1e-9 * ts.tv_nsec;
+}
+
+/* A message that does not decode: counted, and reported on stderr at most
+ * BAD_LINES_PER_S times a second (a flood of junk must not flood the terminal too). */
+#define BAD_LINES_PER_S 5
+static void report_bad(listen_ctx *c, const char *channel, uint32_t size, const char *type,
+                       const char *why) {
+    c->bad++;
+    double now = mono_s();
+    if (now - c->bad_t0 >= 1.0) {
+        if (c->bad_quiet)
+            fprintf(stderr, "afmtwin listen: ... and %ld more that did not decode\n", c->bad_quiet);
+        c->bad_quiet = 0;
+        c->bad_t0 = now;
+        c->bad_in_second = 0;
+    }
+    if (c->bad_in_second++ >= BAD_LINES_PER_S) {
+        c->bad_quiet++;
+        return;
+    }
+    fprintf(stderr, "afmtwin listen: %s: %u bytes that do not decode as %s (%s; ignored)\n",
+            channel, size, type, why);
+}
+
+/* One handler for all three channels: the channel name says the type. The bytes are
+ * checked before lcm-gen's decoder sees them (afm_lcm_wire.h); a message that does not
+ * decode (wrong type, truncated, crafted lengths) is reported on stderr and not counted. */
 static void on_message(const lcm_recv_buf_t *rb, const char *channel, void *user) {
     listen_ctx *c = user;
     if (c->count > 0 && c->got >= c->count) return;
@@ -287,56 +330,60 @@ static void on_message(const lcm_recv_buf_t *rb, const char *channel, void *user
     for (int i = 0; i < N_OUT; i++)
         if (c->want[i] && !strcmp(channel, c->chan[i])) k = i;
     if (k < 0) return;
-    int rc = -1;
-    if (k == OUT_SAMPLES) {
-        afmtwin_samples_t m;
-        rc = afmtwin_samples_t_decode(rb->data, 0, (int)rb->data_size, &m);
-        if (rc >= 0) {
-            print_samples(c, channel, &m);
-            afmtwin_samples_t_decode_cleanup(&m);
-        }
-    } else if (k == OUT_HARMONICS) {
-        afmtwin_harmonics_t m;
-        rc = afmtwin_harmonics_t_decode(rb->data, 0, (int)rb->data_size, &m);
-        if (rc >= 0) {
-            print_harmonics(c, channel, &m);
-            afmtwin_harmonics_t_decode_cleanup(&m);
-        }
-    } else {
-        afmtwin_status_t m;
-        rc = afmtwin_status_t_decode(rb->data, 0, (int)rb->data_size, &m);
-        if (rc >= 0) {
-            print_status(c, channel, &m);
-            afmtwin_status_t_decode_cleanup(&m);
-        }
-    }
-    if (rc < 0) {
-        c->bad++;
-        fprintf(stderr, "afmtwin listen: %s: %u bytes that do not decode as %s_t (ignored)\n",
-                channel, rb->data_size, out_name[k]);
+    static const afm_wire_type *const types[N_OUT] = {&afm_wire_samples_t, &afm_wire_harmonics_t,
+                                                      &afm_wire_status_t};
+    union {
+        afmtwin_samples_t samples;
+        afmtwin_harmonics_t harmonics;
+        afmtwin_status_t status;
+    } m;
+    char why[AFM_ERR_LEN];
+    if (afm_wire_decode(types[k], rb->data, rb->data_size, &m, why, sizeof why)) {
+        report_bad(c, channel, rb->data_size, types[k]->name, why);
         return;
     }
+    if (k == OUT_SAMPLES)
+        print_samples(c, channel, &m.samples);
+    else if (k == OUT_HARMONICS)
+        print_harmonics(c, channel, &m.harmonics);
+    else
+        print_status(c, channel, &m.status);
+    afm_wire_free(types[k], &m);
     fflush(stdout);
     c->got++;
 }
 
-/* Messages from a log file, in order, through the same handler. */
+/* Messages from a log file, in order, through the same handler. Every event header is
+ * checked before anything is allocated for it (afm_lcm_log.h). */
 static int listen_log(listen_ctx *c) {
-    lcm_eventlog_t *l = lcm_eventlog_create(c->log, "r");
+    char err[AFM_ERR_LEN];
+    afm_lcm_log *l = afm_lcm_log_open(c->log, 0, err, sizeof err);
     if (!l) {
-        fprintf(stderr, "afmtwin listen: cannot read log '%s'\n", c->log);
+        fprintf(stderr, "afmtwin listen: cannot read log: %s\n", err);
         return 1;
     }
-    lcm_eventlog_event_t *ev;
-    while ((c->count == 0 || c->got < c->count) && (ev = lcm_eventlog_read_next_event(l))) {
-        lcm_recv_buf_t rb = {.data = ev->data,
-                             .data_size = (uint32_t)ev->datalen,
-                             .recv_utime = ev->timestamp,
+    afm_lcm_log_event ev;
+    int r = 1;
+    while ((c->count == 0 || c->got < c->count) &&
+           (r = afm_lcm_log_next(l, &ev, err, sizeof err)) > 0) {
+        lcm_recv_buf_t rb = {.data = (void *)ev.data,
+                             .data_size = ev.datalen,
+                             .recv_utime = ev.timestamp,
                              .lcm = NULL};
-        on_message(&rb, ev->channel, c);
-        lcm_eventlog_free_event(ev);
+        on_message(&rb, ev.channel, c);
     }
-    lcm_eventlog_destroy(l);
+    long long skipped = afm_lcm_log_skipped(l);
+    afm_lcm_log_close(&l);
+    if (c->bad_quiet)
+        fprintf(stderr, "afmtwin listen: ... and %ld more that did not decode\n", c->bad_quiet);
+    if (skipped > 0)
+        fprintf(stderr, "afmtwin listen: %s: skipped %lld bytes that are no LCM event\n", c->log,
+                skipped);
+    if (r < 0) {
+        fprintf(stderr, "afmtwin listen: %s: %s; stopped after %ld messages\n", c->log, err,
+                c->got);
+        return 1;
+    }
     if (c->count > 0 && c->got < c->count) {
         fprintf(stderr, "afmtwin listen: the log ended after %ld of %ld messages\n", c->got,
                 c->count);
@@ -362,12 +409,6 @@ static int parse_channels(const char *s, bool *want) {
         n++;
     }
     return n > 0 ? 0 : -1;
-}
-
-static double mono_s(void) {
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return ts.tv_sec + 1e-9 * ts.tv_nsec;
 }
 
 int afm_cmd_listen(int argc, char **argv) {
@@ -467,6 +508,8 @@ int afm_cmd_listen(int argc, char **argv) {
             break;
         }
     }
+    if (c.bad_quiet)
+        fprintf(stderr, "afmtwin listen: ... and %ld more that did not decode\n", c.bad_quiet);
     if (rc == 0 && c.count > 0 && c.got < c.count) {
         fprintf(stderr, "afmtwin listen: %s after %ld of %ld messages\n",
                 listen_stop ? "stopped" : "timed out", c.got, c.count);

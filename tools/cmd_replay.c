@@ -21,8 +21,10 @@
 
 #include "afm_io_records.h"
 #include "afm_lcm_encode.h"
+#include "afm_lcm_log.h"
 
 #include <lcm/eventlog.h>
+#include <limits.h>
 #include <math.h>
 #include <stdbool.h>
 #include <stdio.h>
@@ -32,6 +34,9 @@
 #define REPLAY_DEFAULT_BLOCK 1024    /* samples per block: 72.8 us at 14.06 MHz */
 #define REPLAY_STATUS_INTERVAL_S 0.1 /* status every 0.1 s of model time, as the daemon's 10 Hz */
 #define REPLAY_PERIODS_MAX 256
+/* A command logged more than this long after the first one: the log's time stamps are
+ * broken (or not lcm-logger's), and replaying the gap would run for days. */
+#define REPLAY_MAX_SPAN_S 1e6
 
 enum { OUT_SAMPLES, OUT_HARMONICS, OUT_STATUS, N_OUT };
 
@@ -221,13 +226,13 @@ static void reject(replay_ctx *x, const char *channel, const char *why) {
     snprintf(x->last_reject, sizeof x->last_reject, "%.60s: %.190s", channel, why);
 }
 
-static void apply_event(replay_ctx *x, afm_cmd_kind kind, const lcm_eventlog_event_t *ev) {
+static void apply_event(replay_ctx *x, afm_cmd_kind kind, const afm_lcm_log_event *ev) {
     const afm_config *cfg = afm_runner_config(x->r);
     afm_cmd_limits lim = {.sample_rate_hz = cfg->sim.sample_rate_hz};
     afm_cmd c;
     char err[AFM_ERR_LEN];
     x->received++;
-    if (afm_cmd_decode(kind, ev->data, (size_t)ev->datalen, &lim, &c, err, sizeof err)) {
+    if (afm_cmd_decode(kind, ev->data, ev->datalen, &lim, &c, err, sizeof err)) {
         reject(x, ev->channel, err);
         return;
     }
@@ -364,21 +369,21 @@ int afm_cmd_replay(int argc, char **argv) {
 
     static afm_config cfg;
     if (afm_config_load(x.o.config, &cfg, err, sizeof err)) goto usage_err;
-    lcm_eventlog_t *in = lcm_eventlog_create(x.o.in, "r");
+    afm_lcm_log *in = afm_lcm_log_open(x.o.in, 0, err, sizeof err);
     if (!in) {
-        fprintf(stderr, "afmtwin replay: cannot read log '%s'\n", x.o.in);
+        fprintf(stderr, "afmtwin replay: cannot read log: %s\n", err);
         return 2;
     }
     x.r = afm_runner_create(&cfg, x.o.block, x.o.lockstep, err, sizeof err);
     if (!x.r) {
-        lcm_eventlog_destroy(in);
+        afm_lcm_log_close(&in);
         fprintf(stderr, "afmtwin replay: %s\n", err);
         return 1;
     }
     x.log = lcm_eventlog_create(x.o.out, "w");
     if (!x.log) {
         fprintf(stderr, "afmtwin replay: cannot write log '%s'\n", x.o.out);
-        lcm_eventlog_destroy(in);
+        afm_lcm_log_close(&in);
         afm_runner_destroy(&x.r);
         return 1;
     }
@@ -390,38 +395,71 @@ int afm_cmd_replay(int argc, char **argv) {
 
     bool have_first = false;
     int64_t t_first = 0;
-    long long last_target = 0, events = 0;
-    lcm_eventlog_event_t *ev;
-    while (!x.write_failed && (ev = lcm_eventlog_read_next_event(in)) != NULL) {
+    long long last_target = 0, events = 0, backwards = 0;
+    afm_lcm_log_event ev;
+    int r;
+    char bad[AFM_ERR_LEN] = "";
+    while (!x.write_failed && (r = afm_lcm_log_next(in, &ev, err, sizeof err)) != 0) {
+        if (r < 0) {
+            snprintf(bad, sizeof bad, "%s", err);
+            break;
+        }
         events++;
-        afm_cmd_kind kind = channel_kind(&x, ev->channel);
+        afm_cmd_kind kind = channel_kind(&x, ev.channel);
         if (!kind) {
             x.skipped++;
-            lcm_eventlog_free_event(ev);
             continue;
         }
         if (!have_first) {
             have_first = true;
-            t_first = ev->timestamp;
+            t_first = ev.timestamp;
         }
         if (!x.o.lockstep) {
-            /* samples since the start, rounded up to a block boundary */
-            double dt_us = (double)(ev->timestamp - t_first);
-            long long k = dt_us > 0 ? llround(dt_us * 1e-6 * rate) : 0;
+            /* samples since the start, rounded up to a block boundary; the gap in 64-bit
+             * integers without overflow, and bounded before it is turned into samples */
+            int64_t gap_us;
+            if (__builtin_sub_overflow(ev.timestamp, t_first, &gap_us) ||
+                (double)gap_us > REPLAY_MAX_SPAN_S * 1e6) {
+                snprintf(bad, sizeof bad,
+                         "event %lld at byte %lld: time stamp %lld us is more than %g s after "
+                         "the first command's (%lld us): not a replayable log",
+                         (long long)ev.eventnum, ev.offset, (long long)ev.timestamp,
+                         REPLAY_MAX_SPAN_S, (long long)t_first);
+                break;
+            }
+            if (gap_us < 0) backwards++; /* applies now, in log order */
+            double n_d = gap_us > 0 ? (double)gap_us * 1e-6 * rate : 0.0; /* < 1e15 */
+            long long k = n_d < 9e18 ? llround(n_d) : LLONG_MAX - x.o.block;
             k = (k + x.o.block - 1) / x.o.block * x.o.block;
             if (k > last_target) last_target = k;
             run_to(&x, last_target);
         }
-        apply_event(&x, kind, ev);
+        apply_event(&x, kind, &ev);
         if (x.o.lockstep) {
             afm_runner_status st;
             afm_runner_status_get(x.r, &st);
             long long b = afm_runner_budget(x.r);
             if (b > 0 && b < (1LL << 60)) run_to(&x, st.samples + b);
         }
-        lcm_eventlog_free_event(ev);
     }
-    lcm_eventlog_destroy(in);
+    long long junk = afm_lcm_log_skipped(in);
+    afm_lcm_log_close(&in);
+    if (bad[0]) {
+        fprintf(stderr, "afmtwin replay: %s: %s (%lld events read before it)\n", x.o.in, bad,
+                events);
+        lcm_eventlog_destroy(x.log);
+        free(x.buf);
+        afm_runner_destroy(&x.r);
+        return 2;
+    }
+    if (junk > 0)
+        fprintf(stderr, "afmtwin replay: %s: skipped %lld bytes that are no LCM event\n", x.o.in,
+                junk);
+    if (backwards > 0)
+        fprintf(stderr,
+                "afmtwin replay: %lld commands carry a time stamp before the first command's; "
+                "they applied at once, in log order\n",
+                backwards);
     if (!x.o.lockstep) {
         long long tail = llround(x.o.tail_s * rate);
         long long end = last_target + tail;

@@ -70,6 +70,31 @@ int afmt_parse_hex(const char *s, uint8_t *buf, int cap) {
     return n;
 }
 
+static void on_checked(const lcm_recv_buf_t *rb, const char *channel, void *user) {
+    (void)channel;
+    afmt_checked_sub *s = user;
+    union {
+        char bytes[4096];
+        double align_d;
+        void *align_p;
+        int64_t align_i;
+    } m;
+    if (s->type->size > sizeof m.bytes ||
+        afm_wire_decode(s->type, rb->data, rb->data_size, &m, NULL, 0)) {
+        s->bad++;
+        return;
+    }
+    s->fn(&m, s->user);
+    afm_wire_free(s->type, &m);
+}
+
+int afmt_subscribe_checked(lcm_t *lcm, const char *channel, afmt_checked_sub *s, int capacity) {
+    lcm_subscription_t *sub = lcm_subscribe(lcm, channel, on_checked, s);
+    if (!sub) return -1;
+    if (capacity > 0) lcm_subscription_set_queue_capacity(sub, capacity);
+    return 0;
+}
+
 double afmt_mono_s(void) {
     struct timespec ts;
     clock_gettime(CLOCK_MONOTONIC, &ts);

@@ -1,9 +1,13 @@
 /* SPDX-License-Identifier: MIT */
 /* lcm_tool.h -- what the LCM subcommands of `afmtwin` (send, listen, replay, bench-daemon)
- * share: channel names, strict number parsing, hex decoding, wall and monotonic clocks. */
+ * share: channel names, strict number parsing, hex decoding, checked subscriptions, wall and
+ * monotonic clocks. */
 #ifndef AFMT_LCM_TOOL_H
 #define AFMT_LCM_TOOL_H
 
+#include "afm_lcm_wire.h"
+
+#include <lcm/lcm.h>
 #include <stddef.h>
 #include <stdint.h>
 
@@ -32,6 +36,17 @@ int afmt_parse_double(const char *s, double *v);
 int afmt_parse_list(const char *s, double *v, int max);
 /* Hex string (pairs of hex digits, optional spaces) into buf: byte count, or -1. */
 int afmt_parse_hex(const char *s, uint8_t *buf, int cap);
+
+/* A subscription that hands fn only messages that pass afm_wire_decode (checked before
+ * lcm-gen's decoder runs, freed after fn returns); the others are counted in bad. s must
+ * live as long as the subscription. 0, or -1 (lcm_subscribe failed). */
+typedef struct {
+    const afm_wire_type *type;
+    void (*fn)(const void *msg, void *user); /* msg: the generated struct of type */
+    void *user;
+    long bad;
+} afmt_checked_sub;
+int afmt_subscribe_checked(lcm_t *lcm, const char *channel, afmt_checked_sub *s, int capacity);
 
 double afmt_mono_s(void);   /* CLOCK_MONOTONIC, seconds */
 int64_t afmt_wall_us(void); /* CLOCK_REALTIME, microseconds since the epoch */
