@@ -150,6 +150,8 @@ int afm_param_lookup(const char *name, int *entry, int *index, char *err, size_t
                     AFM_CMD_NAME_LEN - 1);
         return -1;
     }
+    char shown[4 * AFM_CMD_NAME_LEN]; /* the name as it may be echoed: printable */
+    afm_err_printable(shown, sizeof shown, name, len);
     const char *br = strchr(name, '[');
     size_t base = br ? (size_t)(br - name) : len;
     int idx = -1;
@@ -189,11 +191,13 @@ int afm_param_lookup(const char *name, int *entry, int *index, char *err, size_t
             if (w < 0) break;
             n += (size_t)w;
         }
-        afm_err_set(err, errlen, "unknown parameter '%.*s' (known: %s)", (int)base, name, list);
+        char b[4 * AFM_CMD_NAME_LEN];
+        afm_err_printable(b, sizeof b, name, base);
+        afm_err_set(err, errlen, "unknown parameter '%s' (known: %s)", b, list);
     }
     return -1;
 bad_index:
-    afm_err_set(err, errlen, "parameter '%s': bad index (want name[N])", name);
+    afm_err_set(err, errlen, "parameter '%s': bad index (want name[N])", shown);
     return -1;
 }
 
