@@ -26,7 +26,7 @@ static void expect(afm_cmd_kind kind, int want_ok, const char *needle, const cha
     afm_cmd c;
     char err[AFM_ERR_LEN] = "";
     int rc = afm_cmd_decode(kind, buf, (size_t)buf_len, &lim, &c, err, sizeof err);
-    char name[300];
+    char name[AFM_ERR_LEN + 300];
     if (want_ok) {
         snprintf(name, sizeof name, "%s: accepted (%s)", what, rc ? err : "ok");
         check_true(rc == 0, name);
@@ -38,7 +38,9 @@ static void expect(afm_cmd_kind kind, int want_ok, const char *needle, const cha
 
 static void dither(int n, double f0, double a0, double p0, const char *needle, int ok,
                    const char *what) {
-    double f[4] = {f0, 300e3, 300e3, 300e3}, a[4] = {a0, 1e-10, 1e-10, 1e-10}, p[4] = {p0, 0, 0, 0};
+    /* room for the 5 tones of the n_tones = 5 case (the encoder reads n values) */
+    double f[5] = {f0, 300e3, 300e3, 300e3, 300e3}, a[5] = {a0, 1e-10, 1e-10, 1e-10, 1e-10},
+           p[5] = {p0, 0, 0, 0, 0};
     afmtwin_dither_t m = {.utime = 1,
                           .seq = 7,
                           .n_tones = (int8_t)n,

@@ -284,7 +284,7 @@ static void expect_reject(afm_cfg_forces c, double len, double wid, const char *
     before = p;
     char err[AFM_ERR_LEN] = "";
     int rc = afm_force_init(&p, &c, len, wid, err, sizeof err);
-    char buf[200];
+    char buf[AFM_ERR_LEN + 200];
     snprintf(buf, sizeof buf, "reject %s (%s)", what, err[0] ? err : "no message");
     check_true(rc == -1 && err[0] != '\0' && memcmp(&p, &before, sizeof p) == 0, buf);
 }
