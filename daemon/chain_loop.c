@@ -59,7 +59,7 @@ static void push_outputs(chain_ctx *c) {
     int every = d->opt.harmonics_every;
     if (every <= 0) {
         double f = st.fe_hz / (d->opt.harmonics_max_hz > 0 ? d->opt.harmonics_max_hz : 1000.0);
-        every = f > 1 ? (int)ceil(f) : 1;
+        every = f > 1 ? (f < 1e9 ? (int)ceil(f) : 1000000000) : 1; /* no int overflow */
     }
     afm_chain_period p[PERIODS_PER_TAKE];
     int n;

@@ -40,6 +40,8 @@ typedef struct {
 } rt_ctx;
 
 static void ts_add(struct timespec *t, double s) {
+    if (!(s < 1e9)) s = 1e9; /* 31 years: no llround overflow, whatever the sample rate */
+    if (s < -1e9) s = -1e9;
     long long ns = (long long)t->tv_nsec + llround(s * 1e9);
     t->tv_sec += (time_t)(ns / 1000000000LL);
     ns %= 1000000000LL;
