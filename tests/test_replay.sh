@@ -146,6 +146,26 @@ out=$("$A" replay --config config/default.conf --in "$T/wrap.log" --out "$T/o.lo
 out=$("$A" replay --config config/default.conf --in "$T/gap.log" --out "$T/o.log" 2>&1); rc=$?
 [ $rc -eq 2 ] && echo "$out" | grep -q "more than 1e+06 s after" \
   && ok "replay, a 9e12 s gap: exit 2, reported" || bad "replay, a 9e12 s gap: exit $rc: $out"
+# (f) crafted output messages for `listen` (the same checked decode as bench-daemon's): the
+# first event of a samples-only and of a status-only log, with n = 0x40000010 (lcm-gen:
+# 4 * n wraps, heap overread) and a string length 0xffffffff (lcm-gen: memcpy of SIZE_MAX)
+first_event() { # LOG OUT: the first event alone
+  local chlen dlen
+  chlen=$(od -An -tu1 -j20 -N4 "$1" | awk '{print $1*16777216+$2*65536+$3*256+$4}')
+  dlen=$(od -An -tu1 -j24 -N4 "$1" | awk '{print $1*16777216+$2*65536+$3*256+$4}')
+  head -c $((28 + chlen + dlen)) "$1" > "$2"; echo $((28 + chlen))
+}
+"$A" replay --config config/default.conf --in "$T/one.log" --out "$T/s.log" --channels samples --quiet
+"$A" replay --config config/default.conf --in "$T/one.log" --out "$T/st.log" --channels status --quiet
+d=$(first_event "$T/s.log" "$T/s1.log"); put_hex "$T/s1.log" $((d + 41)) 40000010
+out=$("$A" listen --log "$T/s1.log" 2>&1); rc=$?
+[ $rc -eq 0 ] && echo "$out" | grep -q "do not decode as samples_t (truncated at deflection_m" \
+  && ok "listen: samples_t with n = 0x40000010 rejected: $(echo "$out" | head -1 | cut -c1-120)" \
+  || bad "listen, samples n = 0x40000010: exit $rc: $out"
+d=$(first_event "$T/st.log" "$T/st1.log"); put_hex "$T/st1.log" $((d + 72)) ffffffff
+out=$("$A" listen --log "$T/st1.log" 2>&1); rc=$?
+[ $rc -eq 0 ] && echo "$out" | grep -q "do not decode as status_t (string last_reject has a bad length -1" \
+  && ok "listen: status_t string length 0xffffffff rejected" || bad "listen, status string length: exit $rc: $out"
 # (e) junk before an event is skipped and said
 { printf 'junkjunk'; cat "$T/one.log"; } > "$T/junk.log"
 out=$("$A" replay --config config/default.conf --in "$T/junk.log" --out "$T/o.log" --tail 0.001 2>&1); rc=$?
