@@ -93,6 +93,22 @@ static void test_dither(void) {
     dither(1, 0, 1e-10, 0, "frequency", 0, "dither frequency 0");
     dither(1, -5, 1e-10, 0, "frequency", 0, "dither negative frequency");
     dither(1, 7.03e6, 1e-10, 0, "half the sample rate", 0, "dither frequency at fs/2");
+    /* issue 13: a frequency of 5e-324 Hz was accepted; four tones of 1 um each were, each
+     * within its limit, their sum never bounded */
+    dither(1, 5e-324, 1e-10, 0, "must be >= 1", 0, "dither frequency 5e-324 Hz");
+    dither(1, 0.5, 1e-10, 0, "must be >= 1", 0, "dither frequency 0.5 Hz");
+    {
+        double f4[4] = {338112, 338112, 338112, 338112}, a4[4] = {1e-6, 1e-6, 1e-6, 1e-6},
+               p4[4] = {0};
+        afmtwin_dither_t m4 = {
+            .n_tones = 4, .frequency_hz = f4, .amplitude_m = a4, .phase_rad = p4};
+        buf_len = afmtwin_dither_t_encode(buf, 0, sizeof buf, &m4);
+        expect(AFM_CMD_DITHER, 0, "add up to 4e-06 m", "dither 4 tones x 1 um (sum 4 um)");
+        a4[0] = a4[1] = 0.5e-6;
+        a4[2] = a4[3] = 0;
+        buf_len = afmtwin_dither_t_encode(buf, 0, sizeof buf, &m4);
+        expect(AFM_CMD_DITHER, 1, NULL, "dither 2 x 0.5 um (sum 1 um, no model)");
+    }
     dither(1, 8e6, 1e-10, 0, "half the sample rate", 0, "dither frequency above fs/2");
     /* decoded values */
     double f[2] = {338112, 1e6}, a[2] = {1e-10, 2e-11}, p[2] = {0.5, 1.5};
@@ -113,6 +129,56 @@ static void test_dither(void) {
                "dither 9 MHz valid without limits");
     check_true(afm_cmd_validate(&c, &lim, err, sizeof err) == -1,
                "dither 9 MHz invalid at 14.06 MHz");
+}
+
+/* The limits that need the model (afm_cmd_check_drive): default.conf's NCHV cantilever,
+ * f1 = 338.1 kHz. Its predicted free amplitude at 0.087 nm is what the simulator reaches:
+ * `afmtwin sweep --from 338112 --to 338112` on default.conf with separation_m = 1e-3 gives
+ * a steady lock-in amplitude of 57.249 nm. */
+static void test_model_limits(void) {
+    afm_config cfg;
+    afm_modal m;
+    char err[AFM_ERR_LEN];
+    if (afm_config_load("config/default.conf", &cfg, err, sizeof err) ||
+        afm_model_build(&cfg.model, &m, err, sizeof err)) {
+        check_true(false, err);
+        return;
+    }
+    afm_cmd_limits ml = {.sample_rate_hz = 14.06e6, .model = &m};
+    afm_cmd c = {.kind = AFM_CMD_DITHER,
+                 .u.dither = {.n_tones = 1, .frequency_hz = {338112}, .amplitude_m = {0.087e-9}}};
+    double free_m = 0;
+    afm_cmd_check_drive(&m, 1, c.u.dither.frequency_hz, c.u.dither.amplitude_m, &free_m, err,
+                        sizeof err);
+    printf("  0.087 nm at 338.112 kHz: predicted free amplitude %.5g nm\n", free_m * 1e9);
+    check_rel(free_m, 57.249e-9, 0.005, "predicted free amplitude = the simulated 57.249 nm");
+    check_true(afm_cmd_validate(&c, &ml, err, sizeof err) == 0,
+               "tapping drive valid with the model");
+    c.u.dither.amplitude_m[0] = 1e-6; /* at resonance: ~0.66 mm free, past 100 um */
+    check_true(afm_cmd_validate(&c, &ml, err, sizeof err) == -1 && strstr(err, "free tip"),
+               "1 um at resonance: the predicted free amplitude (~0.66 mm) rejected");
+    check_true(afm_cmd_validate(&c, &lim, err, sizeof err) == 0,
+               "... accepted without a model (only the model knows the gain)");
+    c.u.dither.amplitude_m[0] = 1e-10;
+    c.u.dither.frequency_hz[0] = 6.9e6; /* below Nyquist and 4 x the top mode (21 MHz) */
+    check_true(afm_cmd_validate(&c, &ml, err, sizeof err) == 0,
+               "6.9 MHz valid on a model whose top mode is 21 MHz");
+    /* the lumped 300 kHz model of thesis-1dof.conf: 4 x 300 kHz = 1.2 MHz */
+    afm_config l1;
+    afm_modal m1;
+    if (afm_config_load("config/thesis-1dof.conf", &l1, err, sizeof err) ||
+        afm_model_build(&l1.model, &m1, err, sizeof err)) {
+        check_true(false, err);
+        return;
+    }
+    ml.model = &m1;
+    c.u.dither.frequency_hz[0] = 2e6;
+    char name[AFM_ERR_LEN + 100];
+    int rc = afm_cmd_validate(&c, &ml, err, sizeof err);
+    snprintf(name, sizeof name, "2 MHz on a 300 kHz lumped model: rejected (%s)", err);
+    check_true(rc == -1 && strstr(err, "model's range"), name);
+    c.u.dither.frequency_hz[0] = 1.1e6;
+    check_true(afm_cmd_validate(&c, &ml, err, sizeof err) == 0, "1.1 MHz on it: valid");
 }
 
 static void test_setpoint(void) {
@@ -317,6 +383,7 @@ static void test_apply(void) {
 
 int main(void) {
     test_dither();
+    test_model_limits();
     test_setpoint();
     test_param();
     test_control_tick();

@@ -167,12 +167,12 @@ static void bad_configs(void) {
     expect_bad("wrong-type-bool", "forces.viscoelastic.enabled", "expected true or false");
     expect_bad("bad-kind", "model.kind", "not one of");
     expect_bad("lumped-with-beam", "model.beam", "not used");
-    expect_bad("negative-length", "model.beam.length_m", "must be > 0");
-    expect_bad("negative-width", "model.beam.width_m[1]", "must be > 0");
-    expect_bad("negative-width-scalar", "model.beam.width_m", "must be > 0");
+    expect_bad("negative-length", "model.beam.length_m", "must be in [1e-06, 0.01] m");
+    expect_bad("negative-width", "model.beam.width_m[1]", "must be in [1e-08, 0.001] m");
+    expect_bad("negative-width-scalar", "model.beam.width_m", "must be in [1e-08, 0.001] m");
     expect_bad("q-too-many", "model.quality_factor", "model has 4 modes");
-    expect_bad("zero-modulus", "model.beam.youngs_modulus_pa", "must be > 0");
-    expect_bad("negative-tip-mass", "model.beam.tip_mass_kg", "must be >= 0");
+    expect_bad("zero-modulus", "model.beam.youngs_modulus_pa", "must be in [1e+06, 1e+13] Pa");
+    expect_bad("negative-tip-mass", "model.beam.tip_mass_kg", "must be in [0, 1e-06] kg");
     expect_bad("elements-range", "model.beam.elements", "must be in [1, 400]");
     expect_bad("xi-range", "model.damping_ratio[1]", "must be in (0, 1)");
     expect_bad("q-range", "model.quality_factor[0]", "> 0.5");
@@ -189,8 +189,16 @@ static void bad_configs(void) {
     expect_bad("er-and-parts", "forces.vdw_contact.reduced_modulus_pa", "not both");
     expect_bad("bad-sample-poisson", "forces.vdw_contact.sample_poisson", "(-1, 0.5)");
     expect_bad("visco-without-contact", "forces.viscoelastic.enabled", "needs vdw_contact");
-    expect_bad("negative-separation", "drive.separation_m", "must be >= 0");
+    expect_bad("negative-separation", "drive.separation_m", "must be in [0, 0.001] m");
     expect_bad("tone-frequency", "drive.tones[0].frequency_hz", "sample_rate_hz/2");
+    /* physical plausibility (afm_limits.h, issue 13): the exact inputs that ran the twin
+     * into a livelock, and lengths and moduli far outside any cantilever */
+    expect_bad("sample-rate-tiny", "sim.sample_rate_hz", "must be in [1000, 1e+09] Hz");
+    expect_bad("tone-frequency-tiny", "drive.tones[0].frequency_hz", "must be in [1, ");
+    expect_bad("tone-sum", "drive.tones", "amplitudes add up to 4e-06 m");
+    expect_bad("length-huge", "model.beam.length_m", "must be in [1e-06, 0.01] m");
+    expect_bad("modulus-tiny", "forces.vdw_contact.reduced_modulus_pa", "must be in [100, 1e+13]");
+    expect_bad("lumped-stiffness", "model.lumped.stiffness_n_m", "must be in [0.0001, 1e+06]");
     expect_bad("tone-amplitude", "drive.tones[0].amplitude_m", "[0, 1e-06]");
     expect_bad("no-tones", "drive.tones", "needs 1 to 4 tones");
     expect_bad("too-many-tones", "drive.tones", "needs 1 to 4 tones");

@@ -198,7 +198,12 @@ int afm_cmd_can_send(int argc, char **argv) {
     /* The daemon's decoder, from the config's registers, frame after frame. */
     afm_can_state st, next;
     afm_can_state_init(&st, &cfg.drive);
-    afm_cmd_limits lim = {.sample_rate_hz = cfg.sim.sample_rate_hz};
+    static afm_modal model;
+    afm_cmd_limits lim = {.sample_rate_hz = cfg.sim.sample_rate_hz, .model = &model};
+    if (afm_model_build(&cfg.model, &model, err, sizeof err)) {
+        fprintf(stderr, "afmtwin can-send: %s\n", err);
+        return 2;
+    }
     afm_cfg_can mm = *m;
     mm.fd = mm.fd || fd;
     for (int i = 0; i < n && check; i++) {

@@ -228,7 +228,8 @@ static void reject(replay_ctx *x, const char *channel, const char *why) {
 
 static void apply_event(replay_ctx *x, afm_cmd_kind kind, const afm_lcm_log_event *ev) {
     const afm_config *cfg = afm_runner_config(x->r);
-    afm_cmd_limits lim = {.sample_rate_hz = cfg->sim.sample_rate_hz};
+    afm_cmd_limits lim = {.sample_rate_hz = cfg->sim.sample_rate_hz,
+                          .model = afm_sim_model(afm_runner_sim(x->r))};
     afm_cmd c;
     char err[AFM_ERR_LEN];
     x->received++;

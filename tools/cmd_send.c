@@ -323,8 +323,9 @@ static const char *kind_suffix(afm_cmd_kind k) {
     }
 }
 
-/* The daemon's checks: decode + validate the bytes as it would (afm_cmd_decode), and for
- * param, apply to a copy of the config (names that do not fit it). 0, or -1 with err. */
+/* The daemon's checks: decode + validate the bytes as it would (afm_cmd_decode, with the
+ * config's sample rate and model in the limits: afm_limits.h), and for param, apply to a
+ * copy of the config (names that do not fit it). 0, or -1 with err. */
 static int daemon_check(afm_cmd_kind ck, const uint8_t *buf, int n, const send_common *o, char *err,
                         size_t errlen) {
     static afm_config cfg; /* large: not on the stack */
@@ -338,9 +339,12 @@ static int daemon_check(afm_cmd_kind ck, const uint8_t *buf, int n, const send_c
             path = "config/default.conf";
         }
     }
+    static afm_modal model; /* the limits that need the model: its modes and tip response */
     if (path) {
         if (afm_config_load(path, &cfg, err, errlen)) return -2;
+        if (afm_model_build(&cfg.model, &model, err, errlen)) return -2;
         lim.sample_rate_hz = cfg.sim.sample_rate_hz;
+        lim.model = &model;
         have_cfg = true;
     }
     afm_cmd c;

@@ -4,6 +4,7 @@
  * It lives in the engine library because afm_runner applies parameters with it. */
 #include "afm_cmd.h"
 #include "afm_err.h"
+#include "afm_limits.h"
 
 #include <math.h>
 #include <stdarg.h>
@@ -35,11 +36,12 @@ typedef struct {
 } param_ext;
 
 #define OFF(field) offsetof(afm_config, field)
-/* Ranges: physically meaningful bounds wide enough for any AFM probe; the whole config is
- * re-validated after the change (afm_config_validate) as well.
+/* Ranges: physically meaningful bounds wide enough for any AFM probe, afm_limits.h's where
+ * the config loader checks the same key; the whole config is re-validated after the change
+ * (afm_config_validate) as well.
  * X(name, n_index, scalar_ok, min, max, min_open, max_open, effect, unit, field, need, conv) */
 #define PARAM_LIST(X)                                                                              \
-    X("drive.separation_m", 0, false, 0, AFM_CMD_MAX_SEPARATION_M, false, false,                   \
+    X("drive.separation_m", 0, false, 0, AFM_LIM_SEPARATION_MAX_M, false, false,                   \
       AFM_PARAM_SEPARATION, "m", drive.separation_m, NEED_NONE, CONV_NONE)                         \
     X("forces.radius_m", 0, false, 0, 1e-6, true, false, AFM_PARAM_FORCE, "m", forces.radius_m,    \
       NEED_NONE, CONV_NONE)                                                                        \
@@ -47,8 +49,9 @@ typedef struct {
       forces.hamaker_j, NEED_VDW, CONV_NONE)                                                       \
     X("forces.vdw_contact.a0_m", 0, false, 0, 1e-8, true, false, AFM_PARAM_FORCE, "m",             \
       forces.a0_m, NEED_VDW, CONV_NONE)                                                            \
-    X("forces.vdw_contact.reduced_modulus_pa", 0, false, 0, 1e13, true, false, AFM_PARAM_FORCE,    \
-      "Pa", forces.reduced_modulus_pa, NEED_VDW, CONV_NONE)                                        \
+    X("forces.vdw_contact.reduced_modulus_pa", 0, false, AFM_LIM_MODULUS_MIN_PA,                   \
+      AFM_LIM_MODULUS_MAX_PA, false, false, AFM_PARAM_FORCE, "Pa", forces.reduced_modulus_pa,      \
+      NEED_VDW, CONV_NONE)                                                                         \
     X("forces.viscoelastic.eta_pa_s", 0, false, 0, 1e6, false, false, AFM_PARAM_FORCE, "Pa s",     \
       forces.eta_pa_s, NEED_VISCO, CONV_NONE)                                                      \
     X("forces.squeeze.p1_n_s_m2", 0, false, -1, 1, false, false, AFM_PARAM_FORCE, "N s/m^2",       \
@@ -81,22 +84,23 @@ typedef struct {
       model.damping_ratio, NEED_NONE, CONV_NONE)                                                   \
     X("model.quality_factor", AFM_MAX_MODES, false, 0.5, 1e9, true, false, AFM_PARAM_DAMPING, "",  \
       model.damping_ratio, NEED_NONE, CONV_Q)                                                      \
-    X("model.beam.youngs_modulus_pa", 0, false, 0, 1e13, true, false, AFM_PARAM_GEOMETRY, "Pa",    \
-      model.beam.youngs_modulus_pa, NEED_BEAM, CONV_NONE)                                          \
-    X("model.beam.density_kg_m3", 0, false, 0, 1e5, true, false, AFM_PARAM_GEOMETRY, "kg/m^3",     \
-      model.beam.density_kg_m3, NEED_BEAM, CONV_NONE)                                              \
-    X("model.beam.length_m", 0, false, 0, 1e-2, true, false, AFM_PARAM_GEOMETRY, "m",              \
-      model.beam.length_m, NEED_BEAM, CONV_NONE)                                                   \
-    X("model.beam.width_m", 2, true, 0, 1e-3, true, false, AFM_PARAM_GEOMETRY, "m",                \
-      model.beam.width_m, NEED_BEAM, CONV_NONE)                                                    \
-    X("model.beam.height_m", 2, true, 0, 1e-3, true, false, AFM_PARAM_GEOMETRY, "m",               \
-      model.beam.height_m, NEED_BEAM, CONV_NONE)                                                   \
-    X("model.beam.tip_mass_kg", 0, false, 0, 1e-6, false, false, AFM_PARAM_GEOMETRY, "kg",         \
-      model.beam.tip_mass_kg, NEED_BEAM, CONV_NONE)                                                \
-    X("model.lumped.stiffness_n_m", 0, false, 0, 1e6, true, false, AFM_PARAM_GEOMETRY, "N/m",      \
+    X("model.beam.youngs_modulus_pa", 0, false, AFM_LIM_YOUNGS_MIN_PA, AFM_LIM_YOUNGS_MAX_PA,      \
+      false, false, AFM_PARAM_GEOMETRY, "Pa", model.beam.youngs_modulus_pa, NEED_BEAM, CONV_NONE)  \
+    X("model.beam.density_kg_m3", 0, false, AFM_LIM_DENSITY_MIN_KG_M3, AFM_LIM_DENSITY_MAX_KG_M3,  \
+      false, false, AFM_PARAM_GEOMETRY, "kg/m^3", model.beam.density_kg_m3, NEED_BEAM, CONV_NONE)  \
+    X("model.beam.length_m", 0, false, AFM_LIM_LENGTH_MIN_M, AFM_LIM_LENGTH_MAX_M, false, false,   \
+      AFM_PARAM_GEOMETRY, "m", model.beam.length_m, NEED_BEAM, CONV_NONE)                          \
+    X("model.beam.width_m", 2, true, AFM_LIM_SECTION_MIN_M, AFM_LIM_SECTION_MAX_M, false, false,   \
+      AFM_PARAM_GEOMETRY, "m", model.beam.width_m, NEED_BEAM, CONV_NONE)                           \
+    X("model.beam.height_m", 2, true, AFM_LIM_SECTION_MIN_M, AFM_LIM_SECTION_MAX_M, false, false,  \
+      AFM_PARAM_GEOMETRY, "m", model.beam.height_m, NEED_BEAM, CONV_NONE)                          \
+    X("model.beam.tip_mass_kg", 0, false, 0, AFM_LIM_TIP_MASS_MAX_KG, false, false,                \
+      AFM_PARAM_GEOMETRY, "kg", model.beam.tip_mass_kg, NEED_BEAM, CONV_NONE)                      \
+    X("model.lumped.stiffness_n_m", 0, false, AFM_LIM_STIFFNESS_MIN_N_M,                           \
+      AFM_LIM_STIFFNESS_MAX_N_M, false, false, AFM_PARAM_GEOMETRY, "N/m",                          \
       model.lumped.stiffness_n_m, NEED_LUMPED, CONV_NONE)                                          \
-    X("model.lumped.resonance_hz", 0, false, 0, 1e9, true, false, AFM_PARAM_GEOMETRY, "Hz",        \
-      model.lumped.resonance_hz, NEED_LUMPED, CONV_NONE)
+    X("model.lumped.resonance_hz", 0, false, AFM_LIM_RESONANCE_MIN_HZ, AFM_LIM_RESONANCE_MAX_HZ,   \
+      false, false, AFM_PARAM_GEOMETRY, "Hz", model.lumped.resonance_hz, NEED_LUMPED, CONV_NONE)
 
 #define DEF(nm, nidx, sc, lo, hi, lo_open, hi_open, eff, unit, fld, need, conv)                    \
     {nm, nidx, sc, lo, hi, lo_open, hi_open, eff, unit},
@@ -217,6 +221,54 @@ static int check_range(const afm_param_def *d, const char *name, double v, char 
     return 0;
 }
 
+/* Highest mode frequency of the model (Hz). */
+static double top_mode_hz(const afm_modal *m) {
+    double w = 0;
+    for (int i = 0; i < m->n; i++)
+        if (m->omega_rad_s[i] > w) w = m->omega_rad_s[i];
+    return w / (2 * 3.14159265358979323846);
+}
+
+int afm_cmd_check_drive(const afm_modal *m, int n, const double *f_hz, const double *a_m,
+                        double *free_m, char *err, size_t errlen) {
+    double f_top = AFM_LIM_MODEL_RANGE * top_mode_hz(m), x = 0;
+    for (int j = 0; j < n; j++) {
+        if (f_hz[j] > f_top) {
+            afm_err_set(err, errlen,
+                        "dither: tone %d frequency_hz %g is above the model's range (%g x its "
+                        "highest mode, %g Hz)",
+                        j, f_hz[j], AFM_LIM_MODEL_RANGE, f_top);
+            return -1;
+        }
+        double re, im;
+        afm_model_tip_response(m, 2 * 3.14159265358979323846 * f_hz[j], &re, &im);
+        x += a_m[j] * hypot(re, im);
+    }
+    if (free_m) *free_m = x;
+    if (!(x <= AFM_LIM_FREE_AMPLITUDE_MAX_M)) {
+        afm_err_set(err, errlen,
+                    "dither: the drive would swing the free tip to %.3g m (sum over the tones of "
+                    "amplitude x the model's gain), more than the %g m a cantilever survives "
+                    "(tapping is 1 nm .. 1 um)",
+                    x, AFM_LIM_FREE_AMPLITUDE_MAX_M);
+        return -1;
+    }
+    return 0;
+}
+
+int afm_cmd_check_cfg_drive(const afm_modal *m, const afm_cfg_drive *d, char *err, size_t errlen) {
+    double f[AFM_MAX_TONES], a[AFM_MAX_TONES], x;
+    int n = d->n_tones < AFM_MAX_TONES ? d->n_tones : AFM_MAX_TONES;
+    for (int j = 0; j < n; j++) {
+        f[j] = d->tones[j].frequency_hz;
+        a[j] = d->tones[j].amplitude_m;
+    }
+    char why[AFM_ERR_LEN];
+    if (afm_cmd_check_drive(m, n, f, a, &x, why, sizeof why) == 0) return 0;
+    afm_err_set(err, errlen, "drive.tones: %s", why + (strncmp(why, "dither: ", 8) ? 0 : 8));
+    return -1;
+}
+
 static int check_dither(const afm_cmd_dither *d, const afm_cmd_limits *lim, char *err,
                         size_t errlen) {
     if (d->n_tones < 1 || d->n_tones > AFM_MAX_TONES) {
@@ -224,6 +276,7 @@ static int check_dither(const afm_cmd_dither *d, const afm_cmd_limits *lim, char
         return -1;
     }
     double nyq = lim && lim->sample_rate_hz > 0 ? 0.5 * lim->sample_rate_hz : HUGE_VAL;
+    double sum = 0;
     for (int j = 0; j < d->n_tones; j++) {
         double f = d->frequency_hz[j], a = d->amplitude_m[j], p = d->phase_rad[j];
         if (!isfinite(f) || !isfinite(a) || !isfinite(p)) {
@@ -233,22 +286,34 @@ static int check_dither(const afm_cmd_dither *d, const afm_cmd_limits *lim, char
                         j, f, a, p);
             return -1;
         }
-        if (!(a >= 0 && a <= AFM_CMD_MAX_AMPLITUDE_M)) {
+        if (!(a >= 0 && a <= AFM_LIM_TONE_AMPLITUDE_MAX_M)) {
             afm_err_set(err, errlen, "dither: tone %d amplitude_m %g not in 0..%g m", j, a,
-                        AFM_CMD_MAX_AMPLITUDE_M);
+                        AFM_LIM_TONE_AMPLITUDE_MAX_M);
             return -1;
         }
-        if (!(f > 0 && f < nyq)) {
+        sum += a;
+        if (!(f >= AFM_LIM_FREQUENCY_MIN_HZ && f < nyq)) {
             if (isfinite(nyq))
                 afm_err_set(err, errlen,
-                            "dither: tone %d frequency_hz %g must be > 0 and < %g "
+                            "dither: tone %d frequency_hz %g must be >= %g and < %g "
                             "(half the sample rate)",
-                            j, f, nyq);
+                            j, f, AFM_LIM_FREQUENCY_MIN_HZ, nyq);
             else
-                afm_err_set(err, errlen, "dither: tone %d frequency_hz %g must be > 0", j, f);
+                afm_err_set(err, errlen, "dither: tone %d frequency_hz %g must be >= %g", j, f,
+                            AFM_LIM_FREQUENCY_MIN_HZ);
             return -1;
         }
     }
+    if (!(sum <= AFM_LIM_DRIVE_AMPLITUDE_MAX_M)) {
+        afm_err_set(err, errlen,
+                    "dither: the tones' amplitudes add up to %g m, more than the %g m a dither "
+                    "piezo strokes",
+                    sum, AFM_LIM_DRIVE_AMPLITUDE_MAX_M);
+        return -1;
+    }
+    if (lim && lim->model)
+        return afm_cmd_check_drive(lim->model, d->n_tones, d->frequency_hz, d->amplitude_m, NULL,
+                                   err, errlen);
     return 0;
 }
 
@@ -268,14 +333,14 @@ int afm_cmd_validate(const afm_cmd *c, const afm_cmd_limits *lim, char *err, siz
                         s->separation_m, s->ramp_rate_m_s);
             return -1;
         }
-        if (!(s->separation_m >= 0 && s->separation_m <= AFM_CMD_MAX_SEPARATION_M)) {
+        if (!(s->separation_m >= 0 && s->separation_m <= AFM_LIM_SEPARATION_MAX_M)) {
             afm_err_set(err, errlen, "setpoint: separation_m %g not in 0..%g m", s->separation_m,
-                        AFM_CMD_MAX_SEPARATION_M);
+                        AFM_LIM_SEPARATION_MAX_M);
             return -1;
         }
-        if (!(s->ramp_rate_m_s >= 0 && s->ramp_rate_m_s <= AFM_CMD_MAX_RAMP_M_S)) {
+        if (!(s->ramp_rate_m_s >= 0 && s->ramp_rate_m_s <= AFM_LIM_RAMP_MAX_M_S)) {
             afm_err_set(err, errlen, "setpoint: ramp_rate_m_s %g not in 0..%g m/s",
-                        s->ramp_rate_m_s, AFM_CMD_MAX_RAMP_M_S);
+                        s->ramp_rate_m_s, AFM_LIM_RAMP_MAX_M_S);
             return -1;
         }
         return 0;

@@ -4,6 +4,7 @@
  * failing key path back into a file line. Keys and limits: config/README.md. */
 #include "afm_config.h"
 #include "afm_config_impl.h"
+#include "afm_limits.h"
 
 #include <math.h>
 #include <stdarg.h>
@@ -12,7 +13,6 @@
 
 static const double deg = 3.14159265358979323846 / 180.0;
 
-#define MAX_AMPLITUDE_M 1e-6  /* larger dither amplitudes are not tapping mode */
 #define MAX_HARMONIC 64       /* highest harmonic number an estimator may track */
 #define MAX_FULL_SCALE_M 1e-3 /* OBD ADC range: beyond a millimetre is a typo */
 #define MAX_TEMPERATURE_K 1e4
@@ -42,24 +42,30 @@ static int bad(char *key, char *why, size_t why_len, const char *path, const cha
 #define FINITE(v, path) NEED(isfinite(v), path, "not a finite number")
 #define POS(v, path) NEED(isfinite(v) && (v) > 0, path, "must be > 0 (got %g)", (v))
 #define NONNEG(v, path) NEED(isfinite(v) && (v) >= 0, path, "must be >= 0 (got %g)", (v))
+/* A plausibility range of afm_limits.h, both ends included. */
+#define RANGE(v, lo, hi, path, unit)                                                               \
+    NEED(isfinite(v) && (v) >= (lo) && (v) <= (hi), path, "must be in [%g, %g] %s (got %g)", (lo), \
+         (hi), unit, (v))
 
 static int check_model(const afm_config *c, char *key, char *why, size_t why_len) {
     const afm_cfg_model *m = &c->model;
     const afm_cfg_beam *b = &m->beam;
     if (m->kind == AFM_MODEL_BEAM) {
-        POS(b->youngs_modulus_pa, "model.beam.youngs_modulus_pa");
-        POS(b->density_kg_m3, "model.beam.density_kg_m3");
+        RANGE(b->youngs_modulus_pa, AFM_LIM_YOUNGS_MIN_PA, AFM_LIM_YOUNGS_MAX_PA,
+              "model.beam.youngs_modulus_pa", "Pa");
+        RANGE(b->density_kg_m3, AFM_LIM_DENSITY_MIN_KG_M3, AFM_LIM_DENSITY_MAX_KG_M3,
+              "model.beam.density_kg_m3", "kg/m^3");
         NEED(isfinite(b->poisson_ratio) && b->poisson_ratio > -1 && b->poisson_ratio < 0.5,
              "model.beam.poisson_ratio", "must be in (-1, 0.5) (got %g)", b->poisson_ratio);
-        POS(b->length_m, "model.beam.length_m");
+        RANGE(b->length_m, AFM_LIM_LENGTH_MIN_M, AFM_LIM_LENGTH_MAX_M, "model.beam.length_m", "m");
         for (int i = 0; i < 2; i++) {
             char p[64];
             snprintf(p, sizeof p, "model.beam.width_m[%d]", i);
-            POS(b->width_m[i], p);
+            RANGE(b->width_m[i], AFM_LIM_SECTION_MIN_M, AFM_LIM_SECTION_MAX_M, p, "m");
             snprintf(p, sizeof p, "model.beam.height_m[%d]", i);
-            POS(b->height_m[i], p);
+            RANGE(b->height_m[i], AFM_LIM_SECTION_MIN_M, AFM_LIM_SECTION_MAX_M, p, "m");
         }
-        NONNEG(b->tip_mass_kg, "model.beam.tip_mass_kg");
+        RANGE(b->tip_mass_kg, 0.0, AFM_LIM_TIP_MASS_MAX_KG, "model.beam.tip_mass_kg", "kg");
         NEED(b->n_elements >= 1 && b->n_elements <= AFM_MAX_ELEMENTS, "model.beam.elements",
              "must be in [1, %d] (got %d)", AFM_MAX_ELEMENTS, b->n_elements);
         NEED(b->n_kept >= 0, "model.beam.kept_modes", "must be >= 0 (got %d)", b->n_kept);
@@ -71,8 +77,10 @@ static int check_model(const afm_config *c, char *key, char *why, size_t why_len
              "%d elements give at most %d kept modes (2*elements - 2), got %d", b->n_elements,
              2 * b->n_elements - 2, b->n_kept);
     } else if (m->kind == AFM_MODEL_LUMPED) {
-        POS(m->lumped.stiffness_n_m, "model.lumped.stiffness_n_m");
-        POS(m->lumped.resonance_hz, "model.lumped.resonance_hz");
+        RANGE(m->lumped.stiffness_n_m, AFM_LIM_STIFFNESS_MIN_N_M, AFM_LIM_STIFFNESS_MAX_N_M,
+              "model.lumped.stiffness_n_m", "N/m");
+        RANGE(m->lumped.resonance_hz, AFM_LIM_RESONANCE_MIN_HZ, AFM_LIM_RESONANCE_MAX_HZ,
+              "model.lumped.resonance_hz", "Hz");
         NEED(m->lumped.resonance_hz < c->sim.sample_rate_hz / 2, "model.lumped.resonance_hz",
              "must be below half the sample rate (%g Hz), got %g", c->sim.sample_rate_hz / 2,
              m->lumped.resonance_hz);
@@ -134,7 +142,8 @@ static int check_forces(const afm_config *c, char *key, char *why, size_t why_le
     if (f->vdw_contact) {
         NONNEG(f->hamaker_j, "forces.vdw_contact.hamaker_j");
         POS(f->a0_m, "forces.vdw_contact.a0_m");
-        POS(f->reduced_modulus_pa, "forces.vdw_contact.reduced_modulus_pa");
+        RANGE(f->reduced_modulus_pa, AFM_LIM_MODULUS_MIN_PA, AFM_LIM_MODULUS_MAX_PA,
+              "forces.vdw_contact.reduced_modulus_pa", "Pa");
     }
     if (f->viscoelastic) {
         NEED(f->vdw_contact, "forces.viscoelastic.enabled",
@@ -179,7 +188,8 @@ static int check_forces(const afm_config *c, char *key, char *why, size_t why_le
 
 static int check_drive_sim(const afm_config *c, char *key, char *why, size_t why_len) {
     const afm_cfg_sim *s = &c->sim;
-    POS(s->sample_rate_hz, "sim.sample_rate_hz");
+    RANGE(s->sample_rate_hz, AFM_LIM_SAMPLE_RATE_MIN_HZ, AFM_LIM_SAMPLE_RATE_MAX_HZ,
+          "sim.sample_rate_hz", "Hz");
     NEED(s->integrator == AFM_INTEGRATOR_RT || s->integrator == AFM_INTEGRATOR_REFERENCE ||
              s->integrator == AFM_INTEGRATOR_ARKODE_ERK,
          "sim.integrator", "unknown integrator %d", (int)s->integrator);
@@ -198,23 +208,27 @@ static int check_drive_sim(const afm_config *c, char *key, char *why, size_t why
     }
 
     const afm_cfg_drive *d = &c->drive;
-    NONNEG(d->separation_m, "drive.separation_m");
+    RANGE(d->separation_m, 0.0, AFM_LIM_SEPARATION_MAX_M, "drive.separation_m", "m");
     NEED(d->n_tones >= 1 && d->n_tones <= AFM_MAX_TONES, "drive.tones",
          "needs 1 to %d tones (got %d)", AFM_MAX_TONES, d->n_tones);
+    double sum_a = 0;
     for (int j = 0; j < d->n_tones; j++) {
         const afm_cfg_tone *t = &d->tones[j];
         char p[64];
         snprintf(p, sizeof p, "drive.tones[%d].amplitude_m", j);
-        NEED(isfinite(t->amplitude_m) && t->amplitude_m >= 0 && t->amplitude_m <= MAX_AMPLITUDE_M,
-             p, "must be in [0, %g] m (got %g)", MAX_AMPLITUDE_M, t->amplitude_m);
+        RANGE(t->amplitude_m, 0.0, AFM_LIM_TONE_AMPLITUDE_MAX_M, p, "m");
+        sum_a += t->amplitude_m;
         snprintf(p, sizeof p, "drive.tones[%d].frequency_hz", j);
-        NEED(isfinite(t->frequency_hz) && t->frequency_hz > 0 &&
+        NEED(isfinite(t->frequency_hz) && t->frequency_hz >= AFM_LIM_FREQUENCY_MIN_HZ &&
                  t->frequency_hz < s->sample_rate_hz / 2,
-             p, "must be in (0, sample_rate_hz/2 = %g) Hz (got %g)", s->sample_rate_hz / 2,
-             t->frequency_hz);
+             p, "must be in [%g, sample_rate_hz/2 = %g) Hz (got %g)", AFM_LIM_FREQUENCY_MIN_HZ,
+             s->sample_rate_hz / 2, t->frequency_hz);
         snprintf(p, sizeof p, "drive.tones[%d].phase_deg", j);
         FINITE(t->phase_rad, p);
     }
+    NEED(sum_a <= AFM_LIM_DRIVE_AMPLITUDE_MAX_M, "drive.tones",
+         "the amplitudes add up to %g m, more than the %g m a dither piezo strokes", sum_a,
+         AFM_LIM_DRIVE_AMPLITUDE_MAX_M);
     return 0;
 }
 
@@ -279,10 +293,10 @@ static int check_can(const afm_config *c, char *key, char *why, size_t why_len) 
         double v, max;
         const char *path;
     } sc[] = {{k->scale_frequency_hz, 0.5 * c->sim.sample_rate_hz, "can.scale.frequency_hz"},
-              {k->scale_amplitude_m, MAX_AMPLITUDE_M, "can.scale.amplitude_m"},
+              {k->scale_amplitude_m, AFM_LIM_TONE_AMPLITUDE_MAX_M, "can.scale.amplitude_m"},
               {k->scale_phase_rad, 6.283185307179586, "can.scale.phase_rad"},
-              {k->scale_separation_m, 1e-3, "can.scale.separation_m"},
-              {k->scale_ramp_m_s, 1.0, "can.scale.ramp_m_s"}};
+              {k->scale_separation_m, AFM_LIM_SEPARATION_MAX_M, "can.scale.separation_m"},
+              {k->scale_ramp_m_s, AFM_LIM_RAMP_MAX_M_S, "can.scale.ramp_m_s"}};
     for (size_t i = 0; i < sizeof sc / sizeof sc[0]; i++)
         NEED(isfinite(sc[i].v) && sc[i].v > 0 && sc[i].v <= sc[i].max, sc[i].path,
              "value per bit must be in (0, %g] (got %g)", sc[i].max, sc[i].v);
@@ -313,6 +327,7 @@ int afm_config_check_all(const afm_config *c, char *key, char *why, size_t why_l
 #undef FINITE
 #undef POS
 #undef NONNEG
+#undef RANGE
 
 int afm_config_validate(const afm_config *cfg, char *err, size_t errlen) {
     char key[KEY_LEN], why[AFM_ERR_LEN];

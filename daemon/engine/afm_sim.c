@@ -2,6 +2,8 @@
 /* afm_sim.c -- the simulator handle: picks a backend, checks inputs, samples outputs. */
 #include "afm_sim_impl.h"
 
+#include "afm_limits.h"
+
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -134,7 +136,8 @@ int afm_sim_run(afm_sim *s, int n, afm_sample *out) {
 
 int afm_sim_set_tone(afm_sim *s, int j, double amp_m, double freq_hz) {
     if (j < 0 || j > s->drive.n || j >= AFM_MAX_TONES || !isfinite(amp_m) || !isfinite(freq_hz) ||
-        amp_m < 0 || amp_m > 1e-6 || freq_hz <= 0 || freq_hz >= 0.5 * s->cfg.sample_rate_hz)
+        amp_m < 0 || amp_m > AFM_LIM_TONE_AMPLITUDE_MAX_M || freq_hz <= 0 ||
+        freq_hz >= 0.5 * s->cfg.sample_rate_hz)
         return AFM_SIM_EINVAL;
     afm_drive_set_tone(&s->drive, s->t_s, j, amp_m, freq_hz);
     s->be->changed(s);
@@ -142,7 +145,7 @@ int afm_sim_set_tone(afm_sim *s, int j, double amp_m, double freq_hz) {
 }
 
 int afm_sim_set_separation(afm_sim *s, double z_m) {
-    if (!isfinite(z_m) || z_m < 0 || z_m > 1e-3) return AFM_SIM_EINVAL;
+    if (!isfinite(z_m) || z_m < 0 || z_m > AFM_LIM_SEPARATION_MAX_M) return AFM_SIM_EINVAL;
     s->z_m = z_m;
     s->be->changed(s);
     return AFM_SIM_OK;

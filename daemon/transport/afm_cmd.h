@@ -14,10 +14,13 @@
  * Validation (afm_cmd_validate), each with a reason naming the field, e.g.
  *   "dither: tone 1 frequency_hz 8e+06 must be > 0 and < 7.03e+06 (half the sample rate)":
  *  - every double finite (NaN, inf rejected);
- *  - dither: n_tones 1..AFM_MAX_TONES, amplitude 0..AFM_CMD_MAX_AMPLITUDE_M,
- *    0 < frequency < sample_rate/2 (only > 0 when the limits give no sample rate),
- *    phase finite;
- *  - setpoint: separation 0..AFM_CMD_MAX_SEPARATION_M, ramp rate 0..AFM_CMD_MAX_RAMP_M_S;
+ *  - dither (the plausibility limits of afm_limits.h): n_tones 1..AFM_MAX_TONES, each
+ *    amplitude 0..AFM_LIM_TONE_AMPLITUDE_MAX_M and their sum at most
+ *    AFM_LIM_DRIVE_AMPLITUDE_MAX_M, AFM_LIM_FREQUENCY_MIN_HZ <= frequency < sample_rate/2
+ *    (no upper bound when the limits give no sample rate), phase finite; with a model in
+ *    the limits also frequency <= AFM_LIM_MODEL_RANGE x its highest mode and the free tip
+ *    amplitude the drive predicts at most AFM_LIM_FREE_AMPLITUDE_MAX_M (afm_cmd_check_drive);
+ *  - setpoint: separation 0..AFM_LIM_SEPARATION_MAX_M, ramp rate 0..AFM_LIM_RAMP_MAX_M_S;
  *  - param: n 1..AFM_CMD_MAX_PARAMS, every name in the table (afm_param_lookup), every
  *    value within the entry's range; the same name twice is rejected;
  *  - control: action RUN/PAUSE/RESET/STEP, STEP's n_samples 1..AFM_CMD_MAX_STEP;
@@ -29,15 +32,14 @@
 #define AFM_CMD_H
 
 #include "afm_config.h"
+#include "afm_limits.h"
+#include "afm_model.h"
 
 #include <stdbool.h>
 #include <stddef.h>
 #include <stdint.h>
 
 #define AFM_CMD_MAX_PARAMS 16         /* names per param message */
-#define AFM_CMD_MAX_AMPLITUDE_M 1e-6  /* dither amplitude limit (as afm_sim_set_tone) */
-#define AFM_CMD_MAX_SEPARATION_M 1e-3 /* Z limit (as afm_sim_set_separation) */
-#define AFM_CMD_MAX_RAMP_M_S 1.0      /* Z ramp rate limit: 1 m/s is no Z stage */
 #define AFM_CMD_MAX_STEP 1000000000LL /* STEP and tick n_samples upper bound */
 #define AFM_CMD_NAME_LEN 64           /* longest param name + 1 */
 
@@ -110,9 +112,11 @@ typedef struct {
 } afm_cmd;
 
 /* What validation needs to know about the running twin. sample_rate_hz <= 0: unknown
- * (dither frequencies are then only checked for > 0). */
+ * (dither frequencies then have no upper bound); model NULL: unknown (no model range, no
+ * predicted free amplitude). */
 typedef struct {
     double sample_rate_hz;
+    const afm_modal *model; /* the running model (modal frequencies, tip response) */
 } afm_cmd_limits;
 
 /* "dither", "setpoint", ... ("?" for an unknown kind). */
@@ -120,6 +124,15 @@ const char *afm_cmd_kind_name(afm_cmd_kind k);
 
 /* Check c; 0, or -1 with the reason in err. */
 int afm_cmd_validate(const afm_cmd *c, const afm_cmd_limits *lim, char *err, size_t errlen);
+
+/* The model-dependent drive limits: n tones at f_hz, a_m against the model m (frequency at
+ * most AFM_LIM_MODEL_RANGE x the highest mode; free tip amplitude sum_j a_j |G(f_j)| at
+ * most AFM_LIM_FREE_AMPLITUDE_MAX_M, into *free_m when not NULL). For a dither command and
+ * for a config's drive (afm_runner_model_build). 0, or -1 with err. No allocation. */
+int afm_cmd_check_drive(const afm_modal *m, int n, const double *f_hz, const double *a_m,
+                        double *free_m, char *err, size_t errlen);
+/* The same for the tones of a config's drive ("drive.tones: ..."). */
+int afm_cmd_check_cfg_drive(const afm_modal *m, const afm_cfg_drive *d, char *err, size_t errlen);
 
 /* Decode one LCM message body (what lcm hands a subscriber: rbuf->data, rbuf->data_size)
  * of the given kind into c and validate it. Rejected (-1, reason in err, c unspecified):
