@@ -8,8 +8,10 @@
  *  - commands take effect: the ramp ends at its target at rate x time; seq_applied echoes;
  *    a rejected command (tick outside lockstep, damping without a model) changes nothing;
  *  - gating: paused runs advance only the STEP budget, lockstep only the tick budget;
- *  - blow-up: a lumped cantilever with xi = 1e-9 driven at resonance with 1 um grows
- *    without bound; the runner reports blow-ups, restarts from rest and keeps running
+ *  - blow-up: a lumped cantilever driven at resonance whose damping is then set to
+ *    xi = 1e-9 grows without bound; the runner reports blow-ups, restarts from rest, and
+ *    after AFM_RUNNER_BLOWUP_PAUSE of them pauses itself with the reason; drives past the
+ *    plausibility limits are refused at create
  *    (samples advance as asked, outputs keep coming). */
 #include "afm_runner.h"
 #include "check.h"
@@ -347,38 +349,80 @@ static void test_blowup(void) {
         check_true(false, err);
         return;
     }
-    /* no contact, almost no damping, 1 um at resonance: |x| grows by ~pi A per period and
-     * passes the 1 mm runaway limit after ~300 periods (~1 ms) */
+    /* No contact, 0.5 um at resonance with Q = 100: a free amplitude of 50 um, within the
+     * plausibility limit (100 um), so the runner takes it. */
     cfg.drive.separation_m = 1e-3;
-    cfg.model.damping_ratio[0] = 1e-9;
-    cfg.model.n_damping = 1;
-    cfg.drive.tones[0].amplitude_m = 1e-6;
+    cfg.drive.tones[0].amplitude_m = 0.5e-6;
     afm_runner *r = afm_runner_create(&cfg, 4096, false, err, sizeof err);
     if (!r) {
         check_true(false, err);
         return;
     }
+    afm_config big = cfg;
+    big.drive.tones[0].amplitude_m = 1.05e-6; /* past the 1 um tone limit */
+    afm_runner *r2 = afm_runner_create(&big, 4096, false, err, sizeof err);
+    check_true(!r2 && strstr(err, "amplitude"), "create: a tone past 1 um refused");
+    big.drive.tones[0].amplitude_m = 1e-6; /* at resonance, Q = 100: 100.5 um free */
+    big.model.damping_ratio[0] = 0.004;
+    r2 = afm_runner_create(&big, 4096, false, err, sizeof err);
+    char name[AFM_ERR_LEN + 64];
+    snprintf(name, sizeof name, "create: a drive predicting 125 um of free amplitude refused (%s)",
+             r2 ? "created" : err);
+    check_true(!r2 && strstr(err, "free tip"), name);
+    afm_runner_destroy(&r2);
+    /* Then the damping goes (xi 1e-9, Q 5e8: a limit no single command can see): |x| grows
+     * by ~pi A per period and passes the 1 mm runaway bound after ~640 periods (~2 ms),
+     * again and again: after AFM_RUNNER_BLOWUP_PAUSE of them the twin pauses itself. */
+    afm_config t = cfg;
+    int ent, idx;
+    afm_param_lookup("model.damping_ratio[0]", &ent, &idx, err, sizeof err);
+    afm_cmd c = {.kind = AFM_CMD_PARAM,
+                 .seq = 5,
+                 .u.param = {.n = 1, .entry = {ent}, .index = {idx}, .value = {1e-9}}};
+    afm_param_apply(&t, &c.u.param, NULL, err, sizeof err);
+    afm_runner_model *m = afm_runner_model_build(&t, false, err, sizeof err);
+    check_true(m && afm_runner_apply(r, &c, &m, err, sizeof err) == 0, "damping taken away");
+    afm_runner_model_destroy(&m);
     outlog o;
     log_init(&o);
     long long adv = 0;
-    for (int i = 0; i < 100; i++) { /* 100 x 4096 samples = 29 ms */
+    for (int i = 0; i < 100; i++) { /* at most 100 x 4096 samples = 29 ms */
         adv += afm_runner_run(r, 4096);
         drain(r, &o);
     }
     afm_runner_status st;
     afm_runner_status_get(r, &st);
-    printf("  runaway: %lld blow-ups in %.4f s model time, last at %.6f s; %ld samples out\n",
-           st.blowups, st.t_s, st.last_blowup_t_s, o.n);
-    check_true(st.blowups >= 2, "runaway: blow-ups reported (more than one: it restarts)");
-    check_true(adv == 409600 && st.samples == 409600,
-               "every asked sample advanced despite blow-ups");
-    check_abs(st.t_s, 409600 / 14.06e6, 1e-12, "model time continuous through the resets");
-    check_true(o.n > 1000, "outputs keep coming after a blow-up");
+    char why[400];
+    afm_runner_pause_reason(&st, why, sizeof why);
+    printf("  runaway: %lld blow-ups in %.4f s model time, last at %.6f s; %ld samples out\n"
+           "  %s\n",
+           st.blowups, st.t_s, st.last_blowup_t_s, o.n, why);
+    check_true(st.blowups == AFM_RUNNER_BLOWUP_PAUSE,
+               "runaway: blow-ups reported, it restarts, and after 3 it stops");
+    check_true(!st.running && st.auto_paused && st.auto_pauses == 1 && strstr(why, "by itself") &&
+                   strstr(why, "control run"),
+               "recurring blow-ups: the twin paused itself, with the reason");
+    check_true(adv == st.samples && adv < 409600 && afm_runner_run(r, 4096) == 0,
+               "paused: no samples advance (no spinning through resets)");
+    check_true(st.t_s > 3 * 1.5e-3 && st.t_s < 3 * 4e-3, "three runaways of ~2 ms each");
+    check_true(o.n > 100, "outputs came between the blow-ups");
     bool finite = true;
     for (int s = 0; s < AFM_MAX_OUTPUTS; s++)
         for (long i = (long)s * PER; i < (long)s * PER + o.ns[s]; i++)
             finite &= isfinite(o.x[i]) && fabs(o.x[i]) < 1e-3;
     check_true(finite, "every published sample finite and below the 1 mm limit");
+    /* control run resumes: it runs away again, three more times, and pauses again */
+    afm_cmd run = {.kind = AFM_CMD_CONTROL, .seq = 6, .u.control = {AFM_CTL_RUN, 0}};
+    afm_runner_apply(r, &run, NULL, err, sizeof err);
+    afm_runner_status_get(r, &st);
+    check_true(st.running && !st.auto_paused, "control run resumes");
+    for (int i = 0; i < 100; i++) {
+        afm_runner_run(r, 4096);
+        drain(r, &o);
+    }
+    afm_runner_status_get(r, &st);
+    check_true(st.blowups == 2 * AFM_RUNNER_BLOWUP_PAUSE && st.auto_pauses == 2 && !st.running,
+               "resumed into the same runaway: paused again after 3 more");
     log_free(&o);
     afm_runner_destroy(&r);
 }

@@ -89,6 +89,9 @@ struct afm_runner {
     long long s0;
     long long blowups, applied, swaps, stalls;
     double last_blowup_t_s;
+    int blowup_streak; /* blow-ups each within AFM_RUNNER_BLOWUP_WINDOW_S of the last */
+    bool auto_paused;  /* paused by itself (streak reached AFM_RUNNER_BLOWUP_PAUSE) */
+    long long auto_pauses;
     ring_item *open; /* reserved, being filled; committed at the end of every run */
     pending_item pending[PENDING_MAX];
     int n_pending;
@@ -107,6 +110,10 @@ struct afm_runner {
 };
 
 static const double two_pi = 6.283185307179586476925286766559;
+
+const afm_modal *afm_runner_model_modal(const afm_runner_model *m) {
+    return m && m->sim ? afm_sim_model(m->sim) : NULL;
+}
 
 void afm_runner_model_destroy(afm_runner_model **mp) {
     if (!mp || !*mp) return;
@@ -341,7 +348,7 @@ afm_runner *afm_runner_create_pipelined(const afm_config *cfg, int block_max, bo
         afm_spsc_init(&r->trash, TRASH_CAP, sizeof(afm_runner_model *), err, errlen))
         goto fail;
     m = afm_runner_model_build(cfg, true, err, errlen);
-    if (!m) goto fail;
+    if (!m || afm_cmd_check_cfg_drive(afm_sim_model(m->sim), &cfg->drive, err, errlen)) goto fail;
     r->cfg = *cfg;
     r->sim = m->sim;
     r->chain = m->chain;
@@ -541,14 +548,15 @@ static int apply_param(afm_runner *r, const afm_cmd_param *p, afm_runner_model *
 
 int afm_runner_apply(afm_runner *r, const afm_cmd *c, afm_runner_model **model, char *err,
                      size_t errlen) {
-    afm_cmd_limits lim = {.sample_rate_hz = r->cfg.sim.sample_rate_hz};
+    afm_cmd_limits lim = {.sample_rate_hz = r->cfg.sim.sample_rate_hz,
+                          .model = afm_sim_model(r->sim)};
     if (afm_cmd_validate(c, &lim, err, errlen)) return -1;
     commit_open(r);
     flush_pending(r);
     if (!front_room(r)) {
-        afm_err_set(err, errlen, "%s: the output chain is %d changes behind; command not applied",
+        afm_err_set(err, errlen, "%s: the output chain is %d changes behind; try again later",
                     afm_cmd_kind_name(c->kind), r->n_pending);
-        return -1;
+        return AFM_RUNNER_EBUSY;
     }
     switch (c->kind) {
     case AFM_CMD_DITHER:
@@ -609,6 +617,8 @@ int afm_runner_apply(afm_runner *r, const afm_cmd *c, afm_runner_model **model, 
     }
     if (c->kind != AFM_CMD_RELOAD) r->seq_applied = c->seq; /* a reload is no sender's */
     r->applied++;
+    r->blowup_streak = 0; /* something changed: a new streak must recur on its own */
+    if (c->kind == AFM_CMD_CONTROL && c->u.control.action == AFM_CTL_RUN) r->auto_paused = false;
     /* Inline: what was swapped out is back already; hand it to the caller. */
     if (!r->pipelined && model && !*model) afm_runner_take_trash(r, model);
     return 0;
@@ -638,6 +648,7 @@ long long afm_runner_budget(const afm_runner *r) {
 
 long long afm_runner_run(afm_runner *r, long long n) {
     long long want = n, b = afm_runner_budget(r);
+    bool was_running = r->running; /* the budget this run draws on (it may pause itself) */
     if (want > b) want = b;
     long long done = 0;
     if (want > 0 && !flush_pending(r)) {
@@ -679,17 +690,30 @@ long long afm_runner_run(afm_runner *r, long long n) {
              * samples of this slice are dropped; the chain starts over. */
             adv = llround((afm_sim_time(r->sim) - t0) / afm_sim_dt(r->sim));
             if (adv > k) adv = k;
+            double t_b = afm_sim_time(r->sim);
+            r->blowup_streak =
+                r->blowup_streak > 0 && t_b - r->last_blowup_t_s <= AFM_RUNNER_BLOWUP_WINDOW_S
+                    ? r->blowup_streak + 1
+                    : 1;
             r->blowups++;
-            r->last_blowup_t_s = afm_sim_time(r->sim);
+            r->last_blowup_t_s = t_b;
             if (it->n == 0) r->open = NULL; /* nothing in it: the slot stays free */
             emit(r, IT_RESET, NULL);        /* may stay pending; run flushes it first next time */
             if (adv <= 0) break; /* the integrator cannot even start: report, go no further */
         }
         r->samples += adv;
         done += adv;
+        if (r->blowup_streak >= AFM_RUNNER_BLOWUP_PAUSE && r->running) {
+            /* A blow-up that recurs: pause instead of spinning through resets. */
+            r->running = false;
+            r->step_budget = 0;
+            r->auto_paused = true;
+            r->auto_pauses++;
+            break;
+        }
     }
     commit_open(r);
-    if (!r->running)
+    if (!was_running)
         r->step_budget -= done;
     else if (r->lockstep)
         r->tick_budget -= done;
@@ -732,6 +756,8 @@ void afm_runner_status_get(const afm_runner *r, afm_runner_status *st) {
     st->amplitude_m = d->n > 0 ? d->amp_m[0] : 0.0;
     st->blowups = r->blowups;
     st->last_blowup_t_s = r->last_blowup_t_s;
+    st->auto_paused = r->auto_paused && !r->running;
+    st->auto_pauses = r->auto_pauses;
     st->applied = r->applied;
     st->swaps = r->swaps;
     st->stalls = r->stalls;
@@ -740,6 +766,20 @@ void afm_runner_status_get(const afm_runner *r, afm_runner_status *st) {
         memset(&st->chain, 0, sizeof st->chain); /* the chain thread's: chain_status_get */
     else
         st->chain = afm_chain_stats_get(r->chain);
+}
+
+void afm_runner_pause_reason(const afm_runner_status *st, char *buf, size_t len) {
+    if (!st->auto_paused) {
+        snprintf(buf, len, "%s", "");
+        return;
+    }
+    snprintf(buf, len,
+             "paused by itself after %d numerical blow-ups, each within %g s of model time of "
+             "the last (the last at t = %.6f s): the state runs away under this drive (tone 0: "
+             "%.6g Hz, %.3g m) at Z = %.3g m; change the drive, Z or the model, then send "
+             "control run",
+             AFM_RUNNER_BLOWUP_PAUSE, AFM_RUNNER_BLOWUP_WINDOW_S, st->last_blowup_t_s, st->fe_hz,
+             st->amplitude_m, st->separation_m);
 }
 
 const afm_config *afm_runner_config(const afm_runner *r) {

@@ -28,8 +28,9 @@
  * afm_runner_run does not matter either: same commands at the same sample counts ->
  * bit-identical outputs (replay depends on it).
  *
- * Commands (validated with afm_cmd_validate first; afm_runner_apply re-checks what depends
- * on the running state and changes nothing on rejection):
+ * Commands (validated with afm_cmd_validate first, with the running model in the limits;
+ * afm_runner_apply re-checks what depends on the running state and changes nothing on
+ * rejection):
  *  - dither: tone j < n_tones set phase-continuously (afm_sim_set_tone); a tone this
  *    command starts begins at phase_rad; running tones past n_tones get amplitude 0.
  *  - setpoint: ramp rate 0 -> Z now; else Z moves linearly towards the target.
@@ -47,7 +48,12 @@
  *
  * A numerical blow-up (AFM_SIM_EBLOWUP from the integrator) resets the state to rest and
  * the chain, is counted (status.blowups, last_blowup_t_s); the samples of that slice are
- * dropped and the run goes on with the rest of it from rest. */
+ * dropped and the run goes on with the rest of it from rest. A blow-up that recurs --
+ * AFM_RUNNER_BLOWUP_PAUSE of them, each within AFM_RUNNER_BLOWUP_WINDOW_S of model time of
+ * the one before, with no command applied in between -- pauses the twin (status.auto_paused,
+ * afm_runner_pause_reason says why) instead of spinning through resets; control RUN resumes.
+ * The plausibility limits (afm_limits.h) keep single commands from running away; this
+ * catches what they cannot see, e.g. the damping taken away under a resonant drive. */
 #ifndef AFM_RUNNER_H
 #define AFM_RUNNER_H
 
@@ -58,8 +64,10 @@
 
 #include <stdint.h>
 
-#define AFM_RUNNER_RAMP_SAMPLES 64   /* Z ramp update interval (samples; 4.6 us at 14.06 MHz) */
-#define AFM_RUNNER_SLOT_SAMPLES 1024 /* samples per ring item (73 us at 14.06 MHz) */
+#define AFM_RUNNER_RAMP_SAMPLES 64     /* Z ramp update interval (samples; 4.6 us at 14.06 MHz) */
+#define AFM_RUNNER_SLOT_SAMPLES 1024   /* samples per ring item (73 us at 14.06 MHz) */
+#define AFM_RUNNER_BLOWUP_PAUSE 3      /* recurring blow-ups before the twin pauses itself */
+#define AFM_RUNNER_BLOWUP_WINDOW_S 1.0 /* ... each within this model time of the last */
 
 typedef struct afm_runner afm_runner;
 /* A simulator (and, for geometry changes and reloads, a chain) built for a config, ready
@@ -68,7 +76,8 @@ typedef struct afm_runner_model afm_runner_model;
 
 /* Build the twin of cfg. block_max: the largest slice afm_runner_run processes in one
  * integrator call (sizes the sample buffer; larger n are split). lockstep: the twin
- * advances only by tick budget (see afm_runner_run). NULL with err on failure. */
+ * advances only by tick budget (see afm_runner_run). The config's drive must pass the
+ * model-dependent limits (afm_cmd_check_cfg_drive). NULL with err on failure. */
 afm_runner *afm_runner_create(const afm_config *cfg, int block_max, bool lockstep, char *err,
                               size_t errlen);
 /* As afm_runner_create; pipelined: the back runs on another thread (see above), through a
@@ -85,6 +94,8 @@ bool afm_runner_pipelined(const afm_runner *r);
 afm_runner_model *afm_runner_model_build(const afm_config *cfg, bool new_chain, char *err,
                                          size_t errlen);
 void afm_runner_model_destroy(afm_runner_model **m);
+/* The modal model of m (for command limits: afm_cmd_limits.model), NULL without one. */
+const afm_modal *afm_runner_model_modal(const afm_runner_model *m);
 
 /* Does this (validated) command need a model from afm_runner_model_build? 1 for a reload
  * and for a param command whose strongest effect is DAMPING or GEOMETRY (then *new_chain
@@ -95,8 +106,10 @@ int afm_runner_cmd_needs_model(const afm_config *cfg, const afm_cmd *c, bool *ne
  * commands that need one; on success it then holds the objects swapped out (destroy them
  * off the real-time thread), or, pipelined, NULL: they come out of afm_runner_take_trash
  * once the chain thread has passed the swap. 0, or -1 with err and nothing changed (*model
- * still the caller's). Also -1 when the chain stage is so far behind that the changes it
- * has to follow no longer fit (pipelined only). */
+ * still the caller's). AFM_RUNNER_EBUSY (pipelined only), nothing changed, when the chain
+ * stage is so far behind that the changes it has to follow no longer fit: apply it again
+ * after the next run (the daemon keeps it at the head of its queue). */
+#define AFM_RUNNER_EBUSY (-2)
 int afm_runner_apply(afm_runner *r, const afm_cmd *c, afm_runner_model **model, char *err,
                      size_t errlen);
 
@@ -155,6 +168,8 @@ typedef struct {
     double amplitude_m;         /* tone 0 amplitude */
     long long blowups;          /* numerical blow-ups (state reset) */
     double last_blowup_t_s;     /* model time of the last one (NAN if none) */
+    bool auto_paused;           /* paused by itself: recurring blow-ups (see above) */
+    long long auto_pauses;      /* times it did */
     long long applied;          /* commands applied */
     long long swaps;            /* models swapped in (damping, geometry, reload) */
     long long stalls;           /* runs cut short by a full ring (pipelined: chain behind) */
@@ -164,6 +179,9 @@ typedef struct {
 } afm_runner_status;
 
 void afm_runner_status_get(const afm_runner *r, afm_runner_status *st);
+/* Why the twin paused itself ("" unless st->auto_paused), from a status: formatting stays
+ * off the real-time thread. */
+void afm_runner_pause_reason(const afm_runner_status *st, char *buf, size_t len);
 
 /* The config the runner is running now (after live params and swaps). Valid until the
  * next apply. */
