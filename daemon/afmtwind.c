@@ -187,13 +187,17 @@ static void status_line(twind *d, twind_rtf_state *rs, char *buf, size_t len) {
     twind_csnap_read(d, &cs);
     snprintf(buf, len,
              "t %.6f s  rtf %.3f  busy %.0f%%/%.0f%%  lag %.4f s  overruns %lld  resyncs %lld  "
-             "chain stalls %lld lag %.4f s  rx %lld  applied %lld  rej %lld  blowups %lld  "
-             "seq %lld  Z %.3f nm  fe %.1f Hz  A %.4g nm  %s",
+             "chain stalls %lld lag %.4f s  rx %lld  applied %lld  rej %lld  ref %lld  drop %lld  "
+             "blowups %lld  seq %lld  Z %.3f nm  fe %.1f Hz  A %.4g nm  %s",
              s.model_time_s, s.realtime_factor, 100.0 * snap.busy_fraction,
              100.0 * cs.busy_fraction, s.lag_s, (long long)s.overruns, (long long)s.resyncs,
              (long long)s.chain_stalls, s.chain_lag_s, (long long)s.received, (long long)s.applied,
-             (long long)s.rejected, (long long)s.blowups, (long long)s.seq_applied,
-             s.separation_m * 1e9, s.fe_hz, s.amplitude_m * 1e9, s.running ? "running" : "paused");
+             (long long)s.rejected, (long long)s.refused, (long long)s.dropped,
+             (long long)s.blowups, (long long)s.seq_applied, s.separation_m * 1e9, s.fe_hz,
+             s.amplitude_m * 1e9,
+             s.auto_paused ? "PAUSED ITSELF (blow-ups)"
+             : s.running   ? "running"
+                           : "paused");
     if (cs.samples_dropped || cs.harm_dropped || cs.st.chain.periods_dropped) {
         size_t n = strlen(buf);
         snprintf(buf + n, len - n, "  DROPPED: %lld sample blocks, %lld harmonics, %lld periods",
@@ -309,7 +313,8 @@ int main(int argc, char **argv) {
     twind_rtf_state rs = {0, 0, 0};
     long long last_beat = -1;
     int warned = 0;
-    long long last_resyncs = 0;
+    long long last_resyncs = 0, last_blowups = 0;
+    bool was_auto_paused = false;
     for (;;) {
         struct timespec one = {1, 0};
         int sig = sigtimedwait(&sigs, NULL, &one);
@@ -326,7 +331,7 @@ int main(int argc, char **argv) {
             atomic_store(&d.reload, 1);
             continue;
         }
-        char line[768];
+        char line[1024];
         status_line(&d, &rs, line, sizeof line);
         if (!d.opt.quiet) fprintf(stderr, "afmtwind: %s\n", line);
         twind_notify_status(line);
@@ -339,6 +344,30 @@ int main(int argc, char **argv) {
                     "skipped)\n",
                     d.opt.max_lag_s * 1e3, s.resyncs - last_resyncs, s.resyncs, s.resync_dropped_s);
         last_resyncs = s.resyncs;
+        /* Blow-ups and the pause they lead to: loudly, also with --quiet. */
+        if (s.st.blowups != last_blowups)
+            fprintf(stderr,
+                    "afmtwind: warning: %lld numerical blow-up(s) in the last second (%lld in all; "
+                    "the state was reset to rest each time, last at model time %.6f s)\n",
+                    s.st.blowups - last_blowups, s.st.blowups, s.st.last_blowup_t_s);
+        last_blowups = s.st.blowups;
+        if (s.st.auto_paused && !was_auto_paused) {
+            char why[2 * AFM_IO_REASON_LEN];
+            afm_runner_pause_reason(&s.st, why, sizeof why);
+            fprintf(stderr, "afmtwind: PAUSED: %s\n", why);
+        }
+        was_auto_paused = s.st.auto_paused;
+        /* Rejections and refusals beyond TWIND_REASON_LINES_PER_S lines a second. */
+        pthread_mutex_lock(&d.lock);
+        long long quiet = d.lines_quiet;
+        d.lines_quiet = 0;
+        pthread_mutex_unlock(&d.lock);
+        if (quiet > 0)
+            fprintf(stderr,
+                    "afmtwind: ... and %lld more rejections/refusals in the last second, not "
+                    "printed (all are counted in the status: rejected, refused, last_reject, "
+                    "last_refusal)\n",
+                    quiet);
         if (s.heartbeat != last_beat) twind_notify_watchdog(); /* only while the loop turns */
         last_beat = s.heartbeat;
         if (d.opt.exit_after_s > 0 && twind_mono_now() - t_start >= d.opt.exit_after_s) {
@@ -356,7 +385,7 @@ int main(int argc, char **argv) {
         twind_cmd_item it;
         while (afm_spsc_pop(&d.cmd_q, &it)) /* commands that came too late */
             afm_runner_model_destroy(&it.model);
-        char line[768];
+        char line[1024];
         status_line(&d, &rs, line, sizeof line);
         fprintf(stderr, "afmtwind: final: %s\n", line);
     }

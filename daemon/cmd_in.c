@@ -2,18 +2,43 @@
 /* cmd_in.c -- the receive thread: commands from the transport are checked against the
  * daemon's copy of the config, models for damping/geometry changes and SIGHUP reloads are
  * built here (off the real-time thread), and everything goes to the RT thread in order
- * through cmd_q. Also destroys what the RT thread swapped out. */
+ * through cmd_q. Also destroys what the RT thread swapped out, and counts every message
+ * once (twind.h, "Accounting"). */
 #include "twind.h"
 
 #include <stdio.h>
 #include <string.h>
+#include <time.h>
+
+#define MODEL_WAIT_MS 20 /* longest wait for the model change in flight before the next */
+
+/* Count one reason (counter may be NULL: counted elsewhere) and print it, at most
+ * TWIND_REASON_LINES_PER_S lines a second; the rest are summed up by main. */
+static void count_reason(twind *d, long long *counter, char *last, const char *what,
+                         const char *reason) {
+    double now = twind_mono_now();
+    pthread_mutex_lock(&d->lock);
+    if (counter) (*counter)++;
+    snprintf(last, AFM_IO_REASON_LEN, "%s", reason);
+    if (now - d->lines_t0 >= 1.0) {
+        d->lines_t0 = now;
+        d->lines_n = 0;
+    }
+    bool print = !d->opt.quiet && d->lines_n < TWIND_REASON_LINES_PER_S;
+    if (print)
+        d->lines_n++;
+    else if (!d->opt.quiet)
+        d->lines_quiet++;
+    pthread_mutex_unlock(&d->lock);
+    if (print) fprintf(stderr, "afmtwind: %s: %s\n", what, reason);
+}
 
 void twind_reject(twind *d, const char *reason) {
-    pthread_mutex_lock(&d->lock);
-    d->rejected++;
-    snprintf(d->last_reject, sizeof d->last_reject, "%s", reason);
-    pthread_mutex_unlock(&d->lock);
-    if (!d->opt.quiet) fprintf(stderr, "afmtwind: rejected: %s\n", reason);
+    count_reason(d, &d->rejected, d->last_reject, "rejected", reason);
+}
+
+void twind_refuse(twind *d, const char *reason) {
+    count_reason(d, &d->refused, d->last_refusal, "refused", reason);
 }
 
 static void count_received(twind *d) {
@@ -23,18 +48,84 @@ static void count_received(twind *d) {
 }
 
 /* Push a command (and its model) to the RT thread; the queue never blocks: a full queue
- * is a rejection (the RT thread is far behind). */
+ * is a refusal (the RT thread is far behind). */
 static int enqueue(twind *d, const afm_cmd *c, afm_runner_model *m, const char *what) {
     twind_cmd_item it = {.cmd = *c, .model = m};
     if (!afm_spsc_push(&d->cmd_q, &it)) {
         char why[AFM_IO_REASON_LEN];
-        snprintf(why, sizeof why, "%s: command queue full (%zu waiting)", what,
+        snprintf(why, sizeof why, "%s: command queue full (%zu waiting); not applied", what,
                  afm_spsc_capacity(&d->cmd_q));
         afm_runner_model_destroy(&m);
-        twind_reject(d, why);
+        twind_refuse(d, why);
         return -1;
     }
     return 0;
+}
+
+/* Wait (up to wait_ms) until the rt thread has taken or refused every model change sent;
+ * then, if the last one was refused, put the shadow back. true when none is in flight. */
+static bool model_changes_settled(twind *d, int wait_ms) {
+    for (int i = 0;; i++) {
+        if (atomic_load_explicit(&d->mc_done, memory_order_acquire) ==
+            atomic_load_explicit(&d->mc_sent, memory_order_relaxed))
+            break;
+        if (i >= wait_ms * 20) return false;
+        struct timespec ts = {0, 50000L};
+        nanosleep(&ts, NULL);
+    }
+    if (d->mc_unchecked) {
+        if (!atomic_load_explicit(&d->mc_last_ok, memory_order_acquire)) {
+            d->shadow = d->shadow_before;
+            d->shadow_model = d->shadow_model_before;
+        }
+        d->mc_unchecked = false;
+    }
+    return true;
+}
+
+/* Enqueue a model change (param or reload) leading to next (with model m, or NULL: the
+ * model stays); the shadow follows once it is in the queue. */
+static int enqueue_model_change(twind *d, const afm_cmd *c, afm_runner_model *m,
+                                const afm_config *next, const char *what) {
+    d->shadow_before = d->shadow;
+    d->shadow_model_before = d->shadow_model;
+    atomic_fetch_add_explicit(&d->mc_sent, 1, memory_order_relaxed); /* before rt can see it */
+    const afm_modal *mm = afm_runner_model_modal(m);
+    if (mm) d->shadow_model = *mm; /* m travels to the rt thread: copy first */
+    if (enqueue(d, c, m, what)) {
+        atomic_fetch_sub_explicit(&d->mc_sent, 1, memory_order_relaxed);
+        d->shadow_model = d->shadow_model_before;
+        return -1;
+    }
+    d->shadow = *next;
+    d->mc_unchecked = true;
+    return 0;
+}
+
+/* The drive after a dither command, as afm_runner applies it: tones the command names set,
+ * running tones it leaves out fall silent (amplitude 0, still running). */
+static void follow_dither(twind *d, const afm_cmd_dither *c) {
+    afm_cmd_dither *r = &d->drive_now;
+    for (int j = 0; j < c->n_tones; j++) {
+        r->frequency_hz[j] = c->frequency_hz[j];
+        r->amplitude_m[j] = c->amplitude_m[j];
+        if (j >= r->n_tones) r->phase_rad[j] = c->phase_rad[j];
+    }
+    for (int j = c->n_tones; j < r->n_tones; j++)
+        r->amplitude_m[j] = 0;
+    if (c->n_tones > r->n_tones) r->n_tones = c->n_tones;
+    d->drive_gen++;
+}
+
+static void drive_from_config(twind *d, const afm_cfg_drive *dr) {
+    memset(&d->drive_now, 0, sizeof d->drive_now);
+    d->drive_now.n_tones = dr->n_tones;
+    for (int j = 0; j < dr->n_tones && j < AFM_MAX_TONES; j++) {
+        d->drive_now.frequency_hz[j] = dr->tones[j].frequency_hz;
+        d->drive_now.amplitude_m[j] = dr->tones[j].amplitude_m;
+        d->drive_now.phase_rad[j] = dr->tones[j].phase_rad;
+    }
+    d->drive_gen++;
 }
 
 static int on_cmd(void *ctx, const afm_cmd *c) {
@@ -48,7 +139,16 @@ static int on_cmd(void *ctx, const afm_cmd *c) {
         twind_reject(d, why);
         return -1;
     }
-    if (c->kind != AFM_CMD_PARAM) return enqueue(d, c, NULL, kind);
+    if (c->kind != AFM_CMD_PARAM) {
+        if (enqueue(d, c, NULL, kind)) return -1;
+        if (c->kind == AFM_CMD_DITHER) follow_dither(d, &c->u.dither);
+        return 0;
+    }
+    if (!model_changes_settled(d, MODEL_WAIT_MS)) {
+        twind_refuse(d, "param: the twin is still applying the previous model change; not "
+                        "applied");
+        return -1;
+    }
     afm_config next = d->shadow;
     afm_param_effect eff;
     if (afm_param_apply(&next, &c->u.param, &eff, err, sizeof err)) {
@@ -64,9 +164,7 @@ static int on_cmd(void *ctx, const afm_cmd *c) {
             return -1;
         }
     }
-    if (enqueue(d, c, m, kind)) return -1;
-    d->shadow = next;
-    return 0;
+    return enqueue_model_change(d, c, m, &next, kind);
 }
 
 static void on_reject(void *ctx, const char *channel, const char *reason) {
@@ -79,11 +177,21 @@ static void on_reject(void *ctx, const char *channel, const char *reason) {
 
 static afm_cmd_limits limits(void *ctx) {
     twind *d = ctx;
-    return (afm_cmd_limits){.sample_rate_hz = d->shadow.sim.sample_rate_hz};
+    return (afm_cmd_limits){.sample_rate_hz = d->shadow.sim.sample_rate_hz,
+                            .model = &d->shadow_model};
+}
+
+static unsigned drive(void *ctx, afm_cmd_dither *out) {
+    twind *d = ctx;
+    *out = d->drive_now;
+    return d->drive_gen;
 }
 
 afm_io_sink twind_sink(twind *d) {
-    return (afm_io_sink){.ctx = d, .on_cmd = on_cmd, .on_reject = on_reject, .limits = limits};
+    d->shadow_model = *afm_sim_model(afm_runner_sim(d->runner));
+    drive_from_config(d, &d->shadow.drive);
+    return (afm_io_sink){
+        .ctx = d, .on_cmd = on_cmd, .on_reject = on_reject, .limits = limits, .drive = drive};
 }
 
 /* SIGHUP: load and check the file, build the twin off the RT thread, swap at a block
@@ -97,15 +205,23 @@ static void do_reload(twind *d) {
         return;
     }
     afm_runner_model *m = afm_runner_model_build(&next, true, err, sizeof err);
+    if (m && afm_cmd_check_cfg_drive(afm_runner_model_modal(m), &next.drive, err, sizeof err))
+        afm_runner_model_destroy(&m);
     if (!m) {
         snprintf(why, sizeof why, "reload: %.60s: %.150s; keeping the running config",
                  d->opt.config_path, err);
         twind_reject(d, why);
         return;
     }
+    if (!model_changes_settled(d, MODEL_WAIT_MS)) {
+        afm_runner_model_destroy(&m);
+        twind_refuse(d, "reload: the twin is still applying the previous model change; "
+                        "send SIGHUP again");
+        return;
+    }
     afm_cmd c = {.kind = AFM_CMD_RELOAD, .seq = -1}; /* a reload keeps seq_applied */
-    if (enqueue(d, &c, m, "reload")) return;
-    d->shadow = next;
+    if (enqueue_model_change(d, &c, m, &next, "reload")) return;
+    drive_from_config(d, &next.drive);
     if (!d->opt.quiet) fprintf(stderr, "afmtwind: reloaded %s\n", d->opt.config_path);
 }
 
@@ -116,8 +232,9 @@ static void drain_side_queues(twind *d) {
     while (afm_runner_take_trash(d->runner, &m)) /* swapped out, via the chain thread */
         afm_runner_model_destroy(&m);
     twind_reason r;
-    while (afm_spsc_pop(&d->rtrej_q, &r))
-        twind_reject(d, r.reason);
+    while (afm_spsc_pop(&d->rtrej_q, &r)) /* counted by the rt thread (snapshot.refused) */
+        count_reason(d, NULL, d->last_refusal, "refused", r.reason);
+    model_changes_settled(d, 0); /* a refused model change: the shadow goes back now */
 }
 
 void *twind_recv_main(void *arg) {

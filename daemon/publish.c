@@ -28,11 +28,17 @@ void twind_status_fill(twind *d, afm_io_status *o, twind_rtf_state *rs) {
     o->realtime_factor = rs->rtf;
     o->overruns = s.overruns;
     o->lag_s = s.lag_s;
+    /* The transports' own fields first (CAN state; what LCM dropped before any handler). */
+    if (d->io && d->io->ops->annotate_status) d->io->ops->annotate_status(d->io, o);
     pthread_mutex_lock(&d->lock);
-    o->received = d->received;
+    o->received = d->received + o->dropped; /* dropped ones were received, then lost */
     o->rejected = d->rejected;
+    o->refused = d->refused + s.refused; /* queue full here; the twin's own refusals */
     snprintf(o->last_reject, sizeof o->last_reject, "%s", d->last_reject);
+    snprintf(o->last_refusal, sizeof o->last_refusal, "%s", d->last_refusal);
     pthread_mutex_unlock(&d->lock);
+    o->auto_paused = s.st.auto_paused;
+    afm_runner_pause_reason(&s.st, o->pause_reason, sizeof o->pause_reason);
     o->blowups = s.st.blowups;
     o->mode = twind_mode_name(d->opt.mode);
     o->running = s.st.running;

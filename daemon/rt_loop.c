@@ -69,8 +69,11 @@ static void flush_trash(rt_ctx *c) {
         c->n_trash--;
 }
 
+/* The twin refused a valid command: counted here (exact), the reason to the receive
+ * thread (best effort: a full queue loses the reason, counted too, never the count). */
 static void rt_reject(rt_ctx *c, const afm_cmd *cmd, const char *why) {
     twind_reason r;
+    c->snap.refused++;
     size_t n = strlen(why);
     const char *kind = afm_cmd_kind_name(cmd->kind);
     size_t k = strlen(kind);
@@ -80,7 +83,7 @@ static void rt_reject(rt_ctx *c, const afm_cmd *cmd, const char *why) {
     r.reason[k + 1] = ' ';
     memcpy(r.reason + k + 2, why, n);
     r.reason[k + 2 + n] = '\0';
-    afm_spsc_push(&c->d->rtrej_q, &r); /* full: the reason is lost, never the loop */
+    if (!afm_spsc_push(&c->d->rtrej_q, &r)) c->snap.reasons_lost++; /* never the loop */
 }
 
 static void apply_commands(rt_ctx *c) {
@@ -88,10 +91,16 @@ static void apply_commands(rt_ctx *c) {
     while ((it = afm_spsc_peek(&c->d->cmd_q)) != NULL) {
         char err[AFM_ERR_LEN];
         afm_runner_model *m = it->model;
-        if (afm_runner_apply(c->r, &it->cmd, m ? &m : NULL, err, sizeof err) != 0)
-            rt_reject(c, &it->cmd, err);
+        int rc = afm_runner_apply(c->r, &it->cmd, m ? &m : NULL, err, sizeof err);
+        if (rc == AFM_RUNNER_EBUSY) break; /* the chain is behind: this one again next item */
+        if (rc != 0) rt_reject(c, &it->cmd, err);
         trash(c, m); /* unused (rejected); NULL when applied (it went to the chain thread) */
+        afm_cmd_kind k = it->cmd.kind;
         afm_spsc_release(&c->d->cmd_q);
+        if (k == AFM_CMD_PARAM || k == AFM_CMD_RELOAD) { /* the receive thread waits on it */
+            atomic_store_explicit(&c->d->mc_last_ok, rc == 0, memory_order_relaxed);
+            atomic_fetch_add_explicit(&c->d->mc_done, 1, memory_order_release);
+        }
     }
     flush_trash(c);
 }

@@ -18,8 +18,21 @@
  *    allocates (it sleeps on chain_sem when the ring is empty).
  *  - publish (publish.c): pops samples_q and harm_q, publishes them, and the status at
  *    10 Hz; the final status at shutdown.
- * Counters the receive thread owns (received, rejected, last reason) sit behind `lock`,
- * which only the non-real-time threads take. */
+ * Counters the receive thread owns (received, rejected, refused, last reasons) sit behind
+ * `lock`, which only the non-real-time threads take.
+ *
+ * Accounting: every command message that reaches the daemon is counted once, in received,
+ * and ends in exactly one of applied (by the twin), rejected (malformed or invalid: the
+ * receive thread), refused (valid, but not taken: the command queue full, or the twin
+ * refusing it: rt thread) or dropped (lost before any handler: LCM's queues, the socket;
+ * the transport counts those) -- so received = applied + rejected + refused + dropped once
+ * the queue has drained. The rt thread never refuses for back-pressure: a command that does
+ * not fit the ring now stays at the head of cmd_q and is applied a ring item later.
+ *
+ * Model changes (param, reload) go one at a time: the receive thread folds each into its
+ * shadow config only after the rt thread has taken or refused the one before (mc_sent /
+ * mc_done, mc_last_ok), and puts the shadow back if it was refused, so a rebuilt model
+ * never starts from values the twin refused. */
 #ifndef TWIND_H
 #define TWIND_H
 
@@ -66,6 +79,10 @@ typedef struct {
     char reason[AFM_IO_REASON_LEN];
 } twind_reason;
 
+/* Lines of rejections and refusals on stderr: at most this many a second, the rest
+ * counted and summed up once a second by main (the status has every one). */
+#define TWIND_REASON_LINES_PER_S 5
+
 /* What the RT thread publishes after every block (seqlock: readers retry while seq is odd
  * or changed under them). */
 typedef struct {
@@ -77,6 +94,8 @@ typedef struct {
     double resync_dropped_s; /* model time not run because of them (wall seconds x speed) */
     long long heartbeat;     /* increases every loop turn (watchdog) */
     double busy_fraction;    /* compute time / wall time over the last second */
+    long long refused;       /* commands the twin refused (exact; reasons via rtrej_q) */
+    long long reasons_lost;  /* ... whose reason did not fit rtrej_q */
 } twind_snapshot;
 
 /* What the chain thread publishes (its own seqlock). */
@@ -102,11 +121,23 @@ typedef struct {
     atomic_uint snap_seq, csnap_seq;
     twind_snapshot snap;
     twind_chain_snapshot csnap;
-    /* receive-side counters */
+    /* receive-side counters (lock) */
     pthread_mutex_t lock;
-    long long received, rejected;
-    char last_reject[AFM_IO_REASON_LEN];
-    afm_config shadow; /* receive thread only: the config after all queued commands */
+    long long received, rejected, refused; /* refused here: command queue full */
+    char last_reject[AFM_IO_REASON_LEN], last_refusal[AFM_IO_REASON_LEN];
+    long long lines_quiet; /* reason lines not printed (throttled); main sums them up */
+    double lines_t0;       /* start of the current second of reason lines */
+    int lines_n;           /* lines printed in it */
+    /* receive thread only */
+    afm_config shadow;        /* the config after all queued commands */
+    afm_modal shadow_model;   /* its model (command limits: afm_cmd_limits.model) */
+    afm_config shadow_before; /* both before the model change in flight */
+    afm_modal shadow_model_before;
+    bool mc_unchecked;              /* a model change in flight, its outcome not seen yet */
+    afm_cmd_dither drive_now;       /* the drive after all queued dithers (CAN registers) */
+    unsigned drive_gen;             /* changes with it */
+    atomic_ullong mc_sent, mc_done; /* model changes queued / taken or refused by rt */
+    atomic_int mc_last_ok;          /* rt: 1 if the last one was applied */
     /* RT scheduling result, for the start-up report */
     char rt_warn[512];
 } twind;
@@ -130,8 +161,10 @@ void *twind_chain_main(void *arg);
 /* cmd_in.c: the sink the transport calls, and the receive thread (arg: twind *). */
 afm_io_sink twind_sink(twind *d);
 void *twind_recv_main(void *arg);
-/* Count a rejection with its reason (non-RT threads). */
+/* Count a rejection (malformed, invalid) or a refusal (valid, not taken) with its reason
+ * (non-RT threads); stderr lines throttled (TWIND_REASON_LINES_PER_S). */
 void twind_reject(twind *d, const char *reason);
+void twind_refuse(twind *d, const char *reason);
 
 /* publish.c: the publish thread (arg: twind *), and one status record from the snapshot.
  * The real-time factor is model time over wall time since the caller's previous call

@@ -100,8 +100,13 @@ static void test_types(void) {
     n = afmtwin_harmonics_t_encode(buf, 0, sizeof buf, &h);
     all_cuts(&afm_wire_harmonics_t, n, "harmonics_t n 2");
 
-    afmtwin_status_t st = {
-        .last_reject = "x", .mode = "realtime", .can_state = "off", .can_last_reject = ""};
+    afmtwin_status_t st = {.last_reject = "x",
+                           .mode = "realtime",
+                           .can_state = "off",
+                           .can_last_reject = "",
+                           .last_refusal = "",
+                           .last_drop = "",
+                           .pause_reason = ""};
     n = afmtwin_status_t_encode(buf, 0, sizeof buf, &st);
     all_cuts(&afm_wire_status_t, n, "status_t");
     /* issue 13: last_reject's length 0xffffffff (lcm-gen: malloc(-1), memcpy SIZE_MAX) */
@@ -167,8 +172,13 @@ static void test_mutations(void) {
     int accepted = 0, disagree = 0;
     double f[4] = {3e5, 3e5, 3e5, 3e5}, am[4] = {1e-10, 0, 0, 0}, ph[4] = {0};
     afmtwin_dither_t dt = {.n_tones = 2, .frequency_hz = f, .amplitude_m = am, .phase_rad = ph};
-    afmtwin_status_t st = {
-        .last_reject = "abc", .mode = "realtime", .can_state = "ok", .can_last_reject = "d"};
+    afmtwin_status_t st = {.last_reject = "abc",
+                           .mode = "realtime",
+                           .can_state = "ok",
+                           .can_last_reject = "d",
+                           .last_refusal = "",
+                           .last_drop = "e",
+                           .pause_reason = ""};
     for (int trial = 0; trial < 20000; trial++) {
         const afm_wire_type *t = trial % 2 ? &afm_wire_status_t : &afm_wire_dither_t;
         int n = trial % 2 ? afmtwin_status_t_encode(buf, 0, sizeof buf, &st)

@@ -70,6 +70,16 @@ typedef struct {
     int64_t can_reconnects;            /* socket re-opened after a loss */
     char can_last_reject[AFM_IO_REASON_LEN];
     int heartbeat_ok; /* 1: heartbeat within can.heartbeat_timeout_s (or not monitored) */
+    /* Accounting (issue 13): received = applied + rejected + refused + dropped (+ commands
+     * still queued). refused: valid commands the daemon could not take (its command queue
+     * full, the twin's refusal); dropped: lost before any handler (LCM's queues, the
+     * kernel's socket buffer; the LCM transport's annotate_status fills them). */
+    int64_t refused;
+    char last_refusal[AFM_IO_REASON_LEN];
+    int64_t dropped;
+    char last_drop[AFM_IO_REASON_LEN];
+    int auto_paused; /* 1: paused itself after recurring blow-ups (pause_reason) */
+    char pause_reason[AFM_IO_REASON_LEN * 2];
 } afm_io_status;
 
 /* What a transport calls on the receive thread. */
@@ -80,8 +90,12 @@ typedef struct {
     int (*on_cmd)(void *ctx, const afm_cmd *c);
     /* A message the transport rejected (malformed, wrong type, invalid values). */
     void (*on_reject)(void *ctx, const char *channel, const char *reason);
-    /* Limits for afm_cmd_decode (the running sample rate). */
+    /* Limits for afm_cmd_decode (the running sample rate and model). */
     afm_cmd_limits (*limits)(void *ctx);
+    /* Optional: the drive the twin runs after every command taken so far, from any
+     * transport (a transport that keeps registers of its own, like CAN's, follows it);
+     * returns a number that changes whenever the drive does. */
+    unsigned (*drive)(void *ctx, afm_cmd_dither *out);
 } afm_io_sink;
 
 typedef struct afm_io afm_io;
@@ -128,8 +142,9 @@ afm_io *afm_can_io_create(const afm_cfg_can *can, const afm_cfg_drive *drive,
                           const afm_io_sink *sink, char *err, size_t errlen);
 
 /* Several transports as one (afm_io_mux.c): poll waits on all their wait_fd descriptors
- * and polls each; publishing goes to all; the status is annotated by all, then published
- * by all. Takes ownership of io[0..n-1] (destroyed with it, also on failure). n 1..4. */
+ * and polls each; publishing goes to all; annotate_status asks all (the daemon annotates
+ * the status record when it fills it), the status is published by all. Takes ownership of
+ * io[0..n-1] (destroyed with it, also on failure). n 1..4. */
 afm_io *afm_io_mux_create(afm_io *const *io, int n, char *err, size_t errlen);
 
 static inline void afm_io_destroy(afm_io **io) {

@@ -63,14 +63,12 @@ static void mux_annotate(afm_io *io, afm_io_status *s) {
         if (m->child[i]->ops->annotate_status) m->child[i]->ops->annotate_status(m->child[i], s);
 }
 
+/* The record comes annotated (the daemon calls annotate_status when it fills it). */
 static int mux_status(afm_io *io, const afm_io_status *s) {
     mux_io *m = io->impl;
-    static afm_io_status st; /* publish thread only; large for a stack frame */
-    st = *s;
-    mux_annotate(io, &st);
     int rc = 0;
     for (int i = 0; i < m->n; i++)
-        if (m->child[i]->ops->publish_status(m->child[i], &st) < 0) rc = -1;
+        if (m->child[i]->ops->publish_status(m->child[i], s) < 0) rc = -1;
     return rc;
 }
 

@@ -86,5 +86,11 @@ void afm_lcm_status_msg(const afm_io_status *s, afmtwin_status_t *m) {
         .can_reconnects = s->can_reconnects,
         .can_last_reject = (char *)s->can_last_reject,
         .heartbeat_ok = (int8_t)s->heartbeat_ok,
+        .refused = s->refused, /* issue 13 */
+        .last_refusal = (char *)s->last_refusal,
+        .dropped = s->dropped,
+        .last_drop = (char *)s->last_drop,
+        .auto_paused = (int8_t)s->auto_paused,
+        .pause_reason = (char *)s->pause_reason,
     };
 }

@@ -5,6 +5,7 @@
  * carries the daemon's own outputs (afm_lcm_url.h). */
 #include "afm_io.h"
 
+#include "afm_lcm_drops.h"
 #include "afm_lcm_encode.h"
 #include "afm_lcm_url.h"
 
@@ -16,6 +17,7 @@
 #include <string.h>
 
 #define CH_LEN 96
+#define QUEUE_CAPACITY 1000 /* messages LCM may hold per command channel */
 
 typedef struct lcm_io lcm_io;
 
@@ -31,6 +33,13 @@ struct lcm_io {
     lcm_t *out; /* outputs (publish only: LCM opens no receive socket for it) */
     in_channel in[5];
     char ch_samples[CH_LEN], ch_harmonics[CH_LEN], ch_status[CH_LEN];
+    /* Drops before the handler (afm_lcm_drops.h): LCM's queues, the kernel's socket. */
+    int watch;              /* -1: none */
+    const char *watched[5]; /* the in[] channel names */
+    int port;               /* udpm command port; 0: not udpm */
+    unsigned long sock[AFM_LCM_DROPS_SOCKETS];
+    int n_sock;
+    long long sock_drops0; /* at start */
 };
 
 static void on_raw(const lcm_recv_buf_t *rbuf, const char *channel, void *user) {
@@ -80,8 +89,41 @@ static int lio_wait_fd(afm_io *io, int *max_wait_ms) {
     return lcm_get_fileno(l->lcm);
 }
 
+/* Messages lost before on_raw: LCM's subscription queues (per channel) and the kernel's
+ * receive buffer of the command socket. Sets dropped and last_drop. */
+static void lio_annotate(afm_io *io, afm_io_status *s) {
+    lcm_io *l = io->impl;
+    long long q = 0, worst = 0;
+    int wi = 0;
+    for (int i = 0; i < 5; i++) {
+        long long d = afm_lcm_drops_queue(l->watch, i);
+        q += d;
+        if (d > worst) {
+            worst = d;
+            wi = i;
+        }
+    }
+    long long k = 0;
+    if (l->port > 0 && l->n_sock > 0) {
+        long long now = afm_udp_drops(l->sock, l->n_sock, l->port);
+        if (now >= l->sock_drops0) k = now - l->sock_drops0;
+    }
+    s->dropped = q + k;
+    if (!afm_lcm_drops_visible())
+        snprintf(s->last_drop, sizeof s->last_drop,
+                 "LCM's queue drops are not visible with this liblcm; kernel drops %lld", k);
+    else if (q + k == 0)
+        s->last_drop[0] = 0;
+    else
+        snprintf(s->last_drop, sizeof s->last_drop,
+                 "LCM dropped %lld messages (full subscription queues of %d; most on %s: %lld), "
+                 "the kernel %lld (full receive buffer of the command socket)",
+                 q, QUEUE_CAPACITY, l->in[wi].channel, worst, k);
+}
+
 static void lio_destroy(afm_io *io) {
     lcm_io *l = io->impl;
+    afm_lcm_drops_unwatch(l->watch);
     if (l->lcm) lcm_destroy(l->lcm);
     if (l->out) lcm_destroy(l->out);
     free(l);
@@ -95,6 +137,7 @@ static const afm_io_ops lcm_ops = {
     .publish_status = lio_status,
     .destroy = lio_destroy,
     .wait_fd = lio_wait_fd,
+    .annotate_status = lio_annotate,
 };
 
 afm_io *afm_lcm_io_create(const char *url, const char *out_url, const char *prefix,
@@ -123,11 +166,14 @@ afm_io *afm_lcm_io_create(const char *url, const char *out_url, const char *pref
     l->io.ops = &lcm_ops;
     l->io.sink = *sink;
     l->io.impl = l;
+    l->watch = -1;
     char cmd_u[AFM_LCM_URL_LEN], out_u[AFM_LCM_URL_LEN];
     if (afm_lcm_urls(url, out_url, cmd_u, out_u, sizeof cmd_u, err, errlen)) {
         free(l);
         return NULL;
     }
+    unsigned long before[AFM_LCM_DROPS_SOCKETS * 8];
+    int n_before = afm_udp_sockets(before, (int)(sizeof before / sizeof before[0]));
     l->lcm = lcm_create(cmd_u);
     l->out = l->lcm ? lcm_create(out_u) : NULL;
     if (!l->lcm || !l->out) {
@@ -149,7 +195,25 @@ afm_io *afm_lcm_io_create(const char *url, const char *out_url, const char *pref
             lio_destroy(&l->io);
             return NULL;
         }
-        lcm_subscription_set_queue_capacity(sub, 1000);
+        lcm_subscription_set_queue_capacity(sub, QUEUE_CAPACITY);
+        l->watched[i] = ic->channel;
+    }
+    l->watch = afm_lcm_drops_watch(l->lcm, l->watched, 5);
+    afm_lcm_drops_visible(); /* the self-test, now rather than on the first status */
+    /* The sockets LCM opened (udpm binds its receive socket to the command port). */
+    if (!strncmp(cmd_u, "udpm://", 7)) {
+        const char *c = strchr(cmd_u + 7, ':');
+        l->port = c ? atoi(c + 1) : 7667;
+        unsigned long after[AFM_LCM_DROPS_SOCKETS * 8];
+        int n_after = afm_udp_sockets(after, (int)(sizeof after / sizeof after[0]));
+        for (int i = 0; i < n_after && l->n_sock < AFM_LCM_DROPS_SOCKETS; i++) {
+            bool old_one = false;
+            for (int j = 0; j < n_before; j++)
+                old_one |= after[i] == before[j];
+            if (!old_one) l->sock[l->n_sock++] = after[i];
+        }
+        long long d0 = afm_udp_drops(l->sock, l->n_sock, l->port);
+        l->sock_drops0 = d0 > 0 ? d0 : 0;
     }
     snprintf(l->ch_samples, sizeof l->ch_samples, "%sSAMPLES", prefix);
     snprintf(l->ch_harmonics, sizeof l->ch_harmonics, "%sHARMONICS", prefix);
