@@ -313,8 +313,41 @@ static void test_config(void) {
     }
 }
 
+/* issue 13: the transport's registers followed nothing but CAN. After an LCM dither that
+ * started tone 1 at 1 MHz and changed tone 0's frequency, a CAN amplitude frame for tone 0
+ * sent the whole dither from stale registers (tone 0 back at 338 kHz, tone 1 stopped).
+ * afm_can_state_sync takes the running drive (the transport calls it when the daemon's
+ * drive changed); start phases stored for tones not running stay the driver's. */
+static void test_sync(void) {
+    afm_cfg_can m = default_map();
+    char err[AFM_ERR_LEN];
+    struct canfd_frame f;
+    afm_cmd c;
+    afm_can_state s = start_state(), n;
+    afm_can_encode(&m, AFM_CAN_DITHER_PHASE, 2, 0.5, 0, &f, err, sizeof err);
+    check_true(dec(&m, &s, &f, false, &c, &n, err) == AFM_CAN_R_STORED, "phase of tone 2 stored");
+    s = n;
+    afm_cmd_dither lcm = {
+        .n_tones = 2, .frequency_hz = {340000, 1e6}, .amplitude_m = {1e-10, 2e-11}};
+    afm_can_state stale = s;
+    afm_can_state_sync(&s, &lcm);
+    afm_can_encode(&m, AFM_CAN_DITHER_AMPLITUDE, 0, 0.2e-9, 0, &f, err, sizeof err);
+    check_true(dec(&m, &stale, &f, false, &c, &n, err) == AFM_CAN_R_COMMAND &&
+                   c.u.dither.n_tones == 1 && c.u.dither.frequency_hz[0] == 338112.0,
+               "unsynced registers: the frame would send tone 0 at 338 kHz and stop tone 1");
+    check_true(dec(&m, &s, &f, false, &c, &n, err) == AFM_CAN_R_COMMAND &&
+                   c.u.dither.n_tones == 2 && c.u.dither.frequency_hz[0] == 340000 &&
+                   c.u.dither.frequency_hz[1] == 1e6 && c.u.dither.amplitude_m[1] == 2e-11 &&
+                   fabs(c.u.dither.amplitude_m[0] - 0.2e-9) < 1e-15,
+               "synced: tone 0's new amplitude, LCM's frequencies, tone 1 still running");
+    check_true(s.dither.phase_rad[2] == n.dither.phase_rad[2] &&
+                   fabs(s.dither.phase_rad[2] - 0.5) < 1e-6,
+               "the start phase stored for tone 2 survives the sync");
+}
+
 int main(void) {
     afm_cfg_can m = default_map();
+    test_sync();
     test_round_trips(&m, "scaled LE");
     afm_cfg_can mf = m;
     mf.encoding = AFM_CAN_FLOAT32;

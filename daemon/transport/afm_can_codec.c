@@ -32,6 +32,15 @@ void afm_can_state_init(afm_can_state *s, const afm_cfg_drive *d) {
     }
 }
 
+void afm_can_state_sync(afm_can_state *s, const afm_cmd_dither *running) {
+    int n = running->n_tones < AFM_MAX_TONES ? running->n_tones : AFM_MAX_TONES;
+    for (int j = 0; j < n; j++) {
+        s->dither.frequency_hz[j] = running->frequency_hz[j];
+        s->dither.amplitude_m[j] = running->amplitude_m[j];
+    }
+    s->dither.n_tones = n; /* the start phases of the tones not running stay the driver's */
+}
+
 int afm_can_signal_of(const afm_cfg_can *map, canid_t id) {
     bool eff = (id & CAN_EFF_FLAG) != 0;
     if (eff != map->extended_ids) return -1;

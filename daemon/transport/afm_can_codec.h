@@ -49,6 +49,10 @@ typedef struct {
 
 /* Registers from the config's drive (what the twin starts with). */
 void afm_can_state_init(afm_can_state *s, const afm_cfg_drive *d);
+/* Follow the drive the twin runs now (after dithers from other transports, reloads):
+ * frequency and amplitude of the running tones and their count; the registers of tones
+ * not running (and every start phase) stay as the driver set them. */
+void afm_can_state_sync(afm_can_state *s, const afm_cmd_dither *running);
 
 /* "dither_frequency", ... (the config's key under can.ids); "?" out of range. */
 const char *afm_can_signal_name(afm_can_signal sig);

@@ -43,6 +43,7 @@ typedef struct {
     char channel[40];             /* "CAN vcan0", the channel name of rejections */
     int sock;                     /* -1 while closed */
     afm_can_state regs;           /* the driver's registers as the twin took them */
+    unsigned regs_gen;            /* sink->drive's number when regs last followed it */
     double retry_at_s, backoff_s; /* CLOCK_MONOTONIC */
     bool lost;                    /* had a socket and lost it: the next open is a reconnect */
     double last_hb_s;             /* < 0: no heartbeat yet */
@@ -183,6 +184,14 @@ static void on_frame(can_io *c, const struct canfd_frame *f, bool fd, double now
     afm_cmd cmd;
     afm_can_state next;
     char err[AFM_IO_REASON_LEN];
+    if (sink->drive) { /* LCM dithers and reloads change the drive too: follow them */
+        afm_cmd_dither running;
+        unsigned gen = sink->drive(sink->ctx, &running);
+        if (gen != c->regs_gen) {
+            afm_can_state_sync(&c->regs, &running);
+            c->regs_gen = gen;
+        }
+    }
     switch (afm_can_decode(&c->map, &c->regs, f, fd, &lim, &cmd, &next, NULL, err, sizeof err)) {
     case AFM_CAN_R_REJECT:
         count_reject(c, err);
