@@ -30,5 +30,16 @@ for want in 'Type=notify' 'WatchdogSec=' 'DynamicUser=yes' 'NoNewPrivileges=yes'
             'AmbientCapabilities=CAP_SYS_NICE CAP_IPC_LOCK' 'LimitRTPRIO=' 'LimitMEMLOCK='; do
   if grep -q "^$want" "$unit"; then ok "unit has $want"; else bad "unit lacks $want"; fi
 done
+# Every address family the daemon opens a socket of is one the unit allows (issue 13: the
+# unit left out AF_CAN, so the CAN transport could never open its socket under systemd).
+# LCM's own sockets (liblcm, udpm) are AF_INET; sd_notify's AF_UNIX.
+allowed=$(sed -n 's/^RestrictAddressFamilies=//p' "$unit")
+used=$( { grep -rhoE 'socket\((PF|AF)_[A-Z0-9]+' daemon/ | sed 's/socket(//; s/^PF_/AF_/'; echo AF_INET; echo AF_UNIX; } | sort -u)
+for fam in $used; do
+  case " $allowed " in
+    *" $fam "*) ok "RestrictAddressFamilies allows $fam (opened by the daemon)" ;;
+    *) bad "RestrictAddressFamilies lacks $fam, which the daemon opens (allowed: $allowed)" ;;
+  esac
+done
 echo "$pass passed, $fail failed"
 [ "$fail" -eq 0 ]
