@@ -269,6 +269,12 @@ static void print_status(const listen_ctx *c, const char *channel, const afmtwin
         json_int(o, "can_reconnects", m->can_reconnects);
         json_str(o, "can_last_reject", m->can_last_reject);
         cJSON_AddNumberToObject(o, "heartbeat_ok", m->heartbeat_ok);
+        json_int(o, "refused", m->refused);
+        json_str(o, "last_refusal", m->last_refusal);
+        json_int(o, "dropped", m->dropped);
+        json_str(o, "last_drop", m->last_drop);
+        cJSON_AddNumberToObject(o, "auto_paused", m->auto_paused);
+        json_str(o, "pause_reason", m->pause_reason);
         json_print(o);
         return;
     }
@@ -277,13 +283,21 @@ static void print_status(const listen_ctx *c, const char *channel, const afmtwin
     show(mode, m->mode);
     show(cs, m->can_state);
     show(clr, m->can_last_reject);
+    char lf[SHOW_LEN], ld[SHOW_LEN], pr[SHOW_LEN];
+    show(lf, m->last_refusal);
+    show(ld, m->last_drop);
+    show(pr, m->pause_reason);
     printf("status    seq %lld t %.6f s %s %s RT %.4g lag %.3g s overruns %lld blowups %lld "
-           "received %lld rejected %lld%s%s%s Z %.4g nm fe %.6g Hz Ae %.4g nm\n",
+           "received %lld applied %lld rejected %lld%s%s%s refused %lld%s%s%s dropped %lld%s%s%s "
+           "Z %.4g nm fe %.6g Hz Ae %.4g nm\n",
            (long long)m->seq_applied, m->model_time_s, mode[0] ? mode : "?",
-           m->running ? "running" : "paused", m->realtime_factor, m->lag_s, (long long)m->overruns,
-           (long long)m->blowups, (long long)m->received, (long long)m->rejected,
-           lr[0] ? " (last: " : "", lr, lr[0] ? ")" : "", m->separation_m * 1e9, m->fe_hz,
-           m->amplitude_m * 1e9);
+           m->auto_paused ? "PAUSED ITSELF" : m->running ? "running" : "paused", m->realtime_factor,
+           m->lag_s, (long long)m->overruns, (long long)m->blowups, (long long)m->received,
+           (long long)m->applied, (long long)m->rejected, lr[0] ? " (last: " : "", lr,
+           lr[0] ? ")" : "", (long long)m->refused, lf[0] ? " (last: " : "", lf, lf[0] ? ")" : "",
+           (long long)m->dropped, ld[0] ? " (" : "", ld, ld[0] ? ")" : "", m->separation_m * 1e9,
+           m->fe_hz, m->amplitude_m * 1e9);
+    if (m->auto_paused) printf("          %s\n", pr);
     if (cs[0] && strcmp(cs, "off") != 0)
         printf("          CAN %s, heartbeat %s, frames %lld rejected %lld errors %lld reconnects "
                "%lld%s%s%s\n",
