@@ -222,6 +222,29 @@ static void bad_configs(void) {
     expect_bad("output-not-group", "output", "expected a group");
 }
 
+/* issue 13: a directory given as config read as "I/O error"; text in memory parses as the
+ * file does (afm_config_parse, the config fuzzer's entry). */
+static void load_edges(void) {
+    afm_config c, f;
+    char err[AFM_ERR_LEN];
+    check_true(afm_config_load("config", &c, err, sizeof err) == -1 &&
+                   strstr(err, "config: is a directory, not a config file"),
+               "a directory as config: says so");
+    FILE *fp = fopen("config/default.conf", "r");
+    static char text[65536];
+    size_t n = fp ? fread(text, 1, sizeof text - 1, fp) : 0;
+    if (fp) fclose(fp);
+    text[n] = 0;
+    check_true(afm_config_load("config/default.conf", &f, err, sizeof err) == 0 &&
+                   afm_config_parse(text, "config/default.conf", &c, err, sizeof err) == 0 &&
+                   !memcmp(&c.model, &f.model, sizeof c.model) &&
+                   !memcmp(&c.drive, &f.drive, sizeof c.drive),
+               "afm_config_parse(text of default.conf) = afm_config_load(default.conf)");
+    check_true(afm_config_parse("model = {", "x", &c, err, sizeof err) == -1 &&
+                   strstr(err, "x:1: cannot parse"),
+               "afm_config_parse of broken text: line and reason");
+}
+
 /* afm_config_validate on structs edited after loading (what CLI overrides do). */
 static void validate_struct(void) {
     afm_config c;
@@ -293,6 +316,7 @@ int main(void) {
     shipped_values();
     bad_configs();
     validate_struct();
+    load_edges();
 
     char err[AFM_ERR_LEN];
     afm_config c;

@@ -20,6 +20,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 
 static const double deg = 3.14159265358979323846 / 180.0;
 
@@ -744,6 +745,35 @@ static const config_setting_t *resolve(const config_setting_t *root, const char 
     return s;
 }
 
+#define MAX_CONFIG_BYTES (1 << 20) /* a config is a few kB; a larger file is not one */
+
+static int load_parsed(config_t *lc, loader *L, afm_config *tmp, afm_config *cfg);
+
+/* A config from the libconfig text in text (name: what messages call it). */
+int afm_config_parse(const char *text, const char *name, afm_config *cfg, char *err,
+                     size_t errlen) {
+    if (!name) name = "(string)";
+    loader L = {name, err, errlen};
+    if (err && errlen) err[0] = '\0';
+    if (!text || !cfg) {
+        if (err && errlen) snprintf(err, errlen, "afm_config_parse: NULL argument");
+        return -1;
+    }
+    static afm_config tmp; /* not on the stack: 1.2 kB, and callers are not real-time */
+    afm_config_defaults(&tmp);
+    snprintf(tmp.path, sizeof tmp.path, "%s", name);
+    config_t lc;
+    config_init(&lc);
+    if (config_read_string(&lc, text) != CONFIG_TRUE) {
+        if (err && errlen)
+            snprintf(err, errlen, "%s:%d: cannot parse: %s", name, config_error_line(&lc),
+                     config_error_text(&lc) ? config_error_text(&lc) : "?");
+        config_destroy(&lc);
+        return -1;
+    }
+    return load_parsed(&lc, &L, &tmp, cfg);
+}
+
 int afm_config_load(const char *path, afm_config *cfg, char *err, size_t errlen) {
     loader L = {path ? path : "(null)", err, errlen};
     if (err && errlen) err[0] = '\0';
@@ -759,10 +789,17 @@ int afm_config_load(const char *path, afm_config *cfg, char *err, size_t errlen)
         return -1;
     }
     snprintf(tmp.path, sizeof tmp.path, "%s", path);
+    struct stat st;
+    if (stat(path, &st) == 0 && (S_ISDIR(st.st_mode) || st.st_size > MAX_CONFIG_BYTES)) {
+        if (err && errlen)
+            snprintf(err, errlen, "%s: %s", path,
+                     S_ISDIR(st.st_mode) ? "is a directory, not a config file"
+                                         : "larger than 1 MiB: not a config file");
+        return -1;
+    }
 
     config_t lc;
     config_init(&lc);
-    int rc = -1;
     errno = 0;
     if (config_read_file(&lc, path) != CONFIG_TRUE) {
         if (err && errlen) {
@@ -774,23 +811,32 @@ int afm_config_load(const char *path, afm_config *cfg, char *err, size_t errlen)
                          config_error_file(&lc) ? config_error_file(&lc) : path,
                          config_error_line(&lc), config_error_text(&lc));
         }
-        goto out;
+        config_destroy(&lc);
+        return -1;
     }
-    const config_setting_t *root = config_root_setting(&lc);
+    return load_parsed(&lc, &L, &tmp, cfg);
+}
+
+/* The groups and the checks of a parsed file; destroys lc. */
+static int load_parsed(config_t *lc, loader *L, afm_config *tmp, afm_config *cfg) {
+    int rc = -1;
+    char *err = L->err;
+    size_t errlen = L->errlen;
+    const config_setting_t *root = config_root_setting(lc);
     static const char *const keys[] = {"model",   "forces", "drive",  "sim", "obd",
                                        "thermal", "lockin", "output", "can", NULL};
-    if (only_keys(&L, root, keys) || load_model(&L, root, &tmp.model) ||
-        load_forces(&L, root, tmp.model.kind, &tmp.forces) || load_drive(&L, root, &tmp.drive) ||
-        load_sim(&L, root, &tmp.sim) || load_chain(&L, root, &tmp) || load_can(&L, root, &tmp.can))
+    if (only_keys(L, root, keys) || load_model(L, root, &tmp->model) ||
+        load_forces(L, root, tmp->model.kind, &tmp->forces) || load_drive(L, root, &tmp->drive) ||
+        load_sim(L, root, &tmp->sim) || load_chain(L, root, tmp) || load_can(L, root, &tmp->can))
         goto out;
 
     char key[KEY_LEN], why[AFM_ERR_LEN];
-    if (afm_config_check_all(&tmp, key, why, sizeof why)) {
+    if (afm_config_check_all(tmp, key, why, sizeof why)) {
         /* Name the key as the file spells it: quality_factor for Q given damping ratios,
          * width_m rather than width_m[1] for a scalar standing for both ends. */
         static const char xi_key[] = "model.damping_ratio";
         if (strncmp(key, xi_key, sizeof xi_key - 1) == 0 &&
-            config_lookup(&lc, "model.quality_factor")) {
+            config_lookup(lc, "model.quality_factor")) {
             char rest[16]; /* "" or "[i]" */
             snprintf(rest, sizeof rest, "%.15s", key + sizeof xi_key - 1);
             snprintf(key, sizeof key, "model.quality_factor%s", rest);
@@ -801,12 +847,12 @@ int afm_config_load(const char *path, afm_config *cfg, char *err, size_t errlen)
         if (br && !strchr(br, '.') && config_setting_is_scalar(s) && config_setting_name(s))
             *br = '\0';
         if (err && errlen)
-            snprintf(err, errlen, "%s:%d: key '%s': %s", file_of(&L, s), line_of(s), key, why);
+            snprintf(err, errlen, "%s:%d: key '%s': %s", file_of(L, s), line_of(s), key, why);
         goto out;
     }
-    *cfg = tmp;
+    *cfg = *tmp;
     rc = 0;
 out:
-    config_destroy(&lc);
+    config_destroy(lc);
     return rc;
 }

@@ -200,6 +200,11 @@ void afm_config_defaults(afm_config *cfg);
 
 /* Load and validate FILE. Returns 0 on success, -1 with err (AFM_ERR_LEN) filled. */
 int afm_config_load(const char *path, afm_config *cfg, char *err, size_t errlen);
+/* The same from libconfig text in memory (name: what messages call it; libconfig 1.5
+ * resolves an @include from the current directory). For tests and the config fuzzer. Not
+ * thread-safe (a static work area). A file path that is a directory, or larger than 1 MiB,
+ * is refused by afm_config_load before libconfig reads it. */
+int afm_config_parse(const char *text, const char *name, afm_config *cfg, char *err, size_t errlen);
 
 /* Re-check a filled struct (after CLI overrides). 0 if valid, -1 with err. */
 int afm_config_validate(const afm_config *cfg, char *err, size_t errlen);
