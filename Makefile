@@ -8,7 +8,7 @@ CC      ?= cc
 
 DEB_PKGS := build-essential pkg-config liblcm-dev liblcm-bin libglib2.0-dev libsundials-dev \
             liblapacke-dev libconfig-dev libsystemd-dev libcjson-dev can-utils gnuplot-nox \
-            libfftw3-dev systemd qemu-system-x86 busybox-static cpio
+            libfftw3-dev systemd qemu-system-x86 busybox-static cpio clang libclang-rt-dev
 
 CSTD     := -std=c11 -D_POSIX_C_SOURCE=200809L
 WARN     := -Wall -Wextra -Werror -Wshadow -Wstrict-prototypes -Wmissing-prototypes
@@ -41,7 +41,8 @@ TEST_SRC   := $(wildcard tests/test_*.c)
 TEST_BIN   := $(patsubst tests/%.c,$(BUILD)/tests/%,$(TEST_SRC))
 TEST_COMMON := $(BUILD)/obj/tests/check.o $(BUILD)/obj/tests/fixtures.o
 
-.PHONY: all deps run test validate bench install clean format format-check can-probe
+.PHONY: all deps run test validate bench install clean format format-check can-probe \
+        sanitize sanitize-build fuzz fuzzers flood
 
 LIBS_ALL   := $(if $(IO_OBJ),$(IO_LIB)) $(MSG_LIB) $(ENGINE_LIB)
 
@@ -114,6 +115,44 @@ $(CAN_PROBE): $(BUILD)/obj/tests/can_vm_probe.o $(BUILD)/obj/tests/check.o \
 	@mkdir -p $(dir $@)
 	$(CC) $(CFLAGS) -static -o $@ $^ $(STATIC_LDLIBS)
 
+# ---- sanitizers and fuzzing (issue 13) -----------------------------------------------------
+# One instrumented build in $(SAN_BUILD), by clang: ASan (with LSan) and UBSan, plus
+# libFuzzer's coverage hooks (fuzzer-no-link: no-ops outside a fuzzer). Its unit tests,
+# daemon and tools run under the sanitizers; the harnesses in fuzz/ link libFuzzer.
+# `make sanitize` runs every unit test there (SAN_TESTS=short: the decoder subset that
+# `make test` runs); `make fuzz` runs each harness for FUZZ_RUNS inputs (default 1e7),
+# stopping earlier after FUZZ_SECONDS seconds each if that is > 0 (tests/fuzz.sh).
+SAN_BUILD    ?= $(BUILD)/san
+SAN_CC       ?= clang
+SAN_FLAGS    := -fsanitize=address,undefined,fuzzer-no-link -fno-sanitize-recover=all \
+                -fno-omit-frame-pointer
+SAN_TESTS    ?= all
+FUZZ_NAMES   := cmd can config out log
+FUZZ_BIN     := $(patsubst %,$(BUILD)/fuzz/fuzz_%,$(FUZZ_NAMES))
+FUZZ_RUNS    ?= 10000000
+FUZZ_SECONDS ?= 0
+
+sanitize-build:
+	+$(MAKE) --no-print-directory BUILD=$(SAN_BUILD) CC=$(SAN_CC) \
+	  OPT="-O1 -g -march=x86-64-v3 $(SAN_FLAGS)" GEN_FLAGS="$(SAN_FLAGS)" all fuzzers
+
+# Only meaningful inside sanitize-build (objects with coverage hooks).
+fuzzers: $(FUZZ_BIN) $(BUILD)/fuzz/seeds
+$(BUILD)/fuzz/fuzz_%: $(BUILD)/obj/fuzz/fuzz_%.o $(LIBS_ALL)
+	@mkdir -p $(dir $@)
+	$(CC) $(CFLAGS) -fsanitize=fuzzer -o $@ $^ $(LDLIBS)
+$(BUILD)/fuzz/seeds: $(BUILD)/obj/fuzz/seeds.o $(LIBS_ALL)
+	@mkdir -p $(dir $@)
+	$(CC) $(CFLAGS) -o $@ $^ $(LDLIBS)
+
+sanitize: deps
+	+$(MAKE) sanitize-build
+	@bash tests/sanitize.sh $(SAN_BUILD) $(SAN_TESTS)
+
+fuzz: deps
+	+$(MAKE) sanitize-build
+	@bash tests/fuzz.sh $(SAN_BUILD) $(FUZZ_RUNS) $(FUZZ_SECONDS)
+
 # The daemon in the foreground on default.conf (tools/afmtwind-run.sh: LCM's default udpm
 # when this host has a multicast route, else a private network namespace; see README).
 run: deps
@@ -149,7 +188,7 @@ install: $(BUILD)/bin/afmtwin $(if $(DAEMON_SRC),$(BUILD)/bin/afmtwind)
 clean:
 	rm -rf $(BUILD)
 
-FORMAT_SRC = $(wildcard daemon/*.[ch] daemon/engine/*.[ch] daemon/transport/*.[ch] tools/*.[ch] tests/*.[ch])
+FORMAT_SRC = $(wildcard daemon/*.[ch] daemon/engine/*.[ch] daemon/transport/*.[ch] tools/*.[ch] tests/*.[ch] fuzz/*.[ch])
 format:
 	clang-format -i $(FORMAT_SRC)
 

@@ -63,8 +63,10 @@ END {
     printf "static int64_t h_%s(void) {\n    return __%s_get_hash();\n}\n", types[t], T
     printf "static int d_%s(const void *b, int len, void *m) {\n    return %s_decode(b, 0, len, (%s *)m);\n}\n", types[t], T, T
     printf "static void c_%s(void *m) {\n    %s_decode_cleanup((%s *)m);\n}\n", types[t], T, T
-    printf "const afm_wire_type afm_wire_%s = {\"%s\", sizeof(%s), f_%s, %d, h_%s, d_%s, c_%s};\n", \
-      types[t], types[t], T, types[t], nfields[t], types[t], types[t], types[t]
+    printf "static int e_%s(void *b, int len, const void *m) {\n    return %s_encode(b, 0, len, (const %s *)m);\n}\n", types[t], T, T
+    printf "static int s_%s(const void *m) {\n    return %s_encoded_size((const %s *)m);\n}\n", types[t], T, T
+    printf "const afm_wire_type afm_wire_%s = {\"%s\", sizeof(%s), f_%s, %d, h_%s, d_%s, c_%s, e_%s, s_%s};\n", \
+      types[t], types[t], T, types[t], nfields[t], types[t], types[t], types[t], types[t], types[t]
   }
   printf "\nconst afm_wire_type *const afm_wire_all[] = {"
   for (t = 1; t <= nt; t++) printf "&afm_wire_%s, ", types[t]

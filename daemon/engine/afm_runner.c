@@ -373,6 +373,7 @@ afm_runner *afm_runner_create_pipelined(const afm_config *cfg, int block_max, bo
     r->last_blowup_t_s = NAN;
     return r;
 fail:
+    afm_runner_model_destroy(&m);
     afm_runner_destroy(&r);
     return NULL;
 }

@@ -52,6 +52,8 @@ typedef struct {
     int64_t (*fingerprint)(void);
     int (*decode)(const void *buf, int len, void *msg);
     void (*cleanup)(void *msg);
+    int (*encode)(void *buf, int len, const void *msg); /* lcm-gen's encoder: bytes or < 0 */
+    int (*encoded_size)(const void *msg);
 } afm_wire_type;
 
 /* One per struct of msgtypes/ (generated), and all of them, NULL-terminated. */
