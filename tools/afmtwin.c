@@ -22,6 +22,7 @@ static const command commands[] = {
     {"replay", afm_cmd_replay, "run the commands of an LCM log in model time, outputs to a log"},
     {"bench-daemon", afm_cmd_bench_daemon, "real-time factor and command latency of afmtwind"},
     {"can-send", afm_cmd_can_send, "encode a command into CAN frames (cansend format), send them"},
+    {"flood", afm_cmd_flood, "a bounded junk flood on the command channels (robustness tests)"},
 };
 
 static void usage(FILE *f) {
