@@ -4,7 +4,7 @@
 # (fuzz/fuzz_*.c, built by `make sanitize-build`) for RUNS inputs each (0: no limit), or
 # until SECONDS have passed (0: no limit), from seed corpora the unit tests' inputs make
 # (fuzz/seeds.c; the config harness: config/ and tests/bad-configs/). Every report is fatal:
-# a crash, an ASan/UBSan error, a leak (LSan, checked per input), a timeout (10 s per
+# a crash, an ASan/UBSan error, a leak (LSan, checked per input), a hang (60 s per
 # input) or an out-of-memory (2 GB) fails the harness; the input is kept in
 # SAN_BUILD/fuzz/artifacts/. New inputs accumulate in SAN_BUILD/fuzz/corpus/<harness>.
 # `make fuzz` (RUNS 1e7), `make test` (tests/test_fuzz.sh: 3 s each). Prints one line per
@@ -30,7 +30,7 @@ log=$(mktemp)
 trap 'rm -f "$log"' EXIT
 for h in cmd can config out log; do
   mkdir -p "$F/corpus/$h"
-  args=(-print_final_stats=1 -timeout=10 -rss_limit_mb=2048 -max_len=8192
+  args=(-print_final_stats=1 -timeout=60 -rss_limit_mb=2048 -max_len=8192
         -artifact_prefix="$F/artifacts/$h-")
   # libconfig leaks on many parse errors (fuzz/lsan.supp): a leak check after each such
   # input makes fuzz_config 23x slower (1960/s against 45600/s). It runs without the

@@ -12,7 +12,7 @@
  *         --(param only) afm_param_apply on the daemon's copy of the config--> queue.
  *
  * Validation (afm_cmd_validate), each with a reason naming the field, e.g.
- *   "dither: tone 1 frequency_hz 8e+06 must be > 0 and < 7.03e+06 (half the sample rate)":
+ *   "dither: tone 1 frequency_hz 8e+06 must be >= 1 and < 7.03e+06 (half the sample rate)":
  *  - every double finite (NaN, inf rejected);
  *  - dither (the plausibility limits of afm_limits.h): n_tones 1..AFM_MAX_TONES, each
  *    amplitude 0..AFM_LIM_TONE_AMPLITUDE_MAX_M and their sum at most
