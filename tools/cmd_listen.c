@@ -291,12 +291,14 @@ static void print_status(const listen_ctx *c, const char *channel, const afmtwin
            "received %lld applied %lld rejected %lld%s%s%s refused %lld%s%s%s dropped %lld%s%s%s "
            "Z %.4g nm fe %.6g Hz Ae %.4g nm\n",
            (long long)m->seq_applied, m->model_time_s, mode[0] ? mode : "?",
-           m->auto_paused ? "PAUSED ITSELF" : m->running ? "running" : "paused", m->realtime_factor,
-           m->lag_s, (long long)m->overruns, (long long)m->blowups, (long long)m->received,
-           (long long)m->applied, (long long)m->rejected, lr[0] ? " (last: " : "", lr,
-           lr[0] ? ")" : "", (long long)m->refused, lf[0] ? " (last: " : "", lf, lf[0] ? ")" : "",
-           (long long)m->dropped, ld[0] ? " (" : "", ld, ld[0] ? ")" : "", m->separation_m * 1e9,
-           m->fe_hz, m->amplitude_m * 1e9);
+           m->auto_paused ? "PAUSED ITSELF"
+           : m->running   ? "running"
+                          : "paused",
+           m->realtime_factor, m->lag_s, (long long)m->overruns, (long long)m->blowups,
+           (long long)m->received, (long long)m->applied, (long long)m->rejected,
+           lr[0] ? " (last: " : "", lr, lr[0] ? ")" : "", (long long)m->refused,
+           lf[0] ? " (last: " : "", lf, lf[0] ? ")" : "", (long long)m->dropped, ld[0] ? " (" : "",
+           ld, ld[0] ? ")" : "", m->separation_m * 1e9, m->fe_hz, m->amplitude_m * 1e9);
     if (m->auto_paused) printf("          %s\n", pr);
     if (cs[0] && strcmp(cs, "off") != 0)
         printf("          CAN %s, heartbeat %s, frames %lld rejected %lld errors %lld reconnects "
