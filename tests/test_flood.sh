@@ -196,5 +196,33 @@ s=$(status)
 [ "$(echo "$s" | jnum running)" = 1 ] && [ "$(echo "$s" | jnum auto_paused)" = 0 ] \
   && ok "C: damping back, control run: running again" || bad "C: after control run: $s"
 kill -TERM $DPID; wait $DPID; DPID=""
+
+# ---- D. what is lost before any handler is counted too --------------------------------------
+# The daemon stopped (SIGSTOP): 0.4 s of valid parameter changes (each needs a model build)
+# and then 0.5 s of junk at 40000/s go into the command socket, whose 4 MB receive buffer
+# overflows (the kernel drops); at SIGCONT, LCM's receive thread reads what the buffer held
+# far faster than the daemon takes it, and LCM's subscription queues (1000) overflow.
+# Every message sent is in received, and received = applied + rejected + refused + dropped.
+"$D" --config config/default.conf --quiet 2>"$T/d.err" &
+DPID=$!
+s=""; for _ in $(seq 1 40); do s=$(status); [ -n "$s" ] && break; sleep 0.25; done
+kill -STOP $DPID
+o1=$("$A" flood --rate 1 --seconds 0.4 --valid-rate 10000 --valid-kind param --seq0 3000000)
+o2=$("$A" flood --rate 40000 --seconds 0.5 --valid-rate 0 --seed 3)
+kill -CONT $DPID
+sent=0
+for o in "$o1" "$o2"; do
+  j=$(echo "$o" | sed -n 's/^flood: sent \([0-9]*\) junk.*/\1/p'); v=$(echo "$o" | sed -n 's/.*+ \([0-9]*\) valid.*/\1/p')
+  sent=$((sent + j + v))
+done
+s=$(settled)
+ld=$(echo "$s" | sed -n 's/.*"last_drop":"\([^"]*\)".*/\1/p')
+msg=$(adds_up "$s") && ok "D: counts add up: $msg" || bad "D: counts do not add up: $msg"
+[ "$(echo "$s" | jnum received)" = "$sent" ] \
+  && ok "D: every one of the $sent messages sent is in received" \
+  || bad "D: $sent sent, received $(echo "$s" | jnum received)"
+echo "$ld" | grep -q "LCM dropped [1-9]" && echo "$ld" | grep -qE "the kernel [1-9]" \
+  && ok "D: drops seen in LCM's queues and in the kernel: $ld" || bad "D: last_drop: '$ld'"
+kill -TERM $DPID; wait $DPID; DPID=""
 echo "$pass passed, $fail failed"
 [ "$fail" -eq 0 ]

@@ -44,6 +44,7 @@ static const char *const chan_sfx[5] = {AFMT_CHAN_DITHER, AFMT_CHAN_SETPOINT, AF
 typedef struct {
     double rate, seconds, valid_rate;
     bool want[N_KINDS];
+    bool valid_param; /* valid commands: beam-length params (a model build each), not Z */
     const char *url, *prefix;
     unsigned seed;
     long long seq0;
@@ -61,7 +62,8 @@ static uint32_t rnd(void) { /* xorshift64* */
 static void flood_usage(FILE *f) {
     fprintf(f,
             "usage: afmtwin flood [--rate N] [--seconds S] [--kinds LIST] [--valid-rate R]\n"
-            "                     [--seq0 N] [--seed N] [--lcm-url URL] [--prefix NAME_]\n\n"
+            "                     [--valid-kind K] [--seq0 N] [--seed N] [--lcm-url URL]\n"
+            "                     [--prefix NAME_]\n\n"
             "Sends a bounded flood of junk to the daemon's command channels, with valid\n"
             "setpoints mixed in, and prints what it sent. For robustness tests: the daemon must\n"
             "reject the junk, count every message and apply every valid command.\n\n"
@@ -71,6 +73,8 @@ static void flood_usage(FILE *f) {
             "  --kinds LIST    comma-separated subset of random,truncated,wrongtype,values,\n"
             "                  lengths (default all, mixed)\n"
             "  --valid-rate R  valid setpoints a second among the junk (default 10; 0: none)\n"
+            "  --valid-kind K  setpoint (default: Z 40 / 41 nm) or param (model.beam.length_m\n"
+            "                  225 / 226 um: the daemon builds a model for each, slowly)\n"
             "  --seq0 N        seq of the first valid setpoint (default: wall-clock us)\n"
             "  --seed N        junk generator seed (default 1)\n"
             "  --lcm-url URL   the daemon's command URL (default: LCM_DEFAULT_URL or LCM's)\n"
@@ -300,6 +304,9 @@ int afm_cmd_flood(int argc, char **argv) {
         } else if (!strcmp(a, "--seed")) {
             if (afmt_parse_double(v, &x) || !(x >= 0 && x < 4e9) || x != floor(x)) goto bad;
             o.seed = (unsigned)x;
+        } else if (!strcmp(a, "--valid-kind")) {
+            if (strcmp(v, "setpoint") && strcmp(v, "param")) goto bad;
+            o.valid_param = !strcmp(v, "param");
         } else if (!strcmp(a, "--kinds")) {
             if (parse_kinds(v, o.want)) goto bad;
         } else if (!strcmp(a, "--lcm-url")) {
@@ -350,11 +357,24 @@ int afm_cmd_flood(int argc, char **argv) {
             sent[k]++;
             total++;
         }
-        while (valid < vdue) {
-            afmtwin_setpoint_t m = {
-                .utime = afmt_wall_us(), .seq = seq, .separation_m = valid % 2 ? 41e-9 : 40e-9};
-            int n = afmtwin_setpoint_t_encode(b, 0, (int)sizeof b, &m);
-            if (lcm_publish(lcm, o.chan[1], b, (unsigned)n) < 0) failed++;
+        while (valid < vdue && afmt_mono_s() - t0 < o.seconds) {
+            int n, ch = 1;
+            if (o.valid_param) {
+                static const char *len_name[1] = {"model.beam.length_m"};
+                double len = valid % 2 ? 226e-6 : 225e-6;
+                afmtwin_param_t m = {.utime = afmt_wall_us(),
+                                     .seq = seq,
+                                     .n = 1,
+                                     .name = (char **)len_name,
+                                     .value = &len};
+                n = afmtwin_param_t_encode(b, 0, (int)sizeof b, &m);
+                ch = 2;
+            } else {
+                afmtwin_setpoint_t m = {
+                    .utime = afmt_wall_us(), .seq = seq, .separation_m = valid % 2 ? 41e-9 : 40e-9};
+                n = afmtwin_setpoint_t_encode(b, 0, (int)sizeof b, &m);
+            }
+            if (lcm_publish(lcm, o.chan[ch], b, (unsigned)n) < 0) failed++;
             if (first_seq < 0) first_seq = seq;
             last_seq = seq++;
             valid++;
