@@ -39,7 +39,7 @@ TOOL_SRC   := $(wildcard tools/*.c)
 TOOL_OBJ   := $(patsubst %.c,$(BUILD)/obj/%.o,$(TOOL_SRC))
 TEST_SRC   := $(wildcard tests/test_*.c)
 TEST_BIN   := $(patsubst tests/%.c,$(BUILD)/tests/%,$(TEST_SRC))
-TEST_COMMON := $(BUILD)/obj/tests/check.o $(BUILD)/obj/tests/fixtures.o
+TEST_COMMON := $(BUILD)/obj/tests/check.o $(BUILD)/obj/tests/fixtures.o $(BUILD)/obj/tests/msg_examples.o
 
 .PHONY: all deps run test validate bench install clean format format-check can-probe \
         sanitize sanitize-build fuzz fuzzers flood
@@ -141,7 +141,7 @@ fuzzers: $(FUZZ_BIN) $(BUILD)/fuzz/seeds
 $(BUILD)/fuzz/fuzz_%: $(BUILD)/obj/fuzz/fuzz_%.o $(LIBS_ALL)
 	@mkdir -p $(dir $@)
 	$(CC) $(CFLAGS) -fsanitize=fuzzer -o $@ $^ $(LDLIBS)
-$(BUILD)/fuzz/seeds: $(BUILD)/obj/fuzz/seeds.o $(LIBS_ALL)
+$(BUILD)/fuzz/seeds: $(BUILD)/obj/fuzz/seeds.o $(BUILD)/obj/tests/msg_examples.o $(LIBS_ALL)
 	@mkdir -p $(dir $@)
 	$(CC) $(CFLAGS) -o $@ $^ $(LDLIBS)
 

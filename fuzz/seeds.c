@@ -7,6 +7,7 @@
 #include "afm_can_codec.h"
 #include "afm_config.h"
 #include "afm_lcm_wire.h"
+#include "../tests/msg_examples.h"
 #include "afmtwin_control_t.h"
 #include "afmtwin_dither_t.h"
 #include "afmtwin_harmonics_t.h"
@@ -59,22 +60,18 @@ static void out_seed(const afm_wire_type *t, const char *name, int len) {
 }
 
 static void commands(void) {
-    double f[4] = {338112, 2.07e6, 300e3, 1e6}, a[4] = {0.087e-9, 1e-11, 0, 0},
-           p[4] = {0, 0.5, 0, 0};
-    afmtwin_dither_t d = {
-        .utime = 1, .seq = 7, .n_tones = 1, .frequency_hz = f, .amplitude_m = a, .phase_rad = p};
-    int n = afmtwin_dither_t_encode(buf, 0, sizeof buf, &d);
+    int n = ex_dither(buf, sizeof buf, 1);
     cmd_seed(AFM_CMD_DITHER, "dither-1", n);
     out_seed(&afm_wire_dither_t, "dither-1", n);
-    d.n_tones = 4;
-    n = afmtwin_dither_t_encode(buf, 0, sizeof buf, &d);
+    n = ex_dither(buf, sizeof buf, 4);
     cmd_seed(AFM_CMD_DITHER, "dither-4", n);
-    d.n_tones = 1;
-    afmtwin_dither_t_encode(buf, 0, sizeof buf, &d);
-    buf[24] = 127; /* issue 13: the 33-byte dither that leaked */
+    n = ex_dither(buf, sizeof buf, 1);
+    buf[EX_DITHER_N_TONES_AT] = 127; /* issue 13: the 33-byte dither that leaked */
     cmd_seed(AFM_CMD_DITHER, "dither-leak-33", 33);
-    buf[24] = 0xfd; /* n_tones -3 */
+    buf[EX_DITHER_N_TONES_AT] = 0xfd; /* n_tones -3 */
     cmd_seed(AFM_CMD_DITHER, "dither-n-3", n);
+    n = ex_param(buf, sizeof buf);
+    cmd_seed(AFM_CMD_PARAM, "param-2", n);
     afmtwin_setpoint_t sp = {.utime = 1, .seq = 8, .separation_m = 40e-9, .ramp_rate_m_s = 1e-6};
     n = afmtwin_setpoint_t_encode(buf, 0, sizeof buf, &sp);
     cmd_seed(AFM_CMD_SETPOINT, "setpoint-ramp", n);
@@ -101,46 +98,15 @@ static void commands(void) {
 }
 
 static void outputs(void) {
-    float x[3] = {1e-9f, -2e-9f, 3e-9f};
-    int32_t cnt[3] = {1, -2, 3};
-    afmtwin_samples_t s = {.utime = 5,
-                           .seq_applied = 6,
-                           .stream = 1,
-                           .t0_s = 0.5,
-                           .rate_hz = 1e6,
-                           .n = 3,
-                           .deflection_m = x,
-                           .obd_m = x,
-                           .obd_counts = cnt,
-                           .force_n = x};
-    int n = afmtwin_samples_t_encode(buf, 0, sizeof buf, &s);
+    int n = ex_samples(buf, sizeof buf);
     out_seed(&afm_wire_samples_t, "samples-3", n);
-    buf[41] = 0x40; /* issue 13: n = 0x40000003 */
+    buf[EX_SAMPLES_N_AT] = 0x40; /* issue 13: n = 0x40000003 */
     out_seed(&afm_wire_samples_t, "samples-n-huge", n);
-    int16_t k[2] = {1, 3};
-    double amp[2] = {5e-8, 1e-10}, ph[2] = {90, 10};
-    afmtwin_harmonics_t h = {.n = 2,
-                             .k = k,
-                             .deflection_amplitude_m = amp,
-                             .deflection_phase_deg = ph,
-                             .force_amplitude_n = amp,
-                             .force_phase_deg = ph,
-                             .phase_diff_deg = ph,
-                             .lockin_amplitude_m = 5e-8};
-    n = afmtwin_harmonics_t_encode(buf, 0, sizeof buf, &h);
+    n = ex_harmonics(buf, sizeof buf);
     out_seed(&afm_wire_harmonics_t, "harmonics-2", n);
-    afmtwin_status_t st = {.mode = "realtime",
-                           .last_reject = "dither: truncated",
-                           .can_state = "off",
-                           .can_last_reject = "",
-                           .last_refusal = "",
-                           .last_drop = "",
-                           .pause_reason = "",
-                           .received = 3,
-                           .applied = 2};
-    n = afmtwin_status_t_encode(buf, 0, sizeof buf, &st);
+    n = ex_status(buf, sizeof buf, "dither: truncated");
     out_seed(&afm_wire_status_t, "status", n);
-    memset(buf + 72, 0xff, 4); /* issue 13: string length 0xffffffff */
+    memset(buf + EX_STATUS_REJECT_AT, 0xff, 4); /* issue 13: string length 0xffffffff */
     out_seed(&afm_wire_status_t, "status-strlen", n);
 }
 
@@ -195,11 +161,8 @@ static void logs(void) {
         fprintf(stderr, "seeds: cannot write %s\n", path);
         exit(1);
     }
-    double f[1] = {338112}, a[1] = {0.087e-9}, p[1] = {0};
-    afmtwin_dither_t d = {
-        .seq = 1, .n_tones = 1, .frequency_hz = f, .amplitude_m = a, .phase_rad = p};
     afmtwin_setpoint_t sp = {.seq = 2, .separation_m = 40e-9};
-    int n1 = afmtwin_dither_t_encode(buf, 0, sizeof buf, &d);
+    int n1 = ex_dither(buf, sizeof buf, 1);
     lcm_eventlog_event_t ev = {
         .timestamp = 0, .channellen = 14, .datalen = n1, .channel = "AFMTWIN_DITHER", .data = buf};
     lcm_eventlog_write_event(l, &ev);

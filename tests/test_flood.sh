@@ -21,9 +21,8 @@ if [ "${3:-}" != "--inside" ]; then
     echo "FAIL test_flood.sh: 'unshare -n' is not permitted here (no private network namespace)"
     echo "0 passed, 1 failed"; exit 1
   fi
-  if ! out=$(make --no-print-directory -s sanitize-build BUILD="$BUILD" 2>&1); then
-    echo "$out" | tail -20; echo "FAIL make sanitize-build"; echo "0 passed, 1 failed"; exit 1
-  fi
+  . tests/san_build.sh
+  san_build "$BUILD"
   exec unshare -n sh -c 'ip link set lo up && ip link set lo multicast on &&
     ip route add 224.0.0.0/4 dev lo && exec bash "$0" "$1" "$2" --inside' "$0" "$BUILD" "$MODE"
 fi

@@ -6,12 +6,6 @@
 set -u
 BUILD=${1:-build}
 cd "$(dirname "$0")/.." || exit 1
-if ! command -v clang >/dev/null; then
-  echo "FAIL clang is not installed (Debian packages clang libclang-rt-dev: make deps)"
-  echo "0 passed, 1 failed"; exit 1
-fi
-if ! out=$(make --no-print-directory -s sanitize-build BUILD="$BUILD" 2>&1); then
-  echo "$out" | tail -20
-  echo "FAIL make sanitize-build"; echo "0 passed, 1 failed"; exit 1
-fi
+. tests/san_build.sh
+san_build "$BUILD"
 exec bash tests/fuzz.sh "$BUILD/san" 0 "${AFMTWIN_FUZZ_SECONDS:-3}"

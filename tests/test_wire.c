@@ -11,12 +11,9 @@
 #include "afm_cmd.h"
 #include "afm_lcm_log.h"
 #include "afm_lcm_wire.h"
-#include "afmtwin_dither_t.h"
-#include "afmtwin_harmonics_t.h"
-#include "afmtwin_param_t.h"
 #include "afmtwin_samples_t.h"
-#include "afmtwin_status_t.h"
 #include "check.h"
+#include "msg_examples.h"
 
 #include <stdio.h>
 #include <stdlib.h>
@@ -61,19 +58,7 @@ static void all_cuts(const afm_wire_type *t, int full, const char *what) {
 }
 
 static void test_types(void) {
-    float fx[3] = {1, 2, 3}, fo[3] = {4, 5, 6}, ff[3] = {7, 8, 9};
-    int32_t cnt[3] = {1, -2, 3};
-    afmtwin_samples_t s = {.utime = 5,
-                           .seq_applied = 6,
-                           .stream = 1,
-                           .t0_s = 0.5,
-                           .rate_hz = 1e6,
-                           .n = 3,
-                           .deflection_m = fx,
-                           .obd_m = fo,
-                           .obd_counts = cnt,
-                           .force_n = ff};
-    int n = afmtwin_samples_t_encode(buf, 0, sizeof buf, &s);
+    int n = ex_samples(buf, sizeof buf);
     all_cuts(&afm_wire_samples_t, n, "samples_t n 3");
     afmtwin_samples_t d;
     check_true(afm_wire_decode(&afm_wire_samples_t, buf, (size_t)n, &d, err, sizeof err) == 0 &&
@@ -81,61 +66,41 @@ static void test_types(void) {
                "samples_t decoded values");
     afm_wire_free(&afm_wire_samples_t, &d);
     /* issue 13: n = 0x40000010 -- 4 * n wraps in lcm-gen's int arithmetic */
-    put_be32(buf + 8 + 8 + 8 + 1 + 8 + 8, 0x40000010u);
+    put_be32(buf + EX_SAMPLES_N_AT, 0x40000010u);
     check_true(rejected(&afm_wire_samples_t, (size_t)n, "truncated at deflection_m"),
                "samples_t with n = 0x40000010: rejected before lcm-gen's decoder");
-    put_be32(buf + 8 + 8 + 8 + 1 + 8 + 8, 0xfffffffeu);
+    put_be32(buf + EX_SAMPLES_N_AT, 0xfffffffeu);
     check_true(rejected(&afm_wire_samples_t, (size_t)n, "negative count -2"),
                "samples_t with n = -2: rejected");
 
-    int16_t k[2] = {1, 3};
-    double a[2] = {1e-9, 2e-10}, b[2] = {10, 20};
-    afmtwin_harmonics_t h = {.n = 2,
-                             .k = k,
-                             .deflection_amplitude_m = a,
-                             .deflection_phase_deg = b,
-                             .force_amplitude_n = a,
-                             .force_phase_deg = b,
-                             .phase_diff_deg = b};
-    n = afmtwin_harmonics_t_encode(buf, 0, sizeof buf, &h);
+    n = ex_harmonics(buf, sizeof buf);
     all_cuts(&afm_wire_harmonics_t, n, "harmonics_t n 2");
 
-    afmtwin_status_t st = {.last_reject = "x",
-                           .mode = "realtime",
-                           .can_state = "off",
-                           .can_last_reject = "",
-                           .last_refusal = "",
-                           .last_drop = "",
-                           .pause_reason = ""};
-    n = afmtwin_status_t_encode(buf, 0, sizeof buf, &st);
+    n = ex_status(buf, sizeof buf, "x");
     all_cuts(&afm_wire_status_t, n, "status_t");
     /* issue 13: last_reject's length 0xffffffff (lcm-gen: malloc(-1), memcpy SIZE_MAX) */
-    size_t at = 8 + 8 + 8 + 8 + 8 + 8 + 8 + 8 + 8; /* hash .. rejected */
-    put_be32(buf + at, 0xffffffffu);
+    put_be32(buf + EX_STATUS_REJECT_AT, 0xffffffffu);
     check_true(rejected(&afm_wire_status_t, (size_t)n, "last_reject has a bad length -1"),
                "status_t string length 0xffffffff: rejected");
-    n = afmtwin_status_t_encode(buf, 0, sizeof buf, &st);
-    buf[at + 4 + 1] = 'y'; /* "x" lost its NUL */
+    n = ex_status(buf, sizeof buf, "x");
+    buf[EX_STATUS_REJECT_AT + 4 + 1] = 'y'; /* "x" lost its NUL */
     check_true(rejected(&afm_wire_status_t, (size_t)n, "not a proper string"),
                "status_t string without its NUL: rejected");
-    n = afmtwin_status_t_encode(buf, 0, sizeof buf, &st);
-    put_be32(buf + at, 0);
+    n = ex_status(buf, sizeof buf, "x");
+    put_be32(buf + EX_STATUS_REJECT_AT, 0);
     check_true(rejected(&afm_wire_status_t, (size_t)n, "bad length 0"),
                "status_t string of length 0: rejected");
 
-    const char *names[2] = {"forces.radius_m", "drive.separation_m"};
-    afmtwin_param_t p = {.n = 2, .name = (char **)names, .value = (double[]){1e-8, 3e-8}};
-    n = afmtwin_param_t_encode(buf, 0, sizeof buf, &p);
+    n = ex_param(buf, sizeof buf);
     all_cuts(&afm_wire_param_t, n, "param_t n 2");
-    buf[26 + 4 + 3] = 0; /* a NUL inside the first name */
+    buf[EX_PARAM_NAME0_LEN_AT + 4 + 3] = 0; /* a NUL inside the first name */
     check_true(rejected(&afm_wire_param_t, (size_t)n, "not a proper string"),
                "param_t name with a NUL inside: rejected");
 
-    double f[4] = {3e5, 3e5, 3e5, 3e5}, am[4] = {1e-10, 0, 0, 0}, ph[4] = {0};
-    afmtwin_dither_t dt = {.n_tones = 4, .frequency_hz = f, .amplitude_m = am, .phase_rad = ph};
-    n = afmtwin_dither_t_encode(buf, 0, sizeof buf, &dt);
+    n = ex_dither(buf, sizeof buf, 4);
     all_cuts(&afm_wire_dither_t, n, "dither_t n_tones 4");
-    buf[24] = 0xfd; /* issue 13: n_tones -3 -> lcm_malloc(8 * -3) = malloc((size_t)-24) */
+    buf[EX_DITHER_N_TONES_AT] =
+        0xfd; /* issue 13: n_tones -3 -> lcm_malloc(8 * -3) = malloc((size_t)-24) */
     check_true(rejected(&afm_wire_dither_t, (size_t)n, "negative count -3"),
                "dither_t n_tones -3: rejected before any malloc");
     /* the list of types covers every msgtypes file */
@@ -150,10 +115,8 @@ static void test_types(void) {
  * 300 MB in a 15 s flood). Now the check rejects it before the decoder allocates; under
  * LSan (make sanitize) a leak fails this binary. */
 static void test_leak_input(void) {
-    double f[1] = {3e5}, am[1] = {1e-10}, ph[1] = {0};
-    afmtwin_dither_t dt = {.n_tones = 1, .frequency_hz = f, .amplitude_m = am, .phase_rad = ph};
-    afmtwin_dither_t_encode(buf, 0, sizeof buf, &dt);
-    buf[24] = 127;
+    ex_dither(buf, sizeof buf, 1);
+    buf[EX_DITHER_N_TONES_AT] = 127;
     afm_cmd_limits lim = {.sample_rate_hz = 14.06e6};
     afm_cmd c;
     int bad = 0;
@@ -170,19 +133,9 @@ static void test_leak_input(void) {
 static void test_mutations(void) {
     srand(13);
     int accepted = 0, disagree = 0;
-    double f[4] = {3e5, 3e5, 3e5, 3e5}, am[4] = {1e-10, 0, 0, 0}, ph[4] = {0};
-    afmtwin_dither_t dt = {.n_tones = 2, .frequency_hz = f, .amplitude_m = am, .phase_rad = ph};
-    afmtwin_status_t st = {.last_reject = "abc",
-                           .mode = "realtime",
-                           .can_state = "ok",
-                           .can_last_reject = "d",
-                           .last_refusal = "",
-                           .last_drop = "e",
-                           .pause_reason = ""};
     for (int trial = 0; trial < 20000; trial++) {
         const afm_wire_type *t = trial % 2 ? &afm_wire_status_t : &afm_wire_dither_t;
-        int n = trial % 2 ? afmtwin_status_t_encode(buf, 0, sizeof buf, &st)
-                          : afmtwin_dither_t_encode(buf, 0, sizeof buf, &dt);
+        int n = trial % 2 ? ex_status(buf, sizeof buf, "abc") : ex_dither(buf, sizeof buf, 2);
         int flips = 1 + rand() % 3;
         for (int i = 0; i < flips; i++)
             buf[8 + rand() % (n - 8)] = (unsigned char)rand();

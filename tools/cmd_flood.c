@@ -243,28 +243,6 @@ static int junk(int kind, int *t, uint8_t *b, int cap) {
     }
 }
 
-static int parse_kinds(const char *s, bool *want) {
-    char buf[128];
-    if (strlen(s) >= sizeof buf) return -1;
-    strcpy(buf, s);
-    memset(want, 0, N_KINDS * sizeof *want);
-    int n = 0;
-    char *save = NULL;
-    for (char *tok = strtok_r(buf, ",", &save); tok; tok = strtok_r(NULL, ",", &save)) {
-        int k = -1;
-        for (int i = 0; i < N_KINDS; i++)
-            if (!strcmp(tok, kind_name[i])) k = i;
-        if (k < 0 && strcmp(tok, "all")) return -1;
-        if (k < 0)
-            for (int i = 0; i < N_KINDS; i++)
-                want[i] = true;
-        else
-            want[k] = true;
-        n++;
-    }
-    return n ? 0 : -1;
-}
-
 static void sleep_until(double t) {
     double now = afmt_mono_s();
     if (t <= now) return;
@@ -308,7 +286,7 @@ int afm_cmd_flood(int argc, char **argv) {
             if (strcmp(v, "setpoint") && strcmp(v, "param")) goto bad;
             o.valid_param = !strcmp(v, "param");
         } else if (!strcmp(a, "--kinds")) {
-            if (parse_kinds(v, o.want)) goto bad;
+            if (afmt_parse_subset(v, kind_name, N_KINDS, true, o.want)) goto bad;
         } else if (!strcmp(a, "--lcm-url")) {
             o.url = v;
         } else if (!strcmp(a, "--prefix")) {

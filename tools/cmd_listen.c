@@ -409,22 +409,7 @@ static int listen_log(listen_ctx *c) {
 }
 
 static int parse_channels(const char *s, bool *want) {
-    for (int i = 0; i < N_OUT; i++)
-        want[i] = false;
-    char buf[128];
-    if (strlen(s) >= sizeof buf) return -1;
-    strcpy(buf, s);
-    char *save = NULL;
-    int n = 0;
-    for (char *t = strtok_r(buf, ",", &save); t; t = strtok_r(NULL, ",", &save)) {
-        int k = -1;
-        for (int i = 0; i < N_OUT; i++)
-            if (!strcmp(t, out_name[i])) k = i;
-        if (k < 0) return -1;
-        want[k] = true;
-        n++;
-    }
-    return n > 0 ? 0 : -1;
+    return afmt_parse_subset(s, out_name, N_OUT, false, want);
 }
 
 int afm_cmd_listen(int argc, char **argv) {

@@ -265,22 +265,7 @@ static afm_cmd_kind channel_kind(const replay_ctx *x, const char *channel) {
 
 static int parse_channels(const char *s, bool *want) {
     static const char *const names[N_OUT] = {"samples", "harmonics", "status"};
-    char buf[128];
-    if (strlen(s) >= sizeof buf) return -1;
-    strcpy(buf, s);
-    for (int i = 0; i < N_OUT; i++)
-        want[i] = false;
-    int n = 0;
-    char *save = NULL;
-    for (char *t = strtok_r(buf, ",", &save); t; t = strtok_r(NULL, ",", &save)) {
-        int k = -1;
-        for (int i = 0; i < N_OUT; i++)
-            if (!strcmp(t, names[i])) k = i;
-        if (k < 0) return -1;
-        want[k] = true;
-        n++;
-    }
-    return n ? 0 : -1;
+    return afmt_parse_subset(s, names, N_OUT, false, want);
 }
 
 static int parse_opts(int argc, char **argv, replay_opts *o) {

@@ -48,6 +48,26 @@ int afmt_parse_list(const char *s, double *v, int max) {
     return n;
 }
 
+int afmt_parse_subset(const char *s, const char *const *names, int n, bool all_ok, bool *want) {
+    char buf[256];
+    if (!s || strlen(s) >= sizeof buf) return -1;
+    strcpy(buf, s);
+    for (int i = 0; i < n; i++)
+        want[i] = false;
+    int got = 0;
+    char *save = NULL;
+    for (char *t = strtok_r(buf, ",", &save); t; t = strtok_r(NULL, ",", &save)) {
+        int k = -1;
+        for (int i = 0; i < n; i++)
+            if (!strcmp(t, names[i])) k = i;
+        if (k < 0 && !(all_ok && !strcmp(t, "all"))) return -1;
+        for (int i = 0; i < n; i++)
+            if (i == k || k < 0) want[i] = true;
+        got++;
+    }
+    return got ? 0 : -1;
+}
+
 static int hexval(int c) {
     if (c >= '0' && c <= '9') return c - '0';
     if (c >= 'a' && c <= 'f') return c - 'a' + 10;

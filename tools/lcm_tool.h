@@ -8,6 +8,7 @@
 #include "afm_lcm_wire.h"
 
 #include <lcm/lcm.h>
+#include <stdbool.h>
 #include <stddef.h>
 #include <stdint.h>
 
@@ -34,6 +35,9 @@ int afmt_channel(const char *prefix, const char *suffix, char *out, char *err, s
 int afmt_parse_double(const char *s, double *v);
 /* Comma-separated list of up to max numbers: count, or -1. */
 int afmt_parse_list(const char *s, double *v, int max);
+/* A comma-separated subset of names[0..n) into want[0..n) (the rest false): 0, or -1 (an
+ * unknown or empty item, nothing given). "all" stands for every name when all_ok. */
+int afmt_parse_subset(const char *s, const char *const *names, int n, bool all_ok, bool *want);
 /* Hex string (pairs of hex digits, optional spaces) into buf: byte count, or -1. */
 int afmt_parse_hex(const char *s, uint8_t *buf, int cap);
 
