@@ -8,7 +8,8 @@ san_build() {
     echo "0 passed, 1 failed"; exit 1
   fi
   local out
-  if ! out=$(make --no-print-directory -s sanitize-build BUILD="$1" 2>&1); then
+  # -j2: the build machine has two cores (this runs outside the caller's make jobserver)
+  if ! out=$(make --no-print-directory -s -j2 sanitize-build BUILD="$1" 2>&1); then
     echo "$out" | tail -20
     echo "FAIL make sanitize-build"; echo "0 passed, 1 failed"; exit 1
   fi
