@@ -9,8 +9,10 @@ for t in "$BUILD"/tests/test_* tests/test_*.sh; do
   [ -e "$t" ] || continue
   case "$t" in *.d|*.o) continue;; esac
   echo "== $t"
+  t0=$(date +%s)
   out=$(if [ "${t%.sh}" != "$t" ]; then bash "$t" "$BUILD"; else "$t"; fi 2>&1); rc=$?
   echo "$out"
+  echo "   ($t: $(( $(date +%s) - t0 )) s)"
   line=$(echo "$out" | grep -E '^[0-9]+ passed, [0-9]+ failed' | tail -1)
   if [ -z "$line" ]; then
     echo "FAIL $t: no result line (exit $rc)"; fail=$((fail+1)); continue

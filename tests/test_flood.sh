@@ -82,10 +82,12 @@ else
   sleep 1
   rss0=$(rss_kb $DPID); rss_first=""; valid=0; seq0=1000000; last_seq=""
   for kind in random truncated wrongtype values lengths; do
-    out=$("$A" flood --kinds $kind --rate $RATE --seconds $PER_KIND --valid-rate 10 --seq0 $seq0 --seed $seq0)
+    out=$("$A" flood --kinds $kind --rate $RATE --seconds $PER_KIND --valid-rate 20 --seq0 $seq0 --seed $seq0)
     v=$(echo "$out" | sed -n 's/.*+ \([0-9]*\) valid.*/\1/p'); valid=$((valid + v))
-    last_seq=$(echo "$out" | sed -n 's/.*valid (seq [0-9]*\.\.\([0-9]*\)).*/\1/p')
-    seq0=$((last_seq + 1))
+    if [ "${v:-0}" -gt 0 ]; then
+      last_seq=$(echo "$out" | sed -n 's/.*valid (seq [0-9]*\.\.\([0-9]*\)).*/\1/p')
+      seq0=$((last_seq + 1))
+    fi
     sleep 0.5
     rss=$(rss_kb $DPID)
     [ -z "$rss_first" ] && rss_first=$rss
