@@ -10,7 +10,10 @@
 #include <string.h>
 #include <time.h>
 
-#define MODEL_WAIT_MS 20 /* longest wait for the model change in flight before the next */
+#define MODEL_WAIT_MS 20     /* longest wait for the model change in flight before the next */
+#define FLOOD_RATE 2000.0    /* messages a second above which the receive thread naps */
+#define FLOOD_WINDOW_S 0.01  /* ... measured over this window */
+#define FLOOD_NAP_NS 500000L /* the nap: 0.5 ms */
 
 /* Count one reason (counter may be NULL: counted elsewhere) and print it, at most
  * TWIND_REASON_LINES_PER_S lines a second; the rest are summed up by main. */
@@ -237,13 +240,39 @@ static void drain_side_queues(twind *d) {
     model_changes_settled(d, 0); /* a refused model change: the shadow goes back now */
 }
 
+static long long received_now(twind *d) {
+    pthread_mutex_lock(&d->lock);
+    long long n = d->received;
+    pthread_mutex_unlock(&d->lock);
+    return n;
+}
+
 void *twind_recv_main(void *arg) {
     twind *d = arg;
     twind_rt_setup_aux(d->opt.rt_priority - 10);
+    double win_t0 = twind_mono_now();
+    long long win_n0 = 0;
+    bool flood = false;
     while (!atomic_load_explicit(&d->stop, memory_order_acquire)) {
-        if (d->io->ops->poll(d->io, 50) < 0) {
+        /* Under a flood (more than FLOOD_RATE messages a second over the last window), nap
+         * FLOOD_NAP_NS before each poll and take what came meanwhile in one go: a wakeup
+         * and a context switch per message (tens of us each on a virtual machine) would
+         * otherwise eat the core the output-chain thread needs. Commands then wait at most
+         * the nap longer; below the rate, each is taken as it arrives. */
+        if (flood) {
+            struct timespec nap = {0, FLOOD_NAP_NS};
+            nanosleep(&nap, NULL);
+        }
+        if (d->io->ops->poll(d->io, flood ? 0 : 50) < 0) {
             struct timespec ts = {0, 50000000L}; /* transport trouble: do not spin */
             nanosleep(&ts, NULL);
+        }
+        double now = twind_mono_now();
+        if (now - win_t0 >= FLOOD_WINDOW_S) {
+            long long n = received_now(d);
+            flood = (double)(n - win_n0) > FLOOD_RATE * (now - win_t0);
+            win_t0 = now;
+            win_n0 = n;
         }
         if (atomic_exchange(&d->reload, 0)) do_reload(d);
         drain_side_queues(d);

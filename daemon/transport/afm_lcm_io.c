@@ -18,6 +18,7 @@
 
 #define CH_LEN 96
 #define QUEUE_CAPACITY 1000 /* messages LCM may hold per command channel */
+#define POLL_BATCH 512      /* messages handled per poll at most */
 
 typedef struct lcm_io lcm_io;
 
@@ -57,8 +58,13 @@ static void on_raw(const lcm_recv_buf_t *rbuf, const char *channel, void *user) 
 
 static int lio_poll(afm_io *io, int timeout_ms) {
     lcm_io *l = io->impl;
-    /* lcm_handle_timeout returns > 0 after handling, 0 on timeout, < 0 on error. */
-    return lcm_handle_timeout(l->lcm, timeout_ms) < 0 ? -1 : 0;
+    /* lcm_handle_timeout returns > 0 after handling one message, 0 on timeout, < 0 on
+     * error. Whatever else is queued already goes now too (up to POLL_BATCH): one wakeup
+     * for a burst, not one per message. */
+    int rc = lcm_handle_timeout(l->lcm, timeout_ms);
+    for (int i = 0; rc > 0 && i < POLL_BATCH; i++)
+        rc = lcm_handle_timeout(l->lcm, 0);
+    return rc < 0 ? -1 : 0;
 }
 
 static int lio_samples(afm_io *io, const afm_io_samples *s) {
