@@ -2,7 +2,7 @@
 # SPDX-License-Identifier: MIT
 # test_flood.sh BUILD [--long] -- the daemon under a junk flood (afmtwin flood), inside a
 # private network namespace (loopback only), every flood bounded:
-#  A. The ASan+LSan+UBSan daemon (BUILD/san, `make sanitize-build`; model time at 0.25x the
+#  A. The ASan+LSan+UBSan daemon (BUILD/san, `make sanitize-build`; model time at 0.1x the
 #     wall clock, so that the instrumented integrator keeps up; a 6.9 MHz tone with
 #     --harmonics-max-hz 0.001, which overflowed an int) takes each kind of junk --
 #     random bytes, truncated messages, wrong types, NaN/inf/out-of-range values, crafted
@@ -71,7 +71,7 @@ else
   # shows the daemon's memory and not ASan's.
   ASAN_OPTIONS="detect_leaks=1:halt_on_error=0:quarantine_size_mb=1:log_path=$T/asan/report" \
   UBSAN_OPTIONS="print_stacktrace=1:log_path=$T/asan/ubsan" \
-    "$SAN" --config config/default.conf --speed 0.25 --harmonics-max-hz 0.001 --quiet \
+    "$SAN" --config config/default.conf --speed 0.1 --harmonics-max-hz 0.001 --quiet \
     2>"$T/san.err" &
   DPID=$!
   s=""; for _ in $(seq 1 40); do s=$(status); [ -n "$s" ] && break; sleep 0.25; done
