@@ -51,6 +51,21 @@ typedef struct {
     double *rt, *rx, *robd, *rcnt, *rf, *rbase;
 } stream;
 
+/* Tone 0's phase for the estimators, from the sample count: theta = p_org + wdt k at the
+ * sample k steps after the origin t_org (a sample time), set up from the drive's phase_rad,
+ * omega and t0 (theta = phase_rad + omega (t - t0)) whenever those change. The count is
+ * exact, so theta carries only roundings relative to itself (~3 eps |theta|), not the
+ * rounding of the sample time t (omega ulp(t): 4e-9 rad at 20 s, growing with uptime),
+ * which the estimators' phase trackers must not mistake for a changing rate. The origin
+ * moves forward every PHASE_REBASE samples (p_org wrapped mod 2 pi, a jump of whole turns
+ * the trackers keep their lock through), so |theta| stays below 2 pi + wdt PHASE_REBASE. */
+#define PHASE_REBASE 1048576.0
+typedef struct {
+    bool set;
+    double ph, w, t0; /* the drive's tone 0 it follows */
+    double t_org, p_org, wdt;
+} phase_gen;
+
 struct afm_chain {
     afm_obd obd;
     int n_streams;
@@ -62,6 +77,7 @@ struct afm_chain {
     /* estimators */
     bool attached;
     const afm_drive *drive;
+    phase_gen phase;
     afm_harm harm;
     afm_cycle cycle;
     afm_lockin lockin;
@@ -172,6 +188,11 @@ void afm_chain_destroy(afm_chain **cp) {
     *cp = NULL;
 }
 
+/* Before the estimators are reset: their table rebuilds into the stats (which are kept). */
+static void keep_rebuilds(afm_chain *c) {
+    c->stats.estimator_rebuilds += c->harm.trk.rate_changes + c->lockin.trk.rate_changes;
+}
+
 int afm_chain_attach(afm_chain *c, const afm_sim *sim, char *err, size_t errlen) {
     if (!sim) {
         c->attached = false;
@@ -184,6 +205,8 @@ int afm_chain_attach(afm_chain *c, const afm_sim *sim, char *err, size_t errlen)
     c->forces = f;
     c->cos_alpha = f->cos_alpha;
     c->drive = afm_sim_drive(sim);
+    c->phase.set = false;
+    keep_rebuilds(c);
     afm_harm_reset(&c->harm);
     afm_lockin_reset(&c->lockin);
     c->attached = true;
@@ -342,31 +365,62 @@ static void put_period(afm_chain *c) {
     c->stats.periods++;
 }
 
-/* The estimators over n samples. Tone 0's phase is computed here for the whole block, by
- * afm_drive_phase's own expression (the same values, without a call per sample). harm and
- * cycle share the period clock: each run ends at a sample where harm completed a period,
- * and cycle and lockin are brought to the same sample before the record is written.
- * estimator_rejects counts, per run, the most samples any one estimator refused. */
-static void estimators(afm_chain *c, const afm_sample *s, const double *obd, int n) {
-    double th[CHUNK], f[CHUNK];
+/* theta[i] of samples s[0..n) by phase_gen (see there); samples off the time grid of the
+ * drive's t0 (not made by a simulator at this chain's rate) by afm_drive_phase's own
+ * expression. */
+static void drive_phase(afm_chain *c, const afm_sample *s, int n, double *th, double *f) {
     const afm_drive *d = c->drive;
-    double ph = d->phase_rad[0], w = d->omega_rad_s[0], t0 = d->t0_s[0];
+    phase_gen *g = &c->phase;
+    if (!g->set || g->ph != d->phase_rad[0] || g->w != d->omega_rad_s[0] || g->t0 != d->t0_s[0]) {
+        g->ph = g->p_org = d->phase_rad[0];
+        g->w = d->omega_rad_s[0];
+        g->t0 = g->t_org = d->t0_s[0];
+        g->wdt = g->w * (1.0 / c->fs);
+        g->set = true;
+    }
+    double kd = (s[0].t_s - g->t_org) * c->fs, k0 = nearbyint(kd);
+    bool grid = fabs(kd - k0) < 1e-3 && k0 >= 0 && k0 < 0x1p52;
+    if (grid && k0 >= PHASE_REBASE) {
+        g->p_org = afm_clock_wrap(fma(g->wdt, k0, g->p_org));
+        g->t_org = s[0].t_s;
+        k0 = 0.0;
+    }
+    double p0 = grid ? g->p_org : d->phase_rad[0], w = grid ? g->wdt : d->omega_rad_s[0];
     int i0 = 0;
 #if defined(__AVX2__) && defined(__FMA__)
-    /* four samples at a time, the same operations (no contraction): the same bits */
-    const __m256d vph = _mm256_set1_pd(ph), vw = _mm256_set1_pd(w), vt0 = _mm256_set1_pd(t0);
-    for (; i0 + 4 <= n; i0 += 4) {
-        const afm_sample *q = s + i0;
-        __m256d t = _mm256_set_pd(q[3].t_s, q[2].t_s, q[1].t_s, q[0].t_s);
-        __m256d fv = _mm256_set_pd(q[3].f_n, q[2].f_n, q[1].f_n, q[0].f_n);
-        _mm256_storeu_pd(th + i0, _mm256_add_pd(vph, _mm256_mul_pd(vw, _mm256_sub_pd(t, vt0))));
-        _mm256_storeu_pd(f + i0, fv);
+    const __m256d vp = _mm256_set1_pd(p0), vw = _mm256_set1_pd(w);
+    if (grid) {
+        __m256d vk = _mm256_add_pd(_mm256_set1_pd(k0), _mm256_set_pd(3.0, 2.0, 1.0, 0.0));
+        for (; i0 + 4 <= n; i0 += 4) {
+            const afm_sample *q = s + i0;
+            _mm256_storeu_pd(th + i0, _mm256_fmadd_pd(vw, vk, vp));
+            _mm256_storeu_pd(f + i0, _mm256_set_pd(q[3].f_n, q[2].f_n, q[1].f_n, q[0].f_n));
+            vk = _mm256_add_pd(vk, _mm256_set1_pd(4.0));
+        }
+    } else {
+        /* four samples at a time, the same operations (no contraction): the same bits */
+        const __m256d vt0 = _mm256_set1_pd(d->t0_s[0]);
+        for (; i0 + 4 <= n; i0 += 4) {
+            const afm_sample *q = s + i0;
+            __m256d t = _mm256_set_pd(q[3].t_s, q[2].t_s, q[1].t_s, q[0].t_s);
+            _mm256_storeu_pd(th + i0, _mm256_add_pd(vp, _mm256_mul_pd(vw, _mm256_sub_pd(t, vt0))));
+            _mm256_storeu_pd(f + i0, _mm256_set_pd(q[3].f_n, q[2].f_n, q[1].f_n, q[0].f_n));
+        }
     }
 #endif
     for (int i = i0; i < n; i++) {
-        th[i] = ph + w * (s[i].t_s - t0);
+        th[i] = grid ? fma(w, k0 + (double)i, p0) : p0 + w * (s[i].t_s - d->t0_s[0]);
         f[i] = s[i].f_n;
     }
+}
+
+/* The estimators over n samples, with tone 0's phase from drive_phase. harm and cycle share
+ * the period clock: each run ends at a sample where harm completed a period, and cycle and
+ * lockin are brought to the same sample before the record is written. estimator_rejects
+ * counts, per run, the most samples any one estimator refused. */
+static void estimators(afm_chain *c, const afm_sample *s, const double *obd, int n) {
+    double th[CHUNK], f[CHUNK];
+    drive_phase(c, s, n, th, f);
     for (int i = 0; i < n;) {
         long long rh = 0, rc = 0, rl;
         int done, dc;
@@ -450,6 +504,7 @@ void afm_chain_reset(afm_chain *c) {
         afm_decim_reset(c->st[i].dec);
         c->st[i].head = c->st[i].count = 0;
     }
+    keep_rebuilds(c);
     afm_harm_reset(&c->harm);
     afm_lockin_reset(&c->lockin);
     if (c->attached) afm_cycle_reset(&c->cycle);
@@ -461,6 +516,7 @@ int afm_chain_n_streams(const afm_chain *c) {
 }
 afm_chain_stats afm_chain_stats_get(const afm_chain *c) {
     afm_chain_stats s = c->stats;
+    s.estimator_rebuilds += c->harm.trk.rate_changes + c->lockin.trk.rate_changes;
     for (int i = 0; i < c->n_streams; i++)
         s.nonfinite += afm_decim_nonfinite(c->st[i].dec);
     return s;

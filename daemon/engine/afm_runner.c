@@ -404,6 +404,17 @@ void afm_runner_destroy(afm_runner **rp) {
     *rp = NULL;
 }
 
+int afm_runner_set_time(afm_runner *r, double t_s, char *err, size_t errlen) {
+    if (r->samples != 0 || r->open || r->n_pending || afm_spsc_count(&r->ring) ||
+        afm_sim_set_time(r->sim, t_s) != AFM_SIM_OK) {
+        afm_err_set(err, errlen, "runner: model time %g s: only 0..1e9 s, before the first run",
+                    t_s);
+        return -1;
+    }
+    r->b_t_s = t_s;
+    return 0;
+}
+
 int afm_runner_cmd_needs_model(const afm_config *cfg, const afm_cmd *c, bool *new_chain) {
     bool nc = false;
     int need = 0;

@@ -76,6 +76,10 @@ afm_runner *afm_runner_create(const afm_config *cfg, int block_max, bool lockste
 afm_runner *afm_runner_create_pipelined(const afm_config *cfg, int block_max, bool lockstep,
                                         bool pipelined, int ring_items, char *err, size_t errlen);
 void afm_runner_destroy(afm_runner **r);
+/* Start model time at t_s instead of 0 (afm_sim_set_time), before the first run: to
+ * reproduce offline what a daemon does after being up that long. 0, or -1 with err (samples
+ * already run, or t_s out of range). */
+int afm_runner_set_time(afm_runner *r, double t_s, char *err, size_t errlen);
 bool afm_runner_pipelined(const afm_runner *r);
 
 /* Build, for a DAMPING / GEOMETRY param command or a reload, the simulator for cfg (the

@@ -36,6 +36,19 @@ int afm_sim_set_forces(afm_sim *s, const afm_force_params *f) {
     return AFM_SIM_OK;
 }
 
+int afm_sim_set_time(afm_sim *s, double t_s) {
+    if (!isfinite(t_s) || t_s < 0 || t_s > 1e9) return AFM_SIM_EINVAL;
+    for (int j = 0; j < s->drive.n; j++) {
+        double ph = fmod(afm_drive_phase(&s->drive, j, s->t_s), two_pi);
+        s->drive.phase_rad[j] = ph < 0 ? ph + two_pi : ph;
+        s->drive.t0_s[j] = t_s;
+    }
+    s->t_start_s = s->t_s = t_s;
+    s->step = 0;
+    s->be->changed(s);
+    return AFM_SIM_OK;
+}
+
 int afm_sim_continue(afm_sim *dst, const afm_sim *src, unsigned what) {
     if ((what & AFM_SIM_KEEP_STATE) && dst->m.n != src->m.n) return AFM_SIM_EINVAL;
     double t = src->t_s;
