@@ -15,6 +15,8 @@ static const command commands[] = {
     {"modes", afm_cmd_modes, "eigenfrequencies, MAC, stiffness and effective mass of a model"},
     {"sweep", afm_cmd_sweep, "stepwise frequency sweep to steady state, with harmonics"},
     {"bench", afm_cmd_bench, "integrator speed and accuracy side by side"},
+    {"bench-states", afm_cmd_bench_states,
+     "integrator and chain cost per sample in every state, and of a Z change"},
     {"thermal", afm_cmd_thermal,
      "thermal tune: PSD of the Brownian motion, eq. 5.1 fit of f, Q, k"},
     {"send", afm_cmd_send, "publish one command to the daemon (validated as the daemon does)"},
