@@ -340,6 +340,56 @@ static void test_gating(const afm_config *cfg) {
     afm_runner_destroy(&r);
 }
 
+/* Completions (afm_runner_take_done): one when a tick or step budget is used up, after its
+ * samples, naming the last tick or step command and the samples run; ticks sent together
+ * complete together; pipelined, the chain stage stops right after the marker. */
+static void test_done(const afm_config *cfg) {
+    char err[AFM_ERR_LEN];
+    for (int pipelined = 0; pipelined < 2; pipelined++) {
+        afm_runner *r =
+            afm_runner_create_pipelined(cfg, 2048, true, pipelined, 16, err, sizeof err);
+        afm_runner_done d = {0};
+        long long got[4] = {-1, -1, -1, -1}, where[4] = {0}, n = 0;
+        afm_cmd t = {.kind = AFM_CMD_TICK, .seq = 7, .u.tick = {5000}};
+        afm_runner_apply(r, &t, NULL, err, sizeof err);
+        for (int k = 0; k < 4; k++) /* 4000 samples: not done yet */
+            afm_runner_run(r, 1000);
+        while (pipelined && afm_runner_chain_run(r, 0) > 0) {
+        }
+        bool early = afm_runner_take_done(r, &d);
+        afm_runner_run(r, 5000);
+        while (pipelined && afm_runner_chain_run(r, 0) > 0) {
+        }
+        if (afm_runner_take_done(r, &d)) got[n] = d.seq, where[n++] = d.samples;
+        t.seq = 8;
+        t.u.tick.n_samples = 3000;
+        afm_runner_apply(r, &t, NULL, err, sizeof err);
+        t.seq = 9;
+        t.u.tick.n_samples = 2000;
+        afm_runner_apply(r, &t, NULL, err, sizeof err);
+        afm_runner_run(r, 100000);
+        while (pipelined && afm_runner_chain_run(r, 0) > 0) {
+        }
+        if (afm_runner_take_done(r, &d)) got[n] = d.seq, where[n++] = d.samples;
+        afm_cmd p = {.kind = AFM_CMD_CONTROL, .seq = 10, .u.control = {AFM_CTL_STEP, 300}};
+        afm_runner_apply(r, &p, NULL, err, sizeof err);
+        afm_runner_run(r, 1000);
+        while (pipelined && afm_runner_chain_run(r, 0) > 0) {
+        }
+        if (afm_runner_take_done(r, &d)) got[n] = d.seq, where[n++] = d.samples;
+        bool again = afm_runner_take_done(r, &d);
+        char what[160];
+        snprintf(what, sizeof what,
+                 "%s: completions tick 7 at 5000, ticks 8+9 at 10000, step 10 at 10300, none "
+                 "early or twice",
+                 pipelined ? "pipelined" : "inline");
+        check_true(!early && !again && n == 3 && got[0] == 7 && where[0] == 5000 && got[1] == 9 &&
+                       where[1] == 10000 && got[2] == 10 && where[2] == 10300,
+                   what);
+        afm_runner_destroy(&r);
+    }
+}
+
 static void test_blowup(void) {
     afm_config cfg;
     char err[AFM_ERR_LEN];
@@ -466,6 +516,7 @@ int main(void) {
     test_reload_keeps_seq(&cfg);
     test_ramp_and_rejects(&cfg);
     test_gating(&cfg);
+    test_done(&cfg);
     test_blowup();
     test_uptime(&cfg);
     return check_done();

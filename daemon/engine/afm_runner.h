@@ -106,7 +106,8 @@ int afm_runner_apply(afm_runner *r, const afm_cmd *c, afm_runner_model **model, 
 
 /* Advance up to n samples. Free-running (not lockstep) and running: n. Paused: at most the
  * STEP budget. Lockstep and running: at most the tick budget. Returns the samples advanced
- * (0..n). Outputs wait in the chain's rings until taken. */
+ * (0..n). Outputs wait in the chain's rings until taken. n = 0 only moves changes (and a
+ * completion) that waited for ring space into the ring. */
 long long afm_runner_run(afm_runner *r, long long n);
 
 /* Samples the next afm_runner_run would advance at most (LLONG_MAX when not gated). */
@@ -120,6 +121,20 @@ int afm_runner_chain_run(afm_runner *r, int max_items);
 /* Back: true when the next waiting item holds samples of a later command than the
  * outputs waiting now (afm_runner_chain_run would stop before it): hand those out first. */
 bool afm_runner_chain_seq_next(afm_runner *r);
+
+/* Back: the completion of a tick (lockstep) or step budget. When the integrator uses up the
+ * budget of the tick and step commands applied so far, a marker follows their samples; once
+ * afm_runner_chain_run has passed it (it stops right after), this returns 1 with the last
+ * such command's seq, the samples run since create and the model time reached, then 0 until
+ * the next one: hand out the outputs waiting first, they are the budget's. Ticks sent while
+ * an earlier one still runs are completed together (one marker, the last seq). Inline, the
+ * back does not stop there and this returns the latest marker. */
+typedef struct {
+    int64_t seq;
+    long long samples;
+    double t_s;
+} afm_runner_done;
+int afm_runner_take_done(afm_runner *r, afm_runner_done *d);
 
 /* Back: the objects a swap replaced (a model handle to afm_runner_model_destroy off the
  * real-time threads). 1 with *m, 0 when none waits. */
