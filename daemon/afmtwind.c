@@ -19,6 +19,7 @@
 #define RTREJ_Q_LEN 64
 #define SAMPLES_Q_LEN 256 /* records of up to AFM_IO_MAX_BLOCK samples (~8 MB in all) */
 #define HARM_Q_LEN 4096
+#define DONE_Q_LEN 1024
 
 static void usage(FILE *f) {
     fprintf(f,
@@ -178,22 +179,34 @@ static int parse_args(int argc, char **argv, twind_opts *o) {
     return 0;
 }
 
+/* The stderr status line: whether the twin keeps up (the real-time factor of the last second
+ * of running, resyncs and the model time they skipped, the chain's lag), what the cantilever
+ * does (lock-in amplitude and phase lag of the last period, its peak force) and the command
+ * bookkeeping, with the last rejection marked old once a later command was applied. */
 static void status_line(twind *d, twind_rtf_state *rs, char *buf, size_t len) {
-    afm_io_status s;
+    static afm_io_status s; /* main thread only; large (reason strings) */
     twind_status_fill(d, &s, rs);
     twind_snapshot snap;
     twind_chain_snapshot cs;
     twind_snap_read(d, &snap);
     twind_csnap_read(d, &cs);
     snprintf(buf, len,
-             "t %.6f s  rtf %.3f  busy %.0f%%/%.0f%%  lag %.4f s  overruns %lld  resyncs %lld  "
-             "chain stalls %lld lag %.4f s  rx %lld  applied %lld  rej %lld  blowups %lld  "
-             "seq %lld  Z %.3f nm  fe %.1f Hz  A %.4g nm  %s",
-             s.model_time_s, s.realtime_factor, 100.0 * snap.busy_fraction,
+             "t %.6f s  rtf(1 s) %.3f  busy %.0f%%/%.0f%%  lag %.4f s  overruns %lld  resyncs %lld "
+             "(%.4f s skipped)  chain stalls %lld lag %.4f s  lock-in %.4g nm, phase lag %.1f deg  "
+             "peak force %.4g nN  rx %lld  applied %lld  rej %lld  blowups %lld  seq %lld  Z %.3f "
+             "nm  fe %.1f Hz  A %.4g nm  %s",
+             s.model_time_s, s.realtime_factor_1s, 100.0 * snap.busy_fraction,
              100.0 * cs.busy_fraction, s.lag_s, (long long)s.overruns, (long long)s.resyncs,
-             (long long)s.chain_stalls, s.chain_lag_s, (long long)s.received, (long long)s.applied,
-             (long long)s.rejected, (long long)s.blowups, (long long)s.seq_applied,
-             s.separation_m * 1e9, s.fe_hz, s.amplitude_m * 1e9, s.running ? "running" : "paused");
+             s.resync_skipped_s, (long long)s.chain_stalls, s.chain_lag_s,
+             s.lockin_amplitude_m * 1e9, s.lockin_phase_deg, s.peak_force_n * 1e9,
+             (long long)s.received, (long long)s.applied, (long long)s.rejected,
+             (long long)s.blowups, (long long)s.seq_applied, s.separation_m * 1e9, s.fe_hz,
+             s.amplitude_m * 1e9, s.running ? "running" : "paused");
+    if (s.last_reject[0]) {
+        size_t n = strlen(buf);
+        snprintf(buf + n, len - n, "  last rejected %.1f s ago%s: %.160s", s.last_reject_age_s,
+                 s.last_reject_old ? " (old: later commands applied)" : "", s.last_reject);
+    }
     if (cs.samples_dropped || cs.harm_dropped || cs.st.chain.periods_dropped) {
         size_t n = strlen(buf);
         snprintf(buf + n, len - n, "  DROPPED: %lld sample blocks, %lld harmonics, %lld periods",
@@ -247,11 +260,13 @@ int main(int argc, char **argv) {
     pthread_mutex_init(&d.lock, NULL);
     sem_init(&d.out_sem, 0, 0);
     sem_init(&d.chain_sem, 0, 0);
+    sem_init(&d.cmd_sem, 0, 0);
     if (afm_spsc_init(&d.cmd_q, CMD_Q_LEN, sizeof(twind_cmd_item), err, sizeof err) ||
         afm_spsc_init(&d.trash_q, TRASH_Q_LEN, sizeof(afm_runner_model *), err, sizeof err) ||
         afm_spsc_init(&d.rtrej_q, RTREJ_Q_LEN, sizeof(twind_reason), err, sizeof err) ||
         afm_spsc_init(&d.samples_q, SAMPLES_Q_LEN, sizeof(afm_io_samples), err, sizeof err) ||
-        afm_spsc_init(&d.harm_q, HARM_Q_LEN, sizeof(afm_io_harmonics), err, sizeof err)) {
+        afm_spsc_init(&d.harm_q, HARM_Q_LEN, sizeof(afm_io_harmonics), err, sizeof err) ||
+        afm_spsc_init(&d.done_q, DONE_Q_LEN, sizeof(twind_done_item), err, sizeof err)) {
         fprintf(stderr, "afmtwind: %s\n", err);
         goto out;
     }
@@ -326,7 +341,7 @@ int main(int argc, char **argv) {
             atomic_store(&d.reload, 1);
             continue;
         }
-        char line[768];
+        char line[1024];
         status_line(&d, &rs, line, sizeof line);
         if (!d.opt.quiet) fprintf(stderr, "afmtwind: %s\n", line);
         twind_notify_status(line);
@@ -356,13 +371,14 @@ int main(int argc, char **argv) {
         twind_cmd_item it;
         while (afm_spsc_pop(&d.cmd_q, &it)) /* commands that came too late */
             afm_runner_model_destroy(&it.model);
-        char line[768];
+        char line[1024];
         status_line(&d, &rs, line, sizeof line);
         fprintf(stderr, "afmtwind: final: %s\n", line);
     }
     rc = 0;
 out:
     afm_io_destroy(&d.io);
+    afm_spsc_destroy(&d.done_q);
     afm_spsc_destroy(&d.harm_q);
     afm_spsc_destroy(&d.samples_q);
     afm_spsc_destroy(&d.rtrej_q);
@@ -370,6 +386,7 @@ out:
     afm_spsc_destroy(&d.cmd_q);
     sem_destroy(&d.out_sem);
     sem_destroy(&d.chain_sem);
+    sem_destroy(&d.cmd_sem);
     afm_runner_destroy(&d.runner);
     return rc;
 }

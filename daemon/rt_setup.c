@@ -43,3 +43,12 @@ void twind_rt_setup_aux(int priority) {
     struct sched_param sp = {.sched_priority = priority > 1 ? priority : 1};
     (void)pthread_setschedparam(pthread_self(), SCHED_FIFO, &sp); /* the RT thread warned */
 }
+
+void twind_rt_setup_build(int priority, bool building) {
+    if (!building) {
+        twind_rt_setup_aux(priority);
+        return;
+    }
+    struct sched_param sp = {.sched_priority = 0};
+    (void)pthread_setschedparam(pthread_self(), SCHED_OTHER, &sp);
+}

@@ -17,7 +17,8 @@
  *    (samples_q) and harmonics (harm_q), updates its own snapshot. Never blocks, locks or
  *    allocates (it sleeps on chain_sem when the ring is empty).
  *  - publish (publish.c): pops samples_q and harm_q, publishes them, and the status at
- *    10 Hz; the final status at shutdown.
+ *    10 Hz; the completions of ticks and steps (done_q) once the outputs before them are
+ *    out; the final status at shutdown.
  * Counters the receive thread owns (received, rejected, last reason) sit behind `lock`,
  * which only the non-real-time threads take. */
 #ifndef TWIND_H
@@ -56,27 +57,40 @@ typedef struct {
 
 /* cmd_q item: a validated command and, for damping/geometry/reload, the model to swap in.
  * The RT thread hands models back through trash_q (what was swapped out, or the unused
- * model of a command it rejected). */
+ * model of a command it rejected). order: the receive thread's count of inbound events
+ * (commands, rejects, reloads) at this one, so that a rejection can be told old once a
+ * later event was applied. */
 typedef struct {
     afm_cmd cmd;
     afm_runner_model *model;
+    int64_t order;
 } twind_cmd_item;
 
 typedef struct {
     char reason[AFM_IO_REASON_LEN];
+    int64_t order; /* of the command the RT thread rejected */
 } twind_reason;
+
+/* done_q item: a tick or step completion (afm_runner_take_done) and how many samples and
+ * harmonics records the chain thread had committed to the publisher before it. */
+typedef struct {
+    afm_runner_done d;
+    long long samples_recs, harm_recs;
+} twind_done_item;
 
 /* What the RT thread publishes after every block (seqlock: readers retry while seq is odd
  * or changed under them). */
 typedef struct {
     afm_runner_status st;
-    long long blocks;        /* blocks run */
-    long long overruns;      /* realtime blocks that ended after their deadline */
-    double lag_s;            /* wall clock minus model time (realtime mode) */
-    long long resyncs;       /* realtime: backlogs dropped because lag > max_lag_s */
-    double resync_dropped_s; /* model time not run because of them (wall seconds x speed) */
-    long long heartbeat;     /* increases every loop turn (watchdog) */
-    double busy_fraction;    /* compute time / wall time over the last second */
+    long long blocks;           /* blocks run */
+    long long overruns;         /* realtime blocks that ended after their deadline */
+    double lag_s;               /* wall clock minus model time (realtime mode) */
+    long long resyncs;          /* realtime: backlogs dropped because lag > max_lag_s */
+    double resync_dropped_s;    /* model time not run because of them (wall seconds x speed) */
+    long long heartbeat;        /* increases every loop turn (watchdog) */
+    double busy_fraction;       /* compute time / wall time over the last second */
+    double rtf_1s;              /* model s / wall s over the last second of running; 0 at first */
+    int64_t last_applied_order; /* twind_cmd_item.order of the last command applied */
 } twind_snapshot;
 
 /* What the chain thread publishes (its own seqlock). */
@@ -85,15 +99,18 @@ typedef struct {
     long long samples_dropped; /* sample records lost to a full samples_q */
     long long harm_dropped;    /* harmonics records lost to a full harm_q */
     double busy_fraction;
+    bool have_period; /* the last period record seen (finished), for the status line */
+    double lockin_amplitude_m, lockin_phase_deg, peak_force_n;
 } twind_chain_snapshot;
 
 typedef struct {
     twind_opts opt;
     afm_runner *runner; /* the RT thread's after start */
     afm_io *io;
-    afm_spsc cmd_q, trash_q, rtrej_q, samples_q, harm_q;
+    afm_spsc cmd_q, trash_q, rtrej_q, samples_q, harm_q, done_q;
     sem_t out_sem;         /* posted by the chain thread after pushing outputs */
     sem_t chain_sem;       /* posted by the RT thread after a block went into the ring */
+    sem_t cmd_sem;         /* posted by the receive thread after a command went into cmd_q */
     atomic_int stop;       /* set by main: all threads finish */
     atomic_int rt_done;    /* set by the RT thread when it has left its loop */
     atomic_int chain_done; /* set by the chain thread when it has left its loop */
@@ -106,7 +123,10 @@ typedef struct {
     pthread_mutex_t lock;
     long long received, rejected;
     char last_reject[AFM_IO_REASON_LEN];
-    afm_config shadow; /* receive thread only: the config after all queued commands */
+    int64_t last_reject_order; /* order of the rejected event (see twind_cmd_item) */
+    double last_reject_mono;   /* CLOCK_MONOTONIC when it was rejected */
+    int64_t order;             /* receive thread only: inbound events so far */
+    afm_config shadow;         /* receive thread only: the config after all queued commands */
     /* RT scheduling result, for the start-up report */
     char rt_warn[512];
 } twind;
@@ -121,6 +141,10 @@ void twind_rt_setup_thread(int priority, int cpu, char *warn, size_t len);
 /* The publish and receive threads: SCHED_FIFO at a lower priority when permitted, so that
  * outputs and commands are not starved by ordinary processes; silent (the RT thread warns). */
 void twind_rt_setup_aux(int priority);
+/* Around a model build on the receive thread (FEM, reduction, filter design: ~20 ms for a
+ * geometry change): normal scheduling while building (building true), so that it takes only
+ * the time the integrator and chain threads leave; back to SCHED_FIFO priority after. */
+void twind_rt_setup_build(int priority, bool building);
 
 /* rt_loop.c: the real-time thread (arg: twind *). */
 void *twind_rt_main(void *arg);
@@ -130,8 +154,10 @@ void *twind_chain_main(void *arg);
 /* cmd_in.c: the sink the transport calls, and the receive thread (arg: twind *). */
 afm_io_sink twind_sink(twind *d);
 void *twind_recv_main(void *arg);
-/* Count a rejection with its reason (non-RT threads). */
+/* Count a rejection with its reason (non-RT threads): the receive thread's current event,
+ * or (twind_reject_order) the event of that order. */
 void twind_reject(twind *d, const char *reason);
+void twind_reject_order(twind *d, const char *reason, int64_t order);
 
 /* publish.c: the publish thread (arg: twind *), and one status record from the snapshot.
  * The real-time factor is model time over wall time since the caller's previous call

@@ -22,6 +22,8 @@ static const command commands[] = {
     {"send", afm_cmd_send, "publish one command to the daemon (validated as the daemon does)"},
     {"listen", afm_cmd_listen, "print what the daemon publishes (samples, harmonics, status)"},
     {"replay", afm_cmd_replay, "run the commands of an LCM log in model time, outputs to a log"},
+    {"lockstep", afm_cmd_lockstep,
+     "co-simulate: a command log against a lockstep daemon, checked against replay"},
     {"bench-daemon", afm_cmd_bench_daemon, "real-time factor and command latency of afmtwind"},
     {"can-send", afm_cmd_can_send, "encode a command into CAN frames (cansend format), send them"},
 };

@@ -1,6 +1,7 @@
 /* SPDX-License-Identifier: MIT */
 /* cmd_listen.c -- `afmtwin listen`: subscribes to the twin's output channels (samples,
- * harmonics, status) and prints each message as text or as one JSON object per line. */
+ * harmonics, status, tick_done) and prints each message as text or as one JSON object per
+ * line. */
 #include "afmtwin_cmds.h"
 #include "lcm_tool.h"
 
@@ -9,6 +10,7 @@
 #include "afmtwin_harmonics_t.h"
 #include "afmtwin_samples_t.h"
 #include "afmtwin_status_t.h"
+#include "afmtwin_tick_done_t.h"
 
 #include <cjson/cJSON.h>
 #include <lcm/eventlog.h>
@@ -23,8 +25,8 @@
 
 #define LISTEN_QUEUE 10000 /* messages a subscription may hold while we print */
 
-enum { OUT_SAMPLES, OUT_HARMONICS, OUT_STATUS, N_OUT };
-static const char *const out_name[N_OUT] = {"samples", "harmonics", "status"};
+enum { OUT_SAMPLES, OUT_HARMONICS, OUT_STATUS, OUT_DONE, N_OUT };
+static const char *const out_name[N_OUT] = {"samples", "harmonics", "status", "tick_done"};
 
 typedef struct {
     bool json, full;
@@ -51,7 +53,8 @@ static void listen_usage(FILE *f) {
             "       afmtwin listen --log FILE [--json] [--full] [--count N] [--channels LIST]\n"
             "                      [--prefix NAME_]\n\n"
             "Prints what the twin (afmtwind, or `afmtwin replay` through lcm-logplayer)\n"
-            "publishes: samples blocks, per-period harmonics and the 10 Hz status.\n\n"
+            "publishes: samples blocks, per-period harmonics, the 10 Hz status and the\n"
+            "completions of ticks and steps (tick_done).\n\n"
             "options:\n"
             "  --json           one JSON object per message and line, with every field of the\n"
             "                   message plus \"channel\" and \"type\"; samples carry summary\n"
@@ -60,7 +63,8 @@ static void listen_usage(FILE *f) {
             "  --full           also print the sample arrays of samples messages\n"
             "  --count N        exit after N messages (N >= 1); exit status 1 if the timeout\n"
             "                   comes first\n"
-            "  --channels LIST  comma-separated subset of samples,harmonics,status (default all)\n"
+            "  --channels LIST  comma-separated subset of samples,harmonics,status,tick_done\n"
+            "                   (default all)\n"
             "  --timeout S      exit after S seconds (S > 0; default: run until N messages or a\n"
             "                   signal)\n"
             "  --lcm-url URL    the twin's command URL, as given to afmtwind (default:\n"
@@ -72,9 +76,13 @@ static void listen_usage(FILE *f) {
             "  --log FILE       read the messages from an LCM log (lcm-logger's format, e.g.\n"
             "                   `afmtwin replay --out`) instead of the network, to its end\n"
             "  --help           this text\n\n"
-            "Channels: PREFIX + %s, %s, %s. Text output: one line per message.\n"
+            "Channels: PREFIX + %s, %s, %s, %s. Text output: one line per message.\n"
+            "Status: rtf(1 s) is model over wall time of the last second of running; the\n"
+            "lock-in phase is the LAG of the deflection behind the drive (90 deg for a free\n"
+            "cantilever at resonance, below 90 in the repulsive regime).\n"
             "Exit status 0 ok, 1 LCM failure or --count not reached, 2 bad usage.\n",
-            AFMT_DEFAULT_PREFIX, AFMT_CHAN_SAMPLES, AFMT_CHAN_HARMONICS, AFMT_CHAN_STATUS);
+            AFMT_DEFAULT_PREFIX, AFMT_CHAN_SAMPLES, AFMT_CHAN_HARMONICS, AFMT_CHAN_STATUS,
+            AFMT_CHAN_TICK_DONE);
 }
 
 /* ---- samples: summary statistics of a float array ---- */
@@ -256,18 +264,31 @@ static void print_status(const listen_ctx *c, const char *channel, const afmtwin
         json_int(o, "can_reconnects", m->can_reconnects);
         json_str(o, "can_last_reject", m->can_last_reject);
         cJSON_AddNumberToObject(o, "heartbeat_ok", m->heartbeat_ok);
+        json_num(o, "realtime_factor_1s", m->realtime_factor_1s);
+        json_num(o, "resync_skipped_s", m->resync_skipped_s);
+        json_num(o, "lockin_amplitude_m", m->lockin_amplitude_m);
+        json_num(o, "lockin_phase_deg", m->lockin_phase_deg);
+        json_num(o, "peak_force_n", m->peak_force_n);
+        json_num(o, "last_reject_age_s", m->last_reject_age_s);
+        cJSON_AddNumberToObject(o, "last_reject_old", m->last_reject_old);
         json_print(o);
         return;
     }
-    printf("status    seq %lld t %.6f s %s %s RT %.4g lag %.3g s overruns %lld blowups %lld "
-           "received %lld rejected %lld%s%s%s Z %.4g nm fe %.6g Hz Ae %.4g nm\n",
+    bool rej = m->last_reject && m->last_reject[0];
+    printf("status    seq %lld t %.6f s %s %s rtf(1 s) %.4g lag %.3g s resyncs %lld (%.4g s "
+           "skipped) chain lag %.3g s overruns %lld | lock-in %.4g nm, phase lag %.2f deg, peak "
+           "force %.4g nN | Z %.4g nm fe %.6g Hz Ae %.4g nm | received %lld applied %lld rejected "
+           "%lld blowups %lld",
            (long long)m->seq_applied, m->model_time_s, m->mode ? m->mode : "?",
-           m->running ? "running" : "paused", m->realtime_factor, m->lag_s, (long long)m->overruns,
-           (long long)m->blowups, (long long)m->received, (long long)m->rejected,
-           m->last_reject && m->last_reject[0] ? " (last: " : "",
-           m->last_reject && m->last_reject[0] ? m->last_reject : "",
-           m->last_reject && m->last_reject[0] ? ")" : "", m->separation_m * 1e9, m->fe_hz,
-           m->amplitude_m * 1e9);
+           m->running ? "running" : "paused", m->realtime_factor_1s, m->lag_s,
+           (long long)m->resyncs, m->resync_skipped_s, m->chain_lag_s, (long long)m->overruns,
+           m->lockin_amplitude_m * 1e9, m->lockin_phase_deg, m->peak_force_n * 1e9,
+           m->separation_m * 1e9, m->fe_hz, m->amplitude_m * 1e9, (long long)m->received,
+           (long long)m->applied, (long long)m->rejected, (long long)m->blowups);
+    if (rej)
+        printf(" (last %.1f s ago%s: %s)", m->last_reject_age_s,
+               m->last_reject_old ? ", old: later commands applied" : "", m->last_reject);
+    printf("\n");
     if (m->can_state && m->can_state[0] && strcmp(m->can_state, "off") != 0)
         printf("          CAN %s, heartbeat %s, frames %lld rejected %lld errors %lld reconnects "
                "%lld%s%s%s\n",
@@ -278,8 +299,34 @@ static void print_status(const listen_ctx *c, const char *channel, const afmtwin
                m->can_last_reject && m->can_last_reject[0] ? ")" : "");
 }
 
-/* One handler for all three channels: the channel name says the type. A message that does
- * not decode (wrong type, truncated) is reported on stderr and not counted. */
+static void print_done(const listen_ctx *c, const char *channel, const afmtwin_tick_done_t *m) {
+    if (c->json) {
+        cJSON *o = cJSON_CreateObject();
+        cJSON_AddStringToObject(o, "channel", channel);
+        cJSON_AddStringToObject(o, "type", "tick_done");
+        json_int(o, "utime", m->utime);
+        json_int(o, "seq", m->seq);
+        json_int(o, "samples", m->samples);
+        json_num(o, "model_time_s", m->model_time_s);
+        json_int(o, "n_samples_msgs", m->n_samples_msgs);
+        json_int(o, "n_harmonics_msgs", m->n_harmonics_msgs);
+        char dg[24];
+        snprintf(dg, sizeof dg, "%016llx", (unsigned long long)m->samples_digest);
+        cJSON_AddStringToObject(o, "samples_digest", dg);
+        snprintf(dg, sizeof dg, "%016llx", (unsigned long long)m->harmonics_digest);
+        cJSON_AddStringToObject(o, "harmonics_digest", dg);
+        json_print(o);
+        return;
+    }
+    printf("tick_done seq %lld samples %lld t %.9f s: %lld samples messages (digest %016llx), "
+           "%lld harmonics (digest %016llx)\n",
+           (long long)m->seq, (long long)m->samples, m->model_time_s, (long long)m->n_samples_msgs,
+           (unsigned long long)m->samples_digest, (long long)m->n_harmonics_msgs,
+           (unsigned long long)m->harmonics_digest);
+}
+
+/* One handler for all channels: the channel name says the type. A message that does not
+ * decode (wrong type, truncated) is reported on stderr and not counted. */
 static void on_message(const lcm_recv_buf_t *rb, const char *channel, void *user) {
     listen_ctx *c = user;
     if (c->count > 0 && c->got >= c->count) return;
@@ -302,12 +349,19 @@ static void on_message(const lcm_recv_buf_t *rb, const char *channel, void *user
             print_harmonics(c, channel, &m);
             afmtwin_harmonics_t_decode_cleanup(&m);
         }
-    } else {
+    } else if (k == OUT_STATUS) {
         afmtwin_status_t m;
         rc = afmtwin_status_t_decode(rb->data, 0, (int)rb->data_size, &m);
         if (rc >= 0) {
             print_status(c, channel, &m);
             afmtwin_status_t_decode_cleanup(&m);
+        }
+    } else {
+        afmtwin_tick_done_t m;
+        rc = afmtwin_tick_done_t_decode(rb->data, 0, (int)rb->data_size, &m);
+        if (rc >= 0) {
+            print_done(c, channel, &m);
+            afmtwin_tick_done_t_decode_cleanup(&m);
         }
     }
     if (rc < 0) {
@@ -401,7 +455,7 @@ int afm_cmd_listen(int argc, char **argv) {
             if (parse_channels(v, c.want)) {
                 fprintf(stderr,
                         "afmtwin listen: --channels wants a comma-separated subset of "
-                        "samples,harmonics,status, got '%s'\n",
+                        "samples,harmonics,status,tick_done, got '%s'\n",
                         v);
                 return 2;
             }
@@ -424,7 +478,8 @@ int afm_cmd_listen(int argc, char **argv) {
         }
     }
     char err[256];
-    const char *suffix[N_OUT] = {AFMT_CHAN_SAMPLES, AFMT_CHAN_HARMONICS, AFMT_CHAN_STATUS};
+    const char *suffix[N_OUT] = {AFMT_CHAN_SAMPLES, AFMT_CHAN_HARMONICS, AFMT_CHAN_STATUS,
+                                 AFMT_CHAN_TICK_DONE};
     for (int i = 0; i < N_OUT; i++)
         if (afmt_channel(c.prefix, suffix[i], c.chan[i], err, sizeof err)) {
             fprintf(stderr, "afmtwin listen: %s\n", err);

@@ -30,7 +30,7 @@ struct lcm_io {
     lcm_t *lcm; /* commands (subscribed) */
     lcm_t *out; /* outputs (publish only: LCM opens no receive socket for it) */
     in_channel in[5];
-    char ch_samples[CH_LEN], ch_harmonics[CH_LEN], ch_status[CH_LEN];
+    char ch_samples[CH_LEN], ch_harmonics[CH_LEN], ch_status[CH_LEN], ch_done[CH_LEN];
 };
 
 static void on_raw(const lcm_recv_buf_t *rbuf, const char *channel, void *user) {
@@ -74,6 +74,13 @@ static int lio_status(afm_io *io, const afm_io_status *s) {
     return afmtwin_status_t_publish(l->out, l->ch_status, &m) < 0 ? -1 : 0;
 }
 
+static int lio_tick_done(afm_io *io, const afm_io_tick_done *d) {
+    lcm_io *l = io->impl;
+    afmtwin_tick_done_t m;
+    afm_lcm_tick_done_msg(d, &m);
+    return afmtwin_tick_done_t_publish(l->out, l->ch_done, &m) < 0 ? -1 : 0;
+}
+
 static int lio_wait_fd(afm_io *io, int *max_wait_ms) {
     lcm_io *l = io->impl;
     if (max_wait_ms) *max_wait_ms = -1;
@@ -95,6 +102,7 @@ static const afm_io_ops lcm_ops = {
     .publish_status = lio_status,
     .destroy = lio_destroy,
     .wait_fd = lio_wait_fd,
+    .publish_tick_done = lio_tick_done,
 };
 
 afm_io *afm_lcm_io_create(const char *url, const char *out_url, const char *prefix,
@@ -154,5 +162,6 @@ afm_io *afm_lcm_io_create(const char *url, const char *out_url, const char *pref
     snprintf(l->ch_samples, sizeof l->ch_samples, "%sSAMPLES", prefix);
     snprintf(l->ch_harmonics, sizeof l->ch_harmonics, "%sHARMONICS", prefix);
     snprintf(l->ch_status, sizeof l->ch_status, "%sSTATUS", prefix);
+    snprintf(l->ch_done, sizeof l->ch_done, "%sTICK_DONE", prefix);
     return &l->io;
 }
