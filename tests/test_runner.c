@@ -505,6 +505,42 @@ static void test_uptime(const afm_config *cfg) {
                "uptime: last period's lock-in amplitude and A1 the same at t = 0 and 20 s (1e-6)");
 }
 
+/* The estimators' phase (afm_chain.c) moves its origin every 2^20 samples: how the samples
+ * are cut into pushes must not matter there either. Two twins, 1.2e6 samples (past the
+ * first move at 1048576) run in slices of 1024 and 700: every period record bit for bit. */
+static void test_phase_origin(const afm_config *cfg) {
+    char err[AFM_ERR_LEN];
+    static afm_chain_period rec[2][4096];
+    long nrec[2] = {0, 0};
+    for (int run = 0; run < 2; run++) {
+        afm_runner *r = afm_runner_create(cfg, 4096, false, err, sizeof err);
+        const long long slice = run ? 700 : 1024, total_s = 1200000;
+        for (long long done = 0; done < total_s;) {
+            long long n = total_s - done < slice ? total_s - done : slice;
+            done += afm_runner_run(r, n);
+            afm_chain_block b;
+            for (int st = 0; st < afm_runner_n_streams(r); st++)
+                while (afm_runner_take_block(r, st, &b, 0) > 0) {
+                }
+            afm_chain_period p[64];
+            int np;
+            while ((np = afm_runner_take_periods(r, p, 64)) > 0)
+                for (int i = 0; i < np; i++) /* the records around the origin's move */
+                    if (p[i].cycle.t_start_s > 0.070 && p[i].cycle.t_start_s < 0.080 &&
+                        nrec[run] < 4096)
+                        rec[run][nrec[run]++] = p[i];
+        }
+        afm_runner_destroy(&r);
+    }
+    bool same = nrec[0] == nrec[1] && nrec[0] > 3000;
+    for (long i = 0; same && i < nrec[0]; i++)
+        same = memcmp(&rec[0][i], &rec[1][i], sizeof rec[0][i]) == 0;
+    printf("  phase origin move at 2^20 samples: %ld vs %ld period records around it\n", nrec[0],
+           nrec[1]);
+    check_true(same, "the period records around the phase origin's move are bit-identical for "
+                     "slices of 1024 and 700 samples");
+}
+
 int main(void) {
     afm_config cfg;
     char err[AFM_ERR_LEN];
@@ -519,5 +555,6 @@ int main(void) {
     test_done(&cfg);
     test_blowup();
     test_uptime(&cfg);
+    test_phase_origin(&cfg);
     return check_done();
 }

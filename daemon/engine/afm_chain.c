@@ -51,19 +51,23 @@ typedef struct {
     double *rt, *rx, *robd, *rcnt, *rf, *rbase;
 } stream;
 
-/* Tone 0's phase for the estimators, from the sample count: theta = p_org + wdt k at the
- * sample k steps after the origin t_org (a sample time), set up from the drive's phase_rad,
- * omega and t0 (theta = phase_rad + omega (t - t0)) whenever those change. The count is
- * exact, so theta carries only roundings relative to itself (~3 eps |theta|), not the
- * rounding of the sample time t (omega ulp(t): 4e-9 rad at 20 s, growing with uptime),
- * which the estimators' phase trackers must not mistake for a changing rate. The origin
- * moves forward every PHASE_REBASE samples (p_org wrapped mod 2 pi, a jump of whole turns
- * the trackers keep their lock through), so |theta| stays below 2 pi + wdt PHASE_REBASE. */
+/* Tone 0's phase for the estimators, from the sample count: theta = p_org + wdt (k - k_org)
+ * at the sample k steps after the drive's t0 (theta = phase_rad + omega (t - t0) there), with
+ * the origin k_org a multiple of PHASE_REBASE: theta stays below 2 pi + wdt PHASE_REBASE, and
+ * crossing into the next segment wraps p_org mod 2 pi (a jump of whole turns, which the
+ * trackers keep their lock through). The count is exact, so theta carries only roundings
+ * relative to itself (~3 eps |theta|), not the rounding of the sample time t (omega ulp(t):
+ * 4e-9 rad at 20 s, growing with uptime), which the estimators' trackers must not mistake
+ * for a changing rate. Everything is a function of the sample index (the origin moves at
+ * fixed indices), so how the samples are cut into pushes changes no bit. A new drive (or
+ * chain) starts from its own origin: p_org of the segment it is in, from phase_rad. */
 #define PHASE_REBASE 1048576.0
 typedef struct {
     bool set;
     double ph, w, t0; /* the drive's tone 0 it follows */
-    double t_org, p_org, wdt;
+    double wdt;       /* phase step per sample */
+    double k_org;     /* origin: a sample index (from t0), multiple of PHASE_REBASE */
+    double p_org;     /* theta at k_org, mod 2 pi */
 } phase_gen;
 
 struct afm_chain {
@@ -382,52 +386,57 @@ static void put_period(afm_chain *c) {
     c->stats.periods++;
 }
 
-/* theta[i] of samples s[0..n) by phase_gen (see there); samples off the time grid of the
- * drive's t0 (not made by a simulator at this chain's rate) by afm_drive_phase's own
- * expression. */
+/* th[j] = p + wdt (k + j) for j < m: four at a time with AVX2 (one rounding each, fma: the
+ * same bits as the scalar loop). */
+static void phase_run(double *th, int m, double wdt, double k, double p) {
+    int j = 0;
+#if defined(__AVX2__) && defined(__FMA__)
+    const __m256d vp = _mm256_set1_pd(p), vw = _mm256_set1_pd(wdt), four = _mm256_set1_pd(4.0);
+    __m256d vk = _mm256_add_pd(_mm256_set1_pd(k), _mm256_set_pd(3.0, 2.0, 1.0, 0.0));
+    for (; j + 4 <= m; j += 4) {
+        _mm256_storeu_pd(th + j, _mm256_fmadd_pd(vw, vk, vp));
+        vk = _mm256_add_pd(vk, four);
+    }
+#endif
+    for (; j < m; j++)
+        th[j] = fma(wdt, k + (double)j, p);
+}
+
+/* theta[i] of samples s[0..n) by phase_gen (see there), and their forces f[i]; samples off
+ * the time grid of the drive's t0 (not made by a simulator at this chain's rate) by
+ * afm_drive_phase's own expression. */
 static void drive_phase(afm_chain *c, const afm_sample *s, int n, double *th, double *f) {
     const afm_drive *d = c->drive;
     phase_gen *g = &c->phase;
+    for (int i = 0; i < n; i++)
+        f[i] = s[i].f_n;
     if (!g->set || g->ph != d->phase_rad[0] || g->w != d->omega_rad_s[0] || g->t0 != d->t0_s[0]) {
-        g->ph = g->p_org = d->phase_rad[0];
+        g->ph = d->phase_rad[0];
         g->w = d->omega_rad_s[0];
-        g->t0 = g->t_org = d->t0_s[0];
+        g->t0 = d->t0_s[0];
         g->wdt = g->w * (1.0 / c->fs);
+        g->set = false; /* origin from the first sample below */
+    }
+    double kd = (s[0].t_s - g->t0) * c->fs, k = nearbyint(kd);
+    if (!(fabs(kd - k) < 0.25 && k >= 0 && k < 0x1p52)) {
+        for (int i = 0; i < n; i++)
+            th[i] = g->ph + g->w * (s[i].t_s - g->t0);
+        return;
+    }
+    if (!g->set || k < g->k_org) { /* the segment of the first sample */
+        g->k_org = afm_floor(k / PHASE_REBASE) * PHASE_REBASE;
+        g->p_org = g->k_org > 0 ? afm_clock_wrap(fma(g->wdt, g->k_org, g->ph)) : g->ph;
         g->set = true;
     }
-    double kd = (s[0].t_s - g->t_org) * c->fs, k0 = nearbyint(kd);
-    bool grid = fabs(kd - k0) < 1e-3 && k0 >= 0 && k0 < 0x1p52;
-    if (grid && k0 >= PHASE_REBASE) {
-        g->p_org = afm_clock_wrap(fma(g->wdt, k0, g->p_org));
-        g->t_org = s[0].t_s;
-        k0 = 0.0;
-    }
-    double p0 = grid ? g->p_org : d->phase_rad[0], w = grid ? g->wdt : d->omega_rad_s[0];
-    int i0 = 0;
-#if defined(__AVX2__) && defined(__FMA__)
-    const __m256d vp = _mm256_set1_pd(p0), vw = _mm256_set1_pd(w);
-    if (grid) {
-        __m256d vk = _mm256_add_pd(_mm256_set1_pd(k0), _mm256_set_pd(3.0, 2.0, 1.0, 0.0));
-        for (; i0 + 4 <= n; i0 += 4) {
-            const afm_sample *q = s + i0;
-            _mm256_storeu_pd(th + i0, _mm256_fmadd_pd(vw, vk, vp));
-            _mm256_storeu_pd(f + i0, _mm256_set_pd(q[3].f_n, q[2].f_n, q[1].f_n, q[0].f_n));
-            vk = _mm256_add_pd(vk, _mm256_set1_pd(4.0));
+    for (int i = 0; i < n;) {
+        while (k + i >= g->k_org + PHASE_REBASE) { /* into the next segment */
+            g->p_org = afm_clock_wrap(fma(g->wdt, PHASE_REBASE, g->p_org));
+            g->k_org += PHASE_REBASE;
         }
-    } else {
-        /* four samples at a time, the same operations (no contraction): the same bits */
-        const __m256d vt0 = _mm256_set1_pd(d->t0_s[0]);
-        for (; i0 + 4 <= n; i0 += 4) {
-            const afm_sample *q = s + i0;
-            __m256d t = _mm256_set_pd(q[3].t_s, q[2].t_s, q[1].t_s, q[0].t_s);
-            _mm256_storeu_pd(th + i0, _mm256_add_pd(vp, _mm256_mul_pd(vw, _mm256_sub_pd(t, vt0))));
-            _mm256_storeu_pd(f + i0, _mm256_set_pd(q[3].f_n, q[2].f_n, q[1].f_n, q[0].f_n));
-        }
-    }
-#endif
-    for (int i = i0; i < n; i++) {
-        th[i] = grid ? fma(w, k0 + (double)i, p0) : p0 + w * (s[i].t_s - d->t0_s[0]);
-        f[i] = s[i].f_n;
+        double left = g->k_org + PHASE_REBASE - (k + i);
+        int m = left < (double)(n - i) ? (int)left : n - i;
+        phase_run(th + i, m, g->wdt, k + i - g->k_org, g->p_org);
+        i += m;
     }
 }
 
