@@ -52,6 +52,8 @@ static void usage(FILE *f) {
             "                         at most --harmonics-max-hz records a second)\n"
             "  --harmonics-max-hz F   cap for the automatic choice (default 1000)\n"
             "  --exit-after S         stop after S seconds, as on SIGTERM (tests)\n"
+            "  --start-time S         model time starts at S s instead of 0 (tests of a twin\n"
+            "                         that has been up that long)\n"
             "  --quiet                no status line\n"
             "  --help                 this text\n");
 }
@@ -163,6 +165,9 @@ static int parse_args(int argc, char **argv, twind_opts *o) {
         } else if (!strcmp(a, "--harmonics-max-hz")) {
             if (parse_num(a, v, 1e-3, 1e9, &x)) return -1;
             o->harmonics_max_hz = x;
+        } else if (!strcmp(a, "--start-time")) {
+            if (parse_num(a, v, 0, 1e9, &x)) return -1;
+            o->start_s = x;
         } else if (!strcmp(a, "--exit-after")) {
             if (parse_num(a, v, 0, 1e9, &x)) return -1;
             o->exit_after_s = x;
@@ -253,7 +258,8 @@ int main(int argc, char **argv) {
     if (ring > 4096) ring = 4096;
     d.runner = afm_runner_create_pipelined(&cfg, (int)block, d.opt.mode == TWIND_LOCKSTEP, true,
                                            (int)ring, err, sizeof err);
-    if (!d.runner) {
+    if (!d.runner ||
+        (d.opt.start_s > 0 && afm_runner_set_time(d.runner, d.opt.start_s, err, sizeof err))) {
         fprintf(stderr, "afmtwind: %s: %s\n", d.opt.config_path, err);
         return 1;
     }

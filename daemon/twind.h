@@ -50,6 +50,7 @@ typedef struct {
     int rt_priority;     /* SCHED_FIFO priority 1..99 */
     double block_s;      /* real-time block length (s) */
     double exit_after_s; /* > 0: stop after this long (tests) */
+    double start_s;      /* model time at start (tests of a twin up that long; default 0) */
     int harmonics_every; /* publish every k-th period; 0: auto (at most harmonics_max_hz) */
     double harmonics_max_hz;
     int quiet; /* no status line */

@@ -25,6 +25,7 @@ static const command commands[] = {
     {"lockstep", afm_cmd_lockstep,
      "co-simulate: a command log against a lockstep daemon, checked against replay"},
     {"bench-daemon", afm_cmd_bench_daemon, "real-time factor and command latency of afmtwind"},
+    {"soak", afm_cmd_soak, "bounded random command soak of a real-time afmtwind, with checks"},
     {"can-send", afm_cmd_can_send, "encode a command into CAN frames (cansend format), send them"},
 };
 

@@ -60,7 +60,7 @@ typedef struct {
 typedef struct {
     /* options */
     const char *in, *config, *url, *out_url, *prefix, *sequence, *out;
-    double tick_us, tail_s, timeout_s, bench_s;
+    double tick_us, tail_s, timeout_s, bench_s, until_s;
     int harmonics_every, rt_priority;
     bool check, bench, quiet, json;
     /* LCM */
@@ -89,7 +89,7 @@ static void ls_usage(FILE *f) {
         "usage: afmtwin lockstep --in LOG [--config FILE] [--tick-us US] [--tail S] [--check]\n"
         "                        [--harmonics-every K] [--sequence LOG] [--out LOG]\n"
         "                        [--lcm-url URL] [--lcm-out-url URL] [--prefix NAME_]\n"
-        "                        [--timeout S] [--rt-priority N] [--quiet]\n"
+        "                        [--until S] [--timeout S] [--rt-priority N] [--quiet]\n"
         "       afmtwin lockstep --bench S --tick-us US [--json] [LCM options]\n\n"
         "Drives afmtwind --mode lockstep as a co-simulating controller does: each tick is\n"
         "sent, then its completion (PREFIX + TICK_DONE) awaited before anything else goes out;\n"
@@ -106,6 +106,8 @@ static void ls_usage(FILE *f) {
         "                    (default config/default.conf)\n"
         "  --tick-us US      model time per tick made here, 1..1e6 us (default 1000)\n"
         "  --tail S          model seconds ticked after the last command (default 0.01)\n"
+        "  --until S         only the commands logged in the first S seconds (after the\n"
+        "                    first one), then the tail\n"
         "  --check           replay the sequence as sent (afmtwin replay --lockstep, in this\n"
         "                    process) and compare every completion bit for bit: seq, samples,\n"
         "                    model time, samples digest, and the harmonics digest when\n"
@@ -433,7 +435,7 @@ static int parse_opts(ls_ctx *c, int argc, char **argv) {
             c->prefix = v;
         } else if (!strcmp(a, "--tick-us") || !strcmp(a, "--tail") || !strcmp(a, "--timeout") ||
                    !strcmp(a, "--bench") || !strcmp(a, "--harmonics-every") ||
-                   !strcmp(a, "--rt-priority")) {
+                   !strcmp(a, "--rt-priority") || !strcmp(a, "--until")) {
             if (afmt_parse_double(v, &d) || !isfinite(d)) {
                 fprintf(stderr, "afmtwin lockstep: %s wants a number, got '%s'\n", a, v);
                 return 2;
@@ -445,6 +447,8 @@ static int parse_opts(ls_ctx *c, int argc, char **argv) {
                 bad = !(d >= 0 && d <= 1e4), c->tail_s = d;
             else if (!strcmp(a, "--timeout"))
                 bad = !(d > 0 && d <= 1e4), c->timeout_s = d;
+            else if (!strcmp(a, "--until"))
+                bad = !(d > 0 && d <= 1e6), c->until_s = d;
             else if (!strcmp(a, "--bench"))
                 bad = !(d > 0 && d <= 3600), c->bench = true, c->bench_s = d;
             else if (!strcmp(a, "--harmonics-every"))
@@ -589,6 +593,14 @@ int afm_cmd_lockstep(int argc, char **argv) {
     if (c.out) c.out_log = lcm_eventlog_create(c.out, "w");
     double w0 = afmt_mono_s();
     int64_t t_first = n > 0 ? evs[0].t_us : 0;
+    if (c.until_s > 0 && !has_ticks) /* the commands of the first until_s seconds */
+        for (long long i = 0; i < n; i++)
+            if ((double)(evs[i].t_us - t_first) > c.until_s * 1e6) {
+                for (long long j = i; j < n; j++)
+                    free(evs[j].data);
+                n = i;
+                break;
+            }
     rc = 0;
     for (long long i = 0; i < n && rc == 0; i++) {
         if (!has_ticks) {
