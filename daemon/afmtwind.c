@@ -41,6 +41,9 @@ static void usage(FILE *f) {
             "  --prefix NAME_         channel prefix (default AFMTWIN_)\n"
             "  --cpu N                pin the integrator thread to CPU N\n"
             "  --chain-cpu N          pin the output-chain thread to CPU N\n"
+            "  --aux-cpu N            pin the receive and publish threads (and LCM's) to CPU N\n"
+            "                         (lockstep co-simulation on two cores: --cpu 0 --chain-cpu 1\n"
+            "                         --aux-cpu 0, the controller on CPU 0: README)\n"
             "  --rt-priority N        SCHED_FIFO priority 1..99 (default 80)\n"
             "  --block-us N           real-time block length in microseconds (default 1000)\n"
             "  --speed X              realtime: model seconds per wall second (default 1)\n"
@@ -100,6 +103,7 @@ static int parse_args(int argc, char **argv, twind_opts *o) {
                       .mode = TWIND_REALTIME,
                       .cpu = -1,
                       .chain_cpu = -1,
+                      .aux_cpu = -1,
                       .rt_priority = 80,
                       .block_s = 1e-3,
                       .harmonics_max_hz = 1000.0,
@@ -124,6 +128,9 @@ static int parse_args(int argc, char **argv, twind_opts *o) {
             o->lcm_url = v;
         } else if (!strcmp(a, "--lcm-out-url")) {
             o->lcm_out_url = v;
+        } else if (!strcmp(a, "--aux-cpu")) {
+            if (parse_num(a, v, 0, 1023, &x) || x != floor(x)) return -1;
+            o->aux_cpu = (int)x;
         } else if (!strcmp(a, "--chain-cpu")) {
             if (parse_num(a, v, 0, 1023, &x) || x != floor(x)) return -1;
             o->chain_cpu = (int)x;
@@ -280,7 +287,7 @@ int main(int argc, char **argv) {
     /* The transports may start threads of their own (LCM's receive thread): they inherit the
      * receive thread's real-time priority from here, or a busy integrator and chain would
      * keep them off the CPU and delay commands by up to a block (measured: p99 ~1 ms). */
-    twind_rt_setup_aux(d.opt.rt_priority - 10);
+    twind_rt_setup_aux(d.opt.rt_priority - 10, d.opt.aux_cpu);
     d.io =
         afm_lcm_io_create(d.opt.lcm_url, d.opt.lcm_out_url, d.opt.prefix, &sink, err, sizeof err);
     if (!d.io) {

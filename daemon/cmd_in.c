@@ -141,7 +141,7 @@ static void drain_side_queues(twind *d) {
 
 void *twind_recv_main(void *arg) {
     twind *d = arg;
-    twind_rt_setup_aux(d->opt.rt_priority - 10);
+    twind_rt_setup_aux(d->opt.rt_priority - 10, d->opt.aux_cpu);
     while (!atomic_load_explicit(&d->stop, memory_order_acquire)) {
         if (d->io->ops->poll(d->io, 50) < 0) {
             struct timespec ts = {0, 50000000L}; /* transport trouble: do not spin */

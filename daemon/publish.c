@@ -119,7 +119,7 @@ static void drain(twind *d, pub_state *p) {
 
 void *twind_pub_main(void *arg) {
     twind *d = arg;
-    twind_rt_setup_aux(d->opt.rt_priority - 10);
+    twind_rt_setup_aux(d->opt.rt_priority - 10, d->opt.aux_cpu);
     twind_rtf_state rs = {0, 0, 0};
     double next_status = twind_mono_now();
     static afm_io_status st; /* large (reason strings) */

@@ -44,6 +44,7 @@ typedef struct {
     twind_mode mode;
     int cpu;             /* pin the RT thread to this CPU; -1: no pinning */
     int chain_cpu;       /* pin the chain thread to this CPU; -1: no pinning */
+    int aux_cpu;         /* pin the receive and publish threads (and LCM's) here; -1: none */
     double speed;        /* realtime: model seconds per wall second asked (1) */
     double max_lag_s;    /* realtime: lag beyond which the backlog is dropped (resync) */
     double ring_s;       /* runner ring between the two stages, model seconds */
@@ -140,8 +141,9 @@ const char *twind_mode_name(twind_mode m);
 void twind_rt_setup_process(char *warn, size_t len);
 void twind_rt_setup_thread(int priority, int cpu, char *warn, size_t len);
 /* The publish and receive threads: SCHED_FIFO at a lower priority when permitted, so that
- * outputs and commands are not starved by ordinary processes; silent (the RT thread warns). */
-void twind_rt_setup_aux(int priority);
+ * outputs and commands are not starved by ordinary processes, and pinned to cpu (>= 0);
+ * silent (the RT thread warns). */
+void twind_rt_setup_aux(int priority, int cpu);
 /* Around a model build on the receive thread (FEM, reduction, filter design: ~20 ms for a
  * geometry change): normal scheduling while building (building true), so that it takes only
  * the time the integrator and chain threads leave; back to SCHED_FIFO priority after. */

@@ -12,7 +12,12 @@
  * with a new seq) one after the other, each after a pseudo-random pause of 0..2 ms (so that
  * commands land at every phase of the daemon's block), and time on CLOCK_MONOTONIC from
  * just before lcm_publish to the arrival of the first samples message whose seq_applied is
- * the command's. Both clocks are this process's, so no clock offsets enter. */
+ * the command's. Both clocks are this process's, so no clock offsets enter.
+ *
+ * Then lockstep co-simulation: the daemon in --mode lockstep, tapping as above, driven by
+ * `afmtwin lockstep --bench` (in this process) with ticks of 1 ms and of 0.1 ms of model time,
+ * each sent after the previous one's completion (tick_done_t) arrived: ticks per second and
+ * model time over wall time, against the targets 0.9 (1 ms) and 0.3 (0.1 ms). */
 #include "afmtwin_cmds.h"
 #include "lcm_tool.h"
 
@@ -370,6 +375,84 @@ out:
     client_normal(r);
 }
 
+/* ---- lockstep -------------------------------------------------------------------------- */
+
+/* Lockstep co-simulation throughput on one config (text or JSON lines from afmtwin
+ * lockstep --bench), unpinned and with the round trip's hand-overs kept on one core (the
+ * integrator, receive and publish threads and the client on CPU 0, the chain on CPU 1: a
+ * wake-up across cores costs ~24 us on this VM, on one core ~4 us). Returns 0, or 1 when a
+ * run failed. */
+static int bench_lockstep(const bd_opts *o, const char *config) {
+    static const char *const pins[2][3] = {{NULL, NULL, NULL}, {"0", "1", "0"}};
+    int rc = 0;
+    if (!o->json)
+        printf(
+            "  lockstep (afmtwind --mode lockstep; each tick sent after the previous one's "
+            "completion arrived; targets 0.9 x real time with 1 ms ticks, 0.3 x with 0.1 ms):\n");
+    for (int pin = 0; pin < 2; pin++) {
+        pid_t pid = fork();
+        if (pid == 0) {
+            int fd = open("/dev/null", O_WRONLY);
+            if (fd >= 0) {
+                dup2(fd, 2);
+                close(fd);
+            }
+            if (pin)
+                execl(o->daemon, o->daemon, "--config", config, "--lcm-url", BD_URL, "--mode",
+                      "lockstep", "--quiet", "--cpu", pins[1][0], "--chain-cpu", pins[1][1],
+                      "--aux-cpu", pins[1][2], (char *)NULL);
+            else
+                execl(o->daemon, o->daemon, "--config", config, "--lcm-url", BD_URL, "--mode",
+                      "lockstep", "--quiet", (char *)NULL);
+            _exit(127);
+        }
+        lcm_t *cmd = pid > 0 ? lcm_create(BD_URL) : NULL;
+        if (!cmd) {
+            rc = 1;
+            break;
+        }
+        struct timespec half = {0, 500000000L};
+        nanosleep(&half, NULL);
+        double f = BD_TAP_FREQ_HZ, a = BD_TAP_AMP_M, ph = 0; /* tap (applied with a tick) */
+        afmtwin_dither_t dm = {.utime = afmt_wall_us(),
+                               .seq = 1,
+                               .n_tones = 1,
+                               .frequency_hz = &f,
+                               .amplitude_m = &a,
+                               .phase_rad = &ph};
+        afmtwin_setpoint_t sp = {.utime = afmt_wall_us(), .seq = 2, .separation_m = BD_TAP_Z_M};
+        afmtwin_dither_t_publish(cmd, "AFMTWIN_DITHER", &dm);
+        afmtwin_setpoint_t_publish(cmd, "AFMTWIN_SETPOINT", &sp);
+        lcm_destroy(cmd);
+        if (!o->json)
+            printf("   %s:\n", pin ? "pinned (afmtwind --cpu 0 --chain-cpu 1 --aux-cpu 0, "
+                                     "afmtwin lockstep --cpu 0)"
+                                   : "unpinned");
+        static const char *const ticks[2] = {"1000", "100"};
+        for (int k = 0; k < 2; k++) {
+            char secs[32];
+            snprintf(secs, sizeof secs, "%g", o->seconds > 3 ? 3.0 : o->seconds);
+            char *argv[] = {"lockstep",  "--bench",        secs,
+                            "--tick-us", (char *)ticks[k], "--lcm-url",
+                            BD_URL,      "--config",       (char *)config,
+                            "--cpu",     pin ? "0" : "-1", o->json ? "--json" : "--quiet",
+                            NULL};
+            int argc = (int)(sizeof argv / sizeof argv[0]) - 1;
+            if (!pin) { /* no --cpu */
+                argv[9] = argv[11];
+                argv[10] = NULL;
+                argc = 10;
+            }
+            fflush(stdout);
+            if (afm_cmd_lockstep(argc, argv) != 0) rc = 1;
+            fflush(stdout);
+        }
+        kill(pid, SIGTERM);
+        waitpid(pid, NULL, 0);
+    }
+    return rc;
+}
+
 /* ---- driver ---------------------------------------------------------------------------- */
 
 static int reexec_in_netns(int argc, char **argv) {
@@ -493,6 +576,7 @@ int afm_cmd_bench_daemon(int argc, char **argv) {
                    r.lockin_m, r.n_lat, r.lost, r.p50, r.p99, r.max, r.mean, r.received, r.rejected,
                    r.applied, r.sent, r.chain_stalls, r.resyncs, r.burst_sent, r.burst_received,
                    r.burst_applied, r.burst_sent - r.burst_applied);
+            bench_lockstep(&o, o.configs[c]);
             continue;
         }
         printf("\n%s (daemon)", o.configs[c]);
@@ -529,6 +613,7 @@ int afm_cmd_bench_daemon(int argc, char **argv) {
                r.burst_sent, r.burst_received, r.burst_applied, r.burst_sent - r.burst_applied,
                r.sent, r.received, r.applied, r.rejected);
         if (r.warn[0]) printf("  daemon warnings: %s\n", r.warn);
+        if (bench_lockstep(&o, o.configs[c])) rc = 1;
     }
     return rc;
 }

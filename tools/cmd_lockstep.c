@@ -15,6 +15,7 @@
  * --sequence, or a temporary log) in this process and compares every completion: seq,
  * samples, model time, the samples digest, and the harmonics digest when --harmonics-every
  * gives the daemon's setting (its automatic choice depends on when outputs are taken). */
+#define _GNU_SOURCE /* sched_setaffinity, CPU_SET */
 #include "afmtwin_cmds.h"
 #include "lcm_tool.h"
 
@@ -61,7 +62,7 @@ typedef struct {
     /* options */
     const char *in, *config, *url, *out_url, *prefix, *sequence, *out;
     double tick_us, tail_s, timeout_s, bench_s, until_s;
-    int harmonics_every, rt_priority;
+    int harmonics_every, rt_priority, cpu;
     bool check, bench, quiet, json;
     /* LCM */
     lcm_t *lcm_in, *lcm_cmd;
@@ -89,7 +90,8 @@ static void ls_usage(FILE *f) {
         "usage: afmtwin lockstep --in LOG [--config FILE] [--tick-us US] [--tail S] [--check]\n"
         "                        [--harmonics-every K] [--sequence LOG] [--out LOG]\n"
         "                        [--lcm-url URL] [--lcm-out-url URL] [--prefix NAME_]\n"
-        "                        [--until S] [--timeout S] [--rt-priority N] [--quiet]\n"
+        "                        [--until S] [--timeout S] [--rt-priority N] [--cpu N]\n"
+        "                        [--quiet]\n"
         "       afmtwin lockstep --bench S --tick-us US [--json] [LCM options]\n\n"
         "Drives afmtwind --mode lockstep as a co-simulating controller does: each tick is\n"
         "sent, then its completion (PREFIX + TICK_DONE) awaited before anything else goes out;\n"
@@ -123,6 +125,9 @@ static void ls_usage(FILE *f) {
         "  --rt-priority N   SCHED_FIFO priority of this client when permitted (default 90:\n"
         "                    above the daemon's threads, as a controller on the same host\n"
         "                    must run; 0: normal scheduling)\n"
+        "  --cpu N           run on CPU N only (with afmtwind --aux-cpu N: the hand-overs of\n"
+        "                    a tick's round trip stay on one core, several times faster than\n"
+        "                    a wake-up across cores on a VM)\n"
         "  --bench S         no log: tick for S seconds of wall time, report ticks/s and the\n"
         "                    real-time factor (model over wall time)\n"
         "  --json            (--bench) one JSON object on stdout\n"
@@ -435,7 +440,7 @@ static int parse_opts(ls_ctx *c, int argc, char **argv) {
             c->prefix = v;
         } else if (!strcmp(a, "--tick-us") || !strcmp(a, "--tail") || !strcmp(a, "--timeout") ||
                    !strcmp(a, "--bench") || !strcmp(a, "--harmonics-every") ||
-                   !strcmp(a, "--rt-priority") || !strcmp(a, "--until")) {
+                   !strcmp(a, "--rt-priority") || !strcmp(a, "--until") || !strcmp(a, "--cpu")) {
             if (afmt_parse_double(v, &d) || !isfinite(d)) {
                 fprintf(stderr, "afmtwin lockstep: %s wants a number, got '%s'\n", a, v);
                 return 2;
@@ -447,6 +452,8 @@ static int parse_opts(ls_ctx *c, int argc, char **argv) {
                 bad = !(d >= 0 && d <= 1e4), c->tail_s = d;
             else if (!strcmp(a, "--timeout"))
                 bad = !(d > 0 && d <= 1e4), c->timeout_s = d;
+            else if (!strcmp(a, "--cpu"))
+                bad = !(d >= 0 && d <= 1023 && d == floor(d)), c->cpu = (int)d;
             else if (!strcmp(a, "--until"))
                 bad = !(d > 0 && d <= 1e6), c->until_s = d;
             else if (!strcmp(a, "--bench"))
@@ -487,8 +494,16 @@ static int open_lcm(ls_ctx *c, char *err, size_t errlen) {
         if (afmt_channel(c->prefix, out_sfx[k], c->chan_out[k], err, errlen)) return 2;
     char cmd_u[AFM_LCM_URL_LEN], out_u[AFM_LCM_URL_LEN];
     if (afm_lcm_urls(c->url, c->out_url, cmd_u, out_u, sizeof cmd_u, err, errlen)) return 2;
-    /* Above the daemon's SCHED_FIFO threads (before lcm_create: LCM's own thread inherits
-     * it; not passed on to children). */
+    /* Above the daemon's SCHED_FIFO threads and on --cpu (before lcm_create: LCM's own thread
+     * inherits both; the priority is not passed on to children). */
+    if (c->cpu >= 0) {
+        cpu_set_t set;
+        CPU_ZERO(&set);
+        CPU_SET(c->cpu, &set);
+        if (sched_setaffinity(0, sizeof set, &set) != 0 && !c->quiet)
+            fprintf(stderr, "afmtwin lockstep: cannot pin to CPU %d (%s)\n", c->cpu,
+                    strerror(errno));
+    }
     if (c->rt_priority > 0) {
         struct sched_param p = {.sched_priority = c->rt_priority};
         if (sched_setscheduler(0, SCHED_FIFO | LS_RESET_ON_FORK, &p) != 0 && !c->quiet)
@@ -550,6 +565,7 @@ int afm_cmd_lockstep(int argc, char **argv) {
     c.tail_s = 0.01;
     c.timeout_s = 10;
     c.rt_priority = 90;
+    c.cpu = -1;
     c.tick_seq = LS_TICK_SEQ0;
     c.running = true;
     c.abs_samples = -1;
