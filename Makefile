@@ -129,7 +129,7 @@ bench: deps
 	$(BUILD)/bin/afmtwin bench-states
 	$(BUILD)/bin/afmtwin bench-daemon --daemon $(BUILD)/bin/afmtwind
 
-# The 10-minute command soak (make test runs a 12 s one per config): 5 min per config
+# The 10-minute command soak (make test runs a 10 s one per config): 5 min per config
 # (default.conf, nchv.conf) against a realtime daemon, then each whole log in lockstep
 # against replay (the first 60 s of model time of each: ~3 min more per config).
 soak: deps

@@ -9,8 +9,9 @@
 # finite. Then the same command log runs through `afmtwin lockstep --check` against a
 # lockstep afmtwind (--harmonics-every 64): every completion (seq, samples, model time, the
 # samples and harmonics digests) identical to `afmtwin replay --lockstep` of the sequence.
-# AFMTWIN_SOAK_S: soak seconds per config (default 12; `make soak`: 300), AFMTWIN_SOAK_CHECK_S:
-# model seconds of each log checked in lockstep (default 4; `make soak`: the whole log).
+# AFMTWIN_SOAK_S: soak seconds per config (default 10; `make soak`: 300), AFMTWIN_SOAK_CHECK_S:
+# model seconds of each log checked in lockstep (default 3; `make soak`: 60; "all": the whole
+# log). The lockstep run keeps a tick's round trip on CPU 0 (docs/realtime.md).
 # Real-time checks on a machine shared with other real-time processes can fail for that
 # reason: the failure names them. Prints "N passed, N failed".
 BUILD=${1:-build}
@@ -27,8 +28,8 @@ fi
 A="$BUILD/bin/afmtwin"
 D="$BUILD/bin/afmtwind"
 export LCM_DEFAULT_URL='udpm://239.255.76.67:7667?ttl=0&recv_buf_size=4194304'
-SOAK_S=${AFMTWIN_SOAK_S:-12}
-CHECK_S=${AFMTWIN_SOAK_CHECK_S:-4}
+SOAK_S=${AFMTWIN_SOAK_S:-10}
+CHECK_S=${AFMTWIN_SOAK_CHECK_S:-3}
 pass=0; fail=0
 ok()  { echo "ok   $1"; pass=$((pass+1)); }
 bad() { echo "FAIL $1"; fail=$((fail+1)); }
@@ -69,12 +70,13 @@ for conf in config/default.conf config/nchv.conf; do
   fi
   [ $drc -eq 0 ] && ok "$name: daemon exited 0 after the soak" || bad "$name: daemon exit $drc"
   # 2. the same log in lockstep, against replay
-  "$D" --config "$conf" --mode lockstep --harmonics-every 64 --quiet 2> "$T/l.err" &
+  "$D" --config "$conf" --mode lockstep --harmonics-every 64 --quiet --cpu 0 --chain-cpu 1 \
+    --aux-cpu 0 2> "$T/l.err" &
   DPID=$!
   sleep 1
   until=""
   [ "$CHECK_S" != "all" ] && until="--until $CHECK_S"
-  "$A" lockstep --in "$T/soak.log" --config "$conf" --check --harmonics-every 64 $until \
+  "$A" lockstep --in "$T/soak.log" --config "$conf" --check --harmonics-every 64 --cpu 0 $until \
     > "$T/ls.txt" 2> "$T/ls.err"
   rc=$?
   kill -TERM "$DPID"; wait "$DPID"; DPID=""

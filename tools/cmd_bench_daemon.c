@@ -406,13 +406,20 @@ static int bench_lockstep(const bd_opts *o, const char *config) {
                       "lockstep", "--quiet", (char *)NULL);
             _exit(127);
         }
-        lcm_t *cmd = pid > 0 ? lcm_create(BD_URL) : NULL;
-        if (!cmd) {
+        lcm_t *cmd = pid > 0 ? lcm_create(BD_URL) : NULL,
+              *out = cmd ? lcm_create(BD_OUT_URL) : NULL;
+        if (!out) {
+            if (cmd) lcm_destroy(cmd);
             rc = 1;
             break;
         }
-        struct timespec half = {0, 500000000L};
-        nanosleep(&half, NULL);
+        bd_state st = {.want_seq = -1}; /* up: its status arrives */
+        afmtwin_status_t_subscription_t *sub =
+            afmtwin_status_t_subscribe(out, "AFMTWIN_STATUS", on_status, &st);
+        for (int i = 0; i < 100 && st.n_status == 0; i++)
+            pump(out, 0.1);
+        afmtwin_status_t_unsubscribe(out, sub);
+        lcm_destroy(out);
         double f = BD_TAP_FREQ_HZ, a = BD_TAP_AMP_M, ph = 0; /* tap (applied with a tick) */
         afmtwin_dither_t dm = {.utime = afmt_wall_us(),
                                .seq = 1,

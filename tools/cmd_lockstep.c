@@ -69,6 +69,7 @@ typedef struct {
     char chan_cmd[6][AFMT_CHAN_LEN], chan_out[4][AFMT_CHAN_LEN];
     lcm_eventlog_t *seq_log, *out_log;
     /* what came back */
+    bool status_seen; /* the daemon is up */
     afm_lcm_digest dg;
     bool done_seen;
     afmtwin_tick_done_t last;
@@ -174,6 +175,12 @@ static void on_harmonics(const lcm_recv_buf_t *rb, const char *channel, void *us
     c->n_harm_msgs++;
     afmtwin_harmonics_t_decode_cleanup(&m);
     log_out(c, rb, channel);
+}
+
+static void on_status(const lcm_recv_buf_t *rb, const char *channel, void *user) {
+    (void)rb;
+    (void)channel;
+    ((ls_ctx *)user)->status_seen = true;
 }
 
 /* A completion: what came since the previous one must be what it says was published. */
@@ -519,15 +526,27 @@ static int open_lcm(ls_ctx *c, char *err, size_t errlen) {
                  out_u);
         return 1;
     }
-    lcm_subscription_t *s[3] = {lcm_subscribe(c->lcm_in, c->chan_out[0], on_samples, c),
+    lcm_subscription_t *s[4] = {lcm_subscribe(c->lcm_in, c->chan_out[0], on_samples, c),
                                 lcm_subscribe(c->lcm_in, c->chan_out[1], on_harmonics, c),
-                                lcm_subscribe(c->lcm_in, c->chan_out[3], on_done, c)};
-    for (int i = 0; i < 3; i++) {
+                                lcm_subscribe(c->lcm_in, c->chan_out[3], on_done, c),
+                                lcm_subscribe(c->lcm_in, c->chan_out[2], on_status, c)};
+    for (int i = 0; i < 4; i++) {
         if (!s[i]) {
             snprintf(err, errlen, "cannot subscribe to the outputs");
             return 1;
         }
         lcm_subscription_set_queue_capacity(s[i], 100000);
+    }
+    /* the daemon is up when its status (10 Hz) arrives: nothing is sent before */
+    double t0 = afmt_mono_s();
+    while (!c->status_seen && afmt_mono_s() - t0 < c->timeout_s)
+        lcm_handle_timeout(c->lcm_in, 100);
+    if (!c->status_seen) {
+        snprintf(err, errlen,
+                 "no status from the daemon within %g s (is afmtwind running on "
+                 "these URLs, with this prefix?)",
+                 c->timeout_s);
+        return 1;
     }
     return 0;
 }
