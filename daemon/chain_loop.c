@@ -167,13 +167,7 @@ void *twind_chain_main(void *arg) {
                 push_outputs(&c);
             break;
         }
-        struct timespec ts;
-        clock_gettime(CLOCK_REALTIME, &ts); /* sem_timedwait takes CLOCK_REALTIME */
-        ts.tv_nsec += IDLE_WAIT_NS;
-        if (ts.tv_nsec >= 1000000000L) {
-            ts.tv_sec++;
-            ts.tv_nsec -= 1000000000L;
-        }
+        struct timespec ts = twind_deadline_in(IDLE_WAIT_NS);
         int w;
         while ((w = sem_timedwait(&d->chain_sem, &ts)) != 0 && errno == EINTR) {
         }

@@ -126,13 +126,7 @@ void *twind_pub_main(void *arg) {
     pub_state ps = {0};
     afm_lcm_digest_init(&ps.dg);
     for (;;) {
-        struct timespec ts;
-        clock_gettime(CLOCK_REALTIME, &ts); /* sem_timedwait takes CLOCK_REALTIME */
-        ts.tv_nsec += 20000000L;
-        if (ts.tv_nsec >= 1000000000L) {
-            ts.tv_sec++;
-            ts.tv_nsec -= 1000000000L;
-        }
+        struct timespec ts = twind_deadline_in(20000000L);
         while (sem_timedwait(&d->out_sem, &ts) != 0 && errno == EINTR) {
         }
         drain(d, &ps);

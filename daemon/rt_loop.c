@@ -151,13 +151,7 @@ void *twind_rt_main(void *arg) {
             c.snap.heartbeat++;
             c.snap.lag_s = 0;
             twind_snap_write(d, &c.snap);
-            struct timespec ts;
-            clock_gettime(CLOCK_REALTIME, &ts); /* sem_timedwait takes CLOCK_REALTIME */
-            ts.tv_nsec += IDLE_WAIT_NS;
-            if (ts.tv_nsec >= 1000000000L) {
-                ts.tv_sec++;
-                ts.tv_nsec -= 1000000000L;
-            }
+            struct timespec ts = twind_deadline_in(IDLE_WAIT_NS);
             sem_timedwait(&d->cmd_sem, &ts); /* EINTR, ETIMEDOUT: look again */
             clock_gettime(CLOCK_MONOTONIC, &origin);
             origin_samples = st.samples;

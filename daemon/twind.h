@@ -33,6 +33,7 @@
 #include <semaphore.h>
 #include <stdatomic.h>
 #include <stdint.h>
+#include <time.h>
 
 typedef enum { TWIND_REALTIME = 0, TWIND_FREERUN = 1, TWIND_LOCKSTEP = 2 } twind_mode;
 
@@ -211,5 +212,7 @@ static inline void twind_csnap_read(twind *d, twind_chain_snapshot *s) {
 /* Wall clock now (CLOCK_REALTIME, us) for utime stamps, and CLOCK_MONOTONIC in s. */
 int64_t twind_utime_now(void);
 double twind_mono_now(void);
+/* sem_timedwait's deadline (CLOCK_REALTIME) ns from now. */
+struct timespec twind_deadline_in(long ns);
 
 #endif

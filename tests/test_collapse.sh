@@ -14,27 +14,9 @@
 # Prints "N passed, N failed".
 BUILD=${1:-build}
 cd "$(dirname "$0")/.." || exit 1
-if [ "${2:-}" != "--inside" ]; then
-  if ! unshare -n true 2>/dev/null; then
-    echo "SKIP test_collapse.sh: 'unshare -n' is not permitted here"
-    echo "0 passed, 1 failed"
-    exit 1
-  fi
-  exec unshare -n sh -c 'ip link set lo up && ip link set lo multicast on &&
-    ip route add 224.0.0.0/4 dev lo && exec bash "$0" "$1" --inside' "$0" "$BUILD"
-fi
-
-A="$BUILD/bin/afmtwin"
-D="$BUILD/bin/afmtwind"
-if chrt -f 90 true 2>/dev/null; then
-  listen() { chrt -f 90 "$A" listen "$@"; }
-else
-  listen() { "$A" listen "$@"; }
-fi
-export LCM_DEFAULT_URL='udpm://239.255.76.67:7667?ttl=0&recv_buf_size=4194304'
-pass=0; fail=0
-ok()  { echo "ok   $1"; pass=$((pass+1)); }
-bad() { echo "FAIL $1"; fail=$((fail+1)); }
+. tests/lib_daemon.sh
+[ "${2:-}" = "--inside" ] || netns_reexec test_collapse.sh "$0" "$BUILD"
+daemon_test_init "$BUILD"
 T=$(mktemp -d /tmp/afmtwin-collapse.XXXXXX)
 DPID=""; LPID=""; MPID=""
 cleanup() {
@@ -43,22 +25,13 @@ cleanup() {
 }
 trap cleanup EXIT
 
-# Other real-time (SCHED_FIFO) processes on the machine while a recipe runs: on two cores
-# another twin's threads take the CPU this one needs, and a failure then says so.
-monitor() { # OUTFILE MYPID
-  while kill -0 "$2" 2>/dev/null; do
-    ps -eLo pid,cls,comm 2>/dev/null | awk -v me="$2" '$2 == "FF" && $1 != me && $3 !~ /^(irq|watchdog|migration|posix)/ {print $1 "(" $3 ")"}'
-    sleep 0.5
-  done | sort -u > "$1"
-}
-
 # RECIPE NAME WARMUP_S DAEMON_ARGS...
 recipe() {
   local name=$1 warm=$2; shift 2
   cp config/default.conf "$T/twin.conf"
   "$D" --config "$T/twin.conf" --quiet "$@" 2> "$T/d.err" &
   DPID=$!
-  monitor "$T/others.txt" "$DPID" &
+  rt_others "$T/others.txt" "$DPID" &
   MPID=$!
   listen --channels status --json --timeout 30 > "$T/status.json" 2>/dev/null &
   LPID=$!
@@ -78,7 +51,7 @@ recipe() {
   kill "$LPID" 2>/dev/null; wait "$LPID" 2>/dev/null; LPID=""
   kill -TERM "$DPID"; wait "$DPID"; local rc=$?; DPID=""
   wait "$MPID" 2>/dev/null; MPID=""
-  local others; others=$(grep -v "^$" "$T/others.txt" | grep -v "(afmtwin)" | tr '\n' ' ')
+  local others; others=$(cat "$T/others.txt")
   [ $rc -eq 0 ] && ok "$name: daemon ran the recipe and exited 0" || bad "$name: daemon exit $rc"
   # statuses from 1.5 s after start: the real-time factor of the last second, resyncs
   awk -v warm=1.5 '

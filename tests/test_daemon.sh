@@ -6,37 +6,10 @@
 BUILD=${1:-build}
 cd "$(dirname "$0")/.." || exit 1
 
-# Re-run inside a new network namespace whose loopback carries multicast (and nothing
-# else: no packet can reach a real interface). See ../shared/notes/lcm-netns.md.
-if [ "${2:-}" != "--inside" ]; then
-  if ! unshare -n true 2>/dev/null; then
-    echo "SKIP test_daemon.sh: 'unshare -n' is not permitted here ($(id -un), no CAP_SYS_ADMIN"
-    echo "     or user namespaces disabled); the daemon tests need a private network namespace"
-    echo "0 passed, 1 failed"
-    exit 1
-  fi
-  exec unshare -n sh -c 'ip link set lo up && ip link set lo multicast on &&
-    ip route add 224.0.0.0/4 dev lo && exec bash "$0" "$1" --inside' "$0" "$BUILD"
-fi
-
-A="$BUILD/bin/afmtwin"
-D="$BUILD/bin/afmtwind"
-# The daemon's threads run SCHED_FIFO (80, 70, 60) when permitted and, below real time on a
-# two-core machine, never sleep: a normal-priority listener then starves and miscounts
-# rates. Listeners here run above them, as a real controller sharing the host would.
-# Where SCHED_FIFO is not permitted, neither the daemon nor chrt gets it, and none is needed.
-if chrt -f 90 true 2>/dev/null; then
-  listen() { chrt -f 90 "$A" listen "$@"; }
-else
-  listen() { "$A" listen "$@"; }
-fi
-# LCM's default group, with 4 MB socket receive buffers (for the listeners, which read
-# the output flood). Commands go to port 7667, outputs to 7668 (the daemon's default: the
-# command URL with port + 1), so the daemon's command socket carries commands only.
-export LCM_DEFAULT_URL='udpm://239.255.76.67:7667?ttl=0&recv_buf_size=4194304'
-pass=0; fail=0
-ok()  { echo "ok   $1"; pass=$((pass+1)); }
-bad() { echo "FAIL $1"; fail=$((fail+1)); }
+# Re-run inside a private network namespace; what the daemon tests share (tests/lib_daemon.sh).
+. tests/lib_daemon.sh
+[ "${2:-}" = "--inside" ] || netns_reexec test_daemon.sh "$0" "$BUILD"
+daemon_test_init "$BUILD"
 T=$(mktemp -d /tmp/afmtwin-daemon.XXXXXX)
 DPID=""
 cleanup() { [ -n "$DPID" ] && kill -KILL "$DPID" 2>/dev/null; rm -rf "$T"; }

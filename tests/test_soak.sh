@@ -16,33 +16,15 @@
 # reason: the failure names them. Prints "N passed, N failed".
 BUILD=${1:-build}
 cd "$(dirname "$0")/.." || exit 1
-if [ "${2:-}" != "--inside" ]; then
-  if ! unshare -n true 2>/dev/null; then
-    echo "SKIP test_soak.sh: 'unshare -n' is not permitted here"
-    echo "0 passed, 1 failed"
-    exit 1
-  fi
-  exec unshare -n sh -c 'ip link set lo up && ip link set lo multicast on &&
-    ip route add 224.0.0.0/4 dev lo && exec bash "$0" "$1" --inside' "$0" "$BUILD"
-fi
-A="$BUILD/bin/afmtwin"
-D="$BUILD/bin/afmtwind"
-export LCM_DEFAULT_URL='udpm://239.255.76.67:7667?ttl=0&recv_buf_size=4194304'
+. tests/lib_daemon.sh
+[ "${2:-}" = "--inside" ] || netns_reexec test_soak.sh "$0" "$BUILD"
+daemon_test_init "$BUILD"
 SOAK_S=${AFMTWIN_SOAK_S:-10}
 CHECK_S=${AFMTWIN_SOAK_CHECK_S:-3}
-pass=0; fail=0
-ok()  { echo "ok   $1"; pass=$((pass+1)); }
-bad() { echo "FAIL $1"; fail=$((fail+1)); }
 T=$(mktemp -d /tmp/afmtwin-soak.XXXXXX)
 DPID=""; MPID=""
 cleanup() { for p in $DPID $MPID; do kill -KILL "$p" 2>/dev/null; done; rm -rf "$T"; }
 trap cleanup EXIT
-monitor() { # OUTFILE MYPID: other SCHED_FIFO processes while ours runs
-  while kill -0 "$2" 2>/dev/null; do
-    ps -eLo pid,cls,comm 2>/dev/null | awk -v me="$2" '$2 == "FF" && $1 != me && $3 !~ /^(irq|watchdog|migration|posix|afmtwin$)/ {print $1 "(" $3 ")"}'
-    sleep 0.5
-  done | sort -u | tr '\n' ' ' > "$1"
-}
 
 seed=1
 for conf in config/default.conf config/nchv.conf; do
@@ -50,7 +32,7 @@ for conf in config/default.conf config/nchv.conf; do
   # 1. realtime soak
   "$D" --config "$conf" --quiet 2> "$T/d.err" &
   DPID=$!
-  monitor "$T/others.txt" "$DPID" &
+  rt_others "$T/others.txt" "$DPID" &
   MPID=$!
   sleep 1
   "$A" soak --config "$conf" --seconds "$SOAK_S" --seed $seed --log "$T/soak.log" > "$T/soak.txt" 2> "$T/soak.err"

@@ -229,6 +229,20 @@ static double block_from_errfile(const char *errfile) {
     return us * 1e-6;
 }
 
+/* The tapping operating point: tone 0 at f1 for 50 nm free, Z 35 nm (seq 1 and 2). */
+static void send_tap(lcm_t *cmd) {
+    double f = BD_TAP_FREQ_HZ, a = BD_TAP_AMP_M, ph = 0;
+    afmtwin_dither_t dm = {.utime = afmt_wall_us(),
+                           .seq = 1,
+                           .n_tones = 1,
+                           .frequency_hz = &f,
+                           .amplitude_m = &a,
+                           .phase_rad = &ph};
+    afmtwin_setpoint_t sp = {.utime = afmt_wall_us(), .seq = 2, .separation_m = BD_TAP_Z_M};
+    afmtwin_dither_t_publish(cmd, "AFMTWIN_DITHER", &dm);
+    afmtwin_setpoint_t_publish(cmd, "AFMTWIN_SETPOINT", &sp);
+}
+
 /* Back to normal scheduling after a config's run. */
 static void client_normal(const bd_result *r) {
     if (!r->client_fifo) return;
@@ -281,17 +295,7 @@ static void bench_config(const bd_opts *o, const char *config, bd_result *r) {
         goto stop;
     }
     r->block_s = block_from_errfile(errfile);
-    /* tap */
-    double f = BD_TAP_FREQ_HZ, a = BD_TAP_AMP_M, ph = 0;
-    afmtwin_dither_t dm = {.utime = afmt_wall_us(),
-                           .seq = 1,
-                           .n_tones = 1,
-                           .frequency_hz = &f,
-                           .amplitude_m = &a,
-                           .phase_rad = &ph};
-    afmtwin_setpoint_t sp = {.utime = afmt_wall_us(), .seq = 2, .separation_m = BD_TAP_Z_M};
-    afmtwin_dither_t_publish(cmd, "AFMTWIN_DITHER", &dm);
-    afmtwin_setpoint_t_publish(cmd, "AFMTWIN_SETPOINT", &sp);
+    send_tap(cmd);
     r->sent = 2;
     pump(lcm, 1.0);
     /* (a) real-time factor over the window */
@@ -420,16 +424,7 @@ static int bench_lockstep(const bd_opts *o, const char *config) {
             pump(out, 0.1);
         afmtwin_status_t_unsubscribe(out, sub);
         lcm_destroy(out);
-        double f = BD_TAP_FREQ_HZ, a = BD_TAP_AMP_M, ph = 0; /* tap (applied with a tick) */
-        afmtwin_dither_t dm = {.utime = afmt_wall_us(),
-                               .seq = 1,
-                               .n_tones = 1,
-                               .frequency_hz = &f,
-                               .amplitude_m = &a,
-                               .phase_rad = &ph};
-        afmtwin_setpoint_t sp = {.utime = afmt_wall_us(), .seq = 2, .separation_m = BD_TAP_Z_M};
-        afmtwin_dither_t_publish(cmd, "AFMTWIN_DITHER", &dm);
-        afmtwin_setpoint_t_publish(cmd, "AFMTWIN_SETPOINT", &sp);
+        send_tap(cmd); /* applied with the first tick */
         lcm_destroy(cmd);
         if (!o->json)
             printf("   %s:\n", pin ? "pinned (afmtwind --cpu 0 --chain-cpu 1 --aux-cpu 0, "

@@ -13,6 +13,7 @@
  * the worst ring item of each stage, and the estimators' table rebuilds; `--runs` repeats
  * give the median of the means and the median of the worst items. */
 #include "afmtwin_cmds.h"
+#include "lcm_tool.h"
 
 #include "afm_cmd.h"
 #include "afm_config.h"
@@ -27,7 +28,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
 #define ITEM AFM_RUNNER_SLOT_SAMPLES
 #define BENCH_PRIO 70 /* SCHED_FIFO when permitted: as the daemon's stages, not preempted */
@@ -93,12 +93,6 @@ typedef struct {
     bool timing;
 } bench_twin;
 
-static double now_s(void) {
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
-
 static int cmp_double(const void *a, const void *b) {
     double x = *(const double *)a, y = *(const double *)b;
     return (x > y) - (x < y);
@@ -132,12 +126,12 @@ static long long run(bench_twin *t, long long n) {
     long long done = 0;
     while (done < n) {
         long long k = n - done < ITEM ? n - done : ITEM;
-        double t0 = now_s();
+        double t0 = afmt_mono_s();
         long long adv = afm_runner_run(t->r, k);
-        double t1 = now_s();
+        double t1 = afmt_mono_s();
         afm_runner_chain_run(t->r, 0);
         drain(t->r);
-        double t2 = now_s();
+        double t2 = afmt_mono_s();
         if (adv <= 0) break;
         if (t->timing) {
             double ni = (t1 - t0) * 1e9, nc = (t2 - t1) * 1e9;
@@ -168,9 +162,9 @@ static void apply(bench_twin *t, afm_cmd *c) {
         }
     }
     if (c->kind == AFM_CMD_PARAM) afm_param_apply(&t->shadow, &c->u.param, NULL, err, sizeof err);
-    double t0 = now_s();
+    double t0 = afmt_mono_s();
     int rc = afm_runner_apply(t->r, c, m ? &m : NULL, err, sizeof err);
-    if (t->timing) t->sum_i += (now_s() - t0) * 1e9;
+    if (t->timing) t->sum_i += (afmt_mono_s() - t0) * 1e9;
     if (rc) {
         fprintf(stderr, "afmtwin bench-states: %s\n", err);
         t->bad++;
@@ -356,13 +350,13 @@ static int z_change_cost(const afm_config *cfg, double *z_ns, double *full_ns) {
     const afm_drive *d = afm_sim_drive(s);
     double a = d->amp_m[0], f = d->omega_rad_s[0] / 6.283185307179586476925286766559;
     for (int k = 0; k < n; k++) {
-        double t0 = now_s();
+        double t0 = afmt_mono_s();
         afm_sim_set_separation(s, z0 + 1e-12 * (k & 1));
-        double t1 = now_s();
+        double t1 = afmt_mono_s();
         afm_sim_run(s, 64, buf);
-        double t2 = now_s();
+        double t2 = afmt_mono_s();
         afm_sim_set_tone(s, 0, a, f);
-        double t3 = now_s();
+        double t3 = afmt_mono_s();
         afm_sim_run(s, 64, buf);
         tz += t1 - t0;
         tf += t3 - t2;
