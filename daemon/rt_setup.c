@@ -55,6 +55,11 @@ void twind_rt_setup_build(int priority, bool building) {
         twind_rt_setup_aux(priority, -1); /* the pinning stays */
         return;
     }
-    struct sched_param sp = {.sched_priority = 0};
-    (void)pthread_setschedparam(pthread_self(), SCHED_OTHER, &sp);
+    /* SCHED_FIFO 1: below every thread of the daemon, above ordinary processes (at SCHED_OTHER
+     * a build on a loaded machine took hundreds of ms, and the commands behind it waited) */
+    struct sched_param sp = {.sched_priority = 1};
+    if (pthread_setschedparam(pthread_self(), SCHED_FIFO, &sp) != 0) {
+        sp.sched_priority = 0;
+        (void)pthread_setschedparam(pthread_self(), SCHED_OTHER, &sp);
+    }
 }

@@ -146,8 +146,9 @@ void twind_rt_setup_thread(int priority, int cpu, char *warn, size_t len);
  * silent (the RT thread warns). */
 void twind_rt_setup_aux(int priority, int cpu);
 /* Around a model build on the receive thread (FEM, reduction, filter design: ~20 ms for a
- * geometry change): normal scheduling while building (building true), so that it takes only
- * the time the integrator and chain threads leave; back to SCHED_FIFO priority after. */
+ * geometry change): the lowest real-time priority while building (building true), so that it
+ * takes only the time the integrator and chain threads leave but no ordinary process delays
+ * it; back to SCHED_FIFO priority after. */
 void twind_rt_setup_build(int priority, bool building);
 
 /* rt_loop.c: the real-time thread (arg: twind *). */

@@ -40,7 +40,7 @@ for conf in config/default.conf config/nchv.conf; do
   kill -TERM "$DPID"; wait "$DPID"; drc=$?; DPID=""
   wait "$MPID" 2>/dev/null; MPID=""
   sed 's/^/     /' "$T/soak.txt"
-  head -5 "$T/soak.err" | sed 's/^/     /'
+  head -12 "$T/soak.err" | sed 's/^/     /'
   others=$(cat "$T/others.txt")
   summary=$(grep "real time:" "$T/soak.txt" | sed 's/^ *real time: //')
   if [ $rc -eq 0 ]; then

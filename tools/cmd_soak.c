@@ -8,8 +8,9 @@
  *    (realtime_factor_1s) at least 0.99 and no resync, except that the second after a
  *    geometry rebuild may skip at most one block (counted and reported);
  *  - every command applied and echoed: the next command goes out once the previous one's seq
- *    came back as seq_applied (in a samples message or the status; 250 ms at most), and at
- *    the end the daemon counts as many received and applied, none rejected;
+ *    (or a later one: commands apply in order) came back as seq_applied, in a samples message
+ *    or the status, 250 ms at most; at the end the daemon counts as many received and
+ *    applied, none rejected;
  *  - every output finite (samples, the harmonics' lock-in and peak force).
  * Drive amplitudes are chosen for free tip amplitudes of 15-85 nm (the model's linear
  * response at tone 0's frequency; 50 nm nominal), the usual AM-AFM range, whatever the config
@@ -123,7 +124,7 @@ static void on_status(const lcm_recv_buf_t *rb, const char *ch, const afmtwin_st
     (void)ch;
     soak_ctx *c = user;
     c->n_status++;
-    if (m->seq_applied == c->seq && c->echoed_seq < c->seq) c->echoed_seq = m->seq_applied;
+    if (m->seq_applied > c->echoed_seq) c->echoed_seq = m->seq_applied;
     double t = afmt_mono_s() - c->t_start;
     if (!c->have_status) {
         c->resyncs0 = c->resyncs_last = m->resyncs;
@@ -173,7 +174,7 @@ static void on_samples(const lcm_recv_buf_t *rb, const char *ch, const afmtwin_s
     (void)ch;
     soak_ctx *c = user;
     c->samples_msgs++;
-    if (m->seq_applied == c->seq && c->echoed_seq < c->seq) c->echoed_seq = m->seq_applied;
+    if (m->seq_applied > c->echoed_seq) c->echoed_seq = m->seq_applied;
     for (int i = 0; i < m->n; i++)
         if (!isfinite(m->deflection_m[i]) || !isfinite(m->obd_m[i]) || !isfinite(m->force_n[i]))
             c->nonfinite++;
