@@ -145,14 +145,21 @@ void *twind_rt_main(void *arg) {
         if (budget <= 0) {
             /* paused or waiting for ticks: nothing to run; a completion that waited for ring
              * space goes in; wait for the next command; re-anchor pacing */
-            if (afm_runner_run(c.r, 0) == 0) sem_post(&d->chain_sem);
+            afm_runner_run(c.r, 0);
+            sem_post(&d->chain_sem);
             afm_runner_status_get(c.r, &st);
             c.snap.st = st;
             c.snap.heartbeat++;
             c.snap.lag_s = 0;
             twind_snap_write(d, &c.snap);
+            /* The posts of commands taken while running (nobody waited) are stale: drop
+             * them, then wait only if no command is queued (one queued after the check
+             * posts, and the wait returns at once). */
+            while (sem_trywait(&d->cmd_sem) == 0) {
+            }
             struct timespec ts = twind_deadline_in(IDLE_WAIT_NS);
-            sem_timedwait(&d->cmd_sem, &ts); /* EINTR, ETIMEDOUT: look again */
+            if (!afm_spsc_peek(&d->cmd_q))
+                sem_timedwait(&d->cmd_sem, &ts); /* EINTR, ETIMEDOUT: look again */
             clock_gettime(CLOCK_MONOTONIC, &origin);
             origin_samples = st.samples;
             c.last_end = ts_sec(&origin);
