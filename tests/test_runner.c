@@ -349,7 +349,7 @@ static void test_done(const afm_config *cfg) {
         afm_runner *r =
             afm_runner_create_pipelined(cfg, 2048, true, pipelined, 16, err, sizeof err);
         afm_runner_done d = {0};
-        long long got[4] = {-1, -1, -1, -1}, where[4] = {0}, n = 0;
+        long long got[5] = {-1, -1, -1, -1, -1}, where[5] = {0}, n = 0;
         afm_cmd t = {.kind = AFM_CMD_TICK, .seq = 7, .u.tick = {5000}};
         afm_runner_apply(r, &t, NULL, err, sizeof err);
         for (int k = 0; k < 4; k++) /* 4000 samples: not done yet */
@@ -377,14 +377,25 @@ static void test_done(const afm_config *cfg) {
         while (pipelined && afm_runner_chain_run(r, 0) > 0) {
         }
         if (afm_runner_take_done(r, &d)) got[n] = d.seq, where[n++] = d.samples;
+        t.seq = 11; /* a tick while paused: runs, and completes, after RUN */
+        t.u.tick.n_samples = 2000;
+        afm_runner_apply(r, &t, NULL, err, sizeof err);
+        long long none = afm_runner_run(r, 1000);
+        afm_cmd run = {.kind = AFM_CMD_CONTROL, .seq = 12, .u.control = {AFM_CTL_RUN, 0}};
+        afm_runner_apply(r, &run, NULL, err, sizeof err);
+        afm_runner_run(r, 5000);
+        while (pipelined && afm_runner_chain_run(r, 0) > 0) {
+        }
+        if (afm_runner_take_done(r, &d)) got[n] = d.seq, where[n++] = d.samples;
         bool again = afm_runner_take_done(r, &d);
         char what[160];
         snprintf(what, sizeof what,
-                 "%s: completions tick 7 at 5000, ticks 8+9 at 10000, step 10 at 10300, none "
-                 "early or twice",
+                 "%s: completions tick 7 at 5000, ticks 8+9 at 10000, step 10 at 10300, tick 11 "
+                 "(sent paused) after RUN at 12300, none early or twice",
                  pipelined ? "pipelined" : "inline");
-        check_true(!early && !again && n == 3 && got[0] == 7 && where[0] == 5000 && got[1] == 9 &&
-                       where[1] == 10000 && got[2] == 10 && where[2] == 10300,
+        check_true(!early && !again && n == 4 && got[0] == 7 && where[0] == 5000 && got[1] == 9 &&
+                       where[1] == 10000 && got[2] == 10 && where[2] == 10300 && none == 0 &&
+                       got[3] == 11 && where[3] == 12300,
                    what);
         afm_runner_destroy(&r);
     }

@@ -78,8 +78,10 @@ typedef struct {
     long long n_cap;
     /* state of the twin as this client drives it */
     int64_t tick_seq;
-    long long samples;     /* run by this client so far */
-    long long abs_samples; /* the daemon's count at the last completion (-1: none yet) */
+    long long samples;      /* run by this client so far */
+    long long abs_samples;  /* the daemon's count at the last completion (-1: none yet) */
+    long long paused_ticks; /* tick budget sent while paused: runs, and completes, after RUN */
+    int64_t paused_tick_seq;
     bool running;
     double rate_hz;
     double wall_waiting; /* wall seconds spent waiting for completions */
@@ -291,6 +293,11 @@ static int send_event(ls_ctx *c, const ls_event *e) {
         switch (cmd.u.control.action) {
         case AFM_CTL_RUN:
             c->running = true;
+            if (c->paused_ticks > 0) { /* the ticks sent while paused run now */
+                long long n = c->paused_ticks;
+                c->paused_ticks = 0;
+                return wait_done(c, c->paused_tick_seq, n);
+            }
             break;
         case AFM_CTL_PAUSE:
             c->running = false;
@@ -303,6 +310,9 @@ static int send_event(ls_ctx *c, const ls_event *e) {
         }
     } else if (cmd.kind == AFM_CMD_TICK && c->running) {
         return wait_done(c, cmd.seq, cmd.u.tick.n_samples);
+    } else if (cmd.kind == AFM_CMD_TICK) { /* paused: the budget waits for RUN */
+        c->paused_ticks += cmd.u.tick.n_samples;
+        c->paused_tick_seq = cmd.seq;
     }
     return 0;
 }

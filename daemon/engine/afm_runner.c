@@ -95,8 +95,9 @@ struct afm_runner {
     long long s0;
     long long blowups, applied, swaps, stalls;
     double last_blowup_t_s;
-    int64_t gate_seq; /* the last tick or step command applied (its completion: IT_DONE) */
-    ring_item *open;  /* reserved, being filled; committed at the end of every run */
+    int64_t tick_seq, step_seq; /* the last tick and step commands applied (IT_DONE names
+                                 * the one whose budget was used up) */
+    ring_item *open;            /* reserved, being filled; committed at the end of every run */
     pending_item pending[PENDING_MAX];
     int n_pending;
     /* between */
@@ -313,7 +314,7 @@ static void emit(afm_runner *r, int kind, afm_runner_model *m) {
     p->f = *afm_sim_forces(r->sim);
     p->z_m = afm_sim_separation(r->sim);
     p->model = m;
-    p->seq = r->gate_seq;
+    p->seq = r->running ? r->tick_seq : r->step_seq; /* DONE: whose budget it was */
     p->done_samples = r->samples;
     p->done_t_s = afm_sim_time(r->sim);
     flush_pending(r);
@@ -617,7 +618,7 @@ int afm_runner_apply(afm_runner *r, const afm_cmd *c, afm_runner_model **model, 
             break;
         case AFM_CTL_STEP:
             r->running = false;
-            r->gate_seq = c->seq;
+            r->step_seq = c->seq;
             if (r->step_budget > LLONG_MAX - c->u.control.n_samples)
                 r->step_budget = LLONG_MAX;
             else
@@ -630,7 +631,7 @@ int afm_runner_apply(afm_runner *r, const afm_cmd *c, afm_runner_model **model, 
             afm_err_set(err, errlen, "tick: the twin is not in lockstep mode");
             return -1;
         }
-        r->gate_seq = c->seq;
+        r->tick_seq = c->seq;
         if (r->tick_budget > LLONG_MAX - c->u.tick.n_samples)
             r->tick_budget = LLONG_MAX;
         else

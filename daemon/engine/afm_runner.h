@@ -123,11 +123,12 @@ int afm_runner_chain_run(afm_runner *r, int max_items);
 bool afm_runner_chain_seq_next(afm_runner *r);
 
 /* Back: the completion of a tick (lockstep) or step budget. When the integrator uses up the
- * budget of the tick and step commands applied so far, a marker follows their samples; once
- * afm_runner_chain_run has passed it (it stops right after), this returns 1 with the last
- * such command's seq, the samples run since create and the model time reached, then 0 until
- * the next one: hand out the outputs waiting first, they are the budget's. Ticks sent while
- * an earlier one still runs are completed together (one marker, the last seq). Inline, the
+ * budget it runs on (ticks while running in lockstep, steps while paused), a marker follows
+ * the samples; once afm_runner_chain_run has passed it (it stops right after), this returns
+ * 1 with the seq of the last tick (or step) command applied, the samples run since create
+ * and the model time reached, then 0 until the next one: hand out the outputs waiting first,
+ * they are the budget's. Ticks sent while an earlier one still runs are completed together
+ * (one marker, the last seq); ticks sent while paused run, and complete, after RUN. Inline, the
  * back does not stop there and this returns the latest marker. */
 typedef struct {
     int64_t seq;
