@@ -74,6 +74,7 @@ static const char *const kind_name[N_KINDS] = {
 typedef struct {
     const char *config, *url, *out_url, *prefix, *log;
     double seconds, max_rate_hz, block_s;
+    int rt_priority; /* SCHED_FIFO priority of this tool, 0: normal scheduling */
     uint64_t seed;
     bool quiet;
     /* LCM */
@@ -349,8 +350,8 @@ static void recent_text(const soak_ctx *c, double now, char *buf, size_t len) {
 static void usage(FILE *f) {
     fprintf(f,
             "usage: afmtwin soak --config FILE [--seconds S] [--seed N] [--max-rate-hz R]\n"
-            "                    [--log LOG] [--block-us US] [--lcm-url URL] [--lcm-out-url URL]\n"
-            "                    [--prefix NAME_] [--quiet]\n\n"
+            "                    [--log LOG] [--block-us US] [--rt-priority N] [--lcm-url URL]\n"
+            "                    [--lcm-out-url URL] [--prefix NAME_] [--quiet]\n\n"
             "A bounded command soak of a running afmtwind (realtime mode): random valid\n"
             "commands of every kind (setpoint steps and ramps from 1 um down to indentation,\n"
             "frequency and amplitude steps, multi-tone, force, damping and geometry changes,\n"
@@ -368,6 +369,8 @@ static void usage(FILE *f) {
             "  --max-rate-hz R   commands a second at most, 1..1000 (default 1000)\n"
             "  --log LOG         write the commands sent to LOG (afmtwin lockstep, replay)\n"
             "  --block-us US     the daemon's --block-us (default 1000): the skip allowance\n"
+            "  --rt-priority N   run at SCHED_FIFO N (default 0: normal scheduling, below the\n"
+            "                    daemon; this tool decodes every output message)\n"
             "  --lcm-url URL, --lcm-out-url URL, --prefix NAME_  as for afmtwin send / listen\n"
             "  --quiet           no summary\n\n"
             "Exit status 0 pass, 1 fail, 2 bad usage.\n",
@@ -422,6 +425,8 @@ int afm_cmd_soak(int argc, char **argv) {
             c.max_rate_hz = d;
         } else if (!strcmp(a, "--block-us") && d >= 10 && d <= 1e6) {
             c.block_s = d * 1e-6;
+        } else if (!strcmp(a, "--rt-priority") && d >= 0 && d <= 99 && d == floor(d)) {
+            c.rt_priority = (int)d;
         } else {
             fprintf(stderr, "afmtwin soak: bad option or value: %s %s (see --help)\n", a, v);
             return 2;
@@ -463,9 +468,14 @@ int afm_cmd_soak(int argc, char **argv) {
         goto usage_err;
     char cmd_u[AFM_LCM_URL_LEN], out_u[AFM_LCM_URL_LEN];
     if (afm_lcm_urls(c.url, c.out_url, cmd_u, out_u, sizeof cmd_u, err, sizeof err)) goto usage_err;
-    /* above the daemon's threads, as a controller on the same host must run */
-    struct sched_param prio = {.sched_priority = 90};
-    sched_setscheduler(0, SCHED_FIFO | SOAK_RESET_ON_FORK, &prio);
+    /* Normal scheduling: this tool reads every output message (finite checks), and at a
+     * real-time priority above the daemon's threads that work came out of the integrator's
+     * core (blocks late). Below them it takes what they leave; its echo times then include
+     * waiting for a CPU (the 250 ms bound leaves room). --rt-priority N puts it above. */
+    if (c.rt_priority > 0) {
+        struct sched_param prio = {.sched_priority = c.rt_priority};
+        sched_setscheduler(0, SCHED_FIFO | SOAK_RESET_ON_FORK, &prio);
+    }
     c.in = lcm_create(out_u);
     c.cmd = c.in ? lcm_create(cmd_u) : NULL;
     if (!c.in || !c.cmd) {
