@@ -401,6 +401,33 @@ static void test_done(const afm_config *cfg) {
     }
 }
 
+/* Tones a dither command leaves out stop (removed from the drive: the integrator's cost
+ * follows the tone count); naming one again starts it at the command's phase. */
+static void test_tones_stop(const afm_config *cfg) {
+    char err[AFM_ERR_LEN];
+    afm_runner *r = afm_runner_create(cfg, 2048, false, err, sizeof err);
+    afm_cmd c = {.kind = AFM_CMD_DITHER, .seq = 1};
+    c.u.dither = (afm_cmd_dither){3, {338112, 1e6, 2e6}, {0.087e-9, 1e-11, 1e-11}, {0, 0, 0}};
+    afm_runner_apply(r, &c, NULL, err, sizeof err);
+    afm_runner_run(r, 3000);
+    int n3 = afm_sim_drive(afm_runner_sim(r))->n;
+    c.seq = 2;
+    c.u.dither = (afm_cmd_dither){1, {338500}, {0.087e-9}, {0}};
+    afm_runner_apply(r, &c, NULL, err, sizeof err);
+    afm_runner_run(r, 3000);
+    int n1 = afm_sim_drive(afm_runner_sim(r))->n;
+    c.seq = 3;
+    c.u.dither = (afm_cmd_dither){2, {338500, 1e6}, {0.087e-9, 1e-11}, {0, 0.7}};
+    afm_runner_apply(r, &c, NULL, err, sizeof err);
+    const afm_drive *d = afm_sim_drive(afm_runner_sim(r));
+    afm_runner_status st;
+    afm_runner_status_get(r, &st);
+    check_true(n3 == 3 && n1 == 1 && d->n == 2 && fabs(d->phase_rad[1] - 0.7) < 1e-12 &&
+                   d->t0_s[1] == st.t_s,
+               "dither: tones left out stop (3 -> 1 tone), a tone named again starts at its phase");
+    afm_runner_destroy(&r);
+}
+
 static void test_blowup(void) {
     afm_config cfg;
     char err[AFM_ERR_LEN];
@@ -564,6 +591,7 @@ int main(void) {
     test_ramp_and_rejects(&cfg);
     test_gating(&cfg);
     test_done(&cfg);
+    test_tones_stop(&cfg);
     test_blowup();
     test_uptime(&cfg);
     test_phase_origin(&cfg);

@@ -50,6 +50,9 @@ typedef enum {
     ST_HARDEST,
     ST_MULTITONE,
     ST_MULTI_HARD,
+    ST_BIMODAL,
+    ST_SOAK_MIX,
+    ST_SOAK_MIX1,
     ST_PAUSE_RESUME,
     ST_RESET,
     ST_GEOMETRY,
@@ -71,6 +74,9 @@ static const struct {
     [ST_HARDEST] = {"hardest soak contact (Z 12 nm, drive x 1.7)", 0.01},
     [ST_MULTITONE] = {"multi-tone (4 tones)", 0.01},
     [ST_MULTI_HARD] = {"4 tones in the hardest soak contact", 0.01},
+    [ST_BIMODAL] = {"bimodal: + 0.02 nm at mode 2, tapping Z 15 nm", 0.01},
+    [ST_SOAK_MIX] = {"a soak's 4-tone mix, 342.5 kHz, Z 17.8 nm", 0.01},
+    [ST_SOAK_MIX1] = {"the same, tone 0 alone", 0.01},
     [ST_PAUSE_RESUME] = {"paused, 5 steps of 1000, resumed: first 5 ms", 0.005},
     [ST_RESET] = {"after a reset (from rest), first 5 ms", 0.005},
     [ST_GEOMETRY] = {"after a geometry rebuild (length +1 %), first 5 ms", 0.005},
@@ -252,6 +258,28 @@ static int run_state(const afm_config *cfg, double uptime_s, state_id id, state_
         c = dither(1, &fe, &a);
         apply(&t, &c);
         run(&t, llround(0.005 * fs));
+        break;
+    }
+    case ST_BIMODAL: { /* a second tone at the model's mode 2: bimodal AM-AFM */
+        const afm_modal *md = afm_sim_model(afm_runner_sim(t.r));
+        const double f[2] = {fe, md->n > 1 ? md->omega_rad_s[1] / 6.283185307179586 : 2e6};
+        const double a[2] = {ae, 0.02e-9};
+        c = setpoint(15e-9, 0);
+        apply(&t, &c);
+        c = dither(2, f, a);
+        apply(&t, &c);
+        run(&t, llround(0.005 * fs));
+        break;
+    }
+    case ST_SOAK_MIX: /* the state the soak of seed 1 found slowest (default.conf) */
+    case ST_SOAK_MIX1: {
+        const double f[4] = {342479, 590778, 141987, 838028};
+        const double a[4] = {50e-9 / 50e-9 * 0.076e-9, 0.0121e-9, 0.00331e-9, 0.0163e-9};
+        c = setpoint(17.8e-9, 0);
+        apply(&t, &c);
+        c = dither(id == ST_SOAK_MIX ? 4 : 1, f, a);
+        apply(&t, &c);
+        run(&t, llround(0.01 * fs));
         break;
     }
     case ST_MULTITONE:

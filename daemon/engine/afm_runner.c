@@ -485,8 +485,10 @@ static int apply_dither(afm_runner *r, const afm_cmd_dither *d, char *err, size_
             return -1;
         }
     }
-    for (int j = d->n_tones; j < n_run; j++) /* tones the command leaves out fall silent */
-        afm_sim_set_tone(s, j, 0.0, dr->omega_rad_s[j] / two_pi);
+    /* Tones the command leaves out stop: removed from the drive, so that the integrator no
+     * longer pays for them (a silent tone cost as much as a loud one: +40 % per sample with
+     * four tones in contact); a later command that names them starts them at its phase. */
+    if (d->n_tones < n_run) afm_sim_drop_tones(s, d->n_tones);
     return 0;
 }
 

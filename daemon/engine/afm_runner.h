@@ -31,7 +31,8 @@
  * Commands (validated with afm_cmd_validate first; afm_runner_apply re-checks what depends
  * on the running state and changes nothing on rejection):
  *  - dither: tone j < n_tones set phase-continuously (afm_sim_set_tone); a tone this
- *    command starts begins at phase_rad; running tones past n_tones get amplitude 0.
+ *    command starts begins at phase_rad; running tones past n_tones stop (they are removed
+ *    from the drive; naming them again starts them at that command's phase_rad).
  *  - setpoint: ramp rate 0 -> Z now; else Z moves linearly towards the target.
  *  - param: SEPARATION and FORCE names apply now (afm_param_apply on the runner's config,
  *    then the force constants are swapped into the simulator, no allocation); DAMPING and

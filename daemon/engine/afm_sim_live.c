@@ -23,6 +23,16 @@ int afm_sim_start_tone(afm_sim *s, int j, double amp_m, double freq_hz, double p
     return AFM_SIM_OK;
 }
 
+int afm_sim_drop_tones(afm_sim *s, int n) {
+    if (n < 1 || n > s->drive.n) return AFM_SIM_EINVAL;
+    if (n == s->drive.n) return AFM_SIM_OK;
+    for (int j = n; j < AFM_MAX_TONES; j++)
+        s->drive.amp_m[j] = s->drive.omega_rad_s[j] = s->drive.phase_rad[j] = s->drive.t0_s[j] = 0;
+    s->drive.n = n;
+    s->be->changed(s);
+    return AFM_SIM_OK;
+}
+
 int afm_sim_set_forces(afm_sim *s, const afm_force_params *f) {
     if (!f || f->vdw_contact != s->f.vdw_contact || f->viscoelastic != s->f.viscoelastic ||
         f->squeeze != s->f.squeeze || f->capillary != s->f.capillary ||

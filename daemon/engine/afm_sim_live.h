@@ -18,6 +18,11 @@
  * rejects or a non-finite phase. */
 int afm_sim_start_tone(afm_sim *s, int j, double amp_m, double freq_hz, double phase_rad);
 
+/* Stop the tones n.. (1 <= n <= current tone count): the drive keeps tones 0..n-1, the
+ * backend resynchronises (its cost per sample follows the tone count). AFM_SIM_EINVAL,
+ * nothing changed, for n out of range. */
+int afm_sim_drop_tones(afm_sim *s, int n);
+
 /* Replace the tip-sample force constants (afm_force_init of the new config, same model).
  * The enabled terms must be the same as before (the rt backend chose its stepping for
  * them at create); AFM_SIM_EINVAL otherwise, nothing changed. */
