@@ -41,7 +41,7 @@ TEST_SRC   := $(wildcard tests/test_*.c)
 TEST_BIN   := $(patsubst tests/%.c,$(BUILD)/tests/%,$(TEST_SRC))
 TEST_COMMON := $(BUILD)/obj/tests/check.o $(BUILD)/obj/tests/fixtures.o $(BUILD)/obj/tests/msg_examples.o
 
-.PHONY: all deps run test validate bench install clean format format-check can-probe \
+.PHONY: all deps run test validate bench soak install clean format format-check can-probe \
         sanitize sanitize-build fuzz fuzzers flood
 
 LIBS_ALL   := $(if $(IO_OBJ),$(IO_LIB)) $(MSG_LIB) $(ENGINE_LIB)
@@ -178,7 +178,15 @@ validate: deps
 bench: deps
 	$(MAKE) $(BUILD)/bin/afmtwin $(BUILD)/bin/afmtwind
 	$(BUILD)/bin/afmtwin bench
+	$(BUILD)/bin/afmtwin bench-states
 	$(BUILD)/bin/afmtwin bench-daemon --daemon $(BUILD)/bin/afmtwind
+
+# The 10-minute command soak (make test runs a 10 s one per config): 5 min per config
+# (default.conf, nchv.conf) against a realtime daemon, then each whole log in lockstep
+# against replay (the first 60 s of model time of each: ~3 min more per config).
+soak: deps
+	$(MAKE) $(BUILD)/bin/afmtwin $(BUILD)/bin/afmtwind
+	AFMTWIN_SOAK_S=300 AFMTWIN_SOAK_CHECK_S=60 bash tests/test_soak.sh $(BUILD)
 
 # SYSTEMD_UNIT_DIR: where the unit goes (ExecStart is rewritten to PREFIX's paths).
 SYSTEMD_UNIT_DIR ?= $(PREFIX)/lib/systemd/system

@@ -19,6 +19,7 @@
 #define RTREJ_Q_LEN 64
 #define SAMPLES_Q_LEN 256 /* records of up to AFM_IO_MAX_BLOCK samples (~8 MB in all) */
 #define HARM_Q_LEN 4096
+#define DONE_Q_LEN 1024
 
 static void usage(FILE *f) {
     fprintf(f,
@@ -40,6 +41,9 @@ static void usage(FILE *f) {
             "  --prefix NAME_         channel prefix (default AFMTWIN_)\n"
             "  --cpu N                pin the integrator thread to CPU N\n"
             "  --chain-cpu N          pin the output-chain thread to CPU N\n"
+            "  --aux-cpu N            pin the receive and publish threads (and LCM's) to CPU N\n"
+            "                         (lockstep co-simulation on two cores: --cpu 0 --chain-cpu 1\n"
+            "                         --aux-cpu 0, the controller on CPU 0: README)\n"
             "  --rt-priority N        SCHED_FIFO priority 1..99 (default 80)\n"
             "  --block-us N           real-time block length in microseconds (default 1000)\n"
             "  --speed X              realtime: model seconds per wall second (default 1)\n"
@@ -51,6 +55,8 @@ static void usage(FILE *f) {
             "                         at most --harmonics-max-hz records a second)\n"
             "  --harmonics-max-hz F   cap for the automatic choice (default 1000)\n"
             "  --exit-after S         stop after S seconds, as on SIGTERM (tests)\n"
+            "  --start-time S         model time starts at S s instead of 0 (tests of a twin\n"
+            "                         that has been up that long)\n"
             "  --quiet                no status line\n"
             "  --help                 this text\n");
 }
@@ -71,6 +77,17 @@ int64_t twind_utime_now(void) {
     struct timespec t;
     clock_gettime(CLOCK_REALTIME, &t);
     return (int64_t)t.tv_sec * 1000000 + t.tv_nsec / 1000;
+}
+
+struct timespec twind_deadline_in(long ns) {
+    struct timespec ts;
+    clock_gettime(CLOCK_REALTIME, &ts);
+    ts.tv_nsec += ns;
+    while (ts.tv_nsec >= 1000000000L) {
+        ts.tv_sec++;
+        ts.tv_nsec -= 1000000000L;
+    }
+    return ts;
 }
 
 double twind_mono_now(void) {
@@ -97,6 +114,7 @@ static int parse_args(int argc, char **argv, twind_opts *o) {
                       .mode = TWIND_REALTIME,
                       .cpu = -1,
                       .chain_cpu = -1,
+                      .aux_cpu = -1,
                       .rt_priority = 80,
                       .block_s = 1e-3,
                       .harmonics_max_hz = 1000.0,
@@ -121,6 +139,9 @@ static int parse_args(int argc, char **argv, twind_opts *o) {
             o->lcm_url = v;
         } else if (!strcmp(a, "--lcm-out-url")) {
             o->lcm_out_url = v;
+        } else if (!strcmp(a, "--aux-cpu")) {
+            if (parse_num(a, v, 0, 1023, &x) || x != floor(x)) return -1;
+            o->aux_cpu = (int)x;
         } else if (!strcmp(a, "--chain-cpu")) {
             if (parse_num(a, v, 0, 1023, &x) || x != floor(x)) return -1;
             o->chain_cpu = (int)x;
@@ -162,6 +183,9 @@ static int parse_args(int argc, char **argv, twind_opts *o) {
         } else if (!strcmp(a, "--harmonics-max-hz")) {
             if (parse_num(a, v, 1e-3, 1e9, &x)) return -1;
             o->harmonics_max_hz = x;
+        } else if (!strcmp(a, "--start-time")) {
+            if (parse_num(a, v, 0, 1e9, &x)) return -1;
+            o->start_s = x;
         } else if (!strcmp(a, "--exit-after")) {
             if (parse_num(a, v, 0, 1e9, &x)) return -1;
             o->exit_after_s = x;
@@ -178,26 +202,37 @@ static int parse_args(int argc, char **argv, twind_opts *o) {
     return 0;
 }
 
+/* The stderr status line: whether the twin keeps up (the real-time factor of the last second
+ * of running, resyncs and the model time they skipped, the chain's lag), what the cantilever
+ * does (lock-in amplitude and phase lag of the last period, its peak force) and the command
+ * bookkeeping, with the last rejection marked old once a later command was applied. */
 static void status_line(twind *d, twind_rtf_state *rs, char *buf, size_t len) {
-    afm_io_status s;
+    static afm_io_status s; /* main thread only; large (reason strings) */
     twind_status_fill(d, &s, rs);
     twind_snapshot snap;
     twind_chain_snapshot cs;
     twind_snap_read(d, &snap);
     twind_csnap_read(d, &cs);
     snprintf(buf, len,
-             "t %.6f s  rtf %.3f  busy %.0f%%/%.0f%%  lag %.4f s  overruns %lld  resyncs %lld  "
-             "chain stalls %lld lag %.4f s  rx %lld  applied %lld  rej %lld  ref %lld  drop %lld  "
-             "blowups %lld  seq %lld  Z %.3f nm  fe %.1f Hz  A %.4g nm  %s",
-             s.model_time_s, s.realtime_factor, 100.0 * snap.busy_fraction,
+             "t %.6f s  rtf(1 s) %.3f  busy %.0f%%/%.0f%%  lag %.4f s  overruns %lld  resyncs %lld "
+             "(%.4f s skipped)  chain stalls %lld lag %.4f s  lock-in %.4g nm, phase lag %.1f deg  "
+             "peak force %.4g nN  rx %lld  applied %lld  rej %lld  ref %lld  drop %lld  blowups "
+             "%lld  seq %lld  Z %.3f nm  fe %.1f Hz  A %.4g nm  %s",
+             s.model_time_s, s.realtime_factor_1s, 100.0 * snap.busy_fraction,
              100.0 * cs.busy_fraction, s.lag_s, (long long)s.overruns, (long long)s.resyncs,
-             (long long)s.chain_stalls, s.chain_lag_s, (long long)s.received, (long long)s.applied,
-             (long long)s.rejected, (long long)s.refused, (long long)s.dropped,
-             (long long)s.blowups, (long long)s.seq_applied, s.separation_m * 1e9, s.fe_hz,
-             s.amplitude_m * 1e9,
+             s.resync_skipped_s, (long long)s.chain_stalls, s.chain_lag_s,
+             s.lockin_amplitude_m * 1e9, s.lockin_phase_deg, s.peak_force_n * 1e9,
+             (long long)s.received, (long long)s.applied, (long long)s.rejected,
+             (long long)s.refused, (long long)s.dropped, (long long)s.blowups,
+             (long long)s.seq_applied, s.separation_m * 1e9, s.fe_hz, s.amplitude_m * 1e9,
              s.auto_paused ? "PAUSED ITSELF (blow-ups)"
              : s.running   ? "running"
                            : "paused");
+    if (s.last_reject[0]) {
+        size_t n = strlen(buf);
+        snprintf(buf + n, len - n, "  last rejected %.1f s ago%s: %.160s", s.last_reject_age_s,
+                 s.last_reject_old ? " (old: later commands applied)" : "", s.last_reject);
+    }
     if (cs.samples_dropped || cs.harm_dropped || cs.st.chain.periods_dropped) {
         size_t n = strlen(buf);
         snprintf(buf + n, len - n, "  DROPPED: %lld sample blocks, %lld harmonics, %lld periods",
@@ -244,18 +279,21 @@ int main(int argc, char **argv) {
     if (ring > 4096) ring = 4096;
     d.runner = afm_runner_create_pipelined(&cfg, (int)block, d.opt.mode == TWIND_LOCKSTEP, true,
                                            (int)ring, err, sizeof err);
-    if (!d.runner) {
+    if (!d.runner ||
+        (d.opt.start_s > 0 && afm_runner_set_time(d.runner, d.opt.start_s, err, sizeof err))) {
         fprintf(stderr, "afmtwind: %s: %s\n", d.opt.config_path, err);
         return 1;
     }
     pthread_mutex_init(&d.lock, NULL);
     sem_init(&d.out_sem, 0, 0);
     sem_init(&d.chain_sem, 0, 0);
+    sem_init(&d.cmd_sem, 0, 0);
     if (afm_spsc_init(&d.cmd_q, CMD_Q_LEN, sizeof(twind_cmd_item), err, sizeof err) ||
         afm_spsc_init(&d.trash_q, TRASH_Q_LEN, sizeof(afm_runner_model *), err, sizeof err) ||
         afm_spsc_init(&d.rtrej_q, RTREJ_Q_LEN, sizeof(twind_reason), err, sizeof err) ||
         afm_spsc_init(&d.samples_q, SAMPLES_Q_LEN, sizeof(afm_io_samples), err, sizeof err) ||
-        afm_spsc_init(&d.harm_q, HARM_Q_LEN, sizeof(afm_io_harmonics), err, sizeof err)) {
+        afm_spsc_init(&d.harm_q, HARM_Q_LEN, sizeof(afm_io_harmonics), err, sizeof err) ||
+        afm_spsc_init(&d.done_q, DONE_Q_LEN, sizeof(twind_done_item), err, sizeof err)) {
         fprintf(stderr, "afmtwind: %s\n", err);
         goto out;
     }
@@ -263,7 +301,7 @@ int main(int argc, char **argv) {
     /* The transports may start threads of their own (LCM's receive thread): they inherit the
      * receive thread's real-time priority from here, or a busy integrator and chain would
      * keep them off the CPU and delay commands by up to a block (measured: p99 ~1 ms). */
-    twind_rt_setup_aux(d.opt.rt_priority - 10);
+    twind_rt_setup_aux(d.opt.rt_priority - 10, d.opt.aux_cpu);
     d.io =
         afm_lcm_io_create(d.opt.lcm_url, d.opt.lcm_out_url, d.opt.prefix, &sink, err, sizeof err);
     if (!d.io) {
@@ -392,6 +430,7 @@ int main(int argc, char **argv) {
     rc = 0;
 out:
     afm_io_destroy(&d.io);
+    afm_spsc_destroy(&d.done_q);
     afm_spsc_destroy(&d.harm_q);
     afm_spsc_destroy(&d.samples_q);
     afm_spsc_destroy(&d.rtrej_q);
@@ -399,6 +438,7 @@ out:
     afm_spsc_destroy(&d.cmd_q);
     sem_destroy(&d.out_sem);
     sem_destroy(&d.chain_sem);
+    sem_destroy(&d.cmd_sem);
     afm_runner_destroy(&d.runner);
     return rc;
 }

@@ -14,8 +14,12 @@
  * accumulated, (ii) right before samples of a later command (so no message mixes two
  * commands), and (iii) right after the first item of a new command, so that a controller
  * sees the effect of its command about one item (73 us) after it is applied rather than a
- * block later; and (iv) when the integrator is idle: in lockstep whenever the ring is
- * empty (the ticks so far are done), otherwise after IDLE_WAIT_NS without items. */
+ * block later (not in lockstep); (iv) when the integrator is idle, after IDLE_WAIT_NS without
+ * items; and (v) when a tick or step budget is
+ * used up (the runner's completion marker): then the completion follows the outputs into
+ * done_q, with the counts of records committed before it, for the publisher to send once
+ * those are out. The last period record of every push is finished (amplitude and phase) for
+ * the status line's lock-in and peak force. */
 #include "twind.h"
 
 #include <errno.h>
@@ -36,6 +40,7 @@ typedef struct {
     double pushed_t_s;      /* model time of the last sample processed at the last push */
     bool waiting;           /* items processed since the last push */
     double busy_acc, busy_t0;
+    long long samples_recs, harm_recs; /* records committed to samples_q, harm_q */
 } chain_ctx;
 
 static void push_outputs(chain_ctx *c) {
@@ -53,6 +58,7 @@ static void push_outputs(chain_ctx *c) {
             }
             afm_io_samples_from_block(o, &b, now_us, st.seq_applied);
             afm_spsc_commit(&d->samples_q);
+            c->samples_recs++;
         }
     }
     /* Harmonics: every k-th period, k chosen so that at most harmonics_max_hz go out. */
@@ -62,11 +68,15 @@ static void push_outputs(chain_ctx *c) {
         every = f > 1 ? (f < 1e9 ? (int)ceil(f) : 1000000000) : 1; /* no int overflow */
     }
     afm_chain_period p[PERIODS_PER_TAKE];
-    int n;
+    int n, newest = -1; /* p[newest]: the newest record taken (a take of 0 leaves p alone) */
+    bool finished = false;
     while ((n = afm_runner_take_periods_raw(c->r, p, PERIODS_PER_TAKE)) > 0) {
+        newest = n - 1;
+        finished = false;
         for (int i = 0; i < n; i++) {
             if (c->period_count++ % every != 0) continue;
             afm_runner_period_finish(c->r, &p[i]); /* the polar form of the published ones */
+            finished = i == newest;
             afm_io_harmonics *h = afm_spsc_reserve(&d->harm_q);
             if (!h) {
                 c->snap.harm_dropped++;
@@ -74,7 +84,15 @@ static void push_outputs(chain_ctx *c) {
             }
             afm_io_harmonics_from_period(h, &p[i], st.fe_hz, now_us, st.seq_applied);
             afm_spsc_commit(&d->harm_q);
+            c->harm_recs++;
         }
+    }
+    if (newest >= 0) { /* the newest period, for the status */
+        if (!finished) afm_runner_period_finish(c->r, &p[newest]);
+        c->snap.have_period = true;
+        c->snap.lockin_amplitude_m = p[newest].lockin_amplitude_m;
+        c->snap.lockin_phase_deg = p[newest].lockin_phase_deg;
+        c->snap.peak_force_n = p[newest].cycle.peak_force_n;
     }
     c->snap.st = st;
     c->pushed_seq = st.seq_applied;
@@ -84,16 +102,30 @@ static void push_outputs(chain_ctx *c) {
     sem_post(&d->out_sem); /* wakes the publisher; never blocks */
 }
 
-/* Rules (i)-(iii) of the header: push now? */
+/* Rules (i)-(iii) of the header: push now? In lockstep (i) and (ii) only: the completion
+ * (v) hands out the rest, and every push is a wake-up of the publisher in the tick's round
+ * trip. */
 static bool push_due(chain_ctx *c) {
     afm_runner_chain_status st;
     afm_runner_chain_status_get(c->r, &st);
+    if (c->d->opt.mode == TWIND_LOCKSTEP)
+        return st.t_s - c->pushed_t_s >= c->d->opt.block_s || afm_runner_chain_seq_next(c->r);
     return st.seq_applied != c->pushed_seq || st.t_s - c->pushed_t_s >= c->d->opt.block_s ||
            afm_runner_chain_seq_next(c->r);
 }
 
 static double mono(void) {
     return twind_mono_now();
+}
+
+/* busy seconds since the last call, at time now: the busy fraction over each second */
+static void busy_account(chain_ctx *c, double busy, double now) {
+    c->busy_acc += busy;
+    if (now - c->busy_t0 < 1.0) return;
+    c->snap.busy_fraction = c->busy_acc / (now - c->busy_t0);
+    c->busy_acc = 0;
+    c->busy_t0 = now;
+    twind_csnap_write(c->d, &c->snap);
 }
 
 void *twind_chain_main(void *arg) {
@@ -109,36 +141,33 @@ void *twind_chain_main(void *arg) {
     afm_runner_chain_status_get(c.r, &c.snap.st);
     twind_csnap_write(d, &c.snap);
     for (;;) {
-        double t0 = mono();
-        int n, any = 0;
+        double t0 = mono(), t1 = t0;
+        int n;
         while ((n = afm_runner_chain_run(c.r, 1)) > 0) {
-            any = 1;
             c.waiting = true;
-            if (push_due(&c)) push_outputs(&c);
+            afm_runner_done dn;
+            if (afm_runner_take_done(c.r, &dn)) { /* (v) */
+                push_outputs(&c);
+                twind_done_item it = {dn, c.samples_recs, c.harm_recs};
+                afm_spsc_push(&d->done_q, &it); /* full: lost (1024 waiting), never blocks */
+                sem_post(&d->out_sem);
+            } else if (push_due(&c)) {
+                push_outputs(&c);
+            }
+            t1 = mono(); /* busy time item by item: the loop may not end for long when behind */
+            busy_account(&c, t1 - t0, t1);
+            t0 = t1;
         }
-        /* (iv) in lockstep: the ring is empty, so the ticks so far are all done */
-        if (c.waiting && d->opt.mode == TWIND_LOCKSTEP) push_outputs(&c);
-        double t1 = mono();
-        if (any) c.busy_acc += t1 - t0;
-        if (t1 - c.busy_t0 >= 1.0) {
-            c.snap.busy_fraction = c.busy_acc / (t1 - c.busy_t0);
-            c.busy_acc = 0;
-            c.busy_t0 = t1;
-            twind_csnap_write(d, &c.snap);
-        }
+
+        t1 = mono();
+        busy_account(&c, t1 - t0, t1);
         if (atomic_load_explicit(&d->rt_done, memory_order_acquire)) {
             /* The integrator has stopped: take what it left, then stop. */
             while (afm_runner_chain_run(c.r, ITEMS_PER_TURN) > 0)
                 push_outputs(&c);
             break;
         }
-        struct timespec ts;
-        clock_gettime(CLOCK_REALTIME, &ts); /* sem_timedwait takes CLOCK_REALTIME */
-        ts.tv_nsec += IDLE_WAIT_NS;
-        if (ts.tv_nsec >= 1000000000L) {
-            ts.tv_sec++;
-            ts.tv_nsec -= 1000000000L;
-        }
+        struct timespec ts = twind_deadline_in(IDLE_WAIT_NS);
         int w;
         while ((w = sem_timedwait(&d->chain_sem, &ts)) != 0 && errno == EINTR) {
         }

@@ -36,24 +36,34 @@ static void count_reason(twind *d, long long *counter, char *last, const char *w
     if (print) fprintf(stderr, "afmtwind: %s: %s\n", what, reason);
 }
 
-void twind_reject(twind *d, const char *reason) {
-    count_reason(d, &d->rejected, d->last_reject, "rejected", reason);
-}
-
 void twind_refuse(twind *d, const char *reason) {
     count_reason(d, &d->refused, d->last_refusal, "refused", reason);
+}
+
+void twind_reject_order(twind *d, const char *reason, int64_t order) {
+    count_reason(d, &d->rejected, d->last_reject, "rejected", reason);
+    double now = twind_mono_now();
+    pthread_mutex_lock(&d->lock);
+    d->last_reject_order = order;
+    d->last_reject_mono = now;
+    pthread_mutex_unlock(&d->lock);
+}
+
+void twind_reject(twind *d, const char *reason) {
+    twind_reject_order(d, reason, d->order);
 }
 
 static void count_received(twind *d) {
     pthread_mutex_lock(&d->lock);
     d->received++;
     pthread_mutex_unlock(&d->lock);
+    d->order++;
 }
 
 /* Push a command (and its model) to the RT thread; the queue never blocks: a full queue
  * is a refusal (the RT thread is far behind). */
 static int enqueue(twind *d, const afm_cmd *c, afm_runner_model *m, const char *what) {
-    twind_cmd_item it = {.cmd = *c, .model = m};
+    twind_cmd_item it = {.cmd = *c, .model = m, .order = d->order};
     if (!afm_spsc_push(&d->cmd_q, &it)) {
         char why[AFM_IO_REASON_LEN];
         snprintf(why, sizeof why, "%s: command queue full (%zu waiting); not applied", what,
@@ -62,6 +72,7 @@ static int enqueue(twind *d, const afm_cmd *c, afm_runner_model *m, const char *
         twind_refuse(d, why);
         return -1;
     }
+    sem_post(&d->cmd_sem); /* wakes an idle RT thread (lockstep, paused); never blocks */
     return 0;
 }
 
@@ -131,6 +142,15 @@ static void drive_from_config(twind *d, const afm_cfg_drive *dr) {
     d->drive_gen++;
 }
 
+/* A model off the real-time threads, at normal priority (twind_rt_setup_build). */
+static afm_runner_model *build(twind *d, const afm_config *cfg, bool new_chain, char *err,
+                               size_t errlen) {
+    twind_rt_setup_build(d->opt.rt_priority - 10, true);
+    afm_runner_model *m = afm_runner_model_build(cfg, new_chain, err, errlen);
+    twind_rt_setup_build(d->opt.rt_priority - 10, false);
+    return m;
+}
+
 static int on_cmd(void *ctx, const afm_cmd *c) {
     twind *d = ctx;
     char err[AFM_ERR_LEN], why[AFM_IO_REASON_LEN];
@@ -160,7 +180,7 @@ static int on_cmd(void *ctx, const afm_cmd *c) {
     }
     afm_runner_model *m = NULL;
     if (eff >= AFM_PARAM_DAMPING) {
-        m = afm_runner_model_build(&next, eff == AFM_PARAM_GEOMETRY, err, sizeof err);
+        m = build(d, &next, eff == AFM_PARAM_GEOMETRY, err, sizeof err);
         if (!m) {
             snprintf(why, sizeof why, "param: cannot build the new model: %.200s", err);
             twind_reject(d, why);
@@ -202,12 +222,13 @@ afm_io_sink twind_sink(twind *d) {
 static void do_reload(twind *d) {
     static afm_config next; /* receive thread only; large for a stack frame */
     char err[AFM_ERR_LEN], why[AFM_IO_REASON_LEN];
+    d->order++;
     if (afm_config_load(d->opt.config_path, &next, err, sizeof err)) {
         snprintf(why, sizeof why, "reload: %.200s; keeping the running config", err);
         twind_reject(d, why);
         return;
     }
-    afm_runner_model *m = afm_runner_model_build(&next, true, err, sizeof err);
+    afm_runner_model *m = build(d, &next, true, err, sizeof err);
     if (m && afm_cmd_check_cfg_drive(afm_runner_model_modal(m), &next.drive, err, sizeof err))
         afm_runner_model_destroy(&m);
     if (!m) {
@@ -249,7 +270,7 @@ static long long received_now(twind *d) {
 
 void *twind_recv_main(void *arg) {
     twind *d = arg;
-    twind_rt_setup_aux(d->opt.rt_priority - 10);
+    twind_rt_setup_aux(d->opt.rt_priority - 10, d->opt.aux_cpu);
     double win_t0 = twind_mono_now();
     long long win_n0 = 0;
     bool flood = false;

@@ -1,9 +1,14 @@
 /* SPDX-License-Identifier: MIT */
 /* publish.c -- the publish thread: samples and harmonics records from the RT thread's rings
- * out through the transport, and the status at 10 Hz (and once more at shutdown). */
+ * out through the transport, the completions of ticks and steps right after the outputs
+ * committed before them (with the digest of the messages since the previous completion,
+ * afm_lcm_digest), and the status at 10 Hz (and once more at shutdown). */
 #include "twind.h"
 
+#include "afm_lcm_encode.h"
+
 #include <errno.h>
+#include <math.h>
 #include <stdio.h>
 #include <string.h>
 #include <time.h>
@@ -50,42 +55,87 @@ void twind_status_fill(twind *d, afm_io_status *o, twind_rtf_state *rs) {
     o->chain_stalls = s.st.stalls;
     double lag = s.st.t_s - cs.st.t_s; /* model time integrated but not yet through the chain */
     o->chain_lag_s = lag > 0 ? lag : 0;
+    o->realtime_factor_1s = s.rtf_1s;
+    o->resync_skipped_s = s.resync_dropped_s;
+    o->lockin_amplitude_m = cs.have_period ? cs.lockin_amplitude_m : NAN;
+    o->lockin_phase_deg = cs.have_period ? cs.lockin_phase_deg : NAN;
+    o->peak_force_n = cs.have_period ? cs.peak_force_n : NAN;
+    pthread_mutex_lock(&d->lock);
+    o->last_reject_age_s = d->last_reject[0] ? wall - d->last_reject_mono : -1.0;
+    o->last_reject_old = d->last_reject[0] && s.last_applied_order > d->last_reject_order;
+    pthread_mutex_unlock(&d->lock);
 }
 
-static int drain(twind *d) {
-    int n = 0;
-    afm_io_samples *s;
-    afm_io_harmonics *h;
-    while ((s = afm_spsc_peek(&d->samples_q)) != NULL) {
-        d->io->ops->publish_samples(d->io, s);
-        afm_spsc_release(&d->samples_q);
-        n++;
+/* What the publisher keeps between calls: records published, and the digest of those since
+ * the last completion. */
+typedef struct {
+    long long samples_recs, harm_recs;
+    afm_lcm_digest dg;
+} pub_state;
+
+/* Every waiting record and completion, in the order the chain thread committed them: a
+ * record only while no completion committed before it waits, a completion once the records
+ * committed before it are out (its counts), with the digest of the messages since the
+ * previous one. Records are peeked before the completion queue, so a completion committed
+ * before a record is always seen first. */
+static void drain(twind *d, pub_state *p) {
+    for (bool progress = true; progress;) {
+        progress = false;
+        twind_done_item *it;
+        afm_io_samples *s = afm_spsc_peek(&d->samples_q);
+        it = afm_spsc_peek(&d->done_q);
+        if (s && (!it || p->samples_recs < it->samples_recs)) {
+            d->io->ops->publish_samples(d->io, s);
+            afmtwin_samples_t m;
+            afm_lcm_samples_msg(s, &m);
+            afm_lcm_digest_samples(&p->dg, &m);
+            afm_spsc_release(&d->samples_q);
+            p->samples_recs++;
+            progress = true;
+        }
+        afm_io_harmonics *h = afm_spsc_peek(&d->harm_q);
+        it = afm_spsc_peek(&d->done_q);
+        if (h && (!it || p->harm_recs < it->harm_recs)) {
+            d->io->ops->publish_harmonics(d->io, h);
+            afm_lcm_harm_buf b;
+            afmtwin_harmonics_t m;
+            afm_lcm_harmonics_msg(h, &b, &m);
+            afm_lcm_digest_harmonics(&p->dg, &m);
+            afm_spsc_release(&d->harm_q);
+            p->harm_recs++;
+            progress = true;
+        }
+        it = afm_spsc_peek(&d->done_q);
+        if (it && p->samples_recs >= it->samples_recs && p->harm_recs >= it->harm_recs) {
+            afm_io_tick_done td = {.utime = twind_utime_now(),
+                                   .seq = it->d.seq,
+                                   .samples = it->d.samples,
+                                   .model_time_s = it->d.t_s,
+                                   .n_samples_msgs = p->dg.n_samples_msgs,
+                                   .n_harmonics_msgs = p->dg.n_harmonics_msgs,
+                                   .samples_digest = afm_lcm_digest_samples_final(&p->dg),
+                                   .harmonics_digest = p->dg.harmonics};
+            if (d->io->ops->publish_tick_done) d->io->ops->publish_tick_done(d->io, &td);
+            afm_lcm_digest_init(&p->dg);
+            afm_spsc_release(&d->done_q);
+            progress = true;
+        }
     }
-    while ((h = afm_spsc_peek(&d->harm_q)) != NULL) {
-        d->io->ops->publish_harmonics(d->io, h);
-        afm_spsc_release(&d->harm_q);
-        n++;
-    }
-    return n;
 }
 
 void *twind_pub_main(void *arg) {
     twind *d = arg;
-    twind_rt_setup_aux(d->opt.rt_priority - 10);
+    twind_rt_setup_aux(d->opt.rt_priority - 10, d->opt.aux_cpu);
     twind_rtf_state rs = {0, 0, 0};
     double next_status = twind_mono_now();
-    afm_io_status st;
+    static afm_io_status st; /* large (reason strings) */
+    pub_state ps = {0};
+    afm_lcm_digest_init(&ps.dg);
     for (;;) {
-        struct timespec ts;
-        clock_gettime(CLOCK_REALTIME, &ts); /* sem_timedwait takes CLOCK_REALTIME */
-        ts.tv_nsec += 20000000L;
-        if (ts.tv_nsec >= 1000000000L) {
-            ts.tv_sec++;
-            ts.tv_nsec -= 1000000000L;
-        }
+        struct timespec ts = twind_deadline_in(20000000L);
         while (sem_timedwait(&d->out_sem, &ts) != 0 && errno == EINTR) {
         }
-        drain(d);
+        drain(d, &ps);
         double now = twind_mono_now();
         if (now >= next_status) {
             twind_status_fill(d, &st, &rs);
@@ -95,7 +145,7 @@ void *twind_pub_main(void *arg) {
         }
         if (atomic_load_explicit(&d->chain_done, memory_order_acquire)) break;
     }
-    drain(d);
+    drain(d, &ps);
     twind_status_fill(d, &st, &rs);
     d->io->ops->publish_status(d->io, &st); /* the final status */
     return NULL;

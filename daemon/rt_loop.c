@@ -18,7 +18,11 @@
  * runs as fast as it can with a bounded lag instead of a lag that grows without end.
  * When the chain thread is behind (the ring is full) the runner advances less than asked:
  * the loop sleeps CHAIN_WAIT_NS and tries again (counted in status.chain_stalls).
- * Pausing (or waiting for ticks) re-anchors the origin, so nothing is "caught up" later. */
+ * Pausing (or waiting for ticks) re-anchors the origin, so nothing is "caught up" later;
+ * then the thread waits on cmd_sem (posted with every command queued), so that a tick or a
+ * run starts as soon as it arrives. The real-time factor of the status is model time over
+ * wall time of the last second of running turns (RTF_BUCKETS buckets of RTF_BUCKET_S,
+ * sliding): paused and idle turns do not count, a turn that fell behind does. */
 #include "twind.h"
 
 #include <limits.h>
@@ -27,8 +31,10 @@
 #include <time.h>
 
 #define TRASH_PENDING 16
-#define LOCKSTEP_IDLE_NS 20000L /* lockstep without budget: look for ticks every 20 us */
-#define CHAIN_WAIT_NS 20000L    /* ring full: let the chain thread work this long */
+#define IDLE_WAIT_NS 10000000L /* no budget: wait this long for a command at most (heartbeat) */
+#define CHAIN_WAIT_NS 20000L   /* ring full: let the chain thread work this long */
+#define RTF_BUCKETS 10
+#define RTF_BUCKET_S 0.1
 
 typedef struct {
     twind *d;
@@ -37,7 +43,31 @@ typedef struct {
     afm_runner_model *trash[TRASH_PENDING];
     int n_trash;
     double busy_acc, busy_t0;
+    /* real-time factor: wall and model seconds of running turns, per bucket */
+    double rtf_wall[RTF_BUCKETS], rtf_model[RTF_BUCKETS], cur_wall, cur_model;
+    int rtf_next, rtf_full;
+    double last_end; /* wall time at the end of the previous turn */
 } rt_ctx;
+
+/* A running turn that ended at `now` and advanced model_s: into the buckets; rtf_1s from
+ * the last whole second of them. */
+static void rtf_account(rt_ctx *c, double now, double model_s) {
+    c->cur_wall += now - c->last_end;
+    c->cur_model += model_s;
+    if (c->cur_wall < RTF_BUCKET_S) return;
+    c->rtf_wall[c->rtf_next] = c->cur_wall;
+    c->rtf_model[c->rtf_next] = c->cur_model;
+    c->rtf_next = (c->rtf_next + 1) % RTF_BUCKETS;
+    if (c->rtf_full < RTF_BUCKETS) c->rtf_full++;
+    c->cur_wall = c->cur_model = 0;
+    if (c->rtf_full < RTF_BUCKETS) return;
+    double w = 0, m = 0;
+    for (int i = 0; i < RTF_BUCKETS; i++) {
+        w += c->rtf_wall[i];
+        m += c->rtf_model[i];
+    }
+    c->snap.rtf_1s = m / w;
+}
 
 static void ts_add(struct timespec *t, double s) {
     if (!(s < 1e9)) s = 1e9; /* 31 years: no llround overflow, whatever the sample rate */
@@ -71,8 +101,8 @@ static void flush_trash(rt_ctx *c) {
 
 /* The twin refused a valid command: counted here (exact), the reason to the receive
  * thread (best effort: a full queue loses the reason, counted too, never the count). */
-static void rt_reject(rt_ctx *c, const afm_cmd *cmd, const char *why) {
-    twind_reason r;
+static void rt_reject(rt_ctx *c, const afm_cmd *cmd, const char *why, int64_t order) {
+    twind_reason r = {.order = order};
     c->snap.refused++;
     size_t n = strlen(why);
     const char *kind = afm_cmd_kind_name(cmd->kind);
@@ -93,7 +123,10 @@ static void apply_commands(rt_ctx *c) {
         afm_runner_model *m = it->model;
         int rc = afm_runner_apply(c->r, &it->cmd, m ? &m : NULL, err, sizeof err);
         if (rc == AFM_RUNNER_EBUSY) break; /* the chain is behind: this one again next item */
-        if (rc != 0) rt_reject(c, &it->cmd, err);
+        if (rc != 0)
+            rt_reject(c, &it->cmd, err, it->order);
+        else
+            c->snap.last_applied_order = it->order;
         trash(c, m); /* unused (rejected); NULL when applied (it went to the chain thread) */
         afm_cmd_kind k = it->cmd.kind;
         afm_spsc_release(&c->d->cmd_q);
@@ -113,7 +146,7 @@ void *twind_rt_main(void *arg) {
     clock_gettime(CLOCK_MONOTONIC, &origin);
     long long origin_samples = 0;
     double speed = d->opt.speed > 0 ? d->opt.speed : 1.0;
-    c.busy_t0 = ts_sec(&origin);
+    c.busy_t0 = c.last_end = ts_sec(&origin);
     while (!atomic_load_explicit(&d->stop, memory_order_acquire)) {
         apply_commands(&c);
         double dt = afm_sim_dt(afm_runner_sim(c.r)); /* a reload may change the rate */
@@ -122,16 +155,26 @@ void *twind_rt_main(void *arg) {
         long long budget = afm_runner_budget(c.r);
         afm_runner_status st;
         if (budget <= 0) {
-            /* paused or waiting for ticks: nothing to run; re-anchor pacing */
+            /* paused or waiting for ticks: nothing to run; a completion that waited for ring
+             * space goes in; wait for the next command; re-anchor pacing */
+            afm_runner_run(c.r, 0);
+            sem_post(&d->chain_sem);
             afm_runner_status_get(c.r, &st);
             c.snap.st = st;
             c.snap.heartbeat++;
             c.snap.lag_s = 0;
             twind_snap_write(d, &c.snap);
-            struct timespec ts = {0, d->opt.mode == TWIND_LOCKSTEP ? LOCKSTEP_IDLE_NS : 1000000L};
-            clock_nanosleep(CLOCK_MONOTONIC, 0, &ts, NULL);
+            /* The posts of commands taken while running (nobody waited) are stale: drop
+             * them, then wait only if no command is queued (one queued after the check
+             * posts, and the wait returns at once). */
+            while (sem_trywait(&d->cmd_sem) == 0) {
+            }
+            struct timespec ts = twind_deadline_in(IDLE_WAIT_NS);
+            if (!afm_spsc_peek(&d->cmd_q))
+                sem_timedwait(&d->cmd_sem, &ts); /* EINTR, ETIMEDOUT: look again */
             clock_gettime(CLOCK_MONOTONIC, &origin);
             origin_samples = st.samples;
+            c.last_end = ts_sec(&origin);
             continue;
         }
         struct timespec t_start;
@@ -157,6 +200,7 @@ void *twind_rt_main(void *arg) {
             if (b2 <= 0) break; /* paused by a command */
             if (left > b2) left = b2;
         }
+        long long before = c.snap.st.samples;
         afm_runner_status_get(c.r, &st);
         clock_gettime(CLOCK_MONOTONIC, &now);
         double busy = ts_sec(&now) - ts_sec(&t_start);
@@ -189,6 +233,9 @@ void *twind_rt_main(void *arg) {
             c.snap.lag_s = 0;
             twind_snap_write(d, &c.snap);
         }
+        clock_gettime(CLOCK_MONOTONIC, &now); /* after the sleep: the turn's whole wall time */
+        rtf_account(&c, ts_sec(&now), (double)(st.samples - before) * dt);
+        c.last_end = ts_sec(&now);
     }
     flush_trash(&c);
     atomic_store_explicit(&d->rt_done, 1, memory_order_release);

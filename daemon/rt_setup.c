@@ -39,7 +39,27 @@ void twind_rt_setup_thread(int priority, int cpu, char *warn, size_t len) {
     memset((char *)stack, 0, sizeof stack);
 }
 
-void twind_rt_setup_aux(int priority) {
+void twind_rt_setup_aux(int priority, int cpu) {
     struct sched_param sp = {.sched_priority = priority > 1 ? priority : 1};
     (void)pthread_setschedparam(pthread_self(), SCHED_FIFO, &sp); /* the RT thread warned */
+    if (cpu >= 0) {
+        cpu_set_t set;
+        CPU_ZERO(&set);
+        CPU_SET(cpu, &set);
+        (void)pthread_setaffinity_np(pthread_self(), sizeof set, &set);
+    }
+}
+
+void twind_rt_setup_build(int priority, bool building) {
+    if (!building) {
+        twind_rt_setup_aux(priority, -1); /* the pinning stays */
+        return;
+    }
+    /* SCHED_FIFO 1: below every thread of the daemon, above ordinary processes (at SCHED_OTHER
+     * a build on a loaded machine took hundreds of ms, and the commands behind it waited) */
+    struct sched_param sp = {.sched_priority = 1};
+    if (pthread_setschedparam(pthread_self(), SCHED_FIFO, &sp) != 0) {
+        sp.sched_priority = 0;
+        (void)pthread_setschedparam(pthread_self(), SCHED_OTHER, &sp);
+    }
 }

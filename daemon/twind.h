@@ -17,7 +17,8 @@
  *    (samples_q) and harmonics (harm_q), updates its own snapshot. Never blocks, locks or
  *    allocates (it sleeps on chain_sem when the ring is empty).
  *  - publish (publish.c): pops samples_q and harm_q, publishes them, and the status at
- *    10 Hz; the final status at shutdown.
+ *    10 Hz; the completions of ticks and steps (done_q) once the outputs before them are
+ *    out; the final status at shutdown.
  * Counters the receive thread owns (received, rejected, refused, last reasons) sit behind
  * `lock`, which only the non-real-time threads take.
  *
@@ -45,6 +46,7 @@
 #include <semaphore.h>
 #include <stdatomic.h>
 #include <stdint.h>
+#include <time.h>
 
 typedef enum { TWIND_REALTIME = 0, TWIND_FREERUN = 1, TWIND_LOCKSTEP = 2 } twind_mode;
 
@@ -56,12 +58,14 @@ typedef struct {
     twind_mode mode;
     int cpu;             /* pin the RT thread to this CPU; -1: no pinning */
     int chain_cpu;       /* pin the chain thread to this CPU; -1: no pinning */
+    int aux_cpu;         /* pin the receive and publish threads (and LCM's) here; -1: none */
     double speed;        /* realtime: model seconds per wall second asked (1) */
     double max_lag_s;    /* realtime: lag beyond which the backlog is dropped (resync) */
     double ring_s;       /* runner ring between the two stages, model seconds */
     int rt_priority;     /* SCHED_FIFO priority 1..99 */
     double block_s;      /* real-time block length (s) */
     double exit_after_s; /* > 0: stop after this long (tests) */
+    double start_s;      /* model time at start (tests of a twin up that long; default 0) */
     int harmonics_every; /* publish every k-th period; 0: auto (at most harmonics_max_hz) */
     double harmonics_max_hz;
     int quiet; /* no status line */
@@ -69,33 +73,45 @@ typedef struct {
 
 /* cmd_q item: a validated command and, for damping/geometry/reload, the model to swap in.
  * The RT thread hands models back through trash_q (what was swapped out, or the unused
- * model of a command it rejected). */
+ * model of a command it rejected). order: the receive thread's count of inbound events
+ * (commands, rejects, reloads) at this one, so that a rejection can be told old once a
+ * later event was applied. */
 typedef struct {
     afm_cmd cmd;
     afm_runner_model *model;
+    int64_t order;
 } twind_cmd_item;
 
 typedef struct {
     char reason[AFM_IO_REASON_LEN];
+    int64_t order; /* of the command the RT thread rejected */
 } twind_reason;
 
 /* Lines of rejections and refusals on stderr: at most this many a second, the rest
  * counted and summed up once a second by main (the status has every one). */
 #define TWIND_REASON_LINES_PER_S 5
+/* done_q item: a tick or step completion (afm_runner_take_done) and how many samples and
+ * harmonics records the chain thread had committed to the publisher before it. */
+typedef struct {
+    afm_runner_done d;
+    long long samples_recs, harm_recs;
+} twind_done_item;
 
 /* What the RT thread publishes after every block (seqlock: readers retry while seq is odd
  * or changed under them). */
 typedef struct {
     afm_runner_status st;
-    long long blocks;        /* blocks run */
-    long long overruns;      /* realtime blocks that ended after their deadline */
-    double lag_s;            /* wall clock minus model time (realtime mode) */
-    long long resyncs;       /* realtime: backlogs dropped because lag > max_lag_s */
-    double resync_dropped_s; /* model time not run because of them (wall seconds x speed) */
-    long long heartbeat;     /* increases every loop turn (watchdog) */
-    double busy_fraction;    /* compute time / wall time over the last second */
-    long long refused;       /* commands the twin refused (exact; reasons via rtrej_q) */
-    long long reasons_lost;  /* ... whose reason did not fit rtrej_q */
+    long long blocks;           /* blocks run */
+    long long overruns;         /* realtime blocks that ended after their deadline */
+    double lag_s;               /* wall clock minus model time (realtime mode) */
+    long long resyncs;          /* realtime: backlogs dropped because lag > max_lag_s */
+    double resync_dropped_s;    /* model time not run because of them (wall seconds x speed) */
+    long long heartbeat;        /* increases every loop turn (watchdog) */
+    double busy_fraction;       /* compute time / wall time over the last second */
+    long long refused;          /* commands the twin refused (exact; reasons via rtrej_q) */
+    long long reasons_lost;     /* ... whose reason did not fit rtrej_q */
+    double rtf_1s;              /* model s / wall s over the last second of running; 0 at first */
+    int64_t last_applied_order; /* twind_cmd_item.order of the last command applied */
 } twind_snapshot;
 
 /* What the chain thread publishes (its own seqlock). */
@@ -104,15 +120,18 @@ typedef struct {
     long long samples_dropped; /* sample records lost to a full samples_q */
     long long harm_dropped;    /* harmonics records lost to a full harm_q */
     double busy_fraction;
+    bool have_period; /* the last period record seen (finished), for the status line */
+    double lockin_amplitude_m, lockin_phase_deg, peak_force_n;
 } twind_chain_snapshot;
 
 typedef struct {
     twind_opts opt;
     afm_runner *runner; /* the RT thread's after start */
     afm_io *io;
-    afm_spsc cmd_q, trash_q, rtrej_q, samples_q, harm_q;
+    afm_spsc cmd_q, trash_q, rtrej_q, samples_q, harm_q, done_q;
     sem_t out_sem;         /* posted by the chain thread after pushing outputs */
     sem_t chain_sem;       /* posted by the RT thread after a block went into the ring */
+    sem_t cmd_sem;         /* posted by the receive thread after a command went into cmd_q */
     atomic_int stop;       /* set by main: all threads finish */
     atomic_int rt_done;    /* set by the RT thread when it has left its loop */
     atomic_int chain_done; /* set by the chain thread when it has left its loop */
@@ -125,10 +144,13 @@ typedef struct {
     pthread_mutex_t lock;
     long long received, rejected, refused; /* refused here: command queue full */
     char last_reject[AFM_IO_REASON_LEN], last_refusal[AFM_IO_REASON_LEN];
-    long long lines_quiet; /* reason lines not printed (throttled); main sums them up */
-    double lines_t0;       /* start of the current second of reason lines */
-    int lines_n;           /* lines printed in it */
+    long long lines_quiet;     /* reason lines not printed (throttled); main sums them up */
+    double lines_t0;           /* start of the current second of reason lines */
+    int lines_n;               /* lines printed in it */
+    int64_t last_reject_order; /* order of the rejected event (see twind_cmd_item) */
+    double last_reject_mono;   /* CLOCK_MONOTONIC when it was rejected */
     /* receive thread only */
+    int64_t order;            /* inbound events so far */
     afm_config shadow;        /* the config after all queued commands */
     afm_modal shadow_model;   /* its model (command limits: afm_cmd_limits.model) */
     afm_config shadow_before; /* both before the model change in flight */
@@ -150,8 +172,14 @@ const char *twind_mode_name(twind_mode m);
 void twind_rt_setup_process(char *warn, size_t len);
 void twind_rt_setup_thread(int priority, int cpu, char *warn, size_t len);
 /* The publish and receive threads: SCHED_FIFO at a lower priority when permitted, so that
- * outputs and commands are not starved by ordinary processes; silent (the RT thread warns). */
-void twind_rt_setup_aux(int priority);
+ * outputs and commands are not starved by ordinary processes, and pinned to cpu (>= 0);
+ * silent (the RT thread warns). */
+void twind_rt_setup_aux(int priority, int cpu);
+/* Around a model build on the receive thread (FEM, reduction, filter design: ~20 ms for a
+ * geometry change): the lowest real-time priority while building (building true), so that it
+ * takes only the time the integrator and chain threads leave but no ordinary process delays
+ * it; back to SCHED_FIFO priority after. */
+void twind_rt_setup_build(int priority, bool building);
 
 /* rt_loop.c: the real-time thread (arg: twind *). */
 void *twind_rt_main(void *arg);
@@ -162,8 +190,10 @@ void *twind_chain_main(void *arg);
 afm_io_sink twind_sink(twind *d);
 void *twind_recv_main(void *arg);
 /* Count a rejection (malformed, invalid) or a refusal (valid, not taken) with its reason
- * (non-RT threads); stderr lines throttled (TWIND_REASON_LINES_PER_S). */
+ * (non-RT threads); stderr lines throttled (TWIND_REASON_LINES_PER_S). twind_reject names
+ * the receive thread's current event, twind_reject_order the event of that order. */
 void twind_reject(twind *d, const char *reason);
+void twind_reject_order(twind *d, const char *reason, int64_t order);
 void twind_refuse(twind *d, const char *reason);
 
 /* publish.c: the publish thread (arg: twind *), and one status record from the snapshot.
@@ -215,5 +245,7 @@ static inline void twind_csnap_read(twind *d, twind_chain_snapshot *s) {
 /* Wall clock now (CLOCK_REALTIME, us) for utime stamps, and CLOCK_MONOTONIC in s. */
 int64_t twind_utime_now(void);
 double twind_mono_now(void);
+/* sem_timedwait's deadline (CLOCK_REALTIME) ns from now. */
+struct timespec twind_deadline_in(long ns);
 
 #endif

@@ -5,9 +5,11 @@ set -u
 BUILD=${1:-build}
 cd "$(dirname "$0")/.."
 pass=0; fail=0
-for t in "$BUILD"/tests/test_* tests/test_*.sh; do
-  [ -e "$t" ] || continue
-  case "$t" in *.d|*.o) continue;; esac
+# The binaries of the sources that exist (a stale binary of a removed test is not run).
+bins=()
+for c in tests/test_*.c; do bins+=("$BUILD/tests/$(basename "${c%.c}")"); done
+for t in "${bins[@]}" tests/test_*.sh; do
+  if [ ! -e "$t" ]; then echo "FAIL $t: not built"; fail=$((fail+1)); continue; fi
   echo "== $t"
   t0=$(date +%s)
   out=$(if [ "${t%.sh}" != "$t" ]; then bash "$t" "$BUILD"; else "$t"; fi 2>&1); rc=$?

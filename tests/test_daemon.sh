@@ -6,37 +6,10 @@
 BUILD=${1:-build}
 cd "$(dirname "$0")/.." || exit 1
 
-# Re-run inside a new network namespace whose loopback carries multicast (and nothing
-# else: no packet can reach a real interface). See ../shared/notes/lcm-netns.md.
-if [ "${2:-}" != "--inside" ]; then
-  if ! unshare -n true 2>/dev/null; then
-    echo "SKIP test_daemon.sh: 'unshare -n' is not permitted here ($(id -un), no CAP_SYS_ADMIN"
-    echo "     or user namespaces disabled); the daemon tests need a private network namespace"
-    echo "0 passed, 1 failed"
-    exit 1
-  fi
-  exec unshare -n sh -c 'ip link set lo up && ip link set lo multicast on &&
-    ip route add 224.0.0.0/4 dev lo && exec bash "$0" "$1" --inside' "$0" "$BUILD"
-fi
-
-A="$BUILD/bin/afmtwin"
-D="$BUILD/bin/afmtwind"
-# The daemon's threads run SCHED_FIFO (80, 70, 60) when permitted and, below real time on a
-# two-core machine, never sleep: a normal-priority listener then starves and miscounts
-# rates. Listeners here run above them, as a real controller sharing the host would.
-# Where SCHED_FIFO is not permitted, neither the daemon nor chrt gets it, and none is needed.
-if chrt -f 90 true 2>/dev/null; then
-  listen() { chrt -f 90 "$A" listen "$@"; }
-else
-  listen() { "$A" listen "$@"; }
-fi
-# LCM's default group, with 4 MB socket receive buffers (for the listeners, which read
-# the output flood). Commands go to port 7667, outputs to 7668 (the daemon's default: the
-# command URL with port + 1), so the daemon's command socket carries commands only.
-export LCM_DEFAULT_URL='udpm://239.255.76.67:7667?ttl=0&recv_buf_size=4194304'
-pass=0; fail=0
-ok()  { echo "ok   $1"; pass=$((pass+1)); }
-bad() { echo "FAIL $1"; fail=$((fail+1)); }
+# Re-run inside a private network namespace; what the daemon tests share (tests/lib_daemon.sh).
+. tests/lib_daemon.sh
+[ "${2:-}" = "--inside" ] || netns_reexec test_daemon.sh "$0" "$BUILD"
+daemon_test_init "$BUILD"
 T=$(mktemp -d /tmp/afmtwin-daemon.XXXXXX)
 DPID=""
 cleanup() { [ -n "$DPID" ] && kill -KILL "$DPID" 2>/dev/null; rm -rf "$T"; }
@@ -106,9 +79,21 @@ read -r nh nbad want span <<< "$res"
 awk -v n="$nh" -v w="$want" 'BEGIN{exit !(n >= 0.99 * w && n <= 1.01 * w)}' \
   && ok "harmonics count $nh = model time x fe / $K ($want) within 1 %" \
   || bad "harmonics count $nh, want $want"
-rtf=$(grep '"type":"status"' "$T/rates.json" | tail -1 | jnum realtime_factor)
-ovr=$(grep '"type":"status"' "$T/rates.json" | tail -1 | jnum overruns)
-echo "note: real-time factor $rtf, overruns $ovr (default.conf, realtime mode, this machine)"
+# The status shows what the cantilever does: the last period's lock-in amplitude (the same
+# as in the harmonics records within the period-to-period spread, 1 %), its phase lag behind
+# the drive (90 deg free at resonance; repulsive tapping at Z 40 nm reads ~57) and its peak
+# force (positive in contact).
+last=$(grep '"type":"status"' "$T/rates.json" | tail -1)
+hl=$(grep '"type":"harmonics"' "$T/rates.json" | tail -1 | jnum lockin_amplitude_m)
+sl=$(echo "$last" | jnum lockin_amplitude_m); sp=$(echo "$last" | jnum lockin_phase_deg)
+sf=$(echo "$last" | jnum peak_force_n)
+awk -v a="$sl" -v b="$hl" -v p="$sp" -v f="$sf" \
+  'BEGIN{exit !(a > 0.99 * b && a < 1.01 * b && p > 0 && p < 180 && f > 0)}' \
+  && ok "status: lock-in $sl m (harmonics: $hl m), phase lag $sp deg, peak force $sf N" \
+  || bad "status lock-in $sl m / $sp deg, peak force $sf N (harmonics lock-in $hl m)"
+rtf=$(echo "$last" | jnum realtime_factor_1s)
+ovr=$(echo "$last" | jnum overruns)
+echo "note: real-time factor of the last second $rtf, overruns $ovr (default.conf, realtime mode, this machine)"
 # Samples keep coming (both streams).
 listen --channels samples --json --count 40 --timeout 3 > "$T/samples.json" 2>/dev/null
 n0=$(grep -c '"stream":0' "$T/samples.json"); n1=$(grep -c '"stream":1' "$T/samples.json")
@@ -205,6 +190,11 @@ gt "$t2" "$t1" && [ "$(echo "$s" | jnum separation_m)" = "4e-08" ] \
   || bad "after the bad input: t $t1 -> $t2, $s"
 listen --channels harmonics --count 5 --timeout 3 >/dev/null && ok "harmonics still published" \
   || bad "no harmonics after the bad input"
+# The last rejection is current (nothing applied after it), with its age.
+s=$(status)
+[ "$(echo "$s" | jnum last_reject_old)" = 0 ] && gt "$(echo "$s" | jnum last_reject_age_s)" 0 \
+  && ok "last_reject current: last_reject_old 0, age $(echo "$s" | jnum last_reject_age_s) s" \
+  || bad "last_reject after the bad input: $s"
 
 # --- SIGHUP: a good config (Z 30 nm) is swapped in; a bad one is reported and ignored ---
 sed 's/^  separation_m = 40e-9;/  separation_m = 30e-9;/' config/default.conf > "$T/twin.conf"
@@ -214,6 +204,11 @@ s=$(wait_status "z > 2.99e-8 && z < 3.01e-8") && ok "SIGHUP with a good config: 
 # A reload is no sender's command: seq_applied stays that of the last command (5).
 [ "$(echo "$s" | jnum seq_applied)" = 5 ] && ok "SIGHUP keeps seq_applied (5)" \
   || bad "SIGHUP changed seq_applied: $s"
+# A reload applied after the last rejection: the status marks the rejection old.
+s=$(status)
+[ "$(echo "$s" | jnum last_reject_old)" = 1 ] && [ -n "$(echo "$s" | jstr last_reject)" ] \
+  && ok "last_reject marked old after the reload was applied ($(echo "$s" | jstr last_reject))" \
+  || bad "last_reject after the reload: $s"
 cp tests/bad-configs/unknown-key.conf "$T/twin.conf" 2>/dev/null || echo "model = 1;" > "$T/twin.conf"
 n_rej=$(( $(status | jnum rejected) + 1 ))
 kill -HUP "$DPID"

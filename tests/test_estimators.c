@@ -630,6 +630,87 @@ static void test_phase_tracking(void) {
     check_true(slow_l < total / 1000, "phase tracking: lock-in fast path nearly always");
 }
 
+/* The same trackers after the twin has been up for t_up: the sample times are t_up + n dt
+ * (as afm_sim makes them) and the tone changes happen at sample times. Changes: two
+ * frequency steps, and one amplitude-only change (the drive re-wraps its phase: theta jumps
+ * by whole turns at the same rate).
+ *  - noisy: theta = phi + w (t - t0) carries the rounding of t, w ulp(t) / 2 ~ 4e-9 rad at
+ *    20 s, even right after a change where theta itself is small (tol ~2e-11 rad there).
+ *    The trackers must keep their lock: a few table rebuilds per change (relock, noise
+ *    learnt, refinements), not one every other sample (the daemon's real-time collapse of
+ *    issue 12: ~750 000 rebuilds over these samples before the fix). The phasors follow
+ *    theta within the tracker's noise cap, 1e-6 rad (a one-step rate after a relock drifts
+ *    by up to that before the average takes over).
+ *  - exact: theta from the sample count, as the chain computes it (afm_chain.c): one
+ *    rebuild per frequency change, none for the amplitude-only one, phasors within 2e-9
+ *    (a few tol: 2.9e-10 rad at |theta| = 1.5e5, about the largest the chain's rebase of
+ *    every 2^20 samples lets theta reach; measured 1.2e-9 there). */
+static void test_phase_tracking_uptime(double t_up, bool exact) {
+    afm_cfg_drive c = {.separation_m = 30e-9, .n_tones = 1};
+    c.tones[0].amplitude_m = 0.7e-9;
+    c.tones[0].frequency_hz = 338112.0;
+    afm_drive d;
+    afm_drive_init(&d, &c);
+    const int ks[] = {1, 2, 3, 4, 5, 6, 7, 8};
+    afm_harm h;
+    afm_harm_init(&h, ks, 8, NULL, 0);
+    afm_cfg_lockin cl = {.time_constant_s = 1e-4, .order = 4};
+    afm_lockin l;
+    afm_lockin_init(&l, &cl, 1 / fs, NULL, 0);
+    afm_cycle cy;
+    afm_cycle_init(&cy, -8e-9, 0.98, NULL, 0);
+    const long total = 3000000, k0 = (long)llround(t_up * fs);
+    const double dt = 1 / fs;
+    double eh = 0, el = 0;
+    long slow_h = 0, slow_l = 0, rejects = 0, n_ch = 0;
+    for (long n = 0; n < total; n++) {
+        double t = (double)(k0 + n) * dt; /* afm_sim's sample times from t = 0 */
+        if (n == 500000) afm_drive_set_tone(&d, t, 0, 0.7e-9, 336000.0);
+        if (n == 1200000) afm_drive_set_tone(&d, t, 0, 0.5e-9, 336000.0); /* amplitude only */
+        if (n == 2000000) afm_drive_set_tone(&d, t, 0, 0.5e-9, 336400.0);
+        if (n == 0 || n == 500000 || n == 1200000 || n == 2000000) n_ch = n;
+        double th = exact ? fma(d.omega_rad_s[0] * dt, (double)(n - n_ch), d.phase_rad[0])
+                          : afm_drive_phase(&d, 0, t);
+        afm_sample smp = {.t_s = t, .x_m = 1e-9 * sin(th), .v_m_s = 0, .f_n = 0};
+        if (afm_harm_push(&h, 1e-9, 0.0, th) < 0 || afm_lockin_push(&l, 1e-9, th) < 0 ||
+            afm_cycle_push(&cy, &smp, th) < 0)
+            rejects++;
+        slow_h += h.trk.n == 0;
+        slow_l += l.trk.n == 0;
+        if (n % 7 == 0) {
+            double p = fmod(th, 2 * pi), hr, hi, lc, ls;
+            afm_harm_phasor1(&h, &hr, &hi);
+            eh = fmax(eh, hypot(hr - cos(p), hi + sin(p)));
+            afm_lockin_phasor(&l, &lc, &ls);
+            el = fmax(el, hypot(lc - cos(th), ls - sin(th)));
+        }
+    }
+    const char *how = exact ? "theta from the sample count" : "theta = phi + w (t - t0)";
+    printf("  phase tracking at t = %g s, %s: rebuilds harm %lld lock-in %lld (cycle rate "
+           "changes %lld); exact samples harm %ld lock-in %ld of %ld; max |phasor - e^{i theta}| "
+           "%.2e %.2e\n",
+           t_up, how, h.trk.rate_changes, l.trk.rate_changes, cy.trk.rate_changes, slow_h, slow_l,
+           total, eh, el);
+    /* the first lock and 3 changes: 1 + 2 (exact), or up to 5 each (noisy) */
+    const long long most = exact ? 3 : 20;
+    const double ptol = exact ? 2e-9 : 1e-6;
+    char what[200];
+    snprintf(what, sizeof what, "phase tracking at t = %g s, %s: no sample rejected", t_up, how);
+    check_true(rejects == 0, what);
+    snprintf(what, sizeof what,
+             "phase tracking at t = %g s, %s: at most %lld table rebuilds per estimator", t_up, how,
+             most);
+    check_true(h.trk.rate_changes <= most && l.trk.rate_changes <= most &&
+                   cy.trk.rate_changes <= most,
+               what);
+    snprintf(what, sizeof what, "phase tracking at t = %g s, %s: fast path on all but ~1/period",
+             t_up, how);
+    check_true(slow_h < 2 * total / 41 && slow_l < total / 500, what);
+    snprintf(what, sizeof what, "phase tracking at t = %g s, %s: phasors within %g rad", t_up, how,
+             ptol);
+    check_true(eh < ptol && el < ptol, what);
+}
+
 /* The block functions (afm_harm_push_n, afm_cycle_push_n, afm_lockin_push_n: what the
  * chain runs) against sample-by-sample pushes: the same state bit for bit, over a clipped
  * (tapping-like) orbit with contact crossings, two tone changes, a NaN sample and blocks of
@@ -733,6 +814,9 @@ int main(void) {
     test_cycle_dip(0.01, "across the boundary");
     test_cycle_errors();
     test_phase_tracking();
+    test_phase_tracking_uptime(20.0, false);
+    test_phase_tracking_uptime(60.0, false);
+    test_phase_tracking_uptime(60.0, true);
     test_block_equivalence();
     return check_done();
 }

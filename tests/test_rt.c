@@ -331,9 +331,97 @@ static void starr_cache_case(void) {
     check_true(afm_rt_starr_eval(&st, st.h0 * 1.021, &dummy) < 0 &&
                    afm_rt_starr_eval(&st, st.h0 * 0.979, &dummy) < 0,
                "starr cache: declines outside the window (exact formula used there)");
+    /* A Z-only change keeps the interpolant while the rest gap stays within KEEP hw of h0
+     * (rt_changed_z): around the farthest such rest gap, a tip excursion of (1 - KEEP) hw
+     * (93 nm here) still reads the interpolant, to the same bound. */
+    double ek = 0;
+    bool inside = true;
+    for (int sgn = -1; sgn <= 1; sgn += 2)
+        for (int k = -500; k <= 500; k++) {
+            double hc = st.h0 + sgn * AFM_RT_STARR_KEEP * st.hw;
+            double h = hc + (1.0 - AFM_RT_STARR_KEEP) * st.hw * k / 500.0, dex, dcdh = 0.0;
+            double cex = afm_force_starr_c(&f, h, &dex), c = afm_rt_starr_eval(&st, h, &dcdh);
+            inside = inside && c >= 0;
+            ek = fmax(ek, fabs(c - cex) / cex);
+        }
+    printf("     starr cache kept after a Z move of %.0f nm: max rel error over the next orbit's "
+           "+-%.0f nm %.2e\n",
+           AFM_RT_STARR_KEEP * st.hw * 1e9, (1.0 - AFM_RT_STARR_KEEP) * st.hw * 1e9, ek);
+    check_true(inside && ek < 5e-9, "starr cache: kept over a Z move of KEEP hw, the tip's gaps "
+                                    "stay inside the window, relative error < 5e-9");
     afm_force_params nf = fixture_no_forces();
     afm_rt_starr_build(&st, &nf, z);
     check_true(!st.on, "starr cache: off without a Starr film");
+}
+
+/* (5b) Z ramps (afm_sim_set_separation every 64 samples, as the runner's ramp: the rt
+ * backend's Z-only path rt_changed_z) on the free Starr case of (6):
+ *  - against the full resynchronisation (rt_changed, forced by a same-valued tone change
+ *    after every Z change: drive tables, phasors and the homogeneous state recomputed, the
+ *    interpolant rebuilt at every Z): the same trajectory to 1e-8 of the amplitude (the kept
+ *    interpolant differs from a rebuilt one by up to its 4e-9 relative error; measured
+ *    1.9e-9), also when the ramp goes into contact (-12 nm: the contact line moves with Z);
+ *  - out of contact against CVODE with the same Z at the same samples: the same 3e-3 bound
+ *    as without a ramp, with the interpolant kept (+80 nm, within AFM_RT_STARR_KEEP of its
+ *    window) and rebuilt along the way (+400 nm). (Into contact from rest rt and CVODE
+ *    differ by 1e-2 with either path: the contact transient, not the ramp.) */
+static void z_ramp_case(double rise_m) {
+    afm_modal m = fixture_model(4, 0, 0);
+    afm_force_params f = starr_forces(true);
+    const int div = 38;
+    double wd = two_pi * rate_hz / div, z0 = 20e-9;
+    double a_base = 50e-9 / cabs(fixture_tip_gain(&m, wd));
+    afm_cfg_drive dc = one_tone(a_base, rate_hz / div, 0.0, z0);
+    char err[AFM_ERR_LEN], what[256];
+    afm_cfg_sim sc = sim_cfg(AFM_INTEGRATOR_RT, 0);
+    afm_sim *s = afm_sim_create(&m, &f, &dc, &sc, err, sizeof err);
+    afm_sim *full = afm_sim_create(&m, &f, &dc, &sc, err, sizeof err);
+    sc = sim_cfg(AFM_INTEGRATOR_REFERENCE, 0);
+    afm_sim *ref = afm_sim_create(&m, &f, &dc, &sc, err, sizeof err);
+    if (!check_true(s && full && ref, "Z ramp: create rt (twice) and CVODE")) {
+        afm_sim_destroy(&s);
+        afm_sim_destroy(&full);
+        afm_sim_destroy(&ref);
+        return;
+    }
+    static afm_sample buf3[8000];
+    const int n = 8000, step = 64;
+    int rc = AFM_SIM_OK;
+    for (int k = 0; k < n && rc == AFM_SIM_OK; k += step) {
+        double z = z0 + rise_m * k / n;
+        if (afm_sim_set_separation(s, z) || afm_sim_set_separation(ref, z) ||
+            afm_sim_set_separation(full, z) ||
+            afm_sim_set_tone(full, 0, a_base, rate_hz / div) != AFM_SIM_OK)
+            rc = AFM_SIM_EINVAL;
+        if (rc == AFM_SIM_OK) rc = afm_sim_run(s, step, buf + k);
+        if (rc == AFM_SIM_OK) rc = afm_sim_run(full, step, buf3 + k);
+        if (rc == AFM_SIM_OK) rc = afm_sim_run(ref, step, buf2 + k);
+    }
+    check_true(rc == AFM_SIM_OK, "Z ramp: runs ok");
+    double emax = 0, efull = 0, xmin = 1, xmax = -1;
+    bool contact = false;
+    for (int k = 0; k < n; k++) {
+        emax = fmax(emax, fabs(buf[k].x_m - buf2[k].x_m));
+        efull = fmax(efull, fabs(buf[k].x_m - buf3[k].x_m));
+        xmin = fmin(xmin, buf2[k].x_m);
+        xmax = fmax(xmax, buf2[k].x_m);
+        contact |= buf2[k].x_m < afm_force_contact_x(&f, z0 + rise_m * (k / step * step) / n);
+    }
+    double amp = 0.5 * (xmax - xmin);
+    printf("     Z ramp %+.0f nm (Starr%s): amplitude %.2f nm, vs the full resync %.2e, vs CVODE "
+           "%.2e\n",
+           rise_m * 1e9, contact ? ", into contact" : "", amp * 1e9, efull / amp, emax / amp);
+    snprintf(what, sizeof what, "Z ramp %+.0f nm: Z-only path vs full resync, max |dx| / amplitude",
+             rise_m * 1e9);
+    check_abs(efull / amp, 0.0, 1e-8, what);
+    if (!contact) {
+        snprintf(what, sizeof what, "Z ramp %+.0f nm, Starr film: max |x_rt - x_cvode| / amplitude",
+                 rise_m * 1e9);
+        check_abs(emax / amp, 0.0, 3e-3, what);
+    }
+    afm_sim_destroy(&s);
+    afm_sim_destroy(&full);
+    afm_sim_destroy(&ref);
 }
 
 /* (6) Out of contact every sample is one linearly implicit step (one force evaluation at
@@ -677,6 +765,9 @@ int main(void) {
     starr_cache_case();
     free_vs_cvode_case("free, vdW", false, 41.5e-9, 3e-6);
     free_vs_cvode_case("free, vdW + Starr", true, 20e-9, 3e-3);
+    z_ramp_case(80e-9);
+    z_ramp_case(400e-9);
+    z_ramp_case(-12e-9);
     bad_input_case();
     thermal_coef_case();
     thermal_equipartition_case();

@@ -342,6 +342,94 @@ static void test_gating(const afm_config *cfg) {
     afm_runner_destroy(&r);
 }
 
+/* Completions (afm_runner_take_done): one when a tick or step budget is used up, after its
+ * samples, naming the last tick or step command and the samples run; ticks sent together
+ * complete together; pipelined, the chain stage stops right after the marker. */
+static void test_done(const afm_config *cfg) {
+    char err[AFM_ERR_LEN];
+    for (int pipelined = 0; pipelined < 2; pipelined++) {
+        afm_runner *r =
+            afm_runner_create_pipelined(cfg, 2048, true, pipelined, 16, err, sizeof err);
+        afm_runner_done d = {0};
+        long long got[5] = {-1, -1, -1, -1, -1}, where[5] = {0}, n = 0;
+        afm_cmd t = {.kind = AFM_CMD_TICK, .seq = 7, .u.tick = {5000}};
+        afm_runner_apply(r, &t, NULL, err, sizeof err);
+        for (int k = 0; k < 4; k++) /* 4000 samples: not done yet */
+            afm_runner_run(r, 1000);
+        while (pipelined && afm_runner_chain_run(r, 0) > 0) {
+        }
+        bool early = afm_runner_take_done(r, &d);
+        afm_runner_run(r, 5000);
+        while (pipelined && afm_runner_chain_run(r, 0) > 0) {
+        }
+        if (afm_runner_take_done(r, &d)) got[n] = d.seq, where[n++] = d.samples;
+        t.seq = 8;
+        t.u.tick.n_samples = 3000;
+        afm_runner_apply(r, &t, NULL, err, sizeof err);
+        t.seq = 9;
+        t.u.tick.n_samples = 2000;
+        afm_runner_apply(r, &t, NULL, err, sizeof err);
+        afm_runner_run(r, 100000);
+        while (pipelined && afm_runner_chain_run(r, 0) > 0) {
+        }
+        if (afm_runner_take_done(r, &d)) got[n] = d.seq, where[n++] = d.samples;
+        afm_cmd p = {.kind = AFM_CMD_CONTROL, .seq = 10, .u.control = {AFM_CTL_STEP, 300}};
+        afm_runner_apply(r, &p, NULL, err, sizeof err);
+        afm_runner_run(r, 1000);
+        while (pipelined && afm_runner_chain_run(r, 0) > 0) {
+        }
+        if (afm_runner_take_done(r, &d)) got[n] = d.seq, where[n++] = d.samples;
+        t.seq = 11; /* a tick while paused: runs, and completes, after RUN */
+        t.u.tick.n_samples = 2000;
+        afm_runner_apply(r, &t, NULL, err, sizeof err);
+        long long none = afm_runner_run(r, 1000);
+        afm_cmd run = {.kind = AFM_CMD_CONTROL, .seq = 12, .u.control = {AFM_CTL_RUN, 0}};
+        afm_runner_apply(r, &run, NULL, err, sizeof err);
+        afm_runner_run(r, 5000);
+        while (pipelined && afm_runner_chain_run(r, 0) > 0) {
+        }
+        if (afm_runner_take_done(r, &d)) got[n] = d.seq, where[n++] = d.samples;
+        bool again = afm_runner_take_done(r, &d);
+        char what[160];
+        snprintf(what, sizeof what,
+                 "%s: completions tick 7 at 5000, ticks 8+9 at 10000, step 10 at 10300, tick 11 "
+                 "(sent paused) after RUN at 12300, none early or twice",
+                 pipelined ? "pipelined" : "inline");
+        check_true(!early && !again && n == 4 && got[0] == 7 && where[0] == 5000 && got[1] == 9 &&
+                       where[1] == 10000 && got[2] == 10 && where[2] == 10300 && none == 0 &&
+                       got[3] == 11 && where[3] == 12300,
+                   what);
+        afm_runner_destroy(&r);
+    }
+}
+
+/* Tones a dither command leaves out stop (removed from the drive: the integrator's cost
+ * follows the tone count); naming one again starts it at the command's phase. */
+static void test_tones_stop(const afm_config *cfg) {
+    char err[AFM_ERR_LEN];
+    afm_runner *r = afm_runner_create(cfg, 2048, false, err, sizeof err);
+    afm_cmd c = {.kind = AFM_CMD_DITHER, .seq = 1};
+    c.u.dither = (afm_cmd_dither){3, {338112, 1e6, 2e6}, {0.087e-9, 1e-11, 1e-11}, {0, 0, 0}};
+    afm_runner_apply(r, &c, NULL, err, sizeof err);
+    afm_runner_run(r, 3000);
+    int n3 = afm_sim_drive(afm_runner_sim(r))->n;
+    c.seq = 2;
+    c.u.dither = (afm_cmd_dither){1, {338500}, {0.087e-9}, {0}};
+    afm_runner_apply(r, &c, NULL, err, sizeof err);
+    afm_runner_run(r, 3000);
+    int n1 = afm_sim_drive(afm_runner_sim(r))->n;
+    c.seq = 3;
+    c.u.dither = (afm_cmd_dither){2, {338500, 1e6}, {0.087e-9, 1e-11}, {0, 0.7}};
+    afm_runner_apply(r, &c, NULL, err, sizeof err);
+    const afm_drive *d = afm_sim_drive(afm_runner_sim(r));
+    afm_runner_status st;
+    afm_runner_status_get(r, &st);
+    check_true(n3 == 3 && n1 == 1 && d->n == 2 && fabs(d->phase_rad[1] - 0.7) < 1e-12 &&
+                   d->t0_s[1] == st.t_s,
+               "dither: tones left out stop (3 -> 1 tone), a tone named again starts at its phase");
+    afm_runner_destroy(&r);
+}
+
 static void test_blowup(void) {
     afm_config cfg;
     char err[AFM_ERR_LEN];
@@ -427,6 +515,114 @@ static void test_blowup(void) {
     afm_runner_destroy(&r);
 }
 
+/* Uptime: the daemon's real-time collapse of issue 12 came from the estimators' phase
+ * trackers rebuilding their tables sample by sample once model time was large (the
+ * rounding of t in theta = phi + w (t - t0) after a tone change). The same commands at the
+ * same sample counts on a twin started at t = 0 and one started at t = 20 s (as a daemon up
+ * 20 s): retract to 1 um, two frequency steps, an amplitude-only change, a ramp back. The
+ * table rebuilds stay at about one per estimator and frequency change (before the fix:
+ * hundreds of thousands), and the outputs do not depend on the uptime: the last period's
+ * lock-in amplitude and first harmonic agree to 1e-6 (the integrator's own drive phase
+ * carries w ulp(t) / 2 ~ 4e-9 rad of rounding at 20 s). */
+static void test_uptime(const afm_config *cfg) {
+    static const struct {
+        long long at;
+        int kind;
+        double a, b;
+    } cmds[] = {{20000, AFM_CMD_SETPOINT, 1e-6, 0},
+                {40000, AFM_CMD_DITHER, 336000, 0.087e-9},
+                {54000, AFM_CMD_DITHER, 336400, 0.087e-9},
+                {68000, AFM_CMD_DITHER, 336400, 0.06e-9},
+                {82000, AFM_CMD_SETPOINT, 40e-9, 2e-3}};
+    const long long total_u = 120000;
+    afm_chain_period last[2];
+    long long rebuilds[2], periods[2];
+    for (int run = 0; run < 2; run++) {
+        char err[AFM_ERR_LEN];
+        afm_runner *r = afm_runner_create(cfg, 4096, false, err, sizeof err);
+        if (run == 1 && afm_runner_set_time(r, 20.0, err, sizeof err)) check_true(false, err);
+        long long done = 0;
+        int k = 0;
+        periods[run] = 0;
+        while (done < total_u) {
+            while (k < 5 && cmds[k].at <= done) {
+                afm_cmd c = {.seq = k + 1, .kind = cmds[k].kind};
+                if (c.kind == AFM_CMD_SETPOINT)
+                    c.u.setpoint = (afm_cmd_setpoint){cmds[k].a, cmds[k].b};
+                else
+                    c.u.dither = (afm_cmd_dither){1, {cmds[k].a}, {cmds[k].b}, {0}};
+                if (afm_runner_apply(r, &c, NULL, err, sizeof err)) check_true(false, err);
+                k++;
+            }
+            long long n = k < 5 ? cmds[k].at - done : total_u - done;
+            done += afm_runner_run(r, n < 1024 ? n : 1024);
+            afm_chain_block b;
+            for (int st = 0; st < afm_runner_n_streams(r); st++)
+                while (afm_runner_take_block(r, st, &b, 0) > 0) {
+                }
+            afm_chain_period p[64];
+            int np;
+            while ((np = afm_runner_take_periods(r, p, 64)) > 0) {
+                last[run] = p[np - 1];
+                periods[run] += np;
+            }
+        }
+        afm_runner_status st;
+        afm_runner_status_get(r, &st);
+        rebuilds[run] = st.chain.estimator_rebuilds;
+        afm_runner_destroy(&r);
+    }
+    double da = fabs(last[1].lockin_amplitude_m / last[0].lockin_amplitude_m - 1);
+    double dh = fabs(last[1].harm.h[0].x_amp_m / last[0].harm.h[0].x_amp_m - 1);
+    printf("  uptime 0 vs 20 s: table rebuilds %lld vs %lld, periods %lld vs %lld, last period "
+           "lock-in %.6g vs %.6g nm (rel %.1e), A1 rel %.1e\n",
+           rebuilds[0], rebuilds[1], periods[0], periods[1], last[0].lockin_amplitude_m * 1e9,
+           last[1].lockin_amplitude_m * 1e9, da, dh);
+    /* harm and lock-in: the first lock, and about one relock each per frequency change */
+    check_true(rebuilds[1] <= 2 * (1 + 2) + 2 && rebuilds[0] <= 2 * (1 + 2) + 2,
+               "uptime: at most ~1 table rebuild per estimator and frequency change, at t = 0 "
+               "and at 20 s");
+    check_true(periods[0] == periods[1], "uptime: the same number of periods at t = 0 and 20 s");
+    check_true(da < 1e-6 && dh < 1e-6,
+               "uptime: last period's lock-in amplitude and A1 the same at t = 0 and 20 s (1e-6)");
+}
+
+/* The estimators' phase (afm_chain.c) moves its origin every 2^20 samples: how the samples
+ * are cut into pushes must not matter there either. Two twins, 1.2e6 samples (past the
+ * first move at 1048576) run in slices of 1024 and 700: every period record bit for bit. */
+static void test_phase_origin(const afm_config *cfg) {
+    char err[AFM_ERR_LEN];
+    static afm_chain_period rec[2][4096];
+    long nrec[2] = {0, 0};
+    for (int run = 0; run < 2; run++) {
+        afm_runner *r = afm_runner_create(cfg, 4096, false, err, sizeof err);
+        const long long slice = run ? 700 : 1024, total_s = 1200000;
+        for (long long done = 0; done < total_s;) {
+            long long n = total_s - done < slice ? total_s - done : slice;
+            done += afm_runner_run(r, n);
+            afm_chain_block b;
+            for (int st = 0; st < afm_runner_n_streams(r); st++)
+                while (afm_runner_take_block(r, st, &b, 0) > 0) {
+                }
+            afm_chain_period p[64];
+            int np;
+            while ((np = afm_runner_take_periods(r, p, 64)) > 0)
+                for (int i = 0; i < np; i++) /* the records around the origin's move */
+                    if (p[i].cycle.t_start_s > 0.070 && p[i].cycle.t_start_s < 0.080 &&
+                        nrec[run] < 4096)
+                        rec[run][nrec[run]++] = p[i];
+        }
+        afm_runner_destroy(&r);
+    }
+    bool same = nrec[0] == nrec[1] && nrec[0] > 3000;
+    for (long i = 0; same && i < nrec[0]; i++)
+        same = memcmp(&rec[0][i], &rec[1][i], sizeof rec[0][i]) == 0;
+    printf("  phase origin move at 2^20 samples: %ld vs %ld period records around it\n", nrec[0],
+           nrec[1]);
+    check_true(same, "the period records around the phase origin's move are bit-identical for "
+                     "slices of 1024 and 700 samples");
+}
+
 int main(void) {
     afm_config cfg;
     char err[AFM_ERR_LEN];
@@ -438,6 +634,10 @@ int main(void) {
     test_reload_keeps_seq(&cfg);
     test_ramp_and_rejects(&cfg);
     test_gating(&cfg);
+    test_done(&cfg);
+    test_tones_stop(&cfg);
     test_blowup();
+    test_uptime(&cfg);
+    test_phase_origin(&cfg);
     return check_done();
 }

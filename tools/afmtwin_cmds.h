@@ -13,6 +13,9 @@ int afm_cmd_send(int argc, char **argv);
 int afm_cmd_listen(int argc, char **argv);
 int afm_cmd_replay(int argc, char **argv);
 int afm_cmd_bench_daemon(int argc, char **argv);
+int afm_cmd_bench_states(int argc, char **argv);
+int afm_cmd_lockstep(int argc, char **argv);
+int afm_cmd_soak(int argc, char **argv);
 int afm_cmd_can_send(int argc, char **argv);
 int afm_cmd_flood(int argc, char **argv);
 

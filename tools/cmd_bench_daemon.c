@@ -12,7 +12,12 @@
  * with a new seq) one after the other, each after a pseudo-random pause of 0..2 ms (so that
  * commands land at every phase of the daemon's block), and time on CLOCK_MONOTONIC from
  * just before lcm_publish to the arrival of the first samples message whose seq_applied is
- * the command's. Both clocks are this process's, so no clock offsets enter. */
+ * the command's. Both clocks are this process's, so no clock offsets enter.
+ *
+ * Then lockstep co-simulation: the daemon in --mode lockstep, tapping as above, driven by
+ * `afmtwin lockstep --bench` (in this process) with ticks of 1 ms and of 0.1 ms of model time,
+ * each sent after the previous one's completion (tick_done_t) arrived: ticks per second and
+ * model time over wall time, against the targets 0.9 (1 ms) and 0.3 (0.1 ms). */
 #include "afmtwin_cmds.h"
 #include "lcm_tool.h"
 
@@ -88,7 +93,11 @@ static void bd_usage(FILE *f) {
                "                    daemon's overruns and lag\n"
                "  latency           from sending a setpoint to the first samples message that\n"
                "                    carries its seq (p50, p99, max over N commands); the daemon's\n"
-               "                    goal is p99 within one output block + 200 us\n\n"
+               "                    goal is p99 within one output block + 200 us\n"
+               "  lockstep          afmtwind --mode lockstep driven by afmtwin lockstep --bench:\n"
+               "                    ticks of 1 ms and 0.1 ms, each sent when the previous one's\n"
+               "                    completion arrived; ticks/s and x real time (targets 0.9\n"
+               "                    and 0.3), unpinned and with the round trip on CPU 0\n\n"
                "options:\n"
                "  --daemon PATH   afmtwind to run (default: afmtwind next to this afmtwin)\n"
                "  --config FILE   config to run (repeatable; default config/nchv.conf and\n"
@@ -96,7 +105,7 @@ static void bd_usage(FILE *f) {
                "                  338.112 kHz, 0.087 nm (50 nm free), Z 35 nm\n"
                "  --commands N    setpoint commands for the latency (default 1000, >= 10)\n"
                "  --seconds S     real-time factor window (default 5)\n"
-               "  --json          one JSON object per config\n"
+               "  --json          one JSON object per config (and per lockstep run)\n"
                "  --no-netns      run in the current network namespace (already private)\n"
                "  --help          this text\n\n"
                "Exit status 0 when every run completed (whatever the numbers), 1 otherwise.\n");
@@ -218,6 +227,20 @@ static double block_from_errfile(const char *errfile) {
     return us * 1e-6;
 }
 
+/* The tapping operating point: tone 0 at f1 for 50 nm free, Z 35 nm (seq 1 and 2). */
+static void send_tap(lcm_t *cmd) {
+    double f = BD_TAP_FREQ_HZ, a = BD_TAP_AMP_M, ph = 0;
+    afmtwin_dither_t dm = {.utime = afmt_wall_us(),
+                           .seq = 1,
+                           .n_tones = 1,
+                           .frequency_hz = &f,
+                           .amplitude_m = &a,
+                           .phase_rad = &ph};
+    afmtwin_setpoint_t sp = {.utime = afmt_wall_us(), .seq = 2, .separation_m = BD_TAP_Z_M};
+    afmtwin_dither_t_publish(cmd, "AFMTWIN_DITHER", &dm);
+    afmtwin_setpoint_t_publish(cmd, "AFMTWIN_SETPOINT", &sp);
+}
+
 /* Back to normal scheduling after a config's run. */
 static void client_normal(const bd_result *r) {
     if (!r->client_fifo) return;
@@ -269,17 +292,7 @@ static void bench_config(const bd_opts *o, const char *config, bd_result *r) {
         goto stop;
     }
     r->block_s = block_from_errfile(errfile);
-    /* tap */
-    double f = BD_TAP_FREQ_HZ, a = BD_TAP_AMP_M, ph = 0;
-    afmtwin_dither_t dm = {.utime = afmt_wall_us(),
-                           .seq = 1,
-                           .n_tones = 1,
-                           .frequency_hz = &f,
-                           .amplitude_m = &a,
-                           .phase_rad = &ph};
-    afmtwin_setpoint_t sp = {.utime = afmt_wall_us(), .seq = 2, .separation_m = BD_TAP_Z_M};
-    afmtwin_dither_t_publish(cmd, "AFMTWIN_DITHER", &dm);
-    afmtwin_setpoint_t_publish(cmd, "AFMTWIN_SETPOINT", &sp);
+    send_tap(cmd);
     r->sent = 2;
     pump(lcm, 1.0);
     /* (a) real-time factor over the window */
@@ -361,6 +374,81 @@ out:
     lcm_destroy(lcm);
     unlink(errfile);
     client_normal(r);
+}
+
+/* ---- lockstep -------------------------------------------------------------------------- */
+
+/* Lockstep co-simulation throughput on one config (text or JSON lines from afmtwin
+ * lockstep --bench), unpinned and with the round trip's hand-overs kept on one core (the
+ * integrator, receive and publish threads and the client on CPU 0, the chain on CPU 1: a
+ * wake-up across cores costs ~24 us on this VM, on one core ~4 us). Returns 0, or 1 when a
+ * run failed. */
+static int bench_lockstep(const bd_opts *o, const char *config) {
+    static const char *const pins[2][3] = {{NULL, NULL, NULL}, {"0", "1", "0"}};
+    int rc = 0;
+    if (!o->json)
+        printf(
+            "  lockstep (afmtwind --mode lockstep; each tick sent after the previous one's "
+            "completion arrived; targets 0.9 x real time with 1 ms ticks, 0.3 x with 0.1 ms):\n");
+    for (int pin = 0; pin < 2; pin++) {
+        pid_t pid = fork();
+        if (pid == 0) {
+            int fd = open("/dev/null", O_WRONLY);
+            if (fd >= 0) {
+                dup2(fd, 2);
+                close(fd);
+            }
+            if (pin)
+                execl(o->daemon, o->daemon, "--config", config, "--lcm-url", BD_URL, "--mode",
+                      "lockstep", "--quiet", "--cpu", pins[1][0], "--chain-cpu", pins[1][1],
+                      "--aux-cpu", pins[1][2], (char *)NULL);
+            else
+                execl(o->daemon, o->daemon, "--config", config, "--lcm-url", BD_URL, "--mode",
+                      "lockstep", "--quiet", (char *)NULL);
+            _exit(127);
+        }
+        lcm_t *cmd = pid > 0 ? lcm_create(BD_URL) : NULL,
+              *out = cmd ? lcm_create(BD_OUT_URL) : NULL;
+        if (!out) {
+            if (cmd) lcm_destroy(cmd);
+            rc = 1;
+            break;
+        }
+        bd_state st = {.want_seq = -1}; /* up: its status arrives */
+        afmt_checked_sub sub = {&afm_wire_status_t, on_status, &st, 0};
+        afmt_subscribe_checked(out, "AFMTWIN_STATUS", &sub, 1000);
+        for (int i = 0; i < 100 && st.n_status == 0; i++)
+            pump(out, 0.1);
+        lcm_destroy(out); /* and the subscription */
+        send_tap(cmd);    /* applied with the first tick */
+        lcm_destroy(cmd);
+        if (!o->json)
+            printf("   %s:\n", pin ? "pinned (afmtwind --cpu 0 --chain-cpu 1 --aux-cpu 0, "
+                                     "afmtwin lockstep --cpu 0)"
+                                   : "unpinned");
+        static const char *const ticks[2] = {"1000", "100"};
+        for (int k = 0; k < 2; k++) {
+            char secs[32];
+            snprintf(secs, sizeof secs, "%g", o->seconds > 3 ? 3.0 : o->seconds);
+            char *argv[] = {"lockstep",  "--bench",        secs,
+                            "--tick-us", (char *)ticks[k], "--lcm-url",
+                            BD_URL,      "--config",       (char *)config,
+                            "--cpu",     pin ? "0" : "-1", o->json ? "--json" : "--quiet",
+                            NULL};
+            int argc = (int)(sizeof argv / sizeof argv[0]) - 1;
+            if (!pin) { /* no --cpu */
+                argv[9] = argv[11];
+                argv[10] = NULL;
+                argc = 10;
+            }
+            fflush(stdout);
+            if (afm_cmd_lockstep(argc, argv) != 0) rc = 1;
+            fflush(stdout);
+        }
+        kill(pid, SIGTERM);
+        waitpid(pid, NULL, 0);
+    }
+    return rc;
 }
 
 /* ---- driver ---------------------------------------------------------------------------- */
@@ -486,6 +574,7 @@ int afm_cmd_bench_daemon(int argc, char **argv) {
                    r.lockin_m, r.n_lat, r.lost, r.p50, r.p99, r.max, r.mean, r.received, r.rejected,
                    r.applied, r.sent, r.chain_stalls, r.resyncs, r.burst_sent, r.burst_received,
                    r.burst_applied, r.burst_sent - r.burst_applied);
+            bench_lockstep(&o, o.configs[c]);
             continue;
         }
         printf("\n%s (daemon)", o.configs[c]);
@@ -522,6 +611,7 @@ int afm_cmd_bench_daemon(int argc, char **argv) {
                r.burst_sent, r.burst_received, r.burst_applied, r.burst_sent - r.burst_applied,
                r.sent, r.received, r.applied, r.rejected);
         if (r.warn[0]) printf("  daemon warnings: %s\n", r.warn);
+        if (bench_lockstep(&o, o.configs[c])) rc = 1;
     }
     return rc;
 }

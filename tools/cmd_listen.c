@@ -1,6 +1,7 @@
 /* SPDX-License-Identifier: MIT */
 /* cmd_listen.c -- `afmtwin listen`: subscribes to the twin's output channels (samples,
- * harmonics, status) and prints each message as text or as one JSON object per line. */
+ * harmonics, status, tick_done) and prints each message as text or as one JSON object per
+ * line. */
 #include "afmtwin_cmds.h"
 #include "lcm_tool.h"
 
@@ -13,6 +14,7 @@
 #include "afmtwin_harmonics_t.h"
 #include "afmtwin_samples_t.h"
 #include "afmtwin_status_t.h"
+#include "afmtwin_tick_done_t.h"
 
 #include <cjson/cJSON.h>
 #include <lcm/lcm.h>
@@ -26,8 +28,8 @@
 
 #define LISTEN_QUEUE 10000 /* messages a subscription may hold while we print */
 
-enum { OUT_SAMPLES, OUT_HARMONICS, OUT_STATUS, N_OUT };
-static const char *const out_name[N_OUT] = {"samples", "harmonics", "status"};
+enum { OUT_SAMPLES, OUT_HARMONICS, OUT_STATUS, OUT_DONE, N_OUT };
+static const char *const out_name[N_OUT] = {"samples", "harmonics", "status", "tick_done"};
 
 typedef struct {
     bool json, full;
@@ -57,7 +59,8 @@ static void listen_usage(FILE *f) {
             "       afmtwin listen --log FILE [--json] [--full] [--count N] [--channels LIST]\n"
             "                      [--prefix NAME_]\n\n"
             "Prints what the twin (afmtwind, or `afmtwin replay` through lcm-logplayer)\n"
-            "publishes: samples blocks, per-period harmonics and the 10 Hz status.\n\n"
+            "publishes: samples blocks, per-period harmonics, the 10 Hz status and the\n"
+            "completions of ticks and steps (tick_done).\n\n"
             "options:\n"
             "  --json           one JSON object per message and line, with every field of the\n"
             "                   message plus \"channel\" and \"type\"; samples carry summary\n"
@@ -66,7 +69,8 @@ static void listen_usage(FILE *f) {
             "  --full           also print the sample arrays of samples messages\n"
             "  --count N        exit after N messages (N >= 1); exit status 1 if the timeout\n"
             "                   comes first\n"
-            "  --channels LIST  comma-separated subset of samples,harmonics,status (default all)\n"
+            "  --channels LIST  comma-separated subset of samples,harmonics,status,tick_done\n"
+            "                   (default all)\n"
             "  --timeout S      exit after S seconds (S > 0; default: run until N messages or a\n"
             "                   signal)\n"
             "  --lcm-url URL    the twin's command URL, as given to afmtwind (default:\n"
@@ -78,9 +82,13 @@ static void listen_usage(FILE *f) {
             "  --log FILE       read the messages from an LCM log (lcm-logger's format, e.g.\n"
             "                   `afmtwin replay --out`) instead of the network, to its end\n"
             "  --help           this text\n\n"
-            "Channels: PREFIX + %s, %s, %s. Text output: one line per message.\n"
+            "Channels: PREFIX + %s, %s, %s, %s. Text output: one line per message.\n"
+            "Status: rtf(1 s) is model over wall time of the last second of running; the\n"
+            "lock-in phase is the LAG of the deflection behind the drive (90 deg for a free\n"
+            "cantilever at resonance, below 90 in the repulsive regime).\n"
             "Exit status 0 ok, 1 LCM failure or --count not reached, 2 bad usage.\n",
-            AFMT_DEFAULT_PREFIX, AFMT_CHAN_SAMPLES, AFMT_CHAN_HARMONICS, AFMT_CHAN_STATUS);
+            AFMT_DEFAULT_PREFIX, AFMT_CHAN_SAMPLES, AFMT_CHAN_HARMONICS, AFMT_CHAN_STATUS,
+            AFMT_CHAN_TICK_DONE);
 }
 
 /* ---- samples: summary statistics of a float array ---- */
@@ -275,6 +283,13 @@ static void print_status(const listen_ctx *c, const char *channel, const afmtwin
         json_str(o, "last_drop", m->last_drop);
         cJSON_AddNumberToObject(o, "auto_paused", m->auto_paused);
         json_str(o, "pause_reason", m->pause_reason);
+        json_num(o, "realtime_factor_1s", m->realtime_factor_1s);
+        json_num(o, "resync_skipped_s", m->resync_skipped_s);
+        json_num(o, "lockin_amplitude_m", m->lockin_amplitude_m);
+        json_num(o, "lockin_phase_deg", m->lockin_phase_deg);
+        json_num(o, "peak_force_n", m->peak_force_n);
+        json_num(o, "last_reject_age_s", m->last_reject_age_s);
+        cJSON_AddNumberToObject(o, "last_reject_old", m->last_reject_old);
         json_print(o);
         return;
     }
@@ -287,18 +302,24 @@ static void print_status(const listen_ctx *c, const char *channel, const afmtwin
     show(lf, m->last_refusal);
     show(ld, m->last_drop);
     show(pr, m->pause_reason);
-    printf("status    seq %lld t %.6f s %s %s RT %.4g lag %.3g s overruns %lld blowups %lld "
-           "received %lld applied %lld rejected %lld%s%s%s refused %lld%s%s%s dropped %lld%s%s%s "
-           "Z %.4g nm fe %.6g Hz Ae %.4g nm\n",
+    printf("status    seq %lld t %.6f s %s %s rtf(1 s) %.4g lag %.3g s resyncs %lld (%.4g s "
+           "skipped) chain lag %.3g s overruns %lld | lock-in %.4g nm, phase lag %.2f deg, peak "
+           "force %.4g nN | Z %.4g nm fe %.6g Hz Ae %.4g nm | received %lld applied %lld rejected "
+           "%lld refused %lld%s%s%s dropped %lld%s%s%s blowups %lld",
            (long long)m->seq_applied, m->model_time_s, mode[0] ? mode : "?",
            m->auto_paused ? "PAUSED ITSELF"
            : m->running   ? "running"
                           : "paused",
-           m->realtime_factor, m->lag_s, (long long)m->overruns, (long long)m->blowups,
+           m->realtime_factor_1s, m->lag_s, (long long)m->resyncs, m->resync_skipped_s,
+           m->chain_lag_s, (long long)m->overruns, m->lockin_amplitude_m * 1e9, m->lockin_phase_deg,
+           m->peak_force_n * 1e9, m->separation_m * 1e9, m->fe_hz, m->amplitude_m * 1e9,
            (long long)m->received, (long long)m->applied, (long long)m->rejected,
-           lr[0] ? " (last: " : "", lr, lr[0] ? ")" : "", (long long)m->refused,
-           lf[0] ? " (last: " : "", lf, lf[0] ? ")" : "", (long long)m->dropped, ld[0] ? " (" : "",
-           ld, ld[0] ? ")" : "", m->separation_m * 1e9, m->fe_hz, m->amplitude_m * 1e9);
+           (long long)m->refused, lf[0] ? " (last: " : "", lf, lf[0] ? ")" : "",
+           (long long)m->dropped, ld[0] ? " (" : "", ld, ld[0] ? ")" : "", (long long)m->blowups);
+    if (lr[0])
+        printf(" (last rejected %.1f s ago%s: %s)", m->last_reject_age_s,
+               m->last_reject_old ? ", old: later commands applied" : "", lr);
+    printf("\n");
     if (m->auto_paused) printf("          %s\n", pr);
     if (cs[0] && strcmp(cs, "off") != 0)
         printf("          CAN %s, heartbeat %s, frames %lld rejected %lld errors %lld reconnects "
@@ -336,9 +357,35 @@ static void report_bad(listen_ctx *c, const char *channel, uint32_t size, const 
             channel, size, type, why);
 }
 
-/* One handler for all three channels: the channel name says the type. The bytes are
- * checked before lcm-gen's decoder sees them (afm_lcm_wire.h); a message that does not
- * decode (wrong type, truncated, crafted lengths) is reported on stderr and not counted. */
+static void print_done(const listen_ctx *c, const char *channel, const afmtwin_tick_done_t *m) {
+    if (c->json) {
+        cJSON *o = cJSON_CreateObject();
+        cJSON_AddStringToObject(o, "channel", channel);
+        cJSON_AddStringToObject(o, "type", "tick_done");
+        json_int(o, "utime", m->utime);
+        json_int(o, "seq", m->seq);
+        json_int(o, "samples", m->samples);
+        json_num(o, "model_time_s", m->model_time_s);
+        json_int(o, "n_samples_msgs", m->n_samples_msgs);
+        json_int(o, "n_harmonics_msgs", m->n_harmonics_msgs);
+        char dg[24];
+        snprintf(dg, sizeof dg, "%016llx", (unsigned long long)m->samples_digest);
+        cJSON_AddStringToObject(o, "samples_digest", dg);
+        snprintf(dg, sizeof dg, "%016llx", (unsigned long long)m->harmonics_digest);
+        cJSON_AddStringToObject(o, "harmonics_digest", dg);
+        json_print(o);
+        return;
+    }
+    printf("tick_done seq %lld samples %lld t %.9f s: %lld samples messages (digest %016llx), "
+           "%lld harmonics (digest %016llx)\n",
+           (long long)m->seq, (long long)m->samples, m->model_time_s, (long long)m->n_samples_msgs,
+           (unsigned long long)m->samples_digest, (long long)m->n_harmonics_msgs,
+           (unsigned long long)m->harmonics_digest);
+}
+
+/* One handler for all channels: the channel name says the type. The bytes are checked
+ * before lcm-gen's decoder sees them (afm_lcm_wire.h); a message that does not decode
+ * (wrong type, truncated, crafted lengths) is reported on stderr and not counted. */
 static void on_message(const lcm_recv_buf_t *rb, const char *channel, void *user) {
     listen_ctx *c = user;
     if (c->count > 0 && c->got >= c->count) return;
@@ -347,11 +394,12 @@ static void on_message(const lcm_recv_buf_t *rb, const char *channel, void *user
         if (c->want[i] && !strcmp(channel, c->chan[i])) k = i;
     if (k < 0) return;
     static const afm_wire_type *const types[N_OUT] = {&afm_wire_samples_t, &afm_wire_harmonics_t,
-                                                      &afm_wire_status_t};
+                                                      &afm_wire_status_t, &afm_wire_tick_done_t};
     union {
         afmtwin_samples_t samples;
         afmtwin_harmonics_t harmonics;
         afmtwin_status_t status;
+        afmtwin_tick_done_t done;
     } m;
     char why[AFM_ERR_LEN];
     if (afm_wire_decode(types[k], rb->data, rb->data_size, &m, why, sizeof why)) {
@@ -362,8 +410,10 @@ static void on_message(const lcm_recv_buf_t *rb, const char *channel, void *user
         print_samples(c, channel, &m.samples);
     else if (k == OUT_HARMONICS)
         print_harmonics(c, channel, &m.harmonics);
-    else
+    else if (k == OUT_STATUS)
         print_status(c, channel, &m.status);
+    else
+        print_done(c, channel, &m.done);
     afm_wire_free(types[k], &m);
     fflush(stdout);
     c->got++;
@@ -443,7 +493,7 @@ int afm_cmd_listen(int argc, char **argv) {
             if (parse_channels(v, c.want)) {
                 fprintf(stderr,
                         "afmtwin listen: --channels wants a comma-separated subset of "
-                        "samples,harmonics,status, got '%s'\n",
+                        "samples,harmonics,status,tick_done, got '%s'\n",
                         v);
                 return 2;
             }
@@ -466,7 +516,8 @@ int afm_cmd_listen(int argc, char **argv) {
         }
     }
     char err[256];
-    const char *suffix[N_OUT] = {AFMT_CHAN_SAMPLES, AFMT_CHAN_HARMONICS, AFMT_CHAN_STATUS};
+    const char *suffix[N_OUT] = {AFMT_CHAN_SAMPLES, AFMT_CHAN_HARMONICS, AFMT_CHAN_STATUS,
+                                 AFMT_CHAN_TICK_DONE};
     for (int i = 0; i < N_OUT; i++)
         if (afmt_channel(c.prefix, suffix[i], c.chan[i], err, sizeof err)) {
             fprintf(stderr, "afmtwin listen: %s\n", err);

@@ -10,7 +10,9 @@
  * pause) model time stands still and commands apply in log order without advancing it.
  * With --lockstep the twin advances only by the log's tick commands and log times do not
  * matter. Output events carry model time (us) as their time stamp and utime: nothing from
- * the wall clock enters the output. */
+ * the wall clock enters the output. When a tick (or, paused, a step) budget is used up, a
+ * tick_done event follows the outputs, with the digest of the samples and harmonics
+ * messages since the previous one, as the daemon publishes it (afm_lcm_digest). */
 #include "afmtwin_cmds.h"
 #include "lcm_tool.h"
 
@@ -38,11 +40,12 @@
  * broken (or not lcm-logger's), and replaying the gap would run for days. */
 #define REPLAY_MAX_SPAN_S 1e6
 
-enum { OUT_SAMPLES, OUT_HARMONICS, OUT_STATUS, N_OUT };
+enum { OUT_SAMPLES, OUT_HARMONICS, OUT_STATUS, OUT_DONE, N_OUT };
 
 typedef struct {
     const char *config, *in, *out, *prefix;
     int block;
+    int harmonics_every; /* write every k-th period's harmonics (the daemon's rule) */
     double tail_s;
     bool lockstep, quiet;
     bool want[N_OUT];
@@ -57,6 +60,10 @@ typedef struct {
     long long status_every, next_status; /* samples */
     long long received, rejected, applied, skipped, written;
     char last_reject[AFM_IO_REASON_LEN];
+    long long period_count; /* periods seen (harmonics_every) */
+    afm_lcm_digest dg;      /* of the messages since the last tick_done */
+    bool have_period;
+    double lockin_amplitude_m, lockin_phase_deg, peak_force_n; /* the last period's */
     int write_failed;
     uint8_t *buf;
     int cap;
@@ -68,7 +75,7 @@ static void replay_usage(FILE *f) {
     fprintf(f,
             "usage: afmtwin replay --config FILE --in LOG --out LOG [--prefix NAME_]\n"
             "                      [--block N] [--tail S] [--lockstep] [--channels LIST]\n"
-            "                      [--quiet]\n\n"
+            "                      [--harmonics-every K] [--quiet]\n\n"
             "Runs the commands recorded in an LCM log (lcm-logger's format, e.g. a logged\n"
             "sweep, or one written with `afmtwin send --log`) through the twin of --config in\n"
             "model time, as fast as the machine allows, and writes what the daemon would\n"
@@ -91,12 +98,17 @@ static void replay_usage(FILE *f) {
             "  --lockstep       the twin advances only by the log's tick commands (applied in\n"
             "                   log order; log times are ignored)\n"
             "  --channels LIST  outputs to write, comma-separated subset of\n"
-            "                   samples,harmonics,status (default all)\n"
+            "                   samples,harmonics,status,tick_done (default all)\n"
+            "  --harmonics-every K  write every K-th period's harmonics (default 1: all; the\n"
+            "                   daemon's --harmonics-every K gives the same records)\n"
             "  --quiet          no summary on stderr\n"
             "  --help           this text\n\n"
             "Status messages come every %.1f s of model time and at the end; in them mode is\n"
-            "\"replay\" (or \"lockstep\"), realtime_factor and lag_s are 0. Exit status 0 ok,\n"
-            "1 simulation or file failure, 2 bad usage, a bad config or an unreadable log.\n",
+            "\"replay\" (or \"lockstep\"), realtime_factor and lag_s are 0. When a tick (or,\n"
+            "paused, a step) budget is used up a tick_done event follows its outputs, with the\n"
+            "digest of the samples and harmonics messages since the previous one, as afmtwind\n"
+            "publishes it. Exit status 0 ok, 1 simulation or file failure, 2 bad usage, a bad\n"
+            "config or an unreadable log.\n",
             AFMT_DEFAULT_PREFIX, REPLAY_DEFAULT_BLOCK, REPLAY_STATUS_INTERVAL_S);
 }
 
@@ -142,10 +154,11 @@ static void emit_samples(replay_ctx *x, int64_t seq) {
     for (int st = 0; st < afm_runner_n_streams(x->r); st++) {
         afm_chain_block b;
         while (afm_runner_take_block(x->r, st, &b, AFM_IO_MAX_BLOCK) > 0) {
-            if (!x->o.want[OUT_SAMPLES]) continue;
             afm_io_samples_from_block(&x->rec, &b, model_us(b.t_s[0]), seq);
             afmtwin_samples_t m;
             afm_lcm_samples_msg(&x->rec, &m);
+            afm_lcm_digest_samples(&x->dg, &m); /* also when not written: tick_done has it */
+            if (!x->o.want[OUT_SAMPLES]) continue;
             WRITE_MSG(x, afmtwin_samples_t, OUT_SAMPLES, &m);
         }
     }
@@ -154,8 +167,13 @@ static void emit_samples(replay_ctx *x, int64_t seq) {
 static void emit_harmonics(replay_ctx *x, const afm_runner_status *st) {
     int np;
     while ((np = afm_runner_take_periods(x->r, x->periods, REPLAY_PERIODS_MAX)) > 0) {
-        if (!x->o.want[OUT_HARMONICS]) continue;
+        const afm_chain_period *last = &x->periods[np - 1];
+        x->have_period = true;
+        x->lockin_amplitude_m = last->lockin_amplitude_m;
+        x->lockin_phase_deg = last->lockin_phase_deg;
+        x->peak_force_n = last->cycle.peak_force_n;
         for (int p = 0; p < np; p++) {
+            if (x->period_count++ % x->o.harmonics_every != 0) continue;
             const afm_cycle_metrics *c = &x->periods[p].cycle;
             afm_io_harmonics h;
             afm_io_harmonics_from_period(&h, &x->periods[p], st->fe_hz,
@@ -163,6 +181,8 @@ static void emit_harmonics(replay_ctx *x, const afm_runner_status *st) {
             afm_lcm_harm_buf buf;
             afmtwin_harmonics_t m;
             afm_lcm_harmonics_msg(&h, &buf, &m);
+            afm_lcm_digest_harmonics(&x->dg, &m);
+            if (!x->o.want[OUT_HARMONICS]) continue;
             WRITE_MSG(x, afmtwin_harmonics_t, OUT_HARMONICS, &m);
         }
     }
@@ -185,17 +205,43 @@ static void emit_status(replay_ctx *x, const afm_runner_status *st) {
     s.fe_hz = st->fe_hz;
     s.amplitude_m = st->amplitude_m;
     s.applied = st->applied;
+    s.lockin_amplitude_m = x->have_period ? x->lockin_amplitude_m : NAN;
+    s.lockin_phase_deg = x->have_period ? x->lockin_phase_deg : NAN;
+    s.peak_force_n = x->have_period ? x->peak_force_n : NAN;
+    s.last_reject_age_s = -1.0; /* no wall clock in replay */
     afmtwin_status_t m;
     afm_lcm_status_msg(&s, &m);
     WRITE_MSG(x, afmtwin_status_t, OUT_STATUS, &m);
 }
 
-/* Take every waiting output; a status when its time has come (or force). */
+/* A completion the runner passed: after the outputs before it, with their digest. */
+static void emit_done(replay_ctx *x) {
+    afm_runner_done dn;
+    if (!afm_runner_take_done(x->r, &dn)) return;
+    if (x->o.want[OUT_DONE]) {
+        afm_io_tick_done td = {.utime = model_us(dn.t_s),
+                               .seq = dn.seq,
+                               .samples = dn.samples,
+                               .model_time_s = dn.t_s,
+                               .n_samples_msgs = x->dg.n_samples_msgs,
+                               .n_harmonics_msgs = x->dg.n_harmonics_msgs,
+                               .samples_digest = afm_lcm_digest_samples_final(&x->dg),
+                               .harmonics_digest = x->dg.harmonics};
+        afmtwin_tick_done_t m;
+        afm_lcm_tick_done_msg(&td, &m);
+        WRITE_MSG(x, afmtwin_tick_done_t, OUT_DONE, &m);
+    }
+    afm_lcm_digest_init(&x->dg);
+}
+
+/* Take every waiting output (and a completion after them); a status when its time has come
+ * (or force). */
 static void emit_all(replay_ctx *x, bool force_status) {
     afm_runner_status st;
     afm_runner_status_get(x->r, &st);
     emit_harmonics(x, &st);
     emit_samples(x, st.seq_applied);
+    emit_done(x);
     if (force_status || st.samples >= x->next_status) {
         emit_status(x, &st);
         while (x->next_status <= st.samples)
@@ -264,7 +310,7 @@ static afm_cmd_kind channel_kind(const replay_ctx *x, const char *channel) {
 }
 
 static int parse_channels(const char *s, bool *want) {
-    static const char *const names[N_OUT] = {"samples", "harmonics", "status"};
+    static const char *const names[N_OUT] = {"samples", "harmonics", "status", "tick_done"};
     return afmt_parse_subset(s, names, N_OUT, false, want);
 }
 
@@ -299,6 +345,13 @@ static int parse_opts(int argc, char **argv, replay_opts *o) {
                 return 2;
             }
             o->block = (int)d;
+        } else if (!strcmp(a, "--harmonics-every")) {
+            if (afmt_parse_double(v, &d) || d < 1 || d > 1e9 || d != floor(d)) {
+                fprintf(stderr,
+                        "afmtwin replay: --harmonics-every wants an integer >= 1, got '%s'\n", v);
+                return 2;
+            }
+            o->harmonics_every = (int)d;
         } else if (!strcmp(a, "--tail")) {
             if (afmt_parse_double(v, &d) || !(d >= 0) || d > 1e4) {
                 fprintf(stderr, "afmtwin replay: --tail wants seconds in 0..1e4, got '%s'\n", v);
@@ -309,7 +362,7 @@ static int parse_opts(int argc, char **argv, replay_opts *o) {
             if (parse_channels(v, o->want)) {
                 fprintf(stderr,
                         "afmtwin replay: --channels wants a comma-separated subset of "
-                        "samples,harmonics,status, got '%s'\n",
+                        "samples,harmonics,status,tick_done, got '%s'\n",
                         v);
                 return 2;
             }
@@ -335,13 +388,15 @@ int afm_cmd_replay(int argc, char **argv) {
     memset(&x, 0, sizeof x);
     x.o = (replay_opts){.prefix = AFMT_DEFAULT_PREFIX,
                         .block = REPLAY_DEFAULT_BLOCK,
+                        .harmonics_every = 1,
                         .tail_s = 0.01,
-                        .want = {true, true, true}};
+                        .want = {true, true, true, true}};
+    afm_lcm_digest_init(&x.dg);
     int rc = parse_opts(argc, argv, &x.o);
     if (rc) return rc == 1 ? 0 : rc;
     char err[AFM_ERR_LEN];
     static const char *const out_sfx[N_OUT] = {AFMT_CHAN_SAMPLES, AFMT_CHAN_HARMONICS,
-                                               AFMT_CHAN_STATUS};
+                                               AFMT_CHAN_STATUS, AFMT_CHAN_TICK_DONE};
     static const char *const in_sfx[6] = {"",
                                           AFMT_CHAN_DITHER,
                                           AFMT_CHAN_SETPOINT,

@@ -24,6 +24,7 @@
 #define AFMT_CHAN_SAMPLES "SAMPLES"
 #define AFMT_CHAN_HARMONICS "HARMONICS"
 #define AFMT_CHAN_STATUS "STATUS"
+#define AFMT_CHAN_TICK_DONE "TICK_DONE"
 
 /* PREFIX + SUFFIX into out (AFMT_CHAN_LEN). The prefix: 1..63 characters of [A-Za-z0-9_]
  * (LCM channel names are matched as regular expressions by subscribers, so nothing else is

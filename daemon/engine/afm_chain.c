@@ -51,6 +51,25 @@ typedef struct {
     double *rt, *rx, *robd, *rcnt, *rf, *rbase;
 } stream;
 
+/* Tone 0's phase for the estimators, from the sample count: theta = p_org + wdt (k - k_org)
+ * at the sample k steps after the drive's t0 (theta = phase_rad + omega (t - t0) there), with
+ * the origin k_org a multiple of PHASE_REBASE: theta stays below 2 pi + wdt PHASE_REBASE, and
+ * crossing into the next segment wraps p_org mod 2 pi (a jump of whole turns, which the
+ * trackers keep their lock through). The count is exact, so theta carries only roundings
+ * relative to itself (~3 eps |theta|), not the rounding of the sample time t (omega ulp(t):
+ * 4e-9 rad at 20 s, growing with uptime), which the estimators' trackers must not mistake
+ * for a changing rate. Everything is a function of the sample index (the origin moves at
+ * fixed indices), so how the samples are cut into pushes changes no bit. A new drive (or
+ * chain) starts from its own origin: p_org of the segment it is in, from phase_rad. */
+#define PHASE_REBASE 1048576.0
+typedef struct {
+    bool set;
+    double ph, w, t0; /* the drive's tone 0 it follows */
+    double wdt;       /* phase step per sample */
+    double k_org;     /* origin: a sample index (from t0), multiple of PHASE_REBASE */
+    double p_org;     /* theta at k_org, mod 2 pi */
+} phase_gen;
+
 struct afm_chain {
     afm_obd obd;
     int n_streams;
@@ -62,6 +81,7 @@ struct afm_chain {
     /* estimators */
     bool attached;
     const afm_drive *drive;
+    phase_gen phase;
     afm_harm harm;
     afm_cycle cycle;
     afm_lockin lockin;
@@ -71,6 +91,17 @@ struct afm_chain {
     const afm_force_params *forces;
     afm_chain_stats stats;
 };
+
+/* Write every page of [p, p + n) once, so that the first push does not take the page faults
+ * (the kernel's allocation of calloc's and malloc's untouched pages; ~2 MB of rings and
+ * records, ~1.5 ms on this VM) on the real-time path, when the daemon cannot lock its memory
+ * or the chain is built later (a geometry change, a reload). */
+static void touch(void *p, size_t n) {
+    volatile unsigned char *q = p;
+    for (size_t i = 0; i < n; i += 4096)
+        q[i] = q[i];
+    if (n) q[n - 1] = q[n - 1];
+}
 
 static void fail_msg(char *err, size_t errlen, const char *msg) {
     if (err && errlen) snprintf(err, errlen, "chain: %s", msg);
@@ -123,6 +154,10 @@ afm_chain *afm_chain_create(const afm_config *cfg, const afm_modal *m, char *err
             *arrs[a] = malloc((size_t)s->cap * sizeof(double));
         if (!s->frames || !s->t || !s->rt || !s->rx || !s->robd || !s->rcnt || !s->rf || !s->rbase)
             goto oom;
+        touch(s->frames, (CHUNK + 1) * AFM_DECIM_CH * sizeof *s->frames);
+        touch(s->t, (CHUNK + 1) * sizeof *s->t);
+        for (int a = 0; a < 6; a++)
+            touch(*arrs[a], (size_t)s->cap * sizeof(double));
     }
     c->primary = c->order[0]; /* the smallest factor is always decimated from the input */
     int room;
@@ -133,6 +168,7 @@ afm_chain *afm_chain_create(const afm_config *cfg, const afm_modal *m, char *err
     }
     c->periods = calloc(PERIOD_RING, sizeof *c->periods);
     if (!c->periods) goto oom;
+    touch(c->periods, PERIOD_RING * sizeof *c->periods);
 
     /* Estimators: initialised now, run once attached. */
     int ks[AFM_MAX_HARMONICS], nk = cfg->sim.n_harmonics;
@@ -144,6 +180,7 @@ afm_chain *afm_chain_create(const afm_config *cfg, const afm_modal *m, char *err
         afm_lockin_init(&c->lockin, &cfg->lockin, 1.0 / c->fs, err, errlen))
         goto fail;
     afm_harm_set_deferred(&c->harm, true); /* polar form when a record is finished */
+    touch(c, sizeof *c);
     return c;
 oom:
     fail_msg(err, errlen, "out of memory");
@@ -172,6 +209,11 @@ void afm_chain_destroy(afm_chain **cp) {
     *cp = NULL;
 }
 
+/* Before the estimators are reset: their table rebuilds into the stats (which are kept). */
+static void keep_rebuilds(afm_chain *c) {
+    c->stats.estimator_rebuilds += c->harm.trk.rate_changes + c->lockin.trk.rate_changes;
+}
+
 int afm_chain_attach(afm_chain *c, const afm_sim *sim, char *err, size_t errlen) {
     if (!sim) {
         c->attached = false;
@@ -184,6 +226,8 @@ int afm_chain_attach(afm_chain *c, const afm_sim *sim, char *err, size_t errlen)
     c->forces = f;
     c->cos_alpha = f->cos_alpha;
     c->drive = afm_sim_drive(sim);
+    c->phase.set = false;
+    keep_rebuilds(c);
     afm_harm_reset(&c->harm);
     afm_lockin_reset(&c->lockin);
     c->attached = true;
@@ -342,31 +386,67 @@ static void put_period(afm_chain *c) {
     c->stats.periods++;
 }
 
-/* The estimators over n samples. Tone 0's phase is computed here for the whole block, by
- * afm_drive_phase's own expression (the same values, without a call per sample). harm and
- * cycle share the period clock: each run ends at a sample where harm completed a period,
- * and cycle and lockin are brought to the same sample before the record is written.
- * estimator_rejects counts, per run, the most samples any one estimator refused. */
-static void estimators(afm_chain *c, const afm_sample *s, const double *obd, int n) {
-    double th[CHUNK], f[CHUNK];
-    const afm_drive *d = c->drive;
-    double ph = d->phase_rad[0], w = d->omega_rad_s[0], t0 = d->t0_s[0];
-    int i0 = 0;
+/* th[j] = p + wdt (k + j) for j < m: four at a time with AVX2 (one rounding each, fma: the
+ * same bits as the scalar loop). */
+static void phase_run(double *th, int m, double wdt, double k, double p) {
+    int j = 0;
 #if defined(__AVX2__) && defined(__FMA__)
-    /* four samples at a time, the same operations (no contraction): the same bits */
-    const __m256d vph = _mm256_set1_pd(ph), vw = _mm256_set1_pd(w), vt0 = _mm256_set1_pd(t0);
-    for (; i0 + 4 <= n; i0 += 4) {
-        const afm_sample *q = s + i0;
-        __m256d t = _mm256_set_pd(q[3].t_s, q[2].t_s, q[1].t_s, q[0].t_s);
-        __m256d fv = _mm256_set_pd(q[3].f_n, q[2].f_n, q[1].f_n, q[0].f_n);
-        _mm256_storeu_pd(th + i0, _mm256_add_pd(vph, _mm256_mul_pd(vw, _mm256_sub_pd(t, vt0))));
-        _mm256_storeu_pd(f + i0, fv);
+    const __m256d vp = _mm256_set1_pd(p), vw = _mm256_set1_pd(wdt), four = _mm256_set1_pd(4.0);
+    __m256d vk = _mm256_add_pd(_mm256_set1_pd(k), _mm256_set_pd(3.0, 2.0, 1.0, 0.0));
+    for (; j + 4 <= m; j += 4) {
+        _mm256_storeu_pd(th + j, _mm256_fmadd_pd(vw, vk, vp));
+        vk = _mm256_add_pd(vk, four);
     }
 #endif
-    for (int i = i0; i < n; i++) {
-        th[i] = ph + w * (s[i].t_s - t0);
+    for (; j < m; j++)
+        th[j] = fma(wdt, k + (double)j, p);
+}
+
+/* theta[i] of samples s[0..n) by phase_gen (see there), and their forces f[i]; samples off
+ * the time grid of the drive's t0 (not made by a simulator at this chain's rate) by
+ * afm_drive_phase's own expression. */
+static void drive_phase(afm_chain *c, const afm_sample *s, int n, double *th, double *f) {
+    const afm_drive *d = c->drive;
+    phase_gen *g = &c->phase;
+    for (int i = 0; i < n; i++)
         f[i] = s[i].f_n;
+    if (!g->set || g->ph != d->phase_rad[0] || g->w != d->omega_rad_s[0] || g->t0 != d->t0_s[0]) {
+        g->ph = d->phase_rad[0];
+        g->w = d->omega_rad_s[0];
+        g->t0 = d->t0_s[0];
+        g->wdt = g->w * (1.0 / c->fs);
+        g->set = false; /* origin from the first sample below */
     }
+    double kd = (s[0].t_s - g->t0) * c->fs, k = nearbyint(kd);
+    if (!(fabs(kd - k) < 0.25 && k >= 0 && k < 0x1p52)) {
+        for (int i = 0; i < n; i++)
+            th[i] = g->ph + g->w * (s[i].t_s - g->t0);
+        return;
+    }
+    if (!g->set || k < g->k_org) { /* the segment of the first sample */
+        g->k_org = afm_floor(k / PHASE_REBASE) * PHASE_REBASE;
+        g->p_org = g->k_org > 0 ? afm_clock_wrap(fma(g->wdt, g->k_org, g->ph)) : g->ph;
+        g->set = true;
+    }
+    for (int i = 0; i < n;) {
+        while (k + i >= g->k_org + PHASE_REBASE) { /* into the next segment */
+            g->p_org = afm_clock_wrap(fma(g->wdt, PHASE_REBASE, g->p_org));
+            g->k_org += PHASE_REBASE;
+        }
+        double left = g->k_org + PHASE_REBASE - (k + i);
+        int m = left < (double)(n - i) ? (int)left : n - i;
+        phase_run(th + i, m, g->wdt, k + i - g->k_org, g->p_org);
+        i += m;
+    }
+}
+
+/* The estimators over n samples, with tone 0's phase from drive_phase. harm and cycle share
+ * the period clock: each run ends at a sample where harm completed a period, and cycle and
+ * lockin are brought to the same sample before the record is written. estimator_rejects
+ * counts, per run, the most samples any one estimator refused. */
+static void estimators(afm_chain *c, const afm_sample *s, const double *obd, int n) {
+    double th[CHUNK], f[CHUNK];
+    drive_phase(c, s, n, th, f);
     for (int i = 0; i < n;) {
         long long rh = 0, rc = 0, rl;
         int done, dc;
@@ -450,6 +530,7 @@ void afm_chain_reset(afm_chain *c) {
         afm_decim_reset(c->st[i].dec);
         c->st[i].head = c->st[i].count = 0;
     }
+    keep_rebuilds(c);
     afm_harm_reset(&c->harm);
     afm_lockin_reset(&c->lockin);
     if (c->attached) afm_cycle_reset(&c->cycle);
@@ -461,6 +542,7 @@ int afm_chain_n_streams(const afm_chain *c) {
 }
 afm_chain_stats afm_chain_stats_get(const afm_chain *c) {
     afm_chain_stats s = c->stats;
+    s.estimator_rebuilds += c->harm.trk.rate_changes + c->lockin.trk.rate_changes;
     for (int i = 0; i < c->n_streams; i++)
         s.nonfinite += afm_decim_nonfinite(c->st[i].dec);
     return s;

@@ -15,12 +15,13 @@
  * stamped with the model time it represents (the filters' group delay removed), so the
  * streams line up with afm_sample.t_s.
  *
- * Estimators (after afm_chain_attach): on every full-rate sample, with the exact drive
- * phase of tone 0, afm_harm (harmonics of the OBD signal and of the force: cfg.sim.
- * harmonics, or afm_harm_default_list when n_harmonics is 0), afm_cycle (tapping metrics
- * on the true tip motion x, v, f) and afm_lockin (on the OBD signal). One afm_chain_period
- * record per completed drive period goes to a ring the caller drains. The records are
- * kept in Cartesian form (the harmonics' sums, the lock-in's X and Y); the amplitudes and
+ * Estimators (after afm_chain_attach): on every full-rate sample, with the drive phase of
+ * tone 0 (computed from the sample count since the drive last changed, so that it does not
+ * carry the rounding of large sample times: afm_chain.c), afm_harm (harmonics of the OBD signal and
+ * of the force: cfg.sim. harmonics, or afm_harm_default_list when n_harmonics is 0), afm_cycle
+ * (tapping metrics on the true tip motion x, v, f) and afm_lockin (on the OBD signal). One
+ * afm_chain_period record per completed drive period goes to a ring the caller drains. The records
+ * are kept in Cartesian form (the harmonics' sums, the lock-in's X and Y); the amplitudes and
  * phases are computed when a record is taken with afm_chain_take_periods, or only for the
  * records a caller publishes (afm_chain_take_periods_raw, then afm_chain_period_finish):
  * a daemon that publishes one period in hundreds skips the others' arctangents.
@@ -77,6 +78,9 @@ typedef struct {
     long long periods;                  /* period records produced */
     long long periods_dropped;          /* period records lost to a full ring */
     long long estimator_rejects;        /* samples an estimator refused (non-finite, time jump) */
+    long long estimator_rebuilds;       /* phase-table rebuilds of harmonics and lock-in (a new
+                                           rate of the drive phase: about one per frequency
+                                           change; ~1e4 instructions each) */
 } afm_chain_stats;
 
 /* Build the chain for cfg (obd, output, lockin, sim.harmonics) on model m. NULL with err. */

@@ -209,21 +209,34 @@ static inline double afm_phase_diff_deg(int k, double phi1_rad, double phik_rad)
  * (one sample of exact clock in between); otherwise the running average of the clean
  * intervals' increments, refined only when that moves the prediction over a run by more
  * than tol / 8 (so an estimator's per-step rotations are rarely recomputed). A non-clock
- * tracker (the lock-in) accepts any finite theta and never looks at theta mod 2 pi. */
+ * tracker (the lock-in) accepts any finite theta and never looks at theta mod 2 pi.
+ *
+ * Bounded cost (every dphi change makes the estimators rebuild their tables, ~1e4
+ * instructions): a step off the rate by a whole number of turns (theta re-wrapped: afm_drive
+ * at a tone change that keeps the frequency, the chain's phase origin moving) keeps the lock
+ * and dphi; a step off the rate again within a window of the last lock is read as noise in
+ * theta that tol did not cover (twice its size, at most 1e-6 rad, becomes the noise floor; the
+ * lock and dphi stay) instead of a new rate each time. A theta computed as phi + w (t - t0) at a
+ * large model time t carries w ulp(t) of rounding (4e-9 rad at t = 20 s and 338 kHz) however small
+ * theta is; before this rule such a tracker unlocked and relocked every other sample, rebuilding
+ * the tables each time (the daemon's real-time collapse of issue 12). The chain now computes theta
+ * from the sample count, with only rounding relative to theta itself (afm_chain.c). */
 typedef struct {
-    bool clock;     /* period clock: monotone phase, boundaries (harm, cycle) */
-    bool started;   /* a sample has been accepted since init/reset */
-    bool locked;    /* dphi is known: the fast path may run */
-    double th_prev; /* theta of the last accepted sample, as supplied */
-    double th_ref;  /* theta at the last resynchronisation */
-    double p_ref;   /* th_ref mod 2 pi (clock), else 0 */
-    double n;       /* steps since the resynchronisation */
-    double dphi;    /* phase step, rad */
-    double nb;      /* steps behind the dphi estimate (capped) */
-    double tol;     /* |theta - th_ref - n dphi| allowed on the fast path; -1: none */
-    double noise;   /* observed noise floor of theta (rad), see afm_track_advance */
-    double n_end;   /* fast path for n <= n_end: for a clock, p_ref + n dphi stays more
-                     * than 2 tol + 1e-12 below 2 pi; at most the window below */
+    bool clock;             /* period clock: monotone phase, boundaries (harm, cycle) */
+    bool started;           /* a sample has been accepted since init/reset */
+    bool locked;            /* dphi is known: the fast path may run */
+    double th_prev;         /* theta of the last accepted sample, as supplied */
+    double th_ref;          /* theta at the last resynchronisation */
+    double p_ref;           /* th_ref mod 2 pi (clock), else 0 */
+    double n;               /* steps since the resynchronisation */
+    double dphi;            /* phase step, rad */
+    double nb;              /* steps behind the dphi estimate (capped) */
+    double tol;             /* |theta - th_ref - n dphi| allowed on the fast path; -1: none */
+    double noise;           /* observed noise floor of theta (rad), see afm_track_advance */
+    double n_end;           /* fast path for n <= n_end: for a clock, p_ref + n dphi stays more
+                             * than 2 tol + 1e-12 below 2 pi; at most the window below */
+    double age;             /* steps since the tracker last locked */
+    long long rate_changes; /* times dphi took a new value (each an estimator table rebuild) */
 } afm_phase_track;
 
 /* Resynchronise at least every so many steps (rounding of the rotations; the rate estimate
@@ -242,9 +255,17 @@ typedef struct {
 static inline void afm_track_init(afm_phase_track *t, bool clock) {
     t->clock = clock;
     t->started = t->locked = false;
-    t->th_prev = t->th_ref = t->p_ref = t->n = t->dphi = t->nb = t->noise = 0.0;
+    t->th_prev = t->th_ref = t->p_ref = t->n = t->dphi = t->nb = t->noise = t->age = 0.0;
     t->tol = -1.0;
     t->n_end = 0.0;
+    t->rate_changes = 0;
+}
+
+/* a - 2 pi m for the integer m nearest a / 2 pi: the deviation of a step from the rate up to
+ * whole turns (the fma is exact: the remainder is representable). */
+static inline double afm_track_off_turns(double a) {
+    double m = nearbyint(a * (1.0 / AFM_EST_TWO_PI));
+    return fma(-m, AFM_EST_TWO_PI, a);
 }
 
 /* The fast path: true (and the tracker advanced) when theta is the predicted next phase;
@@ -280,9 +301,23 @@ static inline void afm_track_resync(afm_phase_track *t, double th, double p, boo
     *rate_changed = false;
     double err = (th - t->th_ref) - n * t->dphi;
     bool drift = t->locked && n <= t->n_end && fabs(err) > t->tol; /* not boundary/window */
+    double dev = (th - t->th_prev) - t->dphi;                      /* this step against the rate */
+    t->age += n;
     if (!t->started) {
         t->locked = false;
-    } else if (t->locked && fabs((th - t->th_prev) - t->dphi) <= 4.0 * t->tol) {
+    } else if (t->locked && !(fabs(dev) <= 4.0 * t->tol)) {
+        /* Off the rate. By whole turns (tol of the larger theta: the step rounds to its ulp):
+         * the same rate, nothing to average from this interval. Else a new rate, or noise
+         * when it happens again soon after the last lock (see the header). */
+        double big = fmax(fabs(th), fabs(t->th_prev));
+        double offt = afm_track_off_turns(dev);
+        if (!(fabs(offt) <= 4.0 * (2e-11 + 1.8e-15 * big + t->noise))) {
+            if (t->age < AFM_TRACK_WINDOW_CLOCK && fabs(offt) <= 1e-6)
+                t->noise = fmin(2.0 * fabs(offt), 1e-6); /* noise: keep the rate */
+            else
+                t->locked = false; /* a new rate: take the next step's increment */
+        }
+    } else if (t->locked) {
         /* same rate (the step is consistent): average in the increments since th_ref. A
          * drift failure raises the noise floor (theta carries the rounding of the sample
          * time, omega ulp(t), which the tracker cannot know); it decays otherwise. */
@@ -297,14 +332,14 @@ static inline void afm_track_resync(afm_phase_track *t, double th, double p, boo
             *rate_changed = true;
         }
         t->nb = t->nb + n < AFM_TRACK_MAX_BASELINE ? t->nb + n : AFM_TRACK_MAX_BASELINE;
-    } else if (t->locked) {
-        t->locked = false; /* a jump: take the next step's increment */
     } else {
         t->dphi = th - t->th_prev;
         t->nb = 1.0;
         t->locked = true;
+        t->age = 0.0;
         *rate_changed = true;
     }
+    t->rate_changes += *rate_changed;
     double tol = 2e-11 + 1.8e-15 * fabs(th) + t->noise;
     if (t->locked && t->clock && !(t->dphi > 4.0 * tol + 1e-12 && t->dphi < AFM_EST_PI - 4.0 * tol))
         t->locked = false;

@@ -878,11 +878,32 @@ static int rt_init(afm_sim *s, char *err, size_t errlen) {
     return 0;
 }
 
+/* Only Z changed (afm_sim_set_separation; a ramp calls it every 64 samples): the contact
+ * line, the force and the next step's guess at the current state, and the Starr interpolant
+ * only when the rest gap left AFM_RT_STARR_KEEP of its window. The drive tables, the
+ * phasors and the homogeneous state are untouched (rt_changed recomputes all of them). */
+static void rt_changed_z(afm_sim *s) {
+    rt_state *r = s->be_state;
+    r->xc = afm_force_contact_x(&s->f, s->z_m);
+    r->z_m = s->z_m;
+    if (s->f.squeeze == AFM_SQUEEZE_STARR &&
+        !(r->starr.on && fabs(afm_force_starr_h(&s->f, s->z_m, 0.0) - r->starr.h0) <=
+                             AFM_RT_STARR_KEEP * r->starr.hw))
+        afm_rt_starr_build(&r->starr, &s->f, s->z_m);
+    rt_snap *st = &r->buf[r->cur];
+    st->f = rt_force(s, r, st->x, st->xd, &st->fx, &st->fv);
+    st->rk = 0;
+    st->dfc = 0.0;
+    rt_predict(r, st);
+    s->f_last_n = st->f;
+}
+
 const afm_sim_backend afm_rt_backend = {
     .name = "rt",
     .init = rt_init,
     .run = rt_run,
     .changed = rt_changed,
+    .changed_z = rt_changed_z,
     .thermal = rt_thermal,
     .destroy = rt_destroy,
 };

@@ -78,6 +78,11 @@ void afm_rt_coef_expm(int n, const double *a, double *e);
  * s = (h - h0) / hw on hw = AFM_RT_STARR_WINDOW h0, interpolated at the Chebyshev nodes of
  * the exact c. Relative error about 15 (hw / h0)^5 / 2^4 < 1e-8 on the window. */
 #define AFM_RT_STARR_WINDOW 0.02
+/* A Z change moves the rest gap; the interpolant stays exact to the same bound on its own
+ * window, so a Z-only change keeps it while the new rest gap is within KEEP hw of h0 (the tip's
+ * gap then stays inside for excursions up to (1 - KEEP) hw, 93 nm on a 9.3 um gap) and
+ * rebuilds it otherwise (afm_rt.c, rt_changed_z). */
+#define AFM_RT_STARR_KEEP 0.5
 typedef struct {
     bool on;
     double h0, hw, ihw; /* m, m, 1/m */

@@ -36,7 +36,7 @@
 #define TRASH_CAP 1024
 #define TRASH_HELD 16
 
-enum { IT_SAMPLES, IT_RESET, IT_FORCES, IT_ATTACH };
+enum { IT_SAMPLES, IT_RESET, IT_FORCES, IT_ATTACH, IT_DONE };
 
 typedef struct {
     int at; /* first sample (index into s) with this Z */
@@ -46,7 +46,8 @@ typedef struct {
 /* One ring item. SAMPLES: n samples s[0..n) run with drive `drive`, Z z0_m then the
  * changes zc, after the command seq. FORCES: new force constants f. ATTACH: the chain
  * follows a swapped-in simulator (drive, f, z_m); model: the objects to hand back (and,
- * when model->chain is set, the chain to swap in). RESET: clear the chain. */
+ * when model->chain is set, the chain to swap in). RESET: clear the chain. DONE: a tick or
+ * step budget was used up (seq: that command, done_samples and done_t_s: where). */
 typedef struct {
     int kind;
     int n;
@@ -57,6 +58,8 @@ typedef struct {
     afm_drive drive;
     afm_force_params f;
     afm_runner_model *model;
+    long long done_samples;
+    double done_t_s;
     afm_sample s[SLOT];
 } ring_item;
 
@@ -67,6 +70,9 @@ typedef struct {
     afm_force_params f;
     double z_m;
     afm_runner_model *model;
+    int64_t seq; /* DONE: the tick or step command */
+    long long done_samples;
+    double done_t_s;
 } pending_item;
 
 struct afm_runner_model {
@@ -92,7 +98,9 @@ struct afm_runner {
     int blowup_streak; /* blow-ups each within AFM_RUNNER_BLOWUP_WINDOW_S of the last */
     bool auto_paused;  /* paused by itself (streak reached AFM_RUNNER_BLOWUP_PAUSE) */
     long long auto_pauses;
-    ring_item *open; /* reserved, being filled; committed at the end of every run */
+    int64_t tick_seq, step_seq; /* the last tick and step commands applied (IT_DONE names
+                                 * the one whose budget was used up) */
+    ring_item *open;            /* reserved, being filled; committed at the end of every run */
     pending_item pending[PENDING_MAX];
     int n_pending;
     /* between */
@@ -107,6 +115,8 @@ struct afm_runner {
     long long b_samples, b_items, b_attach_errors, b_trash_lost;
     afm_runner_model *held[TRASH_HELD]; /* trash waiting for space */
     int n_held;
+    bool b_done_waiting; /* a DONE item passed, not yet taken (afm_runner_take_done) */
+    afm_runner_done b_done;
 };
 
 static const double two_pi = 6.283185307179586476925286766559;
@@ -189,6 +199,10 @@ static void back_item(afm_runner *r, ring_item *it) {
         afm_sim_mirror_set(r->mirror, NULL, &it->f, r->b_z);
         afm_chain_set_separation(r->chain, r->b_z); /* a0 may have moved the contact line */
         break;
+    case IT_DONE:
+        r->b_done = (afm_runner_done){it->seq, it->done_samples, it->done_t_s};
+        r->b_done_waiting = true;
+        break;
     case IT_ATTACH: {
         afm_runner_model *m = it->model;
         afm_sim_mirror_set(r->mirror, &it->drive, &it->f, it->z0_m);
@@ -214,11 +228,20 @@ int afm_runner_chain_run(afm_runner *r, int max_items) {
         /* Outputs waiting were made after command b_seq: hand them out before samples of a
          * later command join them. */
         if (done > 0 && it->kind == IT_SAMPLES && it->seq != r->b_seq) break;
+        bool is_done = it->kind == IT_DONE;
         back_item(r, it);
         afm_spsc_release(&r->ring);
         done++;
+        if (is_done && r->pipelined) break; /* the caller hands out outputs and completion */
     }
     return done;
+}
+
+int afm_runner_take_done(afm_runner *r, afm_runner_done *d) {
+    if (!r->b_done_waiting) return 0;
+    *d = r->b_done;
+    r->b_done_waiting = false;
+    return 1;
 }
 
 bool afm_runner_chain_seq_next(afm_runner *r) {
@@ -273,6 +296,11 @@ static bool flush_pending(afm_runner *r) {
         it->drive = p->drive;
         it->f = p->f;
         it->model = p->model;
+        if (p->kind == IT_DONE) {
+            it->seq = p->seq;
+            it->done_samples = p->done_samples;
+            it->done_t_s = p->done_t_s;
+        }
         afm_spsc_commit(&r->ring);
         inline_back(r);
     }
@@ -293,6 +321,9 @@ static void emit(afm_runner *r, int kind, afm_runner_model *m) {
     p->f = *afm_sim_forces(r->sim);
     p->z_m = afm_sim_separation(r->sim);
     p->model = m;
+    p->seq = r->running ? r->tick_seq : r->step_seq; /* DONE: whose budget it was */
+    p->done_samples = r->samples;
+    p->done_t_s = afm_sim_time(r->sim);
     flush_pending(r);
 }
 
@@ -412,6 +443,17 @@ void afm_runner_destroy(afm_runner **rp) {
     *rp = NULL;
 }
 
+int afm_runner_set_time(afm_runner *r, double t_s, char *err, size_t errlen) {
+    if (r->samples != 0 || r->open || r->n_pending || afm_spsc_count(&r->ring) ||
+        afm_sim_set_time(r->sim, t_s) != AFM_SIM_OK) {
+        afm_err_set(err, errlen, "runner: model time %g s: only 0..1e9 s, before the first run",
+                    t_s);
+        return -1;
+    }
+    r->b_t_s = t_s;
+    return 0;
+}
+
 int afm_runner_cmd_needs_model(const afm_config *cfg, const afm_cmd *c, bool *new_chain) {
     bool nc = false;
     int need = 0;
@@ -451,8 +493,10 @@ static int apply_dither(afm_runner *r, const afm_cmd_dither *d, char *err, size_
             return -1;
         }
     }
-    for (int j = d->n_tones; j < n_run; j++) /* tones the command leaves out fall silent */
-        afm_sim_set_tone(s, j, 0.0, dr->omega_rad_s[j] / two_pi);
+    /* Tones the command leaves out stop: removed from the drive, so that the integrator no
+     * longer pays for them (a silent tone cost as much as a loud one: +40 % per sample with
+     * four tones in contact); a later command that names them starts them at its phase. */
+    if (d->n_tones < n_run) afm_sim_drop_tones(s, d->n_tones);
     return 0;
 }
 
@@ -585,6 +629,7 @@ int afm_runner_apply(afm_runner *r, const afm_cmd *c, afm_runner_model **model, 
             break;
         case AFM_CTL_STEP:
             r->running = false;
+            r->step_seq = c->seq;
             if (r->step_budget > LLONG_MAX - c->u.control.n_samples)
                 r->step_budget = LLONG_MAX;
             else
@@ -597,6 +642,7 @@ int afm_runner_apply(afm_runner *r, const afm_cmd *c, afm_runner_model **model, 
             afm_err_set(err, errlen, "tick: the twin is not in lockstep mode");
             return -1;
         }
+        r->tick_seq = c->seq;
         if (r->tick_budget > LLONG_MAX - c->u.tick.n_samples)
             r->tick_budget = LLONG_MAX;
         else
@@ -652,7 +698,8 @@ long long afm_runner_run(afm_runner *r, long long n) {
     bool was_running = r->running; /* the budget this run draws on (it may pause itself) */
     if (want > b) want = b;
     long long done = 0;
-    if (want > 0 && !flush_pending(r)) {
+    bool flushed = flush_pending(r); /* also with n = 0: a completion waiting for ring space */
+    if (want > 0 && !flushed) {
         r->stalls++;
         return 0;
     }
@@ -718,6 +765,9 @@ long long afm_runner_run(afm_runner *r, long long n) {
         r->step_budget -= done;
     else if (r->lockstep)
         r->tick_budget -= done;
+    /* A tick or step budget used up: its completion follows the samples (the room for it was
+     * kept by front_room when the command was applied; else it waits in pending). */
+    if (done > 0 && afm_runner_budget(r) == 0 && r->n_pending < PENDING_MAX) emit(r, IT_DONE, NULL);
     return done;
 }
 

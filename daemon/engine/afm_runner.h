@@ -32,7 +32,8 @@
  * afm_runner_apply re-checks what depends on the running state and changes nothing on
  * rejection):
  *  - dither: tone j < n_tones set phase-continuously (afm_sim_set_tone); a tone this
- *    command starts begins at phase_rad; running tones past n_tones get amplitude 0.
+ *    command starts begins at phase_rad; running tones past n_tones stop (they are removed
+ *    from the drive; naming them again starts them at that command's phase_rad).
  *  - setpoint: ramp rate 0 -> Z now; else Z moves linearly towards the target.
  *  - param: SEPARATION and FORCE names apply now (afm_param_apply on the runner's config,
  *    then the force constants are swapped into the simulator, no allocation); DAMPING and
@@ -85,6 +86,10 @@ afm_runner *afm_runner_create(const afm_config *cfg, int block_max, bool lockste
 afm_runner *afm_runner_create_pipelined(const afm_config *cfg, int block_max, bool lockstep,
                                         bool pipelined, int ring_items, char *err, size_t errlen);
 void afm_runner_destroy(afm_runner **r);
+/* Start model time at t_s instead of 0 (afm_sim_set_time), before the first run: to
+ * reproduce offline what a daemon does after being up that long. 0, or -1 with err (samples
+ * already run, or t_s out of range). */
+int afm_runner_set_time(afm_runner *r, double t_s, char *err, size_t errlen);
 bool afm_runner_pipelined(const afm_runner *r);
 
 /* Build, for a DAMPING / GEOMETRY param command or a reload, the simulator for cfg (the
@@ -115,7 +120,8 @@ int afm_runner_apply(afm_runner *r, const afm_cmd *c, afm_runner_model **model, 
 
 /* Advance up to n samples. Free-running (not lockstep) and running: n. Paused: at most the
  * STEP budget. Lockstep and running: at most the tick budget. Returns the samples advanced
- * (0..n). Outputs wait in the chain's rings until taken. */
+ * (0..n). Outputs wait in the chain's rings until taken. n = 0 only moves changes (and a
+ * completion) that waited for ring space into the ring. */
 long long afm_runner_run(afm_runner *r, long long n);
 
 /* Samples the next afm_runner_run would advance at most (LLONG_MAX when not gated). */
@@ -129,6 +135,21 @@ int afm_runner_chain_run(afm_runner *r, int max_items);
 /* Back: true when the next waiting item holds samples of a later command than the
  * outputs waiting now (afm_runner_chain_run would stop before it): hand those out first. */
 bool afm_runner_chain_seq_next(afm_runner *r);
+
+/* Back: the completion of a tick (lockstep) or step budget. When the integrator uses up the
+ * budget it runs on (ticks while running in lockstep, steps while paused), a marker follows
+ * the samples; once afm_runner_chain_run has passed it (it stops right after), this returns
+ * 1 with the seq of the last tick (or step) command applied, the samples run since create
+ * and the model time reached, then 0 until the next one: hand out the outputs waiting first,
+ * they are the budget's. Ticks sent while an earlier one still runs are completed together
+ * (one marker, the last seq); ticks sent while paused run, and complete, after RUN. Inline, the
+ * back does not stop there and this returns the latest marker. */
+typedef struct {
+    int64_t seq;
+    long long samples;
+    double t_s;
+} afm_runner_done;
+int afm_runner_take_done(afm_runner *r, afm_runner_done *d);
 
 /* Back: the objects a swap replaced (a model handle to afm_runner_model_destroy off the
  * real-time threads). 1 with *m, 0 when none waits. */

@@ -147,7 +147,10 @@ int afm_sim_set_tone(afm_sim *s, int j, double amp_m, double freq_hz) {
 int afm_sim_set_separation(afm_sim *s, double z_m) {
     if (!isfinite(z_m) || z_m < 0 || z_m > AFM_LIM_SEPARATION_MAX_M) return AFM_SIM_EINVAL;
     s->z_m = z_m;
-    s->be->changed(s);
+    if (s->be->changed_z)
+        s->be->changed_z(s);
+    else
+        s->be->changed(s);
     return AFM_SIM_OK;
 }
 

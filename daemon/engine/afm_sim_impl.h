@@ -27,6 +27,9 @@ typedef struct afm_sim_backend {
     int (*thermal)(afm_sim *s, const afm_cfg_thermal *t, char *err, size_t errlen);
     /* The state, Z or the drive was changed from outside at s->t_s: resynchronise. */
     void (*changed)(afm_sim *s);
+    /* Optional: only Z (s->z_m) changed (afm_sim_set_separation): update what depends on Z
+     * alone (a Z ramp calls this every AFM_RUNNER_RAMP_SAMPLES samples). NULL: changed. */
+    void (*changed_z)(afm_sim *s);
     void (*destroy)(afm_sim *s);
 } afm_sim_backend;
 

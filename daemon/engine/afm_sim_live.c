@@ -23,6 +23,16 @@ int afm_sim_start_tone(afm_sim *s, int j, double amp_m, double freq_hz, double p
     return AFM_SIM_OK;
 }
 
+int afm_sim_drop_tones(afm_sim *s, int n) {
+    if (n < 1 || n > s->drive.n) return AFM_SIM_EINVAL;
+    if (n == s->drive.n) return AFM_SIM_OK;
+    for (int j = n; j < AFM_MAX_TONES; j++)
+        s->drive.amp_m[j] = s->drive.omega_rad_s[j] = s->drive.phase_rad[j] = s->drive.t0_s[j] = 0;
+    s->drive.n = n;
+    s->be->changed(s);
+    return AFM_SIM_OK;
+}
+
 int afm_sim_set_forces(afm_sim *s, const afm_force_params *f) {
     if (!f || f->vdw_contact != s->f.vdw_contact || f->viscoelastic != s->f.viscoelastic ||
         f->squeeze != s->f.squeeze || f->capillary != s->f.capillary ||
@@ -32,6 +42,19 @@ int afm_sim_set_forces(afm_sim *s, const afm_force_params *f) {
     /* Keep the tip force of the current state consistent with the new constants. */
     double x = afm_sim_tip_x(s, s->q), v = afm_sim_tip_x(s, s->qd);
     s->f_last_n = afm_force_tip(&s->f, s->z_m, x, v, NULL, NULL);
+    s->be->changed(s);
+    return AFM_SIM_OK;
+}
+
+int afm_sim_set_time(afm_sim *s, double t_s) {
+    if (!isfinite(t_s) || t_s < 0 || t_s > 1e9) return AFM_SIM_EINVAL;
+    for (int j = 0; j < s->drive.n; j++) {
+        double ph = fmod(afm_drive_phase(&s->drive, j, s->t_s), two_pi);
+        s->drive.phase_rad[j] = ph < 0 ? ph + two_pi : ph;
+        s->drive.t0_s[j] = t_s;
+    }
+    s->t_start_s = s->t_s = t_s;
+    s->step = 0;
     s->be->changed(s);
     return AFM_SIM_OK;
 }

@@ -18,10 +18,22 @@
  * rejects or a non-finite phase. */
 int afm_sim_start_tone(afm_sim *s, int j, double amp_m, double freq_hz, double phase_rad);
 
+/* Stop the tones n.. (1 <= n <= current tone count): the drive keeps tones 0..n-1, the
+ * backend resynchronises (its cost per sample follows the tone count). AFM_SIM_EINVAL,
+ * nothing changed, for n out of range. */
+int afm_sim_drop_tones(afm_sim *s, int n);
+
 /* Replace the tip-sample force constants (afm_force_init of the new config, same model).
  * The enabled terms must be the same as before (the rt backend chose its stepping for
  * them at create); AFM_SIM_EINVAL otherwise, nothing changed. */
 int afm_sim_set_forces(afm_sim *s, const afm_force_params *f);
+
+/* Move model time to t_s (0..1e9 s) without changing the state: the step count restarts
+ * there (t = t_s + step dt) and every tone is re-anchored at its current phase
+ * (phase-continuous). For tests and benchmarks of a twin that has been up for t_s (the
+ * rounding of large sample times is what they exercise). AFM_SIM_EINVAL, nothing changed,
+ * for a t_s out of range. */
+int afm_sim_set_time(afm_sim *s, double t_s);
 
 /* What afm_sim_continue takes over from the old simulator. */
 #define AFM_SIM_KEEP_DRIVE 1u /* tones (phase-continuous) and separation Z */

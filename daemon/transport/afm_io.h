@@ -80,7 +80,26 @@ typedef struct {
     char last_drop[AFM_IO_REASON_LEN];
     int auto_paused; /* 1: paused itself after recurring blow-ups (pause_reason) */
     char pause_reason[AFM_IO_REASON_LEN * 2];
+    /* Issue 12: what the twin does, and whether it keeps up. */
+    double realtime_factor_1s; /* over the last second of running (paused/idle excluded) */
+    double resync_skipped_s;   /* model time skipped by resyncs (total) */
+    double lockin_amplitude_m; /* the last period's lock-in amplitude and phase LAG behind */
+    double lockin_phase_deg;   /* the drive (90 free at resonance), and peak force */
+    double peak_force_n;
+    double last_reject_age_s; /* wall seconds since last_reject; -1: none */
+    int last_reject_old;      /* 1: a command or reload received after it was applied */
 } afm_io_status;
+
+/* Lockstep (and STEP) completion: the tick or step command seq's samples are all run and
+ * every output they produced is published (tick_done_t). */
+typedef struct {
+    int64_t utime;
+    int64_t seq;
+    int64_t samples;
+    double model_time_s;
+    int64_t n_samples_msgs, n_harmonics_msgs;  /* published since the previous completion */
+    uint64_t samples_digest, harmonics_digest; /* afm_lcm_digest of those messages */
+} afm_io_tick_done;
 
 /* What a transport calls on the receive thread. */
 typedef struct {
@@ -116,6 +135,8 @@ typedef struct {
      * record; any non-real-time thread. */
     int (*wait_fd)(afm_io *io, int *max_wait_ms);
     void (*annotate_status)(afm_io *io, afm_io_status *s);
+    /* Optional (NULL: the transport has no outputs): a completion, publish thread only. */
+    int (*publish_tick_done)(afm_io *io, const afm_io_tick_done *d);
 } afm_io_ops;
 
 struct afm_io {

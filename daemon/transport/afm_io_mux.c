@@ -72,6 +72,16 @@ static int mux_status(afm_io *io, const afm_io_status *s) {
     return rc;
 }
 
+static int mux_tick_done(afm_io *io, const afm_io_tick_done *d) {
+    mux_io *m = io->impl;
+    int rc = 0;
+    for (int i = 0; i < m->n; i++)
+        if (m->child[i]->ops->publish_tick_done &&
+            m->child[i]->ops->publish_tick_done(m->child[i], d) < 0)
+            rc = -1;
+    return rc;
+}
+
 static int mux_wait_fd(afm_io *io, int *max_wait_ms) {
     /* Only one descriptor could be handed on: a mux inside a mux is polled by time. */
     (void)io;
@@ -95,6 +105,7 @@ static const afm_io_ops mux_ops = {
     .destroy = mux_destroy,
     .wait_fd = mux_wait_fd,
     .annotate_status = mux_annotate,
+    .publish_tick_done = mux_tick_done,
 };
 
 afm_io *afm_io_mux_create(afm_io *const *io, int n, char *err, size_t errlen) {

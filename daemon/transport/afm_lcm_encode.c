@@ -92,5 +92,96 @@ void afm_lcm_status_msg(const afm_io_status *s, afmtwin_status_t *m) {
         .last_drop = (char *)s->last_drop,
         .auto_paused = (int8_t)s->auto_paused,
         .pause_reason = (char *)s->pause_reason,
+        .realtime_factor_1s = s->realtime_factor_1s,
+        .resync_skipped_s = s->resync_skipped_s,
+        .lockin_amplitude_m = s->lockin_amplitude_m,
+        .lockin_phase_deg = s->lockin_phase_deg,
+        .peak_force_n = s->peak_force_n,
+        .last_reject_age_s = s->last_reject_age_s,
+        .last_reject_old = (int8_t)s->last_reject_old,
     };
+}
+
+void afm_lcm_tick_done_msg(const afm_io_tick_done *d, afmtwin_tick_done_t *m) {
+    *m = (afmtwin_tick_done_t){.utime = d->utime,
+                               .seq = d->seq,
+                               .samples = d->samples,
+                               .model_time_s = d->model_time_s,
+                               .n_samples_msgs = d->n_samples_msgs,
+                               .n_harmonics_msgs = d->n_harmonics_msgs,
+                               .samples_digest = (int64_t)d->samples_digest,
+                               .harmonics_digest = (int64_t)d->harmonics_digest};
+}
+
+/* ---- digest ---- */
+
+#define DIGEST_SEED 0xcbf29ce484222325ULL
+
+/* One 64-bit word into h: xor, multiply by the FNV prime, fold the high half down (the
+ * multiply alone would leave the low bits of h depending on the low bits of the words only). */
+static inline uint64_t mix(uint64_t h, uint64_t w) {
+    h = (h ^ w) * 0x100000001b3ULL;
+    return h ^ (h >> 29);
+}
+
+static inline uint64_t bits_d(double v) {
+    uint64_t u;
+    memcpy(&u, &v, sizeof u);
+    return u;
+}
+
+static inline uint64_t bits_f(float v) {
+    uint32_t u;
+    memcpy(&u, &v, sizeof u);
+    return u;
+}
+
+void afm_lcm_digest_init(afm_lcm_digest *d) {
+    for (int i = 0; i < AFM_LCM_DIGEST_STREAMS; i++)
+        d->stream[i] = DIGEST_SEED;
+    d->harmonics = DIGEST_SEED;
+    d->n_samples_msgs = d->n_harmonics_msgs = 0;
+}
+
+void afm_lcm_digest_samples(afm_lcm_digest *d, const afmtwin_samples_t *m) {
+    int s = m->stream >= 0 && m->stream < AFM_LCM_DIGEST_STREAMS ? m->stream : 0;
+    uint64_t h = d->stream[s];
+    for (int i = 0; i < m->n; i++) {
+        h = mix(h, (uint64_t)m->seq_applied);
+        h = mix(h, bits_f(m->deflection_m[i]) | bits_f(m->obd_m[i]) << 32);
+        h = mix(h, (uint64_t)(uint32_t)m->obd_counts[i] | bits_f(m->force_n[i]) << 32);
+    }
+    d->stream[s] = h;
+    d->n_samples_msgs++;
+}
+
+void afm_lcm_digest_harmonics(afm_lcm_digest *d, const afmtwin_harmonics_t *m) {
+    uint64_t h = d->harmonics;
+    h = mix(h, (uint64_t)m->seq_applied);
+    h = mix(h, bits_d(m->t_s));
+    h = mix(h, bits_d(m->fe_hz));
+    h = mix(h, (uint64_t)m->n);
+    for (int i = 0; i < m->n; i++) {
+        h = mix(h, (uint64_t)(uint16_t)m->k[i]);
+        h = mix(h, bits_d(m->deflection_amplitude_m[i]));
+        h = mix(h, bits_d(m->deflection_phase_deg[i]));
+        h = mix(h, bits_d(m->force_amplitude_n[i]));
+        h = mix(h, bits_d(m->force_phase_deg[i]));
+        h = mix(h, bits_d(m->phase_diff_deg[i]));
+    }
+    const double rest[] = {
+        m->lockin_amplitude_m,       m->lockin_phase_deg,    m->peak_force_n,
+        m->min_deflection_m,         m->indentation_m,       m->contact_time_s,
+        m->pre_contact_velocity_m_s, m->dissipated_energy_j, m->mean_deflection_m};
+    for (size_t i = 0; i < sizeof rest / sizeof rest[0]; i++)
+        h = mix(h, bits_d(rest[i]));
+    d->harmonics = h;
+    d->n_harmonics_msgs++;
+}
+
+uint64_t afm_lcm_digest_samples_final(const afm_lcm_digest *d) {
+    uint64_t h = DIGEST_SEED;
+    for (int i = 0; i < AFM_LCM_DIGEST_STREAMS; i++)
+        h = mix(h, d->stream[i]);
+    return h;
 }

@@ -33,7 +33,7 @@ struct lcm_io {
     lcm_t *lcm; /* commands (subscribed) */
     lcm_t *out; /* outputs (publish only: LCM opens no receive socket for it) */
     in_channel in[5];
-    char ch_samples[CH_LEN], ch_harmonics[CH_LEN], ch_status[CH_LEN];
+    char ch_samples[CH_LEN], ch_harmonics[CH_LEN], ch_status[CH_LEN], ch_done[CH_LEN];
     /* Drops before the handler (afm_lcm_drops.h): LCM's queues, the kernel's socket. */
     int watch;              /* -1: none */
     const char *watched[5]; /* the in[] channel names */
@@ -87,6 +87,13 @@ static int lio_status(afm_io *io, const afm_io_status *s) {
     afmtwin_status_t m;
     afm_lcm_status_msg(s, &m);
     return afmtwin_status_t_publish(l->out, l->ch_status, &m) < 0 ? -1 : 0;
+}
+
+static int lio_tick_done(afm_io *io, const afm_io_tick_done *d) {
+    lcm_io *l = io->impl;
+    afmtwin_tick_done_t m;
+    afm_lcm_tick_done_msg(d, &m);
+    return afmtwin_tick_done_t_publish(l->out, l->ch_done, &m) < 0 ? -1 : 0;
 }
 
 static int lio_wait_fd(afm_io *io, int *max_wait_ms) {
@@ -144,6 +151,7 @@ static const afm_io_ops lcm_ops = {
     .destroy = lio_destroy,
     .wait_fd = lio_wait_fd,
     .annotate_status = lio_annotate,
+    .publish_tick_done = lio_tick_done,
 };
 
 afm_io *afm_lcm_io_create(const char *url, const char *out_url, const char *prefix,
@@ -224,5 +232,6 @@ afm_io *afm_lcm_io_create(const char *url, const char *out_url, const char *pref
     snprintf(l->ch_samples, sizeof l->ch_samples, "%sSAMPLES", prefix);
     snprintf(l->ch_harmonics, sizeof l->ch_harmonics, "%sHARMONICS", prefix);
     snprintf(l->ch_status, sizeof l->ch_status, "%sSTATUS", prefix);
+    snprintf(l->ch_done, sizeof l->ch_done, "%sTICK_DONE", prefix);
     return &l->io;
 }

@@ -1,0 +1,51 @@
+# lib_daemon.sh -- sourced by the tests that run afmtwind: netns_reexec runs the calling
+# script again inside a new network namespace whose loopback carries multicast (and nothing
+# else: no packet can reach a real interface; ../shared/notes/lcm-netns.md); daemon_test_init
+# sets what they share (binaries, listen above the daemon's threads, the LCM URL, the pass /
+# fail counters ok and bad); rt_others lists the other real-time (SCHED_FIFO) processes while
+# a daemon runs: on two cores another twin's threads take the CPU a real-time check needs,
+# and a failure then says so.
+
+# NAME SCRIPT BUILD: exec SCRIPT BUILD --inside in a private network namespace (no return).
+netns_reexec() {
+  if ! unshare -n true 2>/dev/null; then
+    echo "SKIP $1: 'unshare -n' is not permitted here ($(id -un), no CAP_SYS_ADMIN"
+    echo "     or user namespaces disabled); the daemon tests need a private network namespace"
+    echo "0 passed, 1 failed"
+    exit 1
+  fi
+  exec unshare -n sh -c 'ip link set lo up && ip link set lo multicast on &&
+    ip route add 224.0.0.0/4 dev lo && exec bash "$0" "$1" --inside' "$2" "$3"
+}
+
+# OUTFILE PID: while PID lives, every other SCHED_FIFO process (not kernel threads, not the
+# tests' own afmtwin clients) as "pid(name)", once each, on one line into OUTFILE.
+rt_others() {
+  while kill -0 "$2" 2>/dev/null; do
+    ps -eLo pid,cls,comm 2>/dev/null | awk -v me="$2" '$2 == "FF" && $1 != me &&
+      $3 !~ /^(irq|watchdog|migration|posix|afmtwin$)/ {print $1 "(" $3 ")"}'
+    sleep 0.5
+  done | sort -u | tr '\n' ' ' > "$1"
+}
+
+# BUILD: A and D (afmtwin, afmtwind), listen, LCM_DEFAULT_URL, pass, fail, ok, bad.
+daemon_test_init() {
+  A="$1/bin/afmtwin"
+  D="$1/bin/afmtwind"
+  # The daemon's threads run SCHED_FIFO (80, 70, 60) when permitted and, below real time on a
+  # two-core machine, never sleep: a normal-priority listener then starves and miscounts
+  # rates. Listeners here run above them, as a real controller sharing the host would.
+  # Where SCHED_FIFO is not permitted, neither the daemon nor chrt gets it, and none is needed.
+  if chrt -f 90 true 2>/dev/null; then
+    listen() { chrt -f 90 "$A" listen "$@"; }
+  else
+    listen() { "$A" listen "$@"; }
+  fi
+  # LCM's default group, with 4 MB socket receive buffers (for the listeners, which read
+  # the output flood). Commands go to port 7667, outputs to 7668 (the daemon's default: the
+  # command URL with port + 1), so the daemon's command socket carries commands only.
+  export LCM_DEFAULT_URL='udpm://239.255.76.67:7667?ttl=0&recv_buf_size=4194304'
+  pass=0; fail=0
+  ok()  { echo "ok   $1"; pass=$((pass+1)); }
+  bad() { echo "FAIL $1"; fail=$((fail+1)); }
+}
