@@ -4,7 +4,7 @@
  * shutdown in reverse order. */
 #include "twind.h"
 
-#include "afm_lcm_url.h"
+#include "transport/afm_lcm_url.h"
 
 #include <errno.h>
 #include <math.h>

@@ -5,7 +5,7 @@
  * afm_lcm_digest), and the status at 10 Hz (and once more at shutdown). */
 #include "twind.h"
 
-#include "afm_lcm_encode.h"
+#include "transport/afm_lcm_encode.h"
 
 #include <errno.h>
 #include <math.h>

@@ -37,10 +37,10 @@
 #ifndef TWIND_H
 #define TWIND_H
 
-#include "afm_io.h"
-#include "afm_io_records.h"
-#include "afm_runner.h"
-#include "afm_spsc.h"
+#include "transport/afm_io.h"
+#include "transport/afm_io_records.h"
+#include "runner/afm_runner.h"
+#include "runner/afm_spsc.h"
 
 #include <pthread.h>
 #include <semaphore.h>

@@ -5,8 +5,8 @@
  * registers run two tones; then the frame: can_id (4 bytes), len, flags and up to 64 data
  * bytes (len as given, even past 64: the codec must not trust it). A command must pass
  * afm_cmd_validate again; the frame is formatted as cansend text too. */
-#include "afm_can_codec.h"
-#include "afm_config.h"
+#include "transport/afm_can_codec.h"
+#include "config/afm_config.h"
 
 #include <stdint.h>
 #include <stdlib.h>

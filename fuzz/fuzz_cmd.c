@@ -5,9 +5,9 @@
  * then, for what is accepted, afm_cmd_validate must agree and a param is applied to a copy
  * of the config (afm_param_apply, as on_cmd does). Run from the repository root
  * (config/default.conf); `make fuzz`, tests/fuzz.sh. */
-#include "afm_cmd.h"
-#include "afm_config.h"
-#include "afm_model.h"
+#include "transport/afm_cmd_lcm.h"
+#include "config/afm_config.h"
+#include "beam/afm_model.h"
 
 #include <stdint.h>
 #include <stdio.h>

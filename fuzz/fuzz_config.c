@@ -3,7 +3,7 @@
  * libconfig's parser, then every group's keys, types and the plausibility checks). Inputs
  * with an @include are skipped: libconfig would open the file named. A config that loads
  * must pass afm_config_validate again. */
-#include "afm_config.h"
+#include "config/afm_config.h"
 
 #include <stdint.h>
 #include <stdlib.h>

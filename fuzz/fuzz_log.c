@@ -3,8 +3,8 @@
  * `listen --log` read) from untrusted bytes, held in memory (fmemopen). Every event the
  * reader returns lies within the file, its channel is a proper string, and each event's
  * data go on through the command decoder as replay does. */
-#include "afm_cmd.h"
-#include "afm_lcm_log.h"
+#include "transport/afm_cmd_lcm.h"
+#include "transport/afm_lcm_log.h"
 
 #include <stdint.h>
 #include <stdio.h>

@@ -5,7 +5,7 @@
  * afm_wire_decode (length check, lcm-gen's decoder). The oracle: what decodes re-encodes
  * (lcm-gen's encoder) to exactly the same bytes, so the check and the decoder agree on the
  * layout and no byte is misread. */
-#include "afm_lcm_wire.h"
+#include "transport/afm_lcm_wire.h"
 
 #include <stdint.h>
 #include <stdlib.h>

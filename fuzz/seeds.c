@@ -4,9 +4,9 @@
  * test_can_codec.c) and the crafted inputs of issue 13, in each harness's input format.
  * The config harness's seeds are the files of config/ and tests/bad-configs/ (tests/fuzz.sh
  * copies them). Usage: seeds DIR. */
-#include "afm_can_codec.h"
-#include "afm_config.h"
-#include "afm_lcm_wire.h"
+#include "transport/afm_can_codec.h"
+#include "config/afm_config.h"
+#include "transport/afm_lcm_wire.h"
 #include "../tests/msg_examples.h"
 #include "afmtwin_control_t.h"
 #include "afmtwin_dither_t.h"

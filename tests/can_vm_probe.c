@@ -10,9 +10,9 @@
 #define _DEFAULT_SOURCE
 #include "check.h"
 
-#include "afm_can_codec.h"
-#include "afm_io.h"
-#include "afm_runner.h"
+#include "transport/afm_can_codec.h"
+#include "transport/afm_io.h"
+#include "runner/afm_runner.h"
 
 #include <linux/can/error.h>
 #include <net/if.h>

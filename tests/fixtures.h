@@ -3,10 +3,10 @@
 #ifndef AFM_TEST_FIXTURES_H
 #define AFM_TEST_FIXTURES_H
 
-#include "afm_force.h"
+#include "forces/afm_force.h"
 
 #include <complex.h>
-#include "afm_model.h"
+#include "beam/afm_model.h"
 
 /* The 4-mode model of ../shared/notes/numerics.md: 370 kHz, 2.27, 6.4, 14 MHz, Q 427, 291,
  * 5, 5, static tip stiffness k_s = 40 N/m split 97 / 2.5 / 0.4 / 0.1 % in compliance

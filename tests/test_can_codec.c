@@ -5,8 +5,8 @@
  * on a classic map) rejected with nothing changed; the `can` config group's checks. */
 #include "check.h"
 
-#include "afm_can_codec.h"
-#include "afm_config.h"
+#include "transport/afm_can_codec.h"
+#include "config/afm_config.h"
 
 #include <linux/can/error.h>
 #include <math.h>

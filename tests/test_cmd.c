@@ -4,7 +4,7 @@
  * truncated and malformed bodies, the wrong message type on a channel, trailing bytes),
  * each with a reason; valid commands decode to the right values; afm_param_apply changes a
  * config only when the whole result is valid and the name fits it. */
-#include "afm_cmd.h"
+#include "transport/afm_cmd_lcm.h"
 #include "afmtwin_control_t.h"
 #include "afmtwin_dither_t.h"
 #include "afmtwin_param_t.h"

@@ -5,7 +5,7 @@
  *
  * Fixtures in tests/bad-configs/ mark the offending line with "# BAD"; the expected line
  * number is read from the fixture, so editing a fixture cannot silently shift it. */
-#include "afm_config.h"
+#include "config/afm_config.h"
 #include "check.h"
 
 #include <dirent.h>

@@ -3,8 +3,8 @@
  * computation of the per-period tapping metrics (afm_cycle.h's contract, in long double)
  * on tapping-like series: contact crossings, Hermite minima between samples, plateaus of f,
  * tone changes, rejected samples, uneven time steps. */
-#include "afm_cycle.h"
-#include "afm_drive.h"
+#include "estimators/afm_cycle.h"
+#include "forces/afm_drive.h"
 #include "check.h"
 
 #include <math.h>

@@ -9,7 +9,7 @@
  * Amplitudes are measured by a least-squares fit of a cos + b sin + c at the known output
  * frequency over 400 output samples taken after the filter's transient: exact for a pure
  * tone, so the tolerances are the spec's own (0.01 dB, 80 dB). */
-#include "afm_decim.h"
+#include "estimators/afm_decim.h"
 #include "check.h"
 
 #include <math.h>

@@ -2,14 +2,14 @@
 /* test_estimators.c -- the streaming estimators (afm_harm, afm_lockin, afm_cycle) on
  * synthetic series with known answers, the lock-in on a linear 1-mode simulation, and the
  * phasors that replace per-sample sin/cos against afm_drive_phase. */
-#include "afm_config.h"
-#include "afm_cycle.h"
-#include "afm_drive.h"
-#include "afm_force.h"
-#include "afm_harm.h"
-#include "afm_lockin.h"
-#include "afm_model.h"
-#include "afm_sim.h"
+#include "config/afm_config.h"
+#include "estimators/afm_cycle.h"
+#include "forces/afm_drive.h"
+#include "forces/afm_force.h"
+#include "estimators/afm_harm.h"
+#include "estimators/afm_lockin.h"
+#include "beam/afm_model.h"
+#include "integrators/afm_sim.h"
 #include "check.h"
 
 #include <math.h>

@@ -1,6 +1,6 @@
 /* SPDX-License-Identifier: MIT */
 /* test_force.c -- tip-sample forces (afm_force) against hand-computed thesis numbers. */
-#include "afm_force.h"
+#include "forces/afm_force.h"
 #include "check.h"
 
 #include <math.h>

@@ -7,9 +7,9 @@
  * numbers have 13 digits, and 1e-3 is the issue's bound. */
 #include "check.h"
 
-#include "afm_config.h"
-#include "afm_fem.h"
-#include "afm_model.h"
+#include "config/afm_config.h"
+#include "beam/afm_fem.h"
+#include "beam/afm_model.h"
 
 #include <math.h>
 #include <stdio.h>

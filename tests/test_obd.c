@@ -16,11 +16,11 @@
  *    time stamps that line up with the input (group delay removed) to 1e-4; the outputs do
  *    not depend on how the input is split into pushes; NaN samples are counted by the
  *    decimators and the outputs stay finite. */
-#include "afm_chain.h"
-#include "afm_config.h"
-#include "afm_model.h"
-#include "afm_obd.h"
-#include "afm_rng.h"
+#include "estimators/afm_chain.h"
+#include "config/afm_config.h"
+#include "beam/afm_model.h"
+#include "estimators/afm_obd.h"
+#include "forces/afm_rng.h"
 #include "check.h"
 
 #include <math.h>

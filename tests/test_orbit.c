@@ -1,9 +1,9 @@
 /* SPDX-License-Identifier: MIT */
 /* test_orbit.c -- afm_orbit on synthetic sample series: harmonics, phases, periodicity,
  * contacts. No integrator: the series are closed-form functions of the drive phase. */
-#include "afm_force.h"
-#include "afm_model.h"
-#include "afm_orbit.h"
+#include "forces/afm_force.h"
+#include "beam/afm_model.h"
+#include "estimators/afm_orbit.h"
 #include "check.h"
 
 #include <math.h>

@@ -14,11 +14,11 @@
  *
  * With AFMTWIN_VALIDATE=full it also measures the shipped configs against CVODE from rest
  * (seconds of CVODE per config) and prints ns/sample and error_rel: docs/numerics.md. */
-#include "afm_config.h"
-#include "afm_force_inline.h"
-#include "afm_model.h"
-#include "afm_rt_coef.h"
-#include "afm_sim.h"
+#include "config/afm_config.h"
+#include "forces/afm_force_inline.h"
+#include "beam/afm_model.h"
+#include "integrators/afm_rt_coef.h"
+#include "integrators/afm_sim.h"
 #include "check.h"
 #include "fixtures.h"
 

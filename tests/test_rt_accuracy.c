@@ -9,7 +9,7 @@
  * margin (docs/numerics.md). */
 #include "check.h"
 
-#include "afm_twin.h"
+#include "runner/afm_twin.h"
 
 #include <math.h>
 #include <stdio.h>

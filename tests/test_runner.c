@@ -13,7 +13,7 @@
  *    after AFM_RUNNER_BLOWUP_PAUSE of them pauses itself with the reason; drives past the
  *    plausibility limits are refused at create
  *    (samples advance as asked, outputs keep coming). */
-#include "afm_runner.h"
+#include "runner/afm_runner.h"
 #include "check.h"
 
 #include <math.h>

@@ -4,7 +4,7 @@
  * consumer contend on nearly every item), in order, none lost or duplicated, and every
  * item's payload intact (a torn read would break the checksum); the same with in-place
  * reserve/commit and peek/release. */
-#include "afm_spsc.h"
+#include "runner/afm_spsc.h"
 #include "check.h"
 
 #include <pthread.h>

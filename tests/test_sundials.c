@@ -7,7 +7,7 @@
  * With F = 0 and ub = A sin(theta), theta = W t + phi, the steady state is
  *   q_i = A Im(H_i e^{i theta}),  H_i = (-base_k_i + base_m_i W^2) / (w_i^2 - W^2 + 2 i xi_i w_i
  * W), and the tip x = sum tip_i q_i = A |G| sin(theta + arg G), G = sum_i tip_i H_i. */
-#include "afm_sim.h"
+#include "integrators/afm_sim.h"
 #include "check.h"
 #include "fixtures.h"
 

@@ -14,10 +14,10 @@
  *  - End to end: afm_thermfit_tune (what `afmtwin thermal` runs: rt integrator with its
  *    thermal force, drive off, forces off) on nchv.conf, modes 1 and 2 within 2 % of the
  *    model's f_n, Q_n, k_n; see end_to_end() for the run lengths. */
-#include "afm_config.h"
-#include "afm_psd.h"
-#include "afm_rng.h"
-#include "afm_thermfit.h"
+#include "config/afm_config.h"
+#include "estimators/afm_psd.h"
+#include "forces/afm_rng.h"
+#include "runner/afm_thermfit.h"
 #include "check.h"
 
 #include <math.h>

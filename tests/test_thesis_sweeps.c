@@ -13,7 +13,7 @@
  *  - S6 phase differences: equal to ours +- 90 deg (within 10 deg). */
 #include "check.h"
 
-#include "afm_twin.h"
+#include "runner/afm_twin.h"
 
 #include <math.h>
 #include <stdio.h>

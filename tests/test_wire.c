@@ -8,9 +8,9 @@
  * 33-byte dither with n_tones = 127 that leaked what the decoder had allocated (the
  * sanitizer build, `make sanitize`, runs this file under LSan). The log reader rejects an
  * event with datalen 0x7fffffff, bad channel lengths, cut-short events, and skips junk. */
-#include "afm_cmd.h"
-#include "afm_lcm_log.h"
-#include "afm_lcm_wire.h"
+#include "transport/afm_cmd_lcm.h"
+#include "transport/afm_lcm_log.h"
+#include "transport/afm_lcm_wire.h"
 #include "afmtwin_samples_t.h"
 #include "check.h"
 #include "msg_examples.h"

@@ -9,11 +9,11 @@
  * running on its orbit and `runs` timed blocks of samples give median and minimum cost. */
 #include "afmtwin_cmds.h"
 
-#include "afm_chain.h"
-#include "afm_config.h"
-#include "afm_force.h"
-#include "afm_model.h"
-#include "afm_sim.h"
+#include "estimators/afm_chain.h"
+#include "config/afm_config.h"
+#include "forces/afm_force.h"
+#include "beam/afm_model.h"
+#include "integrators/afm_sim.h"
 
 #include <cjson/cJSON.h>
 #include <math.h>

@@ -15,12 +15,12 @@
 #include "afmtwin_cmds.h"
 #include "lcm_tool.h"
 
-#include "afm_cmd.h"
-#include "afm_config.h"
-#include "afm_runner.h"
-#include "afm_sim.h"
-#include "afm_sim_live.h"
-#include "afm_twin.h"
+#include "runner/afm_cmd.h"
+#include "config/afm_config.h"
+#include "runner/afm_runner.h"
+#include "integrators/afm_sim.h"
+#include "integrators/afm_sim_live.h"
+#include "runner/afm_twin.h"
 
 #include <cjson/cJSON.h>
 #include <math.h>

@@ -6,8 +6,8 @@
 #define _DEFAULT_SOURCE /* struct ifreq */
 #include "afmtwin_cmds.h"
 
-#include "afm_can_codec.h"
-#include "afm_config.h"
+#include "transport/afm_can_codec.h"
+#include "config/afm_config.h"
 
 #include <errno.h>
 #include <linux/can/raw.h>

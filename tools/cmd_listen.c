@@ -5,11 +5,11 @@
 #include "afmtwin_cmds.h"
 #include "lcm_tool.h"
 
-#include "afm_config.h"
-#include "afm_err.h"
-#include "afm_lcm_log.h"
-#include "afm_lcm_url.h"
-#include "afm_lcm_wire.h"
+#include "config/afm_config.h"
+#include "config/afm_err.h"
+#include "transport/afm_lcm_log.h"
+#include "transport/afm_lcm_url.h"
+#include "transport/afm_lcm_wire.h"
 
 #include "afmtwin_harmonics_t.h"
 #include "afmtwin_samples_t.h"

@@ -19,10 +19,10 @@
 #include "afmtwin_cmds.h"
 #include "lcm_tool.h"
 
-#include "afm_cmd.h"
-#include "afm_config.h"
-#include "afm_lcm_encode.h"
-#include "afm_lcm_url.h"
+#include "transport/afm_cmd_lcm.h"
+#include "config/afm_config.h"
+#include "transport/afm_lcm_encode.h"
+#include "transport/afm_lcm_url.h"
 
 #include "afmtwin_tick_t.h"
 

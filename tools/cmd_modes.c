@@ -2,8 +2,8 @@
 /* cmd_modes.c -- `afmtwin modes`: the linear model's frequencies, MAC, stiffness, mass. */
 #include "afmtwin_cmds.h"
 
-#include "afm_config.h"
-#include "afm_model.h"
+#include "config/afm_config.h"
+#include "beam/afm_model.h"
 
 #include <cjson/cJSON.h>
 #include <stdio.h>

@@ -16,14 +16,14 @@
 #include "afmtwin_cmds.h"
 #include "lcm_tool.h"
 
-#include "afm_cmd.h"
-#include "afm_config.h"
-#include "afm_io.h"
-#include "afm_runner.h"
+#include "transport/afm_cmd_lcm.h"
+#include "config/afm_config.h"
+#include "transport/afm_io.h"
+#include "runner/afm_runner.h"
 
-#include "afm_io_records.h"
-#include "afm_lcm_encode.h"
-#include "afm_lcm_log.h"
+#include "transport/afm_io_records.h"
+#include "transport/afm_lcm_encode.h"
+#include "transport/afm_lcm_log.h"
 
 #include <lcm/eventlog.h>
 #include <limits.h>

@@ -5,8 +5,8 @@
 #include "afmtwin_cmds.h"
 #include "lcm_tool.h"
 
-#include "afm_cmd.h"
-#include "afm_config.h"
+#include "transport/afm_cmd_lcm.h"
+#include "config/afm_config.h"
 
 #include "afmtwin_control_t.h"
 #include "afmtwin_dither_t.h"

@@ -20,10 +20,10 @@
 #include "afmtwin_cmds.h"
 #include "lcm_tool.h"
 
-#include "afm_cmd.h"
-#include "afm_config.h"
-#include "afm_lcm_url.h"
-#include "afm_model.h"
+#include "runner/afm_cmd.h"
+#include "config/afm_config.h"
+#include "transport/afm_lcm_url.h"
+#include "beam/afm_model.h"
 
 #include "afmtwin_control_t.h"
 #include "afmtwin_dither_t.h"

@@ -8,14 +8,14 @@
  * that a start from rest would miss. */
 #include "afmtwin_cmds.h"
 
-#include "afm_config.h"
-#include "afm_cycle.h"
-#include "afm_force.h"
-#include "afm_lockin.h"
-#include "afm_model.h"
-#include "afm_orbit.h"
-#include "afm_twin.h"
-#include "afm_sim.h"
+#include "config/afm_config.h"
+#include "estimators/afm_cycle.h"
+#include "forces/afm_force.h"
+#include "estimators/afm_lockin.h"
+#include "beam/afm_model.h"
+#include "estimators/afm_orbit.h"
+#include "runner/afm_twin.h"
+#include "integrators/afm_sim.h"
 
 #include <cjson/cJSON.h>
 #include <errno.h>

@@ -12,8 +12,8 @@
  * intrinsic Q_n = 1 / (2 xi_n) is only what the tune should see without any of it. */
 #include "afmtwin_cmds.h"
 
-#include "afm_config.h"
-#include "afm_thermfit.h"
+#include "config/afm_config.h"
+#include "runner/afm_thermfit.h"
 
 #include <cjson/cJSON.h>
 #include <errno.h>

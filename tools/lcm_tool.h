@@ -5,7 +5,7 @@
 #ifndef AFMT_LCM_TOOL_H
 #define AFMT_LCM_TOOL_H
 
-#include "afm_lcm_wire.h"
+#include "transport/afm_lcm_wire.h"
 
 #include <lcm/lcm.h>
 #include <stdbool.h>

@@ -1,8 +1,8 @@
 /* SPDX-License-Identifier: MIT */
 /* afm_can_codec.c -- CAN frames of the piezo-driver map to afm_cmd commands and back
  * (contract in afm_can_codec.h, frame layouts in docs/can.md). */
-#include "afm_can_codec.h"
-#include "afm_err.h"
+#include "transport/afm_can_codec.h"
+#include "config/afm_err.h"
 
 #include <float.h>
 #include <math.h>

@@ -26,8 +26,8 @@
 #ifndef AFM_CAN_CODEC_H
 #define AFM_CAN_CODEC_H
 
-#include "afm_cmd.h"
-#include "afm_config.h"
+#include "runner/afm_cmd.h"
+#include "config/afm_config.h"
 
 #include <linux/can.h>
 #include <stdbool.h>

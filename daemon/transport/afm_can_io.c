@@ -15,8 +15,8 @@
  * In every state but "ok" (and "error-warning") the twin holds the last commands it took,
  * and can_state says so: nothing is reset or replayed when the bus comes back. */
 #define _DEFAULT_SOURCE /* struct ifreq, IFF_UP */
-#include "afm_can_codec.h"
-#include "afm_io.h"
+#include "transport/afm_can_codec.h"
+#include "transport/afm_io.h"
 
 #include <errno.h>
 #include <linux/can/error.h>

@@ -2,9 +2,9 @@
 /* afm_cmd_lcm.c -- inbound LCM messages into afm_cmd: fingerprint, decode (the C types
  * lcm-gen makes from the msgtypes directory, behind the length checks of afm_lcm_wire.h) and
  * validation (contract in afm_cmd.h). */
-#include "afm_cmd.h"
-#include "afm_err.h"
-#include "afm_lcm_wire.h"
+#include "transport/afm_cmd_lcm.h"
+#include "config/afm_err.h"
+#include "transport/afm_lcm_wire.h"
 
 #include "afmtwin_control_t.h"
 #include "afmtwin_dither_t.h"

@@ -13,8 +13,8 @@
 #ifndef AFM_IO_H
 #define AFM_IO_H
 
-#include "afm_chain.h"
-#include "afm_cmd.h"
+#include "estimators/afm_chain.h"
+#include "runner/afm_cmd.h"
 
 #include <stdint.h>
 

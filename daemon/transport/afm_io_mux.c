@@ -1,7 +1,7 @@
 /* SPDX-License-Identifier: MIT */
 /* afm_io_mux.c -- several transports as one afm_io (LCM and CAN side by side): one poll(2)
  * over their descriptors on the receive thread, outputs and status to all of them. */
-#include "afm_io.h"
+#include "transport/afm_io.h"
 
 #include <poll.h>
 #include <stdio.h>

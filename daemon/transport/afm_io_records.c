@@ -1,6 +1,6 @@
 /* SPDX-License-Identifier: MIT */
 /* afm_io_records.c -- output records from chain outputs (contract in afm_io_records.h). */
-#include "afm_io_records.h"
+#include "transport/afm_io_records.h"
 
 #include <math.h>
 

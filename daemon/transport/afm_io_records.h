@@ -4,7 +4,7 @@
 #ifndef AFM_IO_RECORDS_H
 #define AFM_IO_RECORDS_H
 
-#include "afm_io.h"
+#include "transport/afm_io.h"
 
 /* A samples record from a chain block (b->n <= AFM_IO_MAX_BLOCK): floats, and the ADC
  * counts rounded to the nearest integer (0 without ADC). */

@@ -2,7 +2,7 @@
 /* afm_lcm_drops.c -- LCM's queue drops (by interposing lcm_try_enqueue_message) and the
  * kernel's socket drops (/proc/self/net/udp); contract in afm_lcm_drops.h. */
 #define _GNU_SOURCE
-#include "afm_lcm_drops.h"
+#include "transport/afm_lcm_drops.h"
 
 #include <dirent.h>
 #include <dlfcn.h>

@@ -1,7 +1,7 @@
 /* SPDX-License-Identifier: MIT */
 /* afm_lcm_encode.c -- output records to generated LCM messages (contract in
  * afm_lcm_encode.h). */
-#include "afm_lcm_encode.h"
+#include "transport/afm_lcm_encode.h"
 
 #include <string.h>
 

@@ -6,7 +6,7 @@
 #ifndef AFM_LCM_ENCODE_H
 #define AFM_LCM_ENCODE_H
 
-#include "afm_io.h"
+#include "transport/afm_io.h"
 
 #include "afmtwin_harmonics_t.h"
 #include "afmtwin_samples_t.h"

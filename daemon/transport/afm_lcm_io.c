@@ -3,11 +3,12 @@
  * subscriptions on the command channels of one LCM instance, outputs published as the
  * generated types (afm_lcm_encode.h) on a second one, so that the command socket never
  * carries the daemon's own outputs (afm_lcm_url.h). */
-#include "afm_io.h"
+#include "transport/afm_io.h"
+#include "transport/afm_cmd_lcm.h"
 
-#include "afm_lcm_drops.h"
-#include "afm_lcm_encode.h"
-#include "afm_lcm_url.h"
+#include "transport/afm_lcm_drops.h"
+#include "transport/afm_lcm_encode.h"
+#include "transport/afm_lcm_url.h"
 
 #include <lcm/lcm.h>
 #include <math.h>

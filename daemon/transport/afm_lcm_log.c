@@ -1,6 +1,6 @@
 /* SPDX-License-Identifier: MIT */
 /* afm_lcm_log.c -- the checked LCM log reader (contract in afm_lcm_log.h). */
-#include "afm_lcm_log.h"
+#include "transport/afm_lcm_log.h"
 
 #include <errno.h>
 #include <stdarg.h>

@@ -1,6 +1,6 @@
 /* SPDX-License-Identifier: MIT */
 /* afm_lcm_url.c -- command and output LCM URLs (contract in afm_lcm_url.h). */
-#include "afm_lcm_url.h"
+#include "transport/afm_lcm_url.h"
 
 #include <stdio.h>
 #include <stdlib.h>

@@ -1,7 +1,7 @@
 /* SPDX-License-Identifier: MIT */
 /* afm_lcm_wire.c -- the wire-format check before lcm-gen's decoders (contract in
  * afm_lcm_wire.h). The layouts are generated (tools/lcm-wire-gen.sh); this walks them. */
-#include "afm_lcm_wire.h"
+#include "transport/afm_lcm_wire.h"
 
 #include <stdarg.h>
 #include <stdio.h>

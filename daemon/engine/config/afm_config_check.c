@@ -1,0 +1,342 @@
+/* SPDX-License-Identifier: MIT */
+/* afm_config_check.c -- the range and consistency checks on a filled afm_config: what
+ * afm_config_validate() runs, and the loader's second pass (afm_config.c), which turns the
+ * failing key path back into a file line. Keys and limits: config/README.md. */
+#include "config/afm_config.h"
+#include "config/afm_config_impl.h"
+#include "config/afm_limits.h"
+
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <string.h>
+
+static const double deg = 3.14159265358979323846 / 180.0;
+
+#define MAX_HARMONIC 64       /* highest harmonic number an estimator may track */
+#define MAX_FULL_SCALE_M 1e-3 /* OBD ADC range: beyond a millimetre is a typo */
+#define MAX_TEMPERATURE_K 1e4
+#define MAX_DECIMATION 65536 /* AFM_DECIM_MAX_FACTOR */
+#define MAX_PASSBAND                                                                               \
+    0.95 /* AFM_DECIM_MAX_PASSBAND: the anti-alias transition band                                 \
+            shrinks to nothing as the fraction approaches 1 */
+#define KEY_LEN AFM_CONFIG_KEY_LEN
+
+/* Write the failing key path and the reason; always returns -1. */
+static int bad(char *key, char *why, size_t why_len, const char *path, const char *fmt, ...)
+    __attribute__((format(printf, 5, 6)));
+static int bad(char *key, char *why, size_t why_len, const char *path, const char *fmt, ...) {
+    snprintf(key, KEY_LEN, "%s", path);
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(why, why_len, fmt, ap);
+    va_end(ap);
+    return -1;
+}
+
+#define BAD(...) return bad(key, why, why_len, __VA_ARGS__)
+#define NEED(cond, ...)                                                                            \
+    do {                                                                                           \
+        if (!(cond)) BAD(__VA_ARGS__);                                                             \
+    } while (0)
+#define FINITE(v, path) NEED(isfinite(v), path, "not a finite number")
+#define POS(v, path) NEED(isfinite(v) && (v) > 0, path, "must be > 0 (got %g)", (v))
+#define NONNEG(v, path) NEED(isfinite(v) && (v) >= 0, path, "must be >= 0 (got %g)", (v))
+/* A plausibility range of afm_limits.h, both ends included. */
+#define RANGE(v, lo, hi, path, unit)                                                               \
+    NEED(isfinite(v) && (v) >= (lo) && (v) <= (hi), path, "must be in [%g, %g] %s (got %g)", (lo), \
+         (hi), unit, (v))
+
+static int check_model(const afm_config *c, char *key, char *why, size_t why_len) {
+    const afm_cfg_model *m = &c->model;
+    const afm_cfg_beam *b = &m->beam;
+    if (m->kind == AFM_MODEL_BEAM) {
+        RANGE(b->youngs_modulus_pa, AFM_LIM_YOUNGS_MIN_PA, AFM_LIM_YOUNGS_MAX_PA,
+              "model.beam.youngs_modulus_pa", "Pa");
+        RANGE(b->density_kg_m3, AFM_LIM_DENSITY_MIN_KG_M3, AFM_LIM_DENSITY_MAX_KG_M3,
+              "model.beam.density_kg_m3", "kg/m^3");
+        NEED(isfinite(b->poisson_ratio) && b->poisson_ratio > -1 && b->poisson_ratio < 0.5,
+             "model.beam.poisson_ratio", "must be in (-1, 0.5) (got %g)", b->poisson_ratio);
+        RANGE(b->length_m, AFM_LIM_LENGTH_MIN_M, AFM_LIM_LENGTH_MAX_M, "model.beam.length_m", "m");
+        for (int i = 0; i < 2; i++) {
+            char p[64];
+            snprintf(p, sizeof p, "model.beam.width_m[%d]", i);
+            RANGE(b->width_m[i], AFM_LIM_SECTION_MIN_M, AFM_LIM_SECTION_MAX_M, p, "m");
+            snprintf(p, sizeof p, "model.beam.height_m[%d]", i);
+            RANGE(b->height_m[i], AFM_LIM_SECTION_MIN_M, AFM_LIM_SECTION_MAX_M, p, "m");
+        }
+        RANGE(b->tip_mass_kg, 0.0, AFM_LIM_TIP_MASS_MAX_KG, "model.beam.tip_mass_kg", "kg");
+        NEED(b->n_elements >= 1 && b->n_elements <= AFM_MAX_ELEMENTS, "model.beam.elements",
+             "must be in [1, %d] (got %d)", AFM_MAX_ELEMENTS, b->n_elements);
+        NEED(b->n_kept >= 0, "model.beam.kept_modes", "must be >= 0 (got %d)", b->n_kept);
+        NEED(b->n_kept + 2 <= AFM_MAX_MODES, "model.beam.kept_modes",
+             "kept_modes + 2 reduced modes must be <= %d (got %d)", AFM_MAX_MODES, b->n_kept);
+        /* Guided-free beam, ne elements: 2 ne + 1 free DOF once theta1 = 0. Rubin keeps
+         * 1 rigid + nk elastic + 2 residual modes, so nk <= 2 ne + 1 - 3. */
+        NEED(b->n_kept <= 2 * b->n_elements - 2, "model.beam.kept_modes",
+             "%d elements give at most %d kept modes (2*elements - 2), got %d", b->n_elements,
+             2 * b->n_elements - 2, b->n_kept);
+    } else if (m->kind == AFM_MODEL_LUMPED) {
+        RANGE(m->lumped.stiffness_n_m, AFM_LIM_STIFFNESS_MIN_N_M, AFM_LIM_STIFFNESS_MAX_N_M,
+              "model.lumped.stiffness_n_m", "N/m");
+        RANGE(m->lumped.resonance_hz, AFM_LIM_RESONANCE_MIN_HZ, AFM_LIM_RESONANCE_MAX_HZ,
+              "model.lumped.resonance_hz", "Hz");
+        NEED(m->lumped.resonance_hz < c->sim.sample_rate_hz / 2, "model.lumped.resonance_hz",
+             "must be below half the sample rate (%g Hz), got %g", c->sim.sample_rate_hz / 2,
+             m->lumped.resonance_hz);
+    } else {
+        BAD("model.kind", "unknown model kind %d", (int)m->kind);
+    }
+
+    int nmodes = m->kind == AFM_MODEL_BEAM ? b->n_kept + 2 : 1;
+    NEED(m->n_damping >= 1 && m->n_damping <= AFM_MAX_MODES, "model.damping_ratio",
+         "needs 1 to %d values (got %d)", AFM_MAX_MODES, m->n_damping);
+    NEED(m->n_damping <= nmodes, "model.damping_ratio",
+         "%d values given but the model has %d mode%s", m->n_damping, nmodes,
+         nmodes == 1 ? "" : "s");
+    for (int i = 0; i < m->n_damping; i++) {
+        char p[64];
+        snprintf(p, sizeof p, "model.damping_ratio[%d]", i);
+        double xi = m->damping_ratio[i];
+        NEED(isfinite(xi) && xi > 0 && xi < 1, p, "must be in (0, 1) (got %g)", xi);
+    }
+    return 0;
+}
+
+static int check_forces(const afm_config *c, char *key, char *why, size_t why_len) {
+    const afm_cfg_forces *f = &c->forces;
+    /* Finite everywhere, enabled or not: a NaN must not sleep in a disabled group. */
+    const struct {
+        double v;
+        const char *path;
+    } all[] = {
+        {f->inclination_rad, "forces.inclination_deg"},
+        {f->radius_m, "forces.radius_m"},
+        {f->hamaker_j, "forces.vdw_contact.hamaker_j"},
+        {f->a0_m, "forces.vdw_contact.a0_m"},
+        {f->reduced_modulus_pa, "forces.vdw_contact.reduced_modulus_pa"},
+        {f->eta_pa_s, "forces.viscoelastic.eta_pa_s"},
+        {f->eta0_pa_s, "forces.squeeze.eta0_pa_s"},
+        {f->gas_constant_j_kg_k, "forces.squeeze.gas_constant_j_kg_k"},
+        {f->temperature_k, "forces.squeeze.temperature_k"},
+        {f->pressure_pa, "forces.squeeze.pressure_pa"},
+        {f->kappa, "forces.squeeze.kappa"},
+        {f->tip_length_m, "forces.squeeze.tip_length_m"},
+        {f->plate_length_m, "forces.squeeze.plate_length_m"},
+        {f->plate_width_m, "forces.squeeze.plate_width_m"},
+        {f->p1_n_s_m2, "forces.squeeze.p1_n_s_m2"},
+        {f->p2_n_s_m, "forces.squeeze.p2_n_s_m"},
+        {f->surface_energy_j_m2, "forces.capillary.surface_energy_j_m2"},
+        {f->contact_angle_rad, "forces.capillary.contact_angle_deg"},
+        {f->meniscus_d_m, "forces.capillary.meniscus_d_m"},
+        {f->voltage_v, "forces.electrostatic.voltage_v"},
+        {f->cone_half_angle_rad, "forces.electrostatic.cone_half_angle_deg"},
+        {f->cone_length_m, "forces.electrostatic.cone_length_m"},
+    };
+    for (size_t i = 0; i < sizeof all / sizeof all[0]; i++)
+        FINITE(all[i].v, all[i].path);
+
+    NEED(f->inclination_rad >= 0 && f->inclination_rad < 90 * deg, "forces.inclination_deg",
+         "must be in [0, 90) degrees (got %g)", f->inclination_rad / deg);
+    if (f->vdw_contact || f->viscoelastic || f->capillary) POS(f->radius_m, "forces.radius_m");
+    if (f->vdw_contact) {
+        NONNEG(f->hamaker_j, "forces.vdw_contact.hamaker_j");
+        POS(f->a0_m, "forces.vdw_contact.a0_m");
+        RANGE(f->reduced_modulus_pa, AFM_LIM_MODULUS_MIN_PA, AFM_LIM_MODULUS_MAX_PA,
+              "forces.vdw_contact.reduced_modulus_pa", "Pa");
+    }
+    if (f->viscoelastic) {
+        NEED(f->vdw_contact, "forces.viscoelastic.enabled",
+             "the viscoelastic term (eq. 3.3) needs vdw_contact enabled (it uses a0)");
+        NONNEG(f->eta_pa_s, "forces.viscoelastic.eta_pa_s");
+    }
+    switch (f->squeeze) {
+    case AFM_SQUEEZE_NONE:
+    case AFM_SQUEEZE_LINEAR: /* p1, p2 of eq. 5.3 may have any sign; finite checked above */
+        break;
+    case AFM_SQUEEZE_STARR:
+        POS(f->eta0_pa_s, "forces.squeeze.eta0_pa_s");
+        POS(f->gas_constant_j_kg_k, "forces.squeeze.gas_constant_j_kg_k");
+        POS(f->temperature_k, "forces.squeeze.temperature_k");
+        POS(f->pressure_pa, "forces.squeeze.pressure_pa");
+        NEED(f->kappa >= 0 && f->kappa <= 1, "forces.squeeze.kappa", "must be in [0, 1] (got %g)",
+             f->kappa);
+        POS(f->tip_length_m, "forces.squeeze.tip_length_m");
+        if (c->model.kind == AFM_MODEL_LUMPED) {
+            POS(f->plate_length_m, "forces.squeeze.plate_length_m");
+            POS(f->plate_width_m, "forces.squeeze.plate_width_m");
+        }
+        break;
+    default:
+        BAD("forces.squeeze.model", "unknown squeeze model %d", (int)f->squeeze);
+    }
+    if (f->capillary) {
+        POS(f->surface_energy_j_m2, "forces.capillary.surface_energy_j_m2");
+        NEED(f->contact_angle_rad >= 0 && f->contact_angle_rad <= 180 * deg,
+             "forces.capillary.contact_angle_deg", "must be in [0, 180] degrees (got %g)",
+             f->contact_angle_rad / deg);
+        POS(f->meniscus_d_m, "forces.capillary.meniscus_d_m");
+    }
+    if (f->electrostatic) {
+        NEED(f->cone_half_angle_rad > 0 && f->cone_half_angle_rad < 90 * deg,
+             "forces.electrostatic.cone_half_angle_deg", "must be in (0, 90) degrees (got %g)",
+             f->cone_half_angle_rad / deg);
+        POS(f->cone_length_m, "forces.electrostatic.cone_length_m");
+    }
+    return 0;
+}
+
+static int check_drive_sim(const afm_config *c, char *key, char *why, size_t why_len) {
+    const afm_cfg_sim *s = &c->sim;
+    RANGE(s->sample_rate_hz, AFM_LIM_SAMPLE_RATE_MIN_HZ, AFM_LIM_SAMPLE_RATE_MAX_HZ,
+          "sim.sample_rate_hz", "Hz");
+    NEED(s->integrator == AFM_INTEGRATOR_RT || s->integrator == AFM_INTEGRATOR_REFERENCE ||
+             s->integrator == AFM_INTEGRATOR_ARKODE_ERK,
+         "sim.integrator", "unknown integrator %d", (int)s->integrator);
+    NEED(s->rt_substeps_contact >= 0 && s->rt_substeps_contact <= AFM_MAX_RT_SUBSTEPS,
+         "sim.rt_substeps_contact", "must be in [0, %d] (0 = engine default), got %d",
+         AFM_MAX_RT_SUBSTEPS, s->rt_substeps_contact);
+    NEED(isfinite(s->ref_rtol) && s->ref_rtol > 0 && s->ref_rtol < 1e-2, "sim.ref_rtol",
+         "must be in (0, 1e-2) (got %g)", s->ref_rtol);
+    NEED(s->n_harmonics >= 0 && s->n_harmonics <= AFM_MAX_HARMONICS, "sim.harmonics",
+         "needs 0 (estimators choose) to %d values (got %d)", AFM_MAX_HARMONICS, s->n_harmonics);
+    for (int i = 0; i < s->n_harmonics; i++) {
+        char p[64];
+        snprintf(p, sizeof p, "sim.harmonics[%d]", i);
+        NEED(s->harmonics[i] >= 1 && s->harmonics[i] <= MAX_HARMONIC, p,
+             "must be in [1, %d] (got %d)", MAX_HARMONIC, s->harmonics[i]);
+    }
+
+    const afm_cfg_drive *d = &c->drive;
+    RANGE(d->separation_m, 0.0, AFM_LIM_SEPARATION_MAX_M, "drive.separation_m", "m");
+    NEED(d->n_tones >= 1 && d->n_tones <= AFM_MAX_TONES, "drive.tones",
+         "needs 1 to %d tones (got %d)", AFM_MAX_TONES, d->n_tones);
+    double sum_a = 0;
+    for (int j = 0; j < d->n_tones; j++) {
+        const afm_cfg_tone *t = &d->tones[j];
+        char p[64];
+        snprintf(p, sizeof p, "drive.tones[%d].amplitude_m", j);
+        RANGE(t->amplitude_m, 0.0, AFM_LIM_TONE_AMPLITUDE_MAX_M, p, "m");
+        sum_a += t->amplitude_m;
+        snprintf(p, sizeof p, "drive.tones[%d].frequency_hz", j);
+        NEED(isfinite(t->frequency_hz) && t->frequency_hz >= AFM_LIM_FREQUENCY_MIN_HZ &&
+                 t->frequency_hz < s->sample_rate_hz / 2,
+             p, "must be in [%g, sample_rate_hz/2 = %g) Hz (got %g)", AFM_LIM_FREQUENCY_MIN_HZ,
+             s->sample_rate_hz / 2, t->frequency_hz);
+        snprintf(p, sizeof p, "drive.tones[%d].phase_deg", j);
+        FINITE(t->phase_rad, p);
+    }
+    NEED(sum_a <= AFM_LIM_DRIVE_AMPLITUDE_MAX_M, "drive.tones",
+         "the amplitudes add up to %g m, more than the %g m a dither piezo strokes", sum_a,
+         AFM_LIM_DRIVE_AMPLITUDE_MAX_M);
+    return 0;
+}
+
+/* obd, thermal, lockin, output (issue 4). */
+static int check_chain(const afm_config *c, char *key, char *why, size_t why_len) {
+    const afm_cfg_obd *o = &c->obd;
+    NONNEG(o->noise_density_m_rthz, "obd.noise_density_m_rthz");
+    NEED(o->adc_bits == 0 || (o->adc_bits >= 2 && o->adc_bits <= 32), "obd.adc_bits",
+         "must be 0 (no ADC) or in [2, 32] (got %d)", o->adc_bits);
+    POS(o->full_scale_m, "obd.full_scale_m");
+    NEED(o->full_scale_m <= MAX_FULL_SCALE_M, "obd.full_scale_m", "must be <= %g m (got %g)",
+         MAX_FULL_SCALE_M, o->full_scale_m);
+    POS(c->thermal.temperature_k, "thermal.temperature_k");
+    NEED(c->thermal.temperature_k <= MAX_TEMPERATURE_K, "thermal.temperature_k",
+         "must be <= %g K (got %g)", MAX_TEMPERATURE_K, c->thermal.temperature_k);
+    const afm_cfg_lockin *l = &c->lockin;
+    POS(l->time_constant_s, "lockin.time_constant_s");
+    NEED(l->time_constant_s * c->sim.sample_rate_hz >= 1.0, "lockin.time_constant_s",
+         "must be at least one sample interval (%g s), got %g", 1.0 / c->sim.sample_rate_hz,
+         l->time_constant_s);
+    NEED(l->order >= 1 && l->order <= 8, "lockin.order", "must be in [1, 8] (got %d)", l->order);
+    const afm_cfg_output *out = &c->output;
+    NEED(out->n_outputs >= 1 && out->n_outputs <= AFM_MAX_OUTPUTS, "output.decimation",
+         "needs 1 to %d values (got %d)", AFM_MAX_OUTPUTS, out->n_outputs);
+    for (int i = 0; i < out->n_outputs; i++) {
+        char p[64];
+        snprintf(p, sizeof p, "output.decimation[%d]", i);
+        NEED(out->decimation[i] >= 1 && out->decimation[i] <= MAX_DECIMATION, p,
+             "must be in [1, %d] (got %d)", MAX_DECIMATION, out->decimation[i]);
+        for (int j = 0; j < i; j++)
+            NEED(out->decimation[j] != out->decimation[i], p, "repeats decimation[%d] = %d", j,
+                 out->decimation[i]);
+    }
+    NEED(isfinite(out->passband_fraction) && out->passband_fraction > 0 &&
+             out->passband_fraction <= MAX_PASSBAND,
+         "output.passband_fraction", "must be in (0, %g] (got %g)", MAX_PASSBAND,
+         out->passband_fraction);
+    return 0;
+}
+
+/* can (issue 6): frame ids, scales, timing. Checked whether or not the group is enabled. */
+static int check_can(const afm_config *c, char *key, char *why, size_t why_len) {
+    static const char *const names[AFM_CAN_N_SIGNALS] = {
+        "dither_frequency", "dither_amplitude", "dither_phase", "setpoint", "enable", "heartbeat"};
+    const afm_cfg_can *k = &c->can;
+    size_t n = strnlen(k->interface, sizeof k->interface);
+    NEED(n >= 1 && n < sizeof k->interface, "can.interface", "must be 1 to %zu characters",
+         sizeof k->interface - 1);
+    NEED(k->encoding == AFM_CAN_SCALED || k->encoding == AFM_CAN_FLOAT32, "can.encoding",
+         "unknown encoding %d", (int)k->encoding);
+    unsigned max_id = k->extended_ids ? 0x1FFFFFFFu : 0x7FFu;
+    for (int i = 0; i < AFM_CAN_N_SIGNALS; i++) {
+        char p[64];
+        snprintf(p, sizeof p, "can.ids.%s", names[i]);
+        NEED(k->id[i] <= max_id, p, "0x%X does not fit %s identifier (max 0x%X%s)", k->id[i],
+             k->extended_ids ? "a 29-bit" : "an 11-bit", max_id,
+             k->extended_ids ? "" : "; set extended_ids = true for 29-bit ids");
+        for (int j = 0; j < i; j++)
+            NEED(k->id[j] != k->id[i], p, "0x%X is also the id of %s", k->id[i], names[j]);
+    }
+    const struct {
+        double v, max;
+        const char *path;
+    } sc[] = {{k->scale_frequency_hz, 0.5 * c->sim.sample_rate_hz, "can.scale.frequency_hz"},
+              {k->scale_amplitude_m, AFM_LIM_TONE_AMPLITUDE_MAX_M, "can.scale.amplitude_m"},
+              {k->scale_phase_rad, 6.283185307179586, "can.scale.phase_rad"},
+              {k->scale_separation_m, AFM_LIM_SEPARATION_MAX_M, "can.scale.separation_m"},
+              {k->scale_ramp_m_s, AFM_LIM_RAMP_MAX_M_S, "can.scale.ramp_m_s"}};
+    for (size_t i = 0; i < sizeof sc / sizeof sc[0]; i++)
+        NEED(isfinite(sc[i].v) && sc[i].v > 0 && sc[i].v <= sc[i].max, sc[i].path,
+             "value per bit must be in (0, %g] (got %g)", sc[i].max, sc[i].v);
+    NEED(isfinite(k->heartbeat_timeout_s) &&
+             (k->heartbeat_timeout_s == 0 ||
+              (k->heartbeat_timeout_s >= 1e-3 && k->heartbeat_timeout_s <= 3600)),
+         "can.heartbeat_timeout_s", "must be 0 (not monitored) or in [0.001, 3600] s (got %g)",
+         k->heartbeat_timeout_s);
+    NEED(isfinite(k->reconnect_min_s) && k->reconnect_min_s >= 1e-3 && k->reconnect_min_s <= 60,
+         "can.reconnect_min_s", "must be in [0.001, 60] s (got %g)", k->reconnect_min_s);
+    NEED(isfinite(k->reconnect_max_s) && k->reconnect_max_s >= k->reconnect_min_s &&
+             k->reconnect_max_s <= 3600,
+         "can.reconnect_max_s", "must be in [reconnect_min_s = %g, 3600] s (got %g)",
+         k->reconnect_min_s, k->reconnect_max_s);
+    return 0;
+}
+
+int afm_config_check_all(const afm_config *c, char *key, char *why, size_t why_len) {
+    if (check_model(c, key, why, why_len) || check_forces(c, key, why, why_len) ||
+        check_drive_sim(c, key, why, why_len) || check_chain(c, key, why, why_len) ||
+        check_can(c, key, why, why_len))
+        return -1;
+    return 0;
+}
+
+#undef BAD
+#undef NEED
+#undef FINITE
+#undef POS
+#undef NONNEG
+#undef RANGE
+
+int afm_config_validate(const afm_config *cfg, char *err, size_t errlen) {
+    char key[KEY_LEN], why[AFM_ERR_LEN];
+    if (afm_config_check_all(cfg, key, why, sizeof why) == 0) return 0;
+    if (err && errlen) {
+        if (cfg->path[0])
+            snprintf(err, errlen, "%s: key '%s': %s", cfg->path, key, why);
+        else
+            snprintf(err, errlen, "key '%s': %s", key, why);
+    }
+    return -1;
+}

@@ -1,0 +1,552 @@
+/* SPDX-License-Identifier: MIT */
+/* afm_chain.c -- OBD, decimators, rings and estimators per sample (contract in afm_chain.h). */
+#include "estimators/afm_chain.h"
+
+#include "estimators/afm_decim.h"
+#include "forces/afm_drive.h"
+#include "forces/afm_force.h"
+#include "estimators/afm_lockin.h"
+
+#include <math.h>
+#include <stddef.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#if defined(__AVX2__) && defined(__FMA__)
+#include <immintrin.h>
+#endif
+
+#define CHUNK 512         /* full-rate samples processed per inner pass */
+#define RING_SECONDS 0.05 /* each stream's ring holds this much output... */
+#define RING_MIN 1024     /* ...but at least this many samples... */
+#define RING_MAX 131072   /* ...and at most this many */
+#define PERIOD_RING 1024  /* period records */
+
+enum { CH_X, CH_OBD, CH_F, CH_BASE };
+
+/* pack_frames reads (x, v, f, theta) and (v, f, theta, base) as two 4-double runs of a sample. */
+_Static_assert(offsetof(afm_sample, v_m_s) == offsetof(afm_sample, x_m) + sizeof(double) &&
+                   offsetof(afm_sample, f_n) == offsetof(afm_sample, x_m) + 2 * sizeof(double) &&
+                   offsetof(afm_sample, theta_rad) ==
+                       offsetof(afm_sample, x_m) + 3 * sizeof(double) &&
+                   offsetof(afm_sample, base_m) == offsetof(afm_sample, x_m) + 4 * sizeof(double),
+               "afm_sample: x, v, f, theta, base consecutive");
+_Static_assert(CH_X == 0 && CH_OBD == 1 && CH_F == 2 && CH_BASE == 3 && AFM_DECIM_CH == 4,
+               "frame = (x, obd, f, base)");
+
+typedef struct {
+    int factor; /* R from the input */
+    int src;    /* stream it is decimated from, -1 = the input */
+    int src_factor;
+    afm_decim *dec;
+    double delay_s; /* this decimator's group delay in seconds */
+    double dt_src;  /* sample interval of its source */
+    double *frames; /* (CHUNK + 1) frames of this pass's output */
+    double *t;      /* their times (the model time of the sample completing each, minus the
+                       delay) */
+    int n_frames;
+    /* ring (structure of arrays) */
+    int cap, head, count;
+    double *rt, *rx, *robd, *rcnt, *rf, *rbase;
+} stream;
+
+/* Tone 0's phase for the estimators, from the sample count: theta = p_org + wdt (k - k_org)
+ * at the sample k steps after the drive's t0 (theta = phase_rad + omega (t - t0) there), with
+ * the origin k_org a multiple of PHASE_REBASE: theta stays below 2 pi + wdt PHASE_REBASE, and
+ * crossing into the next segment wraps p_org mod 2 pi (a jump of whole turns, which the
+ * trackers keep their lock through). The count is exact, so theta carries only roundings
+ * relative to itself (~3 eps |theta|), not the rounding of the sample time t (omega ulp(t):
+ * 4e-9 rad at 20 s, growing with uptime), which the estimators' trackers must not mistake
+ * for a changing rate. Everything is a function of the sample index (the origin moves at
+ * fixed indices), so how the samples are cut into pushes changes no bit. A new drive (or
+ * chain) starts from its own origin: p_org of the segment it is in, from phase_rad. */
+#define PHASE_REBASE 1048576.0
+typedef struct {
+    bool set;
+    double ph, w, t0; /* the drive's tone 0 it follows */
+    double wdt;       /* phase step per sample */
+    double k_org;     /* origin: a sample index (from t0), multiple of PHASE_REBASE */
+    double p_org;     /* theta at k_org, mod 2 pi */
+} phase_gen;
+
+struct afm_chain {
+    afm_obd obd;
+    int n_streams;
+    stream st[AFM_MAX_OUTPUTS];
+    int order[AFM_MAX_OUTPUTS]; /* streams by ascending factor */
+    int primary;                /* the input-fed stream whose decimator input the frames are
+                                   packed into (the other input-fed ones copy from there) */
+    double fs;
+    /* estimators */
+    bool attached;
+    const afm_drive *drive;
+    phase_gen phase;
+    afm_harm harm;
+    afm_cycle cycle;
+    afm_lockin lockin;
+    afm_chain_period *periods;
+    int p_head, p_count;
+    double cos_alpha;
+    const afm_force_params *forces;
+    afm_chain_stats stats;
+};
+
+/* Write every page of [p, p + n) once, so that the first push does not take the page faults
+ * (the kernel's allocation of calloc's and malloc's untouched pages; ~2 MB of rings and
+ * records, ~1.5 ms on this VM) on the real-time path, when the daemon cannot lock its memory
+ * or the chain is built later (a geometry change, a reload). */
+static void touch(void *p, size_t n) {
+    volatile unsigned char *q = p;
+    for (size_t i = 0; i < n; i += 4096)
+        q[i] = q[i];
+    if (n) q[n - 1] = q[n - 1];
+}
+
+static void fail_msg(char *err, size_t errlen, const char *msg) {
+    if (err && errlen) snprintf(err, errlen, "chain: %s", msg);
+}
+
+afm_chain *afm_chain_create(const afm_config *cfg, const afm_modal *m, char *err, size_t errlen) {
+    if (!cfg || !m) {
+        fail_msg(err, errlen, "NULL argument");
+        return NULL;
+    }
+    if (afm_config_validate(cfg, err, errlen)) return NULL;
+    afm_chain *c = calloc(1, sizeof *c);
+    if (!c) goto oom;
+    if (afm_obd_init(&c->obd, cfg, m, err, errlen)) goto fail;
+    c->fs = cfg->sim.sample_rate_hz;
+    const afm_cfg_output *o = &cfg->output;
+    c->n_streams = o->n_outputs;
+    for (int i = 0; i < o->n_outputs; i++)
+        c->order[i] = i;
+    for (int i = 1; i < o->n_outputs; i++) /* insertion sort by factor (stable) */
+        for (int j = i; j > 0 && o->decimation[c->order[j]] < o->decimation[c->order[j - 1]]; j--) {
+            int tmp = c->order[j];
+            c->order[j] = c->order[j - 1];
+            c->order[j - 1] = tmp;
+        }
+    for (int k = 0; k < c->n_streams; k++) {
+        int i = c->order[k];
+        stream *s = &c->st[i];
+        s->factor = o->decimation[i];
+        s->src = -1;
+        s->src_factor = 1;
+        for (int q = 0; q < k; q++) { /* largest earlier factor dividing this one */
+            int j = c->order[q];
+            if (s->factor % c->st[j].factor == 0 && c->st[j].factor > s->src_factor &&
+                c->st[j].factor < s->factor) {
+                s->src = j;
+                s->src_factor = c->st[j].factor;
+            }
+        }
+        s->dt_src = s->src_factor / c->fs;
+        s->dec = afm_decim_create(s->factor / s->src_factor, o->passband_fraction, err, errlen);
+        if (!s->dec) goto fail;
+        s->delay_s = afm_decim_delay(s->dec) * s->dt_src;
+        s->frames = malloc((CHUNK + 1) * AFM_DECIM_CH * sizeof *s->frames);
+        s->t = malloc((CHUNK + 1) * sizeof *s->t);
+        double want = RING_SECONDS * c->fs / s->factor;
+        s->cap = want < RING_MIN ? RING_MIN : want > RING_MAX ? RING_MAX : (int)want;
+        double **arrs[] = {&s->rt, &s->rx, &s->robd, &s->rcnt, &s->rf, &s->rbase};
+        for (int a = 0; a < 6; a++)
+            *arrs[a] = malloc((size_t)s->cap * sizeof(double));
+        if (!s->frames || !s->t || !s->rt || !s->rx || !s->robd || !s->rcnt || !s->rf || !s->rbase)
+            goto oom;
+        touch(s->frames, (CHUNK + 1) * AFM_DECIM_CH * sizeof *s->frames);
+        touch(s->t, (CHUNK + 1) * sizeof *s->t);
+        for (int a = 0; a < 6; a++)
+            touch(*arrs[a], (size_t)s->cap * sizeof(double));
+    }
+    c->primary = c->order[0]; /* the smallest factor is always decimated from the input */
+    int room;
+    afm_decim_in(c->st[c->primary].dec, &room);
+    if (room < CHUNK) {
+        fail_msg(err, errlen, "decimator input smaller than a pass");
+        goto fail;
+    }
+    c->periods = calloc(PERIOD_RING, sizeof *c->periods);
+    if (!c->periods) goto oom;
+    touch(c->periods, PERIOD_RING * sizeof *c->periods);
+
+    /* Estimators: initialised now, run once attached. */
+    int ks[AFM_MAX_HARMONICS], nk = cfg->sim.n_harmonics;
+    if (nk > 0)
+        memcpy(ks, cfg->sim.harmonics, (size_t)nk * sizeof ks[0]);
+    else
+        nk = afm_harm_default_list(m, cfg->drive.tones[0].frequency_hz, ks);
+    if (afm_harm_init(&c->harm, ks, nk, err, errlen) ||
+        afm_lockin_init(&c->lockin, &cfg->lockin, 1.0 / c->fs, err, errlen))
+        goto fail;
+    afm_harm_set_deferred(&c->harm, true); /* polar form when a record is finished */
+    touch(c, sizeof *c);
+    return c;
+oom:
+    fail_msg(err, errlen, "out of memory");
+fail:
+    afm_chain_destroy(&c);
+    return NULL;
+}
+
+void afm_chain_destroy(afm_chain **cp) {
+    if (!cp || !*cp) return;
+    afm_chain *c = *cp;
+    for (int i = 0; i < AFM_MAX_OUTPUTS; i++) {
+        stream *s = &c->st[i];
+        afm_decim_destroy(&s->dec);
+        free(s->frames);
+        free(s->t);
+        free(s->rt);
+        free(s->rx);
+        free(s->robd);
+        free(s->rcnt);
+        free(s->rf);
+        free(s->rbase);
+    }
+    free(c->periods);
+    free(c);
+    *cp = NULL;
+}
+
+/* Before the estimators are reset: their table rebuilds into the stats (which are kept). */
+static void keep_rebuilds(afm_chain *c) {
+    c->stats.estimator_rebuilds += c->harm.trk.rate_changes + c->lockin.trk.rate_changes;
+}
+
+int afm_chain_attach(afm_chain *c, const afm_sim *sim, char *err, size_t errlen) {
+    if (!sim) {
+        c->attached = false;
+        c->drive = NULL;
+        return 0;
+    }
+    const afm_force_params *f = afm_sim_forces(sim);
+    double xc = afm_force_contact_x(f, afm_sim_separation(sim));
+    if (afm_cycle_init(&c->cycle, xc, f->cos_alpha, err, errlen)) return -1;
+    c->forces = f;
+    c->cos_alpha = f->cos_alpha;
+    c->drive = afm_sim_drive(sim);
+    c->phase.set = false;
+    keep_rebuilds(c);
+    afm_harm_reset(&c->harm);
+    afm_lockin_reset(&c->lockin);
+    c->attached = true;
+    return 0;
+}
+
+int afm_chain_set_separation(afm_chain *c, double z_m) {
+    if (!c->attached || !isfinite(z_m)) return -1;
+    return afm_cycle_set_contact(&c->cycle, afm_force_contact_x(c->forces, z_m));
+}
+
+/* Append this pass's output of stream s to its ring (dropping the oldest when full). */
+static void ring_put(afm_chain *c, int idx) {
+    stream *s = &c->st[idx];
+    const double inv_lsb = c->obd.adc_bits > 0 ? c->obd.inv_lsb : 0.0;
+    const int cap = s->cap, nf = s->n_frames;
+    const double *f = s->frames, *t = s->t;
+    double *rt = s->rt, *rx = s->rx, *robd = s->robd, *rcnt = s->rcnt, *rf = s->rf,
+           *rbase = s->rbase;
+    int w = s->head;
+    for (int k = 0; k < nf;) { /* in runs up to the end of the ring */
+        int run = nf - k < cap - w ? nf - k : cap - w;
+        double *t_ = rt + w, *x_ = rx + w, *o_ = robd + w, *c_ = rcnt + w, *f_ = rf + w,
+               *b_ = rbase + w;
+        for (int j = 0; j < run; j++, f += AFM_DECIM_CH) {
+            double tj = t[k + j], x = f[CH_X], o = f[CH_OBD], fn = f[CH_F], b = f[CH_BASE];
+            t_[j] = tj;
+            x_[j] = x;
+            o_[j] = o;
+            c_[j] = o * inv_lsb;
+            f_[j] = fn;
+            b_[j] = b;
+        }
+        k += run;
+        w = w + run == cap ? 0 : w + run;
+    }
+    s->head = w;
+    if (nf > cap - s->count) { /* the oldest were overwritten */
+        c->stats.dropped[idx] += nf - (cap - s->count);
+        s->count = cap;
+    } else {
+        s->count += nf;
+    }
+}
+
+/* Time stamps of stream s's n_frames new outputs: output k is completed by source sample
+ * (R - ph - 1) + k R (ph: the decimator's phase before the pass), at time t_src(i) (the
+ * input samples' own t_s, or the source stream's stamps). */
+static void stamp_input(stream *s, const afm_sample *p, int ph) {
+    int R = afm_decim_factor(s->dec);
+    for (int k = 0; k < s->n_frames; k++)
+        s->t[k] = p[(R - ph - 1) + k * R].t_s - s->delay_s;
+}
+static void stamp_cascade(stream *s, const double *t_src, int ph) {
+    int R = afm_decim_factor(s->dec);
+    for (int k = 0; k < s->n_frames; k++)
+        s->t[k] = t_src[(R - ph - 1) + k * R] - s->delay_s;
+}
+
+/* Frames (x, obd, f, base) of n samples into dst (AFM_DECIM_CH doubles each, 32-byte
+ * aligned). Returns 1 when every channel of every frame is finite (x 0 is 0 for finite x and
+ * NaN for inf and NaN: the sum of those over the frames is 0 exactly when all are finite). */
+static int pack_frames(double *dst, const afm_sample *p, const double *obd, int n) {
+#if defined(__AVX2__) && defined(__FMA__)
+    enum { S = sizeof(afm_sample) / sizeof(double) };
+    const __m256d zero = _mm256_setzero_pd();
+    __m256d z0 = zero, z1 = zero;
+    const double *x = (const double *)p + offsetof(afm_sample, x_m) / sizeof(double);
+#define PACK(i, z)                                                                                 \
+    do {                                                                                           \
+        __m256d f =                                                                                \
+            _mm256_blend_pd(_mm256_loadu_pd(x + (i)*S), _mm256_loadu_pd(x + (i)*S + 1), 0x8);      \
+        f = _mm256_blend_pd(f, _mm256_broadcast_sd(obd + (i)), 0x2);                               \
+        _mm256_store_pd(dst + (i)*AFM_DECIM_CH, f);                                                \
+        z = _mm256_fmadd_pd(f, zero, z);                                                           \
+    } while (0)
+    for (; n >= 8; n -= 8, x += 8 * S, obd += 8, dst += 8 * AFM_DECIM_CH) {
+        PACK(0, z0);
+        PACK(1, z1);
+        PACK(2, z0);
+        PACK(3, z1);
+        PACK(4, z0);
+        PACK(5, z1);
+        PACK(6, z0);
+        PACK(7, z1);
+    }
+    for (; n > 0; n--, x += S, obd++, dst += AFM_DECIM_CH)
+        PACK(0, z0);
+#undef PACK
+    double z[4];
+    _mm256_storeu_pd(z, _mm256_add_pd(z0, z1));
+    return (z[0] + z[1]) + (z[2] + z[3]) == 0.0;
+#else
+    double z = 0.0;
+    for (int i = 0; i < n; i++) {
+        double *f = dst + (size_t)i * AFM_DECIM_CH;
+        f[CH_X] = p[i].x_m;
+        f[CH_OBD] = obd[i];
+        f[CH_F] = p[i].f_n;
+        f[CH_BASE] = p[i].base_m;
+        z += ((f[0] * 0.0 + f[1] * 0.0) + (f[2] * 0.0 + f[3] * 0.0));
+    }
+    return z == 0.0;
+#endif
+}
+
+/* The decimators and rings over n samples (their OBD readings obd): the frames go straight
+ * into the primary stream's decimator; the other input-fed streams filter them from there
+ * before the primary's commit (which moves its buffer), then the cascaded ones run in
+ * ascending factor order (their sources come first). */
+static void run_streams(afm_chain *c, const afm_sample *p, const double *obd, int n) {
+    stream *pr = &c->st[c->primary];
+    double *in = afm_decim_in(pr->dec, NULL);
+    int finite = pack_frames(in, p, obd, n);
+    for (int q = 1; q < c->n_streams; q++) {
+        stream *st = &c->st[c->order[q]];
+        if (st->src >= 0) continue;
+        int ph = afm_decim_phase(st->dec);
+        st->n_frames = afm_decim_run(st->dec, in, n, st->frames);
+        stamp_input(st, p, ph);
+    }
+    int ph = afm_decim_phase(pr->dec);
+    pr->n_frames = afm_decim_commit(pr->dec, n, finite, pr->frames);
+    stamp_input(pr, p, ph);
+    for (int q = 1; q < c->n_streams; q++) {
+        stream *st = &c->st[c->order[q]];
+        if (st->src < 0) continue;
+        const stream *src = &c->st[st->src];
+        ph = afm_decim_phase(st->dec);
+        st->n_frames = afm_decim_run(st->dec, src->frames, src->n_frames, st->frames);
+        stamp_cascade(st, src->t, ph);
+    }
+    for (int q = 0; q < c->n_streams; q++)
+        ring_put(c, c->order[q]);
+}
+
+/* Append the current estimates as a period record. */
+static void put_period(afm_chain *c) {
+    int w = (c->p_head + c->p_count) % PERIOD_RING;
+    if (c->p_count == PERIOD_RING) {
+        c->p_head = (c->p_head + 1) % PERIOD_RING;
+        c->stats.periods_dropped++;
+    } else {
+        c->p_count++;
+    }
+    afm_chain_period *p = &c->periods[w];
+    /* The header and the sums of the lanes in use (afm_harm is deferred: h[] is filled by
+     * afm_chain_period_finish). */
+    memcpy(&p->harm, &c->harm.out,
+           offsetof(afm_harm_result, raw) + (size_t)(4 * c->harm.nl) * sizeof p->harm.raw[0]);
+    if (c->cycle.periods > 0)
+        p->cycle = c->cycle.out;
+    else
+        memset(&p->cycle, 0, sizeof p->cycle);
+    afm_lockin_xy(&c->lockin, &p->lockin_x_m, &p->lockin_y_m);
+    c->stats.periods++;
+}
+
+/* th[j] = p + wdt (k + j) for j < m: four at a time with AVX2 (one rounding each, fma: the
+ * same bits as the scalar loop). */
+static void phase_run(double *th, int m, double wdt, double k, double p) {
+    int j = 0;
+#if defined(__AVX2__) && defined(__FMA__)
+    const __m256d vp = _mm256_set1_pd(p), vw = _mm256_set1_pd(wdt), four = _mm256_set1_pd(4.0);
+    __m256d vk = _mm256_add_pd(_mm256_set1_pd(k), _mm256_set_pd(3.0, 2.0, 1.0, 0.0));
+    for (; j + 4 <= m; j += 4) {
+        _mm256_storeu_pd(th + j, _mm256_fmadd_pd(vw, vk, vp));
+        vk = _mm256_add_pd(vk, four);
+    }
+#endif
+    for (; j < m; j++)
+        th[j] = fma(wdt, k + (double)j, p);
+}
+
+/* theta[i] of samples s[0..n) by phase_gen (see there), and their forces f[i]; samples off
+ * the time grid of the drive's t0 (not made by a simulator at this chain's rate) by
+ * afm_drive_phase's own expression. */
+static void drive_phase(afm_chain *c, const afm_sample *s, int n, double *th, double *f) {
+    const afm_drive *d = c->drive;
+    phase_gen *g = &c->phase;
+    for (int i = 0; i < n; i++)
+        f[i] = s[i].f_n;
+    if (!g->set || g->ph != d->phase_rad[0] || g->w != d->omega_rad_s[0] || g->t0 != d->t0_s[0]) {
+        g->ph = d->phase_rad[0];
+        g->w = d->omega_rad_s[0];
+        g->t0 = d->t0_s[0];
+        g->wdt = g->w * (1.0 / c->fs);
+        g->set = false; /* origin from the first sample below */
+    }
+    double kd = (s[0].t_s - g->t0) * c->fs, k = nearbyint(kd);
+    if (!(fabs(kd - k) < 0.25 && k >= 0 && k < 0x1p52)) {
+        for (int i = 0; i < n; i++)
+            th[i] = g->ph + g->w * (s[i].t_s - g->t0);
+        return;
+    }
+    if (!g->set || k < g->k_org) { /* the segment of the first sample */
+        g->k_org = afm_floor(k / PHASE_REBASE) * PHASE_REBASE;
+        g->p_org = g->k_org > 0 ? afm_clock_wrap(fma(g->wdt, g->k_org, g->ph)) : g->ph;
+        g->set = true;
+    }
+    for (int i = 0; i < n;) {
+        while (k + i >= g->k_org + PHASE_REBASE) { /* into the next segment */
+            g->p_org = afm_clock_wrap(fma(g->wdt, PHASE_REBASE, g->p_org));
+            g->k_org += PHASE_REBASE;
+        }
+        double left = g->k_org + PHASE_REBASE - (k + i);
+        int m = left < (double)(n - i) ? (int)left : n - i;
+        phase_run(th + i, m, g->wdt, k + i - g->k_org, g->p_org);
+        i += m;
+    }
+}
+
+/* The estimators over n samples, with tone 0's phase from drive_phase. harm and cycle share
+ * the period clock: each run ends at a sample where harm completed a period, and cycle and
+ * lockin are brought to the same sample before the record is written. estimator_rejects
+ * counts, per run, the most samples any one estimator refused. */
+static void estimators(afm_chain *c, const afm_sample *s, const double *obd, int n) {
+    double th[CHUNK], f[CHUNK];
+    drive_phase(c, s, n, th, f);
+    for (int i = 0; i < n;) {
+        long long rh = 0, rc = 0, rl;
+        int done, dc;
+        int k = afm_harm_push_n(&c->harm, obd + i, f + i, th + i, n - i, &done, &rh);
+        for (int j = 0; j < k;) {
+            j += afm_cycle_push_n(&c->cycle, s + i + j, th + i + j, k - j, &dc, &rc);
+        }
+        rl = afm_lockin_push_n(&c->lockin, obd + i, th + i, k);
+        long long r = rh > rc ? rh : rc;
+        c->stats.estimator_rejects += r > rl ? r : rl;
+        if (done) put_period(c);
+        i += k;
+    }
+}
+
+int afm_chain_push(afm_chain *c, const afm_sample *s, int n) {
+    double obd_buf[CHUNK];
+    for (int done = 0; done < n;) {
+        int k = n - done < CHUNK ? n - done : CHUNK;
+        const afm_sample *p = s + done;
+        long long sat0 = c->obd.n_saturated;
+        afm_obd_read_block(&c->obd, p, k, obd_buf);
+        c->stats.obd_saturated += c->obd.n_saturated - sat0;
+        c->obd.n_saturated = sat0;
+        if (c->attached) estimators(c, p, obd_buf, k);
+        run_streams(c, p, obd_buf, k);
+        c->stats.pushed += k;
+        done += k;
+    }
+    return 0;
+}
+
+int afm_chain_take_block(afm_chain *c, int i, afm_chain_block *b, int max_n) {
+    if (i < 0 || i >= c->n_streams) return -1;
+    stream *s = &c->st[i];
+    int tail = (s->head - s->count + s->cap) % s->cap;
+    int n = s->count < s->cap - tail ? s->count : s->cap - tail;
+    if (max_n > 0 && n > max_n) n = max_n;
+    b->stream = i;
+    b->decimation = s->factor;
+    b->rate_hz = c->fs / s->factor;
+    b->n = n;
+    b->t_s = s->rt + tail;
+    b->x_m = s->rx + tail;
+    b->obd_m = s->robd + tail;
+    b->obd_counts = c->obd.enabled && c->obd.adc_bits > 0 ? s->rcnt + tail : NULL;
+    b->f_n = s->rf + tail;
+    b->base_m = s->rbase + tail;
+    s->count -= n;
+    return n;
+}
+
+int afm_chain_available(const afm_chain *c, int i) {
+    return (i < 0 || i >= c->n_streams) ? 0 : c->st[i].count;
+}
+
+void afm_chain_period_finish(const afm_chain *c, afm_chain_period *p) {
+    afm_harm_polar(&c->harm, &p->harm);
+    afm_lockin_polar_of(p->lockin_x_m, p->lockin_y_m, &p->lockin_amplitude_m, &p->lockin_phase_deg);
+}
+
+int afm_chain_take_periods(afm_chain *c, afm_chain_period *out, int max) {
+    int n = afm_chain_take_periods_raw(c, out, max);
+    for (int i = 0; i < n; i++)
+        afm_chain_period_finish(c, &out[i]);
+    return n;
+}
+
+int afm_chain_take_periods_raw(afm_chain *c, afm_chain_period *out, int max) {
+    int n = 0;
+    while (n < max && c->p_count > 0) {
+        out[n++] = c->periods[c->p_head];
+        c->p_head = (c->p_head + 1) % PERIOD_RING;
+        c->p_count--;
+    }
+    return n;
+}
+
+void afm_chain_reset(afm_chain *c) {
+    for (int i = 0; i < c->n_streams; i++) {
+        afm_decim_reset(c->st[i].dec);
+        c->st[i].head = c->st[i].count = 0;
+    }
+    keep_rebuilds(c);
+    afm_harm_reset(&c->harm);
+    afm_lockin_reset(&c->lockin);
+    if (c->attached) afm_cycle_reset(&c->cycle);
+    c->p_head = c->p_count = 0;
+}
+
+int afm_chain_n_streams(const afm_chain *c) {
+    return c->n_streams;
+}
+afm_chain_stats afm_chain_stats_get(const afm_chain *c) {
+    afm_chain_stats s = c->stats;
+    s.estimator_rebuilds += c->harm.trk.rate_changes + c->lockin.trk.rate_changes;
+    for (int i = 0; i < c->n_streams; i++)
+        s.nonfinite += afm_decim_nonfinite(c->st[i].dec);
+    return s;
+}
+const afm_obd *afm_chain_obd(const afm_chain *c) {
+    return &c->obd;
+}

@@ -1,0 +1,727 @@
+/* SPDX-License-Identifier: MIT */
+/* afm_cycle.c -- streaming per-period tapping metrics (contract in afm_cycle.h). */
+#include "estimators/afm_cycle.h"
+
+#include <stdio.h>
+#include <string.h>
+#if defined(__AVX__)
+#include <immintrin.h>
+#elif defined(__SSE4_1__)
+#include <smmintrin.h>
+#endif
+
+#if defined(__GNUC__)
+#define CYCLE_INLINE inline __attribute__((always_inline))
+#define CYCLE_NOINLINE __attribute__((noinline))
+#else
+#define CYCLE_INLINE inline
+#define CYCLE_NOINLINE
+#endif
+
+/* *d = *s (afm_sample: 6 doubles) without the string copy the compiler picks. */
+static CYCLE_INLINE void copy_sample(afm_sample *d, const afm_sample *s) {
+#if defined(__AVX__)
+    _Static_assert(sizeof(afm_sample) == 6 * sizeof(double), "afm_sample: 6 doubles");
+    _mm256_storeu_pd(&d->t_s, _mm256_loadu_pd(&s->t_s));
+    _mm_storeu_pd(&d->theta_rad, _mm_loadu_pd(&s->theta_rad));
+#else
+    *d = *s;
+#endif
+}
+
+int afm_cycle_init(afm_cycle *c, double x_contact_m, double cos_alpha, char *err, size_t errlen) {
+    if (!c || isnan(x_contact_m) || x_contact_m == HUGE_VAL || !(cos_alpha > 0) ||
+        !(cos_alpha <= 1)) {
+        if (err && errlen)
+            snprintf(err, errlen,
+                     "cycle: contact line must be a number or -inf (got %g), cos(alpha) in (0, 1] "
+                     "(got %g)",
+                     x_contact_m, cos_alpha);
+        return -1;
+    }
+    memset(c, 0, sizeof *c);
+    c->x_contact_m = x_contact_m;
+    c->cos_alpha = cos_alpha;
+    afm_track_init(&c->trk, true);
+    return 0;
+}
+
+int afm_cycle_set_contact(afm_cycle *c, double x_contact_m) {
+    if (isnan(x_contact_m) || x_contact_m == HUGE_VAL) return -1;
+    if (c->active && c->n_prev > 0) { /* the whole steps in contact so far, by the old line */
+        if (c->prev.x_m < c->x_contact_m) c->cur.contact_time_s += c->prev.t_s - c->t_in;
+        c->t_in = c->prev.t_s;
+    }
+    c->x_contact_m = x_contact_m;
+    return 0;
+}
+
+void afm_cycle_reset(afm_cycle *c) {
+    double xc = c->x_contact_m, ca = c->cos_alpha;
+    memset(c, 0, sizeof *c);
+    c->x_contact_m = xc;
+    c->cos_alpha = ca;
+    afm_track_init(&c->trk, true);
+}
+
+/* Length of [a, b] inside [lo, hi]. */
+static double overlap(double a, double b, double lo, double hi) {
+    double l = a > lo ? a : lo, r = b < hi ? b : hi;
+    return r > l ? r - l : 0.0;
+}
+
+/* One Halley step from s on g(s) = ((a s + b) s + c) s + d. */
+static inline double halley(double a, double b, double c, double d, double s) {
+    double g = fma(fma(fma(a, s, b), s, c), s, d);
+    double d1 = fma(fma(3.0 * a, s, 2.0 * b), s, c);
+    return s - 2.0 * g * d1 / fma(2.0 * d1, d1, -g * fma(6.0 * a, s, 2.0 * b));
+}
+
+/* The bracketed iteration for crossing (bisection when a Halley step leaves the bracket),
+ * from s. */
+AFM_EST_COLD static double crossing_robust(double a, double b, double c, double d, double s) {
+    double lo = 0.0, hi = 1.0;
+    bool pos0 = d >= 0;
+    for (int it = 0; it < 100; it++) {
+        double g = fma(fma(fma(a, s, b), s, c), s, d);
+        if (g == 0.0) break;
+        if ((g >= 0) == pos0)
+            lo = s;
+        else
+            hi = s;
+        double sn = halley(a, b, c, d, s);
+        if (!(sn > lo && sn < hi)) {
+            s = 0.5 * (lo + hi);
+            if (hi - lo <= 1e-15) break;
+            continue;
+        }
+        bool last = fabs(sn - s) <= 1e-6;
+        s = sn;
+        if (last) break;
+    }
+    return s;
+}
+
+/* Crossing of the step's Hermite cubic through xc (p and q on opposite sides): *frac in
+ * (0, 1), *v the cubic's slope there / h. The same root as afm_hermite_crossing_newton, to
+ * within ~1e-15 of the step (closer to the exact root than it: the cubic is evaluated in
+ * g = x - xc without cancelling the large x), in fewer evaluations: two steps of Halley's
+ * iteration (cubic convergence) from the root of the quadratic through g0 with slope h v0
+ * and g1 (within ~3e-3 of the step on tapping orbits; the secant if it has none in (0, 1)),
+ * kept when they stay in (0, 1) and the second corrects by at most 1e-6 (its error is then
+ * ~1e-18 times the ratio of the cubic's derivatives); else the bracketed iteration. The
+ * bisection of afm_hermite_crossing when the Bernstein control polygon g0, gb1, gb2, g1
+ * changes sign three times (the cubic may have three roots). */
+static CYCLE_INLINE void crossing(const afm_sample *p, const afm_sample *q, double h, double xc,
+                                  double *frac, double *v) {
+    double g0 = p->x_m - xc, g1 = q->x_m - xc, hv0 = h * p->v_m_s, hv1 = h * q->v_m_s;
+    double gb1 = g0 + (1.0 / 3.0) * hv0, gb2 = g1 - (1.0 / 3.0) * hv1;
+    bool pos0 = g0 >= 0;
+    if ((gb1 >= 0) != pos0 && (gb2 >= 0) == pos0) { /* signs alternate: 3 changes */
+        afm_hermite_crossing(p, q, h, xc, frac, v);
+        return;
+    }
+    /* g(s) = ((a s + b) s + hv0) s + g0: afm_hermite's cubic less xc */
+    double dg = g1 - g0, a = hv0 + hv1 - 2.0 * dg, b = 3.0 * dg - 2.0 * hv0 - hv1;
+    double s = -g0 / dg; /* the secant */
+    double qa = dg - hv0, disc = fma(hv0, hv0, -4.0 * qa * g0);
+    if (disc >= 0.0) { /* roots of qa s^2 + hv0 s + g0 (stable form) */
+        double sq = sqrt(disc), qq = -0.5 * (hv0 + (hv0 >= 0 ? sq : -sq));
+        double r0 = qq / qa, r1 = g0 / qq;
+        if (r0 > 0.0 && r0 < 1.0)
+            s = r0;
+        else if (r1 > 0.0 && r1 < 1.0)
+            s = r1;
+    }
+    if (!(s > 0.0 && s < 1.0)) s = 0.5;
+    double s1 = halley(a, b, hv0, g0, s), s2 = halley(a, b, hv0, g0, s1);
+    if (!(s1 > 0.0 && s1 < 1.0 && s2 > 0.0 && s2 < 1.0 && fabs(s2 - s1) <= 1e-6))
+        s2 = crossing_robust(a, b, hv0, g0, s);
+    *frac = s2;
+    *v = fma(fma(3.0 * a, s2, 2.0 * b), s2, hv0) / h;
+}
+
+/* The cubic with Bernstein control points b0..b3 is strictly monotone on [0, 1] (no
+ * stationary point inside) when the differences b1 - b0, b2 - b1, b3 - b2 have one strict
+ * sign (its derivative is a positive combination of them). */
+static inline bool hermite_monotone(double b0, double b1, double b2, double b3) {
+    double d0 = b1 - b0, d1 = b2 - b1, d2 = b3 - b2;
+    return (d0 > 0.0 && d1 > 0.0 && d2 > 0.0) || (d0 < 0.0 && d1 < 0.0 && d2 < 0.0);
+}
+
+/* Minimum of xmin and the step's Hermite cubic in (x, v) at its stationary points inside
+ * (lo, hi) of [0, 1]: the roots of the derivative 3 a s^2 + 2 b s + h v0 (stable form), the
+ * cubic ((a s + b) s + h v0) s + x0 by Horner. Its coefficients come from x1 - x0 (not
+ * from x0, x1 apart as afm_hermite's, which cancel ~1e-16 |x|). */
+static double hermite_min(const afm_sample *p, const afm_sample *q, double h, double lo, double hi,
+                          double xmin) {
+    double hv0 = h * p->v_m_s, hv1 = h * q->v_m_s, dx = q->x_m - p->x_m;
+    double a = hv0 + hv1 - 2.0 * dx, b = 3.0 * dx - 2.0 * hv0 - hv1;
+    double A = 3.0 * a, B = 2.0 * b, r[2];
+    int nr = 0;
+    if (fabs(A) < 1e-300) {
+        if (fabs(B) > 1e-300) r[nr++] = -hv0 / B;
+    } else {
+        double disc = fma(B, B, -4.0 * A * hv0);
+        if (disc >= 0) {
+            double sq = sqrt(disc), qq = -0.5 * (B + (B >= 0 ? sq : -sq));
+            r[nr++] = qq / A;
+            if (qq != 0) r[nr++] = hv0 / qq;
+        }
+    }
+    for (int k = 0; k < nr; k++) {
+        if (!(r[k] > lo && r[k] < hi)) continue;
+        double x = fma(fma(fma(a, r[k], b), r[k], hv0), r[k], p->x_m);
+        if (x < xmin) xmin = x;
+    }
+    return xmin;
+}
+
+/* Minimum of xmin and the step's Hermite cubic at its stationary points inside (0, 1), for
+ * a step with a Bernstein control point (x0 + h v0 / 3 or x1 - h v1 / 3) below both ends:
+ * the control polygon then changes direction, so the cubic is not monotone (no test). */
+static double step_min(const afm_sample *p, const afm_sample *q, double xmin) {
+    return hermite_min(p, q, q->t_s - p->t_s, 0.0, 1.0, xmin);
+}
+
+/* A step from c->prev to s inside the active period (no boundary): the previous sample's
+ * trapezoid weight into the sums of its index, s's x into the samples' minimum, and the
+ * step's flags: the parabola at a local maximum of f at prev, a Bernstein control point
+ * below both ends of the step (the cubic may dip below them: its minimum, step_min;
+ * otherwise the cubic stays above the samples' minimum), a contact crossing (its part of the
+ * step; the whole steps of a contact are added when it ends, as one difference of times).
+ * The runs (run_block, run_events) do the same, operation for operation. */
+/* A step p -> q (length h) across the contact line xc: the contact time *ct (the step's part
+ * in contact; an outward step adds the whole steps since *t_in as well), and for an inward
+ * crossing inside the step the count *nc and, at the first, the pre-contact velocity *v_in.
+ * step_plain and run_events keep these in different places. */
+static CYCLE_INLINE void cross_step(const afm_sample *p, const afm_sample *q, double h, double xc,
+                                    double *ct, double *t_in, int *nc, double *v_in) {
+    double fr, v;
+    crossing(p, q, h, xc, &fr, &v);
+    if (q->x_m < xc) { /* inward: [fr, 1] of the step is in contact */
+        *ct += h * overlap(fr, 1.0, 0.0, 1.0);
+        if (fr >= 0.0 && fr < 1.0) {
+            if (*nc == 0) *v_in = v;
+            (*nc)++;
+        }
+        *t_in = q->t_s;
+    } else { /* outward: the whole steps since t_in, then [0, fr] */
+        *ct += (p->t_s - *t_in) + h * fr;
+    }
+}
+
+static void step_plain(afm_cycle *c, const afm_sample *s) {
+    afm_cycle_metrics *m = &c->cur;
+    const afm_sample *p = &c->prev;
+    double h = s->t_s - p->t_s, w = s->t_s - c->t_before, h3 = h * (1.0 / 3.0);
+    int l = (int)(c->k & 3);
+    c->sum_fv[l] = fma(w, p->f_n * p->v_m_s, c->sum_fv[l]);
+    c->sum_x[l] = fma(w, p->x_m, c->sum_x[l]);
+    if (s->x_m < c->smin) c->smin = s->x_m;
+    double b1 = fma(h3, p->v_m_s, p->x_m), b2 = fma(-h3, s->v_m_s, s->x_m);
+    if ((b1 < b2 ? b1 : b2) < (p->x_m < s->x_m ? p->x_m : s->x_m))
+        m->min_deflection_m = step_min(p, s, m->min_deflection_m);
+    if (c->n_prev >= 2 && p->f_n >= c->f_prev2 && p->f_n >= s->f_n) {
+        double pk = afm_parabola_peak(c->f_prev2, p->f_n, s->f_n);
+        if (pk > m->peak_force_n) m->peak_force_n = pk;
+    }
+    if (s->f_n > m->peak_force_n) m->peak_force_n = s->f_n;
+    double xc = c->x_contact_m;
+    if ((p->x_m < xc) != (s->x_m < xc))
+        cross_step(p, s, h, xc, &m->contact_time_s, &c->t_in, &m->n_contacts,
+                   &m->pre_contact_velocity_m_s);
+    c->f_prev2 = p->f_n;
+    c->t_before = p->t_s;
+    c->k++;
+    copy_sample(&c->prev, s);
+}
+
+/* A period boundary at frac of the step from c->prev to s (or the first sample exactly on
+ * a boundary: no step, h = 0): the ending period, if one is active, gets the first part of
+ * the step and is finished into c->out; the new one starts at s with the rest. Returns 1
+ * when a period was completed. */
+static int step_boundary(afm_cycle *c, const afm_sample *s, double frac, bool has_step) {
+    afm_cycle_metrics *m = &c->cur, *o = &c->out;
+    const afm_sample *p = &c->prev;
+    bool finishing = c->active && has_step;
+    double h = has_step ? s->t_s - p->t_s : 0.0;
+    /* minima of the Hermite cubic inside the step, before and after the boundary */
+    double xmin_b = HUGE_VAL, xmin_a = HUGE_VAL, h3 = h * (1.0 / 3.0);
+    double b1 = fma(h3, p->v_m_s, p->x_m), b2 = fma(-h3, s->v_m_s, s->x_m);
+    if (has_step && !hermite_monotone(p->x_m, b1, b2, s->x_m)) {
+        xmin_b = hermite_min(p, s, h, 0.0, frac, xmin_b);
+        xmin_a = hermite_min(p, s, h, frac, 1.0, xmin_a);
+    }
+    /* contact part of the step [ca, cb] and the inward crossing r_in */
+    double xc = c->x_contact_m, ca = 0.0, cb = 0.0, r_in = -1.0, v_in = 0.0;
+    bool in0 = has_step && p->x_m < xc, in1 = s->x_m < xc;
+    if (has_step && in1) cb = 1.0;
+    if (has_step && in0 != in1) {
+        if (in1) {
+            crossing(p, s, h, xc, &r_in, &v_in);
+            ca = r_in;
+        } else {
+            double v_out;
+            crossing(p, s, h, xc, &cb, &v_out);
+        }
+    }
+    /* the integrals' parts (afm_split_weights) */
+    double wb0 = frac - 0.5 * frac * frac, wb1 = 0.5 * frac * frac;
+    double wa0 = 0.5 * (1.0 - frac) * (1.0 - frac), wa1 = 0.5 * (1.0 - frac * frac);
+    double e0 = -p->f_n * p->v_m_s, e1 = -s->f_n * s->v_m_s;
+    if (finishing) {
+        /* the last sample's own (backward) weight, then the sums in a fixed order */
+        int l = (int)(c->k & 3);
+        double w = p->t_s - c->t_before;
+        c->sum_fv[l] = fma(w, p->f_n * p->v_m_s, c->sum_fv[l]);
+        c->sum_x[l] = fma(w, p->x_m, c->sum_x[l]);
+        double rfv = (c->sum_fv[0] + c->sum_fv[1]) + (c->sum_fv[2] + c->sum_fv[3]);
+        double rx = (c->sum_x[0] + c->sum_x[1]) + (c->sum_x[2] + c->sum_x[3]);
+        double peak = m->peak_force_n;
+        if (c->n_prev >= 2) {
+            double pk = afm_parabola_peak(c->f_prev2, p->f_n, s->f_n);
+            if (pk > peak) peak = pk;
+        }
+        double xmin = m->min_deflection_m < c->smin ? m->min_deflection_m : c->smin;
+        if (xmin_b < xmin) xmin = xmin_b;
+        int nc = m->n_contacts;
+        double vpre = m->pre_contact_velocity_m_s;
+        if (r_in >= 0.0 && r_in < frac) {
+            if (nc == 0) vpre = v_in;
+            nc++;
+        }
+        if (frac >= 1.0) { /* s ends this period */
+            if (s->x_m < xmin) xmin = s->x_m;
+            if (s->f_n > peak) peak = s->f_n;
+        }
+        double dur = (m->duration_s + (p->t_s - c->t_first)) + h * frac;
+        double xint = (c->x_int + 0.5 * rx) + h * (wb0 * p->x_m + wb1 * s->x_m);
+        double ct = m->contact_time_s + (in0 ? p->t_s - c->t_in : 0.0);
+        o->period = m->period;
+        o->t_start_s = m->t_start_s;
+        o->duration_s = dur;
+        o->peak_force_n = peak;
+        o->min_deflection_m = xmin;
+        o->indentation_m = xmin < xc ? c->cos_alpha * (xc - xmin) : 0.0;
+        o->contact_time_s = ct + h * overlap(ca, cb, 0.0, frac);
+        o->n_contacts = nc;
+        o->pre_contact_velocity_m_s = vpre;
+        o->dissipated_energy_j = (m->dissipated_energy_j + -0.5 * rfv) + h * (wb0 * e0 + wb1 * e1);
+        o->mean_deflection_m = dur > 0 ? xint / dur : xmin;
+        c->periods++;
+    }
+    /* the new period: the rest of the step */
+    m->period = c->periods;
+    m->t_start_s = p->t_s + frac * h;
+    if (!has_step) m->t_start_s = s->t_s;
+    m->duration_s = h * (1.0 - frac);
+    m->peak_force_n = s->f_n;
+    m->min_deflection_m = xmin_a < s->x_m ? xmin_a : s->x_m;
+    m->indentation_m = 0.0;
+    m->contact_time_s = h * overlap(ca, cb, frac, 1.0);
+    m->n_contacts = 0;
+    m->pre_contact_velocity_m_s = NAN;
+    if (r_in >= frac) {
+        m->pre_contact_velocity_m_s = v_in;
+        m->n_contacts = 1;
+    }
+    m->dissipated_energy_j = h * (wa0 * e0 + wa1 * e1);
+    m->mean_deflection_m = 0.0;
+    c->x_int = h * (wa0 * p->x_m + wa1 * s->x_m);
+    for (int i = 0; i < 4; i++)
+        c->sum_fv[i] = c->sum_x[i] = 0.0;
+    c->smin = s->x_m;
+    c->k = 0;
+    c->t_before = c->t_first = c->t_in = s->t_s;
+    c->active = true;
+    c->f_prev2 = p->f_n;
+    copy_sample(&c->prev, s);
+    if (c->n_prev < 2) c->n_prev++;
+    return finishing;
+}
+
+/* The step from c->prev to s by the exact clock's event ev (frac for a boundary). */
+static int step_general(afm_cycle *c, const afm_sample *s, bool had_prev, int ev, double frac) {
+    if (ev == AFM_CLOCK_CROSS && had_prev) return step_boundary(c, s, frac, true);
+    if (ev == AFM_CLOCK_START && !had_prev) return step_boundary(c, s, 1.0, false);
+    if (had_prev && c->active) {
+        step_plain(c, s);
+    } else {
+        c->f_prev2 = c->prev.f_n;
+        copy_sample(&c->prev, s);
+    }
+    if (c->n_prev < 2) c->n_prev++;
+    return 0;
+}
+
+/* The sample by the exact clock (checked: the sample itself is valid). */
+static int push_slow(afm_cycle *c, const afm_sample *s, double theta_rad) {
+    double frac = 1.0;
+    bool had_prev = c->trk.started;
+    int ev = afm_track_step(&c->trk, theta_rad, &frac);
+    if (ev == AFM_CLOCK_BAD) return -1;
+    return step_general(c, s, had_prev, ev, frac);
+}
+
+int afm_cycle_push(afm_cycle *c, const afm_sample *s, double theta_rad) {
+    if (!s || !isfinite(s->t_s) || !isfinite(s->x_m) || !isfinite(s->v_m_s) || !isfinite(s->f_n) ||
+        (c->n_prev > 0 && !(s->t_s > c->prev.t_s)))
+        return -1;
+    if (!afm_track_fast(&c->trk, theta_rad)) return push_slow(c, s, theta_rad);
+    /* no boundary in the step */
+    if (c->active) {
+        step_plain(c, s);
+    } else {
+        c->f_prev2 = c->prev.f_n;
+        copy_sample(&c->prev, s);
+    }
+    if (c->n_prev < 2) c->n_prev++;
+    return 0;
+}
+
+/* ---- runs: afm_cycle_push_n's fast path ----
+ *
+ * A run is a stretch of samples that all take the tracker's fast path (no period boundary),
+ * with the period active and the history full: step_plain for each, 4 steps at a time
+ * (AVX). The sums and minima by index mod 4 are 4 vector lanes (rotated to the run's first
+ * sample), the flags (local maximum of f, contact crossing, Bernstein control point below
+ * both ends of the step) are recorded per block of 4 steps and handled after the sums, in order,
+ * with step_plain's arithmetic: the state after a run is the state after its samples'
+ * afm_cycle_push, bit for bit. A run stops before a sample whose theta is off the
+ * tracker's line or whose step is not positive; a run with a value that is not finite
+ * (its sums are not) is undone and pushed sample by sample (afm_cycle_push rejects it).
+ * Without AVX, afm_cycle_push_n pushes sample by sample. */
+
+#if defined(__AVX__) && defined(__FMA__)
+
+enum {
+    RUN_MAX = 512, /* samples per run (the event records below are on the stack) */
+    RUN_MIN = 4    /* shorter stretches go through afm_cycle_push */
+};
+
+/* Index of the lowest set bit of m != 0. */
+static inline int lowest_bit(unsigned m) {
+#if defined(__GNUC__)
+    return __builtin_ctz(m);
+#else
+    int l = 0;
+    while (!(m >> l & 1))
+        l++;
+    return l;
+#endif
+}
+
+typedef struct {
+    const afm_sample *s;  /* the run's samples; sample -1 is *p0 */
+    const afm_sample *p0; /* the sample before the run (c->prev) */
+    double f_m2;          /* f of the sample before p0 */
+    double t_m2;          /* time of the sample before p0 */
+    double xc;            /* contact line */
+    double ct;            /* the period's contact time so far, s */
+    double t_in;          /* while in contact: the contact's whole steps start here */
+    double v_in;          /* velocity at the run's first inward crossing */
+    double pk;            /* peak force so far */
+    double xmin;          /* Hermite minimum so far */
+    int nc;               /* inward crossings in the run */
+} run_state;
+
+/* The flagged blocks of a run. */
+typedef struct {
+    int n_ev;                     /* flagged blocks */
+    unsigned ev[RUN_MAX / 4 + 1]; /* first step << 12 | mn << 8 | cr << 4 | lm */
+} run_flags;
+
+/* The flagged steps, in order: step k joins sample k - 1 (p) to sample k (q); in block
+ * record e, bit l of lm / cr / mn flags step k0 + l. lm: f has a local maximum at p (>= both
+ * neighbours): the parabola; cr: p and q lie on opposite sides of the contact line; mn: a
+ * Bernstein control point below both p and q: step_min. As step_plain. */
+static CYCLE_NOINLINE void run_events(run_state *r, const run_flags *fl) {
+    const afm_sample *s = r->s;
+    for (int e = 0; e < fl->n_ev; e++) {
+        unsigned ev = fl->ev[e];
+        int k0 = (int)(ev >> 12);
+        for (unsigned lm = ev & 15u; lm; lm &= lm - 1) {
+            int k = k0 + lowest_bit(lm);
+            double fm, f0, fp = s[k].f_n;
+            if (k >= 2) {
+                fm = s[k - 2].f_n;
+                f0 = s[k - 1].f_n;
+            } else {
+                fm = k ? r->p0->f_n : r->f_m2;
+                f0 = k ? s[0].f_n : r->p0->f_n;
+            }
+            double pk = afm_parabola_peak(fm, f0, fp);
+            if (pk > r->pk) r->pk = pk;
+        }
+        for (unsigned cr = ev >> 4 & 15u; cr; cr &= cr - 1) {
+            int k = k0 + lowest_bit(cr);
+            const afm_sample *p = k ? s + k - 1 : r->p0, *q = s + k;
+            cross_step(p, q, q->t_s - p->t_s, r->xc, &r->ct, &r->t_in, &r->nc, &r->v_in);
+        }
+        for (unsigned mn = ev >> 8 & 15u; mn; mn &= mn - 1) {
+            int k = k0 + lowest_bit(mn);
+            r->xmin = step_min(k ? s + k - 1 : r->p0, s + k, r->xmin);
+        }
+    }
+}
+
+/* Lanes delayed across blocks: lag2(a, b) = (a2, a3, b0, b1), lag1(lag2(a, b), b) =
+ * (a3, b0, b1, b2), a the previous block. */
+static inline __m256d lag2(__m256d a, __m256d b) {
+    return _mm256_permute2f128_pd(a, b, 0x21);
+}
+static inline __m256d lag1(__m256d l2, __m256d b) {
+    return _mm256_shuffle_pd(l2, b, 5);
+}
+
+typedef struct {
+    __m256d t, x, v, f; /* the previous block (t, x, v, f) */
+    __m256d n;          /* tracker steps of the block's lanes */
+    __m256d fv, xs, xm; /* sums of w f v, w x of the previous samples, minima of x */
+} run_vec;
+
+static inline double hmin4(__m256d a) {
+    __m128d s = _mm_min_pd(_mm256_castpd256_pd128(a), _mm256_extractf128_pd(a, 1));
+    return _mm_cvtsd_f64(_mm_min_sd(s, _mm_unpackhi_pd(s, s)));
+}
+
+typedef struct {
+    __m256d ref, dphi, tol, xc, abs, four, third;
+} run_consts;
+
+/* One block of 4 samples a[0..3] (steps k0 .. k0 + 3, theta th4); lanes >= nv repeat the
+ * last valid one (they add nothing: weights and flags masked, x not in the minima; the last
+ * valid sample's own weight waits for its next step, as in step_plain). Returns 4 when
+ * taken, else the first lane off the fast path (theta off the tracker's line, a step not
+ * positive): nothing added. */
+static CYCLE_INLINE int run_block(run_vec *w, unsigned *ev, int *n_ev, const run_consts *k,
+                                  const afm_sample *const a[4], const double *th4, int k0, int nv) {
+    __m256d u0 = _mm256_insertf128_pd(_mm256_castpd128_pd256(_mm_loadu_pd(&a[0]->t_s)),
+                                      _mm_loadu_pd(&a[2]->t_s), 1);
+    __m256d u1 = _mm256_insertf128_pd(_mm256_castpd128_pd256(_mm_loadu_pd(&a[1]->t_s)),
+                                      _mm_loadu_pd(&a[3]->t_s), 1);
+    __m256d u2 = _mm256_insertf128_pd(_mm256_castpd128_pd256(_mm_loadu_pd(&a[0]->v_m_s)),
+                                      _mm_loadu_pd(&a[2]->v_m_s), 1);
+    __m256d u3 = _mm256_insertf128_pd(_mm256_castpd128_pd256(_mm_loadu_pd(&a[1]->v_m_s)),
+                                      _mm_loadu_pd(&a[3]->v_m_s), 1);
+    __m256d T = _mm256_unpacklo_pd(u0, u1), X = _mm256_unpackhi_pd(u0, u1);
+    __m256d V = _mm256_unpacklo_pd(u2, u3), F = _mm256_unpackhi_pd(u2, u3);
+    /* the fast path: theta on the tracker's line, a positive step */
+    __m256d Tpp = lag2(w->t, T), H = _mm256_sub_pd(T, lag1(Tpp, T));
+    __m256d err = _mm256_fnmadd_pd(w->n, k->dphi, _mm256_sub_pd(_mm256_loadu_pd(th4), k->ref));
+    __m256d bad = _mm256_or_pd(_mm256_cmp_pd(_mm256_and_pd(err, k->abs), k->tol, _CMP_NLE_UQ),
+                               _mm256_cmp_pd(H, _mm256_setzero_pd(), _CMP_NGT_UQ));
+    __m256d Xq = X, W = _mm256_sub_pd(T, Tpp); /* w of the previous samples (Xp, Fp Vp) */
+    if (nv < 4) { /* the repeated lanes, and the last valid sample's own weight */
+        __m256d keep =
+            _mm256_cmp_pd(_mm256_set_pd(3.0, 2.0, 1.0, 0.0), _mm256_set1_pd(nv), _CMP_LT_OQ);
+        Xq = _mm256_blendv_pd(_mm256_set1_pd(HUGE_VAL), X, keep);
+        W = _mm256_and_pd(W, keep);
+    }
+    /* flags: contact crossing, local maximum of f at the previous sample, a Bernstein
+     * control point below the minimum of x of the lane */
+    __m256d Xp = lag1(lag2(w->x, X), X), Vp = lag1(lag2(w->v, V), V);
+    __m256d cr =
+        _mm256_xor_pd(_mm256_cmp_pd(X, k->xc, _CMP_LT_OQ), _mm256_cmp_pd(Xp, k->xc, _CMP_LT_OQ));
+    __m256d Fpp = lag2(w->f, F), Fp = lag1(Fpp, F);
+    __m256d lm =
+        _mm256_and_pd(_mm256_cmp_pd(Fp, Fpp, _CMP_GE_OQ), _mm256_cmp_pd(Fp, F, _CMP_GE_OQ));
+    __m256d H3 = _mm256_mul_pd(H, k->third), XM = _mm256_min_pd(w->xm, Xq);
+    __m256d bmin = _mm256_min_pd(_mm256_fmadd_pd(H3, Vp, Xp), _mm256_fnmadd_pd(H3, V, X));
+    __m256d mn = _mm256_cmp_pd(bmin, _mm256_min_pd(Xp, X), _CMP_LT_OQ);
+    __m256d any = _mm256_or_pd(_mm256_or_pd(bad, mn), _mm256_or_pd(cr, lm));
+    unsigned valid = nv < 4 ? (1u << nv) - 1u : 15u;
+    if (nv < 4 ? ((unsigned)_mm256_movemask_pd(any) & valid) != 0 : !_mm256_testz_pd(any, any)) {
+        unsigned b = (unsigned)_mm256_movemask_pd(bad) & valid;
+        if (b) return lowest_bit(b);
+        unsigned e = (unsigned)_mm256_movemask_pd(mn) << 8 | (unsigned)_mm256_movemask_pd(cr) << 4 |
+                     (unsigned)_mm256_movemask_pd(lm);
+        if (nv < 4) e &= valid * 0x111u;
+        if (e) ev[(*n_ev)++] = (unsigned)k0 << 12 | e;
+    }
+    w->fv = _mm256_fmadd_pd(W, _mm256_mul_pd(Fp, Vp), w->fv);
+    w->xs = _mm256_fmadd_pd(W, Xp, w->xs);
+    w->xm = XM;
+    w->t = T;
+    w->x = X;
+    w->v = V;
+    w->f = F;
+    w->n = _mm256_add_pd(w->n, k->four);
+    return 4;
+}
+
+/* (a[o & 3], a[(o + 1) & 3], a[(o + 2) & 3], a[(o + 3) & 3]) as lanes 0..3, and back
+ * (o = 0 mod 4 after a boundary: a plain load). */
+static inline __m256d lanes_from(const double *a, long o) {
+    if (!(o & 3)) return _mm256_loadu_pd(a);
+    return _mm256_set_pd(a[(o + 3) & 3], a[(o + 2) & 3], a[(o + 1) & 3], a[o & 3]);
+}
+static inline void lanes_to(double *a, long o, __m256d v) {
+    if (!(o & 3)) {
+        _mm256_storeu_pd(a, v);
+        return;
+    }
+    double t[4];
+    _mm256_storeu_pd(t, v);
+    for (int l = 0; l < 4; l++)
+        a[(o + l) & 3] = t[l];
+}
+
+/* The sums over the first samples of s[0 .. m-1] that pass the fast-path test (theta on
+ * the tracker's line, a positive step): returns how many; the lanes in w. */
+static CYCLE_INLINE int run_sums_of(const run_state *r, const afm_cycle *c, const afm_sample *s,
+                                    const double *th, int m, run_vec *wo, run_flags *out) {
+    const afm_sample *p0 = r->p0;
+    const afm_phase_track *tk = &c->trk;
+    double n0 = tk->n;
+    run_consts k;
+    k.ref = _mm256_set1_pd(tk->th_ref);
+    k.dphi = _mm256_set1_pd(tk->dphi);
+    k.tol = _mm256_set1_pd(tk->tol);
+    k.xc = _mm256_set1_pd(r->xc);
+    k.abs = _mm256_castsi256_pd(_mm256_set1_epi64x(0x7fffffffffffffffLL));
+    k.four = _mm256_set1_pd(4.0);
+    k.third = _mm256_set1_pd(1.0 / 3.0);
+    run_vec w;
+    w.t = _mm256_set_pd(p0->t_s, r->t_m2, 0.0, 0.0);
+    w.x = _mm256_set1_pd(p0->x_m);
+    w.v = _mm256_set1_pd(p0->v_m_s);
+    w.f = _mm256_set_pd(p0->f_n, r->f_m2, 0.0, 0.0);
+    w.n = _mm256_set_pd(n0 + 4.0, n0 + 3.0, n0 + 2.0, n0 + 1.0);
+    w.fv = lanes_from(c->sum_fv, c->k); /* lane l: the sample k + l (p0 is lane 0) */
+    w.xs = lanes_from(c->sum_x, c->k);
+    w.xm = _mm256_set1_pd(c->smin); /* lane l: the samples k + 1 + l mod 4 and before */
+    int n_ev = 0, j = 0, l = 4;
+    for (; j + 8 <= m; j += 8) { /* two blocks a step (no register moves) */
+        const afm_sample *a[4] = {s + j, s + j + 1, s + j + 2, s + j + 3};
+        l = run_block(&w, out->ev, &n_ev, &k, a, th + j, j, 4);
+        if (l < 4) break;
+        const afm_sample *b[4] = {s + j + 4, s + j + 5, s + j + 6, s + j + 7};
+        l = run_block(&w, out->ev, &n_ev, &k, b, th + j + 4, j + 4, 4);
+        if (l < 4) {
+            j += 4;
+            break;
+        }
+    }
+    for (; l == 4 && j + 4 <= m; j += 4) {
+        const afm_sample *a[4] = {s + j, s + j + 1, s + j + 2, s + j + 3};
+        l = run_block(&w, out->ev, &n_ev, &k, a, th + j, j, 4);
+        if (l < 4) break;
+    }
+    if (l < 4) { /* w as before the block, from the samples (not kept in registers) */
+        m = j + l;
+        const afm_sample *q1 = j > 0 ? s + j - 1 : p0;
+        double t2 = j > 1 ? s[j - 2].t_s : j > 0 ? p0->t_s : r->t_m2;
+        w.t = _mm256_set_pd(q1->t_s, t2, 0.0, 0.0);
+        w.x = _mm256_set1_pd(q1->x_m);
+        w.v = _mm256_set1_pd(q1->v_m_s);
+        w.f = _mm256_set_pd(q1->f_n, j > 1 ? s[j - 2].f_n : j > 0 ? p0->f_n : r->f_m2, 0.0, 0.0);
+        w.n = _mm256_set_pd(n0 + j + 4.0, n0 + j + 3.0, n0 + j + 2.0, n0 + j + 1.0);
+    }
+    while (j < m) { /* the last 1-3 samples, the last one repeated */
+        int v = m - j, l1 = v > 1 ? j + 1 : m - 1, l2 = v > 2 ? j + 2 : m - 1;
+        const afm_sample *a[4] = {s + j, s + l1, s + l2, s + m - 1};
+        double t4[4] = {th[j], th[l1], th[l2], th[m - 1]};
+        l = run_block(&w, out->ev, &n_ev, &k, a, t4, j, v);
+        if (l == 4) break;
+        m = j + l;
+    }
+    out->n_ev = n_ev;
+    *wo = w;
+    return m;
+}
+
+/* A run over s[0 .. m-1] (m <= RUN_MAX, fast-path room for m samples, period active, full
+ * history). Returns the samples taken (0: none, the caller pushes the next one), or -k: the
+ * first k samples hold a value that is not finite; nothing changed (the caller pushes them
+ * one at a time). */
+static int run(afm_cycle *c, const afm_sample *s, const double *th, int m) {
+    const afm_sample *p0 = &c->prev;
+    afm_cycle_metrics *cm = &c->cur;
+    run_state r = {.s = s,
+                   .p0 = p0,
+                   .f_m2 = c->f_prev2,
+                   .t_m2 = c->t_before,
+                   .xc = c->x_contact_m,
+                   .ct = cm->contact_time_s,
+                   .t_in = c->t_in,
+                   .v_in = NAN,
+                   .pk = cm->peak_force_n,
+                   .xmin = cm->min_deflection_m,
+                   .nc = 0};
+    run_flags fl;
+    run_vec w;
+    m = run_sums_of(&r, c, s, th, m, &w, &fl);
+    if (m == 0) return 0;
+    /* a value that is not finite makes the sums not finite */
+    __m256d z = _mm256_mul_pd(_mm256_add_pd(w.fv, w.xs), _mm256_setzero_pd());
+    if (_mm256_movemask_pd(_mm256_cmp_pd(z, z, _CMP_UNORD_Q))) return -m;
+    if (fl.n_ev) run_events(&r, &fl);
+    lanes_to(c->sum_fv, c->k, w.fv);
+    lanes_to(c->sum_x, c->k, w.xs);
+    c->smin = hmin4(w.xm);
+    const afm_sample *q = s + m - 1;
+    cm->contact_time_s = r.ct;
+    if (r.nc > 0) {
+        if (cm->n_contacts == 0) cm->pre_contact_velocity_m_s = r.v_in;
+        cm->n_contacts += r.nc;
+    }
+    cm->min_deflection_m = r.xmin;
+    cm->peak_force_n = q->f_n > r.pk ? q->f_n : r.pk;
+    c->t_in = r.t_in;
+    c->t_before = m >= 2 ? s[m - 2].t_s : p0->t_s;
+    c->f_prev2 = m >= 2 ? s[m - 2].f_n : p0->f_n;
+    c->k += m;
+    copy_sample(&c->prev, q);
+    c->trk.n += m;
+    c->trk.th_prev = th[m - 1];
+    return m;
+}
+
+#endif
+
+/* afm_cycle_push for a sample known to be off the tracker's fast path (afm_track_fast
+ * would fail): its checks, then the exact clock. */
+static CYCLE_INLINE int push_exact(afm_cycle *c, const afm_sample *q, double th) {
+    /* all finite: the products with 0 are all +-0 (NaN otherwise) */
+    double z = (q->t_s * 0.0 + q->x_m * 0.0) + (q->v_m_s * 0.0 + q->f_n * 0.0);
+    return z == 0.0 && !(c->n_prev > 0 && !(q->t_s > c->prev.t_s)) ? push_slow(c, q, th) : -1;
+}
+
+int afm_cycle_push_n(afm_cycle *c, const afm_sample *s, const double *th, int n, int *done,
+                     long long *rejects) {
+    *done = 0;
+    int i = 0, one_by_one = 0;
+    while (i < n) {
+        bool off = false; /* the next sample is off the fast path (a boundary, mostly) */
+        if (one_by_one == 0 && c->active && c->n_prev >= 2) {
+            double room = c->trk.n_end - c->trk.n;
+            off = !(room >= 1.0);
+#if defined(__AVX__) && defined(__FMA__)
+            int m = n - i < RUN_MAX ? n - i : RUN_MAX;
+            if (room < m) m = room > 0 ? (int)room : 0;
+            if (m >= RUN_MIN) {
+                int k = run(c, s + i, th + i, m);
+                if (k > 0) {
+                    i += k;
+                    /* a run that took the whole room: the next sample is off the fast path */
+                    if (!(room == (double)k && i < n)) continue;
+                    off = true;
+                } else {
+                    one_by_one = -k;
+                }
+            }
+#endif
+        }
+        int rc = off ? push_exact(c, &s[i], th[i]) : afm_cycle_push(c, &s[i], th[i]);
+        i++;
+        if (one_by_one > 0) one_by_one--;
+        if (rc < 0) (*rejects)++;
+        if (rc == 1) {
+            *done = 1;
+            break;
+        }
+    }
+    return i;
+}

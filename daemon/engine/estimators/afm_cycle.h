@@ -1,0 +1,106 @@
+/* SPDX-License-Identifier: MIT */
+/* afm_cycle.h -- per-drive-period tapping metrics, streaming: peak force, minimum
+ * deflection, indentation, contact time, pre-contact velocity, dissipated energy, mean
+ * deflection.
+ *
+ * Layer estimators/ (4). Fed sample by sample (afm_sample: t, x, v, f) with the exact drive
+ * phase theta of tone 0 at the sample time (afm_drive_phase(afm_sim_drive(s), 0, t)).
+ * Periods are the intervals between theta = 2 pi m (as afm_harm and afm_orbit; only theta
+ * mod 2 pi is used); the first, partial period is skipped. Contact: gap d = x cos(alpha) + Z below
+ * a0, i.e. x below x_contact = (a0 - Z) / cos(alpha) (afm_force_contact_x; -HUGE_VAL: never).
+ *
+ * Per period [Ta, Tb):
+ *  peak_force_n       max of f: the sample maximum, refined by the parabola through a local
+ *                     maximum and its neighbours (as afm_orbit)
+ *  min_deflection_m   min of x on the cubic Hermite interpolant in (x, v)
+ *  indentation_m      max of a0 - d = cos(alpha) (x_contact - min x); 0 without contact
+ *  contact_time_s     time with x < x_contact; crossings on the cubic Hermite in (x, v)
+ *                     between samples on opposite sides of the line (a graze between two
+ *                     samples out of contact is not seen); a contact running over a period
+ *                     boundary is split there
+ *  n_contacts         inward crossings in the period
+ *  pre_contact_velocity_m_s  v at the first inward crossing (cubic's slope); NAN if none
+ *  dissipated_energy_j E = -int f v dt: the work the tip-sample force takes out of the
+ *                     cantilever over the period (positive when dissipating; its
+ *                     conservative part integrates to ~0 over a closed orbit)
+ *  mean_deflection_m  (1 / T) int x dt
+ * Integrals: trapezoid with fractional ends (the step containing a boundary is split there,
+ * linear interpolant of the integrand), as afm_harm.
+ *
+ * Nothing allocates; O(1) per sample: compares and adds, except at a boundary, a contact
+ * crossing (a root of the cubic: two Halley steps from a quadratic guess, to ~1e-15 of the
+ * step) and a step whose Hermite cubic may dip below both its ends (a Bernstein control
+ * point below them, ~once a period: its stationary points); see afm_phase_track in
+ * afm_est_internal.h. */
+#ifndef AFM_CYCLE_H
+#define AFM_CYCLE_H
+
+#include "estimators/afm_est_internal.h"
+
+typedef struct {
+    long period;       /* sequence number: 0 for the first whole period since init/reset */
+    double t_start_s;  /* Ta (linear between the samples around it) */
+    double duration_s; /* Tb - Ta */
+    double peak_force_n;
+    double min_deflection_m;
+    double indentation_m;
+    double contact_time_s;
+    int n_contacts;
+    double pre_contact_velocity_m_s;
+    double dissipated_energy_j;
+    double mean_deflection_m;
+} afm_cycle_metrics;
+
+/* The integrals are accumulated in an order fixed by the sample stream alone (not by how it
+ * is cut into calls), so that afm_cycle_push and afm_cycle_push_n give the same bits: each
+ * sample of the period adds w f v and w x, w = t_next - t_before (twice its trapezoid
+ * weight), to the sums of its index mod 4; the last sample before a boundary and the
+ * boundary step's parts are added when the period ends. */
+typedef struct {
+    double x_contact_m, cos_alpha;
+    afm_phase_track trk;
+    bool active;
+    afm_sample prev;       /* last sample */
+    double f_prev2;        /* f of the sample before prev (for the parabola) */
+    int n_prev;            /* samples seen, capped at 2 */
+    long k;                /* index of prev in the current period (0: its first sample) */
+    double t_before;       /* time of the sample before prev (prev's own when k = 0) */
+    double t_first;        /* time of the period's first sample */
+    double t_in;           /* while prev is in contact: the contact's whole steps start here */
+    double sum_fv[4];      /* sums of w f v by sample index mod 4 */
+    double sum_x[4];       /* sums of w x by sample index mod 4 */
+    double smin;           /* minimum of x over the period's samples so far */
+    afm_cycle_metrics cur; /* accumulating: duration, energy: the start step's part; peak,
+                            * minimum (first sample, Hermite minima), contacts so far */
+    double x_int;          /* int x dt over the start step's part */
+    long periods;          /* completed periods since init/reset */
+    afm_cycle_metrics out; /* last completed period (valid if periods > 0) */
+} afm_cycle;
+
+/* x_contact_m: afm_force_contact_x (or -HUGE_VAL), cos_alpha in (0, 1]. 0, or -1 with err
+ * (c untouched). */
+int afm_cycle_init(afm_cycle *c, double x_contact_m, double cos_alpha, char *err, size_t errlen);
+
+/* New contact line (after a change of Z). Takes effect from the next step; the current
+ * period mixes both lines. -1 if NaN (nothing changed). */
+int afm_cycle_set_contact(afm_cycle *c, double x_contact_m);
+
+/* Forget the partial period and the history (keeps the contact line). */
+void afm_cycle_reset(afm_cycle *c);
+
+/* One sample. 1 when it completed a period (c->out), 0 otherwise, -1 (nothing changed) if a
+ * value is not finite, time did not increase, or theta did not increase by less than pi. */
+int afm_cycle_push(afm_cycle *c, const afm_sample *s, double theta_rad);
+
+/* Samples s[i], theta[i], i = 0..n-1, as n calls of afm_cycle_push, stopping after the
+ * sample that completes a period. Returns the samples consumed; *done is 1 if the last
+ * one completed a period (c->out); rejected samples are added to *rejects. Same results
+ * and state as afm_cycle_push, bit for bit (so independent of how a stream is cut into
+ * calls): on the tracker's fast path it takes runs of samples 4 at a time (AVX) into the
+ * sums by index mod 4 and a few flags per step (contact crossing, local maximum of f, a
+ * Bernstein control point below both ends of the step), then handles the
+ * flagged steps in order. */
+int afm_cycle_push_n(afm_cycle *c, const afm_sample *s, const double *theta_rad, int n, int *done,
+                     long long *rejects);
+
+#endif

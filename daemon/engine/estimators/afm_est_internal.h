@@ -1,0 +1,601 @@
+/* SPDX-License-Identifier: MIT */
+/* afm_est_internal.h -- small helpers shared by the estimators (afm_orbit, afm_harm,
+ * afm_cycle, afm_lockin): cubic Hermite pieces in (x, v), contact-line crossings, the 3-point
+ * peak, the thesis App. E.4 phase difference, the drive-phase tracker (period clock) with
+ * its vectorised run check (afm_track_run), and 4-lane vector helpers (afm_v4). Internal:
+ * not installed, not part of any contract; everything is static inline so each user gets
+ * its own copy. */
+#ifndef AFM_EST_INTERNAL_H
+#define AFM_EST_INTERNAL_H
+
+#include "integrators/afm_sim.h"
+
+#include <math.h>
+#if defined(__SSE4_1__)
+#include <immintrin.h>
+#endif
+#include <stdbool.h>
+
+/* Slow paths of the estimators: kept out of line so that the per-sample fast path stays a
+ * leaf function without a stack frame. */
+#if defined(__GNUC__)
+#define AFM_EST_COLD __attribute__((noinline, cold))
+#else
+#define AFM_EST_COLD
+#endif
+
+#define AFM_EST_PI 3.14159265358979323846264338327950
+#define AFM_EST_TWO_PI 6.283185307179586476925286766559
+#define AFM_EST_RAD2DEG 57.295779513082320876798154814105
+
+/* Cubic Hermite on [t_j, t_j + h] from (x, v) at both ends: coefficients in s = (t-t_j)/h. */
+typedef struct {
+    double a, b, c, d;
+} afm_cubic;
+
+static inline afm_cubic afm_hermite(const afm_sample *s0, const afm_sample *s1, double h) {
+    afm_cubic q;
+    q.a = 2.0 * s0->x_m + h * s0->v_m_s - 2.0 * s1->x_m + h * s1->v_m_s;
+    q.b = -3.0 * s0->x_m - 2.0 * h * s0->v_m_s + 3.0 * s1->x_m - h * s1->v_m_s;
+    q.c = h * s0->v_m_s;
+    q.d = s0->x_m;
+    return q;
+}
+
+static inline double afm_cubic_at(const afm_cubic *q, double s) {
+    return ((q->a * s + q->b) * s + q->c) * s + q->d;
+}
+
+static inline double afm_cubic_slope(const afm_cubic *q, double s) {
+    return (3.0 * q->a * s + 2.0 * q->b) * s + q->c;
+}
+
+/* Stationary points of the cubic (roots of 3a s^2 + 2b s + c) into r; returns how many
+ * (0..2), unfiltered: the caller keeps those in [0, 1]. */
+static inline int afm_cubic_stationary(const afm_cubic *q, double r[2]) {
+    double A = 3.0 * q->a, B = 2.0 * q->b, C = q->c;
+    int nr = 0;
+    if (fabs(A) < 1e-300) {
+        if (fabs(B) > 1e-300) r[nr++] = -C / B;
+    } else {
+        double disc = B * B - 4.0 * A * C;
+        if (disc >= 0) {
+            double sq = sqrt(disc);
+            double qq = -0.5 * (B + (B >= 0 ? sq : -sq));
+            r[nr++] = qq / A;
+            if (qq != 0) r[nr++] = C / qq;
+        }
+    }
+    return nr;
+}
+
+/* Crossing of x through xc inside [s0, s1] (x on opposite sides at the two samples, step h):
+ * bisection on the Hermite cubic. *frac gets the position in the interval (0..1), *v the
+ * velocity there (derivative of the cubic). */
+static inline void afm_hermite_crossing(const afm_sample *s0, const afm_sample *s1, double h,
+                                        double xc, double *frac, double *v) {
+    afm_cubic q = afm_hermite(s0, s1, h);
+    double lo = 0.0, hi = 1.0;
+    double glo = q.d - xc;
+    for (int it = 0; it < 200 && hi - lo > 1e-15; it++) {
+        double mid = 0.5 * (lo + hi);
+        double g = afm_cubic_at(&q, mid) - xc;
+        if ((g >= 0) == (glo >= 0)) {
+            lo = mid;
+            glo = g;
+        } else {
+            hi = mid;
+        }
+    }
+    double s = 0.5 * (lo + hi);
+    *frac = s;
+    *v = afm_cubic_slope(&q, s) / h;
+}
+
+/* The same crossing as afm_hermite_crossing (to within 1e-15 of the step) by safeguarded
+ * Newton from the secant guess: a bracket [lo, hi] is kept and a Newton step leaving it,
+ * is replaced by bisection. Typically 3-4 cubic evaluations instead of ~50. */
+static inline void afm_hermite_crossing_newton(const afm_sample *s0, const afm_sample *s1, double h,
+                                               double xc, double *frac, double *v) {
+    /* Exactly one root unless the Bernstein control polygon x0, x0 + h v0 / 3,
+     * x1 - h v1 / 3, x1 changes sign more than once: then bisection picks the root. */
+    double g0 = s0->x_m - xc, g1 = s1->x_m - xc;
+    double gb1 = g0 + h * (1.0 / 3.0) * s0->v_m_s, gb2 = g1 - h * (1.0 / 3.0) * s1->v_m_s;
+    if (((g0 >= 0) != (gb1 >= 0)) + ((gb1 >= 0) != (gb2 >= 0)) + ((gb2 >= 0) != (g1 >= 0)) != 1) {
+        afm_hermite_crossing(s0, s1, h, xc, frac, v);
+        return;
+    }
+    afm_cubic q = afm_hermite(s0, s1, h);
+    double lo = 0.0, hi = 1.0;
+    bool lo_pos = g0 >= 0;
+    double s = g0 != g1 ? g0 / (g0 - g1) : 0.5;
+    if (!(s > 0.0 && s < 1.0)) s = 0.5;
+    for (int it = 0; it < 100; it++) {
+        double g = afm_cubic_at(&q, s) - xc;
+        if (g == 0.0) break;
+        if ((g >= 0) == lo_pos)
+            lo = s;
+        else
+            hi = s;
+        double d = afm_cubic_slope(&q, s);
+        double sn = s - g / d;
+        if (!(sn > lo && sn < hi)) sn = 0.5 * (lo + hi);
+        if (fabs(sn - s) <= 2e-16 || hi - lo <= 1e-15) {
+            s = sn;
+            break;
+        }
+        s = sn;
+    }
+    *frac = s;
+    *v = afm_cubic_slope(&q, s) / h;
+}
+
+/* Peak of a sampled maximum f0 by the parabola through (fm, f0, fp); f0 if it is not a
+ * proper local maximum. */
+static inline double afm_parabola_peak(double fm, double f0, double fp) {
+    double den = fm - 2.0 * f0 + fp;
+    if (!(den < 0) || fm > f0 || fp > f0) return f0;
+    double delta = 0.5 * (fm - fp) / den;
+    return f0 - 0.25 * (fm - fp) * delta;
+}
+
+/* floor(x), inline (one rounding instruction where SSE4.1 is there): the same value. */
+static inline double afm_floor(double x) {
+#if defined(__SSE4_1__)
+    __m128d q = _mm_set_sd(x);
+    return _mm_cvtsd_f64(_mm_round_sd(q, q, _MM_FROUND_TO_NEG_INF | _MM_FROUND_NO_EXC));
+#else
+    return floor(x);
+#endif
+}
+
+/* theta mod 2 pi in [0, 2 pi), bit for bit fmod(theta, 2 pi) (+ 2 pi if negative) for
+ * |theta| < 2^52: the remainder theta - m 2 pi is exactly representable, so the one
+ * rounding of fma(-m, 2 pi, theta) is exact once m is right (corrected by one if the
+ * quotient rounded across an integer). fmod itself costs ~150 instructions. */
+static inline double afm_clock_wrap(double th) {
+    if (!(fabs(th) < 0x1p52)) {
+        double ph = fmod(th, AFM_EST_TWO_PI);
+        return ph < 0 ? ph + AFM_EST_TWO_PI : ph;
+    }
+    double m = afm_floor(th * (1.0 / AFM_EST_TWO_PI));
+    double ph = fma(-m, AFM_EST_TWO_PI, th);
+    if (ph < 0) {
+        ph = fma(-(m - 1.0), AFM_EST_TWO_PI, th);
+    } else if (ph >= AFM_EST_TWO_PI) {
+        ph = fma(-(m + 1.0), AFM_EST_TWO_PI, th);
+    }
+    return ph;
+}
+
+/* |(x, y)|: sqrt(x^2 + y^2) (within an ulp of hypot, a fraction of its cost) when the
+ * squares neither overflow nor lose precision to underflow, hypot otherwise. */
+static inline double afm_est_hypot(double x, double y) {
+    double q = x * x + y * y;
+    return q > 1e-290 && q < 1e290 ? sqrt(q) : hypot(x, y);
+}
+
+/* Thesis eq. E.12-E.13: mod(k (pi - phi_1) + phi_k, 2 pi) in degrees, [0, 360); phi_1 and
+ * phi_k are the deflection phases (rad) of A cos(k theta + phi). */
+static inline double afm_phase_diff_deg(int k, double phi1_rad, double phik_rad) {
+    double dphi = afm_clock_wrap((double)k * (AFM_EST_PI - phi1_rad) + phik_rad);
+    double deg = dphi * AFM_EST_RAD2DEG;
+    return deg >= 360.0 ? 0.0 : deg;
+}
+
+/* Drive-phase tracker for the streaming estimators (afm_harm, afm_cycle, afm_lockin): it
+ * follows the phase theta of tone 0 supplied with every sample so that the estimators need
+ * no transcendental function per sample.
+ *
+ * Fast path (afm_track_fast, a few flops): the tracker predicts theta_n = th_ref + n dphi
+ * from the last resynchronisation (th_ref, exact) and a phase-step estimate dphi. The
+ * sample takes the fast path when the supplied theta is within tol of the prediction
+ * (tol = 2e-11 rad + 8 eps |theta| + the noise floor observed in theta, at most 1e-6 rad:
+ * a few ulps of theta, or of omega t when t is large and theta small) and n <= n_end: for a clock,
+ * the predicted theta mod 2 pi p_ref + n dphi stays more than 2 tol + 1e-12 below 2 pi (and dphi >
+ * 4 tol + 1e-12 keeps it above 0). Then theta mod 2 pi = p_ref + (theta - th_ref) exactly, so no
+ * period boundary lies in the step and the step is in (0, pi): the answer of the exact clock is
+ * known without computing it, and an estimator's phasors rotated by e^{i dphi} since th_ref are
+ * within tol (plus rounding) of e^{i theta}.
+ *
+ * Slow path (afm_track_check + afm_track_advance, one or two exact reductions mod 2 pi): the
+ * first sample, the sample after each period boundary, a jump of theta (afm_drive re-wraps
+ * its phase at a tone change, so the unwrapped theta jumps by 2 pi m; the step in which the
+ * frequency changes), a drift of more than tol, and every 4096 (clock) or 1024 samples. It is
+ * the exact drive-period clock: periods are the intervals between the instants where
+ * theta is a multiple of 2 pi; only theta mod 2 pi is used; for a clock a step must advance
+ * the phase by more than 0 and less than pi (tone 0 below half the sample rate). It then
+ * resynchronises (th_ref = theta) and updates dphi: after a jump the next step's increment
+ * (one sample of exact clock in between); otherwise the running average of the clean
+ * intervals' increments, refined only when that moves the prediction over a run by more
+ * than tol / 8 (so an estimator's per-step rotations are rarely recomputed). A non-clock
+ * tracker (the lock-in) accepts any finite theta and never looks at theta mod 2 pi.
+ *
+ * Bounded cost (every dphi change makes the estimators rebuild their tables, ~1e4
+ * instructions): a step off the rate by a whole number of turns (theta re-wrapped: afm_drive
+ * at a tone change that keeps the frequency, the chain's phase origin moving) keeps the lock
+ * and dphi; a step off the rate again within a window of the last lock is read as noise in
+ * theta that tol did not cover (twice its size, at most 1e-6 rad, becomes the noise floor; the
+ * lock and dphi stay) instead of a new rate each time. A theta computed as phi + w (t - t0) at a
+ * large model time t carries w ulp(t) of rounding (4e-9 rad at t = 20 s and 338 kHz) however small
+ * theta is; before this rule such a tracker unlocked and relocked every other sample, rebuilding
+ * the tables each time (the daemon's real-time collapse of issue 12). The chain now computes theta
+ * from the sample count, with only rounding relative to theta itself (afm_chain.c). */
+typedef struct {
+    bool clock;             /* period clock: monotone phase, boundaries (harm, cycle) */
+    bool started;           /* a sample has been accepted since init/reset */
+    bool locked;            /* dphi is known: the fast path may run */
+    double th_prev;         /* theta of the last accepted sample, as supplied */
+    double th_ref;          /* theta at the last resynchronisation */
+    double p_ref;           /* th_ref mod 2 pi (clock), else 0 */
+    double n;               /* steps since the resynchronisation */
+    double dphi;            /* phase step, rad */
+    double nb;              /* steps behind the dphi estimate (capped) */
+    double tol;             /* |theta - th_ref - n dphi| allowed on the fast path; -1: none */
+    double noise;           /* observed noise floor of theta (rad), see afm_track_advance */
+    double n_end;           /* fast path for n <= n_end: for a clock, p_ref + n dphi stays more
+                             * than 2 tol + 1e-12 below 2 pi; at most the window below */
+    double age;             /* steps since the tracker last locked */
+    long long rate_changes; /* times dphi took a new value (each an estimator table rebuild) */
+} afm_phase_track;
+
+/* Resynchronise at least every so many steps (rounding of the rotations; the rate estimate
+ * must hold tol over the window): a clock also does at every boundary. */
+#define AFM_TRACK_WINDOW_CLOCK 4096.0
+#define AFM_TRACK_WINDOW_FREE 1024.0
+#define AFM_TRACK_MAX_BASELINE 4096.0
+
+#define AFM_CLOCK_BAD (-1) /* theta non-finite, or (clock) a phase step not in (0, pi) */
+#define AFM_CLOCK_NONE 0   /* no boundary in (previous sample, this one] */
+#define AFM_CLOCK_CROSS                                                                            \
+    1                     /* boundary in (previous, this]: *frac in (0, 1] of the step             \
+                           * lies before it */
+#define AFM_CLOCK_START 2 /* first sample, exactly on a boundary */
+
+static inline void afm_track_init(afm_phase_track *t, bool clock) {
+    t->clock = clock;
+    t->started = t->locked = false;
+    t->th_prev = t->th_ref = t->p_ref = t->n = t->dphi = t->nb = t->noise = t->age = 0.0;
+    t->tol = -1.0;
+    t->n_end = 0.0;
+    t->rate_changes = 0;
+}
+
+/* a - 2 pi m for the integer m nearest a / 2 pi: the deviation of a step from the rate up to
+ * whole turns (the fma is exact: the remainder is representable). */
+static inline double afm_track_off_turns(double a) {
+    double m = nearbyint(a * (1.0 / AFM_EST_TWO_PI));
+    return fma(-m, AFM_EST_TWO_PI, a);
+}
+
+/* The fast path: true (and the tracker advanced) when theta is the predicted next phase;
+ * false (nothing changed) otherwise, then call afm_track_check / afm_track_advance. */
+static inline bool afm_track_fast(afm_phase_track *t, double th) {
+    double n = t->n + 1.0;
+    if (!(n <= t->n_end && fabs((th - t->th_ref) - n * t->dphi) <= t->tol)) return false;
+    t->n = n;
+    t->th_prev = th;
+    return true;
+}
+
+/* Slow path, part 1: check theta without changing anything: AFM_CLOCK_BAD or
+ * AFM_CLOCK_NONE; *p gets theta mod 2 pi (clock; 0 otherwise). */
+static inline int afm_track_check(const afm_phase_track *t, double th, double *p) {
+    *p = 0.0;
+    if (!isfinite(th)) return AFM_CLOCK_BAD;
+    if (!t->clock) return AFM_CLOCK_NONE;
+    *p = afm_clock_wrap(th);
+    if (t->started) {
+        double d = *p - afm_clock_wrap(t->th_prev);
+        if (d < 0) d += AFM_EST_TWO_PI;
+        if (!(d > 0 && d < AFM_EST_PI)) return AFM_CLOCK_BAD;
+    }
+    return AFM_CLOCK_NONE;
+}
+
+/* The common end of afm_track_advance and afm_track_step: the rate estimate, the lock and
+ * the resynchronisation at theta (p = theta mod 2 pi for a clock, else 0); *rate_changed as
+ * for afm_track_advance. */
+static inline void afm_track_resync(afm_phase_track *t, double th, double p, bool *rate_changed) {
+    double n = t->n + 1.0;
+    *rate_changed = false;
+    double err = (th - t->th_ref) - n * t->dphi;
+    bool drift = t->locked && n <= t->n_end && fabs(err) > t->tol; /* not boundary/window */
+    double dev = (th - t->th_prev) - t->dphi;                      /* this step against the rate */
+    t->age += n;
+    if (!t->started) {
+        t->locked = false;
+    } else if (t->locked && !(fabs(dev) <= 4.0 * t->tol)) {
+        /* Off the rate. By whole turns (tol of the larger theta: the step rounds to its ulp):
+         * the same rate, nothing to average from this interval. Else a new rate, or noise
+         * when it happens again soon after the last lock (see the header). */
+        double big = fmax(fabs(th), fabs(t->th_prev));
+        double offt = afm_track_off_turns(dev);
+        if (!(fabs(offt) <= 4.0 * (2e-11 + 1.8e-15 * big + t->noise))) {
+            if (t->age < AFM_TRACK_WINDOW_CLOCK && fabs(offt) <= 1e-6)
+                t->noise = fmin(2.0 * fabs(offt), 1e-6); /* noise: keep the rate */
+            else
+                t->locked = false; /* a new rate: take the next step's increment */
+        }
+    } else if (t->locked) {
+        /* same rate (the step is consistent): average in the increments since th_ref. A
+         * drift failure raises the noise floor (theta carries the rounding of the sample
+         * time, omega ulp(t), which the tracker cannot know); it decays otherwise. */
+        t->noise = drift ? fmin(fmax(t->noise, 2.0 * fabs(err)), 1e-6) : 0.97 * t->noise;
+        double d = (t->dphi * t->nb + (th - t->th_ref)) / (t->nb + n);
+        double tol = 2e-11 + 1.8e-15 * fabs(th) + t->noise;
+        double win = t->clock ? AFM_TRACK_WINDOW_CLOCK : AFM_TRACK_WINDOW_FREE;
+        if (t->clock && t->dphi > 0 && AFM_EST_TWO_PI / t->dphi < win)
+            win = AFM_EST_TWO_PI / t->dphi; /* the run between two boundaries */
+        if (fabs(d - t->dphi) * win > 0.125 * tol) {
+            t->dphi = d;
+            *rate_changed = true;
+        }
+        t->nb = t->nb + n < AFM_TRACK_MAX_BASELINE ? t->nb + n : AFM_TRACK_MAX_BASELINE;
+    } else {
+        t->dphi = th - t->th_prev;
+        t->nb = 1.0;
+        t->locked = true;
+        t->age = 0.0;
+        *rate_changed = true;
+    }
+    t->rate_changes += *rate_changed;
+    double tol = 2e-11 + 1.8e-15 * fabs(th) + t->noise;
+    if (t->locked && t->clock && !(t->dphi > 4.0 * tol + 1e-12 && t->dphi < AFM_EST_PI - 4.0 * tol))
+        t->locked = false;
+    t->started = true;
+    t->th_prev = t->th_ref = th;
+    t->p_ref = p;
+    t->n = 0.0;
+    t->tol = t->locked ? tol : -1.0;
+    t->n_end = 0.0;
+    if (t->locked && !t->clock) {
+        t->n_end = AFM_TRACK_WINDOW_FREE;
+    } else if (t->locked) {
+        double lim = AFM_EST_TWO_PI - (2.0 * tol + 1e-12);
+        double m = afm_floor((lim - p) / t->dphi);
+        if (m > AFM_TRACK_WINDOW_CLOCK) m = AFM_TRACK_WINDOW_CLOCK;
+        while (m > 0 && !(p + m * t->dphi < lim))
+            m -= 1.0; /* rounding of the division */
+        t->n_end = m > 0 ? m : 0.0;
+    }
+}
+
+/* Slow path, part 2: advance to theta (checked, p from afm_track_check) and resynchronise.
+ * Returns AFM_CLOCK_NONE/CROSS/START (always NONE for a non-clock); *frac as for CROSS;
+ * *rate_changed set when dphi took a new value (the caller's per-step rotation must be
+ * recomputed from it; only meaningful while t->locked). */
+static inline int afm_track_advance(afm_phase_track *t, double th, double p, double *frac,
+                                    bool *rate_changed) {
+    int rc = AFM_CLOCK_NONE;
+    if (t->clock) {
+        if (!t->started) {
+            if (p == 0.0) rc = AFM_CLOCK_START;
+        } else {
+            double pp = afm_clock_wrap(t->th_prev);
+            if (p < pp) {
+                *frac = (AFM_EST_TWO_PI - pp) / (p + AFM_EST_TWO_PI - pp);
+                if (*frac > 1.0) *frac = 1.0;
+                rc = AFM_CLOCK_CROSS;
+            }
+        }
+    }
+    afm_track_resync(t, th, p, rate_changed);
+    return rc;
+}
+
+/* afm_track_check then afm_track_advance for a clock tracker, in one: the same checks, result and
+ * tracker state, with theta_prev reduced mod 2 pi once. AFM_CLOCK_BAD (nothing changed), else as
+ * afm_track_advance (*frac for a boundary). */
+static inline int afm_track_step(afm_phase_track *t, double th, double *frac) {
+    if (!isfinite(th)) return AFM_CLOCK_BAD;
+    double p = afm_clock_wrap(th), pp = 0.0;
+    int rc = AFM_CLOCK_NONE;
+    if (t->started) {
+        pp = afm_clock_wrap(t->th_prev);
+        double d = p - pp;
+        if (d < 0) d += AFM_EST_TWO_PI;
+        if (!(d > 0 && d < AFM_EST_PI)) return AFM_CLOCK_BAD;
+        if (p < pp) {
+            *frac = (AFM_EST_TWO_PI - pp) / (p + AFM_EST_TWO_PI - pp);
+            if (*frac > 1.0) *frac = 1.0;
+            rc = AFM_CLOCK_CROSS;
+        }
+    } else if (p == 0.0) {
+        rc = AFM_CLOCK_START;
+    }
+    bool rate_changed;
+    afm_track_resync(t, th, p, &rate_changed);
+    return rc;
+}
+
+/* Weights of the two samples of a step split at frac s (linear interpolant of the integrand,
+ * integrated exactly; units of the step): the part before the split gets w_before[0] g_prev
+ * + w_before[1] g_cur, the part after w_after[0] g_prev + w_after[1] g_cur. s = 1 leaves
+ * the whole step before the split (plain trapezoid). */
+static inline void afm_split_weights(double s, double w_before[2], double w_after[2]) {
+    w_before[0] = s - 0.5 * s * s;
+    w_before[1] = 0.5 * s * s;
+    w_after[0] = 0.5 * (1.0 - s) * (1.0 - s);
+    w_after[1] = 0.5 * (1.0 - s * s);
+}
+
+/* 4 doubles side by side (afm_harm's harmonic lanes, afm_lockin's filter stages): AVX
+ * registers when the target has AVX and FMA, else plain arrays. Both give the same results:
+ * each operation rounds once per lane, afm_v4_fma included (fma of libm otherwise). */
+#if defined(__AVX__) && defined(__FMA__)
+#include <immintrin.h>
+#define AFM_EST_AVX 1
+typedef __m256d afm_v4;
+static inline afm_v4 afm_v4_ld(const double *p) {
+    return _mm256_loadu_pd(p);
+}
+static inline void afm_v4_st(double *p, afm_v4 a) {
+    _mm256_storeu_pd(p, a);
+}
+static inline afm_v4 afm_v4_set1(double a) {
+    return _mm256_set1_pd(a);
+}
+static inline afm_v4 afm_v4_add(afm_v4 a, afm_v4 b) {
+    return _mm256_add_pd(a, b);
+}
+static inline afm_v4 afm_v4_sub(afm_v4 a, afm_v4 b) {
+    return _mm256_sub_pd(a, b);
+}
+static inline afm_v4 afm_v4_mul(afm_v4 a, afm_v4 b) {
+    return _mm256_mul_pd(a, b);
+}
+/* a b + c, c - a b and a b - c, one rounding */
+static inline afm_v4 afm_v4_fma(afm_v4 a, afm_v4 b, afm_v4 c) {
+    return _mm256_fmadd_pd(a, b, c);
+}
+static inline afm_v4 afm_v4_fnma(afm_v4 a, afm_v4 b, afm_v4 c) {
+    return _mm256_fnmadd_pd(a, b, c);
+}
+static inline afm_v4 afm_v4_fms(afm_v4 a, afm_v4 b, afm_v4 c) {
+    return _mm256_fmsub_pd(a, b, c);
+}
+#else
+typedef struct {
+    double v[4];
+} afm_v4;
+static inline afm_v4 afm_v4_ld(const double *p) {
+    afm_v4 r;
+    for (int l = 0; l < 4; l++)
+        r.v[l] = p[l];
+    return r;
+}
+static inline void afm_v4_st(double *p, afm_v4 a) {
+    for (int l = 0; l < 4; l++)
+        p[l] = a.v[l];
+}
+static inline afm_v4 afm_v4_set1(double a) {
+    afm_v4 r = {{a, a, a, a}};
+    return r;
+}
+static inline afm_v4 afm_v4_add(afm_v4 a, afm_v4 b) {
+    for (int l = 0; l < 4; l++)
+        a.v[l] += b.v[l];
+    return a;
+}
+static inline afm_v4 afm_v4_sub(afm_v4 a, afm_v4 b) {
+    for (int l = 0; l < 4; l++)
+        a.v[l] -= b.v[l];
+    return a;
+}
+static inline afm_v4 afm_v4_mul(afm_v4 a, afm_v4 b) {
+    for (int l = 0; l < 4; l++)
+        a.v[l] *= b.v[l];
+    return a;
+}
+static inline afm_v4 afm_v4_fma(afm_v4 a, afm_v4 b, afm_v4 c) {
+    for (int l = 0; l < 4; l++)
+        c.v[l] = fma(a.v[l], b.v[l], c.v[l]);
+    return c;
+}
+static inline afm_v4 afm_v4_fnma(afm_v4 a, afm_v4 b, afm_v4 c) {
+    for (int l = 0; l < 4; l++)
+        c.v[l] = fma(-a.v[l], b.v[l], c.v[l]);
+    return c;
+}
+static inline afm_v4 afm_v4_fms(afm_v4 a, afm_v4 b, afm_v4 c) {
+    for (int l = 0; l < 4; l++)
+        c.v[l] = fma(a.v[l], b.v[l], -c.v[l]);
+    return c;
+}
+#endif
+
+/* Complex products on 4 lanes (re, im apart), rounded as (a + i b) (c + i d) =
+ * fma(a, c, -(b d)) + i fma(a, d, b c). */
+static inline void afm_v4_cmul(afm_v4 a, afm_v4 b, afm_v4 c, afm_v4 d, afm_v4 *re, afm_v4 *im) {
+    *re = afm_v4_fms(a, c, afm_v4_mul(b, d));
+    *im = afm_v4_fma(a, d, afm_v4_mul(b, c));
+}
+
+/* How many of th[0..nmax) take the tracker's fast path in a row (afm_track_fast's test,
+ * (theta - th_ref) - n dphi within tol and n <= n_end, evaluated with the same roundings),
+ * with a[i] and, if b is not NULL, b[i] finite. Nothing changes: the caller then advances
+ * t->n by the count and sets t->th_prev. 8 samples per step with AVX. */
+#if defined(__GNUC__)
+#define AFM_EST_INLINE __attribute__((always_inline))
+#else
+#define AFM_EST_INLINE
+#endif
+#if defined(AFM_EST_AVX)
+/* |theta - prediction| <= tol on 4 lanes, NaN (so false) where a or b is not finite. The
+ * error as (th_ref - theta) + n dphi: exactly -((theta - th_ref) - n dphi) (rounding to nearest
+ * is symmetric), and theta can be the subtraction's memory operand. */
+static inline AFM_EST_INLINE __m256d afm_track_ok4(__m256d th, __m256d a, __m256d b, __m256d nn,
+                                                   __m256d ref, __m256d dp, __m256d tol,
+                                                   const bool use_b) {
+    const __m256d zero = _mm256_setzero_pd();
+    __m256d e = _mm256_add_pd(_mm256_sub_pd(ref, th), _mm256_mul_pd(nn, dp));
+    e = _mm256_fmadd_pd(a, zero, e);
+    if (use_b) e = _mm256_fmadd_pd(b, zero, e);
+    return _mm256_cmp_pd(_mm256_andnot_pd(_mm256_set1_pd(-0.0), e), tol, _CMP_LE_OQ);
+}
+static inline AFM_EST_INLINE int afm_track_run_avx(const afm_phase_track *t, const double *th,
+                                                   const double *a, const double *b, int nmax,
+                                                   const bool use_b) {
+    double room = t->n_end - t->n; /* integer-valued, as n */
+    if (!(room >= 1.0) || nmax <= 0) return 0;
+    int lim = room < (double)nmax ? (int)room : nmax;
+    const __m256d ref = _mm256_set1_pd(t->th_ref), dp = _mm256_set1_pd(t->dphi);
+    const __m256d tol = _mm256_set1_pd(t->tol), zero = _mm256_setzero_pd();
+    const __m256d four = _mm256_set1_pd(4.0), eight = _mm256_set1_pd(8.0);
+    __m256d nn = _mm256_add_pd(_mm256_set1_pd(t->n), _mm256_set_pd(4.0, 3.0, 2.0, 1.0));
+    int i = 0;
+    for (; i + 8 <= lim; i += 8) {
+        __m256d ok0 = afm_track_ok4(_mm256_loadu_pd(th + i), _mm256_loadu_pd(a + i),
+                                    use_b ? _mm256_loadu_pd(b + i) : zero, nn, ref, dp, tol, use_b);
+        __m256d ok1 = afm_track_ok4(_mm256_loadu_pd(th + i + 4), _mm256_loadu_pd(a + i + 4),
+                                    use_b ? _mm256_loadu_pd(b + i + 4) : zero,
+                                    _mm256_add_pd(nn, four), ref, dp, tol, use_b);
+        if (_mm256_movemask_pd(_mm256_and_pd(ok0, ok1)) != 15) break;
+        nn = _mm256_add_pd(nn, eight);
+    }
+    for (;; i += 4) { /* the rest, or the step of 8 that failed: 4 at a time */
+        int left = lim - i;
+        if (left <= 0) return lim;
+        __m256d x, y, z;
+        if (left >= 4) {
+            x = _mm256_loadu_pd(th + i);
+            y = _mm256_loadu_pd(a + i);
+            z = use_b ? _mm256_loadu_pd(b + i) : zero;
+        } else {
+            __m256i m = _mm256_cmpgt_epi64(_mm256_set1_epi64x(left), _mm256_set_epi64x(3, 2, 1, 0));
+            x = _mm256_maskload_pd(th + i, m);
+            y = _mm256_maskload_pd(a + i, m);
+            z = use_b ? _mm256_maskload_pd(b + i, m) : zero;
+        }
+        int msk = _mm256_movemask_pd(afm_track_ok4(x, y, z, nn, ref, dp, tol, use_b));
+        if (msk != 15) {
+            int k = __builtin_ctz((unsigned)~msk);
+            return i + (k < left ? k : left);
+        }
+        nn = _mm256_add_pd(nn, four);
+    }
+}
+#endif
+
+static inline AFM_EST_INLINE int afm_track_run(const afm_phase_track *t, const double *th,
+                                               const double *a, const double *b, int nmax) {
+#if defined(AFM_EST_AVX)
+    return b ? afm_track_run_avx(t, th, a, b, nmax, true)
+             : afm_track_run_avx(t, th, a, NULL, nmax, false);
+#else
+    double room = t->n_end - t->n; /* integer-valued, as n */
+    if (!(room >= 1.0) || nmax <= 0) return 0;
+    int lim = room < (double)nmax ? (int)room : nmax;
+    double nn = t->n;
+    for (int i = 0; i < lim; i++) {
+        nn += 1.0;
+        if (!(fabs((th[i] - t->th_ref) - nn * t->dphi) <= t->tol) || !isfinite(a[i]) ||
+            (b && !isfinite(b[i])))
+            return i;
+    }
+    return lim;
+#endif
+}
+
+#endif

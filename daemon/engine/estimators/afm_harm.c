@@ -1,0 +1,656 @@
+/* SPDX-License-Identifier: MIT */
+/* afm_harm.c -- streaming per-period harmonics (contract in afm_harm.h). */
+#include "estimators/afm_harm.h"
+
+#include <stdio.h>
+#include <string.h>
+
+#define RE(j) (((j) >> 2) * 8 + ((j)&3)) /* lane j in a grouped complex array */
+#define IM(j) (RE(j) + 4)
+
+#if defined(__GNUC__)
+#define ALWAYS_INLINE __attribute__((always_inline))
+#else
+#define ALWAYS_INLINE
+#endif
+
+/* Empty state for the harmonic list already in h (nk, nl, ks). */
+static void clear_state(afm_harm *h) {
+    afm_track_init(&h->trk, true);
+    h->active = false;
+    h->x_prev = h->f_prev = 0.0;
+    for (int j = 0; j < 2 * AFM_HARM_LANES; j++)
+        h->b[j] = h->cx[j] = h->cf[j] = h->sx[j] = h->sf[j] = 0.0;
+    for (int j = 0; j < h->nl; j++) {
+        h->b[RE(j)] = 1.0;
+        h->tab[RE(j)] = 1.0; /* entry 0: e^0; the rest is built when the tracker locks */
+        h->tab[IM(j)] = 0.0;
+    }
+    h->nbase = 0.0;
+    h->wsum = h->nsteps = 0.0;
+    h->imp_ref = 0.0;
+    h->n_sync = HUGE_VAL; /* the first sample is computed exactly */
+    h->periods = 0;
+    memset(&h->out, 0, sizeof h->out);
+    h->out.n_harmonics = h->nk;
+    for (int j = 0; j < h->nk; j++)
+        h->out.h[j].k = h->ks[j];
+}
+
+int afm_harm_init(afm_harm *h, const int *ks, int nk, char *err, size_t errlen) {
+    if (!h || !ks || nk < 1 || nk > AFM_MAX_HARMONICS) {
+        if (err && errlen)
+            snprintf(err, errlen, "harmonics: need 1..%d harmonic numbers", AFM_MAX_HARMONICS);
+        return -1;
+    }
+    for (int j = 0; j < nk; j++)
+        if (ks[j] < 1 || ks[j] > AFM_HARM_MAX_K) {
+            if (err && errlen)
+                snprintf(err, errlen, "harmonics: harmonic number %d not in 1..%d", ks[j],
+                         AFM_HARM_MAX_K);
+            return -1;
+        }
+    memset(h, 0, sizeof *h);
+    h->nk = nk;
+    memcpy(h->ks, ks, (size_t)nk * sizeof *ks);
+    h->lane1 = -1;
+    for (int j = 0; j < nk && h->lane1 < 0; j++)
+        if (ks[j] == 1) h->lane1 = j;
+    int used = nk;
+    if (h->lane1 < 0) {
+        h->lane1 = nk;
+        h->ks[used++] = 1;
+    }
+    h->nl = (used + 3) / 4 * 4;
+    for (int j = 0; j < AFM_HARM_LANES; j++)
+        h->kd[j] = (double)h->ks[j];
+    clear_state(h);
+    return 0;
+}
+
+void afm_harm_reset(afm_harm *h) {
+    clear_state(h);
+}
+
+/* e^{-i k phi} from c + i s = e^{-i phi} by binary powering (k = 0: 1). */
+static void rot_pow(double c, double s, int k, double *re, double *im) {
+    double rr = 1.0, ri = 0.0;
+    while (k) {
+        if (k & 1) {
+            double t = rr * c - ri * s;
+            ri = rr * s + ri * c;
+            rr = t;
+        }
+        k >>= 1;
+        if (k) {
+            double t = c * c - s * s;
+            s = 2.0 * c * s;
+            c = t;
+        }
+    }
+    *re = rr;
+    *im = ri;
+}
+
+/* e^{-ik phi} on every lane into p (grouped), exactly from phi. */
+AFM_EST_COLD static void phasors_exact(const afm_harm *h, double phi, double *p) {
+    double c1 = cos(phi), s1 = -sin(phi);
+    for (int j = 0; j < h->nl; j++)
+        rot_pow(c1, s1, h->ks[j], &p[RE(j)], &p[IM(j)]);
+}
+
+/* The table for the tracker's (new) dphi: T[0] = 1, T[m] = T[m - 1] e^{-ik dphi}. */
+AFM_EST_COLD static void build_table(afm_harm *h) {
+    const int st = 2 * h->nl;
+    double r[2 * AFM_HARM_LANES];
+    double cd = cos(h->trk.dphi), sd = -sin(h->trk.dphi);
+    for (int j = 0; j < h->nl; j++) {
+        rot_pow(cd, sd, h->ks[j], &r[RE(j)], &r[IM(j)]);
+        h->tab[RE(j)] = 1.0;
+        h->tab[IM(j)] = 0.0;
+    }
+    for (int m = 1; m <= AFM_HARM_TAB; m++) {
+        const double *a = h->tab + (size_t)(m - 1) * st;
+        double *o = h->tab + (size_t)m * st;
+        for (int g = 0; g < st; g += 8) {
+            afm_v4 re, im;
+            afm_v4_cmul(afm_v4_ld(a + g), afm_v4_ld(a + g + 4), afm_v4_ld(r + g),
+                        afm_v4_ld(r + g + 4), &re, &im);
+            afm_v4_st(o + g, re);
+            afm_v4_st(o + g + 4, im);
+        }
+    }
+}
+
+/* s += p c over the lanes (complex, grouped): the chunk sums c rotated by the base phasor p. */
+static inline void cmadd(double *s, const double *p, const double *c, int st) {
+    for (int g = 0; g < st; g += 8) {
+        afm_v4 pr = afm_v4_ld(p + g), pi = afm_v4_ld(p + g + 4);
+        afm_v4 cr = afm_v4_ld(c + g), ci = afm_v4_ld(c + g + 4);
+        afm_v4_st(s + g, afm_v4_fma(pr, cr, afm_v4_fnma(pi, ci, afm_v4_ld(s + g))));
+        afm_v4_st(s + g + 4, afm_v4_fma(pr, ci, afm_v4_fma(pi, cr, afm_v4_ld(s + g + 4))));
+    }
+}
+
+#if defined(AFM_EST_AVX)
+/* Constants of atan2_v4 and finish_period as whole vectors: read through a pointer the
+ * compiler cannot see through, so that each is an instruction's memory operand instead of a
+ * broadcast. */
+#define K4(v)                                                                                      \
+    { v, v, v, v }
+static const double harm_k[][4] __attribute__((aligned(32))) = {
+    K4(-0.0), K4(0.66), K4(1.0),
+    /* Cephes atan P, Q */
+    K4(-8.750608600031904122785E-1), K4(-1.615753718733365076637E1), K4(-7.500855792314704667340E1),
+    K4(-1.228866684490136173410E2), K4(-6.485021904942025371773E1), K4(2.485846490142306297962E1),
+    K4(1.650270098316988542046E2), K4(4.328810604912902668951E2), K4(4.853903996359136964868E2),
+    K4(1.945506571482613964425E2),
+    /* pi/4 (low part first), pi/2, pi (high, low) */
+    K4(3.061616997868382943065E-17), K4(7.85398163397448278999E-1), K4(1.57079632679489655800),
+    K4(6.123233995736765886130E-17), K4(3.14159265358979311600), K4(1.2246467991473531772E-16),
+    /* polar4's range of q; finish_period: 1 / (2 pi), 2 pi, 360, 180 / pi */
+    K4(1e-290), K4(1e290), K4(1.0 / AFM_EST_TWO_PI), K4(AFM_EST_TWO_PI), K4(360.0),
+    K4(AFM_EST_RAD2DEG)};
+#undef K4
+enum {
+    K_SGN,
+    K_066,
+    K_ONE,
+    K_P0,
+    K_Q0 = K_P0 + 5,
+    K_PI4LO = K_Q0 + 5,
+    K_PI4,
+    K_PI2,
+    K_PI2LO,
+    K_PI,
+    K_PILO,
+    K_QMIN,
+    K_QMAX,
+    K_INV2PI,
+    K_2PI,
+    K_360,
+    K_R2D
+};
+static inline const double *harm_consts(void) {
+    const double *k = &harm_k[0][0];
+#if defined(__GNUC__)
+    __asm__("" : "+r"(k)); /* opaque: the values are loaded, not folded into broadcasts */
+#endif
+    return k;
+}
+#define KV(k, i) _mm256_load_pd((k) + 4 * (i))
+
+/* atan2 of 4 lanes, within 2 ulp of libm's (checked on 1.6e7 random pairs over 12 decades
+ * of |y| / |x|): the octant reduction to t = min(|x|, |y|) / max(|x|, |y|) in [0, 1], t > 0.66
+ * mapped to (t - 1) / (t + 1) around pi / 4, then Cephes's atan rational P(t^2)/Q(t^2)
+ * (S. Moshier, Cephes Math Library atan.c: P degree 4, Q degree 5, about 1e-16 relative),
+ * then pi / 2 - r, pi - r (with the low parts of pi / 2, pi) and the sign of y. Lanes with
+ * max(|x|, |y|) = 0 or not finite are not handled here (t is NaN): the caller checks. */
+static inline __m256d atan2_v4(__m256d y, __m256d x, const double *k) {
+    const __m256d sgn = KV(k, K_SGN);
+    __m256d ax = _mm256_andnot_pd(sgn, x), ay = _mm256_andnot_pd(sgn, y);
+    __m256d mx = _mm256_max_pd(ax, ay), mn = _mm256_min_pd(ax, ay);
+    __m256d t = _mm256_div_pd(mn, mx);
+    __m256d big = _mm256_cmp_pd(t, KV(k, K_066), _CMP_GT_OQ);
+    __m256d one = KV(k, K_ONE);
+    __m256d tr =
+        _mm256_blendv_pd(t, _mm256_div_pd(_mm256_sub_pd(t, one), _mm256_add_pd(t, one)), big);
+    __m256d z = _mm256_mul_pd(tr, tr);
+    __m256d p = KV(k, K_P0);
+    p = _mm256_fmadd_pd(p, z, KV(k, K_P0 + 1));
+    p = _mm256_fmadd_pd(p, z, KV(k, K_P0 + 2));
+    p = _mm256_fmadd_pd(p, z, KV(k, K_P0 + 3));
+    p = _mm256_fmadd_pd(p, z, KV(k, K_P0 + 4));
+    __m256d q = _mm256_add_pd(z, KV(k, K_Q0));
+    q = _mm256_fmadd_pd(q, z, KV(k, K_Q0 + 1));
+    q = _mm256_fmadd_pd(q, z, KV(k, K_Q0 + 2));
+    q = _mm256_fmadd_pd(q, z, KV(k, K_Q0 + 3));
+    q = _mm256_fmadd_pd(q, z, KV(k, K_Q0 + 4));
+    __m256d r = _mm256_fmadd_pd(tr, _mm256_div_pd(_mm256_mul_pd(z, p), q), tr);
+    /* + pi/4 (with its low part) in the upper range */
+    r = _mm256_add_pd(r, _mm256_and_pd(big, KV(k, K_PI4LO)));
+    r = _mm256_add_pd(r, _mm256_and_pd(big, KV(k, K_PI4)));
+    /* |y| > |x|: pi/2 - r */
+    __m256d steep = _mm256_cmp_pd(ay, ax, _CMP_GT_OQ);
+    __m256d r2 = _mm256_add_pd(_mm256_sub_pd(KV(k, K_PI2), r), KV(k, K_PI2LO));
+    r = _mm256_blendv_pd(r, r2, steep);
+    /* x < 0: pi - r */
+    __m256d r3 = _mm256_add_pd(_mm256_sub_pd(KV(k, K_PI), r), KV(k, K_PILO));
+    r = _mm256_blendv_pd(r, r3, x);
+    return _mm256_or_pd(r, _mm256_and_pd(sgn, y));
+}
+#endif
+
+/* polar4's lanes it does not take: zero, tiny, huge or not finite */
+AFM_EST_COLD static void polar_scalar(const double *z, double *ph, double *mag) {
+    for (int l = 0; l < 4; l++) {
+        ph[l] = atan2(z[4 + l], z[l]);
+        mag[l] = afm_est_hypot(z[l], z[4 + l]);
+    }
+}
+
+/* afm_phase_diff_deg(k, phi1, ph) on 4 lanes: v = k (pi - phi1) + ph (a = pi - phi1),
+ * reduced mod 2 pi as afm_clock_wrap (|v| < 2^52), in degrees, 360 read as 0. */
+static void phase_diff4(const double *kd, double a, const double *ph, double *pd) {
+    double v[4];
+    for (int l = 0; l < 4; l++)
+        v[l] = kd[l] * a + ph[l];
+#if defined(AFM_EST_AVX)
+    const double *k = harm_consts();
+    __m256d vv = _mm256_loadu_pd(v), two_pi = KV(k, K_2PI);
+    __m256d m = _mm256_floor_pd(_mm256_mul_pd(vv, KV(k, K_INV2PI)));
+    __m256d w = _mm256_fnmadd_pd(m, two_pi, vv);
+    __m256d lo = _mm256_cmp_pd(w, _mm256_setzero_pd(), _CMP_LT_OQ);
+    __m256d hi = _mm256_cmp_pd(w, two_pi, _CMP_GE_OQ);
+    m = _mm256_sub_pd(_mm256_add_pd(m, _mm256_and_pd(hi, KV(k, K_ONE))),
+                      _mm256_and_pd(lo, KV(k, K_ONE)));
+    __m256d deg = _mm256_mul_pd(_mm256_fnmadd_pd(m, two_pi, vv), KV(k, K_R2D));
+    _mm256_storeu_pd(pd, _mm256_andnot_pd(_mm256_cmp_pd(deg, KV(k, K_360), _CMP_GE_OQ), deg));
+#else
+    for (int l = 0; l < 4; l++) {
+        double deg = afm_clock_wrap(v[l]) * AFM_EST_RAD2DEG;
+        pd[l] = deg >= 360.0 ? 0.0 : deg;
+    }
+#endif
+}
+
+/* Phases atan2(y, x) (rad) and magnitudes |x + i y| (afm_est_hypot's value) of 4 lanes. */
+static inline void polar4v(afm_v4 x, afm_v4 y, double *ph, double *mag) {
+#if defined(AFM_EST_AVX)
+    const double *k = harm_consts();
+    __m256d q = _mm256_add_pd(_mm256_mul_pd(x, x), _mm256_mul_pd(y, y)); /* as afm_est_hypot */
+    /* q in (1e-290, 1e290): afm_est_hypot's sqrt, and max(|x|, |y|) > 0 and finite */
+    __m256d ok = _mm256_and_pd(_mm256_cmp_pd(q, KV(k, K_QMIN), _CMP_GT_OQ),
+                               _mm256_cmp_pd(q, KV(k, K_QMAX), _CMP_LT_OQ));
+    if (_mm256_movemask_pd(ok) == 15) {
+        _mm256_storeu_pd(ph, atan2_v4(y, x, k));
+        _mm256_storeu_pd(mag, _mm256_sqrt_pd(q));
+        return;
+    }
+#endif
+    double z[8];
+    afm_v4_st(z, x);
+    afm_v4_st(z + 4, y);
+    polar_scalar(z, ph, mag);
+}
+
+void afm_harm_set_deferred(afm_harm *h, bool deferred) {
+    h->deferred = deferred;
+}
+
+/* The polar form of a completed period's sums: the phases (rad) and magnitudes of x on every
+ * lane (pxs, axs) and of f on the configured ones (pfs, afs) by polar4v, then eq.
+ * E.12-E.13 and the records, 4 lanes at a time. */
+void afm_harm_polar(const afm_harm *h, afm_harm_result *r) {
+    double pxs[AFM_HARM_LANES], axs[AFM_HARM_LANES], pfs[AFM_HARM_LANES], afs[AFM_HARM_LANES];
+    for (int l = 0; l < h->nl; l += 4) {
+        const double *z = r->raw + 4 * l;
+        polar4v(afm_v4_ld(z), afm_v4_ld(z + 4), pxs + l, axs + l);
+        if (l < h->nk) polar4v(afm_v4_ld(z + 8), afm_v4_ld(z + 12), pfs + l, afs + l);
+    }
+    const double scale = 2.0 / r->samples;
+    const double a = AFM_EST_PI - pxs[h->lane1]; /* pi - phi_1 */
+    r->n_harmonics = h->nk;
+    for (int j = 0; j < h->nk; j++)
+        r->h[j].k = h->ks[j];
+    const afm_v4 sc = afm_v4_set1(scale), r2d = afm_v4_set1(AFM_EST_RAD2DEG);
+#if defined(AFM_EST_AVX)
+    /* whole groups in registers: eq. E.12-E.13 as phase_diff4 (kd a, then + phi_k; reduced
+     * as afm_clock_wrap), the 4 x 4 transpose into the contiguous fields x_amp_m ..
+     * f_phase_deg */
+    const double *k = harm_consts();
+    const __m256d av = _mm256_set1_pd(a), two_pi = KV(k, K_2PI), one = KV(k, K_ONE);
+    int j = 0;
+    for (; j + 4 <= h->nk; j += 4) {
+        __m256d phx = _mm256_loadu_pd(pxs + j);
+        __m256d vv = _mm256_add_pd(_mm256_mul_pd(_mm256_loadu_pd(h->kd + j), av), phx);
+        __m256d m = _mm256_floor_pd(_mm256_mul_pd(vv, KV(k, K_INV2PI)));
+        __m256d w = _mm256_fnmadd_pd(m, two_pi, vv);
+        __m256d lo = _mm256_cmp_pd(w, _mm256_setzero_pd(), _CMP_LT_OQ);
+        __m256d hi = _mm256_cmp_pd(w, two_pi, _CMP_GE_OQ);
+        m = _mm256_sub_pd(_mm256_add_pd(m, _mm256_and_pd(hi, one)), _mm256_and_pd(lo, one));
+        __m256d deg = _mm256_mul_pd(_mm256_fnmadd_pd(m, two_pi, vv), KV(k, K_R2D));
+        __m256d pd = _mm256_andnot_pd(_mm256_cmp_pd(deg, KV(k, K_360), _CMP_GE_OQ), deg);
+        __m256d r0 = _mm256_mul_pd(_mm256_loadu_pd(axs + j), sc), r1 = _mm256_mul_pd(phx, r2d);
+        __m256d r2 = _mm256_mul_pd(_mm256_loadu_pd(afs + j), sc);
+        __m256d r3 = _mm256_mul_pd(_mm256_loadu_pd(pfs + j), r2d);
+        __m256d t0 = _mm256_unpacklo_pd(r0, r1), t1 = _mm256_unpackhi_pd(r0, r1);
+        __m256d t2 = _mm256_unpacklo_pd(r2, r3), t3 = _mm256_unpackhi_pd(r2, r3);
+        afm_orbit_harmonic *o = r->h + j;
+        _mm256_storeu_pd(&o[0].x_amp_m, _mm256_permute2f128_pd(t0, t2, 0x20));
+        _mm256_storeu_pd(&o[1].x_amp_m, _mm256_permute2f128_pd(t1, t3, 0x20));
+        _mm256_storeu_pd(&o[2].x_amp_m, _mm256_permute2f128_pd(t0, t2, 0x31));
+        _mm256_storeu_pd(&o[3].x_amp_m, _mm256_permute2f128_pd(t1, t3, 0x31));
+        __m128d plo = _mm256_castpd256_pd128(pd), phi = _mm256_extractf128_pd(pd, 1);
+        _mm_storel_pd(&o[0].phase_diff_deg, plo);
+        _mm_storeh_pd(&o[1].phase_diff_deg, plo);
+        _mm_storel_pd(&o[2].phase_diff_deg, phi);
+        _mm_storeh_pd(&o[3].phase_diff_deg, phi);
+    }
+    for (; j < h->nk; j += 4) {
+#else
+    for (int j = 0; j < h->nk; j += 4) {
+#endif
+        double px[4], ax[4], pf[4], af[4], pd[4];
+        phase_diff4(h->kd + j, a, pxs + j, pd);
+        afm_v4_st(ax, afm_v4_mul(afm_v4_ld(axs + j), sc));
+        afm_v4_st(af, afm_v4_mul(afm_v4_ld(afs + j), sc));
+        afm_v4_st(px, afm_v4_mul(afm_v4_ld(pxs + j), r2d));
+        afm_v4_st(pf, afm_v4_mul(afm_v4_ld(pfs + j), r2d));
+        afm_orbit_harmonic *o = r->h + j;
+        int n = h->nk - j < 4 ? h->nk - j : 4;
+        for (int l = 0; l < n; l++) {
+            o[l].x_amp_m = ax[l];
+            o[l].x_phase_deg = px[l];
+            o[l].f_amp_n = af[l];
+            o[l].f_phase_deg = pf[l];
+            o[l].phase_diff_deg = pd[l];
+        }
+    }
+}
+
+/* A sample off the fast path, by the exact clock: theta mod 2 pi; boundaries, fractional
+ * ends, resynchronisation of the phasors. Returns -1 (rejected, nothing changed), 0, or 1 (a
+ * period completed). */
+static int harm_push_slow(afm_harm *h, double x, double f, double theta_rad) {
+    if (!isfinite(x) || !isfinite(f)) return -1;
+    double phi; /* phase since the last boundary; at a boundary e^{-ik phi} is the same for
+                 * both periods since k is an integer */
+    const afm_phase_track *t = &h->trk;
+    const double n1 = t->n + 1.0, imp = h->imp_ref + n1 * t->dphi, tol = t->tol;
+    /* On the tracker's prediction (only the boundary or the window ended the fast path):
+     * theta - theta_prev is dphi within 2 tol (theta_prev was on it too), and a locked clock
+     * has dphi in (4 tol, pi - 4 tol), so the step passes afm_track_check (theta mod 2 pi is
+     * exact, the step rounds by less than tol): only theta mod 2 pi is needed. */
+    const bool on_pred = t->locked && fabs((theta_rad - t->th_ref) - n1 * t->dphi) <= tol;
+    if (on_pred)
+        phi = afm_clock_wrap(theta_rad);
+    else if (afm_track_check(&h->trk, theta_rad, &phi) != AFM_CLOCK_NONE)
+        return -1;
+    const bool had_prev = h->trk.started, active = h->active;
+    /* the phasors rotate one more step and then stand for imp, which must be within tol of
+     * theta */
+    const bool rotate =
+        on_pred && h->n_sync + n1 <= AFM_TRACK_WINDOW_CLOCK && fabs(theta_rad - imp) <= tol;
+    const int st = 2 * h->nl;
+    const double *tm = h->tab + (size_t)(int)(t->n - h->nbase) * st; /* previous sample */
+    bool rate_changed;
+    double frac = 1.0;
+    const int ev = afm_track_advance(&h->trk, theta_rad, phi, &frac, &rate_changed);
+    double pex[2 * AFM_HARM_LANES];
+    const bool exact = !(rotate && h->trk.locked);
+    if (exact) {
+        phasors_exact(h, phi, pex);
+        h->n_sync = 0.0;
+    } else {
+        h->n_sync += n1;
+    }
+    h->imp_ref = theta_rad;
+    /* cross: this step ends the period (the previous sample already has weight 1, 0.5 from
+     * each side; the step's part before the boundary is wb[0] g_prev + wb[1] g_cur); start:
+     * a period starts at this sample or inside the step just taken: this sample gets the
+     * after-boundary weight plus 0.5 from the next step, the previous one wa[0]. */
+    const bool cross = had_prev && active && ev == AFM_CLOCK_CROSS;
+    const bool start = ev == AFM_CLOCK_START || (ev == AFM_CLOCK_CROSS && had_prev);
+    double wb[2] = {0.0, 0.0}, wa[2] = {0.0, 0.0};
+    if (ev == AFM_CLOCK_CROSS) afm_split_weights(frac, wb, wa);
+    if (had_prev && active && !cross) h->nsteps += 1.0;
+    const double samples = (h->wsum + h->nsteps) + frac;
+    /* this sample into the new chunk sums (c = w x: the phasor of the new chunk base is its
+     * own); weight 1, nothing before the first boundary */
+    double wx = active ? x : 0.0, wf = active ? f : 0.0;
+    if (start) {
+        wx = (wa[1] + 0.5) * x;
+        wf = (wa[1] + 0.5) * f;
+        h->wsum = ev == AFM_CLOCK_CROSS ? 1.0 - frac : 0.0;
+        h->nsteps = 0.0;
+        h->active = true;
+    }
+    /* One pass over the lanes: the previous sample's phasor ep = b T[m]; the phasor p for
+     * this sample on the rotation, b T[m + 1] times e^{-ik e} ~ 1 - i k e for the residual
+     * e = theta - imp (|k e| < 1e-6: the dropped terms are below 1e-12 of it), or exact; the
+     * chunk into the period sums (s += b c); the ends of a completed period and its polar
+     * form; the new period's sums; the new chunk. */
+    const afm_v4 e = afm_v4_set1(theta_rad - imp), zero = afm_v4_set1(0.0);
+    const afm_v4 kxp = afm_v4_set1((wb[0] - 0.5) * h->x_prev), kxc = afm_v4_set1(wb[1] * x);
+    const afm_v4 kfp = afm_v4_set1((wb[0] - 0.5) * h->f_prev), kfc = afm_v4_set1(wb[1] * f);
+    const afm_v4 nxp = afm_v4_set1(wa[0] * h->x_prev), nfp = afm_v4_set1(wa[0] * h->f_prev);
+    const afm_v4 wxv = afm_v4_set1(wx), wfv = afm_v4_set1(wf);
+    for (int g = 0; g < st; g += 8) {
+        const afm_v4 br = afm_v4_ld(h->b + g), bi = afm_v4_ld(h->b + g + 4);
+        afm_v4 er, ei, pr, pi;
+        afm_v4_cmul(br, bi, afm_v4_ld(tm + g), afm_v4_ld(tm + g + 4), &er, &ei);
+        if (exact) {
+            pr = afm_v4_ld(pex + g);
+            pi = afm_v4_ld(pex + g + 4);
+        } else {
+            afm_v4 re, im;
+            afm_v4_cmul(br, bi, afm_v4_ld(tm + st + g), afm_v4_ld(tm + st + g + 4), &re, &im);
+            afm_v4 ke = afm_v4_mul(afm_v4_ld(h->kd + g / 2), e);
+            pr = afm_v4_fma(ke, im, re);
+            pi = afm_v4_fnma(ke, re, im);
+        }
+        afm_v4 sxr = afm_v4_ld(h->sx + g), sxi = afm_v4_ld(h->sx + g + 4);
+        afm_v4 sfr = afm_v4_ld(h->sf + g), sfi = afm_v4_ld(h->sf + g + 4);
+        if (active) {
+            afm_v4 cr = afm_v4_ld(h->cx + g), ci = afm_v4_ld(h->cx + g + 4);
+            sxr = afm_v4_fma(br, cr, afm_v4_fnma(bi, ci, sxr));
+            sxi = afm_v4_fma(br, ci, afm_v4_fma(bi, cr, sxi));
+            cr = afm_v4_ld(h->cf + g);
+            ci = afm_v4_ld(h->cf + g + 4);
+            sfr = afm_v4_fma(br, cr, afm_v4_fnma(bi, ci, sfr));
+            sfi = afm_v4_fma(br, ci, afm_v4_fma(bi, cr, sfi));
+        }
+        if (cross) {
+            sxr = afm_v4_fma(kxc, pr, afm_v4_fma(kxp, er, sxr));
+            sxi = afm_v4_fma(kxc, pi, afm_v4_fma(kxp, ei, sxi));
+            sfr = afm_v4_fma(kfc, pr, afm_v4_fma(kfp, er, sfr));
+            sfi = afm_v4_fma(kfc, pi, afm_v4_fma(kfp, ei, sfi));
+            double *z = h->out.raw + 2 * g;
+            afm_v4_st(z, sxr);
+            afm_v4_st(z + 4, sxi);
+            afm_v4_st(z + 8, sfr);
+            afm_v4_st(z + 12, sfi);
+        }
+        if (start) {
+            sxr = afm_v4_mul(nxp, er);
+            sxi = afm_v4_mul(nxp, ei);
+            sfr = afm_v4_mul(nfp, er);
+            sfi = afm_v4_mul(nfp, ei);
+        }
+        afm_v4_st(h->sx + g, sxr);
+        afm_v4_st(h->sx + g + 4, sxi);
+        afm_v4_st(h->sf + g, sfr);
+        afm_v4_st(h->sf + g + 4, sfi);
+        afm_v4_st(h->cx + g, wxv);
+        afm_v4_st(h->cx + g + 4, zero);
+        afm_v4_st(h->cf + g, wfv);
+        afm_v4_st(h->cf + g + 4, zero);
+        afm_v4_st(h->b + g, pr);
+        afm_v4_st(h->b + g + 4, pi);
+    }
+    if (cross) {
+        h->out.period = h->periods;
+        h->out.samples = samples;
+        h->out.n_harmonics = h->nk;
+        if (!h->deferred) afm_harm_polar(h, &h->out);
+        h->periods++;
+    }
+    if (h->trk.locked && rate_changed) build_table(h); /* after the pass: tm points into it */
+    h->nbase = 0.0;
+    h->x_prev = x;
+    h->f_prev = f;
+    return cross ? 1 : 0;
+}
+
+_Static_assert(AFM_HARM_LANES <= 20, "chunk_sig keeps at most 5 groups of lanes in registers");
+
+/* c[0..2 nl) += sum_i v[i] T[m0 + i] over n samples, NG groups of 4 lanes (nl = 4 NG): the
+ * sums in registers, each table entry read once (one pass per signal, so that every load
+ * folds into its multiply-add); samples in order, so any split of a run into calls gives the
+ * same sums. */
+static inline ALWAYS_INLINE void chunk_sig(double *c, const double *tab, const double *v, int n,
+                                           const int NG) {
+    afm_v4 acc[10];
+#pragma GCC unroll 10
+    for (int g = 0; g < 2 * NG; g++)
+        acc[g] = afm_v4_ld(c + 4 * g);
+    const double *tp = tab;
+    int i = 0;
+    for (; i + 8 <= n; i += 8, tp += 8 * 8 * NG) {
+#pragma GCC unroll 8
+        for (int u = 0; u < 8; u++) {
+            afm_v4 vu = afm_v4_set1(v[i + u]);
+#pragma GCC unroll 10
+            for (int g = 0; g < 2 * NG; g++)
+                acc[g] = afm_v4_fma(vu, afm_v4_ld(tp + 8 * NG * u + 4 * g), acc[g]);
+        }
+    }
+    for (; i + 4 <= n; i += 4, tp += 4 * 8 * NG) {
+        afm_v4 v0 = afm_v4_set1(v[i]), v1 = afm_v4_set1(v[i + 1]);
+        afm_v4 v2 = afm_v4_set1(v[i + 2]), v3 = afm_v4_set1(v[i + 3]);
+#pragma GCC unroll 10
+        for (int g = 0; g < 2 * NG; g++)
+            acc[g] = afm_v4_fma(v0, afm_v4_ld(tp + 4 * g), acc[g]);
+#pragma GCC unroll 10
+        for (int g = 0; g < 2 * NG; g++)
+            acc[g] = afm_v4_fma(v1, afm_v4_ld(tp + 8 * NG + 4 * g), acc[g]);
+#pragma GCC unroll 10
+        for (int g = 0; g < 2 * NG; g++)
+            acc[g] = afm_v4_fma(v2, afm_v4_ld(tp + 16 * NG + 4 * g), acc[g]);
+#pragma GCC unroll 10
+        for (int g = 0; g < 2 * NG; g++)
+            acc[g] = afm_v4_fma(v3, afm_v4_ld(tp + 24 * NG + 4 * g), acc[g]);
+    }
+    for (; i < n; i++, tp += 8 * NG) {
+        afm_v4 v0 = afm_v4_set1(v[i]);
+#pragma GCC unroll 10
+        for (int g = 0; g < 2 * NG; g++)
+            acc[g] = afm_v4_fma(v0, afm_v4_ld(tp + 4 * g), acc[g]);
+    }
+#pragma GCC unroll 10
+    for (int g = 0; g < 2 * NG; g++)
+        afm_v4_st(c + 4 * g, acc[g]);
+}
+
+/* Samples x[0..n), f[0..n) at table entries m0, m0 + 1, ... (m0 + n - 1 <= AFM_HARM_TAB)
+ * into the chunk sums. */
+static inline ALWAYS_INLINE void chunk_xf(afm_harm *h, const double *tp, const double *x,
+                                          const double *f, int n, const int NG) {
+    chunk_sig(h->cx, tp, x, n, NG);
+    chunk_sig(h->cf, tp, f, n, NG);
+}
+
+static void chunk_add(afm_harm *h, const double *x, const double *f, int n, int m0) {
+    const double *tp = h->tab + (size_t)m0 * 2 * h->nl;
+    switch (h->nl / 4) { /* the group count as a constant: chunk_sig keeps its sums in registers */
+    case 1:
+        chunk_xf(h, tp, x, f, n, 1);
+        break;
+    case 2:
+        chunk_xf(h, tp, x, f, n, 2);
+        break;
+    case 3:
+        chunk_xf(h, tp, x, f, n, 3);
+        break;
+    case 4:
+        chunk_xf(h, tp, x, f, n, 4);
+        break;
+    default:
+        chunk_xf(h, tp, x, f, n, 5);
+        break;
+    }
+}
+
+/* n fast-path samples (afm_track_run): weight 1 each into the chunk sums; a full chunk
+ * (entry AFM_HARM_TAB) goes into the period sums and the base phasor moves to its end. */
+static void fast_block(afm_harm *h, const double *x, const double *f, int n) {
+    const int st = 2 * h->nl;
+    int m = (int)(h->trk.n - h->nbase) + 1; /* table entry of x[0] */
+    h->trk.n += (double)n;                  /* integer-valued: exact */
+    h->nsteps += (double)n;
+    while (n > 0) {
+        int k = AFM_HARM_TAB + 1 - m < n ? AFM_HARM_TAB + 1 - m : n;
+        chunk_add(h, x, f, k, m);
+        x += k;
+        f += k;
+        n -= k;
+        m += k;
+        if (m > AFM_HARM_TAB) {
+            const double *tt = h->tab + (size_t)AFM_HARM_TAB * st;
+            cmadd(h->sx, h->b, h->cx, st);
+            cmadd(h->sf, h->b, h->cf, st);
+            for (int g = 0; g < st; g += 8) {
+                afm_v4 re, im;
+                afm_v4_cmul(afm_v4_ld(h->b + g), afm_v4_ld(h->b + g + 4), afm_v4_ld(tt + g),
+                            afm_v4_ld(tt + g + 4), &re, &im);
+                afm_v4_st(h->b + g, re);
+                afm_v4_st(h->b + g + 4, im);
+            }
+            memset(h->cx, 0, (size_t)st * sizeof h->cx[0]);
+            memset(h->cf, 0, (size_t)st * sizeof h->cf[0]);
+            h->nbase += AFM_HARM_TAB;
+            m = 1;
+        }
+    }
+}
+
+int afm_harm_push_n(afm_harm *h, const double *x, const double *f, const double *th, int n,
+                    int *done, long long *rejects) {
+    *done = 0;
+    int i = 0;
+    while (i < n) {
+        int k = afm_track_run(&h->trk, th + i, x + i, f + i, n - i);
+        if (k > 0) {
+            fast_block(h, x + i, f + i, k);
+            i += k;
+            h->trk.th_prev = th[i - 1];
+            h->x_prev = x[i - 1];
+            h->f_prev = f[i - 1];
+            if (i == n) break;
+        }
+        int rc = harm_push_slow(h, x[i], f[i], th[i]);
+        i++;
+        if (rc < 0) (*rejects)++;
+        if (rc == 1) {
+            *done = 1;
+            break;
+        }
+    }
+    return i;
+}
+
+int afm_harm_push(afm_harm *h, double x, double f, double theta_rad) {
+    int done;
+    long long rej = 0;
+    afm_harm_push_n(h, &x, &f, &theta_rad, 1, &done, &rej);
+    return rej ? -1 : done;
+}
+
+void afm_harm_phasor1(const afm_harm *h, double *re, double *im) {
+    int m = (int)(h->trk.n - h->nbase), j = h->lane1;
+    const double *t = h->tab + (size_t)m * 2 * h->nl;
+    double br = h->b[RE(j)], bi = h->b[IM(j)], tr = t[RE(j)], ti = t[IM(j)];
+    *re = fma(br, tr, -(bi * ti));
+    *im = fma(br, ti, bi * tr);
+}
+
+int afm_harm_default_list(const afm_modal *m, double fe_hz, int *ks) {
+    if (!(fe_hz > 0) || !ks) return 0;
+    int cand[5] = {1, 2, 3, 0, 0}, nc = 3;
+    for (int i = 1; m && i <= 2 && i < m->n; i++) {
+        double r = m->omega_rad_s[i] / (AFM_EST_TWO_PI * fe_hz);
+        if (r >= 0.5 && r < (double)AFM_HARM_MAX_K) cand[nc++] = (int)floor(r + 0.5);
+    }
+    /* insertion sort, then drop repeats */
+    for (int i = 1; i < nc; i++)
+        for (int j = i; j > 0 && cand[j - 1] > cand[j]; j--) {
+            int t = cand[j];
+            cand[j] = cand[j - 1];
+            cand[j - 1] = t;
+        }
+    int n = 0;
+    for (int i = 0; i < nc; i++)
+        if (n == 0 || cand[i] != ks[n - 1]) ks[n++] = cand[i];
+    return n;
+}

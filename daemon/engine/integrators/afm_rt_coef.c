@@ -1,0 +1,195 @@
+/* SPDX-License-Identifier: MIT */
+/* afm_rt_coef.c -- exact per-mode step coefficients for the rt backend (see afm_rt_coef.h). */
+#include "integrators/afm_rt_coef.h"
+
+#include "forces/afm_force_inline.h"
+
+#include <math.h>
+#include <string.h>
+
+#define EXPM_MAX 8
+
+static void matmul(int n, const double *a, const double *b, double *c) {
+    for (int i = 0; i < n; i++)
+        for (int j = 0; j < n; j++) {
+            double acc = 0.0;
+            for (int k = 0; k < n; k++)
+                acc += a[i * n + k] * b[k * n + j];
+            c[i * n + j] = acc;
+        }
+}
+
+void afm_rt_coef_expm(int n, const double *a, double *e) {
+    double norm = 0.0; /* 1-norm */
+    for (int j = 0; j < n; j++) {
+        double col = 0.0;
+        for (int i = 0; i < n; i++)
+            col += fabs(a[i * n + j]);
+        if (col > norm) norm = col;
+    }
+    /* Scale to norm <= 1/8: 18 Taylor terms then leave < 1e-30 and the squarings of a
+     * dissipative exponential lose little. */
+    int sq = 0;
+    while (norm > 0.125 && sq < 60) {
+        norm *= 0.5;
+        sq++;
+    }
+    double as[EXPM_MAX * EXPM_MAX], term[EXPM_MAX * EXPM_MAX], tmp[EXPM_MAX * EXPM_MAX];
+    double scale = ldexp(1.0, -sq);
+    for (int k = 0; k < n * n; k++)
+        as[k] = a[k] * scale;
+    memset(e, 0, sizeof(double) * (size_t)(n * n));
+    memset(term, 0, sizeof term);
+    for (int i = 0; i < n; i++)
+        e[i * n + i] = term[i * n + i] = 1.0;
+    for (int k = 1; k <= 18; k++) {
+        matmul(n, term, as, tmp);
+        for (int m = 0; m < n * n; m++) {
+            term[m] = tmp[m] / k;
+            e[m] += term[m];
+        }
+    }
+    for (int k = 0; k < sq; k++) {
+        matmul(n, e, e, tmp);
+        memcpy(e, tmp, sizeof(double) * (size_t)(n * n));
+    }
+}
+
+void afm_rt_coef_modes(afm_rt_prop *p, int n, int np, const double *w, const double *xi,
+                       const double *tip, double tau_s) {
+    double *c = p->c;
+    for (int i = 0; i < AFM_RT_COEF_ROWS * np; i++)
+        c[i] = 0.0;
+    p->tau_s = tau_s;
+    p->gx = p->gv = p->gx0 = p->gv0 = 0.0;
+    for (int i = 0; i < n; i++) {
+        /* Scaled state u = (q, q'/w), scaled time sigma = s/tau in [0, 1]:
+         *   du/dsigma = tau w [[0, 1], [-1, -2 xi]] u + [0; tau/w] F(sigma),
+         *   F(sigma) = F0 + (F1 - F0) sigma -> augmented with (F0, F1 - F0). */
+        double wt = w[i] * tau_s;
+        double m[16] = {0}, e[16];
+        m[0 * 4 + 1] = wt;
+        m[1 * 4 + 0] = -wt;
+        m[1 * 4 + 1] = -2.0 * xi[i] * wt;
+        m[1 * 4 + 2] = tau_s / w[i];
+        m[2 * 4 + 3] = 1.0;
+        afm_rt_coef_expm(4, m, e);
+        double g1u1 = e[3], g1u2 = e[7];               /* response to the ramp F1 - F0 */
+        double g0u1 = e[2] - g1u1, g0u2 = e[6] - g1u2; /* to constant F0, minus the ramp */
+        c[i] = e[0];
+        c[np + i] = e[1] / w[i];
+        c[2 * np + i] = e[4] * w[i];
+        c[3 * np + i] = e[5];
+        c[4 * np + i] = tip[i] * g0u1;
+        c[5 * np + i] = tip[i] * w[i] * g0u2;
+        c[6 * np + i] = tip[i] * g1u1;
+        c[7 * np + i] = tip[i] * w[i] * g1u2;
+        p->gx += tip[i] * c[6 * np + i];
+        p->gv += tip[i] * c[7 * np + i];
+        p->gx0 += tip[i] * c[4 * np + i];
+        p->gv0 += tip[i] * c[5 * np + i];
+        for (int r = 0; r < 4; r++)
+            c[(8 + r) * np + i] = tip[i] * c[r * np + i];
+    }
+}
+
+void afm_rt_coef_chain(afm_rt_prop *p, const afm_rt_prop *pf, int np) {
+    const double *c = p->c, *cf = pf->c;
+    double hx = pf->gx0, hv = pf->gv0;
+    for (int i = 0; i < np; i++) {
+        hx += cf[8 * np + i] * c[6 * np + i] + cf[9 * np + i] * c[7 * np + i];
+        hv += cf[10 * np + i] * c[6 * np + i] + cf[11 * np + i] * c[7 * np + i];
+    }
+    p->hx = hx;
+    p->hv = hv;
+}
+
+void afm_rt_coef_drive(afm_rt_prop *p, int ntones, const double *wd, const double *cx_re,
+                       const double *cx_im) {
+    for (int j = 0; j < ntones; j++) {
+        double rr = cos(wd[j] * p->tau_s), ri = sin(wd[j] * p->tau_s);
+        p->rot_re[j] = rr;
+        p->rot_im[j] = ri;
+        p->dx_re[j] = cx_re[j] * rr - cx_im[j] * ri;
+        p->dx_im[j] = cx_re[j] * ri + cx_im[j] * rr;
+        p->dv_re[j] = -wd[j] * p->dx_im[j]; /* i wd dx */
+        p->dv_im[j] = wd[j] * p->dx_re[j];
+    }
+}
+
+void afm_rt_coef_thermal(const afm_rt_prop *p, int n, int np, const double *w, const double *xi,
+                         double kt_j, double *l11, double *l21, double *l22) {
+    for (int i = 0; i < np; i++)
+        l11[i] = l21[i] = l22[i] = 0.0;
+    const double *c = p->c;
+    for (int i = 0; i < n; i++) {
+        /* Scaled coordinates u = (q, q'/w), time sigma = s/tau, variances in units of
+         * kB T / w^2: du/dsigma = M u + noise of intensity Qs = diag(0, 4 xi w tau),
+         * M = w tau [0, 1; -1, -2 xi], stationary covariance I. */
+        double wt = w[i] * p->tau_s, s11, s12, s22;
+        if (2.0 * xi[i] * wt > 0.5) {
+            /* Strong decay over the step: I - Phi_s Phi_s^T loses under one digit. */
+            double a = c[i], b = w[i] * c[np + i], cc = c[2 * np + i] / w[i], d = c[3 * np + i];
+            s11 = 1.0 - (a * a + b * b);
+            s12 = -(a * cc + b * d);
+            s22 = 1.0 - (cc * cc + d * d);
+        } else {
+            /* Weak decay: that difference would cancel to the damping per step. Van Loan:
+             * exp([-M, Qs; 0, M^T]) = [., E12; 0, Phi_s^T], Sigma_s = Phi_s E12, with E12 =
+             * O(Qs) accurate to ~1e-16 absolute (exp(-M) grows at most e^0.25 here). */
+            double m[16] = {0}, e[16];
+            m[0 * 4 + 1] = -wt; /* -M */
+            m[1 * 4 + 0] = wt;
+            m[1 * 4 + 1] = 2.0 * xi[i] * wt;
+            m[1 * 4 + 3] = 4.0 * xi[i] * wt; /* Qs */
+            m[2 * 4 + 3] = -wt;              /* M^T */
+            m[3 * 4 + 2] = wt;
+            m[3 * 4 + 3] = -2.0 * xi[i] * wt;
+            afm_rt_coef_expm(4, m, e);
+            double f11 = e[10], f12 = e[14], f21 = e[11], f22 = e[15]; /* Phi_s = E22^T */
+            double g11 = e[2], g12 = e[3], g21 = e[6], g22 = e[7];
+            s11 = f11 * g11 + f12 * g21;
+            s22 = f21 * g12 + f22 * g22;
+            s12 = 0.5 * ((f11 * g12 + f12 * g22) + (f21 * g11 + f22 * g21));
+        }
+        double var = kt_j / (w[i] * w[i]);
+        if (!(s11 > 0.0)) continue; /* no damping: no noise */
+        double q11 = var * s11, q12 = var * w[i] * s12, q22 = var * w[i] * w[i] * s22;
+        l11[i] = sqrt(q11);
+        l21[i] = q12 / l11[i];
+        double r = q22 - l21[i] * l21[i];
+        l22[i] = r > 0.0 ? sqrt(r) : 0.0;
+    }
+}
+
+void afm_rt_starr_build(afm_rt_starr *st, const afm_force_params *p, double z_m) {
+    const int nn = 5;
+    const double pi = 3.14159265358979323846;
+    st->on = false;
+    if (p->squeeze != AFM_SQUEEZE_STARR) return;
+    double h0 = afm_force_starr_h(p, z_m, 0.0), hw = AFM_RT_STARR_WINDOW * h0;
+    if (!isfinite(h0) || !(h0 - hw > p->a0_m)) return;
+    double val[5], ch[5];
+    for (int k = 0; k < nn; k++) {
+        double dcdh;
+        val[k] = afm_force_starr_c(p, h0 + hw * cos(pi * (k + 0.5) / nn), &dcdh);
+    }
+    for (int j = 0; j < nn; j++) { /* Chebyshev coefficients */
+        double acc = 0.0;
+        for (int k = 0; k < nn; k++)
+            acc += val[k] * cos(pi * j * (k + 0.5) / nn);
+        ch[j] = (j == 0 ? 1.0 : 2.0) * acc / nn;
+    }
+    /* T0 = 1, T1 = s, T2 = 2s^2 - 1, T3 = 4s^3 - 3s, T4 = 8s^4 - 8s^2 + 1 */
+    st->a[0] = ch[0] - ch[2] + ch[4];
+    st->a[1] = ch[1] - 3.0 * ch[3];
+    st->a[2] = 2.0 * ch[2] - 8.0 * ch[4];
+    st->a[3] = 4.0 * ch[3];
+    st->a[4] = 8.0 * ch[4];
+    st->h0 = h0;
+    st->hw = hw;
+    st->ihw = 1.0 / hw;
+    for (int k = 0; k < nn; k++)
+        if (!isfinite(st->a[k])) return;
+    st->on = true;
+}

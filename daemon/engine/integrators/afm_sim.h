@@ -1,0 +1,74 @@
+/* SPDX-License-Identifier: MIT */
+/* afm_sim.h -- one simulator handle over the integrators: rt, reference (CVODE), arkode-erk.
+ *
+ * Layer integrators/ (3). create -> set -> run -> get -> destroy, as in SUNDIALS. afm_sim_create
+ * allocates everything; afm_sim_run, the setters and afm_sim_reset never allocate, lock
+ * or block (true of the rt backend; CVODE/ARKODE are offline tools and may not be).
+ *
+ * Output is sampled at the OBD rate (cfg.sample_rate_hz): afm_sim_run advances n output
+ * steps of dt = 1/rate and writes one afm_sample per step, taken at the end of the step. */
+#ifndef AFM_SIM_H
+#define AFM_SIM_H
+
+#include "config/afm_config.h"
+#include "forces/afm_drive.h"
+#include "forces/afm_force.h"
+#include "beam/afm_model.h"
+
+typedef struct {
+    double t_s;       /* model time of this sample */
+    double x_m;       /* tip displacement xr (m), negative towards the sample */
+    double v_m_s;     /* tip velocity */
+    double f_n;       /* total tip-sample force on the tip (N), incl. dissipative terms */
+    double theta_rad; /* tip rotation (slope) */
+    double base_m;    /* base displacement x_dit */
+} afm_sample;
+
+/* Return codes: 0 ok; negative = failure, nothing changed unless said. */
+#define AFM_SIM_OK 0
+#define AFM_SIM_EINVAL (-1)  /* bad argument (NaN, out of range): nothing changed */
+#define AFM_SIM_EBLOWUP (-2) /* state became non-finite or ran away: state reset to rest */
+#define AFM_SIM_ESOLVER (-3) /* SUNDIALS solver failure */
+
+typedef struct afm_sim afm_sim;
+
+afm_sim *afm_sim_create(const afm_modal *m, const afm_force_params *f, const afm_cfg_drive *drive,
+                        const afm_cfg_sim *sim, char *err, size_t errlen);
+void afm_sim_destroy(afm_sim **s);
+
+/* Advance n output steps; out (n entries) may be NULL. */
+int afm_sim_run(afm_sim *s, int n, afm_sample *out);
+
+/* Phase-continuous tone change at the current model time (j <= current tone count).
+ * Rejects NaN, amp < 0 or > 1e-6 m, freq <= 0 or >= rate/2 with AFM_SIM_EINVAL. */
+int afm_sim_set_tone(afm_sim *s, int j, double amp_m, double freq_hz);
+/* New separation Z (m), 0 <= Z <= 1e-3. */
+int afm_sim_set_separation(afm_sim *s, double z_m);
+/* Back to rest (q = q' = 0) at the current drive; model time kept. */
+void afm_sim_reset(afm_sim *s);
+
+double afm_sim_time(const afm_sim *s);
+double afm_sim_dt(const afm_sim *s);
+double afm_sim_separation(const afm_sim *s);
+const afm_drive *afm_sim_drive(const afm_sim *s);
+const afm_modal *afm_sim_model(const afm_sim *s);
+const afm_force_params *afm_sim_forces(const afm_sim *s);
+const char *afm_sim_integrator_name(const afm_sim *s);
+
+/* Thermal (Langevin) force per mode at t->temperature_k (fluctuation-dissipation: each
+ * mass-normalised mode gets <q^2> = kB T / w^2), from a generator seeded with t->seed, or
+ * off (t->enabled false; the state at create). Rejects a NULL t, T not finite or <= 0
+ * when enabled, or an integrator without a thermal force (only rt has one) with
+ * AFM_SIM_EINVAL and err filled; nothing changed then. Call after create, not on the
+ * real-time path (it precomputes; may allocate). Each call restarts the noise sequence
+ * from the seed: the same seed gives the same run. */
+int afm_sim_set_thermal(afm_sim *s, const afm_cfg_thermal *t, char *err, size_t errlen);
+
+/* Modal state (n entries each) for inspection and tests. */
+void afm_sim_get_state(const afm_sim *s, double *q, double *qd);
+/* Set the modal state (n entries each) at the current model time, e.g. to start several
+ * integrators from one settled orbit. Rejects NULL or non-finite entries with
+ * AFM_SIM_EINVAL (nothing changed). */
+int afm_sim_set_state(afm_sim *s, const double *q, const double *qd);
+
+#endif

@@ -1,0 +1,844 @@
+/* SPDX-License-Identifier: MIT */
+/* afm_runner.c -- simulator + output chain driven by commands at block boundaries
+ * (contract in afm_runner.h).
+ *
+ * Two halves joined by a lock-free ring (afm_spsc) of fixed-size items:
+ *  - the front (integrator side): commands, Z ramp, budgets, the simulator. It writes
+ *    afm_sample blocks straight into ring items (SAMPLES), each stamped with the drive,
+ *    seq_applied and the Z in force for its samples, and turns every change the chain must
+ *    follow into an item in the same order (RESET, FORCES, ATTACH);
+ *  - the back (chain side): the output chain, attached to a mirror of the simulator
+ *    (afm_sim_mirror_create) that the items keep in step; it pushes the samples and
+ *    applies the changes in ring order.
+ * Inline (afm_runner_create) the back runs on the caller's thread right after every item;
+ * pipelined (afm_runner_create_pipelined) on a thread of the caller's. Either way the
+ * chain sees the same calls with the same data in the same order: the outputs are
+ * bit-identical (test_runner checks it). */
+#include "runner/afm_runner.h"
+#include "config/afm_err.h"
+
+#include "forces/afm_force.h"
+#include "integrators/afm_sim_live.h"
+#include "runner/afm_spsc.h"
+#include "runner/afm_twin.h"
+
+#include <limits.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define SLOT AFM_RUNNER_SLOT_SAMPLES
+#define ZC_MAX (SLOT / AFM_RUNNER_RAMP_SAMPLES + 2) /* Z changes one item can carry */
+#define PENDING_MAX 16   /* change items waiting for ring space (front) */
+#define EVENTS_PER_CMD 2 /* most change items one command makes */
+#define TRASH_CAP 1024
+#define TRASH_HELD 16
+
+enum { IT_SAMPLES, IT_RESET, IT_FORCES, IT_ATTACH, IT_DONE };
+
+typedef struct {
+    int at; /* first sample (index into s) with this Z */
+    double z_m;
+} z_change;
+
+/* One ring item. SAMPLES: n samples s[0..n) run with drive `drive`, Z z0_m then the
+ * changes zc, after the command seq. FORCES: new force constants f. ATTACH: the chain
+ * follows a swapped-in simulator (drive, f, z_m); model: the objects to hand back (and,
+ * when model->chain is set, the chain to swap in). RESET: clear the chain. DONE: a tick or
+ * step budget was used up (seq: that command, done_samples and done_t_s: where). */
+typedef struct {
+    int kind;
+    int n;
+    int64_t seq;
+    double z0_m;
+    int n_zc;
+    z_change zc[ZC_MAX];
+    afm_drive drive;
+    afm_force_params f;
+    afm_runner_model *model;
+    long long done_samples;
+    double done_t_s;
+    afm_sample s[SLOT];
+} ring_item;
+
+/* A change item waiting for ring space (no samples). */
+typedef struct {
+    int kind;
+    afm_drive drive;
+    afm_force_params f;
+    double z_m;
+    afm_runner_model *model;
+    int64_t seq; /* DONE: the tick or step command */
+    long long done_samples;
+    double done_t_s;
+} pending_item;
+
+struct afm_runner_model {
+    afm_config cfg;
+    afm_sim *sim;
+    afm_chain *chain; /* NULL: keep the running chain */
+};
+
+struct afm_runner {
+    /* front */
+    afm_config cfg;
+    afm_sim *sim;
+    int block_max;
+    bool lockstep, running, pipelined;
+    long long step_budget, tick_budget;
+    long long samples;
+    int64_t seq_applied;
+    bool ramping;
+    double z0, z_target, z_rate;
+    long long s0;
+    long long blowups, applied, swaps, stalls;
+    double last_blowup_t_s;
+    int blowup_streak; /* blow-ups each within AFM_RUNNER_BLOWUP_WINDOW_S of the last */
+    bool auto_paused;  /* paused by itself (streak reached AFM_RUNNER_BLOWUP_PAUSE) */
+    long long auto_pauses;
+    int64_t tick_seq, step_seq; /* the last tick and step commands applied (IT_DONE names
+                                 * the one whose budget was used up) */
+    ring_item *open;            /* reserved, being filled; committed at the end of every run */
+    pending_item pending[PENDING_MAX];
+    int n_pending;
+    /* between */
+    afm_spsc ring;  /* front -> back */
+    afm_spsc trash; /* back -> whoever calls afm_runner_take_trash */
+    /* back */
+    afm_chain *chain;
+    afm_sim *mirror;
+    double b_z;
+    int64_t b_seq;
+    double b_fe_hz, b_t_s;
+    long long b_samples, b_items, b_attach_errors, b_trash_lost;
+    afm_runner_model *held[TRASH_HELD]; /* trash waiting for space */
+    int n_held;
+    bool b_done_waiting; /* a DONE item passed, not yet taken (afm_runner_take_done) */
+    afm_runner_done b_done;
+};
+
+static const double two_pi = 6.283185307179586476925286766559;
+
+const afm_modal *afm_runner_model_modal(const afm_runner_model *m) {
+    return m && m->sim ? afm_sim_model(m->sim) : NULL;
+}
+
+void afm_runner_model_destroy(afm_runner_model **mp) {
+    if (!mp || !*mp) return;
+    afm_runner_model *m = *mp;
+    afm_sim_destroy(&m->sim);
+    afm_chain_destroy(&m->chain);
+    free(m);
+    *mp = NULL;
+}
+
+afm_runner_model *afm_runner_model_build(const afm_config *cfg, bool new_chain, char *err,
+                                         size_t errlen) {
+    afm_runner_model *m = calloc(1, sizeof *m);
+    if (!m) {
+        afm_err_set(err, errlen, "out of memory");
+        return NULL;
+    }
+    m->cfg = *cfg;
+    if (afm_config_validate(cfg, err, errlen)) goto fail;
+    m->sim = afm_twin_create(cfg, NULL, NULL, err, errlen);
+    if (!m->sim) goto fail;
+    if (cfg->thermal.enabled && afm_sim_set_thermal(m->sim, &cfg->thermal, err, errlen)) goto fail;
+    if (new_chain) {
+        m->chain = afm_chain_create(cfg, afm_sim_model(m->sim), err, errlen);
+        if (!m->chain) goto fail;
+    }
+    return m;
+fail:
+    afm_runner_model_destroy(&m);
+    return NULL;
+}
+
+/* ---- back: the chain side ----------------------------------------------------------- */
+
+static void back_trash(afm_runner *r, afm_runner_model *m) {
+    while (r->n_held > 0 && afm_spsc_push(&r->trash, &r->held[r->n_held - 1]))
+        r->n_held--;
+    if (afm_spsc_push(&r->trash, &m)) return;
+    if (r->n_held < TRASH_HELD)
+        r->held[r->n_held++] = m;
+    else
+        r->b_trash_lost++; /* leaked rather than blocking: nobody drains the trash */
+}
+
+static void back_separation(afm_runner *r, double z) {
+    r->b_z = z;
+    afm_sim_mirror_set(r->mirror, NULL, NULL, z);
+    afm_chain_set_separation(r->chain, z);
+}
+
+static void back_item(afm_runner *r, ring_item *it) {
+    switch (it->kind) {
+    case IT_SAMPLES: {
+        afm_sim_mirror_set(r->mirror, &it->drive, NULL, r->b_z);
+        if (it->z0_m != r->b_z) back_separation(r, it->z0_m);
+        int from = 0;
+        for (int i = 0; i <= it->n_zc; i++) {
+            int to = i < it->n_zc ? it->zc[i].at : it->n;
+            if (to > from) afm_chain_push(r->chain, it->s + from, to - from);
+            if (i < it->n_zc) back_separation(r, it->zc[i].z_m);
+            from = to;
+        }
+        r->b_seq = it->seq;
+        r->b_fe_hz = it->drive.n > 0 ? it->drive.omega_rad_s[0] / two_pi : 0.0;
+        if (it->n > 0) r->b_t_s = it->s[it->n - 1].t_s;
+        r->b_samples += it->n;
+        break;
+    }
+    case IT_RESET:
+        afm_chain_reset(r->chain);
+        break;
+    case IT_FORCES:
+        afm_sim_mirror_set(r->mirror, NULL, &it->f, r->b_z);
+        afm_chain_set_separation(r->chain, r->b_z); /* a0 may have moved the contact line */
+        break;
+    case IT_DONE:
+        r->b_done = (afm_runner_done){it->seq, it->done_samples, it->done_t_s};
+        r->b_done_waiting = true;
+        break;
+    case IT_ATTACH: {
+        afm_runner_model *m = it->model;
+        afm_sim_mirror_set(r->mirror, &it->drive, &it->f, it->z0_m);
+        r->b_z = it->z0_m;
+        if (m && m->chain) {
+            afm_chain *old = r->chain;
+            r->chain = m->chain;
+            m->chain = old;
+            afm_chain_attach(m->chain, NULL, NULL, 0);
+        }
+        if (afm_chain_attach(r->chain, r->mirror, NULL, 0)) r->b_attach_errors++;
+        if (m) back_trash(r, m);
+        break;
+    }
+    }
+    r->b_items++;
+}
+
+int afm_runner_chain_run(afm_runner *r, int max_items) {
+    int done = 0;
+    ring_item *it;
+    while ((max_items <= 0 || done < max_items) && (it = afm_spsc_peek(&r->ring)) != NULL) {
+        /* Outputs waiting were made after command b_seq: hand them out before samples of a
+         * later command join them. */
+        if (done > 0 && it->kind == IT_SAMPLES && it->seq != r->b_seq) break;
+        bool is_done = it->kind == IT_DONE;
+        back_item(r, it);
+        afm_spsc_release(&r->ring);
+        done++;
+        if (is_done && r->pipelined) break; /* the caller hands out outputs and completion */
+    }
+    return done;
+}
+
+int afm_runner_take_done(afm_runner *r, afm_runner_done *d) {
+    if (!r->b_done_waiting) return 0;
+    *d = r->b_done;
+    r->b_done_waiting = false;
+    return 1;
+}
+
+bool afm_runner_chain_seq_next(afm_runner *r) {
+    const ring_item *it = afm_spsc_peek(&r->ring);
+    return it && it->kind == IT_SAMPLES && it->seq != r->b_seq;
+}
+
+int afm_runner_take_trash(afm_runner *r, afm_runner_model **m) {
+    return afm_spsc_pop(&r->trash, m) ? 1 : 0;
+}
+
+void afm_runner_chain_status_get(const afm_runner *r, afm_runner_chain_status *st) {
+    st->seq_applied = r->b_seq;
+    st->fe_hz = r->b_fe_hz;
+    st->t_s = r->b_t_s;
+    st->samples = r->b_samples;
+    st->attach_errors = r->b_attach_errors;
+    st->trash_lost = r->b_trash_lost;
+    st->chain = afm_chain_stats_get(r->chain);
+}
+
+/* ---- front: ring items -------------------------------------------------------------- */
+
+/* Inline: the back runs here, right away. */
+static void inline_back(afm_runner *r) {
+    if (!r->pipelined) afm_runner_chain_run(r, 0);
+}
+
+static void commit_open(afm_runner *r) {
+    if (!r->open) return;
+    afm_spsc_commit(&r->ring);
+    r->open = NULL;
+    inline_back(r);
+}
+
+/* Move waiting change items into the ring. true when none is left. */
+static bool flush_pending(afm_runner *r) {
+    int i = 0;
+    for (; i < r->n_pending; i++) {
+        ring_item *it = afm_spsc_reserve(&r->ring);
+        if (!it) {
+            inline_back(r);
+            it = afm_spsc_reserve(&r->ring);
+            if (!it) break;
+        }
+        const pending_item *p = &r->pending[i];
+        it->kind = p->kind;
+        it->n = 0;
+        it->n_zc = 0;
+        it->seq = r->seq_applied;
+        it->z0_m = p->z_m;
+        it->drive = p->drive;
+        it->f = p->f;
+        it->model = p->model;
+        if (p->kind == IT_DONE) {
+            it->seq = p->seq;
+            it->done_samples = p->done_samples;
+            it->done_t_s = p->done_t_s;
+        }
+        afm_spsc_commit(&r->ring);
+        inline_back(r);
+    }
+    if (i > 0) {
+        memmove(r->pending, r->pending + i, (size_t)(r->n_pending - i) * sizeof r->pending[0]);
+        r->n_pending -= i;
+    }
+    return r->n_pending == 0;
+}
+
+/* Queue a change for the chain behind everything produced so far. The caller checked that
+ * there is room (front_room). */
+static void emit(afm_runner *r, int kind, afm_runner_model *m) {
+    commit_open(r);
+    pending_item *p = &r->pending[r->n_pending++];
+    p->kind = kind;
+    p->drive = *afm_sim_drive(r->sim);
+    p->f = *afm_sim_forces(r->sim);
+    p->z_m = afm_sim_separation(r->sim);
+    p->model = m;
+    p->seq = r->running ? r->tick_seq : r->step_seq; /* DONE: whose budget it was */
+    p->done_samples = r->samples;
+    p->done_t_s = afm_sim_time(r->sim);
+    flush_pending(r);
+}
+
+static bool front_room(const afm_runner *r) {
+    return r->n_pending + EVENTS_PER_CMD <= PENDING_MAX;
+}
+
+/* The item to write samples into (reserving one), or NULL when the ring is full. */
+static ring_item *open_item(afm_runner *r) {
+    ring_item *it = r->open;
+    if (it && (it->n == SLOT || it->n_zc == ZC_MAX)) {
+        commit_open(r);
+        it = NULL;
+    }
+    if (it) return it;
+    it = afm_spsc_reserve(&r->ring);
+    if (!it) {
+        inline_back(r);
+        it = afm_spsc_reserve(&r->ring);
+        if (!it) return NULL;
+    }
+    it->kind = IT_SAMPLES;
+    it->n = 0;
+    it->n_zc = 0;
+    it->seq = r->seq_applied;
+    it->z0_m = afm_sim_separation(r->sim);
+    it->drive = *afm_sim_drive(r->sim);
+    it->model = NULL;
+    r->open = it;
+    return it;
+}
+
+/* ---- create / destroy --------------------------------------------------------------- */
+
+afm_runner *afm_runner_create_pipelined(const afm_config *cfg, int block_max, bool lockstep,
+                                        bool pipelined, int ring_items, char *err, size_t errlen) {
+    if (!cfg || block_max < 1 || block_max > (1 << 24)) {
+        afm_err_set(err, errlen, "runner: no config, or block_max %d not in 1..%d", block_max,
+                    1 << 24);
+        return NULL;
+    }
+    if (ring_items < 2 || ring_items > 65536) {
+        afm_err_set(err, errlen, "runner: ring of %d items not in 2..65536", ring_items);
+        return NULL;
+    }
+    afm_runner *r = calloc(1, sizeof *r);
+    afm_runner_model *m = NULL;
+    if (!r) {
+        afm_err_set(err, errlen, "out of memory");
+        return NULL;
+    }
+    if (afm_spsc_init(&r->ring, (size_t)ring_items, sizeof(ring_item), err, errlen) ||
+        afm_spsc_init(&r->trash, TRASH_CAP, sizeof(afm_runner_model *), err, errlen))
+        goto fail;
+    m = afm_runner_model_build(cfg, true, err, errlen);
+    if (!m || afm_cmd_check_cfg_drive(afm_sim_model(m->sim), &cfg->drive, err, errlen)) goto fail;
+    r->cfg = *cfg;
+    r->sim = m->sim;
+    r->chain = m->chain;
+    m->sim = NULL;
+    m->chain = NULL;
+    afm_runner_model_destroy(&m);
+    r->mirror = afm_sim_mirror_create(r->sim, err, errlen);
+    if (!r->mirror) goto fail;
+    r->b_z = afm_sim_separation(r->sim);
+    if (afm_chain_attach(r->chain, r->mirror, err, errlen)) goto fail;
+    r->block_max = block_max;
+    r->lockstep = lockstep;
+    r->pipelined = pipelined;
+    r->running = true;
+    r->seq_applied = -1;
+    r->b_seq = -1;
+    r->b_t_s = afm_sim_time(r->sim);
+    {
+        const afm_drive *d = afm_sim_drive(r->sim);
+        r->b_fe_hz = d->n > 0 ? d->omega_rad_s[0] / two_pi : 0.0;
+    }
+    r->last_blowup_t_s = NAN;
+    return r;
+fail:
+    afm_runner_model_destroy(&m);
+    afm_runner_destroy(&r);
+    return NULL;
+}
+
+afm_runner *afm_runner_create(const afm_config *cfg, int block_max, bool lockstep, char *err,
+                              size_t errlen) {
+    return afm_runner_create_pipelined(cfg, block_max, lockstep, false, 4, err, errlen);
+}
+
+void afm_runner_destroy(afm_runner **rp) {
+    if (!rp || !*rp) return;
+    afm_runner *r = *rp;
+    if (r->ring.slots) { /* models still travelling */
+        if (r->open) afm_spsc_commit(&r->ring);
+        ring_item *it;
+        while ((it = afm_spsc_peek(&r->ring)) != NULL) {
+            if (it->kind == IT_ATTACH) afm_runner_model_destroy(&it->model);
+            afm_spsc_release(&r->ring);
+        }
+    }
+    for (int i = 0; i < r->n_pending; i++)
+        afm_runner_model_destroy(&r->pending[i].model);
+    for (int i = 0; i < r->n_held; i++)
+        afm_runner_model_destroy(&r->held[i]);
+    if (r->trash.slots) {
+        afm_runner_model *m;
+        while (afm_spsc_pop(&r->trash, &m))
+            afm_runner_model_destroy(&m);
+    }
+    afm_chain_destroy(&r->chain);
+    afm_sim_destroy(&r->mirror);
+    afm_sim_destroy(&r->sim);
+    afm_spsc_destroy(&r->ring);
+    afm_spsc_destroy(&r->trash);
+    free(r);
+    *rp = NULL;
+}
+
+int afm_runner_set_time(afm_runner *r, double t_s, char *err, size_t errlen) {
+    if (r->samples != 0 || r->open || r->n_pending || afm_spsc_count(&r->ring) ||
+        afm_sim_set_time(r->sim, t_s) != AFM_SIM_OK) {
+        afm_err_set(err, errlen, "runner: model time %g s: only 0..1e9 s, before the first run",
+                    t_s);
+        return -1;
+    }
+    r->b_t_s = t_s;
+    return 0;
+}
+
+int afm_runner_cmd_needs_model(const afm_config *cfg, const afm_cmd *c, bool *new_chain) {
+    bool nc = false;
+    int need = 0;
+    if (c->kind == AFM_CMD_RELOAD) {
+        need = 1;
+        nc = true;
+    } else if (c->kind == AFM_CMD_PARAM) {
+        afm_config t = *cfg;
+        afm_param_effect e;
+        if (afm_param_apply(&t, &c->u.param, &e, NULL, 0) == 0 && e >= AFM_PARAM_DAMPING) {
+            need = 1;
+            nc = e == AFM_PARAM_GEOMETRY;
+        }
+    }
+    if (new_chain) *new_chain = nc;
+    return need;
+}
+
+/* ---- commands ----------------------------------------------------------------------- */
+
+/* Z now; the chain follows with the next samples (their item carries Z). */
+static void set_z(afm_runner *r, double z) {
+    afm_sim_set_separation(r->sim, z); /* z is validated */
+    r->cfg.drive.separation_m = z;
+}
+
+static int apply_dither(afm_runner *r, const afm_cmd_dither *d, char *err, size_t errlen) {
+    afm_sim *s = r->sim;
+    const afm_drive *dr = afm_sim_drive(s);
+    int n_run = dr->n;
+    for (int j = 0; j < d->n_tones; j++) {
+        int rc = j < n_run ? afm_sim_set_tone(s, j, d->amplitude_m[j], d->frequency_hz[j])
+                           : afm_sim_start_tone(s, j, d->amplitude_m[j], d->frequency_hz[j],
+                                                d->phase_rad[j]);
+        if (rc != AFM_SIM_OK) { /* not reached after afm_cmd_validate with this sample rate */
+            afm_err_set(err, errlen, "dither: tone %d rejected by the simulator", j);
+            return -1;
+        }
+    }
+    /* Tones the command leaves out stop: removed from the drive, so that the integrator no
+     * longer pays for them (a silent tone cost as much as a loud one: +40 % per sample with
+     * four tones in contact); a later command that names them starts them at its phase. */
+    if (d->n_tones < n_run) afm_sim_drop_tones(s, d->n_tones);
+    return 0;
+}
+
+static void apply_setpoint(afm_runner *r, const afm_cmd_setpoint *p) {
+    double z = afm_sim_separation(r->sim);
+    if (p->ramp_rate_m_s == 0 || z == p->separation_m) {
+        r->ramping = false;
+        set_z(r, p->separation_m);
+        return;
+    }
+    r->ramping = true;
+    r->z0 = z;
+    r->z_target = p->separation_m;
+    r->z_rate = p->ramp_rate_m_s;
+    r->s0 = r->samples;
+}
+
+/* What afm_chain_attach will check of the new simulator (the chain is the back's). */
+static int attach_ok(const afm_sim *s, char *err, size_t errlen) {
+    const afm_force_params *f = afm_sim_forces(s);
+    afm_cycle tmp;
+    return afm_cycle_init(&tmp, afm_force_contact_x(f, afm_sim_separation(s)), f->cos_alpha, err,
+                          errlen);
+}
+
+/* Swap model m in: time always continues; `what` as afm_sim_continue. m travels to the
+ * back (ATTACH), which swaps its chain in (if any) and hands m back as trash holding the
+ * objects swapped out. */
+static int swap_in(afm_runner *r, afm_runner_model *m, unsigned what, char *err, size_t errlen) {
+    if (afm_sim_continue(m->sim, r->sim, what) != AFM_SIM_OK) {
+        afm_err_set(err, errlen,
+                    "the new model has %d modes, the running one %d: cannot carry "
+                    "the state over",
+                    afm_sim_model(m->sim)->n, afm_sim_model(r->sim)->n);
+        return -1;
+    }
+    if (attach_ok(m->sim, err, errlen)) return -1;
+    afm_sim *old_sim = r->sim;
+    r->sim = m->sim;
+    m->sim = old_sim;
+    emit(r, IT_ATTACH, m);
+    r->swaps++;
+    return 0;
+}
+
+static int apply_param(afm_runner *r, const afm_cmd_param *p, afm_runner_model **model, char *err,
+                       size_t errlen) {
+    afm_config t = r->cfg;
+    afm_param_effect e;
+    if (afm_param_apply(&t, p, &e, err, errlen)) return -1;
+    bool has_z = false;
+    for (int i = 0; i < p->n; i++)
+        if (afm_param_table(NULL)[p->entry[i]].effect == AFM_PARAM_SEPARATION) has_z = true;
+    if (e >= AFM_PARAM_DAMPING) {
+        if (!model || !*model) {
+            afm_err_set(err, errlen,
+                        "param: a %s change needs a model built off the real-time "
+                        "thread (afm_runner_model_build)",
+                        e == AFM_PARAM_DAMPING ? "damping" : "geometry");
+            return -1;
+        }
+        if (e == AFM_PARAM_GEOMETRY && !(*model)->chain) {
+            afm_err_set(err, errlen, "param: a geometry change needs a model with a new chain");
+            return -1;
+        }
+        if (e == AFM_PARAM_DAMPING && (*model)->chain) {
+            afm_err_set(err, errlen, "param: a damping change keeps the chain; the model has one");
+            return -1;
+        }
+        unsigned what = AFM_SIM_KEEP_DRIVE | (e == AFM_PARAM_DAMPING ? AFM_SIM_KEEP_STATE : 0);
+        if (swap_in(r, *model, what, err, errlen)) return -1;
+        *model = NULL; /* travelling to the back */
+    } else if (e == AFM_PARAM_FORCE) {
+        const afm_modal *m = afm_sim_model(r->sim);
+        double len = m->beam_length_m > 0 ? m->beam_length_m : t.forces.plate_length_m;
+        double wid = m->beam_mean_width_m > 0 ? m->beam_mean_width_m : t.forces.plate_width_m;
+        afm_force_params f;
+        if (afm_force_init(&f, &t.forces, len, wid, err, errlen)) return -1;
+        if (afm_sim_set_forces(r->sim, &f) != AFM_SIM_OK) {
+            afm_err_set(err, errlen, "param: the simulator refused the new force constants");
+            return -1;
+        }
+        emit(r, IT_FORCES, NULL);
+    }
+    r->cfg = t;
+    if (has_z) {
+        r->ramping = false;
+        set_z(r, t.drive.separation_m);
+    } else {
+        r->cfg.drive.separation_m = afm_sim_separation(r->sim);
+    }
+    return 0;
+}
+
+int afm_runner_apply(afm_runner *r, const afm_cmd *c, afm_runner_model **model, char *err,
+                     size_t errlen) {
+    afm_cmd_limits lim = {.sample_rate_hz = r->cfg.sim.sample_rate_hz,
+                          .model = afm_sim_model(r->sim)};
+    if (afm_cmd_validate(c, &lim, err, errlen)) return -1;
+    commit_open(r);
+    flush_pending(r);
+    if (!front_room(r)) {
+        afm_err_set(err, errlen, "%s: the output chain is %d changes behind; try again later",
+                    afm_cmd_kind_name(c->kind), r->n_pending);
+        return AFM_RUNNER_EBUSY;
+    }
+    switch (c->kind) {
+    case AFM_CMD_DITHER:
+        if (apply_dither(r, &c->u.dither, err, errlen)) return -1;
+        break;
+    case AFM_CMD_SETPOINT:
+        apply_setpoint(r, &c->u.setpoint);
+        break;
+    case AFM_CMD_PARAM:
+        if (apply_param(r, &c->u.param, model, err, errlen)) return -1;
+        break;
+    case AFM_CMD_CONTROL:
+        switch (c->u.control.action) {
+        case AFM_CTL_RUN:
+            r->running = true;
+            r->step_budget = 0;
+            break;
+        case AFM_CTL_PAUSE:
+            r->running = false;
+            break;
+        case AFM_CTL_RESET:
+            afm_sim_reset(r->sim);
+            emit(r, IT_RESET, NULL);
+            r->ramping = false;
+            break;
+        case AFM_CTL_STEP:
+            r->running = false;
+            r->step_seq = c->seq;
+            if (r->step_budget > LLONG_MAX - c->u.control.n_samples)
+                r->step_budget = LLONG_MAX;
+            else
+                r->step_budget += c->u.control.n_samples;
+            break;
+        }
+        break;
+    case AFM_CMD_TICK:
+        if (!r->lockstep) {
+            afm_err_set(err, errlen, "tick: the twin is not in lockstep mode");
+            return -1;
+        }
+        r->tick_seq = c->seq;
+        if (r->tick_budget > LLONG_MAX - c->u.tick.n_samples)
+            r->tick_budget = LLONG_MAX;
+        else
+            r->tick_budget += c->u.tick.n_samples;
+        break;
+    case AFM_CMD_RELOAD:
+        if (!model || !*model || !(*model)->chain) {
+            afm_err_set(err, errlen, "reload: needs a model with a chain (afm_runner_model_build)");
+            return -1;
+        }
+        {
+            afm_config next = (*model)->cfg;
+            if (swap_in(r, *model, 0, err, errlen)) return -1;
+            *model = NULL;
+            r->cfg = next;
+        }
+        r->ramping = false;
+        break;
+    }
+    if (c->kind != AFM_CMD_RELOAD) r->seq_applied = c->seq; /* a reload is no sender's */
+    r->applied++;
+    r->blowup_streak = 0; /* something changed: a new streak must recur on its own */
+    if (c->kind == AFM_CMD_CONTROL && c->u.control.action == AFM_CTL_RUN) r->auto_paused = false;
+    /* Inline: what was swapped out is back already; hand it to the caller. */
+    if (!r->pipelined && model && !*model) afm_runner_take_trash(r, model);
+    return 0;
+}
+
+/* ---- running ------------------------------------------------------------------------ */
+
+static void ramp_update(afm_runner *r) {
+    double dz = r->z_rate * (double)(r->samples - r->s0) * afm_sim_dt(r->sim);
+    double z;
+    if (r->z_target > r->z0) {
+        z = r->z0 + dz;
+        if (z >= r->z_target) z = r->z_target;
+    } else {
+        z = r->z0 - dz;
+        if (z <= r->z_target) z = r->z_target;
+    }
+    if (z == r->z_target) r->ramping = false;
+    set_z(r, z);
+}
+
+long long afm_runner_budget(const afm_runner *r) {
+    if (!r->running) return r->step_budget;
+    if (r->lockstep) return r->tick_budget;
+    return LLONG_MAX;
+}
+
+long long afm_runner_run(afm_runner *r, long long n) {
+    long long want = n, b = afm_runner_budget(r);
+    bool was_running = r->running; /* the budget this run draws on (it may pause itself) */
+    if (want > b) want = b;
+    long long done = 0;
+    bool flushed = flush_pending(r); /* also with n = 0: a completion waiting for ring space */
+    if (want > 0 && !flushed) {
+        r->stalls++;
+        return 0;
+    }
+    while (done < want) {
+        if (r->ramping && r->samples % AFM_RUNNER_RAMP_SAMPLES == 0) ramp_update(r);
+        ring_item *it = open_item(r);
+        if (!it) {
+            r->stalls++; /* the chain stage is behind: the caller tries again later */
+            break;
+        }
+        double z = afm_sim_separation(r->sim);
+        double z_last = it->n_zc > 0 ? it->zc[it->n_zc - 1].z_m : it->z0_m;
+        if (z != z_last) {
+            if (it->n == 0) {
+                it->z0_m = z;
+            } else {
+                it->zc[it->n_zc].at = it->n;
+                it->zc[it->n_zc].z_m = z;
+                it->n_zc++;
+            }
+        }
+        long long k = want - done;
+        if (k > r->block_max) k = r->block_max;
+        if (k > SLOT - it->n) k = SLOT - it->n;
+        if (r->ramping) {
+            long long to_edge = AFM_RUNNER_RAMP_SAMPLES - r->samples % AFM_RUNNER_RAMP_SAMPLES;
+            if (k > to_edge) k = to_edge;
+        }
+        double t0 = afm_sim_time(r->sim);
+        int rc = afm_sim_run(r->sim, (int)k, it->s + it->n);
+        long long adv = k;
+        if (rc == AFM_SIM_OK) {
+            it->n += (int)k;
+        } else {
+            /* The simulator reset itself to rest; its clock counts the steps it took. The
+             * samples of this slice are dropped; the chain starts over. */
+            adv = llround((afm_sim_time(r->sim) - t0) / afm_sim_dt(r->sim));
+            if (adv > k) adv = k;
+            double t_b = afm_sim_time(r->sim);
+            r->blowup_streak =
+                r->blowup_streak > 0 && t_b - r->last_blowup_t_s <= AFM_RUNNER_BLOWUP_WINDOW_S
+                    ? r->blowup_streak + 1
+                    : 1;
+            r->blowups++;
+            r->last_blowup_t_s = t_b;
+            if (it->n == 0) r->open = NULL; /* nothing in it: the slot stays free */
+            emit(r, IT_RESET, NULL);        /* may stay pending; run flushes it first next time */
+            if (adv <= 0) break; /* the integrator cannot even start: report, go no further */
+        }
+        r->samples += adv;
+        done += adv;
+        if (r->blowup_streak >= AFM_RUNNER_BLOWUP_PAUSE && r->running) {
+            /* A blow-up that recurs: pause instead of spinning through resets. */
+            r->running = false;
+            r->step_budget = 0;
+            r->auto_paused = true;
+            r->auto_pauses++;
+            break;
+        }
+    }
+    commit_open(r);
+    if (!was_running)
+        r->step_budget -= done;
+    else if (r->lockstep)
+        r->tick_budget -= done;
+    /* A tick or step budget used up: its completion follows the samples (the room for it was
+     * kept by front_room when the command was applied; else it waits in pending). */
+    if (done > 0 && afm_runner_budget(r) == 0 && r->n_pending < PENDING_MAX) emit(r, IT_DONE, NULL);
+    return done;
+}
+
+int afm_runner_n_streams(const afm_runner *r) {
+    return afm_chain_n_streams(r->chain);
+}
+
+int afm_runner_take_block(afm_runner *r, int stream, afm_chain_block *b, int max_n) {
+    return afm_chain_take_block(r->chain, stream, b, max_n);
+}
+
+int afm_runner_take_periods(afm_runner *r, afm_chain_period *out, int max) {
+    return afm_chain_take_periods(r->chain, out, max);
+}
+
+int afm_runner_take_periods_raw(afm_runner *r, afm_chain_period *out, int max) {
+    return afm_chain_take_periods_raw(r->chain, out, max);
+}
+
+void afm_runner_period_finish(const afm_runner *r, afm_chain_period *p) {
+    afm_chain_period_finish(r->chain, p);
+}
+
+void afm_runner_status_get(const afm_runner *r, afm_runner_status *st) {
+    const afm_drive *d = afm_sim_drive(r->sim);
+    st->seq_applied = r->seq_applied;
+    st->samples = r->samples;
+    st->t_s = afm_sim_time(r->sim);
+    st->dt_s = afm_sim_dt(r->sim);
+    st->running = r->running;
+    st->lockstep = r->lockstep;
+    st->step_budget = r->step_budget;
+    st->tick_budget = r->tick_budget;
+    st->separation_m = afm_sim_separation(r->sim);
+    st->separation_target_m = r->ramping ? r->z_target : st->separation_m;
+    st->fe_hz = d->n > 0 ? d->omega_rad_s[0] / two_pi : 0.0;
+    st->amplitude_m = d->n > 0 ? d->amp_m[0] : 0.0;
+    st->blowups = r->blowups;
+    st->last_blowup_t_s = r->last_blowup_t_s;
+    st->auto_paused = r->auto_paused && !r->running;
+    st->auto_pauses = r->auto_pauses;
+    st->applied = r->applied;
+    st->swaps = r->swaps;
+    st->stalls = r->stalls;
+    st->pending = (long long)afm_spsc_count((afm_spsc *)&r->ring) + r->n_pending;
+    if (r->pipelined)
+        memset(&st->chain, 0, sizeof st->chain); /* the chain thread's: chain_status_get */
+    else
+        st->chain = afm_chain_stats_get(r->chain);
+}
+
+void afm_runner_pause_reason(const afm_runner_status *st, char *buf, size_t len) {
+    if (!st->auto_paused) {
+        snprintf(buf, len, "%s", "");
+        return;
+    }
+    snprintf(buf, len,
+             "paused by itself after %d numerical blow-ups, each within %g s of model time of "
+             "the last (the last at t = %.6f s): the state runs away under this drive (tone 0: "
+             "%.6g Hz, %.3g m) at Z = %.3g m; change the drive, Z or the model, then send "
+             "control run",
+             AFM_RUNNER_BLOWUP_PAUSE, AFM_RUNNER_BLOWUP_WINDOW_S, st->last_blowup_t_s, st->fe_hz,
+             st->amplitude_m, st->separation_m);
+}
+
+const afm_config *afm_runner_config(const afm_runner *r) {
+    return &r->cfg;
+}
+const afm_sim *afm_runner_sim(const afm_runner *r) {
+    return r->sim;
+}
+bool afm_runner_pipelined(const afm_runner *r) {
+    return r->pipelined;
+}

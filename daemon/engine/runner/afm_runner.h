@@ -1,0 +1,213 @@
+/* SPDX-License-Identifier: MIT */
+/* afm_runner.h -- the twin as the daemon and the replay tool run it: simulator + output
+ * chain (OBD, decimators, estimators), commands applied at block boundaries, n samples at
+ * a time. No LCM, no threads, no clock: the caller decides when to run and what to apply.
+ *
+ * Layer runner/ (5) (top of the engine; uses afm_twin, afm_sim, afm_chain and the command
+ * struct of runner/afm_cmd.h, which is plain data).
+ *
+ * Life cycle: afm_runner_create (allocates everything) -> { afm_runner_apply, afm_runner_run,
+ * afm_runner_take_* , afm_runner_status } ... -> afm_runner_destroy. Nothing after create
+ * allocates, locks or blocks, except afm_runner_model_build / _destroy, which exist to be
+ * called on another thread (or, in replay, inline).
+ *
+ * Two stages: the integrator (front: apply, run, budget, status_get) writes its samples,
+ * blocks of AFM_RUNNER_SLOT_SAMPLES, and every change the output chain must follow into a
+ * lock-free ring; the output chain (back: chain_run, take_*, chain_status_get,
+ * take_trash) consumes them in order. afm_runner_create runs the back inline, inside run
+ * and apply, on the caller's thread. afm_runner_create_pipelined(..., true, ...) leaves it
+ * to a second thread: the front's functions on one thread, the back's on one other
+ * (afm_runner_take_trash on any one thread). The chain gets the same calls with the same
+ * data in both cases, so the outputs are bit-identical. Pipelined, run advances fewer
+ * samples than asked when the ring is full (the chain stage is behind: status.stalls),
+ * and never waits.
+ *
+ * Determinism: the output depends only on the config and on which commands were applied
+ * after how many samples since create. The setpoint ramp moves Z every
+ * AFM_RUNNER_RAMP_SAMPLES samples counted from create, so how the caller slices
+ * afm_runner_run does not matter either: same commands at the same sample counts ->
+ * bit-identical outputs (replay depends on it).
+ *
+ * Commands (validated with afm_cmd_validate first, with the running model in the limits;
+ * afm_runner_apply re-checks what depends on the running state and changes nothing on
+ * rejection):
+ *  - dither: tone j < n_tones set phase-continuously (afm_sim_set_tone); a tone this
+ *    command starts begins at phase_rad; running tones past n_tones stop (they are removed
+ *    from the drive; naming them again starts them at that command's phase_rad).
+ *  - setpoint: ramp rate 0 -> Z now; else Z moves linearly towards the target.
+ *  - param: SEPARATION and FORCE names apply now (afm_param_apply on the runner's config,
+ *    then the force constants are swapped into the simulator, no allocation); DAMPING and
+ *    GEOMETRY names need a model built by afm_runner_model_build from the config the
+ *    command leads to (passed to afm_runner_apply in *model).
+ *  - control: RUN, PAUSE, RESET (state to rest, chain cleared, drive and Z kept),
+ *    STEP n (pauses; the next n samples run although paused).
+ *  - tick: adds n samples to the lockstep budget (see afm_runner_run).
+ *  - reload: swaps in *model (built from a whole new config): new simulator and chain,
+ *    model time continues, state at rest, drive and Z from the new config.
+ * Every applied command but a reload sets seq_applied = its seq (a reload keeps it); the
+ * outputs carry the seq_applied of the samples they come from (chain_status_get).
+ *
+ * A numerical blow-up (AFM_SIM_EBLOWUP from the integrator) resets the state to rest and
+ * the chain, is counted (status.blowups, last_blowup_t_s); the samples of that slice are
+ * dropped and the run goes on with the rest of it from rest. A blow-up that recurs --
+ * AFM_RUNNER_BLOWUP_PAUSE of them, each within AFM_RUNNER_BLOWUP_WINDOW_S of model time of
+ * the one before, with no command applied in between -- pauses the twin (status.auto_paused,
+ * afm_runner_pause_reason says why) instead of spinning through resets; control RUN resumes.
+ * The plausibility limits (afm_limits.h) keep single commands from running away; this
+ * catches what they cannot see, e.g. the damping taken away under a resonant drive. */
+#ifndef AFM_RUNNER_H
+#define AFM_RUNNER_H
+
+#include "estimators/afm_chain.h"
+#include "runner/afm_cmd.h"
+#include "config/afm_config.h"
+#include "integrators/afm_sim.h"
+
+#include <stdint.h>
+
+#define AFM_RUNNER_RAMP_SAMPLES 64     /* Z ramp update interval (samples; 4.6 us at 14.06 MHz) */
+#define AFM_RUNNER_SLOT_SAMPLES 1024   /* samples per ring item (73 us at 14.06 MHz) */
+#define AFM_RUNNER_BLOWUP_PAUSE 3      /* recurring blow-ups before the twin pauses itself */
+#define AFM_RUNNER_BLOWUP_WINDOW_S 1.0 /* ... each within this model time of the last */
+
+typedef struct afm_runner afm_runner;
+/* A simulator (and, for geometry changes and reloads, a chain) built for a config, ready
+ * to be swapped in. After afm_runner_apply the same handle holds what was swapped out. */
+typedef struct afm_runner_model afm_runner_model;
+
+/* Build the twin of cfg. block_max: the largest slice afm_runner_run processes in one
+ * integrator call (sizes the sample buffer; larger n are split). lockstep: the twin
+ * advances only by tick budget (see afm_runner_run). The config's drive must pass the
+ * model-dependent limits (afm_cmd_check_cfg_drive). NULL with err on failure. */
+afm_runner *afm_runner_create(const afm_config *cfg, int block_max, bool lockstep, char *err,
+                              size_t errlen);
+/* As afm_runner_create; pipelined: the back runs on another thread (see above), through a
+ * ring of ring_items (2..65536) items of AFM_RUNNER_SLOT_SAMPLES samples (~50 kB each). */
+afm_runner *afm_runner_create_pipelined(const afm_config *cfg, int block_max, bool lockstep,
+                                        bool pipelined, int ring_items, char *err, size_t errlen);
+void afm_runner_destroy(afm_runner **r);
+/* Start model time at t_s instead of 0 (afm_sim_set_time), before the first run: to
+ * reproduce offline what a daemon does after being up that long. 0, or -1 with err (samples
+ * already run, or t_s out of range). */
+int afm_runner_set_time(afm_runner *r, double t_s, char *err, size_t errlen);
+bool afm_runner_pipelined(const afm_runner *r);
+
+/* Build, for a DAMPING / GEOMETRY param command or a reload, the simulator for cfg (the
+ * config the command leads to: the caller's copy after afm_param_apply, or the new file),
+ * and a chain when new_chain (geometry: the OBD calibration follows the model; reload).
+ * Allocates: call off the real-time thread. NULL with err. */
+afm_runner_model *afm_runner_model_build(const afm_config *cfg, bool new_chain, char *err,
+                                         size_t errlen);
+void afm_runner_model_destroy(afm_runner_model **m);
+/* The modal model of m (for command limits: afm_cmd_limits.model), NULL without one. */
+const afm_modal *afm_runner_model_modal(const afm_runner_model *m);
+
+/* Does this (validated) command need a model from afm_runner_model_build? 1 for a reload
+ * and for a param command whose strongest effect is DAMPING or GEOMETRY (then *new_chain
+ * says whether the model needs a chain), else 0. cfg: the config before the command. */
+int afm_runner_cmd_needs_model(const afm_config *cfg, const afm_cmd *c, bool *new_chain);
+
+/* Apply c now (between runs). model: NULL, or the address of a model handle for the
+ * commands that need one; on success it then holds the objects swapped out (destroy them
+ * off the real-time thread), or, pipelined, NULL: they come out of afm_runner_take_trash
+ * once the chain thread has passed the swap. 0, or -1 with err and nothing changed (*model
+ * still the caller's). AFM_RUNNER_EBUSY (pipelined only), nothing changed, when the chain
+ * stage is so far behind that the changes it has to follow no longer fit: apply it again
+ * after the next run (the daemon keeps it at the head of its queue). */
+#define AFM_RUNNER_EBUSY (-2)
+int afm_runner_apply(afm_runner *r, const afm_cmd *c, afm_runner_model **model, char *err,
+                     size_t errlen);
+
+/* Advance up to n samples. Free-running (not lockstep) and running: n. Paused: at most the
+ * STEP budget. Lockstep and running: at most the tick budget. Returns the samples advanced
+ * (0..n). Outputs wait in the chain's rings until taken. n = 0 only moves changes (and a
+ * completion) that waited for ring space into the ring. */
+long long afm_runner_run(afm_runner *r, long long n);
+
+/* Samples the next afm_runner_run would advance at most (LLONG_MAX when not gated). */
+long long afm_runner_budget(const afm_runner *r);
+
+/* Back, pipelined only (inline, run and apply do it): process up to max_items (<= 0: all)
+ * ring items; stops early before samples that follow a later command than the outputs
+ * waiting, so that the caller takes those first with their seq. Returns items processed
+ * (0: nothing waiting). */
+int afm_runner_chain_run(afm_runner *r, int max_items);
+/* Back: true when the next waiting item holds samples of a later command than the
+ * outputs waiting now (afm_runner_chain_run would stop before it): hand those out first. */
+bool afm_runner_chain_seq_next(afm_runner *r);
+
+/* Back: the completion of a tick (lockstep) or step budget. When the integrator uses up the
+ * budget it runs on (ticks while running in lockstep, steps while paused), a marker follows
+ * the samples; once afm_runner_chain_run has passed it (it stops right after), this returns
+ * 1 with the seq of the last tick (or step) command applied, the samples run since create
+ * and the model time reached, then 0 until the next one: hand out the outputs waiting first,
+ * they are the budget's. Ticks sent while an earlier one still runs are completed together
+ * (one marker, the last seq); ticks sent while paused run, and complete, after RUN. Inline, the
+ * back does not stop there and this returns the latest marker. */
+typedef struct {
+    int64_t seq;
+    long long samples;
+    double t_s;
+} afm_runner_done;
+int afm_runner_take_done(afm_runner *r, afm_runner_done *d);
+
+/* Back: the objects a swap replaced (a model handle to afm_runner_model_destroy off the
+ * real-time threads). 1 with *m, 0 when none waits. */
+int afm_runner_take_trash(afm_runner *r, afm_runner_model **m);
+
+typedef struct {
+    int64_t seq_applied; /* seq of the command before the last samples the chain took */
+    double fe_hz;        /* tone 0 frequency of those samples */
+    double t_s;          /* model time of the last sample the chain took */
+    long long samples;   /* samples the chain took */
+    long long attach_errors, trash_lost; /* should stay 0 */
+    afm_chain_stats chain;
+} afm_runner_chain_status;
+void afm_runner_chain_status_get(const afm_runner *r, afm_runner_chain_status *st);
+
+/* Back: decimated blocks of stream i and per-period records, as afm_chain_take_block /
+ * afm_chain_take_periods (pointers valid until the next chain_run, or run / apply inline). */
+int afm_runner_n_streams(const afm_runner *r);
+int afm_runner_take_block(afm_runner *r, int stream, afm_chain_block *b, int max_n);
+int afm_runner_take_periods(afm_runner *r, afm_chain_period *out, int max);
+/* afm_chain_take_periods_raw and afm_chain_period_finish on the runner's chain: take every
+ * record, finish the ones to publish. */
+int afm_runner_take_periods_raw(afm_runner *r, afm_chain_period *out, int max);
+void afm_runner_period_finish(const afm_runner *r, afm_chain_period *p);
+
+typedef struct {
+    int64_t seq_applied; /* seq of the last command applied (-1: none yet) */
+    long long samples;   /* samples advanced since create */
+    double t_s;          /* model time */
+    double dt_s;         /* sample interval */
+    bool running;        /* not paused */
+    bool lockstep;
+    long long step_budget, tick_budget;
+    double separation_m;        /* current Z */
+    double separation_target_m; /* ramp target (= separation_m when not ramping) */
+    double fe_hz;               /* tone 0 frequency */
+    double amplitude_m;         /* tone 0 amplitude */
+    long long blowups;          /* numerical blow-ups (state reset) */
+    double last_blowup_t_s;     /* model time of the last one (NAN if none) */
+    bool auto_paused;           /* paused by itself: recurring blow-ups (see above) */
+    long long auto_pauses;      /* times it did */
+    long long applied;          /* commands applied */
+    long long swaps;            /* models swapped in (damping, geometry, reload) */
+    long long stalls;           /* runs cut short by a full ring (pipelined: chain behind) */
+    long long pending;          /* ring items the chain has not taken yet (a snapshot) */
+    afm_chain_stats chain;      /* OBD saturation, ring drops, periods, estimator rejects
+                                   (inline only; pipelined: afm_runner_chain_status_get) */
+} afm_runner_status;
+
+void afm_runner_status_get(const afm_runner *r, afm_runner_status *st);
+/* Why the twin paused itself ("" unless st->auto_paused), from a status: formatting stays
+ * off the real-time thread. */
+void afm_runner_pause_reason(const afm_runner_status *st, char *buf, size_t len);
+
+/* The config the runner is running now (after live params and swaps). Valid until the
+ * next apply. */
+const afm_config *afm_runner_config(const afm_runner *r);
+/* The simulator (read-only: for its drive, model, separation). */
+const afm_sim *afm_runner_sim(const afm_runner *r);
+
+#endif
