@@ -41,10 +41,10 @@
 #include <time.h>
 #include <unistd.h>
 
-/* Commands on 7667, outputs on 7668 (afmtwind's default: the output URL is the command
- * URL with the port + 1), so that the daemon's command socket carries commands only. */
+/* The default command URL (--lcm-url): LCM's group and port with 4 MiB receive buffers; the
+ * outputs then go to port 7668 (afm_lcm_urls: the command URL with the port + 1, afmtwind's
+ * default too), so that the daemon's command socket carries commands only. */
 #define BD_URL "udpm://239.255.76.67:7667?ttl=0&recv_buf_size=4194304"
-#define BD_OUT_URL "udpm://239.255.76.67:7668?ttl=0&recv_buf_size=4194304"
 #define BD_MAX_CMDS 100000
 #define BD_CLIENT_PRIO 90 /* above afmtwind's threads (80 and below) */
 #define BD_CLIENT_PRIO_TEXT "90"
@@ -60,6 +60,8 @@
 
 typedef struct {
     const char *daemon;
+    const char *url, *out_url, *prefix; /* as given (NULL: default), passed on to the daemon */
+    afmt_channels ch;                   /* of prefix */
     const char *configs[8];
     int n_configs;
     int commands;
@@ -84,31 +86,38 @@ typedef struct {
 } bd_state;
 
 static void bd_usage(FILE *f) {
-    fprintf(f, "usage: afmtwin bench-daemon [--daemon PATH] [--config FILE]... [--commands N]\n"
-               "                            [--seconds S] [--json] [--no-netns]\n\n"
-               "Benchmarks the running daemon from outside, over LCM, inside a private network\n"
-               "namespace (unshare -n; loopback with a multicast route, nothing else):\n"
-               "  real-time factor  model seconds per wall second while tapping with all outputs\n"
-               "                    on (samples of every stream, harmonics, status), with the\n"
-               "                    daemon's overruns and lag\n"
-               "  latency           from sending a setpoint to the first samples message that\n"
-               "                    carries its seq (p50, p99, max over N commands); the daemon's\n"
-               "                    goal is p99 within one output block + 200 us\n"
-               "  lockstep          afmtwind --mode lockstep driven by afmtwin lockstep --bench:\n"
-               "                    ticks of 1 ms and 0.1 ms, each sent when the previous one's\n"
-               "                    completion arrived; ticks/s and x real time (targets 0.9\n"
-               "                    and 0.3), unpinned and with the round trip on CPU 0\n\n"
-               "options:\n"
-               "  --daemon PATH   afmtwind to run (default: afmtwind next to this afmtwin)\n"
-               "  --config FILE   config to run (repeatable; default config/nchv.conf and\n"
-               "                  config/default.conf); the twin is set to tap: tone 0 at\n"
-               "                  338.112 kHz, 0.087 nm (50 nm free), Z 35 nm\n"
-               "  --commands N    setpoint commands for the latency (default 1000, >= 10)\n"
-               "  --seconds S     real-time factor window (default 5)\n"
-               "  --json          one JSON object per config (and per lockstep run)\n"
-               "  --no-netns      run in the current network namespace (already private)\n"
-               "  --help          this text\n\n"
-               "Exit status 0 when every run completed (whatever the numbers), 1 otherwise.\n");
+    fprintf(f,
+            "usage: afmtwin bench-daemon [--daemon PATH] [--config FILE]... [--commands N]\n"
+            "                            [--seconds S] [--json] [--no-netns]\n"
+            "                            [--lcm-url URL] [--lcm-out-url URL] [--prefix NAME_]\n\n"
+            "Benchmarks the running daemon from outside, over LCM, inside a private network\n"
+            "namespace (unshare -n; loopback with a multicast route, nothing else):\n"
+            "  real-time factor  model seconds per wall second while tapping with all outputs\n"
+            "                    on (samples of every stream, harmonics, status), with the\n"
+            "                    daemon's overruns and lag\n"
+            "  latency           from sending a setpoint to the first samples message that\n"
+            "                    carries its seq (p50, p99, max over N commands); the daemon's\n"
+            "                    goal is p99 within one output block + 200 us\n"
+            "  lockstep          afmtwind --mode lockstep driven by afmtwin lockstep --bench:\n"
+            "                    ticks of 1 ms and 0.1 ms, each sent when the previous one's\n"
+            "                    completion arrived; ticks/s and x real time (targets 0.9\n"
+            "                    and 0.3), unpinned and with the round trip on CPU 0\n\n"
+            "options:\n"
+            "  --daemon PATH   afmtwind to run (default: afmtwind next to this afmtwin)\n"
+            "  --config FILE   config to run (repeatable; default config/nchv.conf and\n"
+            "                  config/default.conf); the twin is set to tap: tone 0 at\n"
+            "                  338.112 kHz, 0.087 nm (50 nm free), Z 35 nm\n"
+            "  --commands N    setpoint commands for the latency (default 1000, >= 10)\n"
+            "  --seconds S     real-time factor window (default 5)\n"
+            "  --json          one JSON object per config (and per lockstep run)\n"
+            "  --lcm-url URL   the daemon's command URL, given to afmtwind and lockstep\n"
+            "                  (default " BD_URL ")\n"
+            "  --lcm-out-url URL  its output URL (default: --lcm-url with the udpm port + 1)\n"
+            "  --prefix NAME_  channel-name prefix, given to afmtwind (default " AFMT_DEFAULT_PREFIX
+            ")\n"
+            "  --no-netns      run in the current network namespace (already private)\n"
+            "  --help          this text\n\n"
+            "Exit status 0 when every run completed (whatever the numbers), 1 otherwise.\n");
 }
 
 /* ---- LCM handlers ---------------------------------------------------------------------- */
@@ -185,15 +194,36 @@ typedef struct {
     char warn[512];
 } bd_result;
 
-static pid_t start_daemon(const bd_opts *o, const char *config, const char *errfile) {
+/* Runs afmtwind on config with this bench's URLs and prefix, its stderr to errfile (NULL:
+ * /dev/null), plus the extra arguments (NULL-terminated, up to 16). The child's pid, or -1. */
+static pid_t start_daemon(const bd_opts *o, const char *config, const char *errfile,
+                          const char *const *extra) {
     pid_t pid = fork();
     if (pid != 0) return pid;
-    int fd = open(errfile, O_WRONLY | O_CREAT | O_TRUNC, 0600);
+    int fd =
+        errfile ? open(errfile, O_WRONLY | O_CREAT | O_TRUNC, 0600) : open("/dev/null", O_WRONLY);
     if (fd >= 0) {
         dup2(fd, 2);
         close(fd);
     }
-    execl(o->daemon, o->daemon, "--config", config, "--lcm-url", BD_URL, "--quiet", (char *)NULL);
+    const char *argv[32];
+    int n = 0;
+    argv[n++] = o->daemon;
+    argv[n++] = "--config";
+    argv[n++] = config;
+    argv[n++] = "--lcm-url";
+    argv[n++] = o->url;
+    if (o->out_url) {
+        argv[n++] = "--lcm-out-url";
+        argv[n++] = o->out_url;
+    }
+    argv[n++] = "--prefix";
+    argv[n++] = o->prefix;
+    argv[n++] = "--quiet";
+    for (int i = 0; extra && extra[i] && i < 16; i++)
+        argv[n++] = extra[i];
+    argv[n] = NULL;
+    execv(o->daemon, (char *const *)argv);
     fprintf(stderr, "cannot run %s: %s\n", o->daemon, strerror(errno));
     _exit(127);
 }
@@ -228,7 +258,7 @@ static double block_from_errfile(const char *errfile) {
 }
 
 /* The tapping operating point: tone 0 at f1 for 50 nm free, Z 35 nm (seq 1 and 2). */
-static void send_tap(lcm_t *cmd) {
+static void send_tap(const bd_opts *o, lcm_t *cmd) {
     double f = BD_TAP_FREQ_HZ, a = BD_TAP_AMP_M, ph = 0;
     afmtwin_dither_t dm = {.utime = afmt_wall_us(),
                            .seq = 1,
@@ -237,8 +267,8 @@ static void send_tap(lcm_t *cmd) {
                            .amplitude_m = &a,
                            .phase_rad = &ph};
     afmtwin_setpoint_t sp = {.utime = afmt_wall_us(), .seq = 2, .separation_m = BD_TAP_Z_M};
-    afmtwin_dither_t_publish(cmd, "AFMTWIN_DITHER", &dm);
-    afmtwin_setpoint_t_publish(cmd, "AFMTWIN_SETPOINT", &sp);
+    afmtwin_dither_t_publish(cmd, o->ch.cmd[AFM_CMD_DITHER], &dm);
+    afmtwin_setpoint_t_publish(cmd, o->ch.cmd[AFM_CMD_SETPOINT], &sp);
 }
 
 /* Back to normal scheduling after a config's run. */
@@ -261,11 +291,8 @@ static void bench_config(const bd_opts *o, const char *config, bd_result *r) {
      * LCM's own receive thread inherits it; SCHED_RESET_ON_FORK keeps it from the daemon. */
     struct sched_param prio = {.sched_priority = BD_CLIENT_PRIO};
     r->client_fifo = sched_setscheduler(0, SCHED_FIFO | BD_RESET_ON_FORK, &prio) == 0;
-    lcm_t *lcm = lcm_create(BD_OUT_URL);          /* outputs in */
-    lcm_t *cmd = lcm ? lcm_create(BD_URL) : NULL; /* commands out (never subscribed) */
-    if (!lcm || !cmd) {
-        snprintf(r->err, sizeof r->err, "lcm_create(%s) failed (no multicast route?)", BD_URL);
-        if (lcm) lcm_destroy(lcm);
+    lcm_t *lcm, *cmd; /* outputs in; commands out (never subscribed) */
+    if (afmt_lcm_open(o->url, o->out_url, &cmd, &lcm, r->err, sizeof r->err)) {
         unlink(errfile);
         client_normal(r);
         return;
@@ -276,10 +303,10 @@ static void bench_config(const bd_opts *o, const char *config, bd_result *r) {
     afmt_checked_sub subs[3] = {{&afm_wire_status_t, on_status, &s, 0},
                                 {&afm_wire_harmonics_t, on_harm, &s, 0},
                                 {&afm_wire_samples_t, on_samples, &s, 0}};
-    afmt_subscribe_checked(lcm, "AFMTWIN_STATUS", &subs[0], 1000);
-    afmt_subscribe_checked(lcm, "AFMTWIN_HARMONICS", &subs[1], 10000);
-    afmt_subscribe_checked(lcm, "AFMTWIN_SAMPLES", &subs[2], 10000);
-    pid_t pid = start_daemon(o, config, errfile);
+    afmt_subscribe_checked(lcm, o->ch.out[AFMT_OUT_STATUS], &subs[0], 1000);
+    afmt_subscribe_checked(lcm, o->ch.out[AFMT_OUT_HARMONICS], &subs[1], 10000);
+    afmt_subscribe_checked(lcm, o->ch.out[AFMT_OUT_SAMPLES], &subs[2], 10000);
+    pid_t pid = start_daemon(o, config, errfile, NULL);
     if (pid < 0) {
         snprintf(r->err, sizeof r->err, "fork failed");
         goto out;
@@ -292,7 +319,7 @@ static void bench_config(const bd_opts *o, const char *config, bd_result *r) {
         goto stop;
     }
     r->block_s = block_from_errfile(errfile);
-    send_tap(cmd);
+    send_tap(o, cmd);
     r->sent = 2;
     pump(lcm, 1.0);
     /* (a) real-time factor over the window */
@@ -321,7 +348,7 @@ static void bench_config(const bd_opts *o, const char *config, bd_result *r) {
         s.want_seq = c.seq;
         s.got = false;
         double t0 = afmt_mono_s();
-        afmtwin_setpoint_t_publish(cmd, "AFMTWIN_SETPOINT", &c);
+        afmtwin_setpoint_t_publish(cmd, o->ch.cmd[AFM_CMD_SETPOINT], &c);
         r->sent++;
         while (!s.got && afmt_mono_s() - t0 < BD_WAIT_S)
             lcm_handle_timeout(lcm, 100);
@@ -347,7 +374,7 @@ static void bench_config(const bd_opts *o, const char *config, bd_result *r) {
     for (int i = 0; i < o->commands; i++) {
         afmtwin_setpoint_t c = {
             .utime = afmt_wall_us(), .seq = 1000000 + i, .separation_m = (i & 1) ? 35.5e-9 : 35e-9};
-        afmtwin_setpoint_t_publish(cmd, "AFMTWIN_SETPOINT", &c);
+        afmtwin_setpoint_t_publish(cmd, o->ch.cmd[AFM_CMD_SETPOINT], &c);
         r->sent++;
         pump(lcm, 100e-6);
     }
@@ -391,36 +418,27 @@ static int bench_lockstep(const bd_opts *o, const char *config) {
             "  lockstep (afmtwind --mode lockstep; each tick sent after the previous one's "
             "completion arrived; targets 0.9 x real time with 1 ms ticks, 0.3 x with 0.1 ms):\n");
     for (int pin = 0; pin < 2; pin++) {
-        pid_t pid = fork();
-        if (pid == 0) {
-            int fd = open("/dev/null", O_WRONLY);
-            if (fd >= 0) {
-                dup2(fd, 2);
-                close(fd);
+        const char *const extra[2][9] = {{"--mode", "lockstep", NULL},
+                                         {"--mode", "lockstep", "--cpu", pins[1][0], "--chain-cpu",
+                                          pins[1][1], "--aux-cpu", pins[1][2], NULL}};
+        pid_t pid = start_daemon(o, config, NULL, extra[pin]);
+        lcm_t *cmd = NULL, *out = NULL;
+        char err[256];
+        if (pid < 0 || afmt_lcm_open(o->url, o->out_url, &cmd, &out, err, sizeof err)) {
+            if (pid > 0) {
+                kill(pid, SIGTERM);
+                waitpid(pid, NULL, 0);
             }
-            if (pin)
-                execl(o->daemon, o->daemon, "--config", config, "--lcm-url", BD_URL, "--mode",
-                      "lockstep", "--quiet", "--cpu", pins[1][0], "--chain-cpu", pins[1][1],
-                      "--aux-cpu", pins[1][2], (char *)NULL);
-            else
-                execl(o->daemon, o->daemon, "--config", config, "--lcm-url", BD_URL, "--mode",
-                      "lockstep", "--quiet", (char *)NULL);
-            _exit(127);
-        }
-        lcm_t *cmd = pid > 0 ? lcm_create(BD_URL) : NULL,
-              *out = cmd ? lcm_create(BD_OUT_URL) : NULL;
-        if (!out) {
-            if (cmd) lcm_destroy(cmd);
             rc = 1;
             break;
         }
         bd_state st = {.want_seq = -1}; /* up: its status arrives */
         afmt_checked_sub sub = {&afm_wire_status_t, on_status, &st, 0};
-        afmt_subscribe_checked(out, "AFMTWIN_STATUS", &sub, 1000);
+        afmt_subscribe_checked(out, o->ch.out[AFMT_OUT_STATUS], &sub, 1000);
         for (int i = 0; i < 100 && st.n_status == 0; i++)
             pump(out, 0.1);
         lcm_destroy(out); /* and the subscription */
-        send_tap(cmd);    /* applied with the first tick */
+        send_tap(o, cmd); /* applied with the first tick */
         lcm_destroy(cmd);
         if (!o->json)
             printf("   %s:\n", pin ? "pinned (afmtwind --cpu 0 --chain-cpu 1 --aux-cpu 0, "
@@ -430,17 +448,29 @@ static int bench_lockstep(const bd_opts *o, const char *config) {
         for (int k = 0; k < 2; k++) {
             char secs[32];
             snprintf(secs, sizeof secs, "%g", o->seconds > 3 ? 3.0 : o->seconds);
-            char *argv[] = {"lockstep",  "--bench",        secs,
-                            "--tick-us", (char *)ticks[k], "--lcm-url",
-                            BD_URL,      "--config",       (char *)config,
-                            "--cpu",     pin ? "0" : "-1", o->json ? "--json" : "--quiet",
-                            NULL};
-            int argc = (int)(sizeof argv / sizeof argv[0]) - 1;
-            if (!pin) { /* no --cpu */
-                argv[9] = argv[11];
-                argv[10] = NULL;
-                argc = 10;
+            char *argv[20];
+            int argc = 0;
+            argv[argc++] = "lockstep";
+            argv[argc++] = "--bench";
+            argv[argc++] = secs;
+            argv[argc++] = "--tick-us";
+            argv[argc++] = (char *)ticks[k];
+            argv[argc++] = "--lcm-url";
+            argv[argc++] = (char *)o->url;
+            if (o->out_url) {
+                argv[argc++] = "--lcm-out-url";
+                argv[argc++] = (char *)o->out_url;
             }
+            argv[argc++] = "--prefix";
+            argv[argc++] = (char *)o->prefix;
+            argv[argc++] = "--config";
+            argv[argc++] = (char *)config;
+            if (pin) {
+                argv[argc++] = "--cpu";
+                argv[argc++] = "0";
+            }
+            argv[argc++] = o->json ? "--json" : "--quiet";
+            argv[argc] = NULL;
             fflush(stdout);
             if (afm_cmd_lockstep(argc, argv) != 0) rc = 1;
             fflush(stdout);
@@ -486,7 +516,7 @@ static int reexec_in_netns(int argc, char **argv) {
 }
 
 int afm_cmd_bench_daemon(int argc, char **argv) {
-    bd_opts o = {.commands = 1000, .seconds = 5.0};
+    bd_opts o = {.commands = 1000, .seconds = 5.0, .url = BD_URL, .prefix = AFMT_DEFAULT_PREFIX};
     static char daemon_path[4096];
     bool no_netns = false;
     for (int i = 1; i < argc; i++) {
@@ -503,6 +533,15 @@ int afm_cmd_bench_daemon(int argc, char **argv) {
             o.json = true;
         } else if (!strcmp(a, "--daemon") && v) {
             o.daemon = v;
+            i++;
+        } else if (!strcmp(a, "--lcm-url") && v) {
+            o.url = v;
+            i++;
+        } else if (!strcmp(a, "--lcm-out-url") && v) {
+            o.out_url = v;
+            i++;
+        } else if (!strcmp(a, "--prefix") && v) {
+            o.prefix = v;
             i++;
         } else if (!strcmp(a, "--config") && v) {
             if (o.n_configs >= 8) {
@@ -529,6 +568,11 @@ int afm_cmd_bench_daemon(int argc, char **argv) {
             fprintf(stderr, "afmtwin bench-daemon: unknown or incomplete option '%s'\n", a);
             return 2;
         }
+    }
+    char err[256];
+    if (afmt_channels_init(&o.ch, o.prefix, err, sizeof err)) {
+        fprintf(stderr, "afmtwin bench-daemon: %s\n", err);
+        return 2;
     }
     if (!o.inside && !no_netns) return reexec_in_netns(argc, argv);
     if (!o.daemon) {

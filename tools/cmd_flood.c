@@ -38,8 +38,6 @@
 enum { K_RANDOM, K_TRUNC, K_WRONG, K_VALUES, K_LENGTHS, N_KINDS };
 static const char *const kind_name[N_KINDS] = {"random", "truncated", "wrongtype", "values",
                                                "lengths"};
-static const char *const chan_sfx[5] = {AFMT_CHAN_DITHER, AFMT_CHAN_SETPOINT, AFMT_CHAN_PARAM,
-                                        AFMT_CHAN_CONTROL, AFMT_CHAN_TICK};
 
 typedef struct {
     double rate, seconds, valid_rate;
@@ -48,7 +46,7 @@ typedef struct {
     const char *url, *prefix;
     unsigned seed;
     long long seq0;
-    char chan[5][AFMT_CHAN_LEN];
+    afmt_channels ch; /* target t (0..4: dither .. tick) is ch.cmd[AFM_CMD_DITHER + t] */
 } flood_opts;
 
 static uint64_t rng;
@@ -302,11 +300,10 @@ int afm_cmd_flood(int argc, char **argv) {
         return 2;
     }
     char err[256];
-    for (int t = 0; t < 5; t++)
-        if (afmt_channel(o.prefix, chan_sfx[t], o.chan[t], err, sizeof err)) {
-            fprintf(stderr, "afmtwin flood: %s\n", err);
-            return 2;
-        }
+    if (afmt_channels_init(&o.ch, o.prefix, err, sizeof err)) {
+        fprintf(stderr, "afmtwin flood: %s\n", err);
+        return 2;
+    }
     int kinds[N_KINDS], nk = 0;
     for (int i = 0; i < N_KINDS; i++)
         if (o.want[i]) kinds[nk++] = i;
@@ -331,7 +328,7 @@ int afm_cmd_flood(int argc, char **argv) {
         while (total < due && ((total & 63) || afmt_mono_s() - t0 < o.seconds)) {
             int k = kinds[rnd() % (unsigned)nk], t = 0;
             int n = junk(k, &t, b, (int)sizeof b);
-            if (lcm_publish(lcm, o.chan[t], b, (unsigned)n) < 0) failed++;
+            if (lcm_publish(lcm, o.ch.cmd[AFM_CMD_DITHER + t], b, (unsigned)n) < 0) failed++;
             sent[k]++;
             total++;
         }
@@ -352,7 +349,7 @@ int afm_cmd_flood(int argc, char **argv) {
                     .utime = afmt_wall_us(), .seq = seq, .separation_m = valid % 2 ? 41e-9 : 40e-9};
                 n = afmtwin_setpoint_t_encode(b, 0, (int)sizeof b, &m);
             }
-            if (lcm_publish(lcm, o.chan[ch], b, (unsigned)n) < 0) failed++;
+            if (lcm_publish(lcm, o.ch.cmd[AFM_CMD_DITHER + ch], b, (unsigned)n) < 0) failed++;
             if (first_seq < 0) first_seq = seq;
             last_seq = seq++;
             valid++;

@@ -8,7 +8,6 @@
 #include "config/afm_config.h"
 #include "config/afm_err.h"
 #include "transport/afm_lcm_log.h"
-#include "transport/afm_lcm_url.h"
 #include "transport/afm_lcm_wire.h"
 
 #include "afmtwin_harmonics_t.h"
@@ -28,8 +27,7 @@
 
 #define LISTEN_QUEUE 10000 /* messages a subscription may hold while we print */
 
-enum { OUT_SAMPLES, OUT_HARMONICS, OUT_STATUS, OUT_DONE, N_OUT };
-static const char *const out_name[N_OUT] = {"samples", "harmonics", "status", "tick_done"};
+enum { N_OUT = AFMT_N_OUT };
 
 typedef struct {
     bool json, full;
@@ -42,7 +40,7 @@ typedef struct {
     long bad_quiet;    /* ... of which not reported on stderr (throttled) */
     double bad_t0;     /* start of the current second of stderr reports */
     int bad_in_second; /* reports in it */
-    char chan[N_OUT][AFMT_CHAN_LEN];
+    afmt_channels ch;
 } listen_ctx;
 
 static volatile sig_atomic_t listen_stop;
@@ -329,19 +327,13 @@ static void print_status(const listen_ctx *c, const char *channel, const afmtwin
                clr[0] ? " (last: " : "", clr, clr[0] ? ")" : "");
 }
 
-static double mono_s(void) {
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return ts.tv_sec + 1e-9 * ts.tv_nsec;
-}
-
 /* A message that does not decode: counted, and reported on stderr at most
  * BAD_LINES_PER_S times a second (a flood of junk must not flood the terminal too). */
 #define BAD_LINES_PER_S 5
 static void report_bad(listen_ctx *c, const char *channel, uint32_t size, const char *type,
                        const char *why) {
     c->bad++;
-    double now = mono_s();
+    double now = afmt_mono_s();
     if (now - c->bad_t0 >= 1.0) {
         if (c->bad_quiet)
             fprintf(stderr, "afmtwin listen: ... and %ld more that did not decode\n", c->bad_quiet);
@@ -391,7 +383,7 @@ static void on_message(const lcm_recv_buf_t *rb, const char *channel, void *user
     if (c->count > 0 && c->got >= c->count) return;
     int k = -1;
     for (int i = 0; i < N_OUT; i++)
-        if (c->want[i] && !strcmp(channel, c->chan[i])) k = i;
+        if (c->want[i] && !strcmp(channel, c->ch.out[i])) k = i;
     if (k < 0) return;
     static const afm_wire_type *const types[N_OUT] = {&afm_wire_samples_t, &afm_wire_harmonics_t,
                                                       &afm_wire_status_t, &afm_wire_tick_done_t};
@@ -406,11 +398,11 @@ static void on_message(const lcm_recv_buf_t *rb, const char *channel, void *user
         report_bad(c, channel, rb->data_size, types[k]->name, why);
         return;
     }
-    if (k == OUT_SAMPLES)
+    if (k == AFMT_OUT_SAMPLES)
         print_samples(c, channel, &m.samples);
-    else if (k == OUT_HARMONICS)
+    else if (k == AFMT_OUT_HARMONICS)
         print_harmonics(c, channel, &m.harmonics);
-    else if (k == OUT_STATUS)
+    else if (k == AFMT_OUT_STATUS)
         print_status(c, channel, &m.status);
     else
         print_done(c, channel, &m.done);
@@ -458,10 +450,6 @@ static int listen_log(listen_ctx *c) {
     return 0;
 }
 
-static int parse_channels(const char *s, bool *want) {
-    return afmt_parse_subset(s, out_name, N_OUT, false, want);
-}
-
 int afm_cmd_listen(int argc, char **argv) {
     listen_ctx c = {.prefix = AFMT_DEFAULT_PREFIX};
     for (int i = 0; i < N_OUT; i++)
@@ -490,7 +478,7 @@ int afm_cmd_listen(int argc, char **argv) {
             }
             i++;
         } else if (!strcmp(a, "--channels") && v) {
-            if (parse_channels(v, c.want)) {
+            if (afmt_parse_outputs(v, false, c.want)) {
                 fprintf(stderr,
                         "afmtwin listen: --channels wants a comma-separated subset of "
                         "samples,harmonics,status,tick_done, got '%s'\n",
@@ -516,29 +504,22 @@ int afm_cmd_listen(int argc, char **argv) {
         }
     }
     char err[256];
-    const char *suffix[N_OUT] = {AFMT_CHAN_SAMPLES, AFMT_CHAN_HARMONICS, AFMT_CHAN_STATUS,
-                                 AFMT_CHAN_TICK_DONE};
-    for (int i = 0; i < N_OUT; i++)
-        if (afmt_channel(c.prefix, suffix[i], c.chan[i], err, sizeof err)) {
-            fprintf(stderr, "afmtwin listen: %s\n", err);
-            return 2;
-        }
-    if (c.log) return listen_log(&c);
-    char cmd_u[AFM_LCM_URL_LEN], out_u[AFM_LCM_URL_LEN];
-    if (afm_lcm_urls(c.url, c.out_url, cmd_u, out_u, sizeof cmd_u, err, sizeof err)) {
+    if (afmt_channels_init(&c.ch, c.prefix, err, sizeof err)) {
         fprintf(stderr, "afmtwin listen: %s\n", err);
         return 2;
     }
-    lcm_t *lcm = lcm_create(out_u);
-    if (!lcm) {
-        fprintf(stderr, "afmtwin listen: cannot open LCM on '%s'\n", out_u);
-        return 1;
+    if (c.log) return listen_log(&c);
+    lcm_t *lcm;
+    int orc = afmt_lcm_open(c.url, c.out_url, NULL, &lcm, err, sizeof err);
+    if (orc) {
+        fprintf(stderr, "afmtwin listen: %s\n", err);
+        return orc == -1 ? 2 : 1;
     }
     for (int i = 0; i < N_OUT; i++) {
         if (!c.want[i]) continue;
-        lcm_subscription_t *sub = lcm_subscribe(lcm, c.chan[i], on_message, &c);
+        lcm_subscription_t *sub = lcm_subscribe(lcm, c.ch.out[i], on_message, &c);
         if (!sub) {
-            fprintf(stderr, "afmtwin listen: cannot subscribe to %s\n", c.chan[i]);
+            fprintf(stderr, "afmtwin listen: cannot subscribe to %s\n", c.ch.out[i]);
             lcm_destroy(lcm);
             return 1;
         }
@@ -548,10 +529,10 @@ int afm_cmd_listen(int argc, char **argv) {
     struct sigaction sa = {.sa_handler = on_signal};
     sigaction(SIGINT, &sa, NULL);
     sigaction(SIGTERM, &sa, NULL);
-    double t_end = c.timeout_s > 0 ? mono_s() + c.timeout_s : INFINITY;
+    double t_end = c.timeout_s > 0 ? afmt_mono_s() + c.timeout_s : INFINITY;
     int rc = 0;
     while (!listen_stop && (c.count == 0 || c.got < c.count)) {
-        double left = t_end - mono_s();
+        double left = t_end - afmt_mono_s();
         if (left <= 0) break;
         int ms = left > 0.2 ? 200 : (int)ceil(left * 1e3);
         if (lcm_handle_timeout(lcm, ms) < 0) {

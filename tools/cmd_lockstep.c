@@ -22,7 +22,6 @@
 #include "transport/afm_cmd_lcm.h"
 #include "config/afm_config.h"
 #include "transport/afm_lcm_encode.h"
-#include "transport/afm_lcm_url.h"
 
 #include "afmtwin_tick_t.h"
 
@@ -66,7 +65,7 @@ typedef struct {
     bool check, bench, quiet, json;
     /* LCM */
     lcm_t *lcm_in, *lcm_cmd;
-    char chan_cmd[6][AFMT_CHAN_LEN], chan_out[4][AFMT_CHAN_LEN];
+    afmt_channels ch;
     lcm_eventlog_t *seq_log, *out_log;
     /* what came back */
     bool status_seen; /* the daemon is up */
@@ -145,12 +144,7 @@ static void ls_usage(FILE *f) {
 
 static void log_out(ls_ctx *c, const lcm_recv_buf_t *rb, const char *channel) {
     if (!c->out_log) return;
-    lcm_eventlog_event_t ev = {.timestamp = rb->recv_utime,
-                               .channellen = (int32_t)strlen(channel),
-                               .datalen = (int32_t)rb->data_size,
-                               .channel = (char *)channel,
-                               .data = rb->data};
-    lcm_eventlog_write_event(c->out_log, &ev);
+    afmt_log_write(c->out_log, rb->recv_utime, channel, rb->data, (int)rb->data_size);
 }
 
 static void on_samples(const lcm_recv_buf_t *rb, const char *channel, void *user) {
@@ -220,17 +214,12 @@ static void on_done(const lcm_recv_buf_t *rb, const char *channel, void *user) {
 
 static void seq_log_write(ls_ctx *c, const char *channel, const void *data, int len) {
     if (!c->seq_log) return;
-    lcm_eventlog_event_t ev = {.timestamp = llround((double)c->samples / c->rate_hz * 1e6),
-                               .channellen = (int32_t)strlen(channel),
-                               .datalen = len,
-                               .channel = (char *)channel,
-                               .data = (void *)data};
-    lcm_eventlog_write_event(c->seq_log, &ev);
+    afmt_log_write(c->seq_log, llround((double)c->samples / c->rate_hz * 1e6), channel, data, len);
 }
 
 static int publish(ls_ctx *c, int kind, const void *data, int len) {
-    seq_log_write(c, c->chan_cmd[kind], data, len);
-    return lcm_publish(c->lcm_cmd, c->chan_cmd[kind], data, (unsigned)len) < 0 ? -1 : 0;
+    seq_log_write(c, c->ch.cmd[kind], data, len);
+    return lcm_publish(c->lcm_cmd, c->ch.cmd[kind], data, (unsigned)len) < 0 ? -1 : 0;
 }
 
 /* Wait for the completion of seq (the last one sent), which runs n samples. 0, or -1 on
@@ -331,9 +320,7 @@ static int read_log(ls_ctx *c, ls_event **evs, long long *n, bool *has_ticks) {
     *has_ticks = false;
     lcm_eventlog_event_t *ev;
     while (*evs && *n < LS_MAX_EVENTS && (ev = lcm_eventlog_read_next_event(l)) != NULL) {
-        int kind = 0;
-        for (int k = AFM_CMD_DITHER; k <= AFM_CMD_TICK; k++)
-            if (!strcmp(ev->channel, c->chan_cmd[k])) kind = k;
+        int kind = afmt_channels_kind(&c->ch, ev->channel);
         if (kind) {
             if (*n == cap) {
                 ls_event *g = realloc(*evs, (size_t)(cap *= 2) * sizeof **evs);
@@ -378,7 +365,7 @@ static int check_with_replay(ls_ctx *c, const char *seq_path) {
     lcm_eventlog_event_t *ev;
     while (l && (ev = lcm_eventlog_read_next_event(l)) != NULL) {
         afmtwin_tick_done_t m;
-        if (!strcmp(ev->channel, c->chan_out[3]) &&
+        if (!strcmp(ev->channel, c->ch.out[AFMT_OUT_TICK_DONE]) &&
             afmtwin_tick_done_t_decode(ev->data, 0, ev->datalen, &m) >= 0) {
             if (i < c->n_dones && i < c->n_cap) {
                 const ls_done *d = &c->dones[i];
@@ -497,20 +484,7 @@ static int parse_opts(ls_ctx *c, int argc, char **argv) {
 }
 
 static int open_lcm(ls_ctx *c, char *err, size_t errlen) {
-    static const char *const in_sfx[6] = {"",
-                                          AFMT_CHAN_DITHER,
-                                          AFMT_CHAN_SETPOINT,
-                                          AFMT_CHAN_PARAM,
-                                          AFMT_CHAN_CONTROL,
-                                          AFMT_CHAN_TICK};
-    static const char *const out_sfx[4] = {AFMT_CHAN_SAMPLES, AFMT_CHAN_HARMONICS, AFMT_CHAN_STATUS,
-                                           AFMT_CHAN_TICK_DONE};
-    for (int k = 1; k < 6; k++)
-        if (afmt_channel(c->prefix, in_sfx[k], c->chan_cmd[k], err, errlen)) return 2;
-    for (int k = 0; k < 4; k++)
-        if (afmt_channel(c->prefix, out_sfx[k], c->chan_out[k], err, errlen)) return 2;
-    char cmd_u[AFM_LCM_URL_LEN], out_u[AFM_LCM_URL_LEN];
-    if (afm_lcm_urls(c->url, c->out_url, cmd_u, out_u, sizeof cmd_u, err, errlen)) return 2;
+    if (afmt_channels_init(&c->ch, c->prefix, err, errlen)) return 2;
     /* Above the daemon's SCHED_FIFO threads and on --cpu (before lcm_create: LCM's own thread
      * inherits both; the priority is not passed on to children). */
     if (c->cpu >= 0) {
@@ -529,17 +503,13 @@ static int open_lcm(ls_ctx *c, char *err, size_t errlen) {
                     "priority\n",
                     c->rt_priority, strerror(errno));
     }
-    c->lcm_in = lcm_create(out_u);
-    c->lcm_cmd = c->lcm_in ? lcm_create(cmd_u) : NULL;
-    if (!c->lcm_in || !c->lcm_cmd) {
-        snprintf(err, errlen, "lcm_create failed (%.200s, %.200s): no multicast route?", cmd_u,
-                 out_u);
-        return 1;
-    }
-    lcm_subscription_t *s[4] = {lcm_subscribe(c->lcm_in, c->chan_out[0], on_samples, c),
-                                lcm_subscribe(c->lcm_in, c->chan_out[1], on_harmonics, c),
-                                lcm_subscribe(c->lcm_in, c->chan_out[3], on_done, c),
-                                lcm_subscribe(c->lcm_in, c->chan_out[2], on_status, c)};
+    int orc = afmt_lcm_open(c->url, c->out_url, &c->lcm_cmd, &c->lcm_in, err, errlen);
+    if (orc) return orc == -1 ? 2 : 1;
+    lcm_subscription_t *s[4] = {
+        lcm_subscribe(c->lcm_in, c->ch.out[AFMT_OUT_SAMPLES], on_samples, c),
+        lcm_subscribe(c->lcm_in, c->ch.out[AFMT_OUT_HARMONICS], on_harmonics, c),
+        lcm_subscribe(c->lcm_in, c->ch.out[AFMT_OUT_TICK_DONE], on_done, c),
+        lcm_subscribe(c->lcm_in, c->ch.out[AFMT_OUT_STATUS], on_status, c)};
     for (int i = 0; i < 4; i++) {
         if (!s[i]) {
             snprintf(err, errlen, "cannot subscribe to the outputs");

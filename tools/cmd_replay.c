@@ -40,7 +40,13 @@
  * broken (or not lcm-logger's), and replaying the gap would run for days. */
 #define REPLAY_MAX_SPAN_S 1e6
 
-enum { OUT_SAMPLES, OUT_HARMONICS, OUT_STATUS, OUT_DONE, N_OUT };
+enum {
+    OUT_SAMPLES = AFMT_OUT_SAMPLES,
+    OUT_HARMONICS = AFMT_OUT_HARMONICS,
+    OUT_STATUS = AFMT_OUT_STATUS,
+    OUT_DONE = AFMT_OUT_TICK_DONE,
+    N_OUT = AFMT_N_OUT
+};
 
 typedef struct {
     const char *config, *in, *out, *prefix;
@@ -55,8 +61,7 @@ typedef struct {
     replay_opts o;
     afm_runner *r;
     lcm_eventlog_t *log;
-    char chan_out[N_OUT][AFMT_CHAN_LEN];
-    char chan_in[6][AFMT_CHAN_LEN];      /* indexed by afm_cmd_kind (1..5) */
+    afmt_channels ch;
     long long status_every, next_status; /* samples */
     long long received, rejected, applied, skipped, written;
     char last_reject[AFM_IO_REASON_LEN];
@@ -123,12 +128,7 @@ static void write_event(replay_ctx *x, int ch, int64_t utime, int n) {
         x->write_failed = 1;
         return;
     }
-    lcm_eventlog_event_t ev = {.timestamp = utime,
-                               .channellen = (int32_t)strlen(x->chan_out[ch]),
-                               .datalen = n,
-                               .channel = x->chan_out[ch],
-                               .data = x->buf};
-    if (lcm_eventlog_write_event(x->log, &ev))
+    if (afmt_log_write(x->log, utime, x->ch.out[ch], x->buf, n))
         x->write_failed = 1;
     else
         x->written++;
@@ -303,17 +303,6 @@ static void apply_event(replay_ctx *x, afm_cmd_kind kind, const afm_lcm_log_even
     afm_runner_model_destroy(&model);
 }
 
-static afm_cmd_kind channel_kind(const replay_ctx *x, const char *channel) {
-    for (int k = AFM_CMD_DITHER; k <= AFM_CMD_TICK; k++)
-        if (!strcmp(channel, x->chan_in[k])) return (afm_cmd_kind)k;
-    return 0;
-}
-
-static int parse_channels(const char *s, bool *want) {
-    static const char *const names[N_OUT] = {"samples", "harmonics", "status", "tick_done"};
-    return afmt_parse_subset(s, names, N_OUT, false, want);
-}
-
 static int parse_opts(int argc, char **argv, replay_opts *o) {
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
@@ -359,7 +348,7 @@ static int parse_opts(int argc, char **argv, replay_opts *o) {
             }
             o->tail_s = d;
         } else if (!strcmp(a, "--channels")) {
-            if (parse_channels(v, o->want)) {
+            if (afmt_parse_outputs(v, false, o->want)) {
                 fprintf(stderr,
                         "afmtwin replay: --channels wants a comma-separated subset of "
                         "samples,harmonics,status,tick_done, got '%s'\n",
@@ -395,18 +384,7 @@ int afm_cmd_replay(int argc, char **argv) {
     int rc = parse_opts(argc, argv, &x.o);
     if (rc) return rc == 1 ? 0 : rc;
     char err[AFM_ERR_LEN];
-    static const char *const out_sfx[N_OUT] = {AFMT_CHAN_SAMPLES, AFMT_CHAN_HARMONICS,
-                                               AFMT_CHAN_STATUS, AFMT_CHAN_TICK_DONE};
-    static const char *const in_sfx[6] = {"",
-                                          AFMT_CHAN_DITHER,
-                                          AFMT_CHAN_SETPOINT,
-                                          AFMT_CHAN_PARAM,
-                                          AFMT_CHAN_CONTROL,
-                                          AFMT_CHAN_TICK};
-    for (int i = 0; i < N_OUT; i++)
-        if (afmt_channel(x.o.prefix, out_sfx[i], x.chan_out[i], err, sizeof err)) goto usage_err;
-    for (int k = 1; k < 6; k++)
-        if (afmt_channel(x.o.prefix, in_sfx[k], x.chan_in[k], err, sizeof err)) goto usage_err;
+    if (afmt_channels_init(&x.ch, x.o.prefix, err, sizeof err)) goto usage_err;
 
     static afm_config cfg;
     if (afm_config_load(x.o.config, &cfg, err, sizeof err)) goto usage_err;
@@ -446,7 +424,7 @@ int afm_cmd_replay(int argc, char **argv) {
             break;
         }
         events++;
-        afm_cmd_kind kind = channel_kind(&x, ev.channel);
+        afm_cmd_kind kind = afmt_channels_kind(&x.ch, ev.channel);
         if (!kind) {
             x.skipped++;
             continue;

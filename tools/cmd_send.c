@@ -85,10 +85,6 @@ static void send_usage(FILE *f) {
         AFMT_DEFAULT_PREFIX);
 }
 
-/* Encode msg of generated type T into buf; byte count or -1. */
-#define ENCODE(T, msg, buf, cap)                                                                   \
-    (T##_encoded_size(msg) > (cap) ? -1 : T##_encode((buf), 0, (cap), (msg)))
-
 static int parse_i64(const char *s, int64_t lo, int64_t hi, int64_t *v) {
     char *end;
     if (!s || !*s) return -1;
@@ -233,7 +229,7 @@ static int build(const char *kind, const send_common *o, send_args *a, uint8_t *
                               .amplitude_m = a->amp,
                               .phase_rad = a->phase};
         *ck = AFM_CMD_DITHER;
-        return ENCODE(afmtwin_dither_t, &m, buf, cap);
+        return AFMT_ENCODE(afmtwin_dither_t, &m, buf, cap);
     }
     if (!strcmp(kind, "setpoint")) {
         if (!a->have_z) {
@@ -243,7 +239,7 @@ static int build(const char *kind, const send_common *o, send_args *a, uint8_t *
         afmtwin_setpoint_t m = {
             .utime = utime, .seq = seq, .separation_m = a->z, .ramp_rate_m_s = a->ramp};
         *ck = AFM_CMD_SETPOINT;
-        return ENCODE(afmtwin_setpoint_t, &m, buf, cap);
+        return AFMT_ENCODE(afmtwin_setpoint_t, &m, buf, cap);
     }
     if (!strcmp(kind, "param")) {
         if (a->n_params < 1) {
@@ -256,7 +252,7 @@ static int build(const char *kind, const send_common *o, send_args *a, uint8_t *
                              .name = (char **)a->names,
                              .value = a->values};
         *ck = AFM_CMD_PARAM;
-        return ENCODE(afmtwin_param_t, &m, buf, cap);
+        return AFMT_ENCODE(afmtwin_param_t, &m, buf, cap);
     }
     if (!strcmp(kind, "control")) {
         static const char *const names[] = {"run", "pause", "reset", "step"};
@@ -277,7 +273,7 @@ static int build(const char *kind, const send_common *o, send_args *a, uint8_t *
         afmtwin_control_t m = {
             .utime = utime, .seq = seq, .action = codes[k], .n_samples = a->have_n ? a->n : 0};
         *ck = AFM_CMD_CONTROL;
-        return ENCODE(afmtwin_control_t, &m, buf, cap);
+        return AFMT_ENCODE(afmtwin_control_t, &m, buf, cap);
     }
     if (!strcmp(kind, "tick")) {
         if (!a->have_n) {
@@ -286,7 +282,7 @@ static int build(const char *kind, const send_common *o, send_args *a, uint8_t *
         }
         afmtwin_tick_t m = {.utime = utime, .seq = seq, .n_samples = a->n};
         *ck = AFM_CMD_TICK;
-        return ENCODE(afmtwin_tick_t, &m, buf, cap);
+        return AFMT_ENCODE(afmtwin_tick_t, &m, buf, cap);
     }
     if (!strcmp(kind, "raw")) {
         if (!a->hex || !o->channel) {
@@ -306,23 +302,6 @@ static int build(const char *kind, const send_common *o, send_args *a, uint8_t *
             "afmtwin send: unknown kind '%s' (dither, setpoint, param, control, tick, raw)\n",
             kind);
     return -2;
-}
-
-static const char *kind_suffix(afm_cmd_kind k) {
-    switch (k) {
-    case AFM_CMD_DITHER:
-        return AFMT_CHAN_DITHER;
-    case AFM_CMD_SETPOINT:
-        return AFMT_CHAN_SETPOINT;
-    case AFM_CMD_PARAM:
-        return AFMT_CHAN_PARAM;
-    case AFM_CMD_CONTROL:
-        return AFMT_CHAN_CONTROL;
-    case AFM_CMD_TICK:
-        return AFMT_CHAN_TICK;
-    default:
-        return "";
-    }
 }
 
 /* The daemon's checks: decode + validate the bytes as it would (afm_cmd_decode, with the
@@ -363,14 +342,9 @@ static int emit(const send_common *o, const char *channel, const uint8_t *buf, i
             fprintf(stderr, "afmtwin send: cannot open log '%s' for appending\n", o->log);
             return 1;
         }
-        lcm_eventlog_event_t ev = {.timestamp = isnan(o->log_time_s)
-                                                    ? afmt_wall_us()
-                                                    : (int64_t)llround(o->log_time_s * 1e6),
-                                   .channellen = (int32_t)strlen(channel),
-                                   .datalen = n,
-                                   .channel = (char *)channel,
-                                   .data = (void *)buf};
-        int rc = lcm_eventlog_write_event(l, &ev);
+        int64_t t_us =
+            isnan(o->log_time_s) ? afmt_wall_us() : (int64_t)llround(o->log_time_s * 1e6);
+        int rc = afmt_log_write(l, t_us, channel, buf, n);
         lcm_eventlog_destroy(l);
         if (rc) {
             fprintf(stderr, "afmtwin send: writing to log '%s' failed\n", o->log);
@@ -417,11 +391,14 @@ int afm_cmd_send(int argc, char **argv) {
         return 2;
     }
     char channel[AFMT_CHAN_LEN], err[AFM_ERR_LEN];
+    afmt_channels ch;
     if (o.channel) {
         snprintf(channel, sizeof channel, "%s", o.channel);
-    } else if (afmt_channel(o.prefix, kind_suffix(ck), channel, err, sizeof err)) {
+    } else if (afmt_channels_init(&ch, o.prefix, err, sizeof err)) {
         fprintf(stderr, "afmtwin send: %s\n", err);
         return 2;
+    } else {
+        snprintf(channel, sizeof channel, "%s", ch.cmd[ck]);
     }
     if (ck && !o.no_check) {
         int v = daemon_check(ck, buf, n, &o, err, sizeof err);

@@ -22,7 +22,6 @@
 
 #include "runner/afm_cmd.h"
 #include "config/afm_config.h"
-#include "transport/afm_lcm_url.h"
 #include "beam/afm_model.h"
 
 #include "afmtwin_control_t.h"
@@ -79,7 +78,7 @@ typedef struct {
     bool quiet;
     /* LCM */
     lcm_t *in, *cmd;
-    char ch[5][AFMT_CHAN_LEN]; /* dither, setpoint, param, control, (unused) */
+    afmt_channels ch;
     lcm_eventlog_t *logf;
     /* the twin */
     double fs, f1, a1, length_m, zeta1;
@@ -196,27 +195,21 @@ static void pump(soak_ctx *c, double seconds) {
 #define PUBLISH(c, T, chan, msg)                                                                   \
     do {                                                                                           \
         uint8_t buf_[4096];                                                                        \
-        int n_ = T##_encoded_size(msg);                                                            \
-        if (n_ <= (int)sizeof buf_ && T##_encode(buf_, 0, n_, (msg)) >= 0)                         \
-            send_raw(c, chan, buf_, n_);                                                           \
+        int n_ = AFMT_ENCODE(T, msg, buf_, (int)sizeof buf_);                                      \
+        if (n_ >= 0) send_raw(c, chan, buf_, n_);                                                  \
     } while (0)
 
 static void send_raw(soak_ctx *c, const char *chan, const uint8_t *buf, int n) {
     lcm_publish(c->cmd, chan, buf, (unsigned)n);
     if (c->logf) {
-        lcm_eventlog_event_t ev = {.timestamp = afmt_wall_us(),
-                                   .channellen = (int32_t)strlen(chan),
-                                   .datalen = n,
-                                   .channel = (char *)chan,
-                                   .data = (void *)buf};
-        lcm_eventlog_write_event(c->logf, &ev);
+        afmt_log_write(c->logf, afmt_wall_us(), chan, buf, n);
     }
 }
 
 static void send_setpoint(soak_ctx *c, double z, double rate) {
     afmtwin_setpoint_t m = {
         .utime = afmt_wall_us(), .seq = ++c->seq, .separation_m = z, .ramp_rate_m_s = rate};
-    PUBLISH(c, afmtwin_setpoint_t, c->ch[1], &m);
+    PUBLISH(c, afmtwin_setpoint_t, c->ch.cmd[AFM_CMD_SETPOINT], &m);
 }
 
 static void send_dither(soak_ctx *c, int n, double *f, double *a) {
@@ -227,20 +220,20 @@ static void send_dither(soak_ctx *c, int n, double *f, double *a) {
                           .frequency_hz = f,
                           .amplitude_m = a,
                           .phase_rad = ph};
-    PUBLISH(c, afmtwin_dither_t, c->ch[0], &m);
+    PUBLISH(c, afmtwin_dither_t, c->ch.cmd[AFM_CMD_DITHER], &m);
 }
 
 static void send_param(soak_ctx *c, const char *name, double v) {
     char *names[1] = {(char *)name};
     afmtwin_param_t m = {
         .utime = afmt_wall_us(), .seq = ++c->seq, .n = 1, .name = names, .value = &v};
-    PUBLISH(c, afmtwin_param_t, c->ch[2], &m);
+    PUBLISH(c, afmtwin_param_t, c->ch.cmd[AFM_CMD_PARAM], &m);
 }
 
 static void send_control(soak_ctx *c, int action, long long n) {
     afmtwin_control_t m = {
         .utime = afmt_wall_us(), .seq = ++c->seq, .action = (int8_t)action, .n_samples = n};
-    PUBLISH(c, afmtwin_control_t, c->ch[3], &m);
+    PUBLISH(c, afmtwin_control_t, c->ch.cmd[AFM_CMD_CONTROL], &m);
 }
 
 /* One random command (valid for the twin as configured). */
@@ -453,16 +446,7 @@ int afm_cmd_soak(int argc, char **argv) {
     c.length_m = cfg.model.beam.length_m;
     c.zeta1 = cfg.model.damping_ratio[0];
     c.rng = c.seed * 0x9E3779B97F4A7C15ULL + 0x2545F4914F6CDD1DULL;
-    const char *sfx[4] = {AFMT_CHAN_DITHER, AFMT_CHAN_SETPOINT, AFMT_CHAN_PARAM, AFMT_CHAN_CONTROL};
-    char st_ch[AFMT_CHAN_LEN], sa_ch[AFMT_CHAN_LEN], ha_ch[AFMT_CHAN_LEN];
-    for (int k = 0; k < 4; k++)
-        if (afmt_channel(c.prefix, sfx[k], c.ch[k], err, sizeof err)) goto usage_err;
-    if (afmt_channel(c.prefix, AFMT_CHAN_STATUS, st_ch, err, sizeof err) ||
-        afmt_channel(c.prefix, AFMT_CHAN_SAMPLES, sa_ch, err, sizeof err) ||
-        afmt_channel(c.prefix, AFMT_CHAN_HARMONICS, ha_ch, err, sizeof err))
-        goto usage_err;
-    char cmd_u[AFM_LCM_URL_LEN], out_u[AFM_LCM_URL_LEN];
-    if (afm_lcm_urls(c.url, c.out_url, cmd_u, out_u, sizeof cmd_u, err, sizeof err)) goto usage_err;
+    if (afmt_channels_init(&c.ch, c.prefix, err, sizeof err)) goto usage_err;
     /* Normal scheduling: this tool reads every output message (finite checks), and at a
      * real-time priority above the daemon's threads that work came out of the integrator's
      * core (blocks late). Below them it takes what they leave; its echo times then include
@@ -471,19 +455,19 @@ int afm_cmd_soak(int argc, char **argv) {
         struct sched_param prio = {.sched_priority = c.rt_priority};
         sched_setscheduler(0, SCHED_FIFO | SOAK_RESET_ON_FORK, &prio);
     }
-    c.in = lcm_create(out_u);
-    c.cmd = c.in ? lcm_create(cmd_u) : NULL;
-    if (!c.in || !c.cmd) {
-        fprintf(stderr, "afmtwin soak: lcm_create failed (no multicast route?)\n");
+    int orc = afmt_lcm_open(c.url, c.out_url, &c.cmd, &c.in, err, sizeof err);
+    if (orc == -1) goto usage_err;
+    if (orc) {
+        fprintf(stderr, "afmtwin soak: %s\n", err);
         return 1;
     }
     /* Behind the wire checks (lcm_tool.h): a crafted output message is counted, not decoded. */
     afmt_checked_sub subs[3] = {{&afm_wire_status_t, on_status, &c, 0},
                                 {&afm_wire_samples_t, on_samples, &c, 0},
                                 {&afm_wire_harmonics_t, on_harm, &c, 0}};
-    afmt_subscribe_checked(c.in, st_ch, &subs[0], 1000);
-    afmt_subscribe_checked(c.in, sa_ch, &subs[1], 20000);
-    afmt_subscribe_checked(c.in, ha_ch, &subs[2], 20000);
+    afmt_subscribe_checked(c.in, c.ch.out[AFMT_OUT_STATUS], &subs[0], 1000);
+    afmt_subscribe_checked(c.in, c.ch.out[AFMT_OUT_SAMPLES], &subs[1], 20000);
+    afmt_subscribe_checked(c.in, c.ch.out[AFMT_OUT_HARMONICS], &subs[2], 20000);
     if (c.log && !(c.logf = lcm_eventlog_create(c.log, "w"))) {
         fprintf(stderr, "afmtwin soak: cannot write '%s'\n", c.log);
         return 1;

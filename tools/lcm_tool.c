@@ -1,6 +1,7 @@
 /* SPDX-License-Identifier: MIT */
 /* lcm_tool.c -- helpers shared by the LCM subcommands (see lcm_tool.h). */
 #include "lcm_tool.h"
+#include "transport/afm_lcm_url.h"
 
 #include <ctype.h>
 #include <errno.h>
@@ -23,6 +24,60 @@ int afmt_channel(const char *prefix, const char *suffix, char *out, char *err, s
         }
     snprintf(out, AFMT_CHAN_LEN, "%s%s", prefix, suffix);
     return 0;
+}
+
+const char *const afmt_out_names[AFMT_N_OUT] = {"samples", "harmonics", "status", "tick_done"};
+
+int afmt_channels_init(afmt_channels *c, const char *prefix, char *err, size_t errlen) {
+    static const char *const cmd_sfx[AFM_CMD_TICK + 1] = {[AFM_CMD_DITHER] = AFMT_CHAN_DITHER,
+                                                          [AFM_CMD_SETPOINT] = AFMT_CHAN_SETPOINT,
+                                                          [AFM_CMD_PARAM] = AFMT_CHAN_PARAM,
+                                                          [AFM_CMD_CONTROL] = AFMT_CHAN_CONTROL,
+                                                          [AFM_CMD_TICK] = AFMT_CHAN_TICK};
+    static const char *const out_sfx[AFMT_N_OUT] = {AFMT_CHAN_SAMPLES, AFMT_CHAN_HARMONICS,
+                                                    AFMT_CHAN_STATUS, AFMT_CHAN_TICK_DONE};
+    if (afmt_channel(prefix, "", c->cmd[0], err, errlen)) return -1;
+    for (int k = AFM_CMD_DITHER; k <= AFM_CMD_TICK; k++)
+        if (afmt_channel(prefix, cmd_sfx[k], c->cmd[k], err, errlen)) return -1;
+    for (int i = 0; i < AFMT_N_OUT; i++)
+        if (afmt_channel(prefix, out_sfx[i], c->out[i], err, errlen)) return -1;
+    return 0;
+}
+
+afm_cmd_kind afmt_channels_kind(const afmt_channels *c, const char *name) {
+    for (int k = AFM_CMD_DITHER; k <= AFM_CMD_TICK; k++)
+        if (!strcmp(name, c->cmd[k])) return (afm_cmd_kind)k;
+    return 0;
+}
+
+int afmt_parse_outputs(const char *s, bool all_ok, bool *want) {
+    return afmt_parse_subset(s, afmt_out_names, AFMT_N_OUT, all_ok, want);
+}
+
+int afmt_lcm_open(const char *url, const char *out_url, lcm_t **cmd, lcm_t **out, char *err,
+                  size_t errlen) {
+    char cmd_u[AFM_LCM_URL_LEN], out_u[AFM_LCM_URL_LEN];
+    if (afm_lcm_urls(url, out_url, cmd_u, out_u, sizeof cmd_u, err, errlen)) return -1;
+    *out = lcm_create(out_u);
+    if (cmd) *cmd = *out ? lcm_create(cmd_u) : NULL;
+    if (!*out || (cmd && !*cmd)) {
+        snprintf(err, errlen, "lcm_create failed (%.200s, %.200s): no multicast route?", cmd_u,
+                 out_u);
+        if (*out) lcm_destroy(*out);
+        *out = NULL;
+        return -2;
+    }
+    return 0;
+}
+
+int afmt_log_write(lcm_eventlog_t *log, int64_t utime_us, const char *channel, const void *data,
+                   int len) {
+    lcm_eventlog_event_t ev = {.timestamp = utime_us,
+                               .channellen = (int32_t)strlen(channel),
+                               .datalen = len,
+                               .channel = (char *)channel,
+                               .data = (void *)data};
+    return lcm_eventlog_write_event(log, &ev) ? -1 : 0;
 }
 
 int afmt_parse_double(const char *s, double *v) {

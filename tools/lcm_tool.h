@@ -1,12 +1,16 @@
 /* SPDX-License-Identifier: MIT */
-/* lcm_tool.h -- what the LCM subcommands of `afmtwin` (send, listen, replay, bench-daemon)
- * share: channel names, strict number parsing, hex decoding, checked subscriptions, wall and
- * monotonic clocks. */
+/* lcm_tool.h -- the LCM plumbing of `afmtwin`'s subcommands (send, listen, replay, lockstep,
+ * soak, flood, bench-daemon) in one place: the daemon's channel names for a prefix, the
+ * --channels lists, the two LCM URLs opened at once, encoding a generated message, writing
+ * an event to a log, checked subscriptions, wall and monotonic clocks; plus the strict
+ * number and hex parsing of their options. */
 #ifndef AFMT_LCM_TOOL_H
 #define AFMT_LCM_TOOL_H
 
+#include "runner/afm_cmd.h"
 #include "transport/afm_lcm_wire.h"
 
+#include <lcm/eventlog.h>
 #include <lcm/lcm.h>
 #include <stdbool.h>
 #include <stddef.h>
@@ -30,6 +34,42 @@
  * (LCM channel names are matched as regular expressions by subscribers, so nothing else is
  * safe). 0, or -1 with err. */
 int afmt_channel(const char *prefix, const char *suffix, char *out, char *err, size_t errlen);
+
+/* The daemon's outputs, in the order of --channels lists and of afmt_channels.out. */
+enum { AFMT_OUT_SAMPLES, AFMT_OUT_HARMONICS, AFMT_OUT_STATUS, AFMT_OUT_TICK_DONE, AFMT_N_OUT };
+/* Their names in --channels lists: "samples", "harmonics", "status", "tick_done". */
+extern const char *const afmt_out_names[AFMT_N_OUT];
+
+/* Every channel of a twin with one prefix: cmd[k] for command kind k (AFM_CMD_DITHER ..
+ * AFM_CMD_TICK; cmd[0] is the bare prefix), out[AFMT_OUT_*] for the outputs. */
+typedef struct {
+    char cmd[AFM_CMD_TICK + 1][AFMT_CHAN_LEN];
+    char out[AFMT_N_OUT][AFMT_CHAN_LEN];
+} afmt_channels;
+/* All names for prefix (afmt_channel's rules). 0, or -1 with err. */
+int afmt_channels_init(afmt_channels *c, const char *prefix, char *err, size_t errlen);
+/* The command kind whose channel is name in c, or 0 (not a command channel). */
+afm_cmd_kind afmt_channels_kind(const afmt_channels *c, const char *name);
+
+/* A --channels LIST of outputs (afmt_out_names, "all" for every one when all_ok) into
+ * want[AFMT_N_OUT]. 0, or -1 (an unknown or empty item). */
+int afmt_parse_outputs(const char *s, bool all_ok, bool *want);
+
+/* The daemon's two LCM instances for --lcm-url URL and --lcm-out-url OUT_URL (either may be
+ * NULL: afm_lcm_urls): *out on the output URL (what the twin publishes), *cmd on the command
+ * URL (what it takes); pass cmd NULL for outputs only. Both or none are created. 0, -1 (a
+ * bad URL: usage) or -2 (lcm_create failed), with err. */
+int afmt_lcm_open(const char *url, const char *out_url, lcm_t **cmd, lcm_t **out, char *err,
+                  size_t errlen);
+
+/* Encode msg of generated type T (e.g. afmtwin_dither_t) into buf of cap bytes: byte count,
+ * or -1 when it does not fit. */
+#define AFMT_ENCODE(T, msg, buf, cap)                                                              \
+    (T##_encoded_size(msg) > (cap) ? -1 : T##_encode((buf), 0, (cap), (msg)))
+
+/* One event into an LCM log (lcm-logger's format): 0, or -1 (write failed). */
+int afmt_log_write(lcm_eventlog_t *log, int64_t utime_us, const char *channel, const void *data,
+                   int len);
 
 /* Whole-string number: 0, or -1 (empty, trailing junk, out of range). Accepts nan/inf
  * spellings, so that callers can test the validation of non-finite values. */
