@@ -247,10 +247,205 @@ static void status_line(twind *d, twind_rtf_state *rs, char *buf, size_t len) {
     }
 }
 
+/* The runner for cfg: --block-us as a whole number of samples (1 .. 2^20), --ring-us as
+ * whole ring slots (4 .. 4096), into *block and *ring; at --start-time. 0, or -1 with err. */
+static int start_runner(twind *d, const afm_config *cfg, long long *block, long long *ring,
+                        char *err, size_t errlen) {
+    *block = llround(d->opt.block_s * cfg->sim.sample_rate_hz);
+    if (*block < 1) *block = 1;
+    if (*block > (1 << 20)) *block = 1 << 20;
+    *ring = llround(d->opt.ring_s * cfg->sim.sample_rate_hz / AFM_RUNNER_SLOT_SAMPLES);
+    if (*ring < 4) *ring = 4;
+    if (*ring > 4096) *ring = 4096;
+    d->runner = afm_runner_create_pipelined(cfg, (int)*block, d->opt.mode == TWIND_LOCKSTEP, true,
+                                            (int)*ring, err, errlen);
+    if (!d->runner) return -1;
+    if (d->opt.start_s > 0 && afm_runner_set_time(d->runner, d->opt.start_s, err, errlen))
+        return -1;
+    return 0;
+}
+
+/* The lock, semaphores and queues between the threads (twind.h). 0, or -1 with err. */
+static int start_queues(twind *d, char *err, size_t errlen) {
+    pthread_mutex_init(&d->lock, NULL);
+    sem_init(&d->out_sem, 0, 0);
+    sem_init(&d->chain_sem, 0, 0);
+    sem_init(&d->cmd_sem, 0, 0);
+    if (afm_spsc_init(&d->cmd_q, CMD_Q_LEN, sizeof(twind_cmd_item), err, errlen) ||
+        afm_spsc_init(&d->trash_q, TRASH_Q_LEN, sizeof(afm_runner_model *), err, errlen) ||
+        afm_spsc_init(&d->rtrej_q, RTREJ_Q_LEN, sizeof(twind_reason), err, errlen) ||
+        afm_spsc_init(&d->samples_q, SAMPLES_Q_LEN, sizeof(afm_io_samples), err, errlen) ||
+        afm_spsc_init(&d->harm_q, HARM_Q_LEN, sizeof(afm_io_harmonics), err, errlen) ||
+        afm_spsc_init(&d->done_q, DONE_Q_LEN, sizeof(twind_done_item), err, errlen))
+        return -1;
+    return 0;
+}
+
+/* The transports into d->io: LCM, and CAN beside it when the config enables it (polled on
+ * the same receive thread through afm_io_mux, issue 6). sink must outlive d->io. 0, or -1
+ * with err. */
+static int start_transports(twind *d, const afm_config *cfg, const afm_io_sink *sink, char *err,
+                            size_t errlen) {
+    /* The transports may start threads of their own (LCM's receive thread): they inherit the
+     * receive thread's real-time priority from here, or a busy integrator and chain would
+     * keep them off the CPU and delay commands by up to a block (measured: p99 ~1 ms). */
+    twind_rt_setup_aux(d->opt.rt_priority - 10, d->opt.aux_cpu);
+    d->io = afm_lcm_io_create(d->opt.lcm_url, d->opt.lcm_out_url, d->opt.prefix, sink, err, errlen);
+    if (!d->io) return -1;
+    if (!cfg->can.enabled) return 0;
+    afm_io *both[2] = {d->io, afm_can_io_create(&cfg->can, &cfg->drive, sink, err, errlen)};
+    if (!both[1]) return -1;
+    d->io = afm_io_mux_create(both, 2, err, errlen);
+    if (!d->io) return -1;
+    afm_io_status st = {0};
+    d->io->ops->annotate_status(d->io, &st);
+    fprintf(stderr, "afmtwind: CAN input on %s (%s frames, %s ids): %s\n", cfg->can.interface,
+            cfg->can.fd ? "classic and FD" : "classic", cfg->can.extended_ids ? "29-bit" : "11-bit",
+            st.can_state);
+    return 0;
+}
+
+/* The four threads (twind.h), integrator last. 0, or -1 (then some may be running). */
+typedef struct {
+    pthread_t rt, chain, recv, pub;
+} twind_threads;
+static int start_threads(twind *d, twind_threads *t) {
+    if (pthread_create(&t->recv, NULL, twind_recv_main, d) ||
+        pthread_create(&t->pub, NULL, twind_pub_main, d) ||
+        pthread_create(&t->chain, NULL, twind_chain_main, d) ||
+        pthread_create(&t->rt, NULL, twind_rt_main, d))
+        return -1;
+    return 0;
+}
+
+/* Stop and join them, integrator first; destroy the commands that came too late. */
+static void stop_threads(twind *d, twind_threads *t) {
+    atomic_store(&d->stop, 1);
+    pthread_join(t->rt, NULL);
+    pthread_join(t->chain, NULL);
+    pthread_join(t->pub, NULL);
+    pthread_join(t->recv, NULL);
+    twind_cmd_item it;
+    while (afm_spsc_pop(&d->cmd_q, &it))
+        afm_runner_model_destroy(&it.model);
+}
+
+/* The start-up line: config, mode, integrator, sample rate (MHz), block (samples, us), the
+ * chain's ring, channels and both LCM URLs. */
+static void print_started(const twind *d, double fs_hz, long long block, long long ring) {
+    char cmd_u[AFM_LCM_URL_LEN], out_u[AFM_LCM_URL_LEN], err[AFM_ERR_LEN];
+    if (afm_lcm_urls(d->opt.lcm_url, d->opt.lcm_out_url, cmd_u, out_u, sizeof cmd_u, err,
+                     sizeof err)) /* cannot fail here: the transport resolved them already */
+        snprintf(out_u, sizeof out_u, "?");
+    fprintf(stderr,
+            "afmtwind: %s, %s mode, %s integrator at %.6g MHz, block %lld samples (%.0f us), "
+            "output chain on a second thread (ring %lld x %d samples), channels %s*, LCM "
+            "commands %s, outputs %s\n",
+            d->opt.config_path, twind_mode_name(d->opt.mode),
+            afm_sim_integrator_name(afm_runner_sim(d->runner)), fs_hz * 1e-6, block,
+            (double)block / fs_hz * 1e6, ring, AFM_RUNNER_SLOT_SAMPLES, d->opt.prefix, cmd_u,
+            out_u);
+}
+
+/* What the once-a-second report remembers from the last one. */
+typedef struct {
+    twind_rtf_state rs;  /* real-time factor over the last second */
+    long long last_beat; /* the rt thread's heartbeat: the watchdog is fed only if it moved */
+    long long last_resyncs, last_blowups;
+    bool was_auto_paused, warned_rt;
+} twind_watch;
+
+/* Once a second: the status line (stderr unless --quiet, and to systemd), and, also with
+ * --quiet, resyncs, blow-ups, an automatic pause and the rejections not printed; the
+ * watchdog is fed while the rt thread's loop turns. */
+static void report_second(twind *d, twind_watch *w) {
+    char line[1024];
+    status_line(d, &w->rs, line, sizeof line);
+    if (!d->opt.quiet) fprintf(stderr, "afmtwind: %s\n", line);
+    twind_notify_status(line);
+    twind_snapshot s;
+    twind_snap_read(d, &s);
+    if (s.resyncs != w->last_resyncs) /* never silently, also with --quiet */
+        fprintf(stderr,
+                "afmtwind: warning: more than %.0f ms behind real time: dropped the "
+                "backlog %lld time(s) in the last second (%lld in all, %.4f s of model time "
+                "skipped)\n",
+                d->opt.max_lag_s * 1e3, s.resyncs - w->last_resyncs, s.resyncs, s.resync_dropped_s);
+    w->last_resyncs = s.resyncs;
+    /* Blow-ups and the pause they lead to: loudly, also with --quiet. */
+    if (s.st.blowups != w->last_blowups)
+        fprintf(stderr,
+                "afmtwind: warning: %lld numerical blow-up(s) in the last second (%lld in all; "
+                "the state was reset to rest each time, last at model time %.6f s)\n",
+                s.st.blowups - w->last_blowups, s.st.blowups, s.st.last_blowup_t_s);
+    w->last_blowups = s.st.blowups;
+    if (s.st.auto_paused && !w->was_auto_paused) {
+        char why[2 * AFM_IO_REASON_LEN];
+        afm_runner_pause_reason(&s.st, why, sizeof why);
+        fprintf(stderr, "afmtwind: PAUSED: %s\n", why);
+    }
+    w->was_auto_paused = s.st.auto_paused;
+    /* Rejections and refusals beyond TWIND_REASON_LINES_PER_S lines a second. */
+    pthread_mutex_lock(&d->lock);
+    long long quiet = d->lines_quiet;
+    d->lines_quiet = 0;
+    pthread_mutex_unlock(&d->lock);
+    if (quiet > 0)
+        fprintf(stderr,
+                "afmtwind: ... and %lld more rejections/refusals in the last second, not "
+                "printed (all are counted in the status: rejected, refused, last_reject, "
+                "last_refusal)\n",
+                quiet);
+    if (s.heartbeat != w->last_beat) twind_notify_watchdog(); /* only while the loop turns */
+    w->last_beat = s.heartbeat;
+}
+
+/* Main's loop until SIGTERM, SIGINT or --exit-after: SIGHUP asks the receive thread to
+ * reload the config, each quiet second reports (report_second). */
+static void run_until_stopped(twind *d, const sigset_t *sigs, twind_watch *w) {
+    double t_start = twind_mono_now();
+    for (;;) {
+        struct timespec one = {1, 0};
+        int sig = sigtimedwait(sigs, NULL, &one);
+        if (!w->warned_rt && d->rt_warn[0]) { /* the RT thread sets up its scheduling at start */
+            fprintf(stderr, "afmtwind: warning: %s\n", d->rt_warn);
+            w->warned_rt = true;
+        }
+        if (sig == SIGTERM || sig == SIGINT) {
+            fprintf(stderr, "afmtwind: %s: stopping\n", sig == SIGTERM ? "SIGTERM" : "SIGINT");
+            return;
+        }
+        if (sig == SIGHUP) {
+            fprintf(stderr, "afmtwind: SIGHUP: reloading %s\n", d->opt.config_path);
+            atomic_store(&d->reload, 1);
+            continue;
+        }
+        report_second(d, w);
+        if (d->opt.exit_after_s > 0 && twind_mono_now() - t_start >= d->opt.exit_after_s) {
+            fprintf(stderr, "afmtwind: --exit-after %g s: stopping\n", d->opt.exit_after_s);
+            return;
+        }
+    }
+}
+
+/* Everything start-up made, in reverse order (each destroy accepts what was never made). */
+static void release(twind *d) {
+    afm_io_destroy(&d->io);
+    afm_spsc_destroy(&d->done_q);
+    afm_spsc_destroy(&d->harm_q);
+    afm_spsc_destroy(&d->samples_q);
+    afm_spsc_destroy(&d->rtrej_q);
+    afm_spsc_destroy(&d->trash_q);
+    afm_spsc_destroy(&d->cmd_q);
+    sem_destroy(&d->out_sem);
+    sem_destroy(&d->chain_sem);
+    sem_destroy(&d->cmd_sem);
+    afm_runner_destroy(&d->runner);
+}
+
 int main(int argc, char **argv) {
     static twind d; /* large (config copies); zero-initialised */
     char err[AFM_ERR_LEN];
-    int rc = 1;
     if (parse_args(argc, argv, &d.opt)) {
         usage(stderr);
         return 2;
@@ -271,174 +466,32 @@ int main(int argc, char **argv) {
     pthread_sigmask(SIG_BLOCK, &sigs, NULL);
 
     twind_rt_setup_process(d.rt_warn, sizeof d.rt_warn);
-    long long block = llround(d.opt.block_s * cfg.sim.sample_rate_hz);
-    if (block < 1) block = 1;
-    if (block > (1 << 20)) block = 1 << 20;
-    long long ring = llround(d.opt.ring_s * cfg.sim.sample_rate_hz / AFM_RUNNER_SLOT_SAMPLES);
-    if (ring < 4) ring = 4;
-    if (ring > 4096) ring = 4096;
-    d.runner = afm_runner_create_pipelined(&cfg, (int)block, d.opt.mode == TWIND_LOCKSTEP, true,
-                                           (int)ring, err, sizeof err);
-    if (!d.runner ||
-        (d.opt.start_s > 0 && afm_runner_set_time(d.runner, d.opt.start_s, err, sizeof err))) {
+    long long block, ring;
+    if (start_runner(&d, &cfg, &block, &ring, err, sizeof err)) {
         fprintf(stderr, "afmtwind: %s: %s\n", d.opt.config_path, err);
         return 1;
     }
-    pthread_mutex_init(&d.lock, NULL);
-    sem_init(&d.out_sem, 0, 0);
-    sem_init(&d.chain_sem, 0, 0);
-    sem_init(&d.cmd_sem, 0, 0);
-    if (afm_spsc_init(&d.cmd_q, CMD_Q_LEN, sizeof(twind_cmd_item), err, sizeof err) ||
-        afm_spsc_init(&d.trash_q, TRASH_Q_LEN, sizeof(afm_runner_model *), err, sizeof err) ||
-        afm_spsc_init(&d.rtrej_q, RTREJ_Q_LEN, sizeof(twind_reason), err, sizeof err) ||
-        afm_spsc_init(&d.samples_q, SAMPLES_Q_LEN, sizeof(afm_io_samples), err, sizeof err) ||
-        afm_spsc_init(&d.harm_q, HARM_Q_LEN, sizeof(afm_io_harmonics), err, sizeof err) ||
-        afm_spsc_init(&d.done_q, DONE_Q_LEN, sizeof(twind_done_item), err, sizeof err)) {
-        fprintf(stderr, "afmtwind: %s\n", err);
-        goto out;
-    }
     afm_io_sink sink = twind_sink(&d);
-    /* The transports may start threads of their own (LCM's receive thread): they inherit the
-     * receive thread's real-time priority from here, or a busy integrator and chain would
-     * keep them off the CPU and delay commands by up to a block (measured: p99 ~1 ms). */
-    twind_rt_setup_aux(d.opt.rt_priority - 10, d.opt.aux_cpu);
-    d.io =
-        afm_lcm_io_create(d.opt.lcm_url, d.opt.lcm_out_url, d.opt.prefix, &sink, err, sizeof err);
-    if (!d.io) {
+    if (start_queues(&d, err, sizeof err) || start_transports(&d, &cfg, &sink, err, sizeof err)) {
         fprintf(stderr, "afmtwind: %s\n", err);
-        goto out;
+        release(&d);
+        return 1;
     }
-    if (cfg.can.enabled) { /* CAN beside LCM, polled on the same receive thread (issue 6) */
-        afm_io *both[2] = {d.io, afm_can_io_create(&cfg.can, &cfg.drive, &sink, err, sizeof err)};
-        if (!both[1]) {
-            fprintf(stderr, "afmtwind: %s\n", err);
-            goto out;
-        }
-        d.io = afm_io_mux_create(both, 2, err, sizeof err);
-        if (!d.io) {
-            fprintf(stderr, "afmtwind: %s\n", err);
-            goto out;
-        }
-        afm_io_status st = {0};
-        d.io->ops->annotate_status(d.io, &st);
-        fprintf(stderr, "afmtwind: CAN input on %s (%s frames, %s ids): %s\n", cfg.can.interface,
-                cfg.can.fd ? "classic and FD" : "classic",
-                cfg.can.extended_ids ? "29-bit" : "11-bit", st.can_state);
-    }
-    pthread_t t_rt, t_chain, t_recv, t_pub;
-    if (pthread_create(&t_recv, NULL, twind_recv_main, &d) ||
-        pthread_create(&t_pub, NULL, twind_pub_main, &d) ||
-        pthread_create(&t_chain, NULL, twind_chain_main, &d) ||
-        pthread_create(&t_rt, NULL, twind_rt_main, &d)) {
+    twind_threads t;
+    if (start_threads(&d, &t)) {
         fprintf(stderr, "afmtwind: cannot start threads\n");
         exit(1); /* threads may be running: no orderly way back */
     }
-    double fs = cfg.sim.sample_rate_hz;
-    char cmd_u[AFM_LCM_URL_LEN], out_u[AFM_LCM_URL_LEN];
-    if (afm_lcm_urls(d.opt.lcm_url, d.opt.lcm_out_url, cmd_u, out_u, sizeof cmd_u, err,
-                     sizeof err)) /* cannot fail here: the transport resolved them already */
-        snprintf(out_u, sizeof out_u, "?");
-    fprintf(stderr,
-            "afmtwind: %s, %s mode, %s integrator at %.6g MHz, block %lld samples (%.0f us), "
-            "output chain on a second thread (ring %lld x %d samples), channels %s*, LCM "
-            "commands %s, outputs %s\n",
-            d.opt.config_path, twind_mode_name(d.opt.mode),
-            afm_sim_integrator_name(afm_runner_sim(d.runner)), fs * 1e-6, block,
-            (double)block / fs * 1e6, ring, AFM_RUNNER_SLOT_SAMPLES, d.opt.prefix, cmd_u, out_u);
+    print_started(&d, cfg.sim.sample_rate_hz, block, ring);
     twind_notify_ready();
 
-    double t_start = twind_mono_now();
-    twind_rtf_state rs = {0, 0, 0};
-    long long last_beat = -1;
-    int warned = 0;
-    long long last_resyncs = 0, last_blowups = 0;
-    bool was_auto_paused = false;
-    for (;;) {
-        struct timespec one = {1, 0};
-        int sig = sigtimedwait(&sigs, NULL, &one);
-        if (!warned && d.rt_warn[0]) { /* the RT thread sets up its scheduling at start */
-            fprintf(stderr, "afmtwind: warning: %s\n", d.rt_warn);
-            warned = 1;
-        }
-        if (sig == SIGTERM || sig == SIGINT) {
-            fprintf(stderr, "afmtwind: %s: stopping\n", sig == SIGTERM ? "SIGTERM" : "SIGINT");
-            break;
-        }
-        if (sig == SIGHUP) {
-            fprintf(stderr, "afmtwind: SIGHUP: reloading %s\n", d.opt.config_path);
-            atomic_store(&d.reload, 1);
-            continue;
-        }
-        char line[1024];
-        status_line(&d, &rs, line, sizeof line);
-        if (!d.opt.quiet) fprintf(stderr, "afmtwind: %s\n", line);
-        twind_notify_status(line);
-        twind_snapshot s;
-        twind_snap_read(&d, &s);
-        if (s.resyncs != last_resyncs) /* never silently, also with --quiet */
-            fprintf(stderr,
-                    "afmtwind: warning: more than %.0f ms behind real time: dropped the "
-                    "backlog %lld time(s) in the last second (%lld in all, %.4f s of model time "
-                    "skipped)\n",
-                    d.opt.max_lag_s * 1e3, s.resyncs - last_resyncs, s.resyncs, s.resync_dropped_s);
-        last_resyncs = s.resyncs;
-        /* Blow-ups and the pause they lead to: loudly, also with --quiet. */
-        if (s.st.blowups != last_blowups)
-            fprintf(stderr,
-                    "afmtwind: warning: %lld numerical blow-up(s) in the last second (%lld in all; "
-                    "the state was reset to rest each time, last at model time %.6f s)\n",
-                    s.st.blowups - last_blowups, s.st.blowups, s.st.last_blowup_t_s);
-        last_blowups = s.st.blowups;
-        if (s.st.auto_paused && !was_auto_paused) {
-            char why[2 * AFM_IO_REASON_LEN];
-            afm_runner_pause_reason(&s.st, why, sizeof why);
-            fprintf(stderr, "afmtwind: PAUSED: %s\n", why);
-        }
-        was_auto_paused = s.st.auto_paused;
-        /* Rejections and refusals beyond TWIND_REASON_LINES_PER_S lines a second. */
-        pthread_mutex_lock(&d.lock);
-        long long quiet = d.lines_quiet;
-        d.lines_quiet = 0;
-        pthread_mutex_unlock(&d.lock);
-        if (quiet > 0)
-            fprintf(stderr,
-                    "afmtwind: ... and %lld more rejections/refusals in the last second, not "
-                    "printed (all are counted in the status: rejected, refused, last_reject, "
-                    "last_refusal)\n",
-                    quiet);
-        if (s.heartbeat != last_beat) twind_notify_watchdog(); /* only while the loop turns */
-        last_beat = s.heartbeat;
-        if (d.opt.exit_after_s > 0 && twind_mono_now() - t_start >= d.opt.exit_after_s) {
-            fprintf(stderr, "afmtwind: --exit-after %g s: stopping\n", d.opt.exit_after_s);
-            break;
-        }
-    }
+    twind_watch w = {.last_beat = -1};
+    run_until_stopped(&d, &sigs, &w);
     twind_notify_stopping();
-    atomic_store(&d.stop, 1);
-    pthread_join(t_rt, NULL);
-    pthread_join(t_chain, NULL);
-    pthread_join(t_pub, NULL);
-    pthread_join(t_recv, NULL);
-    {
-        twind_cmd_item it;
-        while (afm_spsc_pop(&d.cmd_q, &it)) /* commands that came too late */
-            afm_runner_model_destroy(&it.model);
-        char line[1024];
-        status_line(&d, &rs, line, sizeof line);
-        fprintf(stderr, "afmtwind: final: %s\n", line);
-    }
-    rc = 0;
-out:
-    afm_io_destroy(&d.io);
-    afm_spsc_destroy(&d.done_q);
-    afm_spsc_destroy(&d.harm_q);
-    afm_spsc_destroy(&d.samples_q);
-    afm_spsc_destroy(&d.rtrej_q);
-    afm_spsc_destroy(&d.trash_q);
-    afm_spsc_destroy(&d.cmd_q);
-    sem_destroy(&d.out_sem);
-    sem_destroy(&d.chain_sem);
-    sem_destroy(&d.cmd_sem);
-    afm_runner_destroy(&d.runner);
-    return rc;
+    stop_threads(&d, &t);
+    char line[1024];
+    status_line(&d, &w.rs, line, sizeof line);
+    fprintf(stderr, "afmtwind: final: %s\n", line);
+    release(&d);
+    return 0;
 }
