@@ -315,131 +315,147 @@ static void time_chain(afm_sim *s, const afm_config *cfg0, const afm_modal *m, l
     afm_chain_destroy(&c);
 }
 
-/* Everything for one model; fills res. Returns 0, or -1 with res->err. */
-static int bench_one(const bench_opts *o, const bench_case *bc, bench_result *res) {
+/* One model's runs: its config (the tones' phases set to the settled state's), model and
+ * forces, the settled state every run starts from, the compared window and the simulators
+ * kept for timing. */
+typedef struct {
     afm_config cfg;
     afm_modal m;
     afm_force_params f;
-    char *err = res->err;
-    const size_t errlen = sizeof res->err;
-    memset(res, 0, sizeof *res);
-    res->config = bc->file;
-    for (int r = 0; r < N_ROWS; r++) {
-        res->row[r].err_rel = res->row[r].ns_med = res->row[r].ns_min = NAN;
-        res->row[r].rt_factor = NAN;
-    }
-    if (load_case(o, bc, &cfg, &m, &f, err, errlen) != 0) return -1;
-    res->n_modes = m.n;
-    res->z_m = cfg.drive.separation_m;
-    res->amp_m = cfg.drive.tones[0].amplitude_m;
-    res->freq_hz = cfg.drive.tones[0].frequency_hz;
-    res->free_amp_m = res->amp_m * linear_gain(&m, two_pi * res->freq_hz);
-    res->rate_hz = cfg.sim.sample_rate_hz;
-    res->ref_rtol = cfg.sim.ref_rtol > 0 ? cfg.sim.ref_rtol : 1e-10;
+    double q0[AFM_MAX_MODES], qd0[AFM_MAX_MODES]; /* settled modal state (m, m/s) */
+    long n_cmp;                                   /* samples each compared run takes */
+    long win, from;        /* samples in one period; first sample of the compared last one */
+    double *xr, *fr;       /* the reference's tip deflection (m) and force (N) */
+    double *x;             /* the run compared with it (m) */
+    afm_sim *sims[N_ROWS]; /* kept for the timing */
+    char *err;
+    size_t errlen;
+} bench_run;
 
-    /* 1. Settle with rt for settle_tau slowest decay times 1 / (xi_i w_i). */
+/* 1. Settle with rt for settle_tau slowest decay times 1 / (xi_i w_i) (res->settle_s); the
+ * settled state into b->q0, b->qd0 and the tones' phases into b->cfg, so that every later
+ * simulator starts at t = 0 where this one stopped. 0, or -1 with b->err. */
+static int bench_settle(const bench_opts *o, bench_run *b, bench_result *res) {
     double tau = 0.0;
-    for (int i = 0; i < m.n; i++)
-        tau = fmax(tau, 1.0 / (m.xi[i] * m.omega_rad_s[i]));
+    for (int i = 0; i < b->m.n; i++)
+        tau = fmax(tau, 1.0 / (b->m.xi[i] * b->m.omega_rad_s[i]));
     long n_settle = (long)ceil(o->settle_tau * tau * res->rate_hz);
-    afm_sim *s = make_sim(&cfg, &m, &f, AFM_INTEGRATOR_RT, 0, 0, NULL, NULL, err, errlen);
+    afm_sim *s =
+        make_sim(&b->cfg, &b->m, &b->f, AFM_INTEGRATOR_RT, 0, 0, NULL, NULL, b->err, b->errlen);
     if (!s) return -1;
     int rc = run_collect(s, n_settle, NULL, NULL);
     if (rc != AFM_SIM_OK) {
-        snprintf(err, errlen, "settling with rt: %s", rc_text(rc));
+        snprintf(b->err, b->errlen, "settling with rt: %s", rc_text(rc));
         afm_sim_destroy(&s);
         return -1;
     }
     res->settle_s = afm_sim_time(s);
-    double q0[AFM_MAX_MODES], qd0[AFM_MAX_MODES];
-    afm_sim_get_state(s, q0, qd0);
-    /* Every later simulator starts at t = 0 with the settled state and the tones' phases. */
+    afm_sim_get_state(s, b->q0, b->qd0);
     const afm_drive *d = afm_sim_drive(s);
-    for (int j = 0; j < d->n && j < cfg.drive.n_tones; j++)
-        cfg.drive.tones[j].phase_rad = fmod(afm_drive_phase(d, j, afm_sim_time(s)), two_pi);
+    for (int j = 0; j < d->n && j < b->cfg.drive.n_tones; j++)
+        b->cfg.drive.tones[j].phase_rad = fmod(afm_drive_phase(d, j, afm_sim_time(s)), two_pi);
     afm_sim_destroy(&s);
+    return 0;
+}
 
-    /* 2. Reference: CVODE over K periods; the compared window is the last period. */
+/* The compared window: K periods run, the last one compared; buffers for it. 0, or -1. */
+static int bench_window(const bench_opts *o, bench_run *b, const bench_result *res) {
     double period_samples = res->rate_hz / res->freq_hz;
-    long win = (long)ceil(period_samples);
-    long n_cmp = (long)ceil(o->periods * period_samples);
-    long from = n_cmp - win;
-    double *xr = malloc((size_t)n_cmp * sizeof *xr), *x = malloc((size_t)n_cmp * sizeof *x);
-    double *fr = malloc((size_t)n_cmp * sizeof *fr);
-    afm_sim *ref = NULL, *sims[N_ROWS] = {NULL};
-    if (!xr || !x || !fr) {
-        snprintf(err, errlen, "out of memory");
-        goto fail;
-    }
-    ref = make_sim(&cfg, &m, &f, AFM_INTEGRATOR_REFERENCE, 0, 0, q0, qd0, err, errlen);
-    if (!ref) goto fail;
-    rc = run_collect(ref, n_cmp, xr, fr);
+    b->win = (long)ceil(period_samples);
+    b->n_cmp = (long)ceil(o->periods * period_samples);
+    b->from = b->n_cmp - b->win;
+    b->xr = malloc((size_t)b->n_cmp * sizeof *b->xr);
+    b->x = malloc((size_t)b->n_cmp * sizeof *b->x);
+    b->fr = malloc((size_t)b->n_cmp * sizeof *b->fr);
+    if (b->xr && b->x && b->fr) return 0;
+    snprintf(b->err, b->errlen, "out of memory");
+    return -1;
+}
+
+/* 2. Reference: CVODE over the window (b->xr, b->fr), the orbit's amplitude, contact
+ * fraction and peak force from its last period, and a check of the reference itself
+ * against a 100x tighter tolerance. 0, or -1 with b->err. */
+static int bench_reference(bench_run *b, bench_result *res) {
+    afm_sim *ref = make_sim(&b->cfg, &b->m, &b->f, AFM_INTEGRATOR_REFERENCE, 0, 0, b->q0, b->qd0,
+                            b->err, b->errlen);
+    if (!ref) return -1;
+    int rc = run_collect(ref, b->n_cmp, b->xr, b->fr);
     if (rc != AFM_SIM_OK) {
-        snprintf(err, errlen, "reference run: %s", rc_text(rc));
-        goto fail;
+        snprintf(b->err, b->errlen, "reference run: %s", rc_text(rc));
+        afm_sim_destroy(&ref);
+        return -1;
     }
-    double xmin = INFINITY, xmax = -INFINITY, xc = afm_force_contact_x(&f, res->z_m);
+    double xmin = INFINITY, xmax = -INFINITY, xc = afm_force_contact_x(&b->f, res->z_m);
     long n_contact = 0;
     res->peak_force_n = -INFINITY;
-    for (long i = from; i < n_cmp; i++) {
-        xmin = fmin(xmin, xr[i]);
-        xmax = fmax(xmax, xr[i]);
-        n_contact += f.vdw_contact && xr[i] < xc;
-        res->peak_force_n = fmax(res->peak_force_n, fr[i]);
+    for (long i = b->from; i < b->n_cmp; i++) {
+        xmin = fmin(xmin, b->xr[i]);
+        xmax = fmax(xmax, b->xr[i]);
+        n_contact += b->f.vdw_contact && b->xr[i] < xc;
+        res->peak_force_n = fmax(res->peak_force_n, b->fr[i]);
     }
     res->tip_amp_m = 0.5 * (xmax - xmin);
-    res->contact_fraction = (double)n_contact / (double)win;
+    res->contact_fraction = (double)n_contact / (double)b->win;
     if (!(res->tip_amp_m > 0)) {
-        snprintf(err, errlen, "the reference orbit does not move");
-        goto fail;
+        snprintf(b->err, b->errlen, "the reference orbit does not move");
+        afm_sim_destroy(&ref);
+        return -1;
     }
-    sims[ROW_REF] = ref;
-    ref = NULL;
+    b->sims[ROW_REF] = ref;
     res->row[ROW_REF].ok = true;
     res->row[ROW_REF].substeps = -1;
     res->row[ROW_REF].err_rel = 0.0;
 
-    /* Check of the reference itself: the same from a 100x tighter tolerance. */
-    afm_sim *tight = make_sim(&cfg, &m, &f, AFM_INTEGRATOR_REFERENCE, 0, res->ref_rtol / 100, q0,
-                              qd0, err, errlen);
-    if (!tight) goto fail;
-    rc = run_collect(tight, n_cmp, x, NULL);
+    afm_sim *tight = make_sim(&b->cfg, &b->m, &b->f, AFM_INTEGRATOR_REFERENCE, 0,
+                              res->ref_rtol / 100, b->q0, b->qd0, b->err, b->errlen);
+    if (!tight) return -1;
+    rc = run_collect(tight, b->n_cmp, b->x, NULL);
     afm_sim_destroy(&tight);
-    res->ref_check = rc == AFM_SIM_OK ? err_rel(x, xr, from, n_cmp, res->tip_amp_m) : NAN;
+    res->ref_check =
+        rc == AFM_SIM_OK ? err_rel(b->x, b->xr, b->from, b->n_cmp, res->tip_amp_m) : NAN;
     snprintf(res->row[ROW_REF].note, sizeof res->row[ROW_REF].note,
              "CVODE BDF rtol %.0e; vs rtol %.0e: %.2e", res->ref_rtol, res->ref_rtol / 100,
              res->ref_check);
+    return 0;
+}
 
-    /* 3. rt from the same state. */
+/* 3. rt from the same state, its error against the reference. 0, or -1 (no simulator). */
+static int bench_rt(bench_run *b, bench_result *res) {
     bench_row *rr = &res->row[ROW_RT];
-    rr->substeps = cfg.sim.rt_substeps_contact;
-    sims[ROW_RT] = make_sim(&cfg, &m, &f, AFM_INTEGRATOR_RT, 0, 0, q0, qd0, err, errlen);
-    if (!sims[ROW_RT]) goto fail;
-    rc = run_collect(sims[ROW_RT], n_cmp, x, NULL);
+    rr->substeps = b->cfg.sim.rt_substeps_contact;
+    b->sims[ROW_RT] =
+        make_sim(&b->cfg, &b->m, &b->f, AFM_INTEGRATOR_RT, 0, 0, b->q0, b->qd0, b->err, b->errlen);
+    if (!b->sims[ROW_RT]) return -1;
+    int rc = run_collect(b->sims[ROW_RT], b->n_cmp, b->x, NULL);
     if (rc == AFM_SIM_OK) {
         rr->ok = true;
-        rr->err_rel = err_rel(x, xr, from, n_cmp, res->tip_amp_m);
+        rr->err_rel = err_rel(b->x, b->xr, b->from, b->n_cmp, res->tip_amp_m);
     } else {
         snprintf(rr->note, sizeof rr->note, "%s", rc_text(rc));
-        afm_sim_destroy(&sims[ROW_RT]);
+        afm_sim_destroy(&b->sims[ROW_RT]);
     }
+    return 0;
+}
 
-    /* 4. ERK: raise substeps until error_rel <= rt's. */
+/* 4. ERK: the fewest substeps (of erk_substeps) whose error is at most rt's. 0, or -1. */
+static int bench_erk(bench_run *b, bench_result *res) {
+    const bench_row *rr = &res->row[ROW_RT];
     bench_row *re = &res->row[ROW_ERK];
     double best = INFINITY;
     int best_sub = 0;
     for (int c = 0; c < N_ERK_SUBSTEPS && rr->ok; c++) {
-        afm_sim *e = make_sim(&cfg, &m, &f, AFM_INTEGRATOR_ARKODE_ERK, erk_substeps[c], 0, q0, qd0,
-                              err, errlen);
-        if (!e) goto fail;
-        rc = run_collect(e, n_cmp, x, NULL);
-        double er = rc == AFM_SIM_OK ? err_rel(x, xr, from, n_cmp, res->tip_amp_m) : INFINITY;
+        afm_sim *e = make_sim(&b->cfg, &b->m, &b->f, AFM_INTEGRATOR_ARKODE_ERK, erk_substeps[c], 0,
+                              b->q0, b->qd0, b->err, b->errlen);
+        if (!e) return -1;
+        int rc = run_collect(e, b->n_cmp, b->x, NULL);
+        double er =
+            rc == AFM_SIM_OK ? err_rel(b->x, b->xr, b->from, b->n_cmp, res->tip_amp_m) : INFINITY;
         if (er < best) {
             best = er;
             best_sub = erk_substeps[c];
         }
         if (er <= rr->err_rel) {
-            sims[ROW_ERK] = e;
+            b->sims[ROW_ERK] = e;
             re->ok = true;
             re->substeps = erk_substeps[c];
             re->err_rel = er;
@@ -453,35 +469,57 @@ static int bench_one(const bench_opts *o, const bench_case *bc, bench_result *re
         snprintf(re->note, sizeof re->note,
                  "never as accurate as rt up to %d substeps (best %.2e at %d)",
                  erk_substeps[N_ERK_SUBSTEPS - 1], best, best_sub);
+    return 0;
+}
 
-    /* 5. Timing on the running orbits. */
+/* 5. Timing on the running orbits, and the output chain's cost behind rt. */
+static void bench_timing(const bench_opts *o, const bench_case *bc, bench_run *b,
+                         bench_result *res) {
     for (int r = 0; r < N_ROWS; r++) {
-        if (!sims[r]) continue;
-        rc = time_runs(sims[r], o->n_time[r], o->runs, &res->row[r]);
+        if (!b->sims[r]) continue;
+        int rc = time_runs(b->sims[r], o->n_time[r], o->runs, &res->row[r]);
         if (rc != AFM_SIM_OK) {
             res->row[r].ok = false;
             snprintf(res->row[r].note, sizeof res->row[r].note, "timing: %s", rc_text(rc));
         }
     }
-    if (bc->chain && sims[ROW_RT] && res->row[ROW_RT].ok)
+    if (bc->chain && b->sims[ROW_RT] && res->row[ROW_RT].ok)
         /* more runs than the integrator rows: the one-core verdict should not hang on a
          * burst of load from elsewhere on this shared machine */
-        time_chain(sims[ROW_RT], &cfg, &m, o->n_time[ROW_RT], 4 * o->runs + 1, res);
+        time_chain(b->sims[ROW_RT], &b->cfg, &b->m, o->n_time[ROW_RT], 4 * o->runs + 1, res);
+}
+
+/* Everything for one model (steps 1-5 above); fills res. Returns 0, or -1 with res->err. */
+static int bench_one(const bench_opts *o, const bench_case *bc, bench_result *res) {
+    bench_run b = {.err = res->err, .errlen = sizeof res->err};
+    memset(res, 0, sizeof *res);
+    res->config = bc->file;
+    for (int r = 0; r < N_ROWS; r++) {
+        res->row[r].err_rel = res->row[r].ns_med = res->row[r].ns_min = NAN;
+        res->row[r].rt_factor = NAN;
+    }
+    if (load_case(o, bc, &b.cfg, &b.m, &b.f, b.err, b.errlen) != 0) return -1;
+    res->n_modes = b.m.n;
+    res->z_m = b.cfg.drive.separation_m;
+    res->amp_m = b.cfg.drive.tones[0].amplitude_m;
+    res->freq_hz = b.cfg.drive.tones[0].frequency_hz;
+    res->free_amp_m = res->amp_m * linear_gain(&b.m, two_pi * res->freq_hz);
+    res->rate_hz = b.cfg.sim.sample_rate_hz;
+    res->ref_rtol = b.cfg.sim.ref_rtol > 0 ? b.cfg.sim.ref_rtol : 1e-10;
+
+    int rc = -1;
+    if (bench_settle(o, &b, res) == 0 && bench_window(o, &b, res) == 0 &&
+        bench_reference(&b, res) == 0 && bench_rt(&b, res) == 0 && bench_erk(&b, res) == 0) {
+        bench_timing(o, bc, &b, res);
+        res->ok = true;
+        rc = 0;
+    }
     for (int r = 0; r < N_ROWS; r++)
-        afm_sim_destroy(&sims[r]);
-    free(xr);
-    free(x);
-    free(fr);
-    res->ok = true;
-    return 0;
-fail:
-    afm_sim_destroy(&ref);
-    for (int r = 0; r < N_ROWS; r++)
-        afm_sim_destroy(&sims[r]);
-    free(xr);
-    free(x);
-    free(fr);
-    return -1;
+        afm_sim_destroy(&b.sims[r]);
+    free(b.xr);
+    free(b.x);
+    free(b.fr);
+    return rc;
 }
 
 static double ratio_erk_rt(const bench_result *r) {

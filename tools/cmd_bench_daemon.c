@@ -278,8 +278,95 @@ static void client_normal(const bd_result *r) {
     sched_setscheduler(0, SCHED_OTHER, &p0);
 }
 
-static void bench_config(const bd_opts *o, const char *config, bd_result *r) {
+/* (a) The real-time factor over o->seconds of status: model time advanced / wall time
+ * between the first and last status received here; overruns, stalls, resyncs and lag from
+ * the daemon's status, and the tapping check from its harmonics. 0, or -1 with r->err. */
+static int measure_rtf(const bd_opts *o, lcm_t *lcm, bd_state *s, bd_result *r) {
+    s->n_status = 0;
+    pump(lcm, o->seconds);
+    if (s->n_status < 2 || s->last_wall <= s->first_wall) {
+        snprintf(r->err, sizeof r->err, "too few status messages (%d)", s->n_status);
+        return -1;
+    }
+    double wall_s = s->last_wall - s->first_wall;
+    r->rtf = (s->last_model - s->first_model) / wall_s;
+    r->overruns = s->last_overruns - s->first_overruns;
+    r->overruns_per_s = (double)r->overruns / wall_s;
+    r->chain_stalls = s->last_stalls - s->first_stalls;
+    r->resyncs = s->last_resyncs - s->first_resyncs;
+    r->lag_s = s->last_lag;
+    r->contact_time_s = s->contact_time_s;
+    r->indentation_m = s->indentation_m;
+    r->lockin_m = s->lockin_m;
+    return 0;
+}
+
+/* (b) Latency: o->commands setpoints (Z 35 / 35.5 nm), each after a pseudo-random pause of
+ * 0..2 ms, timed from just before publishing to the first samples message that carries its
+ * seq (lost after BD_WAIT_S); p50, p99, max and mean (s). */
+static void measure_latency(const bd_opts *o, lcm_t *lcm, lcm_t *cmd, bd_state *s, bd_result *r) {
     static double lat[BD_MAX_CMDS];
+    unsigned long long lcg = 12345;
+    for (int i = 0; i < o->commands; i++) {
+        lcg = lcg * 6364136223846793005ULL + 1442695040888963407ULL;
+        pump(lcm, (double)(lcg >> 40) / (double)(1ULL << 24) * 2e-3);
+        afmtwin_setpoint_t c = {
+            .utime = afmt_wall_us(), .seq = 100 + i, .separation_m = (i & 1) ? 35.5e-9 : 35e-9};
+        s->want_seq = c.seq;
+        s->got = false;
+        double t0 = afmt_mono_s();
+        afmtwin_setpoint_t_publish(cmd, o->ch.cmd[AFM_CMD_SETPOINT], &c);
+        r->sent++;
+        while (!s->got && afmt_mono_s() - t0 < BD_WAIT_S)
+            lcm_handle_timeout(lcm, 100);
+        if (s->got)
+            lat[r->n_lat++] = s->t_got - t0;
+        else
+            r->lost++;
+    }
+    if (r->n_lat == 0) return;
+    double sum = 0;
+    for (int i = 0; i < r->n_lat; i++)
+        sum += lat[i];
+    qsort(lat, (size_t)r->n_lat, sizeof lat[0], cmp_d);
+    r->p50 = lat[(r->n_lat - 1) / 2];
+    r->p99 = lat[(int)ceil(0.99 * r->n_lat) - 1];
+    r->max = lat[r->n_lat - 1];
+    r->mean = sum / r->n_lat;
+}
+
+/* (c) Loss under load: a burst of o->commands setpoints 100 us apart (10 per 1 ms block,
+ * well inside the command queue) while all outputs flow; every one must be applied. */
+static void measure_burst(const bd_opts *o, lcm_t *lcm, lcm_t *cmd, bd_state *s, bd_result *r) {
+    pump(lcm, 0.3);
+    long long applied0 = s->last_applied, received0 = s->last_received;
+    for (int i = 0; i < o->commands; i++) {
+        afmtwin_setpoint_t c = {
+            .utime = afmt_wall_us(), .seq = 1000000 + i, .separation_m = (i & 1) ? 35.5e-9 : 35e-9};
+        afmtwin_setpoint_t_publish(cmd, o->ch.cmd[AFM_CMD_SETPOINT], &c);
+        r->sent++;
+        pump(lcm, 100e-6);
+    }
+    pump(lcm, 0.5);
+    r->burst_sent = o->commands;
+    r->burst_received = s->last_received - received0;
+    r->burst_applied = s->last_applied - applied0;
+}
+
+/* SIGTERM to the daemon and wait: an unclean exit fails a run that was ok. */
+static void stop_daemon(pid_t pid, bd_result *r) {
+    kill(pid, SIGTERM);
+    int st = 0;
+    waitpid(pid, &st, 0);
+    if (r->ok && !(WIFEXITED(st) && WEXITSTATUS(st) == 0)) {
+        r->ok = false;
+        snprintf(r->err, sizeof r->err, "the daemon did not exit cleanly (status %d)", st);
+    }
+}
+
+/* One config: start the daemon, wait for its status, make it tap, then (a), (b), (c) of
+ * the file's comment; fills r (r->ok, or r->err). */
+static void bench_config(const bd_opts *o, const char *config, bd_result *r) {
     memset(r, 0, sizeof *r);
     char errfile[] = "/tmp/afmtwin-bench-daemon.XXXXXX";
     int efd = mkstemp(errfile);
@@ -309,94 +396,29 @@ static void bench_config(const bd_opts *o, const char *config, bd_result *r) {
     pid_t pid = start_daemon(o, config, errfile, NULL);
     if (pid < 0) {
         snprintf(r->err, sizeof r->err, "fork failed");
-        goto out;
+    } else {
+        for (int i = 0; i < 50 && s.n_status == 0; i++) /* up? */
+            pump(lcm, 0.1);
+        if (s.n_status == 0) {
+            snprintf(r->err, sizeof r->err, "no status from %s within 5 s", o->daemon);
+        } else {
+            r->block_s = block_from_errfile(errfile);
+            send_tap(o, cmd);
+            r->sent = 2;
+            pump(lcm, 1.0);
+            if (measure_rtf(o, lcm, &s, r) == 0) {
+                measure_latency(o, lcm, cmd, &s, r);
+                measure_burst(o, lcm, cmd, &s, r);
+                r->rejected = s.last_rejected;
+                r->received = s.last_received;
+                r->applied = s.last_applied;
+                r->ok = r->n_lat > 0;
+                if (!r->ok) snprintf(r->err, sizeof r->err, "no command was seen applied");
+            }
+        }
+        stop_daemon(pid, r);
+        read_warnings(errfile, r->warn, sizeof r->warn);
     }
-    /* up? */
-    for (int i = 0; i < 50 && s.n_status == 0; i++)
-        pump(lcm, 0.1);
-    if (s.n_status == 0) {
-        snprintf(r->err, sizeof r->err, "no status from %s within 5 s", o->daemon);
-        goto stop;
-    }
-    r->block_s = block_from_errfile(errfile);
-    send_tap(o, cmd);
-    r->sent = 2;
-    pump(lcm, 1.0);
-    /* (a) real-time factor over the window */
-    s.n_status = 0;
-    pump(lcm, o->seconds);
-    if (s.n_status < 2 || s.last_wall <= s.first_wall) {
-        snprintf(r->err, sizeof r->err, "too few status messages (%d)", s.n_status);
-        goto stop;
-    }
-    r->rtf = (s.last_model - s.first_model) / (s.last_wall - s.first_wall);
-    r->overruns = s.last_overruns - s.first_overruns;
-    r->overruns_per_s = (double)r->overruns / (s.last_wall - s.first_wall);
-    r->chain_stalls = s.last_stalls - s.first_stalls;
-    r->resyncs = s.last_resyncs - s.first_resyncs;
-    r->lag_s = s.last_lag;
-    r->contact_time_s = s.contact_time_s;
-    r->indentation_m = s.indentation_m;
-    r->lockin_m = s.lockin_m;
-    /* (b) latency */
-    unsigned long long lcg = 12345;
-    for (int i = 0; i < o->commands; i++) {
-        lcg = lcg * 6364136223846793005ULL + 1442695040888963407ULL;
-        pump(lcm, (double)(lcg >> 40) / (double)(1ULL << 24) * 2e-3);
-        afmtwin_setpoint_t c = {
-            .utime = afmt_wall_us(), .seq = 100 + i, .separation_m = (i & 1) ? 35.5e-9 : 35e-9};
-        s.want_seq = c.seq;
-        s.got = false;
-        double t0 = afmt_mono_s();
-        afmtwin_setpoint_t_publish(cmd, o->ch.cmd[AFM_CMD_SETPOINT], &c);
-        r->sent++;
-        while (!s.got && afmt_mono_s() - t0 < BD_WAIT_S)
-            lcm_handle_timeout(lcm, 100);
-        if (s.got)
-            lat[r->n_lat++] = s.t_got - t0;
-        else
-            r->lost++;
-    }
-    if (r->n_lat > 0) {
-        double sum = 0;
-        for (int i = 0; i < r->n_lat; i++)
-            sum += lat[i];
-        qsort(lat, (size_t)r->n_lat, sizeof lat[0], cmp_d);
-        r->p50 = lat[(r->n_lat - 1) / 2];
-        r->p99 = lat[(int)ceil(0.99 * r->n_lat) - 1];
-        r->max = lat[r->n_lat - 1];
-        r->mean = sum / r->n_lat;
-    }
-    /* (c) loss under load: a burst of setpoints 100 us apart (10 per 1 ms block, well
-     * inside the command queue) while all outputs flow; every one must be applied. */
-    pump(lcm, 0.3);
-    long long applied0 = s.last_applied, received0 = s.last_received;
-    for (int i = 0; i < o->commands; i++) {
-        afmtwin_setpoint_t c = {
-            .utime = afmt_wall_us(), .seq = 1000000 + i, .separation_m = (i & 1) ? 35.5e-9 : 35e-9};
-        afmtwin_setpoint_t_publish(cmd, o->ch.cmd[AFM_CMD_SETPOINT], &c);
-        r->sent++;
-        pump(lcm, 100e-6);
-    }
-    pump(lcm, 0.5);
-    r->burst_sent = o->commands;
-    r->burst_received = s.last_received - received0;
-    r->burst_applied = s.last_applied - applied0;
-    r->rejected = s.last_rejected;
-    r->received = s.last_received;
-    r->applied = s.last_applied;
-    r->ok = r->n_lat > 0;
-    if (!r->ok) snprintf(r->err, sizeof r->err, "no command was seen applied");
-stop:
-    kill(pid, SIGTERM);
-    int st = 0;
-    waitpid(pid, &st, 0);
-    if (r->ok && !(WIFEXITED(st) && WEXITSTATUS(st) == 0)) {
-        r->ok = false;
-        snprintf(r->err, sizeof r->err, "the daemon did not exit cleanly (status %d)", st);
-    }
-    read_warnings(errfile, r->warn, sizeof r->warn);
-out:
     lcm_destroy(cmd);
     lcm_destroy(lcm);
     unlink(errfile);
