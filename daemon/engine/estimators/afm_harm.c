@@ -349,13 +349,30 @@ void afm_harm_polar(const afm_harm *h, afm_harm_result *r) {
     }
 }
 
-/* A sample off the fast path, by the exact clock: theta mod 2 pi; boundaries, fractional
- * ends, resynchronisation of the phasors. Returns -1 (rejected, nothing changed), 0, or 1 (a
- * period completed). */
-static int harm_push_slow(afm_harm *h, double x, double f, double theta_rad) {
-    if (!isfinite(x) || !isfinite(f)) return -1;
-    double phi; /* phase since the last boundary; at a boundary e^{-ik phi} is the same for
-                 * both periods since k is an integer */
+/* What one sample off the fast path does, worked out by harm_slow_clock and
+ * harm_slow_weights before harm_slow_lanes applies it to every lane. */
+typedef struct {
+    bool had_prev, active; /* a sample before this one; a period running before it */
+    bool exact;            /* this sample's phasors computed exactly (pex), not rotated */
+    bool rate_changed;     /* the clock's step dphi changed: rebuild the table afterwards */
+    bool cross;            /* this step ends a period: its sums go out (h->out) */
+    bool start;            /* a period starts at this sample or inside the step just taken */
+    int ev;                /* AFM_CLOCK_NONE, _START or _CROSS */
+    double frac;           /* fraction of the step before the boundary (CROSS), else 1 */
+    double e_rad;          /* residual theta - imp of the rotated phasors (rad) */
+    const double *tm;      /* the table row of the previous sample */
+    double wb[2], wa[2];   /* weights (previous, this sample) before / after the boundary */
+    double wx, wf;         /* this sample into the new chunk: weight x x (m), weight x f (N) */
+    double samples;        /* the ending period's length in samples (fractional ends) */
+} harm_slow_step;
+
+/* The exact clock for theta (rad): theta mod 2 pi (phi, the phase since the last boundary;
+ * at a boundary e^{-ik phi} is the same for both periods since k is an integer), the
+ * tracker advanced, and whether the phasors rotate one more step (standing then for imp,
+ * within tol of theta) or are computed exactly into pex. -1 (rejected, nothing changed) or
+ * 0. */
+static int harm_slow_clock(afm_harm *h, double theta_rad, harm_slow_step *s, double *pex) {
+    double phi;
     const afm_phase_track *t = &h->trk;
     const double n1 = t->n + 1.0, imp = h->imp_ref + n1 * t->dphi, tol = t->tol;
     /* On the tracker's prediction (only the boundary or the window ended the fast path):
@@ -367,55 +384,64 @@ static int harm_push_slow(afm_harm *h, double x, double f, double theta_rad) {
         phi = afm_clock_wrap(theta_rad);
     else if (afm_track_check(&h->trk, theta_rad, &phi) != AFM_CLOCK_NONE)
         return -1;
-    const bool had_prev = h->trk.started, active = h->active;
-    /* the phasors rotate one more step and then stand for imp, which must be within tol of
-     * theta */
+    s->had_prev = h->trk.started;
+    s->active = h->active;
     const bool rotate =
         on_pred && h->n_sync + n1 <= AFM_TRACK_WINDOW_CLOCK && fabs(theta_rad - imp) <= tol;
-    const int st = 2 * h->nl;
-    const double *tm = h->tab + (size_t)(int)(t->n - h->nbase) * st; /* previous sample */
-    bool rate_changed;
-    double frac = 1.0;
-    const int ev = afm_track_advance(&h->trk, theta_rad, phi, &frac, &rate_changed);
-    double pex[2 * AFM_HARM_LANES];
-    const bool exact = !(rotate && h->trk.locked);
-    if (exact) {
+    s->tm = h->tab + (size_t)(int)(t->n - h->nbase) * (2 * h->nl); /* previous sample */
+    s->frac = 1.0;
+    s->ev = afm_track_advance(&h->trk, theta_rad, phi, &s->frac, &s->rate_changed);
+    s->exact = !(rotate && h->trk.locked);
+    if (s->exact) {
         phasors_exact(h, phi, pex);
         h->n_sync = 0.0;
     } else {
         h->n_sync += n1;
     }
     h->imp_ref = theta_rad;
-    /* cross: this step ends the period (the previous sample already has weight 1, 0.5 from
-     * each side; the step's part before the boundary is wb[0] g_prev + wb[1] g_cur); start:
-     * a period starts at this sample or inside the step just taken: this sample gets the
-     * after-boundary weight plus 0.5 from the next step, the previous one wa[0]. */
-    const bool cross = had_prev && active && ev == AFM_CLOCK_CROSS;
-    const bool start = ev == AFM_CLOCK_START || (ev == AFM_CLOCK_CROSS && had_prev);
-    double wb[2] = {0.0, 0.0}, wa[2] = {0.0, 0.0};
-    if (ev == AFM_CLOCK_CROSS) afm_split_weights(frac, wb, wa);
-    if (had_prev && active && !cross) h->nsteps += 1.0;
-    const double samples = (h->wsum + h->nsteps) + frac;
-    /* this sample into the new chunk sums (c = w x: the phasor of the new chunk base is its
-     * own); weight 1, nothing before the first boundary */
-    double wx = active ? x : 0.0, wf = active ? f : 0.0;
-    if (start) {
-        wx = (wa[1] + 0.5) * x;
-        wf = (wa[1] + 0.5) * f;
-        h->wsum = ev == AFM_CLOCK_CROSS ? 1.0 - frac : 0.0;
+    s->e_rad = theta_rad - imp;
+    return 0;
+}
+
+/* The weights of the clock's event. cross: this step ends the period (the previous sample
+ * already has weight 1, 0.5 from each side; the step's part before the boundary is wb[0]
+ * g_prev + wb[1] g_cur); start: a period starts at this sample or inside the step just
+ * taken: this sample gets the after-boundary weight plus 0.5 from the next step, the
+ * previous one wa[0]. Also the new chunk's weights of x (m) and f (N): 1, nothing before
+ * the first boundary. */
+static void harm_slow_weights(afm_harm *h, double x, double f, harm_slow_step *s) {
+    s->cross = s->had_prev && s->active && s->ev == AFM_CLOCK_CROSS;
+    s->start = s->ev == AFM_CLOCK_START || (s->ev == AFM_CLOCK_CROSS && s->had_prev);
+    s->wb[0] = s->wb[1] = s->wa[0] = s->wa[1] = 0.0;
+    if (s->ev == AFM_CLOCK_CROSS) afm_split_weights(s->frac, s->wb, s->wa);
+    if (s->had_prev && s->active && !s->cross) h->nsteps += 1.0;
+    s->samples = (h->wsum + h->nsteps) + s->frac;
+    s->wx = s->active ? x : 0.0;
+    s->wf = s->active ? f : 0.0;
+    if (s->start) {
+        s->wx = (s->wa[1] + 0.5) * x;
+        s->wf = (s->wa[1] + 0.5) * f;
+        h->wsum = s->ev == AFM_CLOCK_CROSS ? 1.0 - s->frac : 0.0;
         h->nsteps = 0.0;
         h->active = true;
     }
-    /* One pass over the lanes: the previous sample's phasor ep = b T[m]; the phasor p for
-     * this sample on the rotation, b T[m + 1] times e^{-ik e} ~ 1 - i k e for the residual
-     * e = theta - imp (|k e| < 1e-6: the dropped terms are below 1e-12 of it), or exact; the
-     * chunk into the period sums (s += b c); the ends of a completed period and its polar
-     * form; the new period's sums; the new chunk. */
-    const afm_v4 e = afm_v4_set1(theta_rad - imp), zero = afm_v4_set1(0.0);
-    const afm_v4 kxp = afm_v4_set1((wb[0] - 0.5) * h->x_prev), kxc = afm_v4_set1(wb[1] * x);
-    const afm_v4 kfp = afm_v4_set1((wb[0] - 0.5) * h->f_prev), kfc = afm_v4_set1(wb[1] * f);
-    const afm_v4 nxp = afm_v4_set1(wa[0] * h->x_prev), nfp = afm_v4_set1(wa[0] * h->f_prev);
-    const afm_v4 wxv = afm_v4_set1(wx), wfv = afm_v4_set1(wf);
+}
+
+/* One pass over the lanes: the previous sample's phasor ep = b T[m]; the phasor p for this
+ * sample on the rotation, b T[m + 1] times e^{-ik e} ~ 1 - i k e for the residual e = theta
+ * - imp (|k e| < 1e-6: the dropped terms are below 1e-12 of it), or exact (pex); the chunk
+ * into the period sums (s += b c); the ends of a completed period (into h->out.raw); the new
+ * period's sums; the new chunk (c = w x: the phasor of the new chunk base is its own). */
+static void harm_slow_lanes(afm_harm *h, double x, double f, const harm_slow_step *s,
+                            const double *pex) {
+    const int st = 2 * h->nl;
+    const double *tm = s->tm;
+    const bool exact = s->exact, active = s->active, cross = s->cross, start = s->start;
+    const afm_v4 e = afm_v4_set1(s->e_rad), zero = afm_v4_set1(0.0);
+    const afm_v4 kxp = afm_v4_set1((s->wb[0] - 0.5) * h->x_prev), kxc = afm_v4_set1(s->wb[1] * x);
+    const afm_v4 kfp = afm_v4_set1((s->wb[0] - 0.5) * h->f_prev), kfc = afm_v4_set1(s->wb[1] * f);
+    const afm_v4 nxp = afm_v4_set1(s->wa[0] * h->x_prev), nfp = afm_v4_set1(s->wa[0] * h->f_prev);
+    const afm_v4 wxv = afm_v4_set1(s->wx), wfv = afm_v4_set1(s->wf);
     for (int g = 0; g < st; g += 8) {
         const afm_v4 br = afm_v4_ld(h->b + g), bi = afm_v4_ld(h->b + g + 4);
         afm_v4 er, ei, pr, pi;
@@ -469,18 +495,30 @@ static int harm_push_slow(afm_harm *h, double x, double f, double theta_rad) {
         afm_v4_st(h->b + g, pr);
         afm_v4_st(h->b + g + 4, pi);
     }
-    if (cross) {
+}
+
+/* A sample off the fast path, by the exact clock: theta mod 2 pi; boundaries, fractional
+ * ends, resynchronisation of the phasors. Returns -1 (rejected, nothing changed), 0, or 1 (a
+ * period completed). */
+static int harm_push_slow(afm_harm *h, double x, double f, double theta_rad) {
+    if (!isfinite(x) || !isfinite(f)) return -1;
+    harm_slow_step s;
+    double pex[2 * AFM_HARM_LANES];
+    if (harm_slow_clock(h, theta_rad, &s, pex)) return -1;
+    harm_slow_weights(h, x, f, &s);
+    harm_slow_lanes(h, x, f, &s, pex);
+    if (s.cross) {
         h->out.period = h->periods;
-        h->out.samples = samples;
+        h->out.samples = s.samples;
         h->out.n_harmonics = h->nk;
         if (!h->deferred) afm_harm_polar(h, &h->out);
         h->periods++;
     }
-    if (h->trk.locked && rate_changed) build_table(h); /* after the pass: tm points into it */
+    if (h->trk.locked && s.rate_changed) build_table(h); /* after the pass: tm points into it */
     h->nbase = 0.0;
     h->x_prev = x;
     h->f_prev = f;
-    return cross ? 1 : 0;
+    return s.cross ? 1 : 0;
 }
 
 _Static_assert(AFM_HARM_LANES <= 20, "chunk_sig keeps at most 5 groups of lanes in registers");
