@@ -3,8 +3,10 @@
  * afm_cycle, afm_lockin): cubic Hermite pieces in (x, v), contact-line crossings, the 3-point
  * peak, the thesis App. E.4 phase difference, the drive-phase tracker (period clock) with
  * its vectorised run check (afm_track_run), and 4-lane vector helpers (afm_v4). Internal:
- * not installed, not part of any contract; everything is static inline so each user gets
- * its own copy. */
+ * not installed, not part of any contract. Only what the per-sample loops must inline is
+ * here (static inline: each user gets its own copy); the tracker's slow path is in
+ * afm_est_track.c, the helpers only one estimator uses are in that estimator's file
+ * (afm_orbit.c: stationary points, eq. E.12-E.13; afm_cycle.c: the Newton crossing). */
 #ifndef AFM_EST_INTERNAL_H
 #define AFM_EST_INTERNAL_H
 
@@ -50,25 +52,6 @@ static inline double afm_cubic_slope(const afm_cubic *q, double s) {
     return (3.0 * q->a * s + 2.0 * q->b) * s + q->c;
 }
 
-/* Stationary points of the cubic (roots of 3a s^2 + 2b s + c) into r; returns how many
- * (0..2), unfiltered: the caller keeps those in [0, 1]. */
-static inline int afm_cubic_stationary(const afm_cubic *q, double r[2]) {
-    double A = 3.0 * q->a, B = 2.0 * q->b, C = q->c;
-    int nr = 0;
-    if (fabs(A) < 1e-300) {
-        if (fabs(B) > 1e-300) r[nr++] = -C / B;
-    } else {
-        double disc = B * B - 4.0 * A * C;
-        if (disc >= 0) {
-            double sq = sqrt(disc);
-            double qq = -0.5 * (B + (B >= 0 ? sq : -sq));
-            r[nr++] = qq / A;
-            if (qq != 0) r[nr++] = C / qq;
-        }
-    }
-    return nr;
-}
-
 /* Crossing of x through xc inside [s0, s1] (x on opposite sides at the two samples, step h):
  * bisection on the Hermite cubic. *frac gets the position in the interval (0..1), *v the
  * velocity there (derivative of the cubic). */
@@ -88,44 +71,6 @@ static inline void afm_hermite_crossing(const afm_sample *s0, const afm_sample *
         }
     }
     double s = 0.5 * (lo + hi);
-    *frac = s;
-    *v = afm_cubic_slope(&q, s) / h;
-}
-
-/* The same crossing as afm_hermite_crossing (to within 1e-15 of the step) by safeguarded
- * Newton from the secant guess: a bracket [lo, hi] is kept and a Newton step leaving it,
- * is replaced by bisection. Typically 3-4 cubic evaluations instead of ~50. */
-static inline void afm_hermite_crossing_newton(const afm_sample *s0, const afm_sample *s1, double h,
-                                               double xc, double *frac, double *v) {
-    /* Exactly one root unless the Bernstein control polygon x0, x0 + h v0 / 3,
-     * x1 - h v1 / 3, x1 changes sign more than once: then bisection picks the root. */
-    double g0 = s0->x_m - xc, g1 = s1->x_m - xc;
-    double gb1 = g0 + h * (1.0 / 3.0) * s0->v_m_s, gb2 = g1 - h * (1.0 / 3.0) * s1->v_m_s;
-    if (((g0 >= 0) != (gb1 >= 0)) + ((gb1 >= 0) != (gb2 >= 0)) + ((gb2 >= 0) != (g1 >= 0)) != 1) {
-        afm_hermite_crossing(s0, s1, h, xc, frac, v);
-        return;
-    }
-    afm_cubic q = afm_hermite(s0, s1, h);
-    double lo = 0.0, hi = 1.0;
-    bool lo_pos = g0 >= 0;
-    double s = g0 != g1 ? g0 / (g0 - g1) : 0.5;
-    if (!(s > 0.0 && s < 1.0)) s = 0.5;
-    for (int it = 0; it < 100; it++) {
-        double g = afm_cubic_at(&q, s) - xc;
-        if (g == 0.0) break;
-        if ((g >= 0) == lo_pos)
-            lo = s;
-        else
-            hi = s;
-        double d = afm_cubic_slope(&q, s);
-        double sn = s - g / d;
-        if (!(sn > lo && sn < hi)) sn = 0.5 * (lo + hi);
-        if (fabs(sn - s) <= 2e-16 || hi - lo <= 1e-15) {
-            s = sn;
-            break;
-        }
-        s = sn;
-    }
     *frac = s;
     *v = afm_cubic_slope(&q, s) / h;
 }
@@ -173,14 +118,6 @@ static inline double afm_clock_wrap(double th) {
 static inline double afm_est_hypot(double x, double y) {
     double q = x * x + y * y;
     return q > 1e-290 && q < 1e290 ? sqrt(q) : hypot(x, y);
-}
-
-/* Thesis eq. E.12-E.13: mod(k (pi - phi_1) + phi_k, 2 pi) in degrees, [0, 360); phi_1 and
- * phi_k are the deflection phases (rad) of A cos(k theta + phi). */
-static inline double afm_phase_diff_deg(int k, double phi1_rad, double phik_rad) {
-    double dphi = afm_clock_wrap((double)k * (AFM_EST_PI - phi1_rad) + phik_rad);
-    double deg = dphi * AFM_EST_RAD2DEG;
-    return deg >= 360.0 ? 0.0 : deg;
 }
 
 /* Drive-phase tracker for the streaming estimators (afm_harm, afm_cycle, afm_lockin): it
@@ -252,21 +189,24 @@ typedef struct {
                            * lies before it */
 #define AFM_CLOCK_START 2 /* first sample, exactly on a boundary */
 
-static inline void afm_track_init(afm_phase_track *t, bool clock) {
-    t->clock = clock;
-    t->started = t->locked = false;
-    t->th_prev = t->th_ref = t->p_ref = t->n = t->dphi = t->nb = t->noise = t->age = 0.0;
-    t->tol = -1.0;
-    t->n_end = 0.0;
-    t->rate_changes = 0;
-}
+/* The tracker's slow path (afm_est_track.c: once a period or window per estimator, out
+ * of line). */
+void afm_track_init(afm_phase_track *t, bool clock);
 
-/* a - 2 pi m for the integer m nearest a / 2 pi: the deviation of a step from the rate up to
- * whole turns (the fma is exact: the remainder is representable). */
-static inline double afm_track_off_turns(double a) {
-    double m = nearbyint(a * (1.0 / AFM_EST_TWO_PI));
-    return fma(-m, AFM_EST_TWO_PI, a);
-}
+/* Slow path, part 1: check theta without changing anything: AFM_CLOCK_BAD or
+ * AFM_CLOCK_NONE; *p gets theta mod 2 pi (clock; 0 otherwise). */
+int afm_track_check(const afm_phase_track *t, double th, double *p);
+
+/* Slow path, part 2: advance to theta (checked, p from afm_track_check) and resynchronise.
+ * Returns AFM_CLOCK_NONE/CROSS/START (always NONE for a non-clock); *frac as for CROSS;
+ * *rate_changed set when dphi took a new value (the caller's per-step rotation must be
+ * recomputed from it; only meaningful while t->locked). */
+int afm_track_advance(afm_phase_track *t, double th, double p, double *frac, bool *rate_changed);
+
+/* afm_track_check then afm_track_advance for a clock tracker, in one: the same checks, result and
+ * tracker state, with theta_prev reduced mod 2 pi once. AFM_CLOCK_BAD (nothing changed), else as
+ * afm_track_advance (*frac for a boundary). */
+int afm_track_step(afm_phase_track *t, double th, double *frac);
 
 /* The fast path: true (and the tracker advanced) when theta is the predicted next phase;
  * false (nothing changed) otherwise, then call afm_track_check / afm_track_advance. */
@@ -276,137 +216,6 @@ static inline bool afm_track_fast(afm_phase_track *t, double th) {
     t->n = n;
     t->th_prev = th;
     return true;
-}
-
-/* Slow path, part 1: check theta without changing anything: AFM_CLOCK_BAD or
- * AFM_CLOCK_NONE; *p gets theta mod 2 pi (clock; 0 otherwise). */
-static inline int afm_track_check(const afm_phase_track *t, double th, double *p) {
-    *p = 0.0;
-    if (!isfinite(th)) return AFM_CLOCK_BAD;
-    if (!t->clock) return AFM_CLOCK_NONE;
-    *p = afm_clock_wrap(th);
-    if (t->started) {
-        double d = *p - afm_clock_wrap(t->th_prev);
-        if (d < 0) d += AFM_EST_TWO_PI;
-        if (!(d > 0 && d < AFM_EST_PI)) return AFM_CLOCK_BAD;
-    }
-    return AFM_CLOCK_NONE;
-}
-
-/* The common end of afm_track_advance and afm_track_step: the rate estimate, the lock and
- * the resynchronisation at theta (p = theta mod 2 pi for a clock, else 0); *rate_changed as
- * for afm_track_advance. */
-static inline void afm_track_resync(afm_phase_track *t, double th, double p, bool *rate_changed) {
-    double n = t->n + 1.0;
-    *rate_changed = false;
-    double err = (th - t->th_ref) - n * t->dphi;
-    bool drift = t->locked && n <= t->n_end && fabs(err) > t->tol; /* not boundary/window */
-    double dev = (th - t->th_prev) - t->dphi;                      /* this step against the rate */
-    t->age += n;
-    if (!t->started) {
-        t->locked = false;
-    } else if (t->locked && !(fabs(dev) <= 4.0 * t->tol)) {
-        /* Off the rate. By whole turns (tol of the larger theta: the step rounds to its ulp):
-         * the same rate, nothing to average from this interval. Else a new rate, or noise
-         * when it happens again soon after the last lock (see the header). */
-        double big = fmax(fabs(th), fabs(t->th_prev));
-        double offt = afm_track_off_turns(dev);
-        if (!(fabs(offt) <= 4.0 * (2e-11 + 1.8e-15 * big + t->noise))) {
-            if (t->age < AFM_TRACK_WINDOW_CLOCK && fabs(offt) <= 1e-6)
-                t->noise = fmin(2.0 * fabs(offt), 1e-6); /* noise: keep the rate */
-            else
-                t->locked = false; /* a new rate: take the next step's increment */
-        }
-    } else if (t->locked) {
-        /* same rate (the step is consistent): average in the increments since th_ref. A
-         * drift failure raises the noise floor (theta carries the rounding of the sample
-         * time, omega ulp(t), which the tracker cannot know); it decays otherwise. */
-        t->noise = drift ? fmin(fmax(t->noise, 2.0 * fabs(err)), 1e-6) : 0.97 * t->noise;
-        double d = (t->dphi * t->nb + (th - t->th_ref)) / (t->nb + n);
-        double tol = 2e-11 + 1.8e-15 * fabs(th) + t->noise;
-        double win = t->clock ? AFM_TRACK_WINDOW_CLOCK : AFM_TRACK_WINDOW_FREE;
-        if (t->clock && t->dphi > 0 && AFM_EST_TWO_PI / t->dphi < win)
-            win = AFM_EST_TWO_PI / t->dphi; /* the run between two boundaries */
-        if (fabs(d - t->dphi) * win > 0.125 * tol) {
-            t->dphi = d;
-            *rate_changed = true;
-        }
-        t->nb = t->nb + n < AFM_TRACK_MAX_BASELINE ? t->nb + n : AFM_TRACK_MAX_BASELINE;
-    } else {
-        t->dphi = th - t->th_prev;
-        t->nb = 1.0;
-        t->locked = true;
-        t->age = 0.0;
-        *rate_changed = true;
-    }
-    t->rate_changes += *rate_changed;
-    double tol = 2e-11 + 1.8e-15 * fabs(th) + t->noise;
-    if (t->locked && t->clock && !(t->dphi > 4.0 * tol + 1e-12 && t->dphi < AFM_EST_PI - 4.0 * tol))
-        t->locked = false;
-    t->started = true;
-    t->th_prev = t->th_ref = th;
-    t->p_ref = p;
-    t->n = 0.0;
-    t->tol = t->locked ? tol : -1.0;
-    t->n_end = 0.0;
-    if (t->locked && !t->clock) {
-        t->n_end = AFM_TRACK_WINDOW_FREE;
-    } else if (t->locked) {
-        double lim = AFM_EST_TWO_PI - (2.0 * tol + 1e-12);
-        double m = afm_floor((lim - p) / t->dphi);
-        if (m > AFM_TRACK_WINDOW_CLOCK) m = AFM_TRACK_WINDOW_CLOCK;
-        while (m > 0 && !(p + m * t->dphi < lim))
-            m -= 1.0; /* rounding of the division */
-        t->n_end = m > 0 ? m : 0.0;
-    }
-}
-
-/* Slow path, part 2: advance to theta (checked, p from afm_track_check) and resynchronise.
- * Returns AFM_CLOCK_NONE/CROSS/START (always NONE for a non-clock); *frac as for CROSS;
- * *rate_changed set when dphi took a new value (the caller's per-step rotation must be
- * recomputed from it; only meaningful while t->locked). */
-static inline int afm_track_advance(afm_phase_track *t, double th, double p, double *frac,
-                                    bool *rate_changed) {
-    int rc = AFM_CLOCK_NONE;
-    if (t->clock) {
-        if (!t->started) {
-            if (p == 0.0) rc = AFM_CLOCK_START;
-        } else {
-            double pp = afm_clock_wrap(t->th_prev);
-            if (p < pp) {
-                *frac = (AFM_EST_TWO_PI - pp) / (p + AFM_EST_TWO_PI - pp);
-                if (*frac > 1.0) *frac = 1.0;
-                rc = AFM_CLOCK_CROSS;
-            }
-        }
-    }
-    afm_track_resync(t, th, p, rate_changed);
-    return rc;
-}
-
-/* afm_track_check then afm_track_advance for a clock tracker, in one: the same checks, result and
- * tracker state, with theta_prev reduced mod 2 pi once. AFM_CLOCK_BAD (nothing changed), else as
- * afm_track_advance (*frac for a boundary). */
-static inline int afm_track_step(afm_phase_track *t, double th, double *frac) {
-    if (!isfinite(th)) return AFM_CLOCK_BAD;
-    double p = afm_clock_wrap(th), pp = 0.0;
-    int rc = AFM_CLOCK_NONE;
-    if (t->started) {
-        pp = afm_clock_wrap(t->th_prev);
-        double d = p - pp;
-        if (d < 0) d += AFM_EST_TWO_PI;
-        if (!(d > 0 && d < AFM_EST_PI)) return AFM_CLOCK_BAD;
-        if (p < pp) {
-            *frac = (AFM_EST_TWO_PI - pp) / (p + AFM_EST_TWO_PI - pp);
-            if (*frac > 1.0) *frac = 1.0;
-            rc = AFM_CLOCK_CROSS;
-        }
-    } else if (p == 0.0) {
-        rc = AFM_CLOCK_START;
-    }
-    bool rate_changed;
-    afm_track_resync(t, th, p, &rate_changed);
-    return rc;
 }
 
 /* Weights of the two samples of a step split at frac s (linear interpolant of the integrand,

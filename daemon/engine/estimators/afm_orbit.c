@@ -12,6 +12,33 @@
 static const double two_pi = AFM_EST_TWO_PI;
 static const double rad2deg = AFM_EST_RAD2DEG;
 
+/* Stationary points of the cubic (roots of 3a s^2 + 2b s + c) into r; returns how many
+ * (0..2), unfiltered: the caller keeps those in [0, 1]. */
+static inline int afm_cubic_stationary(const afm_cubic *q, double r[2]) {
+    double A = 3.0 * q->a, B = 2.0 * q->b, C = q->c;
+    int nr = 0;
+    if (fabs(A) < 1e-300) {
+        if (fabs(B) > 1e-300) r[nr++] = -C / B;
+    } else {
+        double disc = B * B - 4.0 * A * C;
+        if (disc >= 0) {
+            double sq = sqrt(disc);
+            double qq = -0.5 * (B + (B >= 0 ? sq : -sq));
+            r[nr++] = qq / A;
+            if (qq != 0) r[nr++] = C / qq;
+        }
+    }
+    return nr;
+}
+
+/* Thesis eq. E.12-E.13: mod(k (pi - phi_1) + phi_k, 2 pi) in degrees, [0, 360); phi_1 and
+ * phi_k are the deflection phases (rad) of A cos(k theta + phi). */
+static inline double afm_phase_diff_deg(int k, double phi1_rad, double phik_rad) {
+    double dphi = afm_clock_wrap((double)k * (AFM_EST_PI - phi1_rad) + phik_rad);
+    double deg = dphi * AFM_EST_RAD2DEG;
+    return deg >= 360.0 ? 0.0 : deg;
+}
+
 #define STENCIL 10 /* points of each end correction; exact for degree < STENCIL */
 
 double afm_orbit_period_s(const afm_drive *d) {
