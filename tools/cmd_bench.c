@@ -8,6 +8,7 @@
  * substeps are raised until its error is no worse than rt's. Then each integrator keeps
  * running on its orbit and `runs` timed blocks of samples give median and minimum cost. */
 #include "afmtwin_cmds.h"
+#include "json_out.h"
 
 #include "estimators/afm_chain.h"
 #include "config/afm_config.h"
@@ -665,11 +666,7 @@ static int print_json(const bench_opts *o, const bench_result *res, int n) {
     }
     cJSON_AddItemToObject(root, "cases", cases);
     cJSON_AddItemToObject(root, "ratios", ratios);
-    char *s = cJSON_PrintUnformatted(root);
-    if (s) puts(s);
-    free(s);
-    cJSON_Delete(root);
-    return s ? 0 : 1;
+    return afmt_json_emit(root) ? 1 : 0;
 }
 
 static int parse_int(const char *s, int lo, int hi, int *v) {

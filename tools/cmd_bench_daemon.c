@@ -69,12 +69,18 @@ typedef struct {
     bool inside, json;
 } bd_opts;
 
+/* What one status says about keeping up: received at wall_s (this process's
+ * CLOCK_MONOTONIC, s) at the daemon's model time model_s (s), its counters then. */
+typedef struct {
+    double wall_s, model_s;
+    long long overruns, stalls, resyncs;
+} bd_point;
+
 typedef struct {
     /* status */
     int n_status;
-    double first_wall, first_model, last_wall, last_model;
-    long long first_overruns, last_overruns, last_rejected, last_received, last_applied;
-    long long first_stalls, last_stalls, first_resyncs, last_resyncs;
+    bd_point first, last; /* the first and the last status of the window */
+    long long last_rejected, last_received, last_applied;
     double last_lag, last_rtf;
     /* harmonics (tapping check) */
     double contact_time_s, indentation_m, lockin_m;
@@ -125,20 +131,14 @@ static void bd_usage(FILE *f) {
 static void on_status(const void *msg, void *u) {
     const afmtwin_status_t *m = msg;
     bd_state *s = u;
-    double now = afmt_mono_s();
-    if (s->n_status++ == 0) {
-        s->first_wall = now;
-        s->first_model = m->model_time_s;
-        s->first_overruns = m->overruns;
-        s->first_stalls = m->chain_stalls;
-        s->first_resyncs = m->resyncs;
-    }
-    s->last_stalls = m->chain_stalls;
-    s->last_resyncs = m->resyncs;
+    bd_point p = {.wall_s = afmt_mono_s(),
+                  .model_s = m->model_time_s,
+                  .overruns = m->overruns,
+                  .stalls = m->chain_stalls,
+                  .resyncs = m->resyncs};
+    if (s->n_status++ == 0) s->first = p;
+    s->last = p;
     s->last_applied = m->applied;
-    s->last_wall = now;
-    s->last_model = m->model_time_s;
-    s->last_overruns = m->overruns;
     s->last_lag = m->lag_s;
     s->last_rtf = m->realtime_factor;
     s->last_rejected = m->rejected;
@@ -284,16 +284,16 @@ static void client_normal(const bd_result *r) {
 static int measure_rtf(const bd_opts *o, lcm_t *lcm, bd_state *s, bd_result *r) {
     s->n_status = 0;
     pump(lcm, o->seconds);
-    if (s->n_status < 2 || s->last_wall <= s->first_wall) {
+    if (s->n_status < 2 || s->last.wall_s <= s->first.wall_s) {
         snprintf(r->err, sizeof r->err, "too few status messages (%d)", s->n_status);
         return -1;
     }
-    double wall_s = s->last_wall - s->first_wall;
-    r->rtf = (s->last_model - s->first_model) / wall_s;
-    r->overruns = s->last_overruns - s->first_overruns;
+    double wall_s = s->last.wall_s - s->first.wall_s;
+    r->rtf = (s->last.model_s - s->first.model_s) / wall_s;
+    r->overruns = s->last.overruns - s->first.overruns;
     r->overruns_per_s = (double)r->overruns / wall_s;
-    r->chain_stalls = s->last_stalls - s->first_stalls;
-    r->resyncs = s->last_resyncs - s->first_resyncs;
+    r->chain_stalls = s->last.stalls - s->first.stalls;
+    r->resyncs = s->last.resyncs - s->first.resyncs;
     r->lag_s = s->last_lag;
     r->contact_time_s = s->contact_time_s;
     r->indentation_m = s->indentation_m;

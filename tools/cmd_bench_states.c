@@ -13,6 +13,7 @@
  * the worst ring item of each stage, and the estimators' table rebuilds; `--runs` repeats
  * give the median of the means and the median of the worst items. */
 #include "afmtwin_cmds.h"
+#include "json_out.h"
 #include "lcm_tool.h"
 
 #include "runner/afm_cmd.h"
@@ -522,10 +523,7 @@ int afm_cmd_bench_states(int argc, char **argv) {
         cJSON_AddStringToObject(root, "worst_chain_state", states[wc].name);
         if (isfinite(zc)) cJSON_AddNumberToObject(root, "z_change_ns", zc);
         if (isfinite(full)) cJSON_AddNumberToObject(root, "full_change_ns", full);
-        char *txt = cJSON_PrintUnformatted(root);
-        if (txt) puts(txt);
-        free(txt);
-        cJSON_Delete(root);
+        afmt_json_emit(root);
         return failed ? 1 : 0;
     }
     printf("afmtwin bench-states: %s at model time %g s (the daemon's path: afm_runner, both "

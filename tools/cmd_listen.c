@@ -3,6 +3,7 @@
  * harmonics, status, tick_done) and prints each message as text or as one JSON object per
  * line. */
 #include "afmtwin_cmds.h"
+#include "json_out.h"
 #include "lcm_tool.h"
 
 #include "config/afm_config.h"
@@ -158,13 +159,12 @@ static void json_darr(cJSON *o, const char *k, const double *v, int n) {
         cJSON_AddItemToArray(a, isfinite(v[i]) ? cJSON_CreateNumber(v[i]) : cJSON_CreateNull());
 }
 
-static void json_print(cJSON *o) {
-    char *s = cJSON_PrintUnformatted(o);
-    if (s) {
-        puts(s);
-        free(s);
-    }
-    cJSON_Delete(o);
+/* The lock-in at tone 0 and the peak force of the last period, as harmonics and status
+ * both carry them. */
+static void json_lockin(cJSON *o, double amplitude_m, double phase_deg, double peak_force_n) {
+    json_num(o, "lockin_amplitude_m", amplitude_m);
+    json_num(o, "lockin_phase_deg", phase_deg);
+    json_num(o, "peak_force_n", peak_force_n);
 }
 
 static cJSON *json_head(const char *channel, const char *type, int64_t utime, int64_t seq) {
@@ -197,7 +197,7 @@ static void print_samples(const listen_ctx *c, const char *channel, const afmtwi
                 cJSON_AddItemToArray(ca, cJSON_CreateNumber(m->obd_counts[i]));
             json_farr(a, "force_n", m->force_n, m->n);
         }
-        json_print(o);
+        afmt_json_emit(o);
         return;
     }
     printf("samples   seq %lld stream %d t0 %.9f s rate %.6g Hz n %d: deflection %.4g..%.4g nm "
@@ -225,16 +225,14 @@ static void print_harmonics(const listen_ctx *c, const char *channel,
         json_darr(o, "force_amplitude_n", m->force_amplitude_n, m->n);
         json_darr(o, "force_phase_deg", m->force_phase_deg, m->n);
         json_darr(o, "phase_diff_deg", m->phase_diff_deg, m->n);
-        json_num(o, "lockin_amplitude_m", m->lockin_amplitude_m);
-        json_num(o, "lockin_phase_deg", m->lockin_phase_deg);
-        json_num(o, "peak_force_n", m->peak_force_n);
+        json_lockin(o, m->lockin_amplitude_m, m->lockin_phase_deg, m->peak_force_n);
         json_num(o, "min_deflection_m", m->min_deflection_m);
         json_num(o, "indentation_m", m->indentation_m);
         json_num(o, "contact_time_s", m->contact_time_s);
         json_num(o, "pre_contact_velocity_m_s", m->pre_contact_velocity_m_s);
         json_num(o, "dissipated_energy_j", m->dissipated_energy_j);
         json_num(o, "mean_deflection_m", m->mean_deflection_m);
-        json_print(o);
+        afmt_json_emit(o);
         return;
     }
     printf("harmonics seq %lld t %.9f s fe %.6g Hz lock-in %.5g nm %.3f deg, peak force %.4g nN,"
@@ -283,12 +281,10 @@ static void print_status(const listen_ctx *c, const char *channel, const afmtwin
         json_str(o, "pause_reason", m->pause_reason);
         json_num(o, "realtime_factor_1s", m->realtime_factor_1s);
         json_num(o, "resync_skipped_s", m->resync_skipped_s);
-        json_num(o, "lockin_amplitude_m", m->lockin_amplitude_m);
-        json_num(o, "lockin_phase_deg", m->lockin_phase_deg);
-        json_num(o, "peak_force_n", m->peak_force_n);
+        json_lockin(o, m->lockin_amplitude_m, m->lockin_phase_deg, m->peak_force_n);
         json_num(o, "last_reject_age_s", m->last_reject_age_s);
         cJSON_AddNumberToObject(o, "last_reject_old", m->last_reject_old);
-        json_print(o);
+        afmt_json_emit(o);
         return;
     }
     char lr[SHOW_LEN], mode[SHOW_LEN], cs[SHOW_LEN], clr[SHOW_LEN];
@@ -365,7 +361,7 @@ static void print_done(const listen_ctx *c, const char *channel, const afmtwin_t
         cJSON_AddStringToObject(o, "samples_digest", dg);
         snprintf(dg, sizeof dg, "%016llx", (unsigned long long)m->harmonics_digest);
         cJSON_AddStringToObject(o, "harmonics_digest", dg);
-        json_print(o);
+        afmt_json_emit(o);
         return;
     }
     printf("tick_done seq %lld samples %lld t %.9f s: %lld samples messages (digest %016llx), "

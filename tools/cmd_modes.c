@@ -1,6 +1,7 @@
 /* SPDX-License-Identifier: MIT */
 /* cmd_modes.c -- `afmtwin modes`: the linear model's frequencies, MAC, stiffness, mass. */
 #include "afmtwin_cmds.h"
+#include "json_out.h"
 
 #include "config/afm_config.h"
 #include "beam/afm_model.h"
@@ -41,11 +42,7 @@ static int print_json(const afm_modes_report *r) {
     cJSON_AddItemToObject(o, "mac", mac);
     cJSON_AddNumberToObject(o, "tip_static_stiffness_n_per_m", r->static_stiffness_n_m);
     cJSON_AddNumberToObject(o, "effective_mass_kg", r->effective_mass_kg);
-    char *s = cJSON_PrintUnformatted(o);
-    if (s) puts(s);
-    free(s);
-    cJSON_Delete(o);
-    return s ? 0 : 1;
+    return afmt_json_emit(o) ? 1 : 0;
 }
 
 static void print_text(const char *path, const afm_modes_report *r) {

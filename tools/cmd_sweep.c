@@ -7,6 +7,7 @@
  * C.4) and the stepwise experiments, so a forward sweep can climb a high-amplitude branch
  * that a start from rest would miss. */
 #include "afmtwin_cmds.h"
+#include "json_out.h"
 
 #include "config/afm_config.h"
 #include "estimators/afm_cycle.h"
@@ -388,12 +389,9 @@ static int print_json_line(const afm_orbit *ob, const afm_orbit_settler *st, boo
                            const estimators *e) {
     cJSON *o = orbit_json(ob, st, settled);
     if (o) add_estimators_json(o, e);
-    char *s = o ? cJSON_PrintUnformatted(o) : NULL;
-    if (s) puts(s);
-    free(s);
-    cJSON_Delete(o);
+    int rc = afmt_json_emit(o);
     fflush(stdout);
-    return s ? 0 : -1;
+    return rc;
 }
 
 static void print_text_estimators(const estimators *e) {

@@ -11,6 +11,7 @@
  * section 5.3) and the Starr model still gives a (tiny) nonzero coefficient at 1 mm; the
  * intrinsic Q_n = 1 / (2 xi_n) is only what the tune should see without any of it. */
 #include "afmtwin_cmds.h"
+#include "json_out.h"
 
 #include "config/afm_config.h"
 #include "runner/afm_thermfit.h"
@@ -199,11 +200,7 @@ static int print_json(const thermal_opts *o, const afm_config *c, long nsamp, lo
         cJSON_AddItemToArray(ms, m);
     }
     cJSON_AddItemToObject(j, "modes", ms);
-    char *s = cJSON_PrintUnformatted(j);
-    if (s) puts(s);
-    free(s);
-    cJSON_Delete(j);
-    return s ? 0 : 1;
+    return afmt_json_emit(j) ? 1 : 0;
 }
 
 int afm_cmd_thermal(int argc, char **argv) {
