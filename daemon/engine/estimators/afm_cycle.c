@@ -18,44 +18,6 @@
 #define CYCLE_NOINLINE
 #endif
 
-/* The same crossing as afm_hermite_crossing (to within 1e-15 of the step) by safeguarded
- * Newton from the secant guess: a bracket [lo, hi] is kept and a Newton step leaving it,
- * is replaced by bisection. Typically 3-4 cubic evaluations instead of ~50. */
-static inline void afm_hermite_crossing_newton(const afm_sample *s0, const afm_sample *s1, double h,
-                                               double xc, double *frac, double *v) {
-    /* Exactly one root unless the Bernstein control polygon x0, x0 + h v0 / 3,
-     * x1 - h v1 / 3, x1 changes sign more than once: then bisection picks the root. */
-    double g0 = s0->x_m - xc, g1 = s1->x_m - xc;
-    double gb1 = g0 + h * (1.0 / 3.0) * s0->v_m_s, gb2 = g1 - h * (1.0 / 3.0) * s1->v_m_s;
-    if (((g0 >= 0) != (gb1 >= 0)) + ((gb1 >= 0) != (gb2 >= 0)) + ((gb2 >= 0) != (g1 >= 0)) != 1) {
-        afm_hermite_crossing(s0, s1, h, xc, frac, v);
-        return;
-    }
-    afm_cubic q = afm_hermite(s0, s1, h);
-    double lo = 0.0, hi = 1.0;
-    bool lo_pos = g0 >= 0;
-    double s = g0 != g1 ? g0 / (g0 - g1) : 0.5;
-    if (!(s > 0.0 && s < 1.0)) s = 0.5;
-    for (int it = 0; it < 100; it++) {
-        double g = afm_cubic_at(&q, s) - xc;
-        if (g == 0.0) break;
-        if ((g >= 0) == lo_pos)
-            lo = s;
-        else
-            hi = s;
-        double d = afm_cubic_slope(&q, s);
-        double sn = s - g / d;
-        if (!(sn > lo && sn < hi)) sn = 0.5 * (lo + hi);
-        if (fabs(sn - s) <= 2e-16 || hi - lo <= 1e-15) {
-            s = sn;
-            break;
-        }
-        s = sn;
-    }
-    *frac = s;
-    *v = afm_cubic_slope(&q, s) / h;
-}
-
 /* *d = *s (afm_sample: 6 doubles) without the string copy the compiler picks. */
 static CYCLE_INLINE void copy_sample(afm_sample *d, const afm_sample *s) {
 #if defined(__AVX__)
@@ -141,7 +103,8 @@ AFM_EST_COLD static double crossing_robust(double a, double b, double c, double 
 }
 
 /* Crossing of the step's Hermite cubic through xc (p and q on opposite sides): *frac in
- * (0, 1), *v the cubic's slope there / h. The same root as afm_hermite_crossing_newton, to
+ * (0, 1), *v the cubic's slope there / h. The same root as the safeguarded Newton iteration it
+ * replaced (from the secant guess, bisection outside the bracket), to
  * within ~1e-15 of the step (closer to the exact root than it: the cubic is evaluated in
  * g = x - xc without cancelling the large x), in fewer evaluations: two steps of Halley's
  * iteration (cubic convergence) from the root of the quadratic through g0 with slope h v0

@@ -5,8 +5,8 @@
  * its vectorised run check (afm_track_run), and 4-lane vector helpers (afm_v4). Internal:
  * not installed, not part of any contract. Only what the per-sample loops must inline is
  * here (static inline: each user gets its own copy); the tracker's slow path is in
- * afm_est_track.c, the helpers only one estimator uses are in that estimator's file
- * (afm_orbit.c: stationary points, eq. E.12-E.13; afm_cycle.c: the Newton crossing). */
+ * afm_est_track.c, the helpers only afm_orbit uses (stationary points, eq. E.12-E.13) are
+ * in afm_orbit.c. */
 #ifndef AFM_EST_INTERNAL_H
 #define AFM_EST_INTERNAL_H
 
