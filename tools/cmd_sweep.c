@@ -98,6 +98,8 @@ static void sweep_usage(FILE *f) {
         "                      min_deflection_m, max_deflection_m, max_force_n, contacts\n"
         "                      [{min_deflection_m, pre_contact_velocity_m_s, max_force_n}],\n"
         "                      harmonics [{k, deflection_amplitude_m, deflection_phase_deg,\n"
+        "                      phase_lag_deg (-(deflection_phase_deg + 90): the lag behind\n"
+        "                      the drive, as lockin.phase_deg),\n"
         "                      force_amplitude_n, force_phase_deg, phase_diff_deg}];\n"
         "                      phases in degrees, (-180, 180], phase_diff_deg in [0, 360);\n"
         "                      lockin {amplitude_m, phase_deg}: a lock-in at fe on xr, run\n"
@@ -376,6 +378,11 @@ static cJSON *orbit_json(const afm_orbit *ob, const afm_orbit_settler *st, bool 
         cJSON_AddNumberToObject(c, "k", h->k);
         cJSON_AddNumberToObject(c, "deflection_amplitude_m", h->x_amp_m);
         cJSON_AddNumberToObject(c, "deflection_phase_deg", h->x_phase_deg);
+        double lag = fmod(-(h->x_phase_deg + 90.0), 360.0); /* the lock-in's convention */
+        cJSON_AddNumberToObject(c, "phase_lag_deg",
+                                lag <= -180.0 ? lag + 360.0
+                                : lag > 180.0 ? lag - 360.0
+                                              : lag);
         cJSON_AddNumberToObject(c, "force_amplitude_n", h->f_amp_n);
         cJSON_AddNumberToObject(c, "force_phase_deg", h->f_phase_deg);
         cJSON_AddNumberToObject(c, "phase_diff_deg", h->phase_diff_deg);
