@@ -47,6 +47,7 @@ typedef struct {
     bool retract, json;
     int max_periods, analyse, k_max, integrator;
     double tol;
+    double rate_m_s; /* > 0: Z ramped continuously at this speed instead of stepped */
 } approach_opts;
 
 static void approach_usage(FILE *f) {
@@ -54,7 +55,7 @@ static void approach_usage(FILE *f) {
             "usage: afmtwin approach --config FILE --from Z --to Z --step DZ [--retract]\n"
             "                        [--periods N] [--analyse N] [--harmonics K] [--fe HZ]\n"
             "                        [--ae M] [--integrator rt|reference|arkode-erk]\n"
-            "                        [--tol X] [--json]\n\n"
+            "                        [--tol X] [--rate M_S] [--json]\n\n"
             "Approach curve: the tip-sample separation Z (m) goes from --from to --to in steps\n"
             "of --step (towards the sample when --to < --from), and with --retract back again.\n"
             "One simulation runs the whole curve, so the state carries over from step to step\n"
@@ -86,6 +87,11 @@ static void approach_usage(FILE *f) {
             "  --fe HZ, --ae M    tone 0's frequency and amplitude; default the config's\n"
             "  --integrator NAME  rt, reference (CVODE BDF) or arkode-erk; default the config's\n"
             "  --tol X            steady-state tolerance as in `afmtwin sweep` (default %g)\n"
+            "  --rate M_S         ramp Z continuously at M_S m/s (as the daemon's setpoint\n"
+            "                     --ramp: a new Z every 64 samples) instead of stepping and\n"
+            "                     dwelling: a record each --step of Z, the means over the last\n"
+            "                     N periods of the ramp (settled false, periodicity 0); the\n"
+            "                     first point is dwelt to steady state\n"
             "  --json             one JSON object per step and line: z_m, direction\n"
             "                     (\"approach\" or \"retract\"), amplitude_m, phase_lag_deg,\n"
             "                     lockin {amplitude_m, phase_lag_deg}, harmonics [{k,\n"
@@ -160,7 +166,14 @@ static int parse_args(int argc, char **argv, approach_opts *o) {
             rc = opt_double(a, v, &o->ae_m);
         else if (!strcmp(a, "--tol"))
             rc = opt_double(a, v, &o->tol);
-        else if (!strcmp(a, "--periods"))
+        else if (!strcmp(a, "--rate")) {
+            rc = opt_double(a, v, &o->rate_m_s);
+            if (!rc && !(o->rate_m_s > 0 && o->rate_m_s <= 1.0)) {
+                fprintf(stderr, "afmtwin approach: --rate must be in (0, 1] m/s (got %g)\n",
+                        o->rate_m_s);
+                rc = -1;
+            }
+        } else if (!strcmp(a, "--periods"))
             rc = opt_int(a, v, 2, 100000000, &o->max_periods);
         else if (!strcmp(a, "--analyse"))
             rc = opt_int(a, v, 1, MAX_ANALYSE, &o->analyse);
@@ -417,6 +430,37 @@ static double step_z(double a, double b, double dz, int i, int n) {
     return b < a ? a - (double)i * dz : a + (double)i * dz;
 }
 
+/* Run the estimators over n_min samples or more, until each has completed `need` more
+ * periods and 12 lock-in time constants have passed; with rate > 0, Z moves from z0
+ * towards z1 at that speed (a new Z every 64 samples) and the run also lasts until it
+ * reaches z1. 0 ok, -1 (err). */
+static int approach_run(afm_sim *sim, approach_est *e, int need, double z0, double z1, double rate,
+                        char *err, size_t errlen) {
+    const long c0 = e->n_cyc, h0 = e->n_harm, x0 = e->n_extra;
+    const double t0 = afm_sim_time(sim), t_end = t0 + 12.0 * e->lockin_tau_s;
+    const double t_ramp = rate > 0 ? fabs(z1 - z0) / rate : 0.0;
+    static afm_sample buf[64];
+    double z = z0;
+    while (e->n_cyc - c0 < need || e->n_harm - h0 < need || e->n_extra - x0 < need ||
+           afm_sim_time(sim) < t_end || (rate > 0 && z != z1)) {
+        if (rate > 0 && z != z1) {
+            double u = (afm_sim_time(sim) - t0) / t_ramp;
+            z = u >= 1.0 ? z1 : z0 + u * (z1 - z0);
+            if (afm_sim_set_separation(sim, z) != AFM_SIM_OK) {
+                snprintf(err, errlen, "cannot set Z = %g m", z);
+                return -1;
+            }
+            afm_cycle_set_contact(&e->cycle, afm_force_contact_x(afm_sim_forces(sim), z));
+        }
+        if (afm_sim_run(sim, 64, buf) != AFM_SIM_OK) {
+            snprintf(err, errlen, "simulation failed at Z = %g m", z);
+            return -1;
+        }
+        on_samples(e, sim, buf, 64);
+    }
+    return 0;
+}
+
 /* One Z: dwell, then the analysed periods. 0 ok, -1 (err). */
 static int approach_step(afm_sweep *sw, afm_sim *sim, approach_est *e, const approach_opts *o,
                          double z, approach_point *pt, char *err, size_t errlen) {
@@ -432,22 +476,19 @@ static int approach_step(afm_sweep *sw, afm_sim *sim, approach_est *e, const app
     pt->settled = settled == 1;
     pt->periodicity = settled == 1 ? sw->st.p : 0;
     pt->settle_periods = sw->st.periods;
-    /* the analysed periods: all after the dwell (one more for the partial one at its end) */
-    const long c0 = e->n_cyc, h0 = e->n_harm, x0 = e->n_extra;
-    const double T = TWO_PI / afm_sim_drive(sim)->omega_rad_s[0];
-    static afm_sample buf[4096];
-    /* and at least 12 lock-in time constants, so that its filter has settled (4th order:
+    /* the analysed periods: all after the dwell (one more for the partial one at its end),
+     * and at least 12 lock-in time constants, so that its filter has settled (4th order:
      * the step's transient below 1e-5 of it) */
-    const double t_end = afm_sim_time(sim) + 12.0 * e->lockin_tau_s;
-    while (e->n_cyc - c0 < o->analyse + 1 || e->n_harm - h0 < o->analyse + 1 ||
-           e->n_extra - x0 < o->analyse + 1 || afm_sim_time(sim) < t_end) {
-        int n = (int)fmin(4096.0, ceil(T / afm_sim_dt(sim)) + 2.0);
-        if (afm_sim_run(sim, n, buf) != AFM_SIM_OK) {
-            snprintf(err, errlen, "simulation failed at Z = %g m", z);
-            return -1;
-        }
-        on_samples(e, sim, buf, n);
-    }
+    if (approach_run(sim, e, o->analyse + 1, z, z, 0.0, err, errlen)) return -1;
+    approach_means(e, o->analyse, o->k_max, pt);
+    return 0;
+}
+
+/* One leg of a ramp, from z0 to z: the last N periods of it. */
+static int approach_ramp(afm_sim *sim, approach_est *e, const approach_opts *o, double z0, double z,
+                         approach_point *pt, char *err, size_t errlen) {
+    if (approach_run(sim, e, o->analyse + 1, z0, z, o->rate_m_s, err, errlen)) return -1;
+    pt->z_m = z;
     approach_means(e, o->analyse, o->k_max, pt);
     return 0;
 }
@@ -552,7 +593,9 @@ int afm_cmd_approach(int argc, char **argv) {
             if (tty)
                 fprintf(stderr, "\rapproach: %s step %d/%d, Z %.4f nm   ",
                         pass ? "retract" : "approach", i + 1, n_steps, z * 1e9);
-            if (approach_step(&sw, sim, &est, &o, z, &pt, err, sizeof err) != 0) {
+            const bool ramp = o.rate_m_s > 0 && (pass > 0 || i > 0);
+            if (ramp ? approach_ramp(sim, &est, &o, prev.z_m, z, &pt, err, sizeof err) != 0
+                     : approach_step(&sw, sim, &est, &o, z, &pt, err, sizeof err) != 0) {
                 fprintf(stderr, "%safmtwin approach: %s\n", tty ? "\n" : "", err);
                 status = 1;
                 break;
