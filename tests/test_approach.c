@@ -198,6 +198,36 @@ static void ramp(void) {
     free_all(b, nb);
 }
 
+/* The bistable region of the Q 300 probe at A0 20 nm: approaching, it stays on the
+ * attractive branch down to 18.25 nm (A 18.72 nm, lag 110.6 deg) and jumps below; retracting
+ * from the repulsive branch, it stays repulsive at 18.25 nm (A 19.99 nm, lag 88.8 deg). */
+static void hysteresis(void) {
+    cJSON *r[MAXREC];
+    int n = run("--config config/probe-q300.conf --ae 6.6667e-11 --from 19e-9 --to 17.5e-9 "
+                "--step 0.25e-9 --retract --periods 4000 --analyse 8",
+                r);
+    const cJSON *app = NULL, *ret = NULL;
+    for (int i = 0; i < n; i++) {
+        const cJSON *d = cJSON_GetObjectItemCaseSensitive(r[i], "direction");
+        if (!cJSON_IsString(d) || fabs(num(r[i], "z_m") - 18.25e-9) > 1e-15) continue;
+        if (!strcmp(d->valuestring, "approach")) app = r[i];
+        if (!strcmp(d->valuestring, "retract")) ret = r[i];
+    }
+    if (check_true(app && ret, "hysteresis: Z 18.25 nm on the approach and on the retract")) {
+        const cJSON *ra = cJSON_GetObjectItemCaseSensitive(app, "regime");
+        const cJSON *rr = cJSON_GetObjectItemCaseSensitive(ret, "regime");
+        check_true(cJSON_IsString(ra) && !strcmp(ra->valuestring, "attractive") &&
+                       cJSON_IsString(rr) && !strcmp(rr->valuestring, "repulsive"),
+                   "hysteresis at Z 18.25 nm: attractive approaching, repulsive retracting");
+        check_true(
+            num(ret, "amplitude_m") - num(app, "amplitude_m") > 0.5e-9,
+            "hysteresis at Z 18.25 nm: the retract's amplitude > 0.5 nm above the approach's");
+        check_true(num(app, "phase_lag_deg") > 100.0 && num(ret, "phase_lag_deg") < 90.0,
+                   "hysteresis at Z 18.25 nm: lag > 100 deg approaching, < 90 deg retracting");
+    }
+    free_all(r, n);
+}
+
 int main(void) {
     const char *b = getenv("AFMTWIN_BUILD");
     snprintf(bin, sizeof bin, "%s/bin/afmtwin", b && *b ? b : "build");
@@ -206,5 +236,6 @@ int main(void) {
     gradient_shift();
     curve();
     ramp();
+    hysteresis();
     return check_done();
 }
