@@ -8,13 +8,8 @@
 # ~30 amplitude time constants, and approach settles to 1e-6: both are the steady state to
 # far below the tolerances (amplitude 1e-5 relative, phase lag 0.002 deg). No network.
 BUILD=${1:-build}
-cd "$(dirname "$0")/.." || exit 1
-A="$BUILD/bin/afmtwin"
-pass=0; fail=0
-ok()  { echo "ok   $1"; pass=$((pass+1)); }
-bad() { echo "FAIL $1"; fail=$((fail+1)); }
-T=$(mktemp -d /tmp/afmtwin-curve.XXXXXX)
-trap 'rm -rf "$T"' EXIT
+. "$(dirname "$0")/lib_check.sh"
+check_init curve "$BUILD"
 C=config/probe-q300.conf
 "$A" send dither --config $C --freq 300e3 --amp 6.6667e-11 --seq 1 --log "$T/cmd.log" \
   --log-time 0 --quiet || bad "send dither --log"
@@ -51,5 +46,4 @@ grep -q '"z_m":2.2e-08' "$T/curve.json" && grep -q '"phase_lag_deg"' "$T/curve.j
   || bad "plot approach of the daemon curve"
 "$A" listen --log "$T/out.log" --json --count 3 --channels harmonics 2>/dev/null | grep -q '"separation_m"' \
   && ok "listen shows the harmonics records' separation_m and tones" || bad "listen: no separation_m"
-echo "$pass passed, $fail failed"
-[ "$fail" -eq 0 ]
+check_done

@@ -4,13 +4,8 @@
 # the requested size (signature and IHDR), its columns file has data, and bad input is
 # refused with exit 2. Needs no network. Prints "N passed, N failed".
 BUILD=${1:-build}
-cd "$(dirname "$0")/.." || exit 1
-A="$BUILD/bin/afmtwin"
-pass=0; fail=0
-ok()  { echo "ok   $1"; pass=$((pass+1)); }
-bad() { echo "FAIL $1"; fail=$((fail+1)); }
-T=$(mktemp -d /tmp/afmtwin-plot.XXXXXX)
-trap 'rm -rf "$T"' EXIT
+. "$(dirname "$0")/lib_check.sh"
+check_init plot "$BUILD"
 
 if sh tools/doc-plots.sh "$BUILD" "$T" >"$T/log.txt" 2>&1; then
   ok "tools/doc-plots.sh: every example run and plot exited 0"
@@ -43,5 +38,4 @@ done
 [ $rc -eq 2 ] && grep -q "unknown kind" "$T/e3.txt" && ok "an unknown kind: exit 2" || bad "unknown kind: exit $rc"
 "$A" plot sweep "$T/approach.json" -o "$T/x.png" 2>"$T/e4.txt"; rc=$?
 [ $rc -eq 2 ] && grep -q "without fe_hz" "$T/e4.txt" && ok "approach JSON as a sweep: exit 2" || bad "approach JSON as a sweep: exit $rc, $(cat "$T/e4.txt")"
-echo "$pass passed, $fail failed"
-[ "$fail" -eq 0 ]
+check_done
