@@ -434,9 +434,12 @@ static void print_text_step(const afm_orbit *ob, const afm_orbit_settler *st, bo
     if (ob->contacts_truncated) printf("    (contact list truncated)\n");
     for (int i = 0; i < ob->n_harmonics; i++) {
         const afm_orbit_harmonic *h = &ob->harmonics[i];
+        double lag = fmod(-(h->x_phase_deg + 90.0), 360.0);
+        lag = lag <= -180.0 ? lag + 360.0 : lag > 180.0 ? lag - 360.0 : lag;
         printf("    k %2d: |xr| %.5e m  phase %8.3f deg  |F| %.5e N  phase %8.3f deg  "
-               "dphi %7.3f deg\n",
-               h->k, h->x_amp_m, h->x_phase_deg, h->f_amp_n, h->f_phase_deg, h->phase_diff_deg);
+               "dphi %7.3f deg  lag %8.3f deg\n",
+               h->k, h->x_amp_m, h->x_phase_deg, h->f_amp_n, h->f_phase_deg, h->phase_diff_deg,
+               lag);
     }
     fflush(stdout);
 }
@@ -561,6 +564,9 @@ int afm_cmd_sweep(int argc, char **argv) {
                "tol %.1e, max %d periods\n",
                o.config, afm_sim_integrator_name(sim), ae, afm_sim_separation(sim), xc * 1e9, o.tol,
                o.max_periods);
+        printf("# phases: phi_k of A_k cos(k theta + phi_k) (thesis App. E.4); lag = -(phi + 90): "
+               "the lag of the deflection behind the drive, 90 deg free at resonance (the "
+               "lock-in's)\n");
         printf("%-12s %-7s %8s %10s %12s %12s %12s %3s\n", "# fe_hz", "p", "periods", "change",
                "min_xr_nm", "max_xr_nm", "max_F_N", "nc");
     }
