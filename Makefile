@@ -50,7 +50,7 @@ TEST_SRC   := $(wildcard tests/test_*.c)
 TEST_BIN   := $(patsubst tests/%.c,$(BUILD)/tests/%,$(TEST_SRC))
 TEST_COMMON := $(BUILD)/obj/tests/check.o $(BUILD)/obj/tests/fixtures.o $(BUILD)/obj/tests/msg_examples.o
 
-.PHONY: all deps run test validate bench soak install clean format format-check can-probe \
+.PHONY: all deps run test validate bench soak doc-plots install clean format format-check can-probe \
         sanitize sanitize-build fuzz fuzzers flood
 
 LIBS_ALL   := $(if $(IO_OBJ),$(IO_LIB)) $(MSG_LIB) $(ENGINE_LIB)
@@ -188,6 +188,13 @@ validate: deps
 	$(MAKE) all
 	@AFMTWIN_VALIDATE=full bash tests/run.sh $(BUILD)
 	@bash tools/validation-doc.sh $(BUILD) > docs/validation.md
+
+# The pictures in docs/img/ (one per `afmtwin plot` kind) and the runs behind them.
+doc-plots: deps
+	$(MAKE) $(BUILD)/bin/afmtwin
+	sh tools/doc-plots.sh $(BUILD) /tmp/afmtwin-doc-plots
+	mkdir -p docs/img
+	for k in sweep approach spectrum thermal trace; do cp /tmp/afmtwin-doc-plots/$$k.png docs/img/; done
 
 bench: deps
 	$(MAKE) $(BUILD)/bin/afmtwin $(BUILD)/bin/afmtwind

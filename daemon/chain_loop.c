@@ -56,7 +56,7 @@ static void push_outputs(chain_ctx *c) {
                 c->snap.samples_dropped++;
                 continue;
             }
-            afm_io_samples_from_block(o, &b, now_us, st.seq_applied);
+            afm_io_samples_from_block(o, &b, now_us, st.seq_applied, &st.op);
             afm_spsc_commit(&d->samples_q);
             c->samples_recs++;
         }
@@ -82,7 +82,7 @@ static void push_outputs(chain_ctx *c) {
                 c->snap.harm_dropped++;
                 continue;
             }
-            afm_io_harmonics_from_period(h, &p[i], st.fe_hz, now_us, st.seq_applied);
+            afm_io_harmonics_from_period(h, &p[i], st.fe_hz, now_us, st.seq_applied, &st.op);
             afm_spsc_commit(&d->harm_q);
             c->harm_recs++;
         }

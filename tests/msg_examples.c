@@ -18,6 +18,11 @@ int ex_samples(uint8_t *b, int cap) {
     s.obd_m = o;
     s.obd_counts = cnt;
     s.force_n = f;
+    double tf[1] = {3e5}, ta[1] = {3e-11};
+    s.separation_m = 2e-8;
+    s.n_tones = 1;
+    s.tone_frequency_hz = tf;
+    s.tone_amplitude_m = ta;
     return afmtwin_samples_t_encode(b, 0, cap, &s);
 }
 
@@ -26,7 +31,12 @@ int ex_harmonics(uint8_t *b, int cap) {
     double amp[2] = {5e-8, 1e-10}, ph[2] = {90, 10};
     afmtwin_harmonics_t h = {.n = 2, .k = k, .lockin_amplitude_m = 5e-8};
     h.deflection_amplitude_m = h.force_amplitude_n = amp;
-    h.deflection_phase_deg = h.force_phase_deg = h.phase_diff_deg = ph;
+    h.deflection_phase_deg = h.deflection_lag_deg = h.force_phase_deg = h.phase_diff_deg = ph;
+    double tf[1] = {3e5}, ta[1] = {3e-11};
+    h.separation_m = 2e-8;
+    h.n_tones = 1;
+    h.tone_frequency_hz = tf;
+    h.tone_amplitude_m = ta;
     return afmtwin_harmonics_t_encode(b, 0, cap, &h);
 }
 

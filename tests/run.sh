@@ -3,6 +3,7 @@
 # line "N passed, N failed" summed over all of them. Exit status 1 if anything failed.
 set -u
 BUILD=${1:-build}
+export AFMTWIN_BUILD=$BUILD # for the tests that run the CLI
 cd "$(dirname "$0")/.."
 pass=0; fail=0
 # The binaries of the sources that exist (a stale binary of a removed test is not run).

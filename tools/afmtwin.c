@@ -14,6 +14,9 @@ typedef struct {
 static const command commands[] = {
     {"modes", afm_cmd_modes, "eigenfrequencies, MAC, stiffness and effective mass of a model"},
     {"sweep", afm_cmd_sweep, "stepwise frequency sweep to steady state, with harmonics"},
+    {"approach", afm_cmd_approach, "approach / retract curve in Z: amplitude, phase, forces"},
+    {"plot", afm_cmd_plot, "pictures (gnuplot PNG) of sweep, approach, thermal, trace, spectrum"},
+    {"curve", afm_cmd_curve, "approach-style curve from a log of the daemon outputs"},
     {"bench", afm_cmd_bench, "integrator speed and accuracy side by side"},
     {"bench-states", afm_cmd_bench_states,
      "integrator and chain cost per sample in every state, and of a Z change"},

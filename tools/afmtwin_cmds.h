@@ -7,6 +7,9 @@
  * returns the process exit code: 0 ok, 1 failure, 2 bad usage or bad input. */
 int afm_cmd_modes(int argc, char **argv);
 int afm_cmd_sweep(int argc, char **argv);
+int afm_cmd_approach(int argc, char **argv);
+int afm_cmd_plot(int argc, char **argv);
+int afm_cmd_curve(int argc, char **argv);
 int afm_cmd_bench(int argc, char **argv);
 int afm_cmd_thermal(int argc, char **argv);
 int afm_cmd_send(int argc, char **argv);

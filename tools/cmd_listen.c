@@ -176,6 +176,19 @@ static cJSON *json_head(const char *channel, const char *type, int64_t utime, in
     return o;
 }
 
+/* The operating point a record was made at: separation_m, tones [{frequency_hz,
+ * amplitude_m}]. */
+static void json_oppoint(cJSON *o, double z_m, int n, const double *f_hz, const double *a_m) {
+    json_num(o, "separation_m", z_m);
+    cJSON *t = cJSON_AddArrayToObject(o, "tones");
+    for (int i = 0; i < n; i++) {
+        cJSON *e = cJSON_CreateObject();
+        json_num(e, "frequency_hz", f_hz[i]);
+        json_num(e, "amplitude_m", a_m[i]);
+        cJSON_AddItemToArray(t, e);
+    }
+}
+
 static void print_samples(const listen_ctx *c, const char *channel, const afmtwin_samples_t *m) {
     arr_stats sx = stats_f(m->deflection_m, m->n), so = stats_f(m->obd_m, m->n),
               sf = stats_f(m->force_n, m->n);
@@ -188,6 +201,7 @@ static void print_samples(const listen_ctx *c, const char *channel, const afmtwi
         json_stats(o, "deflection_m", sx);
         json_stats(o, "obd_m", so);
         json_stats(o, "force_n", sf);
+        json_oppoint(o, m->separation_m, m->n_tones, m->tone_frequency_hz, m->tone_amplitude_m);
         if (c->full) {
             cJSON *a = cJSON_AddObjectToObject(o, "data");
             json_farr(a, "deflection_m", m->deflection_m, m->n);
@@ -200,10 +214,11 @@ static void print_samples(const listen_ctx *c, const char *channel, const afmtwi
         afmt_json_emit(o);
         return;
     }
-    printf("samples   seq %lld stream %d t0 %.9f s rate %.6g Hz n %d: deflection %.4g..%.4g nm "
-           "(rms %.4g), obd %.4g..%.4g nm, force %.4g..%.4g nN\n",
-           (long long)m->seq_applied, m->stream, m->t0_s, m->rate_hz, m->n, sx.min * 1e9,
-           sx.max * 1e9, sx.rms * 1e9, so.min * 1e9, so.max * 1e9, sf.min * 1e9, sf.max * 1e9);
+    printf("samples   seq %lld stream %d t0 %.9f s rate %.6g Hz n %d Z %.4g nm: deflection "
+           "%.4g..%.4g nm (rms %.4g), obd %.4g..%.4g nm, force %.4g..%.4g nN\n",
+           (long long)m->seq_applied, m->stream, m->t0_s, m->rate_hz, m->n, m->separation_m * 1e9,
+           sx.min * 1e9, sx.max * 1e9, sx.rms * 1e9, so.min * 1e9, so.max * 1e9, sf.min * 1e9,
+           sf.max * 1e9);
     if (c->full)
         for (int i = 0; i < m->n; i++)
             printf("  %d %.9g %.9g %d %.9g\n", i, m->deflection_m[i], m->obd_m[i], m->obd_counts[i],
@@ -222,6 +237,7 @@ static void print_harmonics(const listen_ctx *c, const char *channel,
             cJSON_AddItemToArray(k, cJSON_CreateNumber(m->k[i]));
         json_darr(o, "deflection_amplitude_m", m->deflection_amplitude_m, m->n);
         json_darr(o, "deflection_phase_deg", m->deflection_phase_deg, m->n);
+        json_darr(o, "deflection_lag_deg", m->deflection_lag_deg, m->n);
         json_darr(o, "force_amplitude_n", m->force_amplitude_n, m->n);
         json_darr(o, "force_phase_deg", m->force_phase_deg, m->n);
         json_darr(o, "phase_diff_deg", m->phase_diff_deg, m->n);
@@ -232,17 +248,18 @@ static void print_harmonics(const listen_ctx *c, const char *channel,
         json_num(o, "pre_contact_velocity_m_s", m->pre_contact_velocity_m_s);
         json_num(o, "dissipated_energy_j", m->dissipated_energy_j);
         json_num(o, "mean_deflection_m", m->mean_deflection_m);
+        json_oppoint(o, m->separation_m, m->n_tones, m->tone_frequency_hz, m->tone_amplitude_m);
         afmt_json_emit(o);
         return;
     }
-    printf("harmonics seq %lld t %.9f s fe %.6g Hz lock-in %.5g nm %.3f deg, peak force %.4g nN,"
-           " min deflection %.4g nm, contact %.4g ns",
-           (long long)m->seq_applied, m->t_s, m->fe_hz, m->lockin_amplitude_m * 1e9,
-           m->lockin_phase_deg, m->peak_force_n * 1e9, m->min_deflection_m * 1e9,
-           m->contact_time_s * 1e9);
+    printf("harmonics seq %lld t %.9f s Z %.4g nm fe %.6g Hz lock-in %.5g nm %.3f deg (lag), "
+           "peak force %.4g nN, min deflection %.4g nm, contact %.4g ns",
+           (long long)m->seq_applied, m->t_s, m->separation_m * 1e9, m->fe_hz,
+           m->lockin_amplitude_m * 1e9, m->lockin_phase_deg, m->peak_force_n * 1e9,
+           m->min_deflection_m * 1e9, m->contact_time_s * 1e9);
     for (int i = 0; i < m->n; i++)
-        printf("%s k%d %.4g nm %.2f deg", i ? "," : ";", m->k[i],
-               m->deflection_amplitude_m[i] * 1e9, m->deflection_phase_deg[i]);
+        printf("%s k%d %.4g nm %.2f deg (lag)", i ? "," : ";", m->k[i],
+               m->deflection_amplitude_m[i] * 1e9, m->deflection_lag_deg[i]);
     printf("\n");
 }
 

@@ -154,7 +154,9 @@ static void emit_samples(replay_ctx *x, int64_t seq) {
     for (int st = 0; st < afm_runner_n_streams(x->r); st++) {
         afm_chain_block b;
         while (afm_runner_take_block(x->r, st, &b, AFM_IO_MAX_BLOCK) > 0) {
-            afm_io_samples_from_block(&x->rec, &b, model_us(b.t_s[0]), seq);
+            afm_runner_chain_status cs;
+            afm_runner_chain_status_get(x->r, &cs);
+            afm_io_samples_from_block(&x->rec, &b, model_us(b.t_s[0]), seq, &cs.op);
             afmtwin_samples_t m;
             afm_lcm_samples_msg(&x->rec, &m);
             afm_lcm_digest_samples(&x->dg, &m); /* also when not written: tick_done has it */
@@ -176,8 +178,11 @@ static void emit_harmonics(replay_ctx *x, const afm_runner_status *st) {
             if (x->period_count++ % x->o.harmonics_every != 0) continue;
             const afm_cycle_metrics *c = &x->periods[p].cycle;
             afm_io_harmonics h;
+            afm_runner_chain_status cs;
+            afm_runner_chain_status_get(x->r, &cs);
             afm_io_harmonics_from_period(&h, &x->periods[p], st->fe_hz,
-                                         model_us(c->t_start_s + c->duration_s), st->seq_applied);
+                                         model_us(c->t_start_s + c->duration_s), st->seq_applied,
+                                         &cs.op);
             afm_lcm_harm_buf buf;
             afmtwin_harmonics_t m;
             afm_lcm_harmonics_msg(&h, &buf, &m);

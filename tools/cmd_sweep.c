@@ -99,6 +99,8 @@ static void sweep_usage(FILE *f) {
         "                      min_deflection_m, max_deflection_m, max_force_n, contacts\n"
         "                      [{min_deflection_m, pre_contact_velocity_m_s, max_force_n}],\n"
         "                      harmonics [{k, deflection_amplitude_m, deflection_phase_deg,\n"
+        "                      phase_lag_deg (-(deflection_phase_deg + 90): the lag behind\n"
+        "                      the drive, as lockin.phase_deg),\n"
         "                      force_amplitude_n, force_phase_deg, phase_diff_deg}];\n"
         "                      phases in degrees, (-180, 180], phase_diff_deg in [0, 360);\n"
         "                      lockin {amplitude_m, phase_deg}: a lock-in at fe on xr, run\n"
@@ -377,6 +379,11 @@ static cJSON *orbit_json(const afm_orbit *ob, const afm_orbit_settler *st, bool 
         cJSON_AddNumberToObject(c, "k", h->k);
         cJSON_AddNumberToObject(c, "deflection_amplitude_m", h->x_amp_m);
         cJSON_AddNumberToObject(c, "deflection_phase_deg", h->x_phase_deg);
+        double lag = fmod(-(h->x_phase_deg + 90.0), 360.0); /* the lock-in's convention */
+        cJSON_AddNumberToObject(c, "phase_lag_deg",
+                                lag <= -180.0 ? lag + 360.0
+                                : lag > 180.0 ? lag - 360.0
+                                              : lag);
         cJSON_AddNumberToObject(c, "force_amplitude_n", h->f_amp_n);
         cJSON_AddNumberToObject(c, "force_phase_deg", h->f_phase_deg);
         cJSON_AddNumberToObject(c, "phase_diff_deg", h->phase_diff_deg);
@@ -425,9 +432,12 @@ static void print_text_step(const afm_orbit *ob, const afm_orbit_settler *st, bo
     if (ob->contacts_truncated) printf("    (contact list truncated)\n");
     for (int i = 0; i < ob->n_harmonics; i++) {
         const afm_orbit_harmonic *h = &ob->harmonics[i];
+        double lag = fmod(-(h->x_phase_deg + 90.0), 360.0);
+        lag = lag <= -180.0 ? lag + 360.0 : lag > 180.0 ? lag - 360.0 : lag;
         printf("    k %2d: |xr| %.5e m  phase %8.3f deg  |F| %.5e N  phase %8.3f deg  "
-               "dphi %7.3f deg\n",
-               h->k, h->x_amp_m, h->x_phase_deg, h->f_amp_n, h->f_phase_deg, h->phase_diff_deg);
+               "dphi %7.3f deg  lag %8.3f deg\n",
+               h->k, h->x_amp_m, h->x_phase_deg, h->f_amp_n, h->f_phase_deg, h->phase_diff_deg,
+               lag);
     }
     fflush(stdout);
 }
@@ -552,6 +562,9 @@ int afm_cmd_sweep(int argc, char **argv) {
                "tol %.1e, max %d periods\n",
                o.config, afm_sim_integrator_name(sim), ae, afm_sim_separation(sim), xc * 1e9, o.tol,
                o.max_periods);
+        printf("# phases: phi_k of A_k cos(k theta + phi_k) (thesis App. E.4); lag = -(phi + 90): "
+               "the lag of the deflection behind the drive, 90 deg free at resonance (the "
+               "lock-in's)\n");
         printf("%-12s %-7s %8s %10s %12s %12s %12s %3s\n", "# fe_hz", "p", "periods", "change",
                "min_xr_nm", "max_xr_nm", "max_F_N", "nc");
     }

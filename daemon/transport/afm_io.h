@@ -15,6 +15,7 @@
 
 #include "estimators/afm_chain.h"
 #include "runner/afm_cmd.h"
+#include "runner/afm_runner.h"
 
 #include <stdint.h>
 
@@ -32,13 +33,15 @@ typedef struct {
     float obd_m[AFM_IO_MAX_BLOCK];
     int32_t obd_counts[AFM_IO_MAX_BLOCK]; /* 0 without ADC */
     float force_n[AFM_IO_MAX_BLOCK];
+    afm_runner_oppoint op; /* Z and the tones they were made at */
 } afm_io_samples;
 
 typedef struct {
     int64_t utime;
     int64_t seq_applied;
-    double fe_hz;       /* tone 0 frequency when the period ended */
-    afm_chain_period p; /* t_s = p.cycle.t_start_s */
+    double fe_hz;          /* tone 0 frequency when the period ended */
+    afm_chain_period p;    /* t_s = p.cycle.t_start_s */
+    afm_runner_oppoint op; /* Z and the tones of the period */
 } afm_io_harmonics;
 
 typedef struct {

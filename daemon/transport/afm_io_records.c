@@ -5,8 +5,9 @@
 #include <math.h>
 
 void afm_io_samples_from_block(afm_io_samples *o, const afm_chain_block *b, int64_t utime,
-                               int64_t seq_applied) {
+                               int64_t seq_applied, const afm_runner_oppoint *op) {
     int n = b->n < AFM_IO_MAX_BLOCK ? b->n : AFM_IO_MAX_BLOCK;
+    o->op = *op;
     o->utime = utime;
     o->seq_applied = seq_applied;
     o->stream = b->stream;
@@ -22,7 +23,9 @@ void afm_io_samples_from_block(afm_io_samples *o, const afm_chain_block *b, int6
 }
 
 void afm_io_harmonics_from_period(afm_io_harmonics *o, const afm_chain_period *p, double fe_hz,
-                                  int64_t utime, int64_t seq_applied) {
+                                  int64_t utime, int64_t seq_applied,
+                                  const afm_runner_oppoint *op) {
+    o->op = *op;
     o->utime = utime;
     o->seq_applied = seq_applied;
     o->fe_hz = fe_hz;

@@ -9,10 +9,10 @@
 /* A samples record from a chain block (b->n <= AFM_IO_MAX_BLOCK): floats, and the ADC
  * counts rounded to the nearest integer (0 without ADC). */
 void afm_io_samples_from_block(afm_io_samples *o, const afm_chain_block *b, int64_t utime,
-                               int64_t seq_applied);
+                               int64_t seq_applied, const afm_runner_oppoint *op);
 
 /* A harmonics record from one period's estimates. */
 void afm_io_harmonics_from_period(afm_io_harmonics *o, const afm_chain_period *p, double fe_hz,
-                                  int64_t utime, int64_t seq_applied);
+                                  int64_t utime, int64_t seq_applied, const afm_runner_oppoint *op);
 
 #endif

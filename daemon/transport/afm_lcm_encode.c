@@ -3,6 +3,7 @@
  * afm_lcm_encode.h). */
 #include "transport/afm_lcm_encode.h"
 
+#include <math.h>
 #include <string.h>
 
 void afm_lcm_samples_msg(const afm_io_samples *s, afmtwin_samples_t *m) {
@@ -17,6 +18,10 @@ void afm_lcm_samples_msg(const afm_io_samples *s, afmtwin_samples_t *m) {
         .obd_m = (float *)s->obd_m,
         .obd_counts = (int32_t *)s->obd_counts,
         .force_n = (float *)s->force_n,
+        .separation_m = s->op.z_m,
+        .n_tones = (int8_t)s->op.n_tones,
+        .tone_frequency_hz = (double *)s->op.freq_hz,
+        .tone_amplitude_m = (double *)s->op.amp_m,
     };
 }
 
@@ -30,6 +35,8 @@ void afm_lcm_harmonics_msg(const afm_io_harmonics *h, afm_lcm_harm_buf *b, afmtw
         b->k[i] = (int16_t)r->h[i].k;
         b->xa[i] = r->h[i].x_amp_m;
         b->xp[i] = r->h[i].x_phase_deg;
+        double lag = fmod(-(r->h[i].x_phase_deg + 90.0), 360.0); /* (-180, 180] */
+        b->xl[i] = lag <= -180.0 ? lag + 360.0 : lag > 180.0 ? lag - 360.0 : lag;
         b->fa[i] = r->h[i].f_amp_n;
         b->fp[i] = r->h[i].f_phase_deg;
         b->pd[i] = r->h[i].phase_diff_deg;
@@ -43,6 +50,7 @@ void afm_lcm_harmonics_msg(const afm_io_harmonics *h, afm_lcm_harm_buf *b, afmtw
         .k = b->k,
         .deflection_amplitude_m = b->xa,
         .deflection_phase_deg = b->xp,
+        .deflection_lag_deg = b->xl,
         .force_amplitude_n = b->fa,
         .force_phase_deg = b->fp,
         .phase_diff_deg = b->pd,
@@ -55,6 +63,10 @@ void afm_lcm_harmonics_msg(const afm_io_harmonics *h, afm_lcm_harm_buf *b, afmtw
         .pre_contact_velocity_m_s = c->pre_contact_velocity_m_s,
         .dissipated_energy_j = c->dissipated_energy_j,
         .mean_deflection_m = c->mean_deflection_m,
+        .separation_m = h->op.z_m,
+        .n_tones = (int8_t)h->op.n_tones,
+        .tone_frequency_hz = (double *)h->op.freq_hz,
+        .tone_amplitude_m = (double *)h->op.amp_m,
     };
 }
 

@@ -17,7 +17,7 @@
 
 typedef struct {
     int16_t k[AFM_MAX_HARMONICS];
-    double xa[AFM_MAX_HARMONICS], xp[AFM_MAX_HARMONICS];
+    double xa[AFM_MAX_HARMONICS], xp[AFM_MAX_HARMONICS], xl[AFM_MAX_HARMONICS];
     double fa[AFM_MAX_HARMONICS], fp[AFM_MAX_HARMONICS], pd[AFM_MAX_HARMONICS];
 } afm_lcm_harm_buf;
 

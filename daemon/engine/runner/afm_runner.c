@@ -112,6 +112,7 @@ struct afm_runner {
     double b_z;
     int64_t b_seq;
     double b_fe_hz, b_t_s;
+    afm_runner_oppoint b_op;
     long long b_samples, b_items, b_attach_errors, b_trash_lost;
     afm_runner_model *held[TRASH_HELD]; /* trash waiting for space */
     int n_held;
@@ -174,6 +175,16 @@ static void back_separation(afm_runner *r, double z) {
     afm_chain_set_separation(r->chain, z);
 }
 
+/* The operating point of the samples the back just took. */
+static void back_oppoint(afm_runner *r, const afm_drive *d) {
+    r->b_op.z_m = r->b_z;
+    r->b_op.n_tones = d->n;
+    for (int j = 0; j < d->n && j < AFM_MAX_TONES; j++) {
+        r->b_op.freq_hz[j] = d->omega_rad_s[j] / two_pi;
+        r->b_op.amp_m[j] = d->amp_m[j];
+    }
+}
+
 static void back_item(afm_runner *r, ring_item *it) {
     switch (it->kind) {
     case IT_SAMPLES: {
@@ -188,6 +199,7 @@ static void back_item(afm_runner *r, ring_item *it) {
         }
         r->b_seq = it->seq;
         r->b_fe_hz = it->drive.n > 0 ? it->drive.omega_rad_s[0] / two_pi : 0.0;
+        back_oppoint(r, &it->drive);
         if (it->n > 0) r->b_t_s = it->s[it->n - 1].t_s;
         r->b_samples += it->n;
         break;
@@ -256,6 +268,7 @@ int afm_runner_take_trash(afm_runner *r, afm_runner_model **m) {
 void afm_runner_chain_status_get(const afm_runner *r, afm_runner_chain_status *st) {
     st->seq_applied = r->b_seq;
     st->fe_hz = r->b_fe_hz;
+    st->op = r->b_op;
     st->t_s = r->b_t_s;
     st->samples = r->b_samples;
     st->attach_errors = r->b_attach_errors;
@@ -400,6 +413,7 @@ afm_runner *afm_runner_create_pipelined(const afm_config *cfg, int block_max, bo
     {
         const afm_drive *d = afm_sim_drive(r->sim);
         r->b_fe_hz = d->n > 0 ? d->omega_rad_s[0] / two_pi : 0.0;
+        back_oppoint(r, d);
     }
     r->last_blowup_t_s = NAN;
     return r;

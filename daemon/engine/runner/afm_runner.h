@@ -155,11 +155,19 @@ int afm_runner_take_done(afm_runner *r, afm_runner_done *d);
  * real-time threads). 1 with *m, 0 when none waits. */
 int afm_runner_take_trash(afm_runner *r, afm_runner_model **m);
 
+/* The operating point some samples were made at: what a curve is built from. */
 typedef struct {
-    int64_t seq_applied; /* seq of the command before the last samples the chain took */
-    double fe_hz;        /* tone 0 frequency of those samples */
-    double t_s;          /* model time of the last sample the chain took */
-    long long samples;   /* samples the chain took */
+    double z_m; /* separation Z at the last of them (a ramp moves it within a block) */
+    int n_tones;
+    double freq_hz[AFM_MAX_TONES], amp_m[AFM_MAX_TONES]; /* the drive's tones */
+} afm_runner_oppoint;
+
+typedef struct {
+    int64_t seq_applied;   /* seq of the command before the last samples the chain took */
+    double fe_hz;          /* tone 0 frequency of those samples */
+    afm_runner_oppoint op; /* their operating point */
+    double t_s;            /* model time of the last sample the chain took */
+    long long samples;     /* samples the chain took */
     long long attach_errors, trash_lost; /* should stay 0 */
     afm_chain_stats chain;
 } afm_runner_chain_status;

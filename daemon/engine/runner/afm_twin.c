@@ -97,6 +97,12 @@ int afm_sweep_step(afm_sweep *w, afm_sim *s, double fe_hz, double amp_m, afm_orb
         snprintf(err, errlen, "cannot set %g Hz, %g m: %s", fe_hz, amp_m, sim_rc_text(rc));
         return -1;
     }
+    return afm_sweep_dwell(w, s, out, err, errlen);
+}
+
+int afm_sweep_dwell(afm_sweep *w, afm_sim *s, afm_orbit *out, char *err, size_t errlen) {
+    const double fe_hz =
+        afm_sim_drive(s)->omega_rad_s[0] / 6.283185307179586; /* tone 0 (Hz), for the messages */
     if (afm_orbit_settle_begin(&w->st, w->buf, w->cap, AFM_ORBIT_MAX_P, w->tol_rel, s) != 0) {
         snprintf(err, errlen, "sample buffer too small for %g Hz", fe_hz);
         return -1;

@@ -55,4 +55,8 @@ void afm_sweep_destroy(afm_sweep *w);
 int afm_sweep_step(afm_sweep *w, afm_sim *s, double fe_hz, double amp_m, afm_orbit *out, char *err,
                    size_t errlen);
 
+/* The same at the operating point s is at (after a change of Z or of any parameter): dwell
+ * until the orbit is steady (or max_periods), then analyse it into out. */
+int afm_sweep_dwell(afm_sweep *w, afm_sim *s, afm_orbit *out, char *err, size_t errlen);
+
 #endif

@@ -1,0 +1,614 @@
+/* SPDX-License-Identifier: MIT */
+/* cmd_approach.c -- `afmtwin approach`: the approach (and retract) curve, amplitude, phase,
+ * harmonics and per-period forces against the tip-sample separation Z.
+ *
+ * One simulation runs the whole curve: the state carries over from step to step, as when a
+ * Z piezo moves in steps on the instrument, so the curve follows the branch it is on and
+ * an approach followed by a retract shows the hysteresis of a bistable region. At each Z
+ * the orbit is dwelt to steady state (afm_sweep_dwell, as `afmtwin sweep`), then N more
+ * whole drive periods are run and analysed: harmonics by the per-period DFT (afm_harm),
+ * the lock-in, and the per-period metrics of afm_cycle plus the mean force, the largest
+ * attractive force and the virial (approach_extra below), all averaged over the N periods.
+ *
+ * Phases are the lag of the deflection behind the drive (x_dit = Ae sin(we t)): 90 deg
+ * for a free cantilever driven at resonance, below 90 in the repulsive regime, above in
+ * the attractive one; harmonic k's lag is that of A_k sin(k we t - lag_k). */
+#include "afmtwin_cmds.h"
+
+#include "config/afm_config.h"
+#include "estimators/afm_cycle.h"
+#include "forces/afm_force.h"
+#include "estimators/afm_harm.h"
+#include "estimators/afm_lockin.h"
+#include "beam/afm_model.h"
+#include "integrators/afm_sim.h"
+#include "runner/afm_twin.h"
+#include "json_out.h"
+#include "lcm_tool.h"
+
+#include <cjson/cJSON.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#define DEFAULT_MAX_PERIODS 10000
+#define DEFAULT_ANALYSE 16
+#define DEFAULT_K 8
+#define DEFAULT_TOL 1e-6
+#define MAX_ANALYSE 4096
+#define MAX_STEPS 100000
+#define TWO_PI 6.283185307179586476925286766559
+
+typedef struct {
+    const char *config;
+    double from_m, to_m, step_m; /* Z */
+    double fe_hz, ae_m;          /* NAN: the config's tone 0 */
+    bool retract, json;
+    int max_periods, analyse, k_max, integrator;
+    double tol;
+    double rate_m_s; /* > 0: Z ramped continuously at this speed instead of stepped */
+} approach_opts;
+
+static void approach_usage(FILE *f) {
+    fprintf(f,
+            "usage: afmtwin approach --config FILE --from Z --to Z --step DZ [--retract]\n"
+            "                        [--periods N] [--analyse N] [--harmonics K] [--fe HZ]\n"
+            "                        [--ae M] [--integrator rt|reference|arkode-erk]\n"
+            "                        [--tol X] [--rate M_S] [--json]\n\n"
+            "Approach curve: the tip-sample separation Z (m) goes from --from to --to in steps\n"
+            "of --step (towards the sample when --to < --from), and with --retract back again.\n"
+            "One simulation runs the whole curve, so the state carries over from step to step\n"
+            "(a bistable region shows its hysteresis between approach and retract). At each Z\n"
+            "the orbit is dwelt until it repeats (as `afmtwin sweep`: at most --periods drive\n"
+            "periods, tolerance --tol), then --analyse N more whole periods are run and\n"
+            "analysed (and at least 12 lock-in time constants, for its filter to settle),\n"
+            "each quantity the mean over the last N periods:\n"
+            "  amplitude, phase  harmonic 1 of the deflection by the DFT over each period, and\n"
+            "                    by the lock-in (config group lockin)\n"
+            "  harmonics         amplitude and phase lag of harmonics 1..K\n"
+            "  forces            peak repulsive (max) and attractive (min) tip-sample force,\n"
+            "                    the mean force, indentation, contact time, the energy the\n"
+            "                    tip-sample forces dissipate per period (-int F v dt) and the\n"
+            "                    virial (1/T) int F x dt\n"
+            "  periodicity       of the settled orbit (0: not settled within --periods)\n"
+            "The regime of a step is attractive when the mean tip-sample force is below zero,\n"
+            "repulsive when above; a change of regime between two steps is reported as a jump.\n\n"
+            "Phase convention: the lag of the deflection behind the drive (x_dit = Ae sin(we t)),\n"
+            "90 deg for a free cantilever at resonance, below 90 in the repulsive regime.\n\n"
+            "options:\n"
+            "  --config FILE      libconfig model file (see config/README.md)\n"
+            "  --from Z, --to Z   first and last separation (m), 0 <= Z <= 1e-3\n"
+            "  --step DZ          separation increment > 0 (m); the sign follows --from/--to\n"
+            "  --retract          after the approach, back from --to to --from\n"
+            "  --periods N        most drive periods dwelt per step (default %d)\n"
+            "  --analyse N        whole periods analysed per step, 1..%d (default %d)\n"
+            "  --harmonics K      harmonics 1..K reported, 1..%d (default %d)\n"
+            "  --fe HZ, --ae M    tone 0's frequency and amplitude; default the config's\n"
+            "  --integrator NAME  rt, reference (CVODE BDF) or arkode-erk; default the config's\n"
+            "  --tol X            steady-state tolerance as in `afmtwin sweep` (default %g)\n"
+            "  --rate M_S         ramp Z continuously at M_S m/s (as the daemon's setpoint\n"
+            "                     --ramp: a new Z every 64 samples) instead of stepping and\n"
+            "                     dwelling: a record each --step of Z, the means over the last\n"
+            "                     N periods of the ramp (settled false, periodicity 0); the\n"
+            "                     first point is dwelt to steady state\n"
+            "  --json             one JSON object per step and line: z_m, direction\n"
+            "                     (\"approach\" or \"retract\"), amplitude_m, phase_lag_deg,\n"
+            "                     lockin {amplitude_m, phase_lag_deg}, harmonics [{k,\n"
+            "                     amplitude_m, phase_lag_deg}], mean_deflection_m,\n"
+            "                     peak_force_n, attractive_force_n, mean_force_n,\n"
+            "                     indentation_m, contact_time_s, dissipated_energy_j,\n"
+            "                     virial_j, periodicity, settled, settle_periods, regime;\n"
+            "                     and one {\"jump\": {direction, from, to, z_before_m,\n"
+            "                     z_after_m, amplitude_before_m, amplitude_after_m,\n"
+            "                     phase_before_deg, phase_after_deg}} per change of regime\n"
+            "  --help             this text\n\n"
+            "Without --json a table (nm, deg, nN, eV). Progress on stderr (terminals only).\n"
+            "Exit status 0 ok, 1 simulation failure, 2 bad usage or bad input.\n",
+            DEFAULT_MAX_PERIODS, MAX_ANALYSE, DEFAULT_ANALYSE, AFM_MAX_HARMONICS, DEFAULT_K,
+            DEFAULT_TOL);
+}
+
+static int opt_double(const char *opt, const char *v, double *out) {
+    if (afmt_parse_double(v, out) != 0) {
+        fprintf(stderr, "afmtwin approach: %s '%s' is not a finite number\n", opt, v);
+        return -1;
+    }
+    return 0;
+}
+
+static int opt_int(const char *opt, const char *v, int lo, int hi, int *out) {
+    double d;
+    if (afmt_parse_double(v, &d) != 0 || d != floor(d) || d < lo || d > hi) {
+        fprintf(stderr, "afmtwin approach: %s '%s' must be an integer in %d..%d\n", opt, v, lo, hi);
+        return -1;
+    }
+    *out = (int)d;
+    return 0;
+}
+
+/* 0 ok, 1 --help, -1 bad usage (said). */
+static int parse_args(int argc, char **argv, approach_opts *o) {
+    *o = (approach_opts){.from_m = NAN,
+                         .to_m = NAN,
+                         .step_m = NAN,
+                         .fe_hz = NAN,
+                         .ae_m = NAN,
+                         .max_periods = DEFAULT_MAX_PERIODS,
+                         .analyse = DEFAULT_ANALYSE,
+                         .k_max = DEFAULT_K,
+                         .integrator = -1,
+                         .tol = DEFAULT_TOL};
+    for (int i = 1; i < argc; i++) {
+        const char *a = argv[i];
+        if (!strcmp(a, "--help") || !strcmp(a, "-h")) return 1;
+        if (!strcmp(a, "--json") || !strcmp(a, "--retract")) {
+            *(a[2] == 'j' ? &o->json : &o->retract) = true;
+            continue;
+        }
+        if (i + 1 >= argc) {
+            fprintf(stderr, "afmtwin approach: %s needs a value (or is unknown)\n", a);
+            return -1;
+        }
+        const char *v = argv[++i];
+        int rc = 0;
+        if (!strcmp(a, "--config"))
+            o->config = v;
+        else if (!strcmp(a, "--from"))
+            rc = opt_double(a, v, &o->from_m);
+        else if (!strcmp(a, "--to"))
+            rc = opt_double(a, v, &o->to_m);
+        else if (!strcmp(a, "--step"))
+            rc = opt_double(a, v, &o->step_m);
+        else if (!strcmp(a, "--fe"))
+            rc = opt_double(a, v, &o->fe_hz);
+        else if (!strcmp(a, "--ae"))
+            rc = opt_double(a, v, &o->ae_m);
+        else if (!strcmp(a, "--tol"))
+            rc = opt_double(a, v, &o->tol);
+        else if (!strcmp(a, "--rate")) {
+            rc = opt_double(a, v, &o->rate_m_s);
+            if (!rc && !(o->rate_m_s > 0 && o->rate_m_s <= 1.0)) {
+                fprintf(stderr, "afmtwin approach: --rate must be in (0, 1] m/s (got %g)\n",
+                        o->rate_m_s);
+                rc = -1;
+            }
+        } else if (!strcmp(a, "--periods"))
+            rc = opt_int(a, v, 2, 100000000, &o->max_periods);
+        else if (!strcmp(a, "--analyse"))
+            rc = opt_int(a, v, 1, MAX_ANALYSE, &o->analyse);
+        else if (!strcmp(a, "--harmonics"))
+            rc = opt_int(a, v, 1, AFM_MAX_HARMONICS, &o->k_max);
+        else if (!strcmp(a, "--integrator")) {
+            o->integrator = !strcmp(v, "rt")           ? AFM_INTEGRATOR_RT
+                            : !strcmp(v, "reference")  ? AFM_INTEGRATOR_REFERENCE
+                            : !strcmp(v, "arkode-erk") ? AFM_INTEGRATOR_ARKODE_ERK
+                                                       : -1;
+            if (o->integrator < 0) {
+                fprintf(stderr,
+                        "afmtwin approach: --integrator '%s': expected rt, reference "
+                        "or arkode-erk\n",
+                        v);
+                rc = -1;
+            }
+        } else {
+            fprintf(stderr, "afmtwin approach: unknown option '%s'\n", a);
+            return -1;
+        }
+        if (rc) return -1;
+    }
+    if (!o->config || isnan(o->from_m) || isnan(o->to_m)) {
+        fprintf(stderr, "afmtwin approach: --config, --from and --to are required\n");
+        return -1;
+    }
+    if (o->from_m < 0 || o->from_m > 1e-3 || o->to_m < 0 || o->to_m > 1e-3) {
+        fprintf(stderr, "afmtwin approach: --from and --to must be in 0..1e-3 m (got %g, %g)\n",
+                o->from_m, o->to_m);
+        return -1;
+    }
+    if (o->from_m != o->to_m && !(o->step_m > 0)) {
+        fprintf(stderr, "afmtwin approach: --step must be given and > 0 m when --from and --to "
+                        "differ\n");
+        return -1;
+    }
+    if (!isnan(o->ae_m) && (o->ae_m < 0 || o->ae_m > 1e-6)) {
+        fprintf(stderr, "afmtwin approach: --ae must be in 0..1e-6 m (got %g)\n", o->ae_m);
+        return -1;
+    }
+    if (!isnan(o->fe_hz) && !(o->fe_hz > 0)) {
+        fprintf(stderr, "afmtwin approach: --fe must be > 0 Hz (got %g)\n", o->fe_hz);
+        return -1;
+    }
+    if (!(o->tol > 0 && o->tol < 1)) {
+        fprintf(stderr, "afmtwin approach: --tol must be in (0, 1) (got %g)\n", o->tol);
+        return -1;
+    }
+    return 0;
+}
+
+/* Per period: mean force, min force and the virial, trapezoid over the samples with the
+ * step across a period boundary (theta = 2 pi m) split at it (linear interpolant). */
+typedef struct {
+    bool have, active;
+    afm_sample prev;
+    double th_prev, t_len, f_int, fx_int, f_min;
+} approach_extra;
+
+typedef struct {
+    double mean_force_n, attractive_force_n, virial_j;
+} extra_period;
+
+/* Integrals of f and f x over a part [s0, s1] (fractions) of the step from a to b. */
+static void extra_add(approach_extra *e, const afm_sample *a, const afm_sample *b, double s0,
+                      double s1) {
+    double h = (b->t_s - a->t_s) * (s1 - s0);
+    double fa = a->f_n + s0 * (b->f_n - a->f_n), fb = a->f_n + s1 * (b->f_n - a->f_n);
+    double xa = a->x_m + s0 * (b->x_m - a->x_m), xb = a->x_m + s1 * (b->x_m - a->x_m);
+    e->t_len += h;
+    e->f_int += 0.5 * h * (fa + fb);
+    e->fx_int += 0.5 * h * (fa * xa + fb * xb);
+    if (fb < e->f_min) e->f_min = fb;
+}
+
+/* 1 when the sample completed a period (*out), else 0. */
+static int extra_push(approach_extra *e, const afm_sample *s, double th, extra_period *out) {
+    int done = 0;
+    if (e->have) {
+        double m = floor(th / TWO_PI);
+        if (m > floor(e->th_prev / TWO_PI)) { /* the boundary 2 pi m lies in this step */
+            double sb = (m * TWO_PI - e->th_prev) / (th - e->th_prev);
+            if (e->active) {
+                extra_add(e, &e->prev, s, 0.0, sb);
+                *out = (extra_period){e->f_int / e->t_len, e->f_min, e->fx_int / e->t_len};
+                done = 1;
+            }
+            e->active = true;
+            e->t_len = e->f_int = e->fx_int = 0.0;
+            e->f_min = HUGE_VAL;
+            extra_add(e, &e->prev, s, sb, 1.0);
+        } else if (e->active) {
+            extra_add(e, &e->prev, s, 0.0, 1.0);
+        }
+    }
+    e->prev = *s;
+    e->th_prev = th;
+    e->have = true;
+    return done;
+}
+
+/* Every sample of the curve goes through the estimators; completed periods into rings. */
+typedef struct {
+    afm_lockin lockin;
+    afm_cycle cycle;
+    afm_harm harm;
+    approach_extra extra;
+    double lockin_tau_s;
+    long n_cyc, n_harm, n_extra; /* completed periods so far */
+    afm_cycle_metrics cyc[MAX_ANALYSE];
+    afm_harm_result harm_r[MAX_ANALYSE];
+    extra_period ext[MAX_ANALYSE];
+} approach_est;
+
+static void on_samples(void *ctx, const afm_sim *s, const afm_sample *smp, int n) {
+    approach_est *e = ctx;
+    const afm_drive *d = afm_sim_drive(s);
+    for (int i = 0; i < n; i++) {
+        double th = afm_drive_phase(d, 0, smp[i].t_s);
+        afm_lockin_push(&e->lockin, smp[i].x_m, th);
+        if (afm_cycle_push(&e->cycle, &smp[i], th) == 1)
+            e->cyc[e->n_cyc++ % MAX_ANALYSE] = e->cycle.out;
+        if (afm_harm_push(&e->harm, smp[i].x_m, smp[i].f_n, th) == 1)
+            e->harm_r[e->n_harm++ % MAX_ANALYSE] = e->harm.out;
+        extra_period ep;
+        if (extra_push(&e->extra, &smp[i], th, &ep)) e->ext[e->n_extra++ % MAX_ANALYSE] = ep;
+    }
+}
+
+/* What one step reports (means over the analysed periods). */
+typedef struct {
+    double z_m;
+    bool retract;
+    double amp_m[AFM_MAX_HARMONICS], lag_deg[AFM_MAX_HARMONICS];
+    double lockin_amp_m, lockin_lag_deg;
+    afm_cycle_metrics cyc; /* means */
+    extra_period ext;      /* means */
+    int periodicity, settle_periods;
+    bool settled, attractive;
+    double free_amp_m, free_lag_deg; /* the model's linear response (tip forces off) */
+} approach_point;
+
+static double wrap_deg(double d) {
+    d = fmod(d, 360.0);
+    if (d <= -180.0) d += 360.0;
+    if (d > 180.0) d -= 360.0;
+    return d;
+}
+
+/* Means over the last n periods of each ring. */
+static void approach_means(const approach_est *e, int n, int nk, approach_point *pt) {
+    double re[AFM_MAX_HARMONICS] = {0}, im[AFM_MAX_HARMONICS] = {0}, len = 0.0;
+    memset(&pt->cyc, 0, sizeof pt->cyc);
+    memset(&pt->ext, 0, sizeof pt->ext);
+    for (int j = 0; j < n; j++) {
+        const afm_harm_result *h = &e->harm_r[(e->n_harm - 1 - j) % MAX_ANALYSE];
+        for (int k = 0; k < nk; k++) { /* lane k: x re at raw + 16 (k / 4) + k % 4, im + 4 */
+            const double *g = h->raw + 16 * (k / 4) + k % 4;
+            re[k] += g[0];
+            im[k] += g[4];
+        }
+        len += h->samples;
+        const afm_cycle_metrics *c = &e->cyc[(e->n_cyc - 1 - j) % MAX_ANALYSE];
+        pt->cyc.peak_force_n += c->peak_force_n / n;
+        pt->cyc.min_deflection_m += c->min_deflection_m / n;
+        pt->cyc.indentation_m += c->indentation_m / n;
+        pt->cyc.contact_time_s += c->contact_time_s / n;
+        pt->cyc.dissipated_energy_j += c->dissipated_energy_j / n;
+        pt->cyc.mean_deflection_m += c->mean_deflection_m / n;
+        const extra_period *x = &e->ext[(e->n_extra - 1 - j) % MAX_ANALYSE];
+        pt->ext.mean_force_n += x->mean_force_n / n;
+        pt->ext.attractive_force_n += x->attractive_force_n / n;
+        pt->ext.virial_j += x->virial_j / n;
+    }
+    for (int k = 0; k < nk; k++) { /* A e^{i phi} = (2 / T) int x e^{-ik theta} dt */
+        pt->amp_m[k] = 2.0 * hypot(re[k], im[k]) / len;
+        pt->lag_deg[k] = wrap_deg(-90.0 - atan2(im[k], re[k]) * (360.0 / TWO_PI));
+    }
+    afm_lockin_polar(&e->lockin, &pt->lockin_amp_m, &pt->lockin_lag_deg);
+    pt->attractive = pt->ext.mean_force_n < 0.0;
+}
+
+static const char *regime(bool attractive) {
+    return attractive ? "attractive" : "repulsive";
+}
+
+static int print_json(const approach_point *p, int nk) {
+    cJSON *o = cJSON_CreateObject();
+    cJSON_AddNumberToObject(o, "z_m", p->z_m);
+    cJSON_AddStringToObject(o, "direction", p->retract ? "retract" : "approach");
+    cJSON_AddNumberToObject(o, "amplitude_m", p->amp_m[0]);
+    cJSON_AddNumberToObject(o, "phase_lag_deg", p->lag_deg[0]);
+    cJSON *l = cJSON_AddObjectToObject(o, "lockin");
+    cJSON_AddNumberToObject(l, "amplitude_m", p->lockin_amp_m);
+    cJSON_AddNumberToObject(l, "phase_lag_deg", p->lockin_lag_deg);
+    cJSON *hs = cJSON_AddArrayToObject(o, "harmonics");
+    for (int k = 0; k < nk; k++) {
+        cJSON *h = cJSON_CreateObject();
+        cJSON_AddNumberToObject(h, "k", k + 1);
+        cJSON_AddNumberToObject(h, "amplitude_m", p->amp_m[k]);
+        cJSON_AddNumberToObject(h, "phase_lag_deg", p->lag_deg[k]);
+        cJSON_AddItemToArray(hs, h);
+    }
+    cJSON_AddNumberToObject(o, "mean_deflection_m", p->cyc.mean_deflection_m);
+    cJSON_AddNumberToObject(o, "min_deflection_m", p->cyc.min_deflection_m);
+    cJSON_AddNumberToObject(o, "peak_force_n", p->cyc.peak_force_n);
+    cJSON_AddNumberToObject(o, "attractive_force_n", p->ext.attractive_force_n);
+    cJSON_AddNumberToObject(o, "mean_force_n", p->ext.mean_force_n);
+    cJSON_AddNumberToObject(o, "indentation_m", p->cyc.indentation_m);
+    cJSON_AddNumberToObject(o, "contact_time_s", p->cyc.contact_time_s);
+    cJSON_AddNumberToObject(o, "dissipated_energy_j", p->cyc.dissipated_energy_j);
+    cJSON_AddNumberToObject(o, "virial_j", p->ext.virial_j);
+    cJSON_AddNumberToObject(o, "periodicity", p->periodicity);
+    cJSON_AddBoolToObject(o, "settled", p->settled);
+    cJSON_AddNumberToObject(o, "settle_periods", p->settle_periods);
+    cJSON_AddStringToObject(o, "regime", regime(p->attractive));
+    cJSON_AddNumberToObject(o, "free_amplitude_m", p->free_amp_m);
+    cJSON_AddNumberToObject(o, "free_phase_lag_deg", p->free_lag_deg);
+    return afmt_json_emit(o);
+}
+
+static void print_jump(const approach_point *a, const approach_point *b, bool json) {
+    if (!json) {
+        printf("# jump (%s): %s -> %s between Z %.4f and %.4f nm: A %.4f -> %.4f nm, lag "
+               "%.3f -> %.3f deg\n",
+               b->retract ? "retract" : "approach", regime(a->attractive), regime(b->attractive),
+               a->z_m * 1e9, b->z_m * 1e9, a->amp_m[0] * 1e9, b->amp_m[0] * 1e9, a->lag_deg[0],
+               b->lag_deg[0]);
+        return;
+    }
+    printf("{\"jump\":{\"direction\":\"%s\",\"from\":\"%s\",\"to\":\"%s\",\"z_before_m\":%.17g,"
+           "\"z_after_m\":%.17g,\"amplitude_before_m\":%.17g,\"amplitude_after_m\":%.17g,"
+           "\"phase_before_deg\":%.17g,\"phase_after_deg\":%.17g}}\n",
+           b->retract ? "retract" : "approach", regime(a->attractive), regime(b->attractive),
+           a->z_m, b->z_m, a->amp_m[0], b->amp_m[0], a->lag_deg[0], b->lag_deg[0]);
+}
+
+static void print_text(const approach_point *p) {
+    printf("%-8s %10.4f %10.5f %9.4f %10.5f %9.4f %10.4f %10.4f %9.4f %11.4e %9.4f %3d%s\n",
+           p->retract ? "retract" : "approach", p->z_m * 1e9, p->amp_m[0] * 1e9, p->lag_deg[0],
+           p->lockin_amp_m * 1e9, p->lockin_lag_deg, p->cyc.peak_force_n * 1e9,
+           p->ext.attractive_force_n * 1e9, p->cyc.indentation_m * 1e9, p->cyc.contact_time_s,
+           p->cyc.dissipated_energy_j / 1.602176634e-19, p->periodicity, p->settled ? "" : " *");
+}
+
+/* Z of step i of n from a to b (exact multiples of the step). */
+static double step_z(double a, double b, double dz, int i, int n) {
+    if (i == n - 1) return b;
+    return b < a ? a - (double)i * dz : a + (double)i * dz;
+}
+
+/* Run the estimators over n_min samples or more, until each has completed `need` more
+ * periods and 12 lock-in time constants have passed; with rate > 0, Z moves from z0
+ * towards z1 at that speed (a new Z every 64 samples) and the run also lasts until it
+ * reaches z1. 0 ok, -1 (err). */
+static int approach_run(afm_sim *sim, approach_est *e, int need, double z0, double z1, double rate,
+                        char *err, size_t errlen) {
+    const long c0 = e->n_cyc, h0 = e->n_harm, x0 = e->n_extra;
+    const double t0 = afm_sim_time(sim), t_end = t0 + 12.0 * e->lockin_tau_s;
+    const double t_ramp = rate > 0 ? fabs(z1 - z0) / rate : 0.0;
+    static afm_sample buf[64];
+    double z = z0;
+    while (e->n_cyc - c0 < need || e->n_harm - h0 < need || e->n_extra - x0 < need ||
+           afm_sim_time(sim) < t_end || (rate > 0 && z != z1)) {
+        if (rate > 0 && z != z1) {
+            double u = (afm_sim_time(sim) - t0) / t_ramp;
+            z = u >= 1.0 ? z1 : z0 + u * (z1 - z0);
+            if (afm_sim_set_separation(sim, z) != AFM_SIM_OK) {
+                snprintf(err, errlen, "cannot set Z = %g m", z);
+                return -1;
+            }
+            afm_cycle_set_contact(&e->cycle, afm_force_contact_x(afm_sim_forces(sim), z));
+        }
+        if (afm_sim_run(sim, 64, buf) != AFM_SIM_OK) {
+            snprintf(err, errlen, "simulation failed at Z = %g m", z);
+            return -1;
+        }
+        on_samples(e, sim, buf, 64);
+    }
+    return 0;
+}
+
+/* One Z: dwell, then the analysed periods. 0 ok, -1 (err). */
+static int approach_step(afm_sweep *sw, afm_sim *sim, approach_est *e, const approach_opts *o,
+                         double z, approach_point *pt, char *err, size_t errlen) {
+    if (afm_sim_set_separation(sim, z) != AFM_SIM_OK) {
+        snprintf(err, errlen, "cannot set Z = %g m", z);
+        return -1;
+    }
+    afm_cycle_set_contact(&e->cycle, afm_force_contact_x(afm_sim_forces(sim), z));
+    static afm_orbit ob;
+    int settled = afm_sweep_dwell(sw, sim, &ob, err, errlen);
+    if (settled < 0) return -1;
+    pt->z_m = z;
+    pt->settled = settled == 1;
+    pt->periodicity = settled == 1 ? sw->st.p : 0;
+    pt->settle_periods = sw->st.periods;
+    /* the analysed periods: all after the dwell (one more for the partial one at its end),
+     * and at least 12 lock-in time constants, so that its filter has settled (4th order:
+     * the step's transient below 1e-5 of it) */
+    if (approach_run(sim, e, o->analyse + 1, z, z, 0.0, err, errlen)) return -1;
+    approach_means(e, o->analyse, o->k_max, pt);
+    return 0;
+}
+
+/* One leg of a ramp, from z0 to z: the last N periods of it. */
+static int approach_ramp(afm_sim *sim, approach_est *e, const approach_opts *o, double z0, double z,
+                         approach_point *pt, char *err, size_t errlen) {
+    if (approach_run(sim, e, o->analyse + 1, z0, z, o->rate_m_s, err, errlen)) return -1;
+    pt->z_m = z;
+    approach_means(e, o->analyse, o->k_max, pt);
+    return 0;
+}
+
+int afm_cmd_approach(int argc, char **argv) {
+    approach_opts o;
+    int rc = parse_args(argc, argv, &o);
+    if (rc == 1) {
+        approach_usage(stdout);
+        return 0;
+    }
+    if (rc < 0) {
+        fprintf(stderr, "(afmtwin approach --help describes every option)\n");
+        return 2;
+    }
+    static afm_config cfg;
+    char err[AFM_ERR_LEN];
+    if (afm_config_load(o.config, &cfg, err, sizeof err) != 0) {
+        fprintf(stderr, "afmtwin approach: %s\n", err);
+        return 2;
+    }
+    if (!isnan(o.fe_hz)) cfg.drive.tones[0].frequency_hz = o.fe_hz;
+    if (!isnan(o.ae_m)) cfg.drive.tones[0].amplitude_m = o.ae_m;
+    if (o.integrator >= 0) cfg.sim.integrator = (afm_integrator_kind)o.integrator;
+    cfg.drive.separation_m = o.from_m;
+    const double fe = cfg.drive.tones[0].frequency_hz, fs = cfg.sim.sample_rate_hz;
+    if (o.k_max * fe >= 0.5 * fs) {
+        fprintf(stderr,
+                "afmtwin approach: harmonic %d of %g Hz is not below half the sample "
+                "rate\n",
+                o.k_max, fe);
+        return 2;
+    }
+    if (afm_config_validate(&cfg, err, sizeof err) != 0) {
+        fprintf(stderr, "afmtwin approach: %s\n", err);
+        return 2;
+    }
+    int n_steps = 1;
+    if (o.from_m != o.to_m) {
+        double n = ceil(fabs(o.to_m - o.from_m) / o.step_m * (1.0 - 1e-12)) + 1.0;
+        if (n > MAX_STEPS) {
+            fprintf(stderr, "afmtwin approach: %.0f steps; at most %d\n", n, MAX_STEPS);
+            return 2;
+        }
+        n_steps = (int)n;
+    }
+    afm_sim *sim = afm_twin_create(&cfg, NULL, NULL, err, sizeof err);
+    if (!sim) {
+        fprintf(stderr, "afmtwin approach: %s\n", err);
+        return 1;
+    }
+    static afm_sweep sw;
+    static approach_est est;
+    int ks[AFM_MAX_HARMONICS];
+    for (int k = 0; k < o.k_max; k++)
+        ks[k] = k + 1;
+    afm_cfg_lockin lk = cfg.lockin;
+    if (lk.time_constant_s == 0) lk.time_constant_s = 10.0 / fe;
+    if (lk.order == 0) lk.order = 4;
+    double xc = afm_force_contact_x(afm_sim_forces(sim), o.from_m);
+    if (afm_sweep_init(&sw, fs, fe, o.tol, o.max_periods, ks, 1, err, sizeof err) != 0 ||
+        afm_lockin_init(&est.lockin, &lk, afm_sim_dt(sim), err, sizeof err) != 0 ||
+        afm_cycle_init(&est.cycle, xc, afm_sim_forces(sim)->cos_alpha, err, sizeof err) != 0 ||
+        afm_harm_init(&est.harm, ks, o.k_max, err, sizeof err) != 0) {
+        fprintf(stderr, "afmtwin approach: %s\n", err);
+        afm_sim_destroy(&sim);
+        return 1;
+    }
+    est.lockin_tau_s = lk.time_constant_s;
+    sw.on_samples = on_samples;
+    sw.on_samples_ctx = &est;
+    if (!o.json) {
+        printf("# afmtwin approach %s: integrator %s, fe %.6g Hz, Ae %.4g m, %d periods "
+               "analysed per step; phase: lag of the deflection behind the drive (90 deg free "
+               "at resonance)\n",
+               o.config, afm_sim_integrator_name(sim), fe, cfg.drive.tones[0].amplitude_m,
+               o.analyse);
+        printf("%-8s %10s %10s %9s %10s %9s %10s %10s %9s %11s %9s %3s\n", "# dir", "Z_nm", "A1_nm",
+               "lag_deg", "lockin_nm", "li_lag", "Fpeak_nN", "Fattr_nN", "indent_nm", "contact_s",
+               "Ediss_eV", "p");
+    }
+    /* the free reference: base Ae sin(we t) gives x = Ae |G| sin(we t + arg G) */
+    double g_re, g_im, ae = cfg.drive.tones[0].amplitude_m;
+    afm_model_tip_response(afm_sim_model(sim), TWO_PI * fe, &g_re, &g_im);
+    const double free_amp = ae * hypot(g_re, g_im);
+    const double free_lag = wrap_deg(-atan2(g_im, g_re) * (360.0 / TWO_PI));
+    if (!o.json)
+        printf("# free (tip forces off): amplitude %.6g nm, lag %.4f deg\n", free_amp * 1e9,
+               free_lag);
+    const bool tty = isatty(STDERR_FILENO) != 0;
+    int status = 0;
+    approach_point prev = {0}, pt;
+    const int passes = o.retract ? 2 : 1;
+    for (int pass = 0; pass < passes && status == 0; pass++) {
+        for (int i = pass; i < n_steps && status == 0; i++) { /* the retract skips --to */
+            memset(&pt, 0, sizeof pt);
+            pt.retract = pass == 1;
+            pt.free_amp_m = free_amp;
+            pt.free_lag_deg = free_lag;
+            /* the retract visits the approach's points in reverse */
+            double z = step_z(o.from_m, o.to_m, o.step_m, pass ? n_steps - 1 - i : i, n_steps);
+            if (tty)
+                fprintf(stderr, "\rapproach: %s step %d/%d, Z %.4f nm   ",
+                        pass ? "retract" : "approach", i + 1, n_steps, z * 1e9);
+            const bool ramp = o.rate_m_s > 0 && (pass > 0 || i > 0);
+            if (ramp ? approach_ramp(sim, &est, &o, prev.z_m, z, &pt, err, sizeof err) != 0
+                     : approach_step(&sw, sim, &est, &o, z, &pt, err, sizeof err) != 0) {
+                fprintf(stderr, "%safmtwin approach: %s\n", tty ? "\n" : "", err);
+                status = 1;
+                break;
+            }
+            if ((pass > 0 || i > 0) && pt.attractive != prev.attractive)
+                print_jump(&prev, &pt, o.json);
+            if (o.json ? print_json(&pt, o.k_max) != 0 : (print_text(&pt), 0)) {
+                fprintf(stderr, "afmtwin approach: out of memory writing JSON\n");
+                status = 1;
+            }
+            fflush(stdout);
+            prev = pt;
+        }
+    }
+    if (tty) fprintf(stderr, "\r%60s\r", "");
+    afm_sweep_destroy(&sw);
+    afm_sim_destroy(&sim);
+    return status;
+}
