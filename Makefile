@@ -8,14 +8,16 @@ CC      ?= cc
 
 DEB_PKGS := build-essential pkg-config liblcm-dev liblcm-bin libglib2.0-dev libsundials-dev \
             liblapacke-dev libconfig-dev libsystemd-dev libcjson-dev can-utils gnuplot-nox \
-            libfftw3-dev systemd qemu-system-x86 busybox-static cpio clang libclang-rt-dev
+            libfftw3-dev systemd qemu-system-x86 busybox-static cpio clang libclang-rt-dev \
+            liblcm-java default-jdk-headless help2man debhelper dpkg-dev fakeroot
 
 CSTD     := -std=c11 -D_POSIX_C_SOURCE=200809L
 WARN     := -Wall -Wextra -Werror -Wshadow -Wstrict-prototypes -Wmissing-prototypes
 OPT      ?= -O2 -march=x86-64-v3 -g
 LCM_CFLAGS := $(shell pkg-config --cflags lcm 2>/dev/null)
 LCM_LIBS   := $(shell pkg-config --libs lcm 2>/dev/null)
-CFLAGS   += $(CSTD) $(WARN) $(OPT) -Idaemon/engine -Idaemon/transport -I$(BUILD)/gen
+CFLAGS   += $(CSTD) $(WARN) $(OPT) -Idaemon/engine -Idaemon/transport -Imsgtypes -I$(BUILD)/gen \
+            -DAFMTWIN_VERSION='"$(VERSION)"'
 LDLIBS   += -lsundials_cvode -lsundials_arkode -lsundials_nvecserial \
             -llapacke -llapack -lblas -lconfig -lcjson -lfftw3 -lsystemd $(LCM_LIBS) -lpthread -lm
 
@@ -27,7 +29,10 @@ MSG_LCM    := $(wildcard msgtypes/*.lcm)
 MSG_C      := $(patsubst msgtypes/%.lcm,$(BUILD)/gen/afmtwin_%.c,$(MSG_LCM))
 # Their wire layouts, for the length checks before lcm-gen's decoders (afm_lcm_wire.h).
 WIRE_C     := $(BUILD)/gen/afm_wire_types.c
-MSG_OBJ    := $(patsubst $(BUILD)/gen/%.c,$(BUILD)/obj/gen/%.o,$(MSG_C) $(WIRE_C))
+MSG_OBJ    := $(patsubst $(BUILD)/gen/%.c,$(BUILD)/obj/gen/%.o,$(MSG_C))
+WIRE_OBJ   := $(patsubst $(BUILD)/gen/%.c,$(BUILD)/obj/gen/%.o,$(WIRE_C))
+# The message library: the generated types only, static and shared (for clients, installed
+# with the headers, afmtwin.pc, the .lcm files and a Java jar for lcm-spy: mk/client.mk).
 MSG_LIB    := $(BUILD)/lib/libafmtwin_msg.a
 # Transports (LCM, CAN) and the daemon's own modules; afmtwind.c holds main().
 IO_SRC     := $(wildcard daemon/transport/*.c)
@@ -42,11 +47,16 @@ TEST_BIN   := $(patsubst tests/%.c,$(BUILD)/tests/%,$(TEST_SRC))
 TEST_COMMON := $(BUILD)/obj/tests/check.o $(BUILD)/obj/tests/fixtures.o $(BUILD)/obj/tests/msg_examples.o
 
 .PHONY: all deps run test validate bench soak install clean format format-check can-probe \
-        sanitize sanitize-build fuzz fuzzers flood
+        sanitize sanitize-build fuzz fuzzers flood man deb
 
 LIBS_ALL   := $(if $(IO_OBJ),$(IO_LIB)) $(MSG_LIB) $(ENGINE_LIB)
 
-all: $(BUILD)/bin/afmtwin $(if $(DAEMON_SRC),$(BUILD)/bin/afmtwind) $(TEST_BIN)
+# The client side (shared message library, Java jar, afmtwin.pc), install, man pages, deb.
+.DEFAULT_GOAL := all
+include mk/client.mk
+include mk/install.mk
+
+all: $(BUILD)/bin/afmtwin $(if $(DAEMON_SRC),$(BUILD)/bin/afmtwind) $(TEST_BIN) $(CLIENT_ALL) man
 
 # Install what is missing (apt-get as root, sudo otherwise). Quiet when all is present.
 deps:
@@ -83,7 +93,7 @@ $(MSG_LIB): $(MSG_OBJ)
 	@mkdir -p $(dir $@)
 	$(AR) rcs $@ $^
 
-$(IO_LIB): $(IO_OBJ)
+$(IO_LIB): $(IO_OBJ) $(WIRE_OBJ)
 	@mkdir -p $(dir $@)
 	$(AR) rcs $@ $^
 
@@ -188,22 +198,11 @@ soak: deps
 	$(MAKE) $(BUILD)/bin/afmtwin $(BUILD)/bin/afmtwind
 	AFMTWIN_SOAK_S=300 AFMTWIN_SOAK_CHECK_S=60 bash tests/test_soak.sh $(BUILD)
 
-# SYSTEMD_UNIT_DIR: where the unit goes (ExecStart is rewritten to PREFIX's paths).
-SYSTEMD_UNIT_DIR ?= $(PREFIX)/lib/systemd/system
-install: $(BUILD)/bin/afmtwin $(if $(DAEMON_SRC),$(BUILD)/bin/afmtwind)
-	install -d $(DESTDIR)$(PREFIX)/bin $(DESTDIR)$(PREFIX)/share/afmtwin/config
-	install -m 755 $(BUILD)/bin/afmtwin $(DESTDIR)$(PREFIX)/bin/
-	if [ -x $(BUILD)/bin/afmtwind ]; then install -m 755 $(BUILD)/bin/afmtwind $(DESTDIR)$(PREFIX)/bin/; fi
-	install -m 644 config/*.conf $(DESTDIR)$(PREFIX)/share/afmtwin/config/
-	install -d $(DESTDIR)$(SYSTEMD_UNIT_DIR)
-	sed 's|/usr/local/|$(PREFIX)/|g' systemd/afmtwind.service > $(DESTDIR)$(SYSTEMD_UNIT_DIR)/afmtwind.service
-	chmod 644 $(DESTDIR)$(SYSTEMD_UNIT_DIR)/afmtwind.service
-	@echo "installed $(SYSTEMD_UNIT_DIR)/afmtwind.service (systemctl daemon-reload; systemctl start afmtwind)"
-
 clean:
 	rm -rf $(BUILD)
 
-FORMAT_SRC = $(wildcard daemon/*.[ch] daemon/engine/*.[ch] daemon/transport/*.[ch] tools/*.[ch] tests/*.[ch] fuzz/*.[ch])
+FORMAT_SRC = $(wildcard daemon/*.[ch] daemon/engine/*.[ch] daemon/transport/*.[ch] tools/*.[ch] tests/*.[ch] fuzz/*.[ch] \
+             examples/*.[ch] msgtypes/*.h)
 format:
 	clang-format -i $(FORMAT_SRC)
 

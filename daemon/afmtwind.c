@@ -14,6 +14,10 @@
 #include <string.h>
 #include <time.h>
 
+#ifndef AFMTWIN_VERSION
+#define AFMTWIN_VERSION "unknown"
+#endif
+
 #define CMD_Q_LEN 256
 #define TRASH_Q_LEN 64
 #define RTREJ_Q_LEN 64
@@ -58,7 +62,8 @@ static void usage(FILE *f) {
             "  --start-time S         model time starts at S s instead of 0 (tests of a twin\n"
             "                         that has been up that long)\n"
             "  --quiet                no status line\n"
-            "  --help                 this text\n");
+            "  --help                 this text\n"
+            "  --version              the version\n");
 }
 
 const char *twind_mode_name(twind_mode m) {
@@ -126,6 +131,9 @@ static int parse_args(int argc, char **argv, twind_opts *o) {
         double x;
         if (!strcmp(a, "--help")) {
             usage(stdout);
+            exit(0);
+        } else if (!strcmp(a, "--version")) {
+            printf("afmtwind %s\n", AFMTWIN_VERSION);
             exit(0);
         } else if (!strcmp(a, "--quiet")) {
             o->quiet = 1;
