@@ -30,8 +30,10 @@ static void usage(FILE *f) {
             "usage: afmtwind --config FILE [options]\n"
             "\n"
             "Runs the AFM cantilever twin and talks LCM: commands on PREFIX{DITHER,SETPOINT,\n"
-            "PARAM,CONTROL,TICK} (--lcm-url), outputs on PREFIX{SAMPLES,HARMONICS,STATUS}\n"
-            "(--lcm-out-url: by default the same udpm group, port + 1). Foreground;\n"
+            "PARAM,CONTROL,TICK} (--lcm-url), outputs on PREFIX{HARMONICS,STATUS,TICK_DONE}\n"
+            "(--lcm-out-url: by default the same udpm group, port + 1) and the sample\n"
+            "stream PREFIX SAMPLES (--lcm-samples-url: port + 2). Every output message\n"
+            "carries msg_seq (per channel, +1 each). Foreground;\n"
             "one status line a second on stderr. SIGTERM/SIGINT stop (a final status is\n"
             "published), SIGHUP reloads FILE (a bad file keeps the running config).\n"
             "\n"
@@ -41,6 +43,9 @@ static void usage(FILE *f) {
             "                         udpm://239.255.76.67:7667?ttl=0)\n"
             "  --lcm-out-url URL      LCM URL of the outputs (default: --lcm-url with the udpm\n"
             "                         port + 1, so that the command socket carries commands only)\n"
+            "  --lcm-samples-url URL  LCM URL of the sample stream (default: --lcm-url with the\n"
+            "                         udpm port + 2, so that status and harmonics subscribers\n"
+            "                         do not receive it)\n"
             "  --mode M               realtime (default), freerun or lockstep\n"
             "  --prefix NAME_         channel prefix (default AFMTWIN_)\n"
             "  --cpu N                pin the integrator thread to CPU N\n"
@@ -147,6 +152,8 @@ static int parse_args(int argc, char **argv, twind_opts *o) {
             o->lcm_url = v;
         } else if (!strcmp(a, "--lcm-out-url")) {
             o->lcm_out_url = v;
+        } else if (!strcmp(a, "--lcm-samples-url")) {
+            o->lcm_samples_url = v;
         } else if (!strcmp(a, "--aux-cpu")) {
             if (parse_num(a, v, 0, 1023, &x) || x != floor(x)) return -1;
             o->aux_cpu = (int)x;
@@ -310,8 +317,8 @@ int main(int argc, char **argv) {
      * receive thread's real-time priority from here, or a busy integrator and chain would
      * keep them off the CPU and delay commands by up to a block (measured: p99 ~1 ms). */
     twind_rt_setup_aux(d.opt.rt_priority - 10, d.opt.aux_cpu);
-    d.io =
-        afm_lcm_io_create(d.opt.lcm_url, d.opt.lcm_out_url, d.opt.prefix, &sink, err, sizeof err);
+    d.io = afm_lcm_io_create(d.opt.lcm_url, d.opt.lcm_out_url, d.opt.lcm_samples_url, d.opt.prefix,
+                             &sink, err, sizeof err);
     if (!d.io) {
         fprintf(stderr, "afmtwind: %s\n", err);
         goto out;
@@ -342,17 +349,19 @@ int main(int argc, char **argv) {
         exit(1); /* threads may be running: no orderly way back */
     }
     double fs = cfg.sim.sample_rate_hz;
-    char cmd_u[AFM_LCM_URL_LEN], out_u[AFM_LCM_URL_LEN];
+    char cmd_u[AFM_LCM_URL_LEN], out_u[AFM_LCM_URL_LEN], smp_u[AFM_LCM_URL_LEN];
     if (afm_lcm_urls(d.opt.lcm_url, d.opt.lcm_out_url, cmd_u, out_u, sizeof cmd_u, err,
-                     sizeof err)) /* cannot fail here: the transport resolved them already */
-        snprintf(out_u, sizeof out_u, "?");
+                     sizeof err) || /* cannot fail here: the transport resolved them already */
+        afm_lcm_samples_urls(cmd_u, d.opt.lcm_samples_url, smp_u, sizeof smp_u, err, sizeof err))
+        snprintf(smp_u, sizeof smp_u, "?");
     fprintf(stderr,
             "afmtwind: %s, %s mode, %s integrator at %.6g MHz, block %lld samples (%.0f us), "
             "output chain on a second thread (ring %lld x %d samples), channels %s*, LCM "
-            "commands %s, outputs %s\n",
+            "commands %s, outputs %s, samples %s\n",
             d.opt.config_path, twind_mode_name(d.opt.mode),
             afm_sim_integrator_name(afm_runner_sim(d.runner)), fs * 1e-6, block,
-            (double)block / fs * 1e6, ring, AFM_RUNNER_SLOT_SAMPLES, d.opt.prefix, cmd_u, out_u);
+            (double)block / fs * 1e6, ring, AFM_RUNNER_SLOT_SAMPLES, d.opt.prefix, cmd_u, out_u,
+            smp_u);
     twind_notify_ready();
 
     double t_start = twind_mono_now();

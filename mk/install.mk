@@ -16,6 +16,10 @@ SYSTEMD_UNIT_DIR ?= $(PREFIX)/lib/systemd/system
 SERVICE_CONF    := $(SYSCONFDIR)/afmtwin/afmtwind.conf
 MAN_PAGES       := $(BUILD)/man/afmtwin.1 $(BUILD)/man/afmtwind.8
 
+# `afmtwin send` checks against the service's config when given none (the object is not
+# rebuilt when only PREFIX changes: build and install with the same PREFIX).
+$(BUILD)/obj/tools/cmd_send.o: CFLAGS += -DAFMT_SERVICE_CONF='"$(SERVICE_CONF)"'
+
 # help2man runs the binaries' --help and --version; man/*.h2m add the sections --help has
 # no room for (files, LCM layout, signals, exit status).
 $(BUILD)/man/afmtwind.8: $(BUILD)/bin/afmtwind man/afmtwind.h2m

@@ -41,10 +41,9 @@
 #include <time.h>
 #include <unistd.h>
 
-/* Commands on 7667, outputs on 7668 (afmtwind's default: the output URL is the command
- * URL with the port + 1), so that the daemon's command socket carries commands only. */
+/* Commands on 7667, outputs on 7668 and the samples on 7669 (afmtwind's defaults: the
+ * command URL with the port + 1 and + 2, afmtwin_lcm_layout.h). */
 #define BD_URL "udpm://239.255.76.67:7667?ttl=0&recv_buf_size=4194304"
-#define BD_OUT_URL "udpm://239.255.76.67:7668?ttl=0&recv_buf_size=4194304"
 #define BD_MAX_CMDS 100000
 #define BD_CLIENT_PRIO 90 /* above afmtwind's threads (80 and below) */
 #define BD_CLIENT_PRIO_TEXT "90"
@@ -154,12 +153,12 @@ static void on_samples(const void *msg, void *u) {
     }
 }
 
-static void pump(lcm_t *lcm, double seconds) {
+static void pump(afmt_outputs *o, double seconds) {
     double end = afmt_mono_s() + seconds;
     for (;;) {
         double left = end - afmt_mono_s();
         if (left <= 0) return;
-        lcm_handle_timeout(lcm, (int)ceil(left * 1e3));
+        afmt_outputs_handle(o, (int)ceil(left * 1e3));
     }
 }
 
@@ -261,11 +260,13 @@ static void bench_config(const bd_opts *o, const char *config, bd_result *r) {
      * LCM's own receive thread inherits it; SCHED_RESET_ON_FORK keeps it from the daemon. */
     struct sched_param prio = {.sched_priority = BD_CLIENT_PRIO};
     r->client_fifo = sched_setscheduler(0, SCHED_FIFO | BD_RESET_ON_FORK, &prio) == 0;
-    lcm_t *lcm = lcm_create(BD_OUT_URL);          /* outputs in */
-    lcm_t *cmd = lcm ? lcm_create(BD_URL) : NULL; /* commands out (never subscribed) */
-    if (!lcm || !cmd) {
+    afmt_outputs lcm; /* outputs in (the samples on their own URL) */
+    char oerr[256];
+    int ofail = afmt_outputs_open(&lcm, BD_URL, NULL, NULL, true, oerr, sizeof oerr);
+    lcm_t *cmd = !ofail ? lcm_create(BD_URL) : NULL; /* commands out (never subscribed) */
+    if (ofail || !cmd) {
         snprintf(r->err, sizeof r->err, "lcm_create(%s) failed (no multicast route?)", BD_URL);
-        if (lcm) lcm_destroy(lcm);
+        afmt_outputs_close(&lcm);
         unlink(errfile);
         client_normal(r);
         return;
@@ -276,9 +277,9 @@ static void bench_config(const bd_opts *o, const char *config, bd_result *r) {
     afmt_checked_sub subs[3] = {{&afm_wire_status_t, on_status, &s, 0},
                                 {&afm_wire_harmonics_t, on_harm, &s, 0},
                                 {&afm_wire_samples_t, on_samples, &s, 0}};
-    afmt_subscribe_checked(lcm, "AFMTWIN_STATUS", &subs[0], 1000);
-    afmt_subscribe_checked(lcm, "AFMTWIN_HARMONICS", &subs[1], 10000);
-    afmt_subscribe_checked(lcm, "AFMTWIN_SAMPLES", &subs[2], 10000);
+    afmt_subscribe_checked(lcm.out, "AFMTWIN_STATUS", &subs[0], 1000);
+    afmt_subscribe_checked(lcm.out, "AFMTWIN_HARMONICS", &subs[1], 10000);
+    afmt_subscribe_checked(lcm.samples, "AFMTWIN_SAMPLES", &subs[2], 10000);
     pid_t pid = start_daemon(o, config, errfile);
     if (pid < 0) {
         snprintf(r->err, sizeof r->err, "fork failed");
@@ -286,7 +287,7 @@ static void bench_config(const bd_opts *o, const char *config, bd_result *r) {
     }
     /* up? */
     for (int i = 0; i < 50 && s.n_status == 0; i++)
-        pump(lcm, 0.1);
+        pump(&lcm, 0.1);
     if (s.n_status == 0) {
         snprintf(r->err, sizeof r->err, "no status from %s within 5 s", o->daemon);
         goto stop;
@@ -294,10 +295,10 @@ static void bench_config(const bd_opts *o, const char *config, bd_result *r) {
     r->block_s = block_from_errfile(errfile);
     send_tap(cmd);
     r->sent = 2;
-    pump(lcm, 1.0);
+    pump(&lcm, 1.0);
     /* (a) real-time factor over the window */
     s.n_status = 0;
-    pump(lcm, o->seconds);
+    pump(&lcm, o->seconds);
     if (s.n_status < 2 || s.last_wall <= s.first_wall) {
         snprintf(r->err, sizeof r->err, "too few status messages (%d)", s.n_status);
         goto stop;
@@ -315,7 +316,7 @@ static void bench_config(const bd_opts *o, const char *config, bd_result *r) {
     unsigned long long lcg = 12345;
     for (int i = 0; i < o->commands; i++) {
         lcg = lcg * 6364136223846793005ULL + 1442695040888963407ULL;
-        pump(lcm, (double)(lcg >> 40) / (double)(1ULL << 24) * 2e-3);
+        pump(&lcm, (double)(lcg >> 40) / (double)(1ULL << 24) * 2e-3);
         afmtwin_setpoint_t c = {
             .utime = afmt_wall_us(), .seq = 100 + i, .separation_m = (i & 1) ? 35.5e-9 : 35e-9};
         s.want_seq = c.seq;
@@ -324,7 +325,7 @@ static void bench_config(const bd_opts *o, const char *config, bd_result *r) {
         afmtwin_setpoint_t_publish(cmd, "AFMTWIN_SETPOINT", &c);
         r->sent++;
         while (!s.got && afmt_mono_s() - t0 < BD_WAIT_S)
-            lcm_handle_timeout(lcm, 100);
+            afmt_outputs_handle(&lcm, 100);
         if (s.got)
             lat[r->n_lat++] = s.t_got - t0;
         else
@@ -342,16 +343,16 @@ static void bench_config(const bd_opts *o, const char *config, bd_result *r) {
     }
     /* (c) loss under load: a burst of setpoints 100 us apart (10 per 1 ms block, well
      * inside the command queue) while all outputs flow; every one must be applied. */
-    pump(lcm, 0.3);
+    pump(&lcm, 0.3);
     long long applied0 = s.last_applied, received0 = s.last_received;
     for (int i = 0; i < o->commands; i++) {
         afmtwin_setpoint_t c = {
             .utime = afmt_wall_us(), .seq = 1000000 + i, .separation_m = (i & 1) ? 35.5e-9 : 35e-9};
         afmtwin_setpoint_t_publish(cmd, "AFMTWIN_SETPOINT", &c);
         r->sent++;
-        pump(lcm, 100e-6);
+        pump(&lcm, 100e-6);
     }
-    pump(lcm, 0.5);
+    pump(&lcm, 0.5);
     r->burst_sent = o->commands;
     r->burst_received = s.last_received - received0;
     r->burst_applied = s.last_applied - applied0;
@@ -371,7 +372,7 @@ stop:
     read_warnings(errfile, r->warn, sizeof r->warn);
 out:
     lcm_destroy(cmd);
-    lcm_destroy(lcm);
+    afmt_outputs_close(&lcm);
     unlink(errfile);
     client_normal(r);
 }
@@ -407,20 +408,21 @@ static int bench_lockstep(const bd_opts *o, const char *config) {
                       "lockstep", "--quiet", (char *)NULL);
             _exit(127);
         }
-        lcm_t *cmd = pid > 0 ? lcm_create(BD_URL) : NULL,
-              *out = cmd ? lcm_create(BD_OUT_URL) : NULL;
-        if (!out) {
+        lcm_t *cmd = pid > 0 ? lcm_create(BD_URL) : NULL;
+        afmt_outputs out = {0};
+        char oerr[256];
+        if (!cmd || afmt_outputs_open(&out, BD_URL, NULL, NULL, false, oerr, sizeof oerr)) {
             if (cmd) lcm_destroy(cmd);
             rc = 1;
             break;
         }
         bd_state st = {.want_seq = -1}; /* up: its status arrives */
         afmt_checked_sub sub = {&afm_wire_status_t, on_status, &st, 0};
-        afmt_subscribe_checked(out, "AFMTWIN_STATUS", &sub, 1000);
+        afmt_subscribe_checked(out.out, "AFMTWIN_STATUS", &sub, 1000);
         for (int i = 0; i < 100 && st.n_status == 0; i++)
-            pump(out, 0.1);
-        lcm_destroy(out); /* and the subscription */
-        send_tap(cmd);    /* applied with the first tick */
+            pump(&out, 0.1);
+        afmt_outputs_close(&out); /* and the subscription */
+        send_tap(cmd);            /* applied with the first tick */
         lcm_destroy(cmd);
         if (!o->json)
             printf("   %s:\n", pin ? "pinned (afmtwind --cpu 0 --chain-cpu 1 --aux-cpu 0, "

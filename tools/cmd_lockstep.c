@@ -52,6 +52,9 @@ typedef struct {
     uint8_t *data;
 } ls_event;
 
+/* longest wait for the samples a completion counts (they come on another socket) */
+#define LS_SAMPLES_WAIT_S 0.5
+
 typedef struct {
     int64_t seq, samples;
     double t_s;
@@ -60,12 +63,13 @@ typedef struct {
 
 typedef struct {
     /* options */
-    const char *in, *config, *url, *out_url, *prefix, *sequence, *out;
+    const char *in, *config, *url, *out_url, *samples_url, *prefix, *sequence, *out;
     double tick_us, tail_s, timeout_s, bench_s, until_s;
     int harmonics_every, rt_priority, cpu;
     bool check, bench, quiet, json;
     /* LCM */
-    lcm_t *lcm_in, *lcm_cmd;
+    afmt_outputs outs; /* harmonics, status, tick_done; the samples on their own URL */
+    lcm_t *lcm_cmd;
     char chan_cmd[6][AFMT_CHAN_LEN], chan_out[4][AFMT_CHAN_LEN];
     lcm_eventlog_t *seq_log, *out_log;
     /* what came back */
@@ -123,6 +127,7 @@ static void ls_usage(FILE *f) {
         "  --out LOG         write the outputs received to LOG\n"
         "  --lcm-url URL     the daemon's command URL (default: LCM_DEFAULT_URL or LCM's)\n"
         "  --lcm-out-url URL its output URL (default: derived, udpm port + 1)\n"
+        "  --lcm-samples-url URL  its samples URL (default: derived, udpm port + 2)\n"
         "  --prefix NAME_    channel prefix (default %s)\n"
         "  --timeout S       longest wait for a completion (default 10)\n"
         "  --rt-priority N   SCHED_FIFO priority of this client when permitted (default 90:\n"
@@ -193,6 +198,12 @@ static void on_done(const lcm_recv_buf_t *rb, const char *channel, void *user) {
         c->bad_msgs++;
         return;
     }
+    /* The samples come on their own socket: those published before this completion may
+     * still be on their way (LCM's receive threads); wait for them, bounded. */
+    for (double t0 = afmt_mono_s(); c->outs.samples != c->outs.out &&
+                                    c->dg.n_samples_msgs < m.n_samples_msgs &&
+                                    afmt_mono_s() - t0 < LS_SAMPLES_WAIT_S;)
+        if (lcm_handle_timeout(c->outs.samples, 10) < 0) break;
     uint64_t sd = afm_lcm_digest_samples_final(&c->dg), hd = c->dg.harmonics;
     if (m.n_samples_msgs != c->dg.n_samples_msgs || m.n_harmonics_msgs != c->dg.n_harmonics_msgs ||
         (uint64_t)m.samples_digest != sd || (uint64_t)m.harmonics_digest != hd) {
@@ -246,7 +257,7 @@ static int wait_done(ls_ctx *c, int64_t seq, long long n) {
                     (long long)seq, c->timeout_s);
             return -1;
         }
-        if (lcm_handle_timeout(c->lcm_in, (int)ceil(fmin(left, 0.2) * 1e3)) < 0) return -1;
+        if (afmt_outputs_handle(&c->outs, (int)ceil(fmin(left, 0.2) * 1e3)) < 0) return -1;
     }
     c->wall_waiting += afmt_mono_s() - t0;
     c->done_seen = false;
@@ -453,6 +464,8 @@ static int parse_opts(ls_ctx *c, int argc, char **argv) {
             c->url = v;
         } else if (!strcmp(a, "--lcm-out-url")) {
             c->out_url = v;
+        } else if (!strcmp(a, "--lcm-samples-url")) {
+            c->samples_url = v;
         } else if (!strcmp(a, "--prefix")) {
             c->prefix = v;
         } else if (!strcmp(a, "--tick-us") || !strcmp(a, "--tail") || !strcmp(a, "--timeout") ||
@@ -511,6 +524,7 @@ static int open_lcm(ls_ctx *c, char *err, size_t errlen) {
         if (afmt_channel(c->prefix, out_sfx[k], c->chan_out[k], err, errlen)) return 2;
     char cmd_u[AFM_LCM_URL_LEN], out_u[AFM_LCM_URL_LEN];
     if (afm_lcm_urls(c->url, c->out_url, cmd_u, out_u, sizeof cmd_u, err, errlen)) return 2;
+    (void)out_u; /* opened by afmt_outputs_open (with the samples URL) */
     /* Above the daemon's SCHED_FIFO threads and on --cpu (before lcm_create: LCM's own thread
      * inherits both; the priority is not passed on to children). */
     if (c->cpu >= 0) {
@@ -529,17 +543,17 @@ static int open_lcm(ls_ctx *c, char *err, size_t errlen) {
                     "priority\n",
                     c->rt_priority, strerror(errno));
     }
-    c->lcm_in = lcm_create(out_u);
-    c->lcm_cmd = c->lcm_in ? lcm_create(cmd_u) : NULL;
-    if (!c->lcm_in || !c->lcm_cmd) {
-        snprintf(err, errlen, "lcm_create failed (%.200s, %.200s): no multicast route?", cmd_u,
-                 out_u);
+    if (afmt_outputs_open(&c->outs, c->url, c->out_url, c->samples_url, true, err, errlen))
+        return 1;
+    c->lcm_cmd = lcm_create(cmd_u);
+    if (!c->lcm_cmd) {
+        snprintf(err, errlen, "lcm_create failed (%.200s): no multicast route?", cmd_u);
         return 1;
     }
-    lcm_subscription_t *s[4] = {lcm_subscribe(c->lcm_in, c->chan_out[0], on_samples, c),
-                                lcm_subscribe(c->lcm_in, c->chan_out[1], on_harmonics, c),
-                                lcm_subscribe(c->lcm_in, c->chan_out[3], on_done, c),
-                                lcm_subscribe(c->lcm_in, c->chan_out[2], on_status, c)};
+    lcm_subscription_t *s[4] = {lcm_subscribe(c->outs.samples, c->chan_out[0], on_samples, c),
+                                lcm_subscribe(c->outs.out, c->chan_out[1], on_harmonics, c),
+                                lcm_subscribe(c->outs.out, c->chan_out[3], on_done, c),
+                                lcm_subscribe(c->outs.out, c->chan_out[2], on_status, c)};
     for (int i = 0; i < 4; i++) {
         if (!s[i]) {
             snprintf(err, errlen, "cannot subscribe to the outputs");
@@ -550,7 +564,7 @@ static int open_lcm(ls_ctx *c, char *err, size_t errlen) {
     /* the daemon is up when its status (10 Hz) arrives: nothing is sent before */
     double t0 = afmt_mono_s();
     while (!c->status_seen && afmt_mono_s() - t0 < c->timeout_s)
-        lcm_handle_timeout(c->lcm_in, 100);
+        afmt_outputs_handle(&c->outs, 100);
     if (!c->status_seen) {
         snprintf(err, errlen,
                  "no status from the daemon within %g s (is afmtwind running on "
@@ -679,7 +693,7 @@ int afm_cmd_lockstep(int argc, char **argv) {
     if (seq_path == seq_tmp) unlink(seq_tmp);
 out:
     if (c.lcm_cmd) lcm_destroy(c.lcm_cmd);
-    if (c.lcm_in) lcm_destroy(c.lcm_in);
+    afmt_outputs_close(&c.outs);
     free(c.dones);
     return rc < 0 ? 1 : rc;
 }

@@ -78,7 +78,8 @@ typedef struct {
     uint64_t seed;
     bool quiet;
     /* LCM */
-    lcm_t *in, *cmd;
+    afmt_outputs in; /* outputs; the samples on their own URL */
+    lcm_t *cmd;
     char ch[5][AFMT_CHAN_LEN]; /* dither, setpoint, param, control, (unused) */
     lcm_eventlog_t *logf;
     /* the twin */
@@ -188,7 +189,7 @@ static void on_harm(const void *msg, void *user) {
 static void pump(soak_ctx *c, double seconds) {
     double t_end = afmt_mono_s() + seconds;
     for (double left = seconds; left > 0; left = t_end - afmt_mono_s())
-        lcm_handle_timeout(c->in, (int)ceil(left * 1e3));
+        afmt_outputs_handle(&c->in, (int)ceil(left * 1e3));
 }
 
 /* ---- commands out ---- */
@@ -471,9 +472,13 @@ int afm_cmd_soak(int argc, char **argv) {
         struct sched_param prio = {.sched_priority = c.rt_priority};
         sched_setscheduler(0, SCHED_FIFO | SOAK_RESET_ON_FORK, &prio);
     }
-    c.in = lcm_create(out_u);
-    c.cmd = c.in ? lcm_create(cmd_u) : NULL;
-    if (!c.in || !c.cmd) {
+    (void)out_u;
+    if (afmt_outputs_open(&c.in, c.url, c.out_url, NULL, true, err, sizeof err)) {
+        fprintf(stderr, "afmtwin soak: %s\n", err);
+        return 1;
+    }
+    c.cmd = lcm_create(cmd_u);
+    if (!c.cmd) {
         fprintf(stderr, "afmtwin soak: lcm_create failed (no multicast route?)\n");
         return 1;
     }
@@ -481,9 +486,9 @@ int afm_cmd_soak(int argc, char **argv) {
     afmt_checked_sub subs[3] = {{&afm_wire_status_t, on_status, &c, 0},
                                 {&afm_wire_samples_t, on_samples, &c, 0},
                                 {&afm_wire_harmonics_t, on_harm, &c, 0}};
-    afmt_subscribe_checked(c.in, st_ch, &subs[0], 1000);
-    afmt_subscribe_checked(c.in, sa_ch, &subs[1], 20000);
-    afmt_subscribe_checked(c.in, ha_ch, &subs[2], 20000);
+    afmt_subscribe_checked(c.in.out, st_ch, &subs[0], 1000);
+    afmt_subscribe_checked(c.in.samples, sa_ch, &subs[1], 20000);
+    afmt_subscribe_checked(c.in.out, ha_ch, &subs[2], 20000);
     if (c.log && !(c.logf = lcm_eventlog_create(c.log, "w"))) {
         fprintf(stderr, "afmtwin soak: cannot write '%s'\n", c.log);
         return 1;
@@ -510,7 +515,7 @@ int afm_cmd_soak(int argc, char **argv) {
         c.n_sent++;
         double t0 = afmt_mono_s();
         while (c.echoed_seq < c.seq && afmt_mono_s() - t0 < SOAK_ECHO_WAIT_S)
-            lcm_handle_timeout(c.in, 5);
+            afmt_outputs_handle(&c.in, 5);
         if (c.echoed_seq < c.seq) {
             if (c.unechoed++ < 10)
                 fprintf(stderr, "afmtwin soak: command %lld (%s) not echoed within %.0f ms\n",
@@ -554,7 +559,7 @@ int afm_cmd_soak(int argc, char **argv) {
         printf("  %s\n", pass ? "PASS" : "FAIL");
     }
     lcm_destroy(c.cmd);
-    lcm_destroy(c.in);
+    afmt_outputs_close(&c.in);
     return pass ? 0 : 1;
 usage_err:
     fprintf(stderr, "afmtwin soak: %s\n", err);

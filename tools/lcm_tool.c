@@ -2,7 +2,10 @@
 /* lcm_tool.c -- helpers shared by the LCM subcommands (see lcm_tool.h). */
 #include "lcm_tool.h"
 
+#include "afm_lcm_url.h"
+
 #include <ctype.h>
+#include <poll.h>
 #include <errno.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -113,6 +116,49 @@ int afmt_subscribe_checked(lcm_t *lcm, const char *channel, afmt_checked_sub *s,
     if (!sub) return -1;
     if (capacity > 0) lcm_subscription_set_queue_capacity(sub, capacity);
     return 0;
+}
+
+int afmt_outputs_open(afmt_outputs *o, const char *url, const char *out_url,
+                      const char *samples_url, bool want_samples, char *err, size_t errlen) {
+    char cmd_u[AFM_LCM_URL_LEN], out_u[AFM_LCM_URL_LEN], smp_u[AFM_LCM_URL_LEN];
+    *o = (afmt_outputs){0};
+    if (afm_lcm_urls(url, out_url, cmd_u, out_u, sizeof cmd_u, err, errlen) ||
+        afm_lcm_samples_urls(cmd_u, samples_url, smp_u, sizeof smp_u, err, errlen))
+        return -1;
+    o->out = lcm_create(out_u);
+    if (o->out && want_samples) o->samples = strcmp(smp_u, out_u) ? lcm_create(smp_u) : o->out;
+    if (!o->out || (want_samples && !o->samples)) {
+        snprintf(err, errlen, "cannot open LCM on '%s' (for udpm: is there a multicast route?)",
+                 o->out ? smp_u : out_u);
+        afmt_outputs_close(o);
+        return -1;
+    }
+    return 0;
+}
+
+#define DRAIN_MAX 4096 /* samples messages handled in one go at most */
+
+void afmt_outputs_drain_samples(afmt_outputs *o) {
+    if (!o->samples || o->samples == o->out) return;
+    for (int i = 0; i < DRAIN_MAX && lcm_handle_timeout(o->samples, 0) > 0; i++) {
+    }
+}
+
+int afmt_outputs_handle(afmt_outputs *o, int timeout_ms) {
+    if (!o->samples || o->samples == o->out) return lcm_handle_timeout(o->out, timeout_ms);
+    struct pollfd p[2] = {{.fd = lcm_get_fileno(o->samples), .events = POLLIN},
+                          {.fd = lcm_get_fileno(o->out), .events = POLLIN}};
+    int n = poll(p, 2, timeout_ms);
+    if (n <= 0) return n < 0 && errno != EINTR ? -1 : 0;
+    if (p[0].revents) afmt_outputs_drain_samples(o);
+    if (p[1].revents && lcm_handle_timeout(o->out, 0) < 0) return -1;
+    return 1;
+}
+
+void afmt_outputs_close(afmt_outputs *o) {
+    if (o->samples && o->samples != o->out) lcm_destroy(o->samples);
+    if (o->out) lcm_destroy(o->out);
+    *o = (afmt_outputs){0};
 }
 
 double afmt_mono_s(void) {
