@@ -18,7 +18,7 @@ $(BUILD)/obj/pic/gen/%.o: $(BUILD)/gen/%.c $(BUILD)/gen/.stamp
 
 $(MSG_SO): $(MSG_PIC)
 	@mkdir -p $(dir $@)
-	$(CC) -shared -Wl,-soname,$(MSG_SONAME) -Wl,--no-undefined -o $@ $^ $(LCM_LIBS)
+	$(CC) $(LDFLAGS) -shared -Wl,-soname,$(MSG_SONAME) -Wl,--no-undefined -o $@ $^ $(LCM_LIBS)
 	ln -sf $(MSG_SONAME) $(BUILD)/lib/libafmtwin_msg.so
 
 # lcm-gen's Java classes (package afmtwin), compiled against liblcm-java's lcm.jar.

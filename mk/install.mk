@@ -32,8 +32,10 @@ $(BUILD)/man/afmtwin.1: $(BUILD)/bin/afmtwin man/afmtwin.h2m
 	  --include man/afmtwin.h2m --output $@ $(BUILD)/bin/afmtwin
 man: $(MAN_PAGES)
 
-install: $(BUILD)/bin/afmtwin $(BUILD)/bin/afmtwind $(MSG_LIB) $(CLIENT_ALL) \
-         $(MAN_PAGES)
+# What install installs (no tests): what debian/rules builds.
+dist: $(BUILD)/bin/afmtwin $(BUILD)/bin/afmtwind $(MSG_LIB) $(CLIENT_ALL) $(MAN_PAGES)
+
+install: dist
 	install -d $(DESTDIR)$(PREFIX)/bin $(DESTDIR)$(PREFIX)/include/afmtwin \
 	  $(DESTDIR)$(LIBDIR)/pkgconfig $(DESTDIR)$(PREFIX)/share/afmtwin/config \
 	  $(DESTDIR)$(PREFIX)/share/afmtwin/lcmtypes $(DESTDIR)$(PREFIX)/share/java \

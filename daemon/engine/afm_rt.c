@@ -40,6 +40,7 @@
  * substep a trial and two split pieces), each of at most RT_NEWTON_MAX force evaluations.
  * No allocation after init. */
 #include "afm_force_inline.h"
+#include "afm_clones.h"
 #include "afm_rng.h"
 #include "afm_rt_coef.h"
 #include "afm_sim_impl.h"
@@ -192,9 +193,10 @@ static inline __attribute__((always_inline)) double rt_solve_in(const afm_sim *s
 
 /* rt_solve_in out of line: the rare fallback of the free step (rt_solve_fast). The
  * contact pieces inline rt_solve_in. */
-static __attribute__((noinline)) double rt_solve(const afm_sim *s, const rt_state *r, double xs,
-                                                 double vs, double gx, double gv, double F,
-                                                 double rj, rt_snap *o) {
+AFM_CLONES static __attribute__((noinline)) double rt_solve(const afm_sim *s, const rt_state *r,
+                                                            double xs, double vs, double gx,
+                                                            double gv, double F, double rj,
+                                                            rt_snap *o) {
     return rt_solve_in(s, r, xs, vs, gx, gv, F, rj, o);
 }
 
@@ -474,8 +476,8 @@ rt_piece_t(const afm_sim *s, const rt_state *r, const rt_snap *in, rt_snap *o, i
 
 /* rt_piece_t for the pieces of contact samples (iterated solve), without the predictor of
  * a following full step: rt_contact computes it once, after the sample's last piece. */
-static __attribute__((noinline)) void rt_piece(const afm_sim *s, const rt_state *r,
-                                               const rt_snap *in, rt_snap *o, int k) {
+AFM_CLONES static __attribute__((noinline)) void rt_piece(const afm_sim *s, const rt_state *r,
+                                                          const rt_snap *in, rt_snap *o, int k) {
     if (r->noise)
         rt_piece_t(s, r, in, o, k, r->np, r->ntones, false, true, false, NULL, NULL);
     else if (r->ntones == 1 && r->np == 4)
@@ -596,8 +598,8 @@ static void rt_publish(afm_sim *s, const rt_state *r, const rt_snap *b) {
 
 /* One sample that touches contact, from a: m substeps, each split at a crossing. The
  * result is in *a or *b; returns which. */
-static __attribute__((noinline)) rt_snap *rt_contact(const afm_sim *s, const rt_state *r,
-                                                     rt_snap *a, rt_snap *b) {
+AFM_CLONES static __attribute__((noinline)) rt_snap *rt_contact(const afm_sim *s, const rt_state *r,
+                                                                rt_snap *a, rt_snap *b) {
     double tau = s->dt_s / r->m;
     for (int k = 0; k < r->m; k++) {
         rt_substep(s, r, a, b, tau);
@@ -702,7 +704,7 @@ static inline __attribute__((always_inline)) int rt_run_t(afm_sim *s, rt_state *
     return rc;
 }
 
-static int rt_run(afm_sim *s, int n, afm_sample *out) {
+AFM_CLONES static int rt_run(afm_sim *s, int n, afm_sample *out) {
     rt_state *r = s->be_state;
     if (r->noise) return rt_run_t(s, r, n, out, r->np, r->ntones, true);
     if (r->ntones == 1 && r->np == 4) return rt_run_t(s, r, n, out, 4, 1, false);
