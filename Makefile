@@ -60,7 +60,7 @@ TEST_BIN   := $(patsubst tests/%.c,$(BUILD)/tests/%,$(TEST_SRC))
 TEST_COMMON := $(BUILD)/obj/tests/check.o $(BUILD)/obj/tests/fixtures.o $(BUILD)/obj/tests/msg_examples.o
 
 .PHONY: all deps run test validate bench soak install clean format format-check can-probe \
-        sanitize sanitize-build fuzz fuzzers flood man deb dist
+        sanitize sanitize-build fuzz fuzzers flood man deb dist core
 
 LIBS_ALL   := $(if $(IO_OBJ),$(IO_LIB)) $(MSG_LIB) $(ENGINE_LIB)
 
@@ -69,7 +69,9 @@ LIBS_ALL   := $(if $(IO_OBJ),$(IO_LIB)) $(MSG_LIB) $(ENGINE_LIB)
 include mk/client.mk
 include mk/install.mk
 
-all: $(BUILD)/bin/afmtwin $(if $(DAEMON_SRC),$(BUILD)/bin/afmtwind) $(TEST_BIN) $(CLIENT_ALL) man
+# core: the binaries and the tests (what the sanitizer build needs); all adds the client side.
+core: $(BUILD)/bin/afmtwin $(if $(DAEMON_SRC),$(BUILD)/bin/afmtwind) $(TEST_BIN)
+all: core $(CLIENT_ALL) man
 
 # Install what is missing (apt-get as root, sudo otherwise). Quiet when all is present.
 deps:
@@ -157,7 +159,7 @@ FUZZ_SECONDS ?= 0
 
 sanitize-build:
 	+$(MAKE) --no-print-directory BUILD=$(SAN_BUILD) CC=$(SAN_CC) \
-	  OPT="-O1 -g -march=x86-64-v3 $(SAN_FLAGS)" GEN_FLAGS="$(SAN_FLAGS)" all fuzzers
+	  OPT="-O1 -g -march=x86-64-v3 $(SAN_FLAGS)" GEN_FLAGS="$(SAN_FLAGS)" core fuzzers
 
 # Only meaningful inside sanitize-build (objects with coverage hooks).
 fuzzers: $(FUZZ_BIN) $(BUILD)/fuzz/seeds

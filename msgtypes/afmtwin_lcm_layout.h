@@ -5,7 +5,7 @@
  *
  * Three udpm ports on one multicast group (LCM's default group):
  *   PORT     (7667) commands in:  PREFIX + DITHER, SETPOINT, PARAM, CONTROL, TICK
- *   PORT + 1 (7668) outputs:      PREFIX + HARMONICS, STATUS, TICK_DONE (~1 kHz, ~100 kB/s)
+ *   PORT + 1 (7668) outputs:      PREFIX + HARMONICS, STATUS, TICK_DONE (~1 kHz, ~0.5 MB/s)
  *   PORT + 2 (7669) sample stream: PREFIX + SAMPLES (every decimated sample, ~14 MB/s on
  *                                  config/default.conf)
  * so that a controller or a logger of the status and harmonics never receives the sample

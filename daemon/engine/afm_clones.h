@@ -11,10 +11,14 @@
 #ifndef AFM_CLONES_H
 #define AFM_CLONES_H
 
+/* AFM_CLONES_NOINLINE: for a function that must stay out of line; a multiversioned one
+ * always is (called through its ifunc), and clang refuses noinline beside target_clones. */
 #if defined(AFM_MULTIVERSION) && defined(__x86_64__) && defined(__GNUC__)
 #define AFM_CLONES __attribute__((target_clones("arch=x86-64-v3", "default")))
+#define AFM_CLONES_NOINLINE AFM_CLONES
 #else
 #define AFM_CLONES
+#define AFM_CLONES_NOINLINE __attribute__((noinline))
 #endif
 
 #endif
