@@ -13,18 +13,33 @@ CC      ?= cc
 
 DEB_PKGS := build-essential pkg-config liblcm-dev liblcm-bin libglib2.0-dev libsundials-dev \
             liblapacke-dev libconfig-dev libsystemd-dev libcjson-dev can-utils gnuplot-nox \
-            libfftw3-dev systemd qemu-system-x86 busybox-static cpio clang libclang-rt-dev
+            libfftw3-dev systemd qemu-system-x86 busybox-static cpio clang libclang-rt-dev \
+            liblcm-java default-jdk-headless help2man debhelper dpkg-dev fakeroot
 
 CSTD     := -std=c11 -D_POSIX_C_SOURCE=200809L
 WARN     := -Wall -Wextra -Werror -Wshadow -Wstrict-prototypes -Wmissing-prototypes
-OPT      ?= -O2 -march=x86-64-v3 -g
+# Target CPU (README "Portable builds"): x86-64-v3 (the local default: AVX2 + FMA everywhere,
+# what the real-time figures are measured with), native, any other -march value, or
+# portable: the baseline of the architecture (x86-64, or armv8-a on arm64), with the
+# integrator's inner loop compiled twice on x86-64 and the x86-64-v3 copy chosen at run time
+# where the CPU has it (target_clones). The Debian package builds portable.
+AFMTWIN_MARCH ?= x86-64-v3
+HOST_ARCH  := $(firstword $(subst -, ,$(shell $(CC) -dumpmachine)))
+ifeq ($(AFMTWIN_MARCH),portable)
+MARCH_FLAGS := $(if $(filter aarch64,$(HOST_ARCH)),-march=armv8-a,-march=x86-64 -mtune=generic \
+               -DAFM_MULTIVERSION=1)
+else
+MARCH_FLAGS := -march=$(AFMTWIN_MARCH)
+endif
+OPT      ?= -O2 $(MARCH_FLAGS) -g
 LCM_CFLAGS := $(shell pkg-config --cflags lcm 2>/dev/null)
 LCM_LIBS   := $(shell pkg-config --libs lcm 2>/dev/null)
 CFLAGS   += $(CSTD) $(WARN) $(OPT)
 # Include paths: the engine sees only itself; transports, the daemon, tools, tests and
-# fuzzers also see "transport/afm_x.h" (-Idaemon) and the generated LCM types.
+# fuzzers also see "transport/afm_x.h" (-Idaemon), the generated LCM types and the installed
+# client header afmtwin_lcm_layout.h (-Imsgtypes); they also know the version.
 ENGINE_INC := -Idaemon/engine
-OUTER_INC  := -Idaemon/engine -Idaemon -I$(BUILD)/gen
+OUTER_INC   = -Idaemon/engine -Idaemon -Imsgtypes -I$(BUILD)/gen -DAFMTWIN_VERSION='"$(VERSION)"'
 LDLIBS   += -lsundials_cvode -lsundials_arkode -lsundials_nvecserial \
             -llapacke -llapack -lblas -lconfig -lcjson -lfftw3 -lsystemd $(LCM_LIBS) -lpthread -lm
 
@@ -37,7 +52,10 @@ MSG_LCM    := $(wildcard msgtypes/*.lcm)
 MSG_C      := $(patsubst msgtypes/%.lcm,$(BUILD)/gen/afmtwin_%.c,$(MSG_LCM))
 # Their wire layouts, for the length checks before lcm-gen's decoders (afm_lcm_wire.h).
 WIRE_C     := $(BUILD)/gen/afm_wire_types.c
-MSG_OBJ    := $(patsubst $(BUILD)/gen/%.c,$(BUILD)/obj/gen/%.o,$(MSG_C) $(WIRE_C))
+MSG_OBJ    := $(patsubst $(BUILD)/gen/%.c,$(BUILD)/obj/gen/%.o,$(MSG_C))
+WIRE_OBJ   := $(patsubst $(BUILD)/gen/%.c,$(BUILD)/obj/gen/%.o,$(WIRE_C))
+# The message library: the generated types only, static and shared (for clients, installed
+# with the headers, afmtwin.pc, the .lcm files and a Java jar for lcm-spy: mk/client.mk).
 MSG_LIB    := $(BUILD)/lib/libafmtwin_msg.a
 # Transports (LCM, CAN) and the daemon's own modules; afmtwind.c holds main().
 IO_SRC     := $(wildcard daemon/transport/*.c)
@@ -52,11 +70,18 @@ TEST_BIN   := $(patsubst tests/%.c,$(BUILD)/tests/%,$(TEST_SRC))
 TEST_COMMON := $(BUILD)/obj/tests/check.o $(BUILD)/obj/tests/fixtures.o $(BUILD)/obj/tests/msg_examples.o
 
 .PHONY: all deps run test validate bench soak doc-plots install clean format format-check can-probe \
-        sanitize sanitize-build fuzz fuzzers flood
+        sanitize sanitize-build fuzz fuzzers flood man deb dist core
 
 LIBS_ALL   := $(if $(IO_OBJ),$(IO_LIB)) $(MSG_LIB) $(ENGINE_LIB)
 
-all: $(BUILD)/bin/afmtwin $(if $(DAEMON_SRC),$(BUILD)/bin/afmtwind) $(TEST_BIN)
+# The client side (shared message library, Java jar, afmtwin.pc), install, man pages, deb.
+.DEFAULT_GOAL := all
+include mk/client.mk
+include mk/install.mk
+
+# core: the binaries and the tests (what the sanitizer build needs); all adds the client side.
+core: $(BUILD)/bin/afmtwin $(if $(DAEMON_SRC),$(BUILD)/bin/afmtwind) $(TEST_BIN)
+all: core $(CLIENT_ALL) man
 
 # Install what is missing (apt-get as root, sudo otherwise). Quiet when all is present.
 deps:
@@ -98,7 +123,7 @@ $(MSG_LIB): $(MSG_OBJ)
 	@mkdir -p $(dir $@)
 	$(AR) rcs $@ $^
 
-$(IO_LIB): $(IO_OBJ)
+$(IO_LIB): $(IO_OBJ) $(WIRE_OBJ)
 	@mkdir -p $(dir $@)
 	$(AR) rcs $@ $^
 
@@ -108,11 +133,11 @@ $(ENGINE_LIB): $(ENGINE_OBJ)
 
 $(BUILD)/bin/afmtwin: $(TOOL_OBJ) $(LIBS_ALL)
 	@mkdir -p $(dir $@)
-	$(CC) $(CFLAGS) -o $@ $(TOOL_OBJ) $(LIBS_ALL) $(LDLIBS)
+	$(CC) $(CFLAGS) $(LDFLAGS) -o $@ $(TOOL_OBJ) $(LIBS_ALL) $(LDLIBS)
 
 $(BUILD)/bin/afmtwind: $(DAEMON_OBJ) $(LIBS_ALL)
 	@mkdir -p $(dir $@)
-	$(CC) $(CFLAGS) -o $@ $(DAEMON_OBJ) $(LIBS_ALL) $(LDLIBS)
+	$(CC) $(CFLAGS) $(LDFLAGS) -o $@ $(DAEMON_OBJ) $(LIBS_ALL) $(LDLIBS)
 
 $(BUILD)/tests/%: $(BUILD)/obj/tests/%.o $(TEST_COMMON) $(LIBS_ALL)
 	@mkdir -p $(dir $@)
@@ -149,7 +174,7 @@ FUZZ_SECONDS ?= 0
 
 sanitize-build:
 	+$(MAKE) --no-print-directory BUILD=$(SAN_BUILD) CC=$(SAN_CC) \
-	  OPT="-O1 -g -march=x86-64-v3 $(SAN_FLAGS)" GEN_FLAGS="$(SAN_FLAGS)" all fuzzers
+	  OPT="-O1 -g -march=x86-64-v3 $(SAN_FLAGS)" GEN_FLAGS="$(SAN_FLAGS)" core fuzzers
 
 # Only meaningful inside sanitize-build (objects with coverage hooks).
 fuzzers: $(FUZZ_BIN) $(BUILD)/fuzz/seeds
@@ -202,6 +227,7 @@ bench: deps
 	$(BUILD)/bin/afmtwin bench
 	$(BUILD)/bin/afmtwin bench-states
 	$(BUILD)/bin/afmtwin bench-daemon --daemon $(BUILD)/bin/afmtwind
+	bash tools/bench-march.sh $(BUILD)
 
 # The 10-minute command soak (make test runs a 10 s one per config): 5 min per config
 # (default.conf, nchv.conf) against a realtime daemon, then each whole log in lockstep
@@ -210,23 +236,12 @@ soak: deps
 	$(MAKE) $(BUILD)/bin/afmtwin $(BUILD)/bin/afmtwind
 	AFMTWIN_SOAK_S=300 AFMTWIN_SOAK_CHECK_S=60 bash tests/test_soak.sh $(BUILD)
 
-# SYSTEMD_UNIT_DIR: where the unit goes (ExecStart is rewritten to PREFIX's paths).
-SYSTEMD_UNIT_DIR ?= $(PREFIX)/lib/systemd/system
-install: $(BUILD)/bin/afmtwin $(if $(DAEMON_SRC),$(BUILD)/bin/afmtwind)
-	install -d $(DESTDIR)$(PREFIX)/bin $(DESTDIR)$(PREFIX)/share/afmtwin/config
-	install -m 755 $(BUILD)/bin/afmtwin $(DESTDIR)$(PREFIX)/bin/
-	if [ -x $(BUILD)/bin/afmtwind ]; then install -m 755 $(BUILD)/bin/afmtwind $(DESTDIR)$(PREFIX)/bin/; fi
-	install -m 644 config/*.conf $(DESTDIR)$(PREFIX)/share/afmtwin/config/
-	install -d $(DESTDIR)$(SYSTEMD_UNIT_DIR)
-	sed 's|/usr/local/|$(PREFIX)/|g' systemd/afmtwind.service > $(DESTDIR)$(SYSTEMD_UNIT_DIR)/afmtwind.service
-	chmod 644 $(DESTDIR)$(SYSTEMD_UNIT_DIR)/afmtwind.service
-	@echo "installed $(SYSTEMD_UNIT_DIR)/afmtwind.service (systemctl daemon-reload; systemctl start afmtwind)"
-
 clean:
 	rm -rf $(BUILD)
 
 FORMAT_SRC = $(wildcard daemon/*.[ch] $(foreach l,$(ENGINE_LAYERS),daemon/engine/$(l)/*.[ch]) \
-             daemon/transport/*.[ch] tools/*.[ch] tests/*.[ch] fuzz/*.[ch])
+             daemon/transport/*.[ch] tools/*.[ch] tests/*.[ch] fuzz/*.[ch] \
+             examples/*.[ch] msgtypes/*.h)
 format:
 	clang-format -i $(FORMAT_SRC)
 

@@ -14,6 +14,10 @@
 #include <string.h>
 #include <time.h>
 
+#ifndef AFMTWIN_VERSION
+#define AFMTWIN_VERSION "unknown"
+#endif
+
 #define CMD_Q_LEN 256
 #define TRASH_Q_LEN 64
 #define RTREJ_Q_LEN 64
@@ -26,8 +30,10 @@ static void usage(FILE *f) {
             "usage: afmtwind --config FILE [options]\n"
             "\n"
             "Runs the AFM cantilever twin and talks LCM: commands on PREFIX{DITHER,SETPOINT,\n"
-            "PARAM,CONTROL,TICK} (--lcm-url), outputs on PREFIX{SAMPLES,HARMONICS,STATUS}\n"
-            "(--lcm-out-url: by default the same udpm group, port + 1). Foreground;\n"
+            "PARAM,CONTROL,TICK} (--lcm-url), outputs on PREFIX{HARMONICS,STATUS,TICK_DONE}\n"
+            "(--lcm-out-url: by default the same udpm group, port + 1) and the sample\n"
+            "stream PREFIX SAMPLES (--lcm-samples-url: port + 2). Every output message\n"
+            "carries msg_seq (per channel, +1 each). Foreground;\n"
             "one status line a second on stderr. SIGTERM/SIGINT stop (a final status is\n"
             "published), SIGHUP reloads FILE (a bad file keeps the running config).\n"
             "\n"
@@ -37,6 +43,9 @@ static void usage(FILE *f) {
             "                         udpm://239.255.76.67:7667?ttl=0)\n"
             "  --lcm-out-url URL      LCM URL of the outputs (default: --lcm-url with the udpm\n"
             "                         port + 1, so that the command socket carries commands only)\n"
+            "  --lcm-samples-url URL  LCM URL of the sample stream (default: --lcm-url with the\n"
+            "                         udpm port + 2, so that status and harmonics subscribers\n"
+            "                         do not receive it)\n"
             "  --mode M               realtime (default), freerun or lockstep\n"
             "  --prefix NAME_         channel prefix (default AFMTWIN_)\n"
             "  --cpu N                pin the integrator thread to CPU N\n"
@@ -58,7 +67,8 @@ static void usage(FILE *f) {
             "  --start-time S         model time starts at S s instead of 0 (tests of a twin\n"
             "                         that has been up that long)\n"
             "  --quiet                no status line\n"
-            "  --help                 this text\n");
+            "  --help                 this text\n"
+            "  --version              the version\n");
 }
 
 const char *twind_mode_name(twind_mode m) {
@@ -127,6 +137,9 @@ static int parse_args(int argc, char **argv, twind_opts *o) {
         if (!strcmp(a, "--help")) {
             usage(stdout);
             exit(0);
+        } else if (!strcmp(a, "--version")) {
+            printf("afmtwind %s\n", AFMTWIN_VERSION);
+            exit(0);
         } else if (!strcmp(a, "--quiet")) {
             o->quiet = 1;
             continue;
@@ -139,6 +152,8 @@ static int parse_args(int argc, char **argv, twind_opts *o) {
             o->lcm_url = v;
         } else if (!strcmp(a, "--lcm-out-url")) {
             o->lcm_out_url = v;
+        } else if (!strcmp(a, "--lcm-samples-url")) {
+            o->lcm_samples_url = v;
         } else if (!strcmp(a, "--aux-cpu")) {
             if (parse_num(a, v, 0, 1023, &x) || x != floor(x)) return -1;
             o->aux_cpu = (int)x;
@@ -290,7 +305,8 @@ static int start_transports(twind *d, const afm_config *cfg, const afm_io_sink *
      * receive thread's real-time priority from here, or a busy integrator and chain would
      * keep them off the CPU and delay commands by up to a block (measured: p99 ~1 ms). */
     twind_rt_setup_aux(d->opt.rt_priority - 10, d->opt.aux_cpu);
-    d->io = afm_lcm_io_create(d->opt.lcm_url, d->opt.lcm_out_url, d->opt.prefix, sink, err, errlen);
+    d->io = afm_lcm_io_create(d->opt.lcm_url, d->opt.lcm_out_url, d->opt.lcm_samples_url,
+                              d->opt.prefix, sink, err, errlen);
     if (!d->io) return -1;
     if (!cfg->can.enabled) return 0;
     afm_io *both[2] = {d->io, afm_can_io_create(&cfg->can, &cfg->drive, sink, err, errlen)};
@@ -331,20 +347,21 @@ static void stop_threads(twind *d, twind_threads *t) {
 }
 
 /* The start-up line: config, mode, integrator, sample rate (MHz), block (samples, us), the
- * chain's ring, channels and both LCM URLs. */
+ * chain's ring, channels and the three LCM URLs (commands, outputs, samples). */
 static void print_started(const twind *d, double fs_hz, long long block, long long ring) {
-    char cmd_u[AFM_LCM_URL_LEN], out_u[AFM_LCM_URL_LEN], err[AFM_ERR_LEN];
+    char cmd_u[AFM_LCM_URL_LEN], out_u[AFM_LCM_URL_LEN], smp_u[AFM_LCM_URL_LEN], err[AFM_ERR_LEN];
     if (afm_lcm_urls(d->opt.lcm_url, d->opt.lcm_out_url, cmd_u, out_u, sizeof cmd_u, err,
-                     sizeof err)) /* cannot fail here: the transport resolved them already */
-        snprintf(out_u, sizeof out_u, "?");
+                     sizeof err) || /* cannot fail here: the transport resolved them already */
+        afm_lcm_samples_urls(cmd_u, d->opt.lcm_samples_url, smp_u, sizeof smp_u, err, sizeof err))
+        snprintf(smp_u, sizeof smp_u, "?");
     fprintf(stderr,
             "afmtwind: %s, %s mode, %s integrator at %.6g MHz, block %lld samples (%.0f us), "
             "output chain on a second thread (ring %lld x %d samples), channels %s*, LCM "
-            "commands %s, outputs %s\n",
+            "commands %s, outputs %s, samples %s\n",
             d->opt.config_path, twind_mode_name(d->opt.mode),
             afm_sim_integrator_name(afm_runner_sim(d->runner)), fs_hz * 1e-6, block,
-            (double)block / fs_hz * 1e6, ring, AFM_RUNNER_SLOT_SAMPLES, d->opt.prefix, cmd_u,
-            out_u);
+            (double)block / fs_hz * 1e6, ring, AFM_RUNNER_SLOT_SAMPLES, d->opt.prefix, cmd_u, out_u,
+            smp_u);
 }
 
 /* What the once-a-second report remembers from the last one. */

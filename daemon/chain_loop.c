@@ -62,11 +62,7 @@ static void push_outputs(chain_ctx *c) {
         }
     }
     /* Harmonics: every k-th period, k chosen so that at most harmonics_max_hz go out. */
-    int every = d->opt.harmonics_every;
-    if (every <= 0) {
-        double f = st.fe_hz / (d->opt.harmonics_max_hz > 0 ? d->opt.harmonics_max_hz : 1000.0);
-        every = f > 1 ? (f < 1e9 ? (int)ceil(f) : 1000000000) : 1; /* no int overflow */
-    }
+    int every = afm_io_harmonics_every(d->opt.harmonics_every, st.fe_hz, d->opt.harmonics_max_hz);
     afm_chain_period p[PERIODS_PER_TAKE];
     int n, newest = -1; /* p[newest]: the newest record taken (a take of 0 leaves p alone) */
     bool finished = false;

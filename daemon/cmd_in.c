@@ -53,6 +53,24 @@ void twind_reject(twind *d, const char *reason) {
     twind_reject_order(d, reason, d->order);
 }
 
+/* A reason about a decoded command ends with " [seq N]" (not reloads: seq < 0), so that a
+ * sender (afmtwin send --wait) finds the rejection of its own command in the status. */
+static const char *tag_seq(char *buf, size_t len, const char *reason, int64_t seq) {
+    if (seq < 0) return reason;
+    snprintf(buf, len, "%.*s [seq %lld]", (int)(len - 32), reason, (long long)seq);
+    return buf;
+}
+
+static void reject_cmd(twind *d, const afm_cmd *c, const char *reason) {
+    char b[AFM_IO_REASON_LEN];
+    twind_reject(d, tag_seq(b, sizeof b, reason, c->seq));
+}
+
+static void refuse_cmd(twind *d, const afm_cmd *c, const char *reason) {
+    char b[AFM_IO_REASON_LEN];
+    twind_refuse(d, tag_seq(b, sizeof b, reason, c->seq));
+}
+
 static void count_received(twind *d) {
     pthread_mutex_lock(&d->lock);
     d->received++;
@@ -69,7 +87,7 @@ static int enqueue(twind *d, const afm_cmd *c, afm_runner_model *m, const char *
         snprintf(why, sizeof why, "%s: command queue full (%zu waiting); not applied", what,
                  afm_spsc_capacity(&d->cmd_q));
         afm_runner_model_destroy(&m);
-        twind_refuse(d, why);
+        refuse_cmd(d, c, why);
         return -1;
     }
     sem_post(&d->cmd_sem); /* wakes an idle RT thread (lockstep, paused); never blocks */
@@ -159,7 +177,7 @@ static int on_cmd(void *ctx, const afm_cmd *c) {
     if (c->kind == AFM_CMD_TICK && d->opt.mode != TWIND_LOCKSTEP) {
         snprintf(why, sizeof why, "tick: the daemon runs in %s mode, not lockstep",
                  twind_mode_name(d->opt.mode));
-        twind_reject(d, why);
+        reject_cmd(d, c, why);
         return -1;
     }
     if (c->kind != AFM_CMD_PARAM) {
@@ -168,14 +186,15 @@ static int on_cmd(void *ctx, const afm_cmd *c) {
         return 0;
     }
     if (!model_changes_settled(d, MODEL_WAIT_MS)) {
-        twind_refuse(d, "param: the twin is still applying the previous model change; not "
-                        "applied");
+        refuse_cmd(d, c,
+                   "param: the twin is still applying the previous model change; not "
+                   "applied");
         return -1;
     }
     afm_config next = d->shadow;
     afm_param_effect eff;
     if (afm_param_apply(&next, &c->u.param, &eff, err, sizeof err)) {
-        twind_reject(d, err);
+        reject_cmd(d, c, err);
         return -1;
     }
     afm_runner_model *m = NULL;
@@ -183,7 +202,7 @@ static int on_cmd(void *ctx, const afm_cmd *c) {
         m = build(d, &next, eff == AFM_PARAM_GEOMETRY, err, sizeof err);
         if (!m) {
             snprintf(why, sizeof why, "param: cannot build the new model: %.200s", err);
-            twind_reject(d, why);
+            reject_cmd(d, c, why);
             return -1;
         }
     }
@@ -256,8 +275,9 @@ static void drain_side_queues(twind *d) {
     while (afm_runner_take_trash(d->runner, &m)) /* swapped out, via the chain thread */
         afm_runner_model_destroy(&m);
     twind_reason r;
+    char b[AFM_IO_REASON_LEN];
     while (afm_spsc_pop(&d->rtrej_q, &r)) /* counted by the rt thread (snapshot.refused) */
-        count_reason(d, NULL, d->last_refusal, "refused", r.reason);
+        count_reason(d, NULL, d->last_refusal, "refused", tag_seq(b, sizeof b, r.reason, r.seq));
     model_changes_settled(d, 0); /* a refused model change: the shadow goes back now */
 }
 

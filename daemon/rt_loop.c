@@ -102,7 +102,7 @@ static void flush_trash(rt_ctx *c) {
 /* The twin refused a valid command: counted here (exact), the reason to the receive
  * thread (best effort: a full queue loses the reason, counted too, never the count). */
 static void rt_reject(rt_ctx *c, const afm_cmd *cmd, const char *why, int64_t order) {
-    twind_reason r = {.order = order};
+    twind_reason r = {.order = order, .seq = cmd->seq};
     c->snap.refused++;
     size_t n = strlen(why);
     const char *kind = afm_cmd_kind_name(cmd->kind);

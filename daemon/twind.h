@@ -52,9 +52,10 @@ typedef enum { TWIND_REALTIME = 0, TWIND_FREERUN = 1, TWIND_LOCKSTEP = 2 } twind
 
 typedef struct {
     const char *config_path;
-    const char *lcm_url;     /* commands; NULL: LCM's default */
-    const char *lcm_out_url; /* outputs; NULL: derived from lcm_url (udpm: port + 1) */
-    const char *prefix;      /* channel prefix, default "AFMTWIN_" */
+    const char *lcm_url;         /* commands; NULL: LCM's default */
+    const char *lcm_out_url;     /* outputs; NULL: derived from lcm_url (udpm: port + 1) */
+    const char *lcm_samples_url; /* the sample stream; NULL: derived (udpm: port + 2) */
+    const char *prefix;          /* channel prefix, default "AFMTWIN_" */
     twind_mode mode;
     int cpu;             /* pin the RT thread to this CPU; -1: no pinning */
     int chain_cpu;       /* pin the chain thread to this CPU; -1: no pinning */
@@ -85,6 +86,7 @@ typedef struct {
 typedef struct {
     char reason[AFM_IO_REASON_LEN];
     int64_t order; /* of the command the RT thread rejected */
+    int64_t seq;   /* its seq (tagged onto the reason by the receive thread) */
 } twind_reason;
 
 /* Lines of rejections and refusals on stderr: at most this many a second, the rest

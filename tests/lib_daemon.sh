@@ -28,7 +28,8 @@ rt_others() {
   done | sort -u | tr '\n' ' ' > "$1"
 }
 
-# BUILD: A and D (afmtwin, afmtwind), listen, LCM_DEFAULT_URL, pass, fail, ok, bad.
+# BUILD: A and D (afmtwin, afmtwind), listen, LCM_DEFAULT_URL, AFMTWIN_CONFIG, pass, fail, ok,
+# bad.
 daemon_test_init() {
   A="$1/bin/afmtwin"
   D="$1/bin/afmtwind"
@@ -45,6 +46,8 @@ daemon_test_init() {
   # the output flood). Commands go to port 7667, outputs to 7668 (the daemon's default: the
   # command URL with port + 1), so the daemon's command socket carries commands only.
   export LCM_DEFAULT_URL='udpm://239.255.76.67:7667?ttl=0&recv_buf_size=4194304'
+  # `afmtwin send` checks against this config when given no --config (not installed here).
+  export AFMTWIN_CONFIG=config/default.conf
   pass=0; fail=0
   ok()  { echo "ok   $1"; pass=$((pass+1)); }
   bad() { echo "FAIL $1"; fail=$((fail+1)); }

@@ -32,6 +32,7 @@ if [ "$MODE" = --long ]; then PER_KIND=10; RT_S=15; else PER_KIND=1; RT_S=3; fi
 RATE=20000
 A="$BUILD/bin/afmtwin"
 export LCM_DEFAULT_URL='udpm://239.255.76.67:7667?ttl=0&recv_buf_size=4194304'
+export AFMTWIN_CONFIG=config/default.conf  # what `afmtwin send` checks against
 pass=0; fail=0
 ok()  { echo "ok   $1"; pass=$((pass+1)); }
 bad() { echo "FAIL $1"; fail=$((fail+1)); }

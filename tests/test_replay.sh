@@ -5,6 +5,7 @@
 BUILD=${1:-build}
 cd "$(dirname "$0")/.." || exit 1
 A="$BUILD/bin/afmtwin"
+export AFMTWIN_CONFIG=config/default.conf  # what `afmtwin send` checks against
 pass=0; fail=0
 ok()  { echo "ok   $1"; pass=$((pass+1)); }
 bad() { echo "FAIL $1"; fail=$((fail+1)); }
@@ -28,10 +29,10 @@ done
 
 # 1. Bit-identical: two runs of the same log.
 "$A" replay --config config/default.conf --in "$T/sweep.log" --out "$T/out1.log" --tail $DWELL \
-  2>"$T/replay1.txt"; rc=$?
+  --harmonics-every 1 2>"$T/replay1.txt"; rc=$?
 [ $rc -eq 0 ] && ok "replay exit 0: $(cat "$T/replay1.txt")" || bad "replay exit $rc: $(cat "$T/replay1.txt")"
 "$A" replay --config config/default.conf --in "$T/sweep.log" --out "$T/out2.log" --tail $DWELL \
-  --quiet; rc=$?
+  --harmonics-every 1 --quiet; rc=$?
 [ $rc -eq 0 ] && ok "second replay exit 0" || bad "second replay exit $rc"
 if [ -s "$T/out1.log" ] && cmp -s "$T/out1.log" "$T/out2.log"; then
   ok "two replays give identical logs ($(stat -c %s "$T/out1.log") bytes)"
@@ -49,6 +50,17 @@ n=$("$A" listen --log "$T/out1.log" --channels harmonics | wc -l)
 want=$(awk "BEGIN{print int(0.075 * 338112)}")
 awk "BEGIN{exit !($n > 0.98 * $want && $n < 1.02 * $want)}" && ok "harmonics: $n periods (~$want)" \
   || bad "harmonics: $n periods, want ~$want"
+# Decimated as the daemon does: by default every k-th period with k = ceil(fe / 1000 Hz)
+# (339 at 338.112 kHz: 0.075 s -> 74.8 records), --harmonics-max-hz 100 -> k = 3382 (7.5).
+"$A" replay --config config/default.conf --in "$T/sweep.log" --out "$T/dec.log" --tail $DWELL \
+  --channels harmonics --quiet
+n=$("$A" listen --log "$T/dec.log" 2>/dev/null | wc -l)
+[ "$n" -ge 73 ] && [ "$n" -le 77 ] && ok "replay's default harmonics decimation: $n records (~75, <= 1000/s)" ||
+  bad "default decimation: $n records, want ~75"
+"$A" replay --config config/default.conf --in "$T/sweep.log" --out "$T/dec.log" --tail $DWELL \
+  --channels harmonics --harmonics-max-hz 100 --quiet
+n=$("$A" listen --log "$T/dec.log" 2>/dev/null | wc -l)
+[ "$n" -ge 7 ] && [ "$n" -le 8 ] && ok "replay --harmonics-max-hz 100: $n records (7.5)" || bad "--harmonics-max-hz 100: $n records"
 last=$("$A" listen --log "$T/out1.log" --channels status --json | tail -1)
 echo "$last" | grep -q '"mode":"replay"' && echo "$last" | grep -q '"received":5,' \
   && echo "$last" | grep -q '"seq_applied":5,' && ok "final status: 5 received, seq 5 applied" \

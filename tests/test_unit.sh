@@ -2,7 +2,8 @@
 # SPDX-License-Identifier: MIT
 # test_unit.sh BUILD -- systemd/afmtwind.service passes `systemd-analyze verify` (with
 # ExecStart pointed at BUILD's afmtwind and the repository's default.conf, as `make install`
-# rewrites it for PREFIX), and keeps the promised settings: Type=notify, a watchdog, an
+# rewrites it for PREFIX and SYSCONFDIR, and its Documentation= man pages found among BUILD's
+# generated ones), and keeps the promised settings: Type=notify, a watchdog, an
 # unprivileged dynamic user with only CAP_SYS_NICE and CAP_IPC_LOCK, NoNewPrivileges and
 # ProtectSystem=strict.
 set -u
@@ -15,8 +16,12 @@ unit=systemd/afmtwind.service
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 case "$BUILD" in /*) bin=$BUILD/bin/afmtwind ;; *) bin=$PWD/$BUILD/bin/afmtwind ;; esac
-sed "s|/usr/local/bin/afmtwind|$bin|; s|/usr/local/share/afmtwin/config/default.conf|$PWD/config/default.conf|" \
+sed "s|/usr/local/bin/afmtwind|$bin|; s|/usr/local/etc/afmtwin/afmtwind.conf|$PWD/config/default.conf|" \
   "$unit" > "$tmp/afmtwind.service"
+# verify runs `man` for every man: page in Documentation=
+mkdir -p "$tmp/man/man1" "$tmp/man/man8"
+cp "$BUILD/man/afmtwin.1" "$tmp/man/man1/" 2>/dev/null; cp "$BUILD/man/afmtwind.8" "$tmp/man/man8/" 2>/dev/null
+export MANPATH="$tmp/man"
 if ! command -v systemd-analyze >/dev/null; then
   bad "systemd-analyze not installed (Debian package systemd; make deps installs it)"
 elif out=$(systemd-analyze verify "$tmp/afmtwind.service" 2>&1) && [ -z "$out" ]; then

@@ -5,6 +5,10 @@
 #include <stdio.h>
 #include <string.h>
 
+#ifndef AFMTWIN_VERSION
+#define AFMTWIN_VERSION "unknown"
+#endif
+
 typedef struct {
     const char *name;
     int (*run)(int argc, char **argv);
@@ -38,7 +42,8 @@ static void usage(FILE *f) {
                "A digital twin of a tapping-mode AFM cantilever (see README.md).\n\ncommands:\n");
     for (size_t i = 0; i < sizeof commands / sizeof commands[0]; i++)
         fprintf(f, "  %-12s %s\n", commands[i].name, commands[i].summary);
-    fprintf(f, "  help         this text\n\n`afmtwin COMMAND --help` describes every option.\n");
+    fprintf(f, "  help         this text\n  --version    the version\n\n"
+               "`afmtwin COMMAND --help` describes every option.\n");
 }
 
 int main(int argc, char **argv) {
@@ -48,6 +53,10 @@ int main(int argc, char **argv) {
     }
     if (!strcmp(argv[1], "help") || !strcmp(argv[1], "--help") || !strcmp(argv[1], "-h")) {
         usage(stdout);
+        return 0;
+    }
+    if (!strcmp(argv[1], "--version")) {
+        printf("afmtwin %s\n", AFMTWIN_VERSION);
         return 0;
     }
     for (size_t i = 0; i < sizeof commands / sizeof commands[0]; i++)

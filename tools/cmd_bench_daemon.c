@@ -42,8 +42,9 @@
 #include <unistd.h>
 
 /* The default command URL (--lcm-url): LCM's group and port with 4 MiB receive buffers; the
- * outputs then go to port 7668 (afm_lcm_urls: the command URL with the port + 1, afmtwind's
- * default too), so that the daemon's command socket carries commands only. */
+ * outputs then go to port 7668 and the samples to 7669 (afm_lcm_urls, afm_lcm_samples_urls:
+ * the command URL with the port + 1 and + 2, afmtwind's defaults too, afmtwin_lcm_layout.h),
+ * so that the daemon's command socket carries commands only. */
 #define BD_URL "udpm://239.255.76.67:7667?ttl=0&recv_buf_size=4194304"
 #define BD_MAX_CMDS 100000
 #define BD_CLIENT_PRIO 90 /* above afmtwind's threads (80 and below) */
@@ -60,8 +61,8 @@
 
 typedef struct {
     const char *daemon;
-    const char *url, *out_url, *prefix; /* as given (NULL: default), passed on to the daemon */
-    afmt_channels ch;                   /* of prefix */
+    const char *url, *out_url, *samples_url, *prefix; /* as given (NULL: default), passed on */
+    afmt_channels ch;                                 /* of prefix */
     const char *configs[8];
     int n_configs;
     int commands;
@@ -95,7 +96,8 @@ static void bd_usage(FILE *f) {
     fprintf(f,
             "usage: afmtwin bench-daemon [--daemon PATH] [--config FILE]... [--commands N]\n"
             "                            [--seconds S] [--json] [--no-netns]\n"
-            "                            [--lcm-url URL] [--lcm-out-url URL] [--prefix NAME_]\n\n"
+            "                            [--lcm-url URL] [--lcm-out-url URL]\n"
+            "                            [--lcm-samples-url URL] [--prefix NAME_]\n\n"
             "Benchmarks the running daemon from outside, over LCM, inside a private network\n"
             "namespace (unshare -n; loopback with a multicast route, nothing else):\n"
             "  real-time factor  model seconds per wall second while tapping with all outputs\n"
@@ -119,6 +121,8 @@ static void bd_usage(FILE *f) {
             "  --lcm-url URL   the daemon's command URL, given to afmtwind and lockstep\n"
             "                  (default " BD_URL ")\n"
             "  --lcm-out-url URL  its output URL (default: --lcm-url with the udpm port + 1)\n"
+            "  --lcm-samples-url URL  its sample stream's URL (default: --lcm-url with the udpm\n"
+            "                  port + 2)\n"
             "  --prefix NAME_  channel-name prefix, given to afmtwind (default " AFMT_DEFAULT_PREFIX
             ")\n"
             "  --no-netns      run in the current network namespace (already private)\n"
@@ -163,12 +167,12 @@ static void on_samples(const void *msg, void *u) {
     }
 }
 
-static void pump(lcm_t *lcm, double seconds) {
+static void pump(afmt_lcm *l, double seconds) {
     double end = afmt_mono_s() + seconds;
     for (;;) {
         double left = end - afmt_mono_s();
         if (left <= 0) return;
-        lcm_handle_timeout(lcm, (int)ceil(left * 1e3));
+        afmt_lcm_handle(l, (int)ceil(left * 1e3));
     }
 }
 
@@ -216,6 +220,10 @@ static pid_t start_daemon(const bd_opts *o, const char *config, const char *errf
     if (o->out_url) {
         argv[n++] = "--lcm-out-url";
         argv[n++] = o->out_url;
+    }
+    if (o->samples_url) {
+        argv[n++] = "--lcm-samples-url";
+        argv[n++] = o->samples_url;
     }
     argv[n++] = "--prefix";
     argv[n++] = o->prefix;
@@ -281,7 +289,7 @@ static void client_normal(const bd_result *r) {
 /* (a) The real-time factor over o->seconds of status: model time advanced / wall time
  * between the first and last status received here; overruns, stalls, resyncs and lag from
  * the daemon's status, and the tapping check from its harmonics. 0, or -1 with r->err. */
-static int measure_rtf(const bd_opts *o, lcm_t *lcm, bd_state *s, bd_result *r) {
+static int measure_rtf(const bd_opts *o, afmt_lcm *lcm, bd_state *s, bd_result *r) {
     s->n_status = 0;
     pump(lcm, o->seconds);
     if (s->n_status < 2 || s->last.wall_s <= s->first.wall_s) {
@@ -304,7 +312,7 @@ static int measure_rtf(const bd_opts *o, lcm_t *lcm, bd_state *s, bd_result *r) 
 /* (b) Latency: o->commands setpoints (Z 35 / 35.5 nm), each after a pseudo-random pause of
  * 0..2 ms, timed from just before publishing to the first samples message that carries its
  * seq (lost after BD_WAIT_S); p50, p99, max and mean (s). */
-static void measure_latency(const bd_opts *o, lcm_t *lcm, lcm_t *cmd, bd_state *s, bd_result *r) {
+static void measure_latency(const bd_opts *o, afmt_lcm *lcm, bd_state *s, bd_result *r) {
     static double lat[BD_MAX_CMDS];
     unsigned long long lcg = 12345;
     for (int i = 0; i < o->commands; i++) {
@@ -315,10 +323,10 @@ static void measure_latency(const bd_opts *o, lcm_t *lcm, lcm_t *cmd, bd_state *
         s->want_seq = c.seq;
         s->got = false;
         double t0 = afmt_mono_s();
-        afmtwin_setpoint_t_publish(cmd, o->ch.cmd[AFM_CMD_SETPOINT], &c);
+        afmtwin_setpoint_t_publish(lcm->cmd, o->ch.cmd[AFM_CMD_SETPOINT], &c);
         r->sent++;
         while (!s->got && afmt_mono_s() - t0 < BD_WAIT_S)
-            lcm_handle_timeout(lcm, 100);
+            afmt_lcm_handle(lcm, 100);
         if (s->got)
             lat[r->n_lat++] = s->t_got - t0;
         else
@@ -337,13 +345,13 @@ static void measure_latency(const bd_opts *o, lcm_t *lcm, lcm_t *cmd, bd_state *
 
 /* (c) Loss under load: a burst of o->commands setpoints 100 us apart (10 per 1 ms block,
  * well inside the command queue) while all outputs flow; every one must be applied. */
-static void measure_burst(const bd_opts *o, lcm_t *lcm, lcm_t *cmd, bd_state *s, bd_result *r) {
+static void measure_burst(const bd_opts *o, afmt_lcm *lcm, bd_state *s, bd_result *r) {
     pump(lcm, 0.3);
     long long applied0 = s->last_applied, received0 = s->last_received;
     for (int i = 0; i < o->commands; i++) {
         afmtwin_setpoint_t c = {
             .utime = afmt_wall_us(), .seq = 1000000 + i, .separation_m = (i & 1) ? 35.5e-9 : 35e-9};
-        afmtwin_setpoint_t_publish(cmd, o->ch.cmd[AFM_CMD_SETPOINT], &c);
+        afmtwin_setpoint_t_publish(lcm->cmd, o->ch.cmd[AFM_CMD_SETPOINT], &c);
         r->sent++;
         pump(lcm, 100e-6);
     }
@@ -378,8 +386,9 @@ static void bench_config(const bd_opts *o, const char *config, bd_result *r) {
      * LCM's own receive thread inherits it; SCHED_RESET_ON_FORK keeps it from the daemon. */
     struct sched_param prio = {.sched_priority = BD_CLIENT_PRIO};
     r->client_fifo = sched_setscheduler(0, SCHED_FIFO | BD_RESET_ON_FORK, &prio) == 0;
-    lcm_t *lcm, *cmd; /* outputs in; commands out (never subscribed) */
-    if (afmt_lcm_open(o->url, o->out_url, &cmd, &lcm, r->err, sizeof r->err)) {
+    afmt_lcm lcm; /* outputs in (the samples on their own URL); commands out (never subscribed) */
+    if (afmt_lcm_open(&lcm, o->url, o->out_url, o->samples_url, AFMT_OPEN_CMD | AFMT_OPEN_SAMPLES,
+                      r->err, sizeof r->err)) {
         unlink(errfile);
         client_normal(r);
         return;
@@ -390,25 +399,25 @@ static void bench_config(const bd_opts *o, const char *config, bd_result *r) {
     afmt_checked_sub subs[3] = {{&afm_wire_status_t, on_status, &s, 0},
                                 {&afm_wire_harmonics_t, on_harm, &s, 0},
                                 {&afm_wire_samples_t, on_samples, &s, 0}};
-    afmt_subscribe_checked(lcm, o->ch.out[AFMT_OUT_STATUS], &subs[0], 1000);
-    afmt_subscribe_checked(lcm, o->ch.out[AFMT_OUT_HARMONICS], &subs[1], 10000);
-    afmt_subscribe_checked(lcm, o->ch.out[AFMT_OUT_SAMPLES], &subs[2], 10000);
+    afmt_subscribe_checked(lcm.out, o->ch.out[AFMT_OUT_STATUS], &subs[0], 1000);
+    afmt_subscribe_checked(lcm.out, o->ch.out[AFMT_OUT_HARMONICS], &subs[1], 10000);
+    afmt_subscribe_checked(lcm.samples, o->ch.out[AFMT_OUT_SAMPLES], &subs[2], 10000);
     pid_t pid = start_daemon(o, config, errfile, NULL);
     if (pid < 0) {
         snprintf(r->err, sizeof r->err, "fork failed");
     } else {
         for (int i = 0; i < 50 && s.n_status == 0; i++) /* up? */
-            pump(lcm, 0.1);
+            pump(&lcm, 0.1);
         if (s.n_status == 0) {
             snprintf(r->err, sizeof r->err, "no status from %s within 5 s", o->daemon);
         } else {
             r->block_s = block_from_errfile(errfile);
-            send_tap(o, cmd);
+            send_tap(o, lcm.cmd);
             r->sent = 2;
-            pump(lcm, 1.0);
-            if (measure_rtf(o, lcm, &s, r) == 0) {
-                measure_latency(o, lcm, cmd, &s, r);
-                measure_burst(o, lcm, cmd, &s, r);
+            pump(&lcm, 1.0);
+            if (measure_rtf(o, &lcm, &s, r) == 0) {
+                measure_latency(o, &lcm, &s, r);
+                measure_burst(o, &lcm, &s, r);
                 r->rejected = s.last_rejected;
                 r->received = s.last_received;
                 r->applied = s.last_applied;
@@ -419,8 +428,7 @@ static void bench_config(const bd_opts *o, const char *config, bd_result *r) {
         stop_daemon(pid, r);
         read_warnings(errfile, r->warn, sizeof r->warn);
     }
-    lcm_destroy(cmd);
-    lcm_destroy(lcm);
+    afmt_lcm_close(&lcm);
     unlink(errfile);
     client_normal(r);
 }
@@ -444,9 +452,10 @@ static int bench_lockstep(const bd_opts *o, const char *config) {
                                          {"--mode", "lockstep", "--cpu", pins[1][0], "--chain-cpu",
                                           pins[1][1], "--aux-cpu", pins[1][2], NULL}};
         pid_t pid = start_daemon(o, config, NULL, extra[pin]);
-        lcm_t *cmd = NULL, *out = NULL;
+        afmt_lcm lcm = {0};
         char err[256];
-        if (pid < 0 || afmt_lcm_open(o->url, o->out_url, &cmd, &out, err, sizeof err)) {
+        if (pid < 0 || afmt_lcm_open(&lcm, o->url, o->out_url, o->samples_url, AFMT_OPEN_CMD, err,
+                                     sizeof err)) {
             if (pid > 0) {
                 kill(pid, SIGTERM);
                 waitpid(pid, NULL, 0);
@@ -456,12 +465,11 @@ static int bench_lockstep(const bd_opts *o, const char *config) {
         }
         bd_state st = {.want_seq = -1}; /* up: its status arrives */
         afmt_checked_sub sub = {&afm_wire_status_t, on_status, &st, 0};
-        afmt_subscribe_checked(out, o->ch.out[AFMT_OUT_STATUS], &sub, 1000);
+        afmt_subscribe_checked(lcm.out, o->ch.out[AFMT_OUT_STATUS], &sub, 1000);
         for (int i = 0; i < 100 && st.n_status == 0; i++)
-            pump(out, 0.1);
-        lcm_destroy(out); /* and the subscription */
-        send_tap(o, cmd); /* applied with the first tick */
-        lcm_destroy(cmd);
+            pump(&lcm, 0.1);
+        send_tap(o, lcm.cmd); /* applied with the first tick */
+        afmt_lcm_close(&lcm); /* and the subscription */
         if (!o->json)
             printf("   %s:\n", pin ? "pinned (afmtwind --cpu 0 --chain-cpu 1 --aux-cpu 0, "
                                      "afmtwin lockstep --cpu 0)"
@@ -470,7 +478,7 @@ static int bench_lockstep(const bd_opts *o, const char *config) {
         for (int k = 0; k < 2; k++) {
             char secs[32];
             snprintf(secs, sizeof secs, "%g", o->seconds > 3 ? 3.0 : o->seconds);
-            char *argv[20];
+            char *argv[24];
             int argc = 0;
             argv[argc++] = "lockstep";
             argv[argc++] = "--bench";
@@ -482,6 +490,10 @@ static int bench_lockstep(const bd_opts *o, const char *config) {
             if (o->out_url) {
                 argv[argc++] = "--lcm-out-url";
                 argv[argc++] = (char *)o->out_url;
+            }
+            if (o->samples_url) {
+                argv[argc++] = "--lcm-samples-url";
+                argv[argc++] = (char *)o->samples_url;
             }
             argv[argc++] = "--prefix";
             argv[argc++] = (char *)o->prefix;
@@ -561,6 +573,9 @@ int afm_cmd_bench_daemon(int argc, char **argv) {
             i++;
         } else if (!strcmp(a, "--lcm-out-url") && v) {
             o.out_url = v;
+            i++;
+        } else if (!strcmp(a, "--lcm-samples-url") && v) {
+            o.samples_url = v;
             i++;
         } else if (!strcmp(a, "--prefix") && v) {
             o.prefix = v;

@@ -1,7 +1,7 @@
 /* SPDX-License-Identifier: MIT */
 /* cmd_listen.c -- `afmtwin listen`: subscribes to the twin's output channels (samples,
  * harmonics, status, tick_done) and prints each message as text or as one JSON object per
- * line. */
+ * line; follows each channel's msg_seq and reports lost messages as they show and at exit. */
 #include "afmtwin_cmds.h"
 #include "json_out.h"
 #include "lcm_tool.h"
@@ -35,13 +35,19 @@ typedef struct {
     long count;       /* 0: no limit */
     double timeout_s; /* 0: none */
     bool want[N_OUT];
-    const char *url, *out_url, *prefix, *log;
+    const char *url, *out_url, *samples_url, *prefix, *log;
     long got;          /* messages printed */
     long bad;          /* messages that did not decode */
     long bad_quiet;    /* ... of which not reported on stderr (throttled) */
     double bad_t0;     /* start of the current second of stderr reports */
     int bad_in_second; /* reports in it */
     afmt_channels ch;
+    /* msg_seq per channel: the last one seen (-1: none yet), messages lost in gaps, gaps */
+    int64_t last_seq[N_OUT];
+    long long lost[N_OUT], gaps[N_OUT], restarts[N_OUT], n_ch[N_OUT];
+    double gap_t0;     /* start of the current second of gap reports */
+    int gap_in_second; /* reports in it */
+    long gap_quiet;    /* gap reports left out (throttled) */
 } listen_ctx;
 
 static volatile sig_atomic_t listen_stop;
@@ -54,7 +60,7 @@ static void listen_usage(FILE *f) {
     fprintf(f,
             "usage: afmtwin listen [--json] [--full] [--count N] [--channels LIST]\n"
             "                      [--timeout S] [--lcm-url URL] [--lcm-out-url URL]\n"
-            "                      [--prefix NAME_]\n"
+            "                      [--lcm-samples-url URL] [--prefix NAME_]\n"
             "       afmtwin listen --log FILE [--json] [--full] [--count N] [--channels LIST]\n"
             "                      [--prefix NAME_]\n\n"
             "Prints what the twin (afmtwind, or `afmtwin replay` through lcm-logplayer)\n"
@@ -71,21 +77,29 @@ static void listen_usage(FILE *f) {
             "  --channels LIST  comma-separated subset of samples,harmonics,status,tick_done\n"
             "                   (default all)\n"
             "  --timeout S      exit after S seconds (S > 0; default: run until N messages or a\n"
-            "                   signal)\n"
+            "                   signal); exit status 1 if nothing arrived by then\n"
             "  --lcm-url URL    the twin's command URL, as given to afmtwind (default:\n"
             "                   LCM_DEFAULT_URL or LCM's default); the outputs are read from\n"
-            "                   the output URL derived from it (udpm: port + 1)\n"
-            "  --lcm-out-url URL  read the outputs from this URL instead (afmtwind\n"
-            "                   --lcm-out-url)\n"
+            "                   the output URL derived from it (udpm: port + 1; the samples\n"
+            "                   from port + 2, opened only when samples are wanted)\n"
+            "  --lcm-out-url URL  read harmonics, status, tick_done from this URL instead\n"
+            "                   (afmtwind --lcm-out-url)\n"
+            "  --lcm-samples-url URL  read the samples from this URL (afmtwind\n"
+            "                   --lcm-samples-url)\n"
             "  --prefix NAME_   channel-name prefix of the twin (default %s)\n"
             "  --log FILE       read the messages from an LCM log (lcm-logger's format, e.g.\n"
             "                   `afmtwin replay --out`) instead of the network, to its end\n"
             "  --help           this text\n\n"
             "Channels: PREFIX + %s, %s, %s, %s. Text output: one line per message.\n"
+            "Lost messages: every output message carries msg_seq (per channel, +1 each); a\n"
+            "jump is reported on stderr as it shows (at most 5 lines a second) and summed up\n"
+            "at exit, with the messages received per channel (stderr).\n"
             "Status: rtf(1 s) is model over wall time of the last second of running; the\n"
             "lock-in phase is the LAG of the deflection behind the drive (90 deg for a free\n"
             "cantilever at resonance, below 90 in the repulsive regime).\n"
-            "Exit status 0 ok, 1 LCM failure or --count not reached, 2 bad usage.\n",
+            "Exit status 0 ok (also on SIGINT and SIGTERM, after the summary), 1 LCM\n"
+            "failure, --count not reached, or nothing at all received within --timeout;\n"
+            "2 bad usage.\n",
             AFMT_DEFAULT_PREFIX, AFMT_CHAN_SAMPLES, AFMT_CHAN_HARMONICS, AFMT_CHAN_STATUS,
             AFMT_CHAN_TICK_DONE);
 }
@@ -167,12 +181,12 @@ static void json_lockin(cJSON *o, double amplitude_m, double phase_deg, double p
     json_num(o, "peak_force_n", peak_force_n);
 }
 
-static cJSON *json_head(const char *channel, const char *type, int64_t utime, int64_t seq) {
+static cJSON *json_head(const char *channel, const char *type, int64_t utime, int64_t msg_seq) {
     cJSON *o = cJSON_CreateObject();
     cJSON_AddStringToObject(o, "channel", channel);
     cJSON_AddStringToObject(o, "type", type);
     json_int(o, "utime", utime);
-    json_int(o, "seq_applied", seq);
+    json_int(o, "msg_seq", msg_seq);
     return o;
 }
 
@@ -193,7 +207,8 @@ static void print_samples(const listen_ctx *c, const char *channel, const afmtwi
     arr_stats sx = stats_f(m->deflection_m, m->n), so = stats_f(m->obd_m, m->n),
               sf = stats_f(m->force_n, m->n);
     if (c->json) {
-        cJSON *o = json_head(channel, "samples", m->utime, m->seq_applied);
+        cJSON *o = json_head(channel, "samples", m->utime, m->msg_seq);
+        json_int(o, "seq_applied", m->seq_applied);
         cJSON_AddNumberToObject(o, "stream", m->stream);
         json_num(o, "t0_s", m->t0_s);
         json_num(o, "rate_hz", m->rate_hz);
@@ -228,7 +243,8 @@ static void print_samples(const listen_ctx *c, const char *channel, const afmtwi
 static void print_harmonics(const listen_ctx *c, const char *channel,
                             const afmtwin_harmonics_t *m) {
     if (c->json) {
-        cJSON *o = json_head(channel, "harmonics", m->utime, m->seq_applied);
+        cJSON *o = json_head(channel, "harmonics", m->utime, m->msg_seq);
+        json_int(o, "seq_applied", m->seq_applied);
         json_num(o, "t_s", m->t_s);
         json_num(o, "fe_hz", m->fe_hz);
         cJSON_AddNumberToObject(o, "n", m->n);
@@ -265,7 +281,8 @@ static void print_harmonics(const listen_ctx *c, const char *channel,
 
 static void print_status(const listen_ctx *c, const char *channel, const afmtwin_status_t *m) {
     if (c->json) {
-        cJSON *o = json_head(channel, "status", m->utime, m->seq_applied);
+        cJSON *o = json_head(channel, "status", m->utime, m->msg_seq);
+        json_int(o, "seq_applied", m->seq_applied);
         json_num(o, "model_time_s", m->model_time_s);
         json_num(o, "realtime_factor", m->realtime_factor);
         json_int(o, "overruns", m->overruns);
@@ -362,12 +379,60 @@ static void report_bad(listen_ctx *c, const char *channel, uint32_t size, const 
             channel, size, type, why);
 }
 
+/* msg_seq of channel k: a jump forward is lost messages (reported, throttled as report_bad);
+ * a jump back is a restarted publisher (said once per restart). */
+static void track_seq(listen_ctx *c, int k, int64_t seq) {
+    int64_t last = c->last_seq[k];
+    c->last_seq[k] = seq;
+    c->n_ch[k]++;
+    if (last < 0 || seq == last + 1) return;
+    if (seq <= last) {
+        c->restarts[k]++;
+        fprintf(stderr, "afmtwin listen: %s: msg_seq %lld after %lld: the publisher restarted\n",
+                c->ch.out[k], (long long)seq, (long long)last);
+        return;
+    }
+    long long lost = (long long)(seq - last - 1);
+    c->lost[k] += lost;
+    c->gaps[k]++;
+    double now = afmt_mono_s();
+    if (now - c->gap_t0 >= 1.0) {
+        if (c->gap_quiet)
+            fprintf(stderr, "afmtwin listen: ... and %ld more gaps (summary at exit)\n",
+                    c->gap_quiet);
+        c->gap_quiet = 0;
+        c->gap_t0 = now;
+        c->gap_in_second = 0;
+    }
+    if (c->gap_in_second++ >= BAD_LINES_PER_S) {
+        c->gap_quiet++;
+        return;
+    }
+    fprintf(stderr, "afmtwin listen: %s: %lld messages lost (msg_seq %lld -> %lld)\n", c->ch.out[k],
+            lost, (long long)last, (long long)seq);
+}
+
+/* At exit, on stderr: messages per channel, lost ones and gaps, undecodable ones (seconds <
+ * 0: from a log). */
+static void print_summary(const listen_ctx *c, double seconds) {
+    if (seconds >= 0)
+        fprintf(stderr, "afmtwin listen: %ld messages in %.3g s:", c->got, seconds);
+    else
+        fprintf(stderr, "afmtwin listen: %ld messages from %s:", c->got, c->log);
+    long long lost = 0;
+    for (int k = 0; k < N_OUT; k++) {
+        if (!c->want[k]) continue;
+        lost += c->lost[k];
+        fprintf(stderr, " %s %lld", afmt_out_names[k], c->n_ch[k]);
+        if (c->lost[k]) fprintf(stderr, " (%lld lost in %lld gaps)", c->lost[k], c->gaps[k]);
+        if (c->restarts[k]) fprintf(stderr, " (%lld restarts)", c->restarts[k]);
+    }
+    fprintf(stderr, "; %lld lost, %ld did not decode\n", lost, c->bad);
+}
+
 static void print_done(const listen_ctx *c, const char *channel, const afmtwin_tick_done_t *m) {
     if (c->json) {
-        cJSON *o = cJSON_CreateObject();
-        cJSON_AddStringToObject(o, "channel", channel);
-        cJSON_AddStringToObject(o, "type", "tick_done");
-        json_int(o, "utime", m->utime);
+        cJSON *o = json_head(channel, "tick_done", m->utime, m->msg_seq);
         json_int(o, "seq", m->seq);
         json_int(o, "samples", m->samples);
         json_num(o, "model_time_s", m->model_time_s);
@@ -411,6 +476,11 @@ static void on_message(const lcm_recv_buf_t *rb, const char *channel, void *user
         report_bad(c, channel, rb->data_size, types[k]->name, why);
         return;
     }
+    track_seq(c, k,
+              k == AFMT_OUT_SAMPLES     ? m.samples.msg_seq
+              : k == AFMT_OUT_HARMONICS ? m.harmonics.msg_seq
+              : k == AFMT_OUT_STATUS    ? m.status.msg_seq
+                                        : m.done.msg_seq);
     if (k == AFMT_OUT_SAMPLES)
         print_samples(c, channel, &m.samples);
     else if (k == AFMT_OUT_HARMONICS)
@@ -426,6 +496,8 @@ static void on_message(const lcm_recv_buf_t *rb, const char *channel, void *user
 
 /* Messages from a log file, in order, through the same handler. Every event header is
  * checked before anything is allocated for it (afm_lcm_log.h). */
+static void print_summary(const listen_ctx *c, double seconds);
+
 static int listen_log(listen_ctx *c) {
     char err[AFM_ERR_LEN];
     afm_lcm_log *l = afm_lcm_log_open(c->log, 0, err, sizeof err);
@@ -445,6 +517,8 @@ static int listen_log(listen_ctx *c) {
     }
     long long skipped = afm_lcm_log_skipped(l);
     afm_lcm_log_close(&l);
+    if (c->gap_quiet) fprintf(stderr, "afmtwin listen: ... and %ld more gaps\n", c->gap_quiet);
+    print_summary(c, -1);
     if (c->bad_quiet)
         fprintf(stderr, "afmtwin listen: ... and %ld more that did not decode\n", c->bad_quiet);
     if (skipped > 0)
@@ -465,8 +539,10 @@ static int listen_log(listen_ctx *c) {
 
 int afm_cmd_listen(int argc, char **argv) {
     listen_ctx c = {.prefix = AFMT_DEFAULT_PREFIX};
-    for (int i = 0; i < N_OUT; i++)
+    for (int i = 0; i < N_OUT; i++) {
         c.want[i] = true;
+        c.last_seq[i] = -1;
+    }
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
         if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
@@ -505,6 +581,9 @@ int afm_cmd_listen(int argc, char **argv) {
         } else if (!strcmp(a, "--lcm-out-url") && v) {
             c.out_url = v;
             i++;
+        } else if (!strcmp(a, "--lcm-samples-url") && v) {
+            c.samples_url = v;
+            i++;
         } else if (!strcmp(a, "--log") && v) {
             c.log = v;
             i++;
@@ -522,33 +601,34 @@ int afm_cmd_listen(int argc, char **argv) {
         return 2;
     }
     if (c.log) return listen_log(&c);
-    lcm_t *lcm;
-    int orc = afmt_lcm_open(c.url, c.out_url, NULL, &lcm, err, sizeof err);
+    afmt_lcm o;
+    int orc = afmt_lcm_open(&o, c.url, c.out_url, c.samples_url,
+                            c.want[AFMT_OUT_SAMPLES] ? AFMT_OPEN_SAMPLES : 0, err, sizeof err);
     if (orc) {
         fprintf(stderr, "afmtwin listen: %s\n", err);
         return orc == -1 ? 2 : 1;
     }
     for (int i = 0; i < N_OUT; i++) {
         if (!c.want[i]) continue;
-        lcm_subscription_t *sub = lcm_subscribe(lcm, c.ch.out[i], on_message, &c);
+        lcm_subscription_t *sub = lcm_subscribe(afmt_lcm_of(&o, i), c.ch.out[i], on_message, &c);
         if (!sub) {
             fprintf(stderr, "afmtwin listen: cannot subscribe to %s\n", c.ch.out[i]);
-            lcm_destroy(lcm);
+            afmt_lcm_close(&o);
             return 1;
         }
         /* the daemon publishes in bursts (one block's outputs at once) */
         lcm_subscription_set_queue_capacity(sub, LISTEN_QUEUE);
     }
-    struct sigaction sa = {.sa_handler = on_signal};
+    struct sigaction sa = {.sa_handler = on_signal}; /* no SA_RESTART: the wait ends at once */
     sigaction(SIGINT, &sa, NULL);
     sigaction(SIGTERM, &sa, NULL);
-    double t_end = c.timeout_s > 0 ? afmt_mono_s() + c.timeout_s : INFINITY;
+    double t0 = afmt_mono_s(), t_end = c.timeout_s > 0 ? t0 + c.timeout_s : INFINITY;
     int rc = 0;
     while (!listen_stop && (c.count == 0 || c.got < c.count)) {
         double left = t_end - afmt_mono_s();
         if (left <= 0) break;
         int ms = left > 0.2 ? 200 : (int)ceil(left * 1e3);
-        if (lcm_handle_timeout(lcm, ms) < 0) {
+        if (afmt_lcm_handle(&o, ms) < 0 && !listen_stop) {
             fprintf(stderr, "afmtwin listen: LCM receive failed\n");
             rc = 1;
             break;
@@ -556,11 +636,20 @@ int afm_cmd_listen(int argc, char **argv) {
     }
     if (c.bad_quiet)
         fprintf(stderr, "afmtwin listen: ... and %ld more that did not decode\n", c.bad_quiet);
-    if (rc == 0 && c.count > 0 && c.got < c.count) {
-        fprintf(stderr, "afmtwin listen: %s after %ld of %ld messages\n",
-                listen_stop ? "stopped" : "timed out", c.got, c.count);
+    if (c.gap_quiet) fprintf(stderr, "afmtwin listen: ... and %ld more gaps\n", c.gap_quiet);
+    if (listen_stop) {
+        fprintf(stderr, "afmtwin listen: stopped by a signal\n");
+    } else if (rc == 0 && c.count > 0 && c.got < c.count) {
+        fprintf(stderr, "afmtwin listen: timed out after %ld of %ld messages\n", c.got, c.count);
+        rc = 1;
+    } else if (rc == 0 && c.got == 0) {
+        fprintf(stderr,
+                "afmtwin listen: nothing received within %g s (is afmtwind running on these "
+                "URLs, with this prefix?)\n",
+                c.timeout_s);
         rc = 1;
     }
-    lcm_destroy(lcm);
+    print_summary(&c, afmt_mono_s() - t0);
+    afmt_lcm_close(&o);
     return rc;
 }

@@ -51,6 +51,9 @@ typedef struct {
     uint8_t *data;
 } ls_event;
 
+/* longest wait for the samples a completion counts (they come on another socket) */
+#define LS_SAMPLES_WAIT_S 0.5
+
 typedef struct {
     int64_t seq, samples;
     double t_s;
@@ -59,12 +62,12 @@ typedef struct {
 
 typedef struct {
     /* options */
-    const char *in, *config, *url, *out_url, *prefix, *sequence, *out;
+    const char *in, *config, *url, *out_url, *samples_url, *prefix, *sequence, *out;
     double tick_us, tail_s, timeout_s, bench_s, until_s;
     int harmonics_every, rt_priority, cpu;
     bool check, bench, quiet, json;
     /* LCM */
-    lcm_t *lcm_in, *lcm_cmd;
+    afmt_lcm lcm; /* commands out; harmonics, status, tick_done in; the samples on their URL */
     afmt_channels ch;
     lcm_eventlog_t *seq_log, *out_log;
     /* what came back */
@@ -122,6 +125,7 @@ static void ls_usage(FILE *f) {
         "  --out LOG         write the outputs received to LOG\n"
         "  --lcm-url URL     the daemon's command URL (default: LCM_DEFAULT_URL or LCM's)\n"
         "  --lcm-out-url URL its output URL (default: derived, udpm port + 1)\n"
+        "  --lcm-samples-url URL  its samples URL (default: derived, udpm port + 2)\n"
         "  --prefix NAME_    channel prefix (default %s)\n"
         "  --timeout S       longest wait for a completion (default 10)\n"
         "  --rt-priority N   SCHED_FIFO priority of this client when permitted (default 90:\n"
@@ -187,6 +191,12 @@ static void on_done(const lcm_recv_buf_t *rb, const char *channel, void *user) {
         c->bad_msgs++;
         return;
     }
+    /* The samples come on their own socket: those published before this completion may
+     * still be on their way (LCM's receive threads); wait for them, bounded. */
+    for (double t0 = afmt_mono_s(); c->lcm.samples != c->lcm.out &&
+                                    c->dg.n_samples_msgs < m.n_samples_msgs &&
+                                    afmt_mono_s() - t0 < LS_SAMPLES_WAIT_S;)
+        if (lcm_handle_timeout(c->lcm.samples, 10) < 0) break;
     uint64_t sd = afm_lcm_digest_samples_final(&c->dg), hd = c->dg.harmonics;
     if (m.n_samples_msgs != c->dg.n_samples_msgs || m.n_harmonics_msgs != c->dg.n_harmonics_msgs ||
         (uint64_t)m.samples_digest != sd || (uint64_t)m.harmonics_digest != hd) {
@@ -219,7 +229,7 @@ static void seq_log_write(ls_ctx *c, const char *channel, const void *data, int 
 
 static int publish(ls_ctx *c, int kind, const void *data, int len) {
     seq_log_write(c, c->ch.cmd[kind], data, len);
-    return lcm_publish(c->lcm_cmd, c->ch.cmd[kind], data, (unsigned)len) < 0 ? -1 : 0;
+    return lcm_publish(c->lcm.cmd, c->ch.cmd[kind], data, (unsigned)len) < 0 ? -1 : 0;
 }
 
 /* Wait for the completion of seq (the last one sent), which runs n samples. 0, or -1 on
@@ -235,7 +245,7 @@ static int wait_done(ls_ctx *c, int64_t seq, long long n) {
                     (long long)seq, c->timeout_s);
             return -1;
         }
-        if (lcm_handle_timeout(c->lcm_in, (int)ceil(fmin(left, 0.2) * 1e3)) < 0) return -1;
+        if (afmt_lcm_handle(&c->lcm, (int)ceil(fmin(left, 0.2) * 1e3)) < 0) return -1;
     }
     c->wall_waiting += afmt_mono_s() - t0;
     c->done_seen = false;
@@ -440,6 +450,8 @@ static int parse_opts(ls_ctx *c, int argc, char **argv) {
             c->url = v;
         } else if (!strcmp(a, "--lcm-out-url")) {
             c->out_url = v;
+        } else if (!strcmp(a, "--lcm-samples-url")) {
+            c->samples_url = v;
         } else if (!strcmp(a, "--prefix")) {
             c->prefix = v;
         } else if (!strcmp(a, "--tick-us") || !strcmp(a, "--tail") || !strcmp(a, "--timeout") ||
@@ -503,13 +515,14 @@ static int open_lcm(ls_ctx *c, char *err, size_t errlen) {
                     "priority\n",
                     c->rt_priority, strerror(errno));
     }
-    int orc = afmt_lcm_open(c->url, c->out_url, &c->lcm_cmd, &c->lcm_in, err, errlen);
+    int orc = afmt_lcm_open(&c->lcm, c->url, c->out_url, c->samples_url,
+                            AFMT_OPEN_CMD | AFMT_OPEN_SAMPLES, err, errlen);
     if (orc) return orc == -1 ? 2 : 1;
     lcm_subscription_t *s[4] = {
-        lcm_subscribe(c->lcm_in, c->ch.out[AFMT_OUT_SAMPLES], on_samples, c),
-        lcm_subscribe(c->lcm_in, c->ch.out[AFMT_OUT_HARMONICS], on_harmonics, c),
-        lcm_subscribe(c->lcm_in, c->ch.out[AFMT_OUT_TICK_DONE], on_done, c),
-        lcm_subscribe(c->lcm_in, c->ch.out[AFMT_OUT_STATUS], on_status, c)};
+        lcm_subscribe(c->lcm.samples, c->ch.out[AFMT_OUT_SAMPLES], on_samples, c),
+        lcm_subscribe(c->lcm.out, c->ch.out[AFMT_OUT_HARMONICS], on_harmonics, c),
+        lcm_subscribe(c->lcm.out, c->ch.out[AFMT_OUT_TICK_DONE], on_done, c),
+        lcm_subscribe(c->lcm.out, c->ch.out[AFMT_OUT_STATUS], on_status, c)};
     for (int i = 0; i < 4; i++) {
         if (!s[i]) {
             snprintf(err, errlen, "cannot subscribe to the outputs");
@@ -520,7 +533,7 @@ static int open_lcm(ls_ctx *c, char *err, size_t errlen) {
     /* the daemon is up when its status (10 Hz) arrives: nothing is sent before */
     double t0 = afmt_mono_s();
     while (!c->status_seen && afmt_mono_s() - t0 < c->timeout_s)
-        lcm_handle_timeout(c->lcm_in, 100);
+        afmt_lcm_handle(&c->lcm, 100);
     if (!c->status_seen) {
         snprintf(err, errlen,
                  "no status from the daemon within %g s (is afmtwind running on "
@@ -648,8 +661,7 @@ int afm_cmd_lockstep(int argc, char **argv) {
     if (rc == 0 && c.check && check_with_replay(&c, seq_path)) rc = 1;
     if (seq_path == seq_tmp) unlink(seq_tmp);
 out:
-    if (c.lcm_cmd) lcm_destroy(c.lcm_cmd);
-    if (c.lcm_in) lcm_destroy(c.lcm_in);
+    afmt_lcm_close(&c.lcm);
     free(c.dones);
     return rc < 0 ? 1 : rc;
 }

@@ -51,7 +51,8 @@ enum {
 typedef struct {
     const char *config, *in, *out, *prefix;
     int block;
-    int harmonics_every; /* write every k-th period's harmonics (the daemon's rule) */
+    int harmonics_every;     /* write every k-th period's harmonics; 0: automatic */
+    double harmonics_max_hz; /* the automatic k: at most this many records a second */
     double tail_s;
     bool lockstep, quiet;
     bool want[N_OUT];
@@ -66,6 +67,7 @@ typedef struct {
     long long received, rejected, applied, skipped, written;
     char last_reject[AFM_IO_REASON_LEN];
     long long period_count; /* periods seen (harmonics_every) */
+    int64_t msg_seq[N_OUT]; /* next msg_seq per output channel, as the daemon numbers them */
     afm_lcm_digest dg;      /* of the messages since the last tick_done */
     bool have_period;
     double lockin_amplitude_m, lockin_phase_deg, peak_force_n; /* the last period's */
@@ -80,7 +82,7 @@ static void replay_usage(FILE *f) {
     fprintf(f,
             "usage: afmtwin replay --config FILE --in LOG --out LOG [--prefix NAME_]\n"
             "                      [--block N] [--tail S] [--lockstep] [--channels LIST]\n"
-            "                      [--harmonics-every K] [--quiet]\n\n"
+            "                      [--harmonics-every K | --harmonics-max-hz F] [--quiet]\n\n"
             "Runs the commands recorded in an LCM log (lcm-logger's format, e.g. a logged\n"
             "sweep, or one written with `afmtwin send --log`) through the twin of --config in\n"
             "model time, as fast as the machine allows, and writes what the daemon would\n"
@@ -104,8 +106,11 @@ static void replay_usage(FILE *f) {
             "                   log order; log times are ignored)\n"
             "  --channels LIST  outputs to write, comma-separated subset of\n"
             "                   samples,harmonics,status,tick_done (default all)\n"
-            "  --harmonics-every K  write every K-th period's harmonics (default 1: all; the\n"
-            "                   daemon's --harmonics-every K gives the same records)\n"
+            "  --harmonics-every K  write every K-th period's harmonics (1: all, ~185 MB per\n"
+            "                   model second with the samples at 338 kHz; the daemon's\n"
+            "                   --harmonics-every K gives the same records)\n"
+            "  --harmonics-max-hz F  default: K chosen as the daemon does, the smallest with at\n"
+            "                   most F records a second at the drive frequency (default %.0f)\n"
             "  --quiet          no summary on stderr\n"
             "  --help           this text\n\n"
             "Status messages come every %.1f s of model time and at the end; in them mode is\n"
@@ -114,7 +119,8 @@ static void replay_usage(FILE *f) {
             "digest of the samples and harmonics messages since the previous one, as afmtwind\n"
             "publishes it. Exit status 0 ok, 1 simulation or file failure, 2 bad usage, a bad\n"
             "config or an unreadable log.\n",
-            AFMT_DEFAULT_PREFIX, REPLAY_DEFAULT_BLOCK, REPLAY_STATUS_INTERVAL_S);
+            AFMT_DEFAULT_PREFIX, REPLAY_DEFAULT_BLOCK, AFM_IO_HARMONICS_MAX_HZ,
+            REPLAY_STATUS_INTERVAL_S);
 }
 
 /* ---- output: events stamped with model time ---------------------------------------- */
@@ -147,6 +153,7 @@ static void write_event(replay_ctx *x, int ch, int64_t utime, int n) {
             (x)->buf = nb_;                                                                        \
             (x)->cap = need_;                                                                      \
         }                                                                                          \
+        (msg)->msg_seq = (x)->msg_seq[ch]++;                                                       \
         write_event((x), (ch), (msg)->utime, T##_encode((x)->buf, 0, (x)->cap, (msg)));            \
     } while (0)
 
@@ -174,8 +181,9 @@ static void emit_harmonics(replay_ctx *x, const afm_runner_status *st) {
         x->lockin_amplitude_m = last->lockin_amplitude_m;
         x->lockin_phase_deg = last->lockin_phase_deg;
         x->peak_force_n = last->cycle.peak_force_n;
+        int every = afm_io_harmonics_every(x->o.harmonics_every, st->fe_hz, x->o.harmonics_max_hz);
         for (int p = 0; p < np; p++) {
-            if (x->period_count++ % x->o.harmonics_every != 0) continue;
+            if (x->period_count++ % every != 0) continue;
             const afm_cycle_metrics *c = &x->periods[p].cycle;
             afm_io_harmonics h;
             afm_runner_chain_status cs;
@@ -346,6 +354,14 @@ static int parse_opts(int argc, char **argv, replay_opts *o) {
                 return 2;
             }
             o->harmonics_every = (int)d;
+        } else if (!strcmp(a, "--harmonics-max-hz")) {
+            if (afmt_parse_double(v, &d) || !(d >= 1) || d > 1e9) {
+                fprintf(stderr, "afmtwin replay: --harmonics-max-hz wants 1..1e9 Hz, got '%s'\n",
+                        v);
+                return 2;
+            }
+            o->harmonics_max_hz = d;
+            o->harmonics_every = 0;
         } else if (!strcmp(a, "--tail")) {
             if (afmt_parse_double(v, &d) || !(d >= 0) || d > 1e4) {
                 fprintf(stderr, "afmtwin replay: --tail wants seconds in 0..1e4, got '%s'\n", v);
@@ -382,7 +398,8 @@ int afm_cmd_replay(int argc, char **argv) {
     memset(&x, 0, sizeof x);
     x.o = (replay_opts){.prefix = AFMT_DEFAULT_PREFIX,
                         .block = REPLAY_DEFAULT_BLOCK,
-                        .harmonics_every = 1,
+                        .harmonics_every = 0,
+                        .harmonics_max_hz = AFM_IO_HARMONICS_MAX_HZ,
                         .tail_s = 0.01,
                         .want = {true, true, true, true}};
     afm_lcm_digest_init(&x.dg);

@@ -4,6 +4,7 @@
  * appends it to an LCM log; `send raw` publishes arbitrary bytes (for bad-input tests). */
 #include "afmtwin_cmds.h"
 #include "lcm_tool.h"
+#include "send_wait.h"
 
 #include "transport/afm_cmd_lcm.h"
 #include "config/afm_config.h"
@@ -24,9 +25,18 @@
 
 #define SEND_MAX_BYTES 65536
 #define SEND_MAX_PARAMS 16
+#define SEND_WAIT_S 3.0 /* --wait: default wait for the status and for the answer */
+
+/* The config the limits come from when no --config is given: $AFMTWIN_CONFIG, else the
+ * service's (make install: SYSCONFDIR/afmtwin/afmtwind.conf). */
+#ifndef AFMT_SERVICE_CONF
+#define AFMT_SERVICE_CONF "/etc/afmtwin/afmtwind.conf"
+#endif
 
 typedef struct {
-    const char *url, *prefix, *channel, *log, *config;
+    const char *url, *out_url, *prefix, *channel, *log, *config;
+    bool wait;
+    double wait_s;
     double log_time_s; /* NAN: wall clock */
     int64_t seq, utime;
     bool have_seq, have_utime;
@@ -68,8 +78,17 @@ static void send_usage(FILE *f) {
         "                    so that later commands have larger numbers)\n"
         "  --utime US        sender time stamp in the message (default: wall clock, us)\n"
         "  --config FILE     the daemon's config, for the limits that depend on it (sample\n"
-        "                    rate); default config/default.conf when readable\n"
-        "  --check           validate only; print 'ok' and exit 0, or the reason and exit 2\n"
+        "                    rate, modes); default $AFMTWIN_CONFIG, else the service's\n"
+        "                    " AFMT_SERVICE_CONF "; none readable: exit 2\n"
+        "  --check           validate only; print 'ok' and the config used and exit 0, or\n"
+        "                    the reason and exit 2\n"
+        "  --wait            after sending, wait for the daemon's status: exit 0 when it\n"
+        "                    echoes this seq as applied, 1 with the daemon's reason when it\n"
+        "                    rejected or refused the command, or when no answer came\n"
+        "  --wait-timeout S  how long --wait waits for a first status and then for the\n"
+        "                    answer (default %.0f s)\n"
+        "  --lcm-out-url URL the daemon's output URL, for --wait (default: derived from\n"
+        "                    --lcm-url, udpm port + 1)\n"
         "  --no-check        publish even what the daemon would reject (bad-input tests)\n"
         "  --channel NAME    publish on NAME instead of PREFIX + the kind's channel\n"
         "                    (e.g. a message of the wrong type on a channel)\n"
@@ -80,9 +99,10 @@ static void send_usage(FILE *f) {
         "                    replay applies an event at model time t - t(first event)\n"
         "  --quiet           print nothing on success\n"
         "  --help            this text\n\n"
-        "Exit status 0 sent, 1 LCM or file failure, 2 bad usage or a value the daemon\n"
+        "Exit status 0 sent (with --wait: applied), 1 LCM or file failure (with --wait:\n"
+        "rejected, refused or no answer), 2 bad usage, no config, or a value the daemon\n"
         "would reject.\n",
-        AFMT_DEFAULT_PREFIX);
+        AFMT_DEFAULT_PREFIX, SEND_WAIT_S);
 }
 
 static int parse_i64(const char *s, int64_t lo, int64_t hi, int64_t *v) {
@@ -129,7 +149,12 @@ static int parse_args(int argc, char **argv, const char *kind, send_common *o, s
             o->channel = v;
         else if (!strcmp(s, "--config") && v)
             o->config = v;
-        else if (!strcmp(s, "--log") && v)
+        else if (!strcmp(s, "--lcm-out-url") && v)
+            o->out_url = v;
+        else if (!strcmp(s, "--wait-timeout") && v) {
+            if (afmt_parse_double(v, &o->wait_s) || !(o->wait_s > 0) || o->wait_s > 3600)
+                return bad_value(s, v, "seconds in (0, 3600]");
+        } else if (!strcmp(s, "--log") && v)
             o->log = v;
         else if (!strcmp(s, "--log-time") && v) {
             if (afmt_parse_double(v, &o->log_time_s) || !isfinite(o->log_time_s) ||
@@ -170,6 +195,8 @@ static int parse_args(int argc, char **argv, const char *kind, send_common *o, s
                 o->no_check = true;
             else if (!strcmp(s, "--check"))
                 o->check_only = true;
+            else if (!strcmp(s, "--wait"))
+                o->wait = true;
             else if (!strcmp(s, "--quiet"))
                 o->quiet = true;
             else if (s[0] == '-' && s[1] == '-') {
@@ -307,19 +334,29 @@ static int build(const char *kind, const send_common *o, send_args *a, uint8_t *
 /* The daemon's checks: decode + validate the bytes as it would (afm_cmd_decode, with the
  * config's sample rate and model in the limits: afm_limits.h), and for param, apply to a
  * copy of the config (names that do not fit it). 0, or -1 with err. */
+/* The config the limits come from (see AFMT_SERVICE_CONF): NULL with err if none. */
+static const char *config_path(const send_common *o, char *err, size_t errlen) {
+    if (o->config) return o->config;
+    const char *env = getenv("AFMTWIN_CONFIG");
+    if (env && *env) return env;
+    FILE *f = fopen(AFMT_SERVICE_CONF, "r");
+    if (f) {
+        fclose(f);
+        return AFMT_SERVICE_CONF;
+    }
+    snprintf(err, errlen,
+             "no config to check against: the service's %s is not readable and neither "
+             "--config nor AFMTWIN_CONFIG is given (or --no-check to send unchecked)",
+             AFMT_SERVICE_CONF);
+    return NULL;
+}
+
 static int daemon_check(afm_cmd_kind ck, const uint8_t *buf, int n, const send_common *o, char *err,
                         size_t errlen) {
     static afm_config cfg; /* large: not on the stack */
     afm_cmd_limits lim = {.sample_rate_hz = 0.0};
     bool have_cfg = false;
     const char *path = o->config;
-    if (!path) {
-        FILE *f = fopen("config/default.conf", "r");
-        if (f) {
-            fclose(f);
-            path = "config/default.conf";
-        }
-    }
     static afm_modal model; /* the limits that need the model: its modes and tip response */
     if (path) {
         if (afm_config_load(path, &cfg, err, errlen)) return -2;
@@ -377,11 +414,16 @@ int afm_cmd_send(int argc, char **argv) {
             send_usage(stdout);
             return 0;
         }
-    send_common o = {.prefix = AFMT_DEFAULT_PREFIX, .log_time_s = NAN, .truncate = -1};
+    send_common o = {
+        .prefix = AFMT_DEFAULT_PREFIX, .log_time_s = NAN, .truncate = -1, .wait_s = SEND_WAIT_S};
     static send_args a; /* zeroed */
     memset(&a, 0, sizeof a);
     int rc = parse_args(argc, argv, kind, &o, &a);
     if (rc) return rc;
+    if (!o.have_seq) { /* wall-clock microseconds: later commands have larger numbers */
+        o.seq = afmt_wall_us();
+        o.have_seq = true;
+    }
     static uint8_t buf[SEND_MAX_BYTES];
     afm_cmd_kind ck = 0;
     int n = build(kind, &o, &a, buf, sizeof buf, &ck);
@@ -401,6 +443,10 @@ int afm_cmd_send(int argc, char **argv) {
         snprintf(channel, sizeof channel, "%s", ch.cmd[ck]);
     }
     if (ck && !o.no_check) {
+        if (!(o.config = config_path(&o, err, sizeof err))) {
+            fprintf(stderr, "afmtwin send %s: %s\n", kind, err);
+            return 2;
+        }
         int v = daemon_check(ck, buf, n, &o, err, sizeof err);
         if (v) {
             fprintf(stderr, "afmtwin send %s: %s%s\n", kind,
@@ -409,12 +455,30 @@ int afm_cmd_send(int argc, char **argv) {
         }
     }
     if (o.check_only) {
-        if (!o.quiet) printf("ok\n");
+        if (!o.quiet) printf("ok (checked against %s)\n", o.config ? o.config : "no config");
         return 0;
+    }
+    if (o.wait && o.log) {
+        fprintf(stderr, "afmtwin send: --wait and --log do not go together\n");
+        return 2;
+    }
+    send_wait *w = NULL;
+    if (o.wait && !(w = send_wait_open(o.url, o.out_url, o.prefix, o.wait_s, err, sizeof err))) {
+        fprintf(stderr, "afmtwin send %s: %s\n", kind, err);
+        return 1;
     }
     if (o.truncate >= 0 && o.truncate < n) n = (int)o.truncate;
     rc = emit(&o, channel, buf, n);
     if (rc == 0 && !o.quiet)
-        printf("%s %s %d bytes on %s\n", o.log ? "logged" : "sent", kind, n, channel);
+        printf("%s %s %d bytes on %s%s%s%s\n", o.log ? "logged" : "sent", kind, n, channel,
+               o.config ? " (checked against " : "", o.config ? o.config : "", o.config ? ")" : "");
+    if (rc == 0 && w) {
+        int r = send_wait_result(w, o.seq, channel, o.wait_s, err, sizeof err);
+        if (r == 0 && !o.quiet)
+            printf("applied: the daemon's status echoes seq %lld\n", (long long)o.seq);
+        if (r != 0) fprintf(stderr, "afmtwin send %s: seq %lld %s\n", kind, (long long)o.seq, err);
+        rc = r == 0 ? 0 : 1;
+    }
+    send_wait_destroy(&w);
     return rc;
 }

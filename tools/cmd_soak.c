@@ -77,7 +77,7 @@ typedef struct {
     uint64_t seed;
     bool quiet;
     /* LCM */
-    lcm_t *in, *cmd;
+    afmt_lcm lcm; /* commands out; outputs in, the samples on their own URL */
     afmt_channels ch;
     lcm_eventlog_t *logf;
     /* the twin */
@@ -187,7 +187,7 @@ static void on_harm(const void *msg, void *user) {
 static void pump(soak_ctx *c, double seconds) {
     double t_end = afmt_mono_s() + seconds;
     for (double left = seconds; left > 0; left = t_end - afmt_mono_s())
-        lcm_handle_timeout(c->in, (int)ceil(left * 1e3));
+        afmt_lcm_handle(&c->lcm, (int)ceil(left * 1e3));
 }
 
 /* ---- commands out ---- */
@@ -200,7 +200,7 @@ static void pump(soak_ctx *c, double seconds) {
     } while (0)
 
 static void send_raw(soak_ctx *c, const char *chan, const uint8_t *buf, int n) {
-    lcm_publish(c->cmd, chan, buf, (unsigned)n);
+    lcm_publish(c->lcm.cmd, chan, buf, (unsigned)n);
     if (c->logf) {
         afmt_log_write(c->logf, afmt_wall_us(), chan, buf, n);
     }
@@ -455,7 +455,8 @@ int afm_cmd_soak(int argc, char **argv) {
         struct sched_param prio = {.sched_priority = c.rt_priority};
         sched_setscheduler(0, SCHED_FIFO | SOAK_RESET_ON_FORK, &prio);
     }
-    int orc = afmt_lcm_open(c.url, c.out_url, &c.cmd, &c.in, err, sizeof err);
+    int orc = afmt_lcm_open(&c.lcm, c.url, c.out_url, NULL, AFMT_OPEN_CMD | AFMT_OPEN_SAMPLES, err,
+                            sizeof err);
     if (orc == -1) goto usage_err;
     if (orc) {
         fprintf(stderr, "afmtwin soak: %s\n", err);
@@ -465,9 +466,9 @@ int afm_cmd_soak(int argc, char **argv) {
     afmt_checked_sub subs[3] = {{&afm_wire_status_t, on_status, &c, 0},
                                 {&afm_wire_samples_t, on_samples, &c, 0},
                                 {&afm_wire_harmonics_t, on_harm, &c, 0}};
-    afmt_subscribe_checked(c.in, c.ch.out[AFMT_OUT_STATUS], &subs[0], 1000);
-    afmt_subscribe_checked(c.in, c.ch.out[AFMT_OUT_SAMPLES], &subs[1], 20000);
-    afmt_subscribe_checked(c.in, c.ch.out[AFMT_OUT_HARMONICS], &subs[2], 20000);
+    afmt_subscribe_checked(c.lcm.out, c.ch.out[AFMT_OUT_STATUS], &subs[0], 1000);
+    afmt_subscribe_checked(c.lcm.samples, c.ch.out[AFMT_OUT_SAMPLES], &subs[1], 20000);
+    afmt_subscribe_checked(c.lcm.out, c.ch.out[AFMT_OUT_HARMONICS], &subs[2], 20000);
     if (c.log && !(c.logf = lcm_eventlog_create(c.log, "w"))) {
         fprintf(stderr, "afmtwin soak: cannot write '%s'\n", c.log);
         return 1;
@@ -494,7 +495,7 @@ int afm_cmd_soak(int argc, char **argv) {
         c.n_sent++;
         double t0 = afmt_mono_s();
         while (c.echoed_seq < c.seq && afmt_mono_s() - t0 < SOAK_ECHO_WAIT_S)
-            lcm_handle_timeout(c.in, 5);
+            afmt_lcm_handle(&c.lcm, 5);
         if (c.echoed_seq < c.seq) {
             if (c.unechoed++ < 10)
                 fprintf(stderr, "afmtwin soak: command %lld (%s) not echoed within %.0f ms\n",
@@ -537,8 +538,7 @@ int afm_cmd_soak(int argc, char **argv) {
                c.samples_msgs, c.harm_msgs, c.nonfinite);
         printf("  %s\n", pass ? "PASS" : "FAIL");
     }
-    lcm_destroy(c.cmd);
-    lcm_destroy(c.in);
+    afmt_lcm_close(&c.lcm);
     return pass ? 0 : 1;
 usage_err:
     fprintf(stderr, "afmtwin soak: %s\n", err);

@@ -5,6 +5,7 @@
 
 #include <ctype.h>
 #include <errno.h>
+#include <poll.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -54,20 +55,58 @@ int afmt_parse_outputs(const char *s, bool all_ok, bool *want) {
     return afmt_parse_subset(s, afmt_out_names, AFMT_N_OUT, all_ok, want);
 }
 
-int afmt_lcm_open(const char *url, const char *out_url, lcm_t **cmd, lcm_t **out, char *err,
-                  size_t errlen) {
-    char cmd_u[AFM_LCM_URL_LEN], out_u[AFM_LCM_URL_LEN];
-    if (afm_lcm_urls(url, out_url, cmd_u, out_u, sizeof cmd_u, err, errlen)) return -1;
-    *out = lcm_create(out_u);
-    if (cmd) *cmd = *out ? lcm_create(cmd_u) : NULL;
-    if (!*out || (cmd && !*cmd)) {
-        snprintf(err, errlen, "lcm_create failed (%.200s, %.200s): no multicast route?", cmd_u,
-                 out_u);
-        if (*out) lcm_destroy(*out);
-        *out = NULL;
+int afmt_lcm_open(afmt_lcm *l, const char *url, const char *out_url, const char *samples_url,
+                  int what, char *err, size_t errlen) {
+    char cmd_u[AFM_LCM_URL_LEN], out_u[AFM_LCM_URL_LEN], smp_u[AFM_LCM_URL_LEN];
+    *l = (afmt_lcm){0};
+    if (afm_lcm_urls(url, out_url, cmd_u, out_u, sizeof cmd_u, err, errlen) ||
+        afm_lcm_samples_urls(cmd_u, samples_url, smp_u, sizeof smp_u, err, errlen))
+        return -1;
+    const char *failed = NULL;
+    if (!(l->out = lcm_create(out_u)))
+        failed = out_u;
+    else if ((what & AFMT_OPEN_SAMPLES) &&
+             !(l->samples = strcmp(smp_u, out_u) ? lcm_create(smp_u) : l->out))
+        failed = smp_u;
+    else if ((what & AFMT_OPEN_CMD) && !(l->cmd = lcm_create(cmd_u)))
+        failed = cmd_u;
+    if (failed) {
+        snprintf(err, errlen, "cannot open LCM on '%.200s' (for udpm: is there a multicast route?)",
+                 failed);
+        afmt_lcm_close(l);
         return -2;
     }
     return 0;
+}
+
+lcm_t *afmt_lcm_of(const afmt_lcm *l, int out_kind) {
+    return out_kind == AFMT_OUT_SAMPLES ? l->samples : l->out;
+}
+
+#define DRAIN_MAX 4096 /* samples messages handled in one go at most */
+
+void afmt_lcm_drain_samples(afmt_lcm *l) {
+    if (!l->samples || l->samples == l->out) return;
+    for (int i = 0; i < DRAIN_MAX && lcm_handle_timeout(l->samples, 0) > 0; i++) {
+    }
+}
+
+int afmt_lcm_handle(afmt_lcm *l, int timeout_ms) {
+    if (!l->samples || l->samples == l->out) return lcm_handle_timeout(l->out, timeout_ms);
+    struct pollfd p[2] = {{.fd = lcm_get_fileno(l->samples), .events = POLLIN},
+                          {.fd = lcm_get_fileno(l->out), .events = POLLIN}};
+    int n = poll(p, 2, timeout_ms);
+    if (n <= 0) return n < 0 && errno != EINTR ? -1 : 0;
+    if (p[0].revents) afmt_lcm_drain_samples(l);
+    if (p[1].revents && lcm_handle_timeout(l->out, 0) < 0) return -1;
+    return 1;
+}
+
+void afmt_lcm_close(afmt_lcm *l) {
+    if (l->cmd) lcm_destroy(l->cmd);
+    if (l->samples && l->samples != l->out) lcm_destroy(l->samples);
+    if (l->out) lcm_destroy(l->out);
+    *l = (afmt_lcm){0};
 }
 
 int afmt_log_write(lcm_eventlog_t *log, int64_t utime_us, const char *channel, const void *data,

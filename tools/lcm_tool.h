@@ -1,12 +1,14 @@
 /* SPDX-License-Identifier: MIT */
 /* lcm_tool.h -- the LCM plumbing of `afmtwin`'s subcommands (send, listen, replay, lockstep,
  * soak, flood, bench-daemon) in one place: the daemon's channel names for a prefix, the
- * --channels lists, the two LCM URLs opened at once, encoding a generated message, writing
- * an event to a log, checked subscriptions, wall and monotonic clocks; plus the strict
- * number and hex parsing of their options. */
+ * --channels lists, its LCM instances (commands, outputs, the sample stream) opened at once
+ * and read together, encoding a generated message, writing an event to a log, checked
+ * subscriptions, wall and monotonic clocks; plus the strict number and hex parsing of their
+ * options. */
 #ifndef AFMT_LCM_TOOL_H
 #define AFMT_LCM_TOOL_H
 
+#include "afmtwin_lcm_layout.h"
 #include "runner/afm_cmd.h"
 #include "transport/afm_lcm_wire.h"
 
@@ -18,17 +20,17 @@
 
 #define AFMT_CHAN_LEN 128
 
-/* Channel names: PREFIX + suffix. The daemon's defaults (afmtwind --prefix overrides). */
-#define AFMT_DEFAULT_PREFIX "AFMTWIN_"
-#define AFMT_CHAN_DITHER "DITHER"
-#define AFMT_CHAN_SETPOINT "SETPOINT"
-#define AFMT_CHAN_PARAM "PARAM"
-#define AFMT_CHAN_CONTROL "CONTROL"
-#define AFMT_CHAN_TICK "TICK"
-#define AFMT_CHAN_SAMPLES "SAMPLES"
-#define AFMT_CHAN_HARMONICS "HARMONICS"
-#define AFMT_CHAN_STATUS "STATUS"
-#define AFMT_CHAN_TICK_DONE "TICK_DONE"
+/* Channel names: PREFIX + suffix (afmtwin_lcm_layout.h; afmtwind --prefix overrides). */
+#define AFMT_DEFAULT_PREFIX AFMTWIN_DEFAULT_PREFIX
+#define AFMT_CHAN_DITHER AFMTWIN_CHAN_DITHER
+#define AFMT_CHAN_SETPOINT AFMTWIN_CHAN_SETPOINT
+#define AFMT_CHAN_PARAM AFMTWIN_CHAN_PARAM
+#define AFMT_CHAN_CONTROL AFMTWIN_CHAN_CONTROL
+#define AFMT_CHAN_TICK AFMTWIN_CHAN_TICK
+#define AFMT_CHAN_SAMPLES AFMTWIN_CHAN_SAMPLES
+#define AFMT_CHAN_HARMONICS AFMTWIN_CHAN_HARMONICS
+#define AFMT_CHAN_STATUS AFMTWIN_CHAN_STATUS
+#define AFMT_CHAN_TICK_DONE AFMTWIN_CHAN_TICK_DONE
 
 /* PREFIX + SUFFIX into out (AFMT_CHAN_LEN). The prefix: 1..63 characters of [A-Za-z0-9_]
  * (LCM channel names are matched as regular expressions by subscribers, so nothing else is
@@ -55,12 +57,30 @@ afm_cmd_kind afmt_channels_kind(const afmt_channels *c, const char *name);
  * want[AFMT_N_OUT]. 0, or -1 (an unknown or empty item). */
 int afmt_parse_outputs(const char *s, bool all_ok, bool *want);
 
-/* The daemon's two LCM instances for --lcm-url URL and --lcm-out-url OUT_URL (either may be
- * NULL: afm_lcm_urls): *out on the output URL (what the twin publishes), *cmd on the command
- * URL (what it takes); pass cmd NULL for outputs only. Both or none are created. 0, -1 (a
- * bad URL: usage) or -2 (lcm_create failed), with err. */
-int afmt_lcm_open(const char *url, const char *out_url, lcm_t **cmd, lcm_t **out, char *err,
-                  size_t errlen);
+/* The daemon's LCM instances as a client uses them, for --lcm-url URL, --lcm-out-url
+ * OUT_URL and --lcm-samples-url SAMPLES_URL (each may be NULL: derived as the daemon does,
+ * afm_lcm_urls and afm_lcm_samples_urls: udpm port + 1 and + 2): out on the output URL
+ * (harmonics, status, tick_done), samples on the sample stream's (its own instance for udpm,
+ * the same as out otherwise), cmd on the command URL (what the twin takes; never subscribed
+ * here). samples and cmd only when asked for (what: AFMT_OPEN_*), else NULL. Subscribe each
+ * output on afmt_lcm_of(l, AFMT_OUT_*). */
+typedef struct {
+    lcm_t *cmd, *out, *samples;
+} afmt_lcm;
+enum { AFMT_OPEN_CMD = 1, AFMT_OPEN_SAMPLES = 2 };
+/* 0, -1 (a bad URL: usage) or -2 (lcm_create failed), with err; on error nothing is open. */
+int afmt_lcm_open(afmt_lcm *l, const char *url, const char *out_url, const char *samples_url,
+                  int what, char *err, size_t errlen);
+/* The instance that carries output out_kind (AFMT_OUT_*). */
+lcm_t *afmt_lcm_of(const afmt_lcm *l, int out_kind);
+/* Wait up to timeout_ms for out or samples; handle what is there, samples first (all that
+ * wait, so that samples published before a tick_done are handled before it whenever both
+ * are in). > 0 something handled, 0 timeout, < 0 LCM failed. */
+int afmt_lcm_handle(afmt_lcm *l, int timeout_ms);
+/* Handle the samples that arrived by now (none waited for). */
+void afmt_lcm_drain_samples(afmt_lcm *l);
+/* Destroy what is open (the subscriptions with it). */
+void afmt_lcm_close(afmt_lcm *l);
 
 /* Encode msg of generated type T (e.g. afmtwin_dither_t) into buf of cap bytes: byte count,
  * or -1 when it does not fit. */

@@ -153,10 +153,11 @@ struct afm_io {
  * daemon's own output flood included). Commands on url (NULL: LCM's default, i.e.
  * $LCM_DEFAULT_URL or udpm://239.255.76.67:7667?ttl=0), channels prefix + DITHER,
  * SETPOINT, PARAM, CONTROL, TICK, every one subscribed raw so that any bytes on it are
- * decoded and judged here; outputs SAMPLES, HARMONICS, STATUS on out_url (NULL: derived
- * from url by afm_lcm_out_url). NULL with err. */
-afm_io *afm_lcm_io_create(const char *url, const char *out_url, const char *prefix,
-                          const afm_io_sink *sink, char *err, size_t errlen);
+ * decoded and judged here; outputs HARMONICS, STATUS, TICK_DONE on out_url (NULL: derived
+ * from url by afm_lcm_out_url), SAMPLES on samples_url (NULL: afm_lcm_samples_url), each
+ * message numbered per channel (msg_seq). NULL with err. */
+afm_io *afm_lcm_io_create(const char *url, const char *out_url, const char *samples_url,
+                          const char *prefix, const afm_io_sink *sink, char *err, size_t errlen);
 
 /* CAN transport (afm_can_io.c, issue 6): a SocketCAN raw socket on can->interface with the
  * message map of afm_can_codec.h; dither registers start from drive. Inbound only: the

@@ -31,3 +31,9 @@ void afm_io_harmonics_from_period(afm_io_harmonics *o, const afm_chain_period *p
     o->fe_hz = fe_hz;
     o->p = *p;
 }
+
+int afm_io_harmonics_every(int every, double fe_hz, double max_hz) {
+    if (every > 0) return every;
+    double f = fe_hz / (max_hz > 0 ? max_hz : AFM_IO_HARMONICS_MAX_HZ);
+    return f > 1 ? (f < 1e9 ? (int)ceil(f) : 1000000000) : 1; /* no int overflow */
+}

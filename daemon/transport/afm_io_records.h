@@ -15,4 +15,10 @@ void afm_io_samples_from_block(afm_io_samples *o, const afm_chain_block *b, int6
 void afm_io_harmonics_from_period(afm_io_harmonics *o, const afm_chain_period *p, double fe_hz,
                                   int64_t utime, int64_t seq_applied, const afm_runner_oppoint *op);
 
+/* Which periods' harmonics go out: every k-th. every > 0 is k itself; every <= 0 chooses
+ * the smallest k for which at most max_hz records a second go out at the drive frequency
+ * fe_hz (max_hz <= 0: 1000). The daemon's rule, and `afmtwin replay`'s. */
+#define AFM_IO_HARMONICS_MAX_HZ 1000.0
+int afm_io_harmonics_every(int every, double fe_hz, double max_hz);
+
 #endif

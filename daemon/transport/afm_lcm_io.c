@@ -1,8 +1,10 @@
 /* SPDX-License-Identifier: MIT */
 /* afm_lcm_io.c -- the LCM transport of the daemon (interface in afm_io.h): raw
  * subscriptions on the command channels of one LCM instance, outputs published as the
- * generated types (afm_lcm_encode.h) on a second one, so that the command socket never
- * carries the daemon's own outputs (afm_lcm_url.h). */
+ * generated types (afm_lcm_encode.h) on a second one and the sample stream on a third, so
+ * that the command socket never carries the daemon's own outputs and a subscriber of the
+ * status or harmonics never gets the samples (afm_lcm_url.h). Each output channel numbers
+ * its messages (msg_seq). */
 #include "transport/afm_io.h"
 #include "transport/afm_cmd_lcm.h"
 
@@ -31,8 +33,10 @@ typedef struct {
 
 struct lcm_io {
     afm_io io;
-    lcm_t *lcm; /* commands (subscribed) */
-    lcm_t *out; /* outputs (publish only: LCM opens no receive socket for it) */
+    lcm_t *lcm;         /* commands (subscribed) */
+    lcm_t *out;         /* outputs (publish only: LCM opens no receive socket for it) */
+    lcm_t *samples;     /* the sample stream (publish only); == out when the URLs are equal */
+    int64_t msg_seq[4]; /* next msg_seq of samples, harmonics, status, tick_done */
     in_channel in[5];
     char ch_samples[CH_LEN], ch_harmonics[CH_LEN], ch_status[CH_LEN], ch_done[CH_LEN];
     /* Drops before the handler (afm_lcm_drops.h): LCM's queues, the kernel's socket. */
@@ -72,7 +76,8 @@ static int lio_samples(afm_io *io, const afm_io_samples *s) {
     lcm_io *l = io->impl;
     afmtwin_samples_t m;
     afm_lcm_samples_msg(s, &m);
-    return afmtwin_samples_t_publish(l->out, l->ch_samples, &m) < 0 ? -1 : 0;
+    m.msg_seq = l->msg_seq[0]++;
+    return afmtwin_samples_t_publish(l->samples, l->ch_samples, &m) < 0 ? -1 : 0;
 }
 
 static int lio_harmonics(afm_io *io, const afm_io_harmonics *h) {
@@ -80,6 +85,7 @@ static int lio_harmonics(afm_io *io, const afm_io_harmonics *h) {
     afm_lcm_harm_buf b;
     afmtwin_harmonics_t m;
     afm_lcm_harmonics_msg(h, &b, &m);
+    m.msg_seq = l->msg_seq[1]++;
     return afmtwin_harmonics_t_publish(l->out, l->ch_harmonics, &m) < 0 ? -1 : 0;
 }
 
@@ -87,6 +93,7 @@ static int lio_status(afm_io *io, const afm_io_status *s) {
     lcm_io *l = io->impl;
     afmtwin_status_t m;
     afm_lcm_status_msg(s, &m);
+    m.msg_seq = l->msg_seq[2]++;
     return afmtwin_status_t_publish(l->out, l->ch_status, &m) < 0 ? -1 : 0;
 }
 
@@ -94,6 +101,7 @@ static int lio_tick_done(afm_io *io, const afm_io_tick_done *d) {
     lcm_io *l = io->impl;
     afmtwin_tick_done_t m;
     afm_lcm_tick_done_msg(d, &m);
+    m.msg_seq = l->msg_seq[3]++;
     return afmtwin_tick_done_t_publish(l->out, l->ch_done, &m) < 0 ? -1 : 0;
 }
 
@@ -139,6 +147,7 @@ static void lio_destroy(afm_io *io) {
     lcm_io *l = io->impl;
     afm_lcm_drops_unwatch(l->watch);
     if (l->lcm) lcm_destroy(l->lcm);
+    if (l->samples && l->samples != l->out) lcm_destroy(l->samples);
     if (l->out) lcm_destroy(l->out);
     free(l);
 }
@@ -155,8 +164,8 @@ static const afm_io_ops lcm_ops = {
     .publish_tick_done = lio_tick_done,
 };
 
-afm_io *afm_lcm_io_create(const char *url, const char *out_url, const char *prefix,
-                          const afm_io_sink *sink, char *err, size_t errlen) {
+afm_io *afm_lcm_io_create(const char *url, const char *out_url, const char *samples_url,
+                          const char *prefix, const afm_io_sink *sink, char *err, size_t errlen) {
     static const struct {
         afm_cmd_kind kind;
         const char *name;
@@ -182,8 +191,9 @@ afm_io *afm_lcm_io_create(const char *url, const char *out_url, const char *pref
     l->io.sink = *sink;
     l->io.impl = l;
     l->watch = -1;
-    char cmd_u[AFM_LCM_URL_LEN], out_u[AFM_LCM_URL_LEN];
-    if (afm_lcm_urls(url, out_url, cmd_u, out_u, sizeof cmd_u, err, errlen)) {
+    char cmd_u[AFM_LCM_URL_LEN], out_u[AFM_LCM_URL_LEN], smp_u[AFM_LCM_URL_LEN];
+    if (afm_lcm_urls(url, out_url, cmd_u, out_u, sizeof cmd_u, err, errlen) ||
+        afm_lcm_samples_urls(cmd_u, samples_url, smp_u, sizeof smp_u, err, errlen)) {
         free(l);
         return NULL;
     }
@@ -191,11 +201,14 @@ afm_io *afm_lcm_io_create(const char *url, const char *out_url, const char *pref
     int n_before = afm_udp_sockets(before, (int)(sizeof before / sizeof before[0]));
     l->lcm = lcm_create(cmd_u);
     l->out = l->lcm ? lcm_create(out_u) : NULL;
-    if (!l->lcm || !l->out) {
+    l->samples = !l->out ? NULL : strcmp(smp_u, out_u) ? lcm_create(smp_u) : l->out;
+    if (!l->lcm || !l->out || !l->samples) {
         snprintf(err, errlen,
                  "lcm_create(%s) failed (for udpm: is there a multicast route? "
                  "see README, 'Running the daemon')",
-                 l->lcm ? out_u : cmd_u);
+                 !l->lcm   ? cmd_u
+                 : !l->out ? out_u
+                           : smp_u);
         lio_destroy(&l->io);
         return NULL;
     }
