@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # test_curve.sh BUILD -- a curve made with the daemon equals `afmtwin approach`: setpoint
 # steps logged with `afmtwin send --log` run through the daemon's path (`afmtwin replay`,
-# bit-identical to the daemon's outputs), the harmonics records (which carry Z, the tones
-# and the seq) turned into a curve by `afmtwin curve`, against `afmtwin approach` with the
+# bit-identical to the daemon's outputs), the harmonics records of every period (replay
+# --harmonics-every 1; they carry Z, the tones and the seq) turned into a curve by `afmtwin curve`, against `afmtwin approach` with the
 # same steps and integrator. The lumped Q 300 probe at A0 20 nm in the attractive regime
 # (no contact: the old rt orbit is periodic there). Each step dwells 10 ms = 3000 periods,
 # ~30 amplitude time constants, and approach settles to 1e-6: both are the steady state to
@@ -19,7 +19,7 @@ for z in 30e-9 27e-9 24e-9 22e-9; do
     --log-time "$(awk "BEGIN{print 0.01 * ($i - 1)}")" --quiet || bad "send setpoint --z $z --log"
   i=$((i + 1))
 done
-"$A" replay --config $C --in "$T/cmd.log" --out "$T/out.log" --tail 0.01 --quiet \
+"$A" replay --config $C --in "$T/cmd.log" --out "$T/out.log" --tail 0.01 --harmonics-every 1 --quiet \
   && ok "replay of the setpoint steps" || bad "replay failed"
 "$A" curve "$T/out.log" >"$T/curve.txt" && ok "afmtwin curve read the log" || bad "afmtwin curve failed"
 "$A" curve "$T/out.log" --json >"$T/curve.json"

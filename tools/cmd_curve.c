@@ -62,9 +62,11 @@ static void curve_usage(FILE *f) {
                "run's last N records (default 16) are averaged and printed as `afmtwin approach`\n"
                "prints a step (same keys with --json; `afmtwin plot approach` draws them). Runs\n"
                "with fewer than M records (default N) are skipped (a command that did not last\n"
-               "long enough to be analysed). direction is \"retract\" when Z grew from the run\n"
-               "before. Phases: the lag of the deflection behind the drive (90 deg free at\n"
-               "resonance). Exit status 0 ok, 1 the log could not be read, 2 bad usage.\n");
+               "long enough to be analysed; afmtwind and afmtwin replay keep at most 1000\n"
+               "records a second by default: --harmonics-every 1 keeps every period's).\n"
+               "direction is \"retract\" when Z grew from the run before. Phases: the lag of\n"
+               "the deflection behind the drive (90 deg free at resonance). Exit status 0 ok,\n"
+               "1 the log could not be read, 2 bad usage.\n");
 }
 
 static int parse_args(int argc, char **argv, curve_opts *o) {

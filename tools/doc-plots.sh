@@ -29,7 +29,8 @@ mkdir -p "$O"
 "$A" plot thermal "$O/thermal.psd" --fit "$O/thermal.json" -o "$O/thermal.png" \
   --data "$O/thermal.dat" --title "thesis-1dof.conf, 0.5 s"
 # trace: the daemon's outputs (afmtwin replay of a dither command) on default.conf
-"$A" send dither --freq 338112 --amp 0.087e-9 --seq 1 --log "$O/cmd.log" --log-time 0 --quiet
+"$A" send dither --config config/default.conf --freq 338112 --amp 0.087e-9 --seq 1 \
+  --log "$O/cmd.log" --log-time 0 --quiet
 "$A" replay --config config/default.conf --in "$O/cmd.log" --out "$O/out.log" --tail 0.004 \
   --quiet
 "$A" plot trace "$O/out.log" --from 0.003 --to 0.00302 --z 40e-9 -o "$O/trace.png" \
