@@ -30,24 +30,30 @@
 
 enum { N_OUT = AFMT_N_OUT };
 
+/* Reports on stderr, at most BAD_LINES_PER_S a second (a flood of junk or of gaps must not
+ * flood the terminal too): the ones left out are counted in quiet and said in a line of
+ * their own when the next second starts. */
+#define BAD_LINES_PER_S 5
+typedef struct {
+    double t0;     /* start of the current second */
+    int in_second; /* reports in it */
+    long quiet;    /* left out (since the last "... and N more" line) */
+} listen_throttle;
+
 typedef struct {
     bool json, full;
     long count;       /* 0: no limit */
     double timeout_s; /* 0: none */
     bool want[N_OUT];
     const char *url, *out_url, *samples_url, *prefix, *log;
-    long got;          /* messages printed */
-    long bad;          /* messages that did not decode */
-    long bad_quiet;    /* ... of which not reported on stderr (throttled) */
-    double bad_t0;     /* start of the current second of stderr reports */
-    int bad_in_second; /* reports in it */
+    long got;                  /* messages printed */
+    long bad;                  /* messages that did not decode */
+    listen_throttle bad_lines; /* their reports on stderr */
     afmt_channels ch;
     /* msg_seq per channel: the last one seen (-1: none yet), messages lost in gaps, gaps */
     int64_t last_seq[N_OUT];
     long long lost[N_OUT], gaps[N_OUT], restarts[N_OUT], n_ch[N_OUT];
-    double gap_t0;     /* start of the current second of gap reports */
-    int gap_in_second; /* reports in it */
-    long gap_quiet;    /* gap reports left out (throttled) */
+    listen_throttle gap_lines; /* gap reports on stderr */
 } listen_ctx;
 
 static volatile sig_atomic_t listen_stop;
@@ -357,24 +363,31 @@ static void print_status(const listen_ctx *c, const char *channel, const afmtwin
                clr[0] ? " (last: " : "", clr, clr[0] ? ")" : "");
 }
 
-/* A message that does not decode: counted, and reported on stderr at most
- * BAD_LINES_PER_S times a second (a flood of junk must not flood the terminal too). */
-#define BAD_LINES_PER_S 5
+/* The reports left out since the last line, if any. */
+static void throttle_flush(const listen_throttle *t, const char *what) {
+    if (t->quiet) fprintf(stderr, "afmtwin listen: ... and %ld more %s\n", t->quiet, what);
+}
+
+/* Whether one more report may go to stderr now (else it is counted in t->quiet); what: the
+ * reports, for the "... and N more WHAT" line. */
+static bool throttle_pass(listen_throttle *t, const char *what) {
+    double now = afmt_mono_s();
+    if (now - t->t0 >= 1.0) {
+        throttle_flush(t, what);
+        t->quiet = 0;
+        t->t0 = now;
+        t->in_second = 0;
+    }
+    if (t->in_second++ < BAD_LINES_PER_S) return true;
+    t->quiet++;
+    return false;
+}
+
+/* A message that does not decode: counted, and reported on stderr (throttled). */
 static void report_bad(listen_ctx *c, const char *channel, uint32_t size, const char *type,
                        const char *why) {
     c->bad++;
-    double now = afmt_mono_s();
-    if (now - c->bad_t0 >= 1.0) {
-        if (c->bad_quiet)
-            fprintf(stderr, "afmtwin listen: ... and %ld more that did not decode\n", c->bad_quiet);
-        c->bad_quiet = 0;
-        c->bad_t0 = now;
-        c->bad_in_second = 0;
-    }
-    if (c->bad_in_second++ >= BAD_LINES_PER_S) {
-        c->bad_quiet++;
-        return;
-    }
+    if (!throttle_pass(&c->bad_lines, "that did not decode")) return;
     fprintf(stderr, "afmtwin listen: %s: %u bytes that do not decode as %s (%s; ignored)\n",
             channel, size, type, why);
 }
@@ -395,19 +408,7 @@ static void track_seq(listen_ctx *c, int k, int64_t seq) {
     long long lost = (long long)(seq - last - 1);
     c->lost[k] += lost;
     c->gaps[k]++;
-    double now = afmt_mono_s();
-    if (now - c->gap_t0 >= 1.0) {
-        if (c->gap_quiet)
-            fprintf(stderr, "afmtwin listen: ... and %ld more gaps (summary at exit)\n",
-                    c->gap_quiet);
-        c->gap_quiet = 0;
-        c->gap_t0 = now;
-        c->gap_in_second = 0;
-    }
-    if (c->gap_in_second++ >= BAD_LINES_PER_S) {
-        c->gap_quiet++;
-        return;
-    }
+    if (!throttle_pass(&c->gap_lines, "gaps (summary at exit)")) return;
     fprintf(stderr, "afmtwin listen: %s: %lld messages lost (msg_seq %lld -> %lld)\n", c->ch.out[k],
             lost, (long long)last, (long long)seq);
 }
@@ -517,10 +518,9 @@ static int listen_log(listen_ctx *c) {
     }
     long long skipped = afm_lcm_log_skipped(l);
     afm_lcm_log_close(&l);
-    if (c->gap_quiet) fprintf(stderr, "afmtwin listen: ... and %ld more gaps\n", c->gap_quiet);
+    throttle_flush(&c->gap_lines, "gaps");
     print_summary(c, -1);
-    if (c->bad_quiet)
-        fprintf(stderr, "afmtwin listen: ... and %ld more that did not decode\n", c->bad_quiet);
+    throttle_flush(&c->bad_lines, "that did not decode");
     if (skipped > 0)
         fprintf(stderr, "afmtwin listen: %s: skipped %lld bytes that are no LCM event\n", c->log,
                 skipped);
@@ -634,9 +634,8 @@ int afm_cmd_listen(int argc, char **argv) {
             break;
         }
     }
-    if (c.bad_quiet)
-        fprintf(stderr, "afmtwin listen: ... and %ld more that did not decode\n", c.bad_quiet);
-    if (c.gap_quiet) fprintf(stderr, "afmtwin listen: ... and %ld more gaps\n", c.gap_quiet);
+    throttle_flush(&c.bad_lines, "that did not decode");
+    throttle_flush(&c.gap_lines, "gaps");
     if (listen_stop) {
         fprintf(stderr, "afmtwin listen: stopped by a signal\n");
     } else if (rc == 0 && c.count > 0 && c.got < c.count) {
