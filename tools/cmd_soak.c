@@ -71,7 +71,7 @@ static const char *const kind_name[N_KINDS] = {
     "run",           "reset"};
 
 typedef struct {
-    const char *config, *url, *out_url, *prefix, *log;
+    const char *config, *url, *out_url, *samples_url, *prefix, *log;
     double seconds, max_rate_hz, block_s;
     int rt_priority; /* SCHED_FIFO priority of this tool, 0: normal scheduling */
     uint64_t seed;
@@ -339,7 +339,8 @@ static void usage(FILE *f) {
     fprintf(f,
             "usage: afmtwin soak --config FILE [--seconds S] [--seed N] [--max-rate-hz R]\n"
             "                    [--log LOG] [--block-us US] [--rt-priority N] [--lcm-url URL]\n"
-            "                    [--lcm-out-url URL] [--prefix NAME_] [--quiet]\n\n"
+            "                    [--lcm-out-url URL] [--lcm-samples-url URL] [--prefix NAME_]\n"
+            "                    [--quiet]\n\n"
             "A bounded command soak of a running afmtwind (realtime mode): random valid\n"
             "commands of every kind (setpoint steps and ramps from 1 um down to indentation,\n"
             "frequency and amplitude steps, multi-tone, force, damping and geometry changes,\n"
@@ -359,7 +360,8 @@ static void usage(FILE *f) {
             "  --block-us US     the daemon's --block-us (default 1000): the skip allowance\n"
             "  --rt-priority N   run at SCHED_FIFO N (default 0: normal scheduling, below the\n"
             "                    daemon; this tool decodes every output message)\n"
-            "  --lcm-url URL, --lcm-out-url URL, --prefix NAME_  as for afmtwin send / listen\n"
+            "  --lcm-url URL, --lcm-out-url URL, --lcm-samples-url URL, --prefix NAME_  as for\n"
+            "                    afmtwin listen\n"
             "  --quiet           no summary\n\n"
             "Exit status 0 pass, 1 fail, 2 bad usage.\n",
             SOAK_WARMUP_S, SOAK_ECHO_WAIT_S * 1e3);
@@ -400,6 +402,8 @@ int afm_cmd_soak(int argc, char **argv) {
             c.url = v;
         } else if (!strcmp(a, "--lcm-out-url")) {
             c.out_url = v;
+        } else if (!strcmp(a, "--lcm-samples-url")) {
+            c.samples_url = v;
         } else if (!strcmp(a, "--prefix")) {
             c.prefix = v;
         } else if (afmt_parse_double(v, &d) || !isfinite(d)) {
@@ -455,8 +459,8 @@ int afm_cmd_soak(int argc, char **argv) {
         struct sched_param prio = {.sched_priority = c.rt_priority};
         sched_setscheduler(0, SCHED_FIFO | SOAK_RESET_ON_FORK, &prio);
     }
-    int orc = afmt_lcm_open(&c.lcm, c.url, c.out_url, NULL, AFMT_OPEN_CMD | AFMT_OPEN_SAMPLES, err,
-                            sizeof err);
+    int orc = afmt_lcm_open(&c.lcm, c.url, c.out_url, c.samples_url,
+                            AFMT_OPEN_CMD | AFMT_OPEN_SAMPLES, err, sizeof err);
     if (orc == -1) goto usage_err;
     if (orc) {
         fprintf(stderr, "afmtwin soak: %s\n", err);
