@@ -3,6 +3,7 @@
 
 PREFIX  ?= /usr/local
 DESTDIR ?=
+NPROC    ?= $(shell nproc 2>/dev/null || echo 2) # parallel compile jobs of make test
 BUILD   ?= build
 CC      ?= cc
 
@@ -167,7 +168,7 @@ run: deps
 	sh tools/afmtwind-run.sh $(BUILD) config/default.conf
 
 test: deps
-	$(MAKE) all
+	$(MAKE) -j$(NPROC) all
 	@bash tests/run.sh $(BUILD)
 
 validate: deps
