@@ -51,11 +51,15 @@ adds_up() { # STATUS
   echo "received $r = applied $a + rejected $j + refused $f + dropped $d"
   [ -n "$r" ] && [ "$r" -eq $((a + j + f + d)) ]
 }
-# Status until the counts stop moving (the queue drained), at most 10 s.
+# Status once the queue has drained, at most 10 s: received has stopped moving and every
+# message received has been handled (a parameter change counts as applied only after its
+# model build, so received alone can stand still while one is still in flight).
 settled() {
   local s p=""
   for _ in $(seq 1 20); do
-    s=$(status); [ -n "$s" ] && [ "$(echo "$s" | jnum received)" = "$p" ] && { echo "$s"; return; }
+    s=$(status)
+    [ -n "$s" ] && [ "$(echo "$s" | jnum received)" = "$p" ] && adds_up "$s" >/dev/null \
+      && { echo "$s"; return; }
     p=$(echo "$s" | jnum received); sleep 0.5
   done
   echo "$s"
