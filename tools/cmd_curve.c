@@ -13,6 +13,7 @@
 #include "afmtwin_cmds.h"
 
 #include "afm_lcm_log.h"
+#include "afm_orbit.h"
 #include "afm_lcm_wire.h"
 #include "afmtwin_harmonics_t.h"
 #include "lcm_tool.h"
@@ -127,13 +128,6 @@ static bool same_point(const curve_rec *a, const curve_rec *b) {
     return a->seq == b->seq && a->z_m == b->z_m && !strcmp(a->tones_key, b->tones_key);
 }
 
-static double wrap(double d) {
-    d = fmod(d, 360.0);
-    if (d <= -180.0) d += 360.0;
-    if (d > 180.0) d -= 360.0;
-    return d;
-}
-
 /* The current run's averages, printed. */
 static void flush_run(curve_state *c, const curve_opts *o) {
     if (c->n < o->min_records) {
@@ -163,7 +157,7 @@ static void flush_run(curve_state *c, const curve_opts *o) {
     for (int i = 0; i < last->n; i++)
         if (last->k[i] == 1) i1 = i;
     double a1 = i1 >= 0 ? hypot(re[i1], im[i1]) : NAN;
-    double l1 = i1 >= 0 ? wrap(-90.0 - atan2(im[i1], re[i1]) * CURVE_DEG) : NAN;
+    double l1 = i1 >= 0 ? afm_orbit_lag_deg(atan2(im[i1], re[i1]) * CURVE_DEG) : NAN;
     if (o->json) {
         cJSON *j = cJSON_CreateObject();
         cJSON_AddNumberToObject(j, "z_m", last->z_m);
@@ -182,7 +176,7 @@ static void flush_run(curve_state *c, const curve_opts *o) {
             cJSON_AddNumberToObject(h, "k", last->k[i]);
             cJSON_AddNumberToObject(h, "amplitude_m", hypot(re[i], im[i]));
             cJSON_AddNumberToObject(h, "phase_lag_deg",
-                                    wrap(-90.0 - atan2(im[i], re[i]) * CURVE_DEG));
+                                    afm_orbit_lag_deg(atan2(im[i], re[i]) * CURVE_DEG));
             cJSON_AddItemToArray(hs, h);
         }
         cJSON_AddNumberToObject(j, "mean_deflection_m", md);
