@@ -241,7 +241,11 @@ int afm_cmd_curve(int argc, char **argv) {
         c.ring[c.n++ % CURVE_MAX_N] = r;
     }
     if (c.n > 0) flush_run(&c, &o);
+    long long skipped = afm_lcm_log_skipped(l);
     afm_lcm_log_close(&l);
+    if (skipped > 0)
+        fprintf(stderr, "afmtwin curve: %s: skipped %lld bytes that are no LCM event\n", o.log,
+                skipped);
     if (bad) fprintf(stderr, "afmtwin curve: %ld harmonics records did not decode\n", bad);
     if (rc < 0) {
         fprintf(stderr, "afmtwin curve: %s: %s\n", o.log, err);
