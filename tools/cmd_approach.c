@@ -20,6 +20,7 @@
 #include "forces/afm_force.h"
 #include "estimators/afm_harm.h"
 #include "estimators/afm_lockin.h"
+#include "estimators/afm_orbit.h"
 #include "beam/afm_model.h"
 #include "integrators/afm_sim.h"
 #include "runner/afm_twin.h"
@@ -318,13 +319,6 @@ typedef struct {
     double free_amp_m, free_lag_deg; /* the model's linear response (tip forces off) */
 } approach_point;
 
-static double wrap_deg(double d) {
-    d = fmod(d, 360.0);
-    if (d <= -180.0) d += 360.0;
-    if (d > 180.0) d -= 360.0;
-    return d;
-}
-
 /* Means over the last n periods of each ring. */
 static void approach_means(const approach_est *e, int n, int nk, approach_point *pt) {
     double re[AFM_MAX_HARMONICS] = {0}, im[AFM_MAX_HARMONICS] = {0}, len = 0.0;
@@ -352,7 +346,7 @@ static void approach_means(const approach_est *e, int n, int nk, approach_point 
     }
     for (int k = 0; k < nk; k++) { /* A e^{i phi} = (2 / T) int x e^{-ik theta} dt */
         pt->amp_m[k] = 2.0 * hypot(re[k], im[k]) / len;
-        pt->lag_deg[k] = wrap_deg(-90.0 - atan2(im[k], re[k]) * (360.0 / TWO_PI));
+        pt->lag_deg[k] = afm_orbit_lag_deg(atan2(im[k], re[k]) * (360.0 / TWO_PI));
     }
     afm_lockin_polar(&e->lockin, &pt->lockin_amp_m, &pt->lockin_lag_deg);
     pt->attractive = pt->ext.mean_force_n < 0.0;
@@ -571,7 +565,7 @@ int afm_cmd_approach(int argc, char **argv) {
     double g_re, g_im, ae = cfg.drive.tones[0].amplitude_m;
     afm_model_tip_response(afm_sim_model(sim), TWO_PI * fe, &g_re, &g_im);
     const double free_amp = ae * hypot(g_re, g_im);
-    const double free_lag = wrap_deg(-atan2(g_im, g_re) * (360.0 / TWO_PI));
+    const double free_lag = afm_orbit_lag_deg(atan2(g_im, g_re) * (360.0 / TWO_PI) - 90.0);
     if (!o.json)
         printf("# free (tip forces off): amplitude %.6g nm, lag %.4f deg\n", free_amp * 1e9,
                free_lag);

@@ -13,6 +13,7 @@
 #include "afmtwin_cmds.h"
 
 #include "transport/afm_lcm_log.h"
+#include "estimators/afm_orbit.h"
 #include "transport/afm_lcm_wire.h"
 #include "afmtwin_harmonics_t.h"
 #include "json_out.h"
@@ -130,13 +131,6 @@ static bool same_point(const curve_rec *a, const curve_rec *b) {
     return a->seq == b->seq && a->z_m == b->z_m && !strcmp(a->tones_key, b->tones_key);
 }
 
-static double wrap(double d) {
-    d = fmod(d, 360.0);
-    if (d <= -180.0) d += 360.0;
-    if (d > 180.0) d -= 360.0;
-    return d;
-}
-
 /* The current run's averages, printed. */
 static void flush_run(curve_state *c, const curve_opts *o) {
     if (c->n < o->min_records) {
@@ -166,7 +160,7 @@ static void flush_run(curve_state *c, const curve_opts *o) {
     for (int i = 0; i < last->n; i++)
         if (last->k[i] == 1) i1 = i;
     double a1 = i1 >= 0 ? hypot(re[i1], im[i1]) : NAN;
-    double l1 = i1 >= 0 ? wrap(-90.0 - atan2(im[i1], re[i1]) * CURVE_DEG) : NAN;
+    double l1 = i1 >= 0 ? afm_orbit_lag_deg(atan2(im[i1], re[i1]) * CURVE_DEG) : NAN;
     if (o->json) {
         cJSON *j = cJSON_CreateObject();
         cJSON_AddNumberToObject(j, "z_m", last->z_m);
@@ -185,7 +179,7 @@ static void flush_run(curve_state *c, const curve_opts *o) {
             cJSON_AddNumberToObject(h, "k", last->k[i]);
             cJSON_AddNumberToObject(h, "amplitude_m", hypot(re[i], im[i]));
             cJSON_AddNumberToObject(h, "phase_lag_deg",
-                                    wrap(-90.0 - atan2(im[i], re[i]) * CURVE_DEG));
+                                    afm_orbit_lag_deg(atan2(im[i], re[i]) * CURVE_DEG));
             cJSON_AddItemToArray(hs, h);
         }
         cJSON_AddNumberToObject(j, "mean_deflection_m", md);
@@ -247,7 +241,11 @@ int afm_cmd_curve(int argc, char **argv) {
         c.ring[c.n++ % CURVE_MAX_N] = r;
     }
     if (c.n > 0) flush_run(&c, &o);
+    long long skipped = afm_lcm_log_skipped(l);
     afm_lcm_log_close(&l);
+    if (skipped > 0)
+        fprintf(stderr, "afmtwin curve: %s: skipped %lld bytes that are no LCM event\n", o.log,
+                skipped);
     if (bad) fprintf(stderr, "afmtwin curve: %ld harmonics records did not decode\n", bad);
     if (rc < 0) {
         fprintf(stderr, "afmtwin curve: %s: %s\n", o.log, err);

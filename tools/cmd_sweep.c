@@ -379,11 +379,7 @@ static cJSON *orbit_json(const afm_orbit *ob, const afm_orbit_settler *st, bool 
         cJSON_AddNumberToObject(c, "k", h->k);
         cJSON_AddNumberToObject(c, "deflection_amplitude_m", h->x_amp_m);
         cJSON_AddNumberToObject(c, "deflection_phase_deg", h->x_phase_deg);
-        double lag = fmod(-(h->x_phase_deg + 90.0), 360.0); /* the lock-in's convention */
-        cJSON_AddNumberToObject(c, "phase_lag_deg",
-                                lag <= -180.0 ? lag + 360.0
-                                : lag > 180.0 ? lag - 360.0
-                                              : lag);
+        cJSON_AddNumberToObject(c, "phase_lag_deg", afm_orbit_lag_deg(h->x_phase_deg));
         cJSON_AddNumberToObject(c, "force_amplitude_n", h->f_amp_n);
         cJSON_AddNumberToObject(c, "force_phase_deg", h->f_phase_deg);
         cJSON_AddNumberToObject(c, "phase_diff_deg", h->phase_diff_deg);
@@ -432,12 +428,10 @@ static void print_text_step(const afm_orbit *ob, const afm_orbit_settler *st, bo
     if (ob->contacts_truncated) printf("    (contact list truncated)\n");
     for (int i = 0; i < ob->n_harmonics; i++) {
         const afm_orbit_harmonic *h = &ob->harmonics[i];
-        double lag = fmod(-(h->x_phase_deg + 90.0), 360.0);
-        lag = lag <= -180.0 ? lag + 360.0 : lag > 180.0 ? lag - 360.0 : lag;
         printf("    k %2d: |xr| %.5e m  phase %8.3f deg  |F| %.5e N  phase %8.3f deg  "
                "dphi %7.3f deg  lag %8.3f deg\n",
                h->k, h->x_amp_m, h->x_phase_deg, h->f_amp_n, h->f_phase_deg, h->phase_diff_deg,
-               lag);
+               afm_orbit_lag_deg(h->x_phase_deg));
     }
     fflush(stdout);
 }

@@ -3,7 +3,6 @@
  * afm_lcm_encode.h). */
 #include "transport/afm_lcm_encode.h"
 
-#include <math.h>
 #include <string.h>
 
 void afm_lcm_samples_msg(const afm_io_samples *s, afmtwin_samples_t *m) {
@@ -35,8 +34,7 @@ void afm_lcm_harmonics_msg(const afm_io_harmonics *h, afm_lcm_harm_buf *b, afmtw
         b->k[i] = (int16_t)r->h[i].k;
         b->xa[i] = r->h[i].x_amp_m;
         b->xp[i] = r->h[i].x_phase_deg;
-        double lag = fmod(-(r->h[i].x_phase_deg + 90.0), 360.0); /* (-180, 180] */
-        b->xl[i] = lag <= -180.0 ? lag + 360.0 : lag > 180.0 ? lag - 360.0 : lag;
+        b->xl[i] = afm_orbit_lag_deg(r->h[i].x_phase_deg);
         b->fa[i] = r->h[i].f_amp_n;
         b->fp[i] = r->h[i].f_phase_deg;
         b->pd[i] = r->h[i].phase_diff_deg;

@@ -514,3 +514,8 @@ int afm_orbit_settle_period(afm_orbit_settler *st, afm_sim *s) {
     }
     return 0;
 }
+
+double afm_orbit_lag_deg(double phase_deg) {
+    double lag = fmod(-(phase_deg + 90.0), 360.0);
+    return lag <= -180.0 ? lag + 360.0 : lag > 180.0 ? lag - 360.0 : lag;
+}

@@ -66,6 +66,11 @@ typedef struct {
 /* Drive period Te = 2 pi / w0 of tone 0 (s); 0 if the tone has no frequency. */
 double afm_orbit_period_s(const afm_drive *d);
 
+/* A harmonic's phase phi (deg, x ~ A cos(k theta + phi), the convention above) as the lag of
+ * the deflection behind the drive sin(k theta), the lock-in's convention (90 deg free at
+ * resonance): -(phi + 90), in (-180, 180]. */
+double afm_orbit_lag_deg(double phase_deg);
+
 /* Analyse the last p whole drive periods of buf[0..n) that leave one more period of samples
  * after them when the buffer is long enough (so that a contact starting near the end of the
  * window is followed to its end), else the last p whole periods that fit. Needs
