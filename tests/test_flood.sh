@@ -52,16 +52,20 @@ adds_up() { # STATUS
   echo "received $r = applied $a + rejected $j + refused $f + dropped $d"
   [ -n "$r" ] && [ "$r" -eq $((a + j + f + d)) ]
 }
-# Status once the queue has drained, at most 10 s: received has stopped moving and every
-# message received has been handled (a parameter change counts as applied only after its
-# model build, so received alone can stand still while one is still in flight).
+# Status once the queue has drained: received has stopped moving and every message received
+# has been handled (a parameter change counts as applied only after its model build, so
+# received alone can stand still while one is still in flight). Waits while the daemon makes
+# progress (handled grows): gives up after 20 statuses without progress or 240 in all.
 settled() {
-  local s p=""
-  for _ in $(seq 1 20); do
+  local s p="" h hp="" idle=0
+  for _ in $(seq 1 240); do
     s=$(status)
     [ -n "$s" ] && [ "$(echo "$s" | jnum received)" = "$p" ] && adds_up "$s" >/dev/null \
       && { echo "$s"; return; }
-    p=$(echo "$s" | jnum received); sleep 0.5
+    p=$(echo "$s" | jnum received)
+    h=""; for k in applied rejected refused dropped; do h="$h $(echo "$s" | jnum $k)"; done
+    if [ "$h" = "$hp" ]; then idle=$((idle + 1)); [ $idle -ge 20 ] && break; else idle=0; fi
+    hp=$h; sleep 0.5
   done
   echo "$s"
 }
