@@ -4,14 +4,16 @@
 # valid commands of every kind (setpoints from 1 um down to indentation, ramps, frequency and
 # amplitude steps, multi-tone, force / damping / geometry changes, pause / step / run, reset)
 # at up to 1 kHz to a realtime afmtwind and checks: every status's real-time factor over the
-# last second of running >= 0.99 with no resync (one block may be skipped right after a
+# last second of running >= AFMTWIN_SOAK_MIN_RTF with no resync (one block may be skipped right after a
 # geometry rebuild: counted, reported), every command applied and echoed, every output
 # finite. Then the same command log runs through `afmtwin lockstep --check` against a
 # lockstep afmtwind (--harmonics-every 64): every completion (seq, samples, model time, the
 # samples and harmonics digests) identical to `afmtwin replay --lockstep` of the sequence.
 # AFMTWIN_SOAK_S: soak seconds per config (default 10; `make soak`: 300), AFMTWIN_SOAK_CHECK_S:
 # model seconds of each log checked in lockstep (default 3; `make soak`: 60; "all": the whole
-# log). The lockstep run keeps a tick's round trip on CPU 0 (docs/realtime.md).
+# log). AFMTWIN_SOAK_MIN_RTF: the real-time factor every status must show (default 0.9: a
+# machine shared with other work, CI's, dips a few per cent now and then; `make soak`: 0.99;
+# the minimum seen is printed either way). The lockstep run keeps a tick's round trip on CPU 0 (docs/realtime.md).
 # Real-time checks on a machine shared with other real-time processes can fail for that
 # reason: the failure names them. Prints "N passed, N failed".
 BUILD=${1:-build}
@@ -21,6 +23,7 @@ cd "$(dirname "$0")/.." || exit 1
 daemon_test_init "$BUILD"
 SOAK_S=${AFMTWIN_SOAK_S:-10}
 CHECK_S=${AFMTWIN_SOAK_CHECK_S:-3}
+MIN_RTF=${AFMTWIN_SOAK_MIN_RTF:-0.9}
 T=$(mktemp -d /tmp/afmtwin-soak.XXXXXX)
 DPID=""; MPID=""
 cleanup() { for p in $DPID $MPID; do kill -KILL "$p" 2>/dev/null; done; rm -rf "$T"; }
@@ -35,7 +38,7 @@ for conf in config/default.conf config/nchv.conf; do
   rt_others "$T/others.txt" "$DPID" &
   MPID=$!
   sleep 1
-  "$A" soak --config "$conf" --seconds "$SOAK_S" --seed $seed --log "$T/soak.log" > "$T/soak.txt" 2> "$T/soak.err"
+  "$A" soak --config "$conf" --seconds "$SOAK_S" --seed $seed --min-rtf "$MIN_RTF" --log "$T/soak.log" > "$T/soak.txt" 2> "$T/soak.err"
   rc=$?
   kill -TERM "$DPID"; wait "$DPID"; drc=$?; DPID=""
   wait "$MPID" 2>/dev/null; MPID=""
