@@ -7,7 +7,7 @@
 # 0.015-0.04 with ~8 resyncs a second (the estimators' phase trackers rebuilt their tables
 # sample by sample once model time was large). Pass: every status from 1.5 s after the start
 # shows a real-time factor over the last second of running (realtime_factor_1s) of at least
-# 0.9 (the strict 0.99 is printed), at most one resync and 20 chain stalls, and the lock-in amplitude and peak
+# 0.9 (the strict 0.99 is printed), at most one resync, and the lock-in amplitude and peak
 # force of the status finite. Run once
 # after 4 s of real uptime and once with --start-time 60 (model time as after a minute up,
 # where the collapse was worst). Timing-sensitive only at the strict level: on a machine
@@ -66,23 +66,22 @@ recipe() {
   read -r windows min resyncs nonfinite stalls < "$T/sum.txt"
   local msg="$name: $windows statuses, real-time factor of the last second min $min, resyncs $resyncs, chain stalls $stalls"
   # The guard: the collapse ran at 0.015-0.04 of real time with ~8 resyncs a second; a
-  # machine shared with other work (CI's) dips a few per cent now and then (0.96 with 2 chain
-  # stalls seen). Fail below 0.9, on more than one resync or on over 20 chain stalls (the
-  # integrator waiting for the output chain: a tracker broken on purpose to rebuild the
-  # estimators' tables on every sample gave 0-446 per run here while real time still held;
-  # test_estimators bounds the rebuild count itself). The strict level (0.99, no resync) is
-  # printed, and held by make soak.
+  # machine shared with other work (CI's) dips a few per cent now and then (0.96 seen). Fail
+  # below 0.9 or on more than one resync. Chain stalls (the integrator waiting for the output
+  # chain) are printed, not judged: 0-81 per run seen on unchanged builds, and a tracker
+  # broken on purpose to rebuild the estimators' tables on every sample gave 0-446 while real
+  # time held (test_estimators bounds the rebuild count itself). The strict level (0.99, no
+  # resync) is printed, and held by make soak on random command sequences.
   local strict="strict level (>= 0.99, no resync) held"
   awk -v m="$min" 'BEGIN{exit !(m >= 0.99)}' && [ "$resyncs" -eq 0 ] \
     || strict="strict level (>= 0.99, no resync) NOT held: a loaded machine, or the start of a regression"
-  if [ "${windows:-0}" -gt 30 ] && awk -v m="$min" 'BEGIN{exit !(m >= 0.9)}' && [ "$resyncs" -le 1 ] \
-    && [ "${stalls:-99}" -le 20 ]; then
-    ok "$msg; >= 0.9, at most 1 resync and 20 stalls; $strict"
+  if [ "${windows:-0}" -gt 30 ] && awk -v m="$min" 'BEGIN{exit !(m >= 0.9)}' && [ "$resyncs" -le 1 ]; then
+    ok "$msg; >= 0.9 and at most 1 resync; $strict"
   else
     if [ -n "$others" ]; then
-      bad "$msg (below 0.9, over one resync or over 20 stalls; other real-time processes ran meanwhile: $others-- re-run on a quiet machine)"
+      bad "$msg (below 0.9 or over one resync; other real-time processes ran meanwhile: $others-- re-run on a quiet machine)"
     else
-      bad "$msg (below 0.9, over one resync or over 20 stalls: the collapse or estimator rebuilds)"
+      bad "$msg (below 0.9 or over one resync: the collapse)"
     fi
   fi
   [ "${nonfinite:-1}" -eq 0 ] && ok "$name: lock-in amplitude and peak force in every status" \
