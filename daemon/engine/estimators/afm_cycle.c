@@ -342,17 +342,23 @@ static int step_boundary(afm_cycle *c, const afm_sample *s, double frac, bool ha
     return finishing;
 }
 
-/* The step from c->prev to s by the exact clock's event ev (frac for a boundary). */
-static int step_general(afm_cycle *c, const afm_sample *s, bool had_prev, int ev, double frac) {
-    if (ev == AFM_CLOCK_CROSS && had_prev) return step_boundary(c, s, frac, true);
-    if (ev == AFM_CLOCK_START && !had_prev) return step_boundary(c, s, 1.0, false);
-    if (had_prev && c->active) {
+/* A step with no period boundary in it: accumulated into the open period (plain) or only
+ * remembered as the previous sample. */
+static inline void step_inside(afm_cycle *c, const afm_sample *s, bool plain) {
+    if (plain) {
         step_plain(c, s);
     } else {
         c->f_prev2 = c->prev.f_n;
         copy_sample(&c->prev, s);
     }
     if (c->n_prev < 2) c->n_prev++;
+}
+
+/* The step from c->prev to s by the exact clock's event ev (frac for a boundary). */
+static int step_general(afm_cycle *c, const afm_sample *s, bool had_prev, int ev, double frac) {
+    if (ev == AFM_CLOCK_CROSS && had_prev) return step_boundary(c, s, frac, true);
+    if (ev == AFM_CLOCK_START && !had_prev) return step_boundary(c, s, 1.0, false);
+    step_inside(c, s, had_prev && c->active);
     return 0;
 }
 
@@ -370,14 +376,7 @@ int afm_cycle_push(afm_cycle *c, const afm_sample *s, double theta_rad) {
         (c->n_prev > 0 && !(s->t_s > c->prev.t_s)))
         return -1;
     if (!afm_track_fast(&c->trk, theta_rad)) return push_slow(c, s, theta_rad);
-    /* no boundary in the step */
-    if (c->active) {
-        step_plain(c, s);
-    } else {
-        c->f_prev2 = c->prev.f_n;
-        copy_sample(&c->prev, s);
-    }
-    if (c->n_prev < 2) c->n_prev++;
+    step_inside(c, s, c->active); /* no boundary in the step */
     return 0;
 }
 
