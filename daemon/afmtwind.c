@@ -473,6 +473,12 @@ int main(int argc, char **argv) {
         return 1;
     }
     d.shadow = cfg;
+    if (cfg.sample.enabled)
+        fprintf(stderr,
+                "afmtwind: %s: the sample group is imaged by afmtwin scan only; the "
+                "daemon runs over a flat, uniform sample (its scanning is not built "
+                "yet)\n",
+                d.opt.config_path);
 
     /* Signals go to main only (sigtimedwait); threads inherit the mask. */
     sigset_t sigs;

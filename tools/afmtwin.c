@@ -21,6 +21,7 @@ static const command commands[] = {
     {"approach", afm_cmd_approach, "approach / retract curve in Z: amplitude, phase, forces"},
     {"plot", afm_cmd_plot, "pictures (gnuplot PNG) of sweep, approach, thermal, trace, spectrum"},
     {"curve", afm_cmd_curve, "approach-style curve from a log of the daemon outputs"},
+    {"scan", afm_cmd_scan, "image a sample with the reference controller: height, phase, force"},
     {"bench", afm_cmd_bench, "integrator speed and accuracy side by side"},
     {"bench-states", afm_cmd_bench_states,
      "integrator and chain cost per sample in every state, and of a Z change"},

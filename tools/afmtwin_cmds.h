@@ -10,6 +10,7 @@ int afm_cmd_sweep(int argc, char **argv);
 int afm_cmd_approach(int argc, char **argv);
 int afm_cmd_plot(int argc, char **argv);
 int afm_cmd_curve(int argc, char **argv);
+int afm_cmd_scan(int argc, char **argv);
 int afm_cmd_bench(int argc, char **argv);
 int afm_cmd_thermal(int argc, char **argv);
 int afm_cmd_send(int argc, char **argv);

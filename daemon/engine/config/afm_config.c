@@ -647,6 +647,107 @@ static int load_chain(const loader *L, const config_setting_t *root, afm_config 
     return 0;
 }
 
+/* sample: optional group (issue 18): features = ( { type = "..."; ... }, ... ), an image
+ * group and materials = ( { ... }, ... ). Ranges are checked in afm_config_check.c. */
+static int load_feature(const loader *L, const config_setting_t *g, afm_cfg_feature *f) {
+    static const char *const keys[] = {"type",    "height_m", "position_m", "angle_deg", "pitch_m",
+                                       "duty",    "edge_m",   "x_m",        "y_m",       "radius_m",
+                                       "slope_x", "slope_y",  "material",   NULL};
+    static const char *const kinds[] = {"tilt", "step", "grating", "sphere", NULL};
+    if (config_setting_type(g) != CONFIG_TYPE_GROUP)
+        return fail(L, g, NULL, "expected a group { type = ...; ... }, got %s", type_name(g));
+    int kind = 0;
+    *f = (afm_cfg_feature){.duty = 0.5, .edge_m = 1e-8};
+    if (only_keys(L, g, keys) || get_choice(L, g, "type", true, kinds, &kind) ||
+        get_num(L, g, "height_m", false, &f->height_m, NULL) ||
+        get_num(L, g, "position_m", false, &f->position_m, NULL) ||
+        get_num(L, g, "angle_deg", false, &f->angle_deg, NULL) ||
+        get_num(L, g, "pitch_m", kind == AFM_FEATURE_GRATING, &f->pitch_m, NULL) ||
+        get_num(L, g, "duty", false, &f->duty, NULL) ||
+        get_num(L, g, "edge_m", false, &f->edge_m, NULL) ||
+        get_num(L, g, "x_m", false, &f->x_m, NULL) || get_num(L, g, "y_m", false, &f->y_m, NULL) ||
+        get_num(L, g, "radius_m", kind == AFM_FEATURE_SPHERE, &f->radius_m, NULL) ||
+        get_num(L, g, "slope_x", false, &f->slope_x, NULL) ||
+        get_num(L, g, "slope_y", false, &f->slope_y, NULL) ||
+        get_int(L, g, "material", false, &f->material))
+        return -1;
+    f->kind = (afm_feature_kind)kind;
+    return 0;
+}
+
+static int load_material(const loader *L, const config_setting_t *g, afm_cfg_material *m) {
+    static const char *const keys[] = {"reduced_modulus_pa", "hamaker_j", "a0_m", "eta_pa_s", NULL};
+    if (config_setting_type(g) != CONFIG_TYPE_GROUP)
+        return fail(L, g, NULL, "expected a group { reduced_modulus_pa = ...; }, got %s",
+                    type_name(g));
+    *m = (afm_cfg_material){NAN, NAN, NAN, NAN};
+    return only_keys(L, g, keys) ||
+                   get_num(L, g, "reduced_modulus_pa", false, &m->reduced_modulus_pa, NULL) ||
+                   get_num(L, g, "hamaker_j", false, &m->hamaker_j, NULL) ||
+                   get_num(L, g, "a0_m", false, &m->a0_m, NULL) ||
+                   get_num(L, g, "eta_pa_s", false, &m->eta_pa_s, NULL)
+               ? -1
+               : 0;
+}
+
+/* A list ( {...}, ... ) of at most max groups, each read by one(). */
+static int load_list(const loader *L, const config_setting_t *g, const char *name, int max, int *n,
+                     int (*one)(const loader *, const config_setting_t *, void *), void *items,
+                     size_t size) {
+    config_setting_t *s;
+    if (member(L, g, name, false, &s)) return -1;
+    if (!s) return 0;
+    if (config_setting_type(s) != CONFIG_TYPE_LIST)
+        return fail(L, s, NULL, "expected a list ( { ... }, ... ), got %s", type_name(s));
+    int len = config_setting_length(s);
+    if (len > max) return fail(L, s, NULL, "at most %d entries (got %d)", max, len);
+    for (int i = 0; i < len; i++)
+        if (one(L, config_setting_get_elem(s, (unsigned)i), (char *)items + (size_t)i * size))
+            return -1;
+    *n = len;
+    return 0;
+}
+
+static int one_feature(const loader *L, const config_setting_t *g, void *f) {
+    return load_feature(L, g, f);
+}
+static int one_material(const loader *L, const config_setting_t *g, void *m) {
+    return load_material(L, g, m);
+}
+
+static int load_sample(const loader *L, const config_setting_t *root, afm_cfg_sample *c) {
+    static const char *const keys[] = {"enabled", "features", "materials", "image", NULL};
+    static const char *const ikeys[] = {"file", "pixel_m", "height_per_level_m",
+                                        "x0_m", "y0_m",    NULL};
+    config_setting_t *g, *im, *s;
+    if (get_feature(L, root, "sample", &g, &c->enabled)) return -1;
+    if (!g) return 0;
+    if (only_keys(L, g, keys) ||
+        load_list(L, g, "features", AFM_MAX_FEATURES, &c->n_features, one_feature, c->features,
+                  sizeof c->features[0]) ||
+        load_list(L, g, "materials", AFM_MAX_MATERIALS, &c->n_materials, one_material, c->materials,
+                  sizeof c->materials[0]) ||
+        get_group(L, g, "image", false, &im))
+        return -1;
+    if (!im) return 0;
+    if (only_keys(L, im, ikeys) || member(L, im, "file", true, &s) ||
+        get_num(L, im, "pixel_m", true, &c->image_pixel_m, NULL) ||
+        get_num(L, im, "height_per_level_m", true, &c->image_height_per_level_m, NULL) ||
+        get_num(L, im, "x0_m", false, &c->image_x0_m, NULL) ||
+        get_num(L, im, "y0_m", false, &c->image_y0_m, NULL))
+        return -1;
+    if (config_setting_type(s) != CONFIG_TYPE_STRING)
+        return fail(L, s, NULL, "expected a file name, got %s", type_name(s));
+    /* relative to the config file's folder */
+    const char *v = config_setting_get_string(s), *slash = strrchr(L->path, '/');
+    int dir = v[0] != '/' && slash ? (int)(slash - L->path) + 1 : 0;
+    if ((size_t)dir + strlen(v) >= sizeof c->image_file)
+        return fail(L, s, NULL, "path too long (at most %zu characters with the config's folder)",
+                    sizeof c->image_file - 1);
+    snprintf(c->image_file, sizeof c->image_file, "%.*s%s", dir, L->path, v);
+    return 0;
+}
+
 /* can: optional group (issue 6); enabled defaults to true when the group is present. Ids
  * and ranges are checked in afm_config_check.c. */
 static const char *const can_id_keys[AFM_CAN_N_SIGNALS + 1] = {"dither_frequency",
@@ -823,11 +924,12 @@ static int load_parsed(config_t *lc, loader *L, afm_config *tmp, afm_config *cfg
     char *err = L->err;
     size_t errlen = L->errlen;
     const config_setting_t *root = config_root_setting(lc);
-    static const char *const keys[] = {"model",   "forces", "drive",  "sim", "obd",
-                                       "thermal", "lockin", "output", "can", NULL};
+    static const char *const keys[] = {"model",  "forces", "drive", "sim",    "obd", "thermal",
+                                       "lockin", "output", "can",   "sample", NULL};
     if (only_keys(L, root, keys) || load_model(L, root, &tmp->model) ||
         load_forces(L, root, tmp->model.kind, &tmp->forces) || load_drive(L, root, &tmp->drive) ||
-        load_sim(L, root, &tmp->sim) || load_chain(L, root, tmp) || load_can(L, root, &tmp->can))
+        load_sim(L, root, &tmp->sim) || load_chain(L, root, tmp) || load_can(L, root, &tmp->can) ||
+        load_sample(L, root, &tmp->sample))
         goto out;
 
     char key[KEY_LEN], why[AFM_ERR_LEN];

@@ -182,6 +182,53 @@ typedef struct {
     double reconnect_min_s, reconnect_max_s; /* retry backoff, doubling from min to max */
 } afm_cfg_can;
 
+/* The sample under the tip (issue 18): a height map z_s(x, y) (m, up = towards the tip)
+ * summed from analytic features and an optional height image, and material regions. Off
+ * (a flat, uniform sample at height 0) unless the config has a `sample` group. */
+#define AFM_MAX_FEATURES 16
+#define AFM_MAX_MATERIALS 8
+typedef enum {
+    AFM_FEATURE_TILT = 0,    /* z = slope_x x + slope_y y */
+    AFM_FEATURE_STEP = 1,    /* height_m on the side u > position_m (u along angle_deg) */
+    AFM_FEATURE_GRATING = 2, /* lines of height_m, period pitch_m, duty (top fraction) */
+    AFM_FEATURE_SPHERE = 3   /* a particle of radius_m at (x_m, y_m) on the plane */
+} afm_feature_kind;
+
+typedef struct {
+    afm_feature_kind kind;
+    double height_m;         /* step, grating: height of the upper level over the lower */
+    double position_m;       /* step: edge position along u; grating: u of a rising edge */
+    double angle_deg;        /* step, grating: u = x cos(angle) + y sin(angle) */
+    double pitch_m;          /* grating period */
+    double duty;             /* grating: fraction of a period on top, 0 < duty < 1 */
+    double edge_m;           /* step, grating: width of an edge (smooth, C1), > 0 */
+    double x_m, y_m;         /* sphere centre */
+    double radius_m;         /* sphere */
+    double slope_x, slope_y; /* tilt (dimensionless) */
+    int material;            /* region on the feature's upper part: 0 = the forces group's sample,
+                                i = materials[i - 1] */
+} afm_cfg_feature;
+
+/* A material: what differs from the forces group's sample (NAN = the same). */
+typedef struct {
+    double reduced_modulus_pa; /* Er */
+    double hamaker_j;          /* Ha */
+    double a0_m;               /* intermolecular distance (sets the DMT adhesion Ha R/6a0^2) */
+    double eta_pa_s;           /* contact viscosity (viscoelastic term; > 0 turns it on) */
+} afm_cfg_material;
+
+typedef struct {
+    bool enabled;
+    int n_features;
+    afm_cfg_feature features[AFM_MAX_FEATURES];
+    int n_materials;
+    afm_cfg_material materials[AFM_MAX_MATERIALS];
+    char image_file[256]; /* height image, PGM (P2 or P5) or a whitespace table; "" none */
+    double image_pixel_m; /* pixel pitch of the image, > 0 */
+    double image_height_per_level_m; /* height of one grey level (PGM) or of 1.0 (table) */
+    double image_x0_m, image_y0_m;   /* position of the image's first pixel (top left) */
+} afm_cfg_sample;
+
 typedef struct {
     char path[256]; /* file it came from */
     afm_cfg_model model;
@@ -192,7 +239,8 @@ typedef struct {
     afm_cfg_thermal thermal;
     afm_cfg_lockin lockin;
     afm_cfg_output output;
-    afm_cfg_can can; /* CAN input (issue 6); can.enabled false without a can group */
+    afm_cfg_can can;       /* CAN input (issue 6); can.enabled false without a can group */
+    afm_cfg_sample sample; /* the sample under the tip (issue 18); off without a sample group */
 } afm_config;
 
 /* Fill every field with its default (documented in config/README.md). */

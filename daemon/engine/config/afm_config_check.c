@@ -314,10 +314,67 @@ static int check_can(const afm_config *c, char *key, char *why, size_t why_len) 
     return 0;
 }
 
+/* The sample (issue 18): features' sizes and materials' moduli in the ranges a surface
+ * can have (heights up to 1 um, edges of at least 0.1 nm: an edge is a smooth C1 ramp). */
+static int check_sample(const afm_config *c, char *key, char *why, size_t why_len) {
+    const afm_cfg_sample *sm = &c->sample;
+    char p[64];
+    if (!sm->enabled) return 0;
+    for (int i = 0; i < sm->n_features; i++) {
+        const afm_cfg_feature *f = &sm->features[i];
+#define FP(name) (snprintf(p, sizeof p, "sample.features[%d].%s", i, name), p)
+        NEED(isfinite(f->height_m) && fabs(f->height_m) <= 1e-6, FP("height_m"),
+             "must be in [-1e-06, 1e-06] m (got %g)", f->height_m);
+        FINITE(f->position_m, FP("position_m"));
+        FINITE(f->angle_deg, FP("angle_deg"));
+        FINITE(f->x_m, FP("x_m"));
+        FINITE(f->y_m, FP("y_m"));
+        NEED(isfinite(f->slope_x) && fabs(f->slope_x) <= 0.5, FP("slope_x"),
+             "must be in [-0.5, 0.5] (got %g)", f->slope_x);
+        NEED(isfinite(f->slope_y) && fabs(f->slope_y) <= 0.5, FP("slope_y"),
+             "must be in [-0.5, 0.5] (got %g)", f->slope_y);
+        NEED(f->material >= 0 && f->material <= sm->n_materials, FP("material"),
+             "must be 0 (the forces group's sample) to %d (the materials listed; got %d)",
+             sm->n_materials, f->material);
+        if (f->kind == AFM_FEATURE_STEP || f->kind == AFM_FEATURE_GRATING)
+            RANGE(f->edge_m, 1e-10, 1e-5, FP("edge_m"), "m");
+        if (f->kind == AFM_FEATURE_GRATING) {
+            RANGE(f->pitch_m, 1e-9, 1e-3, FP("pitch_m"), "m");
+            NEED(isfinite(f->duty) && f->duty > 0 && f->duty < 1, FP("duty"),
+                 "must be in (0, 1) (got %g)", f->duty);
+            NEED(f->edge_m < 0.5 * f->duty * f->pitch_m &&
+                     f->edge_m < 0.5 * (1 - f->duty) * f->pitch_m,
+                 FP("edge_m"), "must be below half of the top and of the gap (got %g m)",
+                 f->edge_m);
+        }
+        if (f->kind == AFM_FEATURE_SPHERE) RANGE(f->radius_m, 1e-10, 1e-5, FP("radius_m"), "m");
+#undef FP
+    }
+    for (int i = 0; i < sm->n_materials; i++) {
+        const afm_cfg_material *m = &sm->materials[i];
+#define MP(name) (snprintf(p, sizeof p, "sample.materials[%d].%s", i, name), p)
+        if (!isnan(m->reduced_modulus_pa))
+            RANGE(m->reduced_modulus_pa, 1e5, 2e12, MP("reduced_modulus_pa"), "Pa");
+        if (!isnan(m->hamaker_j)) RANGE(m->hamaker_j, 0.0, 1e-17, MP("hamaker_j"), "J");
+        if (!isnan(m->a0_m)) RANGE(m->a0_m, 1e-11, 1e-8, MP("a0_m"), "m");
+        if (!isnan(m->eta_pa_s)) RANGE(m->eta_pa_s, 0.0, 1e6, MP("eta_pa_s"), "Pa s");
+#undef MP
+    }
+    if (sm->image_file[0]) {
+        RANGE(sm->image_pixel_m, 1e-11, 1e-4, "sample.image.pixel_m", "m");
+        NEED(isfinite(sm->image_height_per_level_m) && fabs(sm->image_height_per_level_m) <= 1e-7,
+             "sample.image.height_per_level_m", "must be in [-1e-07, 1e-07] m (got %g)",
+             sm->image_height_per_level_m);
+        FINITE(sm->image_x0_m, "sample.image.x0_m");
+        FINITE(sm->image_y0_m, "sample.image.y0_m");
+    }
+    return 0;
+}
+
 int afm_config_check_all(const afm_config *c, char *key, char *why, size_t why_len) {
     if (check_model(c, key, why, why_len) || check_forces(c, key, why, why_len) ||
         check_drive_sim(c, key, why, why_len) || check_chain(c, key, why, why_len) ||
-        check_can(c, key, why, why_len))
+        check_can(c, key, why, why_len) || check_sample(c, key, why, why_len))
         return -1;
     return 0;
 }

@@ -8,6 +8,12 @@
 #include <stdlib.h>
 #include <string.h>
 
+void afm_twin_plate(const afm_config *cfg, const afm_modal *m, double *length_m, double *width_m) {
+    /* Starr's squeezing plate is the beam itself; the lumped model names its own. */
+    *length_m = m->beam_length_m > 0 ? m->beam_length_m : cfg->forces.plate_length_m;
+    *width_m = m->beam_mean_width_m > 0 ? m->beam_mean_width_m : cfg->forces.plate_width_m;
+}
+
 afm_sim *afm_twin_create(const afm_config *cfg, afm_modal *m_out, afm_force_params *f_out,
                          char *err, size_t errlen) {
     static const afm_modal zero_modal;
@@ -20,9 +26,8 @@ afm_sim *afm_twin_create(const afm_config *cfg, afm_modal *m_out, afm_force_para
     }
     *m = zero_modal;
     if (afm_model_build(&cfg->model, m, err, errlen) != 0) goto done;
-    /* Starr's squeezing plate is the beam itself; the lumped model names its own. */
-    double len = m->beam_length_m > 0 ? m->beam_length_m : cfg->forces.plate_length_m;
-    double wid = m->beam_mean_width_m > 0 ? m->beam_mean_width_m : cfg->forces.plate_width_m;
+    double len, wid;
+    afm_twin_plate(cfg, m, &len, &wid);
     if (afm_force_init(&f, &cfg->forces, len, wid, err, errlen) != 0) goto done;
     s = afm_sim_create(m, &f, &cfg->drive, &cfg->sim, err, errlen);
     if (s && cfg->thermal.enabled && afm_sim_set_thermal(s, &cfg->thermal, err, errlen) != 0)

@@ -16,6 +16,10 @@
 afm_sim *afm_twin_create(const afm_config *cfg, afm_modal *m_out, afm_force_params *f_out,
                          char *err, size_t errlen);
 
+/* The plate afm_force_init wants (Starr's squeeze film): the beam of model m, or the
+ * lumped model's plate from cfg's forces group. */
+void afm_twin_plate(const afm_config *cfg, const afm_modal *m, double *length_m, double *width_m);
+
 /* A new simulator on src's model, forces, separation and drive, started at t = 0 from
  * src's current modal state with every tone at src's current phase, integrating with the
  * integrator and tolerances of sim (e.g. to compare integrators from one settled state).
