@@ -71,7 +71,11 @@ static void plot_usage(FILE *f) {
                "            (--stream N, default 0) over --from S --to S of model time (default\n"
                "            the first 2 ms); --z M also draws the gap d = xr + Z (cos alpha 1)\n"
                "  spectrum  INPUT: sweep or approach --json output; --index N: the record (step)\n"
-               "            to draw, 0 the first (default), -1 the last: harmonic amplitudes\n\n"
+               "            to draw, 0 the first (default), -1 the last: harmonic amplitudes\n"
+               "  scan      INPUT: afmtwin scan --json output: images (trace) of the height,\n"
+               "            phase lag, amplitude error and peak force with their colour bars,\n"
+               "            x and y in nm, and the middle line's height profile (trace and\n"
+               "            retrace) against the true height; a one-line scan draws profiles\n\n"
                "Phase convention: the lag of the deflection behind the drive, 90 deg for a free\n"
                "cantilever at resonance, below 90 in the repulsive regime.\n"
                "Exit status 0 ok, 1 gnuplot or a file failed, 2 bad usage or bad input.\n");
@@ -486,6 +490,105 @@ static int load_spectrum(const plot_opts *o, plot_data *d, FILE *gp) {
     return 0;
 }
 
+/* ---- scan ---- */
+
+#define SCAN_COLS 9 /* x_nm y_nm line height_nm true_nm lag_deg error_nm peak_nN dissipated_eV */
+
+typedef struct {
+    plot_set *tr, *re;
+    int lines;
+} scan_ctx;
+
+static int scan_row(const cJSON *o, void *vctx) {
+    scan_ctx *c = vctx;
+    double line = num(o, "line");
+    if (isnan(line) || isnan(num(o, "height_m")))
+        return plot_err("%s", "a record without line or height_m (afmtwin scan --json?)");
+    if (line + 1 > c->lines) c->lines = (int)line + 1;
+    double row[SCAN_COLS] = {num(o, "x_m") * 1e9,
+                             num(o, "y_m") * 1e9,
+                             line,
+                             num(o, "height_m") * 1e9,
+                             num(o, "true_height_m") * 1e9,
+                             num(o, "phase_lag_deg"),
+                             num(o, "error_m") * 1e9,
+                             num(o, "peak_force_n") * 1e9,
+                             num(o, "dissipated_energy_j") / PLOT_EV};
+    return set_row(cJSON_IsTrue(cJSON_GetObjectItemCaseSensitive(o, "retrace")) ? c->re : c->tr,
+                   row);
+}
+
+/* Each line's y: the mean of its pixels' (the slow axis moves during a line), so that the
+ * trace is a regular grid for gnuplot's image. */
+static void scan_line_y(plot_set *s, int lines) {
+    for (int l = 0; l < lines; l++) {
+        double sum = 0;
+        int n = 0;
+        for (size_t r = 0; r < s->n; r++)
+            if (s->v[r * SCAN_COLS + 2] == l) sum += s->v[r * SCAN_COLS + 1], n++;
+        for (size_t r = 0; r < s->n && n; r++)
+            if (s->v[r * SCAN_COLS + 2] == l) s->v[r * SCAN_COLS + 1] = sum / n;
+    }
+}
+
+static int load_scan(const plot_opts *o, plot_data *d, FILE *gp) {
+    const char *h = "x_nm y_nm line height_nm true_height_nm lag_deg error_nm peak_force_nN "
+                    "dissipated_eV";
+    scan_ctx c = {set_new(d, "T", h, SCAN_COLS), set_new(d, "R", h, SCAN_COLS), 0};
+    if (!c.tr || !c.re || each_json(o->in[0], scan_row, &c)) return -1;
+    if (c.tr->n == 0) return plot_err("%s: no trace pixels", o->in[0]);
+    scan_line_y(c.tr, c.lines);
+    /* the profile: the middle line's trace and retrace against the truth */
+    int mid = c.lines / 2;
+    plot_set *pt = set_new(d, "PT", h, SCAN_COLS), *pr = set_new(d, "PR", h, SCAN_COLS);
+    if (!pt || !pr) return -1;
+    for (size_t r = 0; r < c.tr->n; r++)
+        if (c.tr->v[r * SCAN_COLS + 2] == mid && set_row(pt, c.tr->v + r * SCAN_COLS)) return -1;
+    for (size_t r = 0; r < c.re->n; r++)
+        if (c.re->v[r * SCAN_COLS + 2] == mid && set_row(pr, c.re->v + r * SCAN_COLS)) return -1;
+    static const struct {
+        const char *label;
+        int col;
+    } img[4] = {{"height (nm)", 4},
+                {"phase lag (deg)", 6},
+                {"amplitude error (nm)", 7},
+                {"peak force (nN)", 8}};
+    /* x tics: a 1-2-5 step giving about 4 intervals over the scan */
+    double x0 = INFINITY, x1 = -INFINITY;
+    for (size_t r = 0; r < c.tr->n; r++) {
+        x0 = fmin(x0, c.tr->v[r * SCAN_COLS]);
+        x1 = fmax(x1, c.tr->v[r * SCAN_COLS]);
+    }
+    double step = x1 > x0 ? pow(10, floor(log10((x1 - x0) / 4))) : 1;
+    double ratio = x1 > x0 ? (x1 - x0) / 4 / step : 1;
+    step *= ratio >= 5 ? 5 : ratio >= 2 ? 2 : 1;
+    fprintf(gp,
+            "set xtics %g\nset multiplot layout %d,%d title '%s (phase: lag behind the drive, 90 "
+            "deg free at resonance)'\n",
+            step, c.lines > 1 ? 2 : 3, c.lines > 1 ? 3 : 2, d->title);
+    for (int p = 0; p < 4; p++) {
+        if (c.lines > 1)
+            fprintf(gp,
+                    "set xlabel 'x (nm)'\nset ylabel 'y (nm)'\nset size ratio -1\nset title "
+                    "'%s (trace)'\nunset key\nplot $T using 1:2:%d with image notitle\nset size "
+                    "noratio\nset key\n",
+                    img[p].label, img[p].col);
+        else
+            fprintf(gp,
+                    "set xlabel 'x (nm)'\nset ylabel '%s'\nset title '%s'\nplot $PT using 1:%d "
+                    "with linespoints pt 7 ps 0.4 title 'trace', $PR using 1:%d with "
+                    "linespoints pt 6 ps 0.4 title 'retrace'\n",
+                    img[p].label, img[p].label, img[p].col, img[p].col);
+    }
+    fprintf(gp,
+            "set xlabel 'x (nm)'\nset ylabel 'height (nm)'\nset title 'line %d: height against "
+            "the truth'\nplot $PT using 1:5 with lines lw 2 lc rgb 'black' title 'true', $PT "
+            "using 1:4 with linespoints pt 7 ps 0.4 title 'trace', $PR using 1:4 with "
+            "linespoints pt 6 ps 0.4 title 'retrace'\nunset multiplot\n",
+            mid);
+    return 0;
+}
+
 /* gnuplot string literal text: no quotes or backslashes from file names. */
 static void title_of(const plot_opts *o, plot_data *d) {
     const char *t = o->title ? o->title : o->in[0];
@@ -508,18 +611,15 @@ int afm_cmd_plot(int argc, char **argv) {
     static const struct {
         const char *kind;
         int (*load)(const plot_opts *, plot_data *, FILE *);
-    } kinds[] = {{"sweep", load_sweep},
-                 {"approach", load_approach},
-                 {"thermal", load_thermal},
-                 {"trace", load_trace},
-                 {"spectrum", load_spectrum}};
+    } kinds[] = {{"sweep", load_sweep}, {"approach", load_approach}, {"thermal", load_thermal},
+                 {"trace", load_trace}, {"spectrum", load_spectrum}, {"scan", load_scan}};
     int k = -1;
     for (int i = 0; i < (int)(sizeof kinds / sizeof kinds[0]); i++)
         if (!strcmp(o.kind, kinds[i].kind)) k = i;
     if (k < 0) {
         fprintf(stderr,
                 "afmtwin plot: unknown kind '%s' (sweep, approach, thermal, trace, "
-                "spectrum)\n",
+                "spectrum, scan)\n",
                 o.kind);
         return 2;
     }

@@ -35,3 +35,8 @@ mkdir -p "$O"
   --quiet
 "$A" plot trace "$O/out.log" --from 0.003 --to 0.00302 --z 40e-9 -o "$O/trace.png" \
   --data "$O/trace.dat" --title "default.conf, replay, Z 40 nm"
+# scan: a grating imaged with the reference controller, 6 lines at 20 lines/s (issue 18)
+"$A" scan --config config/scan-grating.conf --pixels 48 --lines 6 --size-y 2e-7 \
+  --line-rate 20 --json >"$O/scan.json"
+"$A" plot scan "$O/scan.json" -o "$O/scan.png" --data "$O/scan.dat" \
+  --title "scan-grating.conf, 5 nm lines, 20 lines/s"
