@@ -7,7 +7,7 @@
 #include "forces/afm_force.h"
 #include "estimators/afm_est_internal.h"
 #include "estimators/afm_lockin.h"
-#include "integrators/afm_clones.h"
+#include "config/afm_clones.h"
 
 #include <math.h>
 #include <stddef.h>
@@ -289,21 +289,26 @@ static void stamp_cascade(stream *s, const double *t_src, int ph) {
  * aligned). Returns 1 when every channel of every frame is finite (x 0 is 0 for finite x and
  * NaN for inf and NaN: the sum of those over the frames is 0 exactly when all are finite). */
 AFM_CLONES static int pack_frames(double *dst, const afm_sample *p, const double *obd, int n) {
+    enum { S = sizeof(afm_sample) / sizeof(double) };
+    const double *x = (const double *)p + offsetof(afm_sample, x_m) / sizeof(double);
     afm_v4 z0 = AFM_V4_SET1(0.0), z1 = z0;
+    /* (x, v, f, theta) and (v, f, theta, base) -> (x, obd, f, base) */
+#define PACK(i, z)                                                                                 \
+    do {                                                                                           \
+        afm_v4 f_ =                                                                                \
+            __builtin_shufflevector(AFM_V4_LD(x + (i)*S), AFM_V4_LD(x + (i)*S + 1), 0, 1, 2, 7);   \
+        f_[1] = obd[i];                                                                            \
+        AFM_V4_ST(dst + (size_t)(i)*AFM_DECIM_CH, f_);                                             \
+        z = z + f_ * 0.0;                                                                          \
+    } while (0)
     int i = 0;
     for (; i + 2 <= n; i += 2) {
-        afm_v4 f0 = {p[i].x_m, obd[i], p[i].f_n, p[i].base_m};
-        afm_v4 f1 = {p[i + 1].x_m, obd[i + 1], p[i + 1].f_n, p[i + 1].base_m};
-        AFM_V4_ST(dst + (size_t)i * AFM_DECIM_CH, f0);
-        AFM_V4_ST(dst + (size_t)(i + 1) * AFM_DECIM_CH, f1);
-        z0 = z0 + f0 * 0.0;
-        z1 = z1 + f1 * 0.0;
+        PACK(i, z0);
+        PACK(i + 1, z1);
     }
-    for (; i < n; i++) {
-        afm_v4 f0 = {p[i].x_m, obd[i], p[i].f_n, p[i].base_m};
-        AFM_V4_ST(dst + (size_t)i * AFM_DECIM_CH, f0);
-        z0 = z0 + f0 * 0.0;
-    }
+    for (; i < n; i++)
+        PACK(i, z0);
+#undef PACK
     z0 = z0 + z1;
     return (z0[0] + z0[1]) + (z0[2] + z0[3]) == 0.0;
 }

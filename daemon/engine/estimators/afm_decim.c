@@ -2,7 +2,7 @@
 /* afm_decim.c -- multi-stage polyphase FIR decimator (contract in afm_decim.h). */
 #include "estimators/afm_decim.h"
 
-#include "integrators/afm_clones.h"
+#include "config/afm_clones.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -324,12 +324,17 @@ static v4 *stage_in(stage *g) {
  * as in the x86-64-v3 copies of a portable build's multiversioned functions, libm's fma
  * otherwise): every build sums the same bits. Macros, not functions taking vectors by
  * value: clang refuses those between functions of different targets (AFM_CLONES). */
+#if defined(__AVX__) && defined(__FMA__)
+#include <immintrin.h>
+#define MADD(h, w, acc) ((v4)_mm256_fmadd_pd((h), (w), (acc)))
+#else
 #define MADD(h, w, acc)                                                                            \
     __extension__({                                                                                \
         v4 h_ = (h), w_ = (w), a_ = (acc);                                                         \
         (v4){__builtin_fma(h_[0], w_[0], a_[0]), __builtin_fma(h_[1], w_[1], a_[1]),               \
              __builtin_fma(h_[2], w_[2], a_[2]), __builtin_fma(h_[3], w_[3], a_[3])};              \
     })
+#endif
 
 /* Frame k of dst = y. */
 #define PUT(dst, k, y)                                                                             \
@@ -342,6 +347,7 @@ static v4 *stage_in(stage *g) {
  * term, then the pairs q = 0, 1, ... (the order every halfband output is summed in). */
 static inline void hb_one(const v4 *w, const v4 *g, int np, double *dst, int k) {
     v4 a = g[np] * w[2 * np - 1];
+#pragma GCC unroll 16
     for (int q = 0; q < np; q++)
         a = MADD(g[q], w[2 * np - 2 - 2 * q] + w[2 * np + 2 * q], a);
     PUT(dst, k, a);

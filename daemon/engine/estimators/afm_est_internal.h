@@ -13,7 +13,7 @@
 #include "integrators/afm_sim.h"
 
 #include <math.h>
-#if defined(__SSE4_1__)
+#if defined(__SSE4_1__) || defined(__AVX__)
 #include <immintrin.h>
 #endif
 #include <stdbool.h>
@@ -232,7 +232,7 @@ static inline void afm_split_weights(double s, double w_before[2], double w_afte
 /* 4 doubles side by side (afm_harm's harmonic lanes, afm_lockin's filter stages): a GNU
  * vector (gcc and clang), so the same code is AVX registers in an x86-64-v3 build or in the
  * x86-64-v3 copy of a portable build's multiversioned functions (AFM_CLONES,
- * integrators/afm_clones.h), and pairs of SSE2 registers in the baseline copy. Every
+ * config/afm_clones.h), and pairs of SSE2 registers in the baseline copy. Every
  * operation rounds once per lane, AFM_V4_FMA included (__builtin_fma: one vfmadd where the
  * target has FMA, libm's fma otherwise), so every copy gives the same bits. The operations
  * are macros, not functions: clang refuses a vector passed by value between functions of
@@ -248,9 +248,13 @@ typedef double afm_v4u __attribute__((vector_size(32), aligned(8), may_alias));
 #define AFM_V4_MUL(a, b) ((a) * (b))
 /* a b + c, c - a b and a b - c, one rounding per lane (the arguments are read once per
  * lane: expressions without side effects, nested ones folded by the compiler) */
+#if defined(__AVX__) && defined(__FMA__) /* an x86-64-v3 build: one vfmadd, certainly */
+#define AFM_V4_FMA(a, b, c) ((afm_v4)_mm256_fmadd_pd((a), (b), (c)))
+#else /* lane by lane: gcc and clang fold the four into one vfmadd in an x86-64-v3 clone */
 #define AFM_V4_FMA(a, b, c)                                                                        \
     ((afm_v4){__builtin_fma((a)[0], (b)[0], (c)[0]), __builtin_fma((a)[1], (b)[1], (c)[1]),        \
               __builtin_fma((a)[2], (b)[2], (c)[2]), __builtin_fma((a)[3], (b)[3], (c)[3])})
+#endif
 #define AFM_V4_FNMA(a, b, c) AFM_V4_FMA(-(a), (b), (c))
 #define AFM_V4_FMS(a, b, c) AFM_V4_FMA((a), (b), -(c))
 

@@ -2,7 +2,7 @@
 /* afm_harm.c -- streaming per-period harmonics (contract in afm_harm.h). */
 #include "estimators/afm_harm.h"
 
-#include "integrators/afm_clones.h"
+#include "config/afm_clones.h"
 
 #include <stdio.h>
 #include <string.h>

@@ -3,7 +3,7 @@
  * afm_lockin.h). */
 #include "estimators/afm_lockin.h"
 
-#include "integrators/afm_clones.h"
+#include "config/afm_clones.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -92,6 +92,7 @@ AFM_EST_COLD static void build_tables(afm_lockin *l) {
 static inline ALWAYS_INLINE void stages_w(const afm_lockin *l, afm_v4 *w, const int NV) {
     const afm_v4 c2 = AFM_V4_SET1(2.0 * l->c);
     const afm_v4 s2 = (afm_v4){2.0 * l->s, -2.0 * l->s, 2.0 * l->s, -2.0 * l->s};
+#pragma GCC unroll 4
     for (int v = 0; v < NV; v++) {
         afm_v4 sum =
             AFM_V4_ADD(AFM_V4_ADD(AFM_V4_LD(l->acc[0] + 4 * v), AFM_V4_LD(l->acc[1] + 4 * v)),
@@ -139,13 +140,17 @@ static inline ALWAYS_INLINE void flush_nv(afm_lockin *l, const int NV) {
     afm_v4 w[4];
     stages_w(l, w, NV);
     double zp[32]; /* 2 NV - 1 zero stages, then w */
+#pragma GCC unroll 4
     for (int v = 0; v < NV; v++)
         AFM_V4_ST(zp + 4 * v, AFM_V4_SET1(0.0));
+#pragma GCC unroll 4
     for (int v = 0; v < NV; v++)
         AFM_V4_ST(zp + 4 * NV - 2 + 4 * v, w[v]);
     const double *a = l->ap[l->m];
+#pragma GCC unroll 4
     for (int v = 0; v < NV; v++) {
         afm_v4 z = AFM_V4_MUL(AFM_V4_SET1(a[0]), w[v]);
+#pragma GCC unroll 8
         for (int d = 1; d < 2 * NV; d++)
             z = AFM_V4_FMA(AFM_V4_SET1(a[d]), AFM_V4_LD(zp + 4 * NV - 2 + 4 * v - 2 * d), z);
         AFM_V4_ST(&l->xy[2 * v][0], z);
@@ -156,6 +161,7 @@ static inline ALWAYS_INLINE void flush_nv(afm_lockin *l, const int NV) {
     l->s = fma(l->s, pc, l->c * ps);
     l->c = c;
     for (int q = 0; q < 4; q++)
+#pragma GCC unroll 4
         for (int v = 0; v < NV; v++)
             AFM_V4_ST(l->acc[q] + 4 * v, AFM_V4_SET1(0.0));
     l->m = 0;
@@ -224,6 +230,7 @@ static inline ALWAYS_INLINE void block_add(afm_lockin *l, const double *u, int k
     double *s0 = l->acc[p], *s1 = l->acc[(p + 1) & 3], *s2 = l->acc[(p + 2) & 3],
            *s3 = l->acc[(p + 3) & 3];
     afm_v4 r0[4], r1[4], r2[4], r3[4];
+#pragma GCC unroll 4
     for (int v = 0; v < NV; v++) {
         r0[v] = AFM_V4_LD(s0 + 4 * v);
         r1[v] = AFM_V4_LD(s1 + 4 * v);
@@ -235,6 +242,7 @@ static inline ALWAYS_INLINE void block_add(afm_lockin *l, const double *u, int k
     for (; i + 4 <= k; i += 4, w += 4 * st) {
         afm_v4 u0 = AFM_V4_SET1(u[i]), u1 = AFM_V4_SET1(u[i + 1]);
         afm_v4 u2 = AFM_V4_SET1(u[i + 2]), u3 = AFM_V4_SET1(u[i + 3]);
+#pragma GCC unroll 4
         for (int v = 0; v < NV; v++) {
             r0[v] = AFM_V4_FMA(u0, AFM_V4_LD(w + 4 * v), r0[v]);
             r1[v] = AFM_V4_FMA(u1, AFM_V4_LD(w + st + 4 * v), r1[v]);
@@ -244,19 +252,23 @@ static inline ALWAYS_INLINE void block_add(afm_lockin *l, const double *u, int k
     }
     if (i < k) { /* 1..3 more */
         afm_v4 u0 = AFM_V4_SET1(u[i]);
+#pragma GCC unroll 4
         for (int v = 0; v < NV; v++)
             r0[v] = AFM_V4_FMA(u0, AFM_V4_LD(w + 4 * v), r0[v]);
         if (i + 1 < k) {
             afm_v4 u1 = AFM_V4_SET1(u[i + 1]);
+#pragma GCC unroll 4
             for (int v = 0; v < NV; v++)
                 r1[v] = AFM_V4_FMA(u1, AFM_V4_LD(w + st + 4 * v), r1[v]);
         }
         if (i + 2 < k) {
             afm_v4 u2 = AFM_V4_SET1(u[i + 2]);
+#pragma GCC unroll 4
             for (int v = 0; v < NV; v++)
                 r2[v] = AFM_V4_FMA(u2, AFM_V4_LD(w + 2 * st + 4 * v), r2[v]);
         }
     }
+#pragma GCC unroll 4
     for (int v = 0; v < NV; v++) {
         AFM_V4_ST(s0 + 4 * v, r0[v]);
         AFM_V4_ST(s1 + 4 * v, r1[v]);
