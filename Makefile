@@ -21,8 +21,9 @@ WARN     := -Wall -Wextra -Werror -Wshadow -Wstrict-prototypes -Wmissing-prototy
 # Target CPU (README "Portable builds"): x86-64-v3 (the local default: AVX2 + FMA everywhere,
 # what the real-time figures are measured with), native, any other -march value, or
 # portable: the baseline of the architecture (x86-64, or armv8-a on arm64), with the
-# integrator's inner loop compiled twice on x86-64 and the x86-64-v3 copy chosen at run time
-# where the CPU has it (target_clones). The Debian package builds portable.
+# functions that carry the cost per sample (integrator, output chain: AFM_CLONES) compiled
+# twice on x86-64 and the x86-64-v3 copy chosen at run time where the CPU has it
+# (target_clones). The Debian package builds portable.
 AFMTWIN_MARCH ?= x86-64-v3
 HOST_ARCH  := $(firstword $(subst -, ,$(shell $(CC) -dumpmachine)))
 ifeq ($(AFMTWIN_MARCH),portable)
