@@ -21,8 +21,9 @@ WARN     := -Wall -Wextra -Werror -Wshadow -Wstrict-prototypes -Wmissing-prototy
 # Target CPU (README "Portable builds"): x86-64-v3 (the local default: AVX2 + FMA everywhere,
 # what the real-time figures are measured with), native, any other -march value, or
 # portable: the baseline of the architecture (x86-64, or armv8-a on arm64), with the
-# integrator's inner loop compiled twice on x86-64 and the x86-64-v3 copy chosen at run time
-# where the CPU has it (target_clones). The Debian package builds portable.
+# functions that carry the cost per sample (integrator, output chain: AFM_CLONES) compiled
+# twice on x86-64 and the x86-64-v3 copy chosen at run time where the CPU has it
+# (target_clones). The Debian package builds portable.
 AFMTWIN_MARCH ?= x86-64-v3
 HOST_ARCH  := $(firstword $(subst -, ,$(shell $(CC) -dumpmachine)))
 ifeq ($(AFMTWIN_MARCH),portable)
@@ -70,7 +71,7 @@ TEST_BIN   := $(patsubst tests/%.c,$(BUILD)/tests/%,$(TEST_SRC))
 TEST_COMMON := $(BUILD)/obj/tests/check.o $(BUILD)/obj/tests/fixtures.o $(BUILD)/obj/tests/msg_examples.o
 
 .PHONY: all deps run test validate bench soak doc-plots install clean format format-check can-probe \
-        sanitize sanitize-build fuzz fuzzers flood man deb dist core
+        sanitize sanitize-build fuzz fuzzers flood man deb dist core cross-deps cross-arm64
 
 LIBS_ALL   := $(if $(IO_OBJ),$(IO_LIB)) $(MSG_LIB) $(ENGINE_LIB)
 
@@ -78,14 +79,16 @@ LIBS_ALL   := $(if $(IO_OBJ),$(IO_LIB)) $(MSG_LIB) $(ENGINE_LIB)
 .DEFAULT_GOAL := all
 include mk/client.mk
 include mk/install.mk
+include mk/cross.mk
 
 # core: the binaries and the tests (what the sanitizer build needs); all adds the client side.
 core: $(BUILD)/bin/afmtwin $(if $(DAEMON_SRC),$(BUILD)/bin/afmtwind) $(TEST_BIN)
 all: core $(CLIENT_ALL) man
 
 # Install what is missing (apt-get as root, sudo otherwise). Quiet when all is present.
-deps:
-	@missing=""; for p in $(DEB_PKGS); do \
+# (apt_install: the Debian packages of $(1) that are missing; make cross-deps uses it too.)
+define apt_install
+	@missing=""; for p in $(1); do \
 	  dpkg -s $$p >/dev/null 2>&1 || missing="$$missing $$p"; done; \
 	if [ -n "$$missing" ]; then \
 	  echo "installing:$$missing"; \
@@ -93,6 +96,9 @@ deps:
 	  $$SUDO apt-get update -qq && \
 	  DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -qq --no-install-recommends $$missing; \
 	fi
+endef
+deps:
+	$(call apt_install,$(DEB_PKGS))
 
 $(BUILD)/gen/afmtwin_%.c $(BUILD)/gen/afmtwin_%.h: msgtypes/%.lcm
 	@mkdir -p $(BUILD)/gen

@@ -1,10 +1,10 @@
 #!/usr/bin/env bash
 # bench-march.sh BUILD -- `make bench`'s figures for each target-CPU choice (README
 # "Portable builds"), side by side in one run: the local default build (BUILD,
-# AFMTWIN_MARCH=x86-64-v3), the portable one (baseline x86-64, the integrator's x86-64-v3
-# copy chosen at run time) and the plain baseline (x86-64, no run-time choice), built into
-# BUILD/march/. Each runs `afmtwin bench-states` ROUNDS times, interleaved; the median of
-# the rounds per state, and the ratio to the default build.
+# AFMTWIN_MARCH=x86-64-v3), the portable one (baseline x86-64, the x86-64-v3 copies of the
+# AFM_CLONES functions chosen at run time) and the plain baseline (x86-64, no run-time
+# choice), built into BUILD/march/. Each runs `afmtwin bench-states` ROUNDS times,
+# interleaved; the median of the rounds per state, and the ratio to the default build.
 set -eu
 BUILD=${1:-build}
 ROUNDS=${ROUNDS:-3}

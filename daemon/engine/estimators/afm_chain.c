@@ -5,17 +5,15 @@
 #include "estimators/afm_decim.h"
 #include "forces/afm_drive.h"
 #include "forces/afm_force.h"
+#include "estimators/afm_est_internal.h"
 #include "estimators/afm_lockin.h"
+#include "config/afm_clones.h"
 
 #include <math.h>
 #include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-
-#if defined(__AVX2__) && defined(__FMA__)
-#include <immintrin.h>
-#endif
 
 #define CHUNK 512         /* full-rate samples processed per inner pass */
 #define RING_SECONDS 0.05 /* each stream's ring holds this much output... */
@@ -290,48 +288,29 @@ static void stamp_cascade(stream *s, const double *t_src, int ph) {
 /* Frames (x, obd, f, base) of n samples into dst (AFM_DECIM_CH doubles each, 32-byte
  * aligned). Returns 1 when every channel of every frame is finite (x 0 is 0 for finite x and
  * NaN for inf and NaN: the sum of those over the frames is 0 exactly when all are finite). */
-static int pack_frames(double *dst, const afm_sample *p, const double *obd, int n) {
-#if defined(__AVX2__) && defined(__FMA__)
+AFM_CLONES static int pack_frames(double *dst, const afm_sample *p, const double *obd, int n) {
     enum { S = sizeof(afm_sample) / sizeof(double) };
-    const __m256d zero = _mm256_setzero_pd();
-    __m256d z0 = zero, z1 = zero;
     const double *x = (const double *)p + offsetof(afm_sample, x_m) / sizeof(double);
+    afm_v4 z0 = AFM_V4_SET1(0.0), z1 = z0;
+    /* (x, v, f, theta) and (v, f, theta, base) -> (x, obd, f, base) */
 #define PACK(i, z)                                                                                 \
     do {                                                                                           \
-        __m256d f =                                                                                \
-            _mm256_blend_pd(_mm256_loadu_pd(x + (i)*S), _mm256_loadu_pd(x + (i)*S + 1), 0x8);      \
-        f = _mm256_blend_pd(f, _mm256_broadcast_sd(obd + (i)), 0x2);                               \
-        _mm256_store_pd(dst + (i)*AFM_DECIM_CH, f);                                                \
-        z = _mm256_fmadd_pd(f, zero, z);                                                           \
+        afm_v4 f_ =                                                                                \
+            __builtin_shufflevector(AFM_V4_LD(x + (i)*S), AFM_V4_LD(x + (i)*S + 1), 0, 1, 2, 7);   \
+        f_[1] = obd[i];                                                                            \
+        AFM_V4_ST(dst + (size_t)(i)*AFM_DECIM_CH, f_);                                             \
+        z = z + f_ * 0.0;                                                                          \
     } while (0)
-    for (; n >= 8; n -= 8, x += 8 * S, obd += 8, dst += 8 * AFM_DECIM_CH) {
-        PACK(0, z0);
-        PACK(1, z1);
-        PACK(2, z0);
-        PACK(3, z1);
-        PACK(4, z0);
-        PACK(5, z1);
-        PACK(6, z0);
-        PACK(7, z1);
+    int i = 0;
+    for (; i + 2 <= n; i += 2) {
+        PACK(i, z0);
+        PACK(i + 1, z1);
     }
-    for (; n > 0; n--, x += S, obd++, dst += AFM_DECIM_CH)
-        PACK(0, z0);
+    for (; i < n; i++)
+        PACK(i, z0);
 #undef PACK
-    double z[4];
-    _mm256_storeu_pd(z, _mm256_add_pd(z0, z1));
-    return (z[0] + z[1]) + (z[2] + z[3]) == 0.0;
-#else
-    double z = 0.0;
-    for (int i = 0; i < n; i++) {
-        double *f = dst + (size_t)i * AFM_DECIM_CH;
-        f[CH_X] = p[i].x_m;
-        f[CH_OBD] = obd[i];
-        f[CH_F] = p[i].f_n;
-        f[CH_BASE] = p[i].base_m;
-        z += ((f[0] * 0.0 + f[1] * 0.0) + (f[2] * 0.0 + f[3] * 0.0));
-    }
-    return z == 0.0;
-#endif
+    z0 = z0 + z1;
+    return (z0[0] + z0[1]) + (z0[2] + z0[3]) == 0.0;
 }
 
 /* The decimators and rings over n samples (their OBD readings obd): the frames go straight
@@ -386,18 +365,16 @@ static void put_period(afm_chain *c) {
     c->stats.periods++;
 }
 
-/* th[j] = p + wdt (k + j) for j < m: four at a time with AVX2 (one rounding each, fma: the
- * same bits as the scalar loop). */
-static void phase_run(double *th, int m, double wdt, double k, double p) {
+/* th[j] = p + wdt (k + j) for j < m: four at a time (one rounding each, fma: the same bits
+ * as the scalar loop). */
+AFM_CLONES static void phase_run(double *th, int m, double wdt, double k, double p) {
     int j = 0;
-#if defined(__AVX2__) && defined(__FMA__)
-    const __m256d vp = _mm256_set1_pd(p), vw = _mm256_set1_pd(wdt), four = _mm256_set1_pd(4.0);
-    __m256d vk = _mm256_add_pd(_mm256_set1_pd(k), _mm256_set_pd(3.0, 2.0, 1.0, 0.0));
+    const afm_v4 vp = AFM_V4_SET1(p), vw = AFM_V4_SET1(wdt);
+    afm_v4 vk = AFM_V4_SET1(k) + (afm_v4){0.0, 1.0, 2.0, 3.0};
     for (; j + 4 <= m; j += 4) {
-        _mm256_storeu_pd(th + j, _mm256_fmadd_pd(vw, vk, vp));
-        vk = _mm256_add_pd(vk, four);
+        AFM_V4_ST(th + j, AFM_V4_FMA(vw, vk, vp));
+        vk = vk + 4.0;
     }
-#endif
     for (; j < m; j++)
         th[j] = fma(wdt, k + (double)j, p);
 }

@@ -2,13 +2,10 @@
 /* afm_cycle.c -- streaming per-period tapping metrics (contract in afm_cycle.h). */
 #include "estimators/afm_cycle.h"
 
+#include "config/afm_clones.h"
+
 #include <stdio.h>
 #include <string.h>
-#if defined(__AVX__)
-#include <immintrin.h>
-#elif defined(__SSE4_1__)
-#include <smmintrin.h>
-#endif
 
 #if defined(__GNUC__)
 #define CYCLE_INLINE inline __attribute__((always_inline))
@@ -19,14 +16,11 @@
 #endif
 
 /* *d = *s (afm_sample: 6 doubles) without the string copy the compiler picks. */
+typedef double cycle_v2 __attribute__((vector_size(16), aligned(8), may_alias));
 static CYCLE_INLINE void copy_sample(afm_sample *d, const afm_sample *s) {
-#if defined(__AVX__)
     _Static_assert(sizeof(afm_sample) == 6 * sizeof(double), "afm_sample: 6 doubles");
-    _mm256_storeu_pd(&d->t_s, _mm256_loadu_pd(&s->t_s));
-    _mm_storeu_pd(&d->theta_rad, _mm_loadu_pd(&s->theta_rad));
-#else
-    *d = *s;
-#endif
+    AFM_V4_ST(&d->t_s, AFM_V4_LD(&s->t_s));
+    *(cycle_v2 *)(void *)&d->theta_rad = *(const cycle_v2 *)(const void *)&s->theta_rad;
 }
 
 int afm_cycle_init(afm_cycle *c, double x_contact_m, double cos_alpha, char *err, size_t errlen) {
@@ -384,16 +378,13 @@ int afm_cycle_push(afm_cycle *c, const afm_sample *s, double theta_rad) {
  *
  * A run is a stretch of samples that all take the tracker's fast path (no period boundary),
  * with the period active and the history full: step_plain for each, 4 steps at a time
- * (AVX). The sums and minima by index mod 4 are 4 vector lanes (rotated to the run's first
- * sample), the flags (local maximum of f, contact crossing, Bernstein control point below
- * both ends of the step) are recorded per block of 4 steps and handled after the sums, in order,
- * with step_plain's arithmetic: the state after a run is the state after its samples'
- * afm_cycle_push, bit for bit. A run stops before a sample whose theta is off the
- * tracker's line or whose step is not positive; a run with a value that is not finite
- * (its sums are not) is undone and pushed sample by sample (afm_cycle_push rejects it).
- * Without AVX, afm_cycle_push_n pushes sample by sample. */
-
-#if defined(__AVX__) && defined(__FMA__)
+ * (afm_v4 lanes; run is multiversioned, AFM_CLONES). The sums and minima by index mod 4 are 4
+ * vector lanes (rotated to the run's first sample), the flags (local maximum of f, contact
+ * crossing, Bernstein control point below both ends of the step) are recorded per block of 4 steps
+ * and handled after the sums, in order, with step_plain's arithmetic: the state after a run is the
+ * state after its samples' afm_cycle_push, bit for bit. A run stops before a sample whose theta is
+ * off the tracker's line or whose step is not positive; a run with a value that is not finite (its
+ * sums are not) is undone and pushed sample by sample (afm_cycle_push rejects it). */
 
 enum {
     RUN_MAX = 512, /* samples per run (the event records below are on the stack) */
@@ -466,28 +457,32 @@ static CYCLE_NOINLINE void run_events(run_state *r, const run_flags *fl) {
     }
 }
 
-/* Lanes delayed across blocks: lag2(a, b) = (a2, a3, b0, b1), lag1(lag2(a, b), b) =
+/* Lanes delayed across blocks: LAG2(a, b) = (a2, a3, b0, b1), LAG1(LAG2(a, b), b) =
  * (a3, b0, b1, b2), a the previous block. */
-static inline __m256d lag2(__m256d a, __m256d b) {
-    return _mm256_permute2f128_pd(a, b, 0x21);
-}
-static inline __m256d lag1(__m256d l2, __m256d b) {
-    return _mm256_shuffle_pd(l2, b, 5);
-}
+#define LAG2(a, b) __builtin_shufflevector((a), (b), 2, 3, 4, 5)
+#define LAG1(l2, b) __builtin_shufflevector((l2), (b), 1, 4, 3, 6)
+/* Lane masks (0 or -1 per lane): bit l set for lane l; a ? x : y lane by lane; min as
+ * vminpd (a < b ? a : b, so b where either is NaN). */
+#define MASK4(m)                                                                                   \
+    ((unsigned)((m)[0] & 1) | (unsigned)((m)[1] & 1) << 1 | (unsigned)((m)[2] & 1) << 2 |          \
+     (unsigned)((m)[3] & 1) << 3)
+#define SEL4(m, x, y) ((afm_v4)(((m) & (afm_v4i)(x)) | (~(m) & (afm_v4i)(y))))
+#define MIN4(a, b) SEL4((afm_v4i)((a) < (b)), (a), (b))
 
 typedef struct {
-    __m256d t, x, v, f; /* the previous block (t, x, v, f) */
-    __m256d n;          /* tracker steps of the block's lanes */
-    __m256d fv, xs, xm; /* sums of w f v, w x of the previous samples, minima of x */
+    afm_v4 t, x, v, f; /* the previous block (t, x, v, f) */
+    afm_v4 n;          /* tracker steps of the block's lanes */
+    afm_v4 fv, xs, xm; /* sums of w f v, w x of the previous samples, minima of x */
 } run_vec;
 
-static inline double hmin4(__m256d a) {
-    __m128d s = _mm_min_pd(_mm256_castpd256_pd128(a), _mm256_extractf128_pd(a, 1));
-    return _mm_cvtsd_f64(_mm_min_sd(s, _mm_unpackhi_pd(s, s)));
+/* min over the lanes, in vminpd's order (lanes 0, 2 and 1, 3, then the two) */
+static inline double hmin4(const afm_v4 *a) {
+    double s0 = (*a)[0] < (*a)[2] ? (*a)[0] : (*a)[2], s1 = (*a)[1] < (*a)[3] ? (*a)[1] : (*a)[3];
+    return s0 < s1 ? s0 : s1;
 }
 
 typedef struct {
-    __m256d ref, dphi, tol, xc, abs, four, third;
+    afm_v4 ref, dphi, tol, xc, third;
 } run_consts;
 
 /* One block of 4 samples a[0..3] (steps k0 .. k0 + 3, theta th4); lanes >= nv repeat the
@@ -497,75 +492,65 @@ typedef struct {
  * positive): nothing added. */
 static CYCLE_INLINE int run_block(run_vec *w, unsigned *ev, int *n_ev, const run_consts *k,
                                   const afm_sample *const a[4], const double *th4, int k0, int nv) {
-    __m256d u0 = _mm256_insertf128_pd(_mm256_castpd128_pd256(_mm_loadu_pd(&a[0]->t_s)),
-                                      _mm_loadu_pd(&a[2]->t_s), 1);
-    __m256d u1 = _mm256_insertf128_pd(_mm256_castpd128_pd256(_mm_loadu_pd(&a[1]->t_s)),
-                                      _mm_loadu_pd(&a[3]->t_s), 1);
-    __m256d u2 = _mm256_insertf128_pd(_mm256_castpd128_pd256(_mm_loadu_pd(&a[0]->v_m_s)),
-                                      _mm_loadu_pd(&a[2]->v_m_s), 1);
-    __m256d u3 = _mm256_insertf128_pd(_mm256_castpd128_pd256(_mm_loadu_pd(&a[1]->v_m_s)),
-                                      _mm_loadu_pd(&a[3]->v_m_s), 1);
-    __m256d T = _mm256_unpacklo_pd(u0, u1), X = _mm256_unpackhi_pd(u0, u1);
-    __m256d V = _mm256_unpacklo_pd(u2, u3), F = _mm256_unpackhi_pd(u2, u3);
+    /* (t, x) and (v, f) of samples 0, 2 and 1, 3 side by side, then transposed */
+#define TX(i, fld) (*(const cycle_v2 *)(const void *)&a[i]->fld)
+    afm_v4 u0 = __builtin_shufflevector(TX(0, t_s), TX(2, t_s), 0, 1, 2, 3);
+    afm_v4 u1 = __builtin_shufflevector(TX(1, t_s), TX(3, t_s), 0, 1, 2, 3);
+    afm_v4 u2 = __builtin_shufflevector(TX(0, v_m_s), TX(2, v_m_s), 0, 1, 2, 3);
+    afm_v4 u3 = __builtin_shufflevector(TX(1, v_m_s), TX(3, v_m_s), 0, 1, 2, 3);
+#undef TX
+    afm_v4 T = __builtin_shufflevector(u0, u1, 0, 4, 2, 6),
+           X = __builtin_shufflevector(u0, u1, 1, 5, 3, 7);
+    afm_v4 V = __builtin_shufflevector(u2, u3, 0, 4, 2, 6),
+           F = __builtin_shufflevector(u2, u3, 1, 5, 3, 7);
     /* the fast path: theta on the tracker's line, a positive step */
-    __m256d Tpp = lag2(w->t, T), H = _mm256_sub_pd(T, lag1(Tpp, T));
-    __m256d err = _mm256_fnmadd_pd(w->n, k->dphi, _mm256_sub_pd(_mm256_loadu_pd(th4), k->ref));
-    __m256d bad = _mm256_or_pd(_mm256_cmp_pd(_mm256_and_pd(err, k->abs), k->tol, _CMP_NLE_UQ),
-                               _mm256_cmp_pd(H, _mm256_setzero_pd(), _CMP_NGT_UQ));
-    __m256d Xq = X, W = _mm256_sub_pd(T, Tpp); /* w of the previous samples (Xp, Fp Vp) */
-    if (nv < 4) { /* the repeated lanes, and the last valid sample's own weight */
-        __m256d keep =
-            _mm256_cmp_pd(_mm256_set_pd(3.0, 2.0, 1.0, 0.0), _mm256_set1_pd(nv), _CMP_LT_OQ);
-        Xq = _mm256_blendv_pd(_mm256_set1_pd(HUGE_VAL), X, keep);
-        W = _mm256_and_pd(W, keep);
+    afm_v4 Tpp = LAG2(w->t, T), H = T - LAG1(Tpp, T);
+    afm_v4 err = AFM_V4_FNMA(w->n, k->dphi, AFM_V4_LD(th4) - k->ref);
+    afm_v4i bad = ~((afm_v4i)(err <= k->tol) & (afm_v4i)(err >= -k->tol)) | ~(afm_v4i)(H > 0.0);
+    afm_v4 Xq = X, W = T - Tpp; /* w of the previous samples (Xp, Fp Vp) */
+    if (nv < 4) {               /* the repeated lanes, and the last valid sample's own weight */
+        afm_v4i keep = (afm_v4i)((afm_v4){0.0, 1.0, 2.0, 3.0} < (double)nv);
+        Xq = SEL4(keep, X, AFM_V4_SET1(HUGE_VAL));
+        W = (afm_v4)((afm_v4i)W & keep);
     }
     /* flags: contact crossing, local maximum of f at the previous sample, a Bernstein
      * control point below the minimum of x of the lane */
-    __m256d Xp = lag1(lag2(w->x, X), X), Vp = lag1(lag2(w->v, V), V);
-    __m256d cr =
-        _mm256_xor_pd(_mm256_cmp_pd(X, k->xc, _CMP_LT_OQ), _mm256_cmp_pd(Xp, k->xc, _CMP_LT_OQ));
-    __m256d Fpp = lag2(w->f, F), Fp = lag1(Fpp, F);
-    __m256d lm =
-        _mm256_and_pd(_mm256_cmp_pd(Fp, Fpp, _CMP_GE_OQ), _mm256_cmp_pd(Fp, F, _CMP_GE_OQ));
-    __m256d H3 = _mm256_mul_pd(H, k->third), XM = _mm256_min_pd(w->xm, Xq);
-    __m256d bmin = _mm256_min_pd(_mm256_fmadd_pd(H3, Vp, Xp), _mm256_fnmadd_pd(H3, V, X));
-    __m256d mn = _mm256_cmp_pd(bmin, _mm256_min_pd(Xp, X), _CMP_LT_OQ);
-    __m256d any = _mm256_or_pd(_mm256_or_pd(bad, mn), _mm256_or_pd(cr, lm));
+    afm_v4 Xp = LAG1(LAG2(w->x, X), X), Vp = LAG1(LAG2(w->v, V), V);
+    afm_v4i cr = (afm_v4i)(X < k->xc) ^ (afm_v4i)(Xp < k->xc);
+    afm_v4 Fpp = LAG2(w->f, F), Fp = LAG1(Fpp, F);
+    afm_v4i lm = (afm_v4i)(Fp >= Fpp) & (afm_v4i)(Fp >= F);
+    afm_v4 H3 = H * k->third, XM = MIN4(w->xm, Xq);
+    afm_v4 b1 = AFM_V4_FMA(H3, Vp, Xp), b2 = AFM_V4_FNMA(H3, V, X);
+    afm_v4 bmin = MIN4(b1, b2), xpm = MIN4(Xp, X);
+    afm_v4i mn = (afm_v4i)(bmin < xpm);
+    afm_v4i any = (bad | mn) | (cr | lm);
     unsigned valid = nv < 4 ? (1u << nv) - 1u : 15u;
-    if (nv < 4 ? ((unsigned)_mm256_movemask_pd(any) & valid) != 0 : !_mm256_testz_pd(any, any)) {
-        unsigned b = (unsigned)_mm256_movemask_pd(bad) & valid;
+    if (MASK4(any) & valid) {
+        unsigned b = MASK4(bad) & valid;
         if (b) return lowest_bit(b);
-        unsigned e = (unsigned)_mm256_movemask_pd(mn) << 8 | (unsigned)_mm256_movemask_pd(cr) << 4 |
-                     (unsigned)_mm256_movemask_pd(lm);
+        unsigned e = MASK4(mn) << 8 | MASK4(cr) << 4 | MASK4(lm);
         if (nv < 4) e &= valid * 0x111u;
         if (e) ev[(*n_ev)++] = (unsigned)k0 << 12 | e;
     }
-    w->fv = _mm256_fmadd_pd(W, _mm256_mul_pd(Fp, Vp), w->fv);
-    w->xs = _mm256_fmadd_pd(W, Xp, w->xs);
+    w->fv = AFM_V4_FMA(W, Fp * Vp, w->fv);
+    w->xs = AFM_V4_FMA(W, Xp, w->xs);
     w->xm = XM;
     w->t = T;
     w->x = X;
     w->v = V;
     w->f = F;
-    w->n = _mm256_add_pd(w->n, k->four);
+    w->n = w->n + 4.0;
     return 4;
 }
 
 /* (a[o & 3], a[(o + 1) & 3], a[(o + 2) & 3], a[(o + 3) & 3]) as lanes 0..3, and back
  * (o = 0 mod 4 after a boundary: a plain load). */
-static inline __m256d lanes_from(const double *a, long o) {
-    if (!(o & 3)) return _mm256_loadu_pd(a);
-    return _mm256_set_pd(a[(o + 3) & 3], a[(o + 2) & 3], a[(o + 1) & 3], a[o & 3]);
+static inline void lanes_from(const double *a, long o, afm_v4 *v) {
+    *v = (afm_v4){a[o & 3], a[(o + 1) & 3], a[(o + 2) & 3], a[(o + 3) & 3]};
 }
-static inline void lanes_to(double *a, long o, __m256d v) {
-    if (!(o & 3)) {
-        _mm256_storeu_pd(a, v);
-        return;
-    }
-    double t[4];
-    _mm256_storeu_pd(t, v);
+static inline void lanes_to(double *a, long o, const afm_v4 *v) {
     for (int l = 0; l < 4; l++)
-        a[(o + l) & 3] = t[l];
+        a[(o + l) & 3] = (*v)[l];
 }
 
 /* The sums over the first samples of s[0 .. m-1] that pass the fast-path test (theta on
@@ -576,22 +561,20 @@ static CYCLE_INLINE int run_sums_of(const run_state *r, const afm_cycle *c, cons
     const afm_phase_track *tk = &c->trk;
     double n0 = tk->n;
     run_consts k;
-    k.ref = _mm256_set1_pd(tk->th_ref);
-    k.dphi = _mm256_set1_pd(tk->dphi);
-    k.tol = _mm256_set1_pd(tk->tol);
-    k.xc = _mm256_set1_pd(r->xc);
-    k.abs = _mm256_castsi256_pd(_mm256_set1_epi64x(0x7fffffffffffffffLL));
-    k.four = _mm256_set1_pd(4.0);
-    k.third = _mm256_set1_pd(1.0 / 3.0);
+    k.ref = AFM_V4_SET1(tk->th_ref);
+    k.dphi = AFM_V4_SET1(tk->dphi);
+    k.tol = AFM_V4_SET1(tk->tol);
+    k.xc = AFM_V4_SET1(r->xc);
+    k.third = AFM_V4_SET1(1.0 / 3.0);
     run_vec w;
-    w.t = _mm256_set_pd(p0->t_s, r->t_m2, 0.0, 0.0);
-    w.x = _mm256_set1_pd(p0->x_m);
-    w.v = _mm256_set1_pd(p0->v_m_s);
-    w.f = _mm256_set_pd(p0->f_n, r->f_m2, 0.0, 0.0);
-    w.n = _mm256_set_pd(n0 + 4.0, n0 + 3.0, n0 + 2.0, n0 + 1.0);
-    w.fv = lanes_from(c->sum_fv, c->k); /* lane l: the sample k + l (p0 is lane 0) */
-    w.xs = lanes_from(c->sum_x, c->k);
-    w.xm = _mm256_set1_pd(c->smin); /* lane l: the samples k + 1 + l mod 4 and before */
+    w.t = (afm_v4){0.0, 0.0, r->t_m2, p0->t_s};
+    w.x = AFM_V4_SET1(p0->x_m);
+    w.v = AFM_V4_SET1(p0->v_m_s);
+    w.f = (afm_v4){0.0, 0.0, r->f_m2, p0->f_n};
+    w.n = (afm_v4){n0 + 1.0, n0 + 2.0, n0 + 3.0, n0 + 4.0};
+    lanes_from(c->sum_fv, c->k, &w.fv); /* lane l: the sample k + l (p0 is lane 0) */
+    lanes_from(c->sum_x, c->k, &w.xs);
+    w.xm = AFM_V4_SET1(c->smin); /* lane l: the samples k + 1 + l mod 4 and before */
     int n_ev = 0, j = 0, l = 4;
     for (; j + 8 <= m; j += 8) { /* two blocks a step (no register moves) */
         const afm_sample *a[4] = {s + j, s + j + 1, s + j + 2, s + j + 3};
@@ -613,11 +596,11 @@ static CYCLE_INLINE int run_sums_of(const run_state *r, const afm_cycle *c, cons
         m = j + l;
         const afm_sample *q1 = j > 0 ? s + j - 1 : p0;
         double t2 = j > 1 ? s[j - 2].t_s : j > 0 ? p0->t_s : r->t_m2;
-        w.t = _mm256_set_pd(q1->t_s, t2, 0.0, 0.0);
-        w.x = _mm256_set1_pd(q1->x_m);
-        w.v = _mm256_set1_pd(q1->v_m_s);
-        w.f = _mm256_set_pd(q1->f_n, j > 1 ? s[j - 2].f_n : j > 0 ? p0->f_n : r->f_m2, 0.0, 0.0);
-        w.n = _mm256_set_pd(n0 + j + 4.0, n0 + j + 3.0, n0 + j + 2.0, n0 + j + 1.0);
+        w.t = (afm_v4){0.0, 0.0, t2, q1->t_s};
+        w.x = AFM_V4_SET1(q1->x_m);
+        w.v = AFM_V4_SET1(q1->v_m_s);
+        w.f = (afm_v4){0.0, 0.0, j > 1 ? s[j - 2].f_n : j > 0 ? p0->f_n : r->f_m2, q1->f_n};
+        w.n = (afm_v4){n0 + j + 1.0, n0 + j + 2.0, n0 + j + 3.0, n0 + j + 4.0};
     }
     while (j < m) { /* the last 1-3 samples, the last one repeated */
         int v = m - j, l1 = v > 1 ? j + 1 : m - 1, l2 = v > 2 ? j + 2 : m - 1;
@@ -636,7 +619,7 @@ static CYCLE_INLINE int run_sums_of(const run_state *r, const afm_cycle *c, cons
  * history). Returns the samples taken (0: none, the caller pushes the next one), or -k: the
  * first k samples hold a value that is not finite; nothing changed (the caller pushes them
  * one at a time). */
-static int run(afm_cycle *c, const afm_sample *s, const double *th, int m) {
+AFM_CLONES static int run(afm_cycle *c, const afm_sample *s, const double *th, int m) {
     const afm_sample *p0 = &c->prev;
     afm_cycle_metrics *cm = &c->cur;
     run_state r = {.s = s,
@@ -655,12 +638,12 @@ static int run(afm_cycle *c, const afm_sample *s, const double *th, int m) {
     m = run_sums_of(&r, c, s, th, m, &w, &fl);
     if (m == 0) return 0;
     /* a value that is not finite makes the sums not finite */
-    __m256d z = _mm256_mul_pd(_mm256_add_pd(w.fv, w.xs), _mm256_setzero_pd());
-    if (_mm256_movemask_pd(_mm256_cmp_pd(z, z, _CMP_UNORD_Q))) return -m;
+    afm_v4 z = (w.fv + w.xs) * 0.0;
+    if (MASK4((afm_v4i)(z != z))) return -m;
     if (fl.n_ev) run_events(&r, &fl);
-    lanes_to(c->sum_fv, c->k, w.fv);
-    lanes_to(c->sum_x, c->k, w.xs);
-    c->smin = hmin4(w.xm);
+    lanes_to(c->sum_fv, c->k, &w.fv);
+    lanes_to(c->sum_x, c->k, &w.xs);
+    c->smin = hmin4(&w.xm);
     const afm_sample *q = s + m - 1;
     cm->contact_time_s = r.ct;
     if (r.nc > 0) {
@@ -679,8 +662,6 @@ static int run(afm_cycle *c, const afm_sample *s, const double *th, int m) {
     return m;
 }
 
-#endif
-
 /* afm_cycle_push for a sample known to be off the tracker's fast path (afm_track_fast
  * would fail): its checks, then the exact clock. */
 static CYCLE_INLINE int push_exact(afm_cycle *c, const afm_sample *q, double th) {
@@ -698,7 +679,6 @@ int afm_cycle_push_n(afm_cycle *c, const afm_sample *s, const double *th, int n,
         if (one_by_one == 0 && c->active && c->n_prev >= 2) {
             double room = c->trk.n_end - c->trk.n;
             off = !(room >= 1.0);
-#if defined(__AVX__) && defined(__FMA__)
             int m = n - i < RUN_MAX ? n - i : RUN_MAX;
             if (room < m) m = room > 0 ? (int)room : 0;
             if (m >= RUN_MIN) {
@@ -712,7 +692,6 @@ int afm_cycle_push_n(afm_cycle *c, const afm_sample *s, const double *th, int n,
                     one_by_one = -k;
                 }
             }
-#endif
         }
         int rc = off ? push_exact(c, &s[i], th[i]) : afm_cycle_push(c, &s[i], th[i]);
         i++;

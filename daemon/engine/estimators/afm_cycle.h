@@ -96,7 +96,7 @@ int afm_cycle_push(afm_cycle *c, const afm_sample *s, double theta_rad);
  * sample that completes a period. Returns the samples consumed; *done is 1 if the last
  * one completed a period (c->out); rejected samples are added to *rejects. Same results
  * and state as afm_cycle_push, bit for bit (so independent of how a stream is cut into
- * calls): on the tracker's fast path it takes runs of samples 4 at a time (AVX) into the
+ * calls): on the tracker's fast path it takes runs of samples 4 at a time (afm_v4) into the
  * sums by index mod 4 and a few flags per step (contact crossing, local maximum of f, a
  * Bernstein control point below both ends of the step), then handles the
  * flagged steps in order. */

@@ -2,6 +2,8 @@
 /* afm_decim.c -- multi-stage polyphase FIR decimator (contract in afm_decim.h). */
 #include "estimators/afm_decim.h"
 
+#include "config/afm_clones.h"
+
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -318,29 +320,37 @@ static v4 *stage_in(stage *g) {
     return g->lin + g->pos + (g->n - 1);
 }
 
-/* acc + h w, fused where the target has FMA (ISO C mode does not contract a * b + c). */
-#if defined(__FMA__)
+/* acc + h w, one rounding per lane (__builtin_fma: one vfmadd where the target has FMA,
+ * as in the x86-64-v3 copies of a portable build's multiversioned functions, libm's fma
+ * otherwise): every build sums the same bits. Macros, not functions taking vectors by
+ * value: clang refuses those between functions of different targets (AFM_CLONES). */
+#if defined(__AVX__) && defined(__FMA__)
 #include <immintrin.h>
-static inline v4 madd(v4 h, v4 w, v4 acc) {
-    return (v4)_mm256_fmadd_pd((__m256d)h, (__m256d)w, (__m256d)acc);
-}
+#define MADD(h, w, acc) ((v4)_mm256_fmadd_pd((h), (w), (acc)))
 #else
-static inline v4 madd(v4 h, v4 w, v4 acc) {
-    return acc + h * w;
-}
+#define MADD(h, w, acc)                                                                            \
+    __extension__({                                                                                \
+        v4 h_ = (h), w_ = (w), a_ = (acc);                                                         \
+        (v4){__builtin_fma(h_[0], w_[0], a_[0]), __builtin_fma(h_[1], w_[1], a_[1]),               \
+             __builtin_fma(h_[2], w_[2], a_[2]), __builtin_fma(h_[3], w_[3], a_[3])};              \
+    })
 #endif
 
-static inline void put(double *dst, int k, v4 y) {
-    memcpy(dst + (size_t)k * AFM_DECIM_CH, &y, sizeof y);
-}
+/* Frame k of dst = y. */
+#define PUT(dst, k, y)                                                                             \
+    do {                                                                                           \
+        v4 y_ = (y);                                                                               \
+        memcpy((dst) + (size_t)(k)*AFM_DECIM_CH, &y_, sizeof y_);                                  \
+    } while (0)
 
 /* One halfband output over the window w (n = 4 np - 1 frames, oldest first): the centre
  * term, then the pairs q = 0, 1, ... (the order every halfband output is summed in). */
-static inline v4 hb_one(const v4 *w, const v4 *g, int np) {
+static inline void hb_one(const v4 *w, const v4 *g, int np, double *dst, int k) {
     v4 a = g[np] * w[2 * np - 1];
+#pragma GCC unroll 16
     for (int q = 0; q < np; q++)
-        a = madd(g[q], w[2 * np - 2 - 2 * q] + w[2 * np + 2 * q], a);
-    return a;
+        a = MADD(g[q], w[2 * np - 2 - 2 * q] + w[2 * np + 2 * q], a);
+    PUT(dst, k, a);
 }
 
 /* Halfband outputs at window starts j, j + 2, ... < m of the frames lin (coefficients gq)
@@ -360,23 +370,23 @@ static inline __attribute__((always_inline)) int hb_run_np(const v4 *restrict li
 #pragma GCC unroll 32
         for (int q = 0; q < np; q++) {
             v4 c = gq[q];
-            a0 = madd(c, w[2 * (np - 1 - q)] + w[2 * (np + q)], a0);
-            a1 = madd(c, w[2 * (np - q)] + w[2 * (np + q + 1)], a1);
-            a2 = madd(c, w[2 * (np + 1 - q)] + w[2 * (np + q + 2)], a2);
-            a3 = madd(c, w[2 * (np + 2 - q)] + w[2 * (np + q + 3)], a3);
+            a0 = MADD(c, w[2 * (np - 1 - q)] + w[2 * (np + q)], a0);
+            a1 = MADD(c, w[2 * (np - q)] + w[2 * (np + q + 1)], a1);
+            a2 = MADD(c, w[2 * (np + 1 - q)] + w[2 * (np + q + 2)], a2);
+            a3 = MADD(c, w[2 * (np + 2 - q)] + w[2 * (np + q + 3)], a3);
         }
-        put(dst, k, a0);
-        put(dst, k + 1, a1);
-        put(dst, k + 2, a2);
-        put(dst, k + 3, a3);
+        PUT(dst, k, a0);
+        PUT(dst, k + 1, a1);
+        PUT(dst, k + 2, a2);
+        PUT(dst, k + 3, a3);
     }
     for (; j < m; j += 2)
-        put(dst, k++, hb_one(lin + j, gq, np));
+        hb_one(lin + j, gq, np, dst, k++);
     return k;
 }
 
 /* hb_run_np for the stage's np: specialised up to 16 pairs (63 taps), a loop beyond. */
-static int hb_run(const stage *g, int j, int m, double *dst) {
+AFM_CLONES static int hb_run(const stage *g, int j, int m, double *dst) {
     const v4 *lin = g->lin + g->pos, *gq = g->g;
     switch (g->np) {
 #define HB_CASE(P)                                                                                 \
@@ -402,7 +412,7 @@ static int hb_run(const stage *g, int j, int m, double *dst) {
     default: {
         int k = 0;
         for (; j < m; j += 2)
-            put(dst, k++, hb_one(lin + j, gq, g->np));
+            hb_one(lin + j, gq, g->np, dst, k++);
         return k;
     }
     }
@@ -410,7 +420,7 @@ static int hb_run(const stage *g, int j, int m, double *dst) {
 
 /* General symmetric outputs at window starts j, j + r, ... < m: pairs q and n - 1 - q
  * summed first, four accumulators over q mod 4, then the centre tap for odd n. */
-static int sym_run(const stage *g, int j, int m, double *restrict dst) {
+AFM_CLONES static int sym_run(const stage *g, int j, int m, double *restrict dst) {
     const int n = g->n, np = g->np, r = g->r;
     const v4 *restrict gq = g->g, *restrict lin = g->lin + g->pos;
     int k = 0;
@@ -419,16 +429,16 @@ static int sym_run(const stage *g, int j, int m, double *restrict dst) {
         v4 a0 = {0}, a1 = {0}, a2 = {0}, a3 = {0};
         int q = 0;
         for (; q + 4 <= np; q += 4) {
-            a0 = madd(gq[q], w[q] + w[n - 1 - q], a0);
-            a1 = madd(gq[q + 1], w[q + 1] + w[n - 2 - q], a1);
-            a2 = madd(gq[q + 2], w[q + 2] + w[n - 3 - q], a2);
-            a3 = madd(gq[q + 3], w[q + 3] + w[n - 4 - q], a3);
+            a0 = MADD(gq[q], w[q] + w[n - 1 - q], a0);
+            a1 = MADD(gq[q + 1], w[q + 1] + w[n - 2 - q], a1);
+            a2 = MADD(gq[q + 2], w[q + 2] + w[n - 3 - q], a2);
+            a3 = MADD(gq[q + 3], w[q + 3] + w[n - 4 - q], a3);
         }
         for (; q < np; q++)
-            a0 = madd(gq[q], w[q] + w[n - 1 - q], a0);
+            a0 = MADD(gq[q], w[q] + w[n - 1 - q], a0);
         v4 y = (a0 + a1) + (a2 + a3);
-        if (n % 2) y = madd(gq[np], w[np], y);
-        put(dst, k++, y);
+        if (n % 2) y = MADD(gq[np], w[np], y);
+        PUT(dst, k++, y);
     }
     return k;
 }
@@ -456,14 +466,14 @@ static int run_stages(afm_decim *d, int i, int m, double *out) {
 }
 
 /* Index of the first frame of f[0 .. n-1] with a non-finite channel, n if none. */
-static int first_nonfinite(const v4 *f, int n) {
+AFM_CLONES static int first_nonfinite(const v4 *f, int n) {
     v4 z0 = {0}, z1 = {0}, zero = {0};
     int k = 0;
     for (; k + 2 <= n; k += 2) { /* x 0 is 0 for finite x, NaN for inf and NaN */
-        z0 = madd(f[k], zero, z0);
-        z1 = madd(f[k + 1], zero, z1);
+        z0 = MADD(f[k], zero, z0);
+        z1 = MADD(f[k + 1], zero, z1);
     }
-    if (k < n) z0 = madd(f[k], zero, z0);
+    if (k < n) z0 = MADD(f[k], zero, z0);
     z0 += z1;
     if ((z0[0] + z0[1]) + (z0[2] + z0[3]) == 0.0) return n;
     for (k = 0; k < n; k++) {

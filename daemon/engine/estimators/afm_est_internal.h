@@ -13,7 +13,7 @@
 #include "integrators/afm_sim.h"
 
 #include <math.h>
-#if defined(__SSE4_1__)
+#if defined(__SSE4_1__) || defined(__AVX__)
 #include <immintrin.h>
 #endif
 #include <stdbool.h>
@@ -229,182 +229,108 @@ static inline void afm_split_weights(double s, double w_before[2], double w_afte
     w_after[1] = 0.5 * (1.0 - s * s);
 }
 
-/* 4 doubles side by side (afm_harm's harmonic lanes, afm_lockin's filter stages): AVX
- * registers when the target has AVX and FMA, else plain arrays. Both give the same results:
- * each operation rounds once per lane, afm_v4_fma included (fma of libm otherwise). */
-#if defined(__AVX__) && defined(__FMA__)
-#include <immintrin.h>
-#define AFM_EST_AVX 1
-typedef __m256d afm_v4;
-static inline afm_v4 afm_v4_ld(const double *p) {
-    return _mm256_loadu_pd(p);
-}
-static inline void afm_v4_st(double *p, afm_v4 a) {
-    _mm256_storeu_pd(p, a);
-}
-static inline afm_v4 afm_v4_set1(double a) {
-    return _mm256_set1_pd(a);
-}
-static inline afm_v4 afm_v4_add(afm_v4 a, afm_v4 b) {
-    return _mm256_add_pd(a, b);
-}
-static inline afm_v4 afm_v4_sub(afm_v4 a, afm_v4 b) {
-    return _mm256_sub_pd(a, b);
-}
-static inline afm_v4 afm_v4_mul(afm_v4 a, afm_v4 b) {
-    return _mm256_mul_pd(a, b);
-}
-/* a b + c, c - a b and a b - c, one rounding */
-static inline afm_v4 afm_v4_fma(afm_v4 a, afm_v4 b, afm_v4 c) {
-    return _mm256_fmadd_pd(a, b, c);
-}
-static inline afm_v4 afm_v4_fnma(afm_v4 a, afm_v4 b, afm_v4 c) {
-    return _mm256_fnmadd_pd(a, b, c);
-}
-static inline afm_v4 afm_v4_fms(afm_v4 a, afm_v4 b, afm_v4 c) {
-    return _mm256_fmsub_pd(a, b, c);
-}
-#else
-typedef struct {
-    double v[4];
-} afm_v4;
-static inline afm_v4 afm_v4_ld(const double *p) {
-    afm_v4 r;
-    for (int l = 0; l < 4; l++)
-        r.v[l] = p[l];
-    return r;
-}
-static inline void afm_v4_st(double *p, afm_v4 a) {
-    for (int l = 0; l < 4; l++)
-        p[l] = a.v[l];
-}
-static inline afm_v4 afm_v4_set1(double a) {
-    afm_v4 r = {{a, a, a, a}};
-    return r;
-}
-static inline afm_v4 afm_v4_add(afm_v4 a, afm_v4 b) {
-    for (int l = 0; l < 4; l++)
-        a.v[l] += b.v[l];
-    return a;
-}
-static inline afm_v4 afm_v4_sub(afm_v4 a, afm_v4 b) {
-    for (int l = 0; l < 4; l++)
-        a.v[l] -= b.v[l];
-    return a;
-}
-static inline afm_v4 afm_v4_mul(afm_v4 a, afm_v4 b) {
-    for (int l = 0; l < 4; l++)
-        a.v[l] *= b.v[l];
-    return a;
-}
-static inline afm_v4 afm_v4_fma(afm_v4 a, afm_v4 b, afm_v4 c) {
-    for (int l = 0; l < 4; l++)
-        c.v[l] = fma(a.v[l], b.v[l], c.v[l]);
-    return c;
-}
-static inline afm_v4 afm_v4_fnma(afm_v4 a, afm_v4 b, afm_v4 c) {
-    for (int l = 0; l < 4; l++)
-        c.v[l] = fma(-a.v[l], b.v[l], c.v[l]);
-    return c;
-}
-static inline afm_v4 afm_v4_fms(afm_v4 a, afm_v4 b, afm_v4 c) {
-    for (int l = 0; l < 4; l++)
-        c.v[l] = fma(a.v[l], b.v[l], -c.v[l]);
-    return c;
-}
+/* 4 doubles side by side (afm_harm's harmonic lanes, afm_lockin's filter stages): a GNU
+ * vector (gcc and clang), so the same code is AVX registers in an x86-64-v3 build or in the
+ * x86-64-v3 copy of a portable build's multiversioned functions (AFM_CLONES,
+ * config/afm_clones.h), and pairs of SSE2 registers in the baseline copy. Every
+ * operation rounds once per lane, AFM_V4_FMA included (__builtin_fma: one vfmadd where the
+ * target has FMA, libm's fma otherwise), so every copy gives the same bits. The operations
+ * are macros, not functions: clang refuses a vector passed by value between functions of
+ * different targets (a multiversioned function and a plain inline helper). */
+typedef double afm_v4 __attribute__((vector_size(32)));
+typedef long long afm_v4i __attribute__((vector_size(32))); /* lane masks: 0 or -1 */
+typedef double afm_v4u __attribute__((vector_size(32), aligned(8), may_alias));
+#define AFM_V4_LD(p) ((afm_v4)(*(const afm_v4u *)(const void *)(p)))
+#define AFM_V4_ST(p, a) (*(afm_v4u *)(void *)(p) = (a))
+#define AFM_V4_SET1(x) ((afm_v4){(x), (x), (x), (x)})
+#define AFM_V4_ADD(a, b) ((a) + (b))
+#define AFM_V4_SUB(a, b) ((a) - (b))
+#define AFM_V4_MUL(a, b) ((a) * (b))
+/* a b + c, c - a b and a b - c, one rounding per lane (the arguments are read once per
+ * lane: expressions without side effects, nested ones folded by the compiler) */
+#if defined(__AVX__) && defined(__FMA__) /* an x86-64-v3 build: one vfmadd, certainly */
+#define AFM_V4_FMA(a, b, c) ((afm_v4)_mm256_fmadd_pd((a), (b), (c)))
+#else /* lane by lane: gcc and clang fold the four into one vfmadd in an x86-64-v3 clone */
+#define AFM_V4_FMA(a, b, c)                                                                        \
+    ((afm_v4){__builtin_fma((a)[0], (b)[0], (c)[0]), __builtin_fma((a)[1], (b)[1], (c)[1]),        \
+              __builtin_fma((a)[2], (b)[2], (c)[2]), __builtin_fma((a)[3], (b)[3], (c)[3])})
 #endif
+#define AFM_V4_FNMA(a, b, c) AFM_V4_FMA(-(a), (b), (c))
+#define AFM_V4_FMS(a, b, c) AFM_V4_FMA((a), (b), -(c))
 
 /* Complex products on 4 lanes (re, im apart), rounded as (a + i b) (c + i d) =
- * fma(a, c, -(b d)) + i fma(a, d, b c). */
-static inline void afm_v4_cmul(afm_v4 a, afm_v4 b, afm_v4 c, afm_v4 d, afm_v4 *re, afm_v4 *im) {
-    *re = afm_v4_fms(a, c, afm_v4_mul(b, d));
-    *im = afm_v4_fma(a, d, afm_v4_mul(b, c));
-}
+ * fma(a, c, -(b d)) + i fma(a, d, b c): into the afm_v4 lvalues re, im. */
+#define AFM_V4_CMUL(a, b, c, d, re, im)                                                            \
+    do {                                                                                           \
+        afm_v4 ca_ = (a), cb_ = (b), cc_ = (c), cd_ = (d);                                         \
+        (re) = AFM_V4_FMS(ca_, cc_, cb_ * cd_);                                                    \
+        (im) = AFM_V4_FMA(ca_, cd_, cb_ * cc_);                                                    \
+    } while (0)
 
 /* How many of th[0..nmax) take the tracker's fast path in a row (afm_track_fast's test,
  * (theta - th_ref) - n dphi within tol and n <= n_end, evaluated with the same roundings),
  * with a[i] and, if b is not NULL, b[i] finite. Nothing changes: the caller then advances
- * t->n by the count and sets t->th_prev. 8 samples per step with AVX. */
+ * t->n by the count and sets t->th_prev. 8 samples per step (afm_v4 lanes). */
 #if defined(__GNUC__)
 #define AFM_EST_INLINE __attribute__((always_inline))
 #else
 #define AFM_EST_INLINE
 #endif
-#if defined(AFM_EST_AVX)
-/* |theta - prediction| <= tol on 4 lanes, NaN (so false) where a or b is not finite. The
- * error as (th_ref - theta) + n dphi: exactly -((theta - th_ref) - n dphi) (rounding to nearest
- * is symmetric), and theta can be the subtraction's memory operand. */
-static inline AFM_EST_INLINE __m256d afm_track_ok4(__m256d th, __m256d a, __m256d b, __m256d nn,
-                                                   __m256d ref, __m256d dp, __m256d tol,
-                                                   const bool use_b) {
-    const __m256d zero = _mm256_setzero_pd();
-    __m256d e = _mm256_add_pd(_mm256_sub_pd(ref, th), _mm256_mul_pd(nn, dp));
-    e = _mm256_fmadd_pd(a, zero, e);
-    if (use_b) e = _mm256_fmadd_pd(b, zero, e);
-    return _mm256_cmp_pd(_mm256_andnot_pd(_mm256_set1_pd(-0.0), e), tol, _CMP_LE_OQ);
-}
-static inline AFM_EST_INLINE int afm_track_run_avx(const afm_phase_track *t, const double *th,
-                                                   const double *a, const double *b, int nmax,
-                                                   const bool use_b) {
+/* |theta - prediction| <= tol on 4 lanes (a lane mask), false where a or b is not finite
+ * (a 0 is NaN then). The error as (th_ref - theta) + n dphi: exactly -((theta - th_ref) - n
+ * dphi) (rounding to nearest is symmetric). */
+#define AFM_TRACK_OK4(th, a, b, nn, ref, dp, tol)                                                  \
+    __extension__({                                                                                \
+        afm_v4 e_ = ((ref) - (th)) + (nn) * (dp);                                                  \
+        e_ = e_ + (a)*0.0 + (b)*0.0;                                                               \
+        (afm_v4i)((e_ <= (tol)) & (e_ >= -(tol)));                                                 \
+    })
+static inline AFM_EST_INLINE int afm_track_run_v4(const afm_phase_track *t, const double *th,
+                                                  const double *a, const double *b, int nmax,
+                                                  const bool use_b) {
     double room = t->n_end - t->n; /* integer-valued, as n */
     if (!(room >= 1.0) || nmax <= 0) return 0;
     int lim = room < (double)nmax ? (int)room : nmax;
-    const __m256d ref = _mm256_set1_pd(t->th_ref), dp = _mm256_set1_pd(t->dphi);
-    const __m256d tol = _mm256_set1_pd(t->tol), zero = _mm256_setzero_pd();
-    const __m256d four = _mm256_set1_pd(4.0), eight = _mm256_set1_pd(8.0);
-    __m256d nn = _mm256_add_pd(_mm256_set1_pd(t->n), _mm256_set_pd(4.0, 3.0, 2.0, 1.0));
+    const afm_v4 ref = AFM_V4_SET1(t->th_ref), dp = AFM_V4_SET1(t->dphi);
+    const afm_v4 tol = AFM_V4_SET1(t->tol), zero = AFM_V4_SET1(0.0);
+    afm_v4 nn = AFM_V4_SET1(t->n) + (afm_v4){1.0, 2.0, 3.0, 4.0};
     int i = 0;
     for (; i + 8 <= lim; i += 8) {
-        __m256d ok0 = afm_track_ok4(_mm256_loadu_pd(th + i), _mm256_loadu_pd(a + i),
-                                    use_b ? _mm256_loadu_pd(b + i) : zero, nn, ref, dp, tol, use_b);
-        __m256d ok1 = afm_track_ok4(_mm256_loadu_pd(th + i + 4), _mm256_loadu_pd(a + i + 4),
-                                    use_b ? _mm256_loadu_pd(b + i + 4) : zero,
-                                    _mm256_add_pd(nn, four), ref, dp, tol, use_b);
-        if (_mm256_movemask_pd(_mm256_and_pd(ok0, ok1)) != 15) break;
-        nn = _mm256_add_pd(nn, eight);
+        afm_v4i ok0 = AFM_TRACK_OK4(AFM_V4_LD(th + i), AFM_V4_LD(a + i),
+                                    use_b ? AFM_V4_LD(b + i) : zero, nn, ref, dp, tol);
+        afm_v4i ok1 = AFM_TRACK_OK4(AFM_V4_LD(th + i + 4), AFM_V4_LD(a + i + 4),
+                                    use_b ? AFM_V4_LD(b + i + 4) : zero, nn + 4.0, ref, dp, tol);
+        afm_v4i ok = ok0 & ok1;
+        if (!((ok[0] & ok[1]) & (ok[2] & ok[3]))) break;
+        nn = nn + 8.0;
     }
     for (;; i += 4) { /* the rest, or the step of 8 that failed: 4 at a time */
         int left = lim - i;
         if (left <= 0) return lim;
-        __m256d x, y, z;
+        afm_v4 x, y, z = zero;
         if (left >= 4) {
-            x = _mm256_loadu_pd(th + i);
-            y = _mm256_loadu_pd(a + i);
-            z = use_b ? _mm256_loadu_pd(b + i) : zero;
-        } else {
-            __m256i m = _mm256_cmpgt_epi64(_mm256_set1_epi64x(left), _mm256_set_epi64x(3, 2, 1, 0));
-            x = _mm256_maskload_pd(th + i, m);
-            y = _mm256_maskload_pd(a + i, m);
-            z = use_b ? _mm256_maskload_pd(b + i, m) : zero;
+            x = AFM_V4_LD(th + i);
+            y = AFM_V4_LD(a + i);
+            if (use_b) z = AFM_V4_LD(b + i);
+        } else { /* the lanes past the end are 0 (their result is not used) */
+            x = y = zero;
+            for (int l = 0; l < left; l++) {
+                x[l] = th[i + l];
+                y[l] = a[i + l];
+                if (use_b) z[l] = b[i + l];
+            }
         }
-        int msk = _mm256_movemask_pd(afm_track_ok4(x, y, z, nn, ref, dp, tol, use_b));
-        if (msk != 15) {
-            int k = __builtin_ctz((unsigned)~msk);
-            return i + (k < left ? k : left);
-        }
-        nn = _mm256_add_pd(nn, four);
+        afm_v4i ok = AFM_TRACK_OK4(x, y, z, nn, ref, dp, tol);
+        for (int l = 0; l < 4; l++)
+            if (!ok[l]) return i + (l < left ? l : left);
+        nn = nn + 4.0;
     }
 }
-#endif
 
 static inline AFM_EST_INLINE int afm_track_run(const afm_phase_track *t, const double *th,
                                                const double *a, const double *b, int nmax) {
-#if defined(AFM_EST_AVX)
-    return b ? afm_track_run_avx(t, th, a, b, nmax, true)
-             : afm_track_run_avx(t, th, a, NULL, nmax, false);
-#else
-    double room = t->n_end - t->n; /* integer-valued, as n */
-    if (!(room >= 1.0) || nmax <= 0) return 0;
-    int lim = room < (double)nmax ? (int)room : nmax;
-    double nn = t->n;
-    for (int i = 0; i < lim; i++) {
-        nn += 1.0;
-        if (!(fabs((th[i] - t->th_ref) - nn * t->dphi) <= t->tol) || !isfinite(a[i]) ||
-            (b && !isfinite(b[i])))
-            return i;
-    }
-    return lim;
-#endif
+    return b ? afm_track_run_v4(t, th, a, b, nmax, true)
+             : afm_track_run_v4(t, th, a, NULL, nmax, false);
 }
 
 #endif

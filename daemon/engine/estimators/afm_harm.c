@@ -2,6 +2,8 @@
 /* afm_harm.c -- streaming per-period harmonics (contract in afm_harm.h). */
 #include "estimators/afm_harm.h"
 
+#include "config/afm_clones.h"
+
 #include <stdio.h>
 #include <string.h>
 
@@ -114,10 +116,10 @@ AFM_EST_COLD static void build_table(afm_harm *h) {
         double *o = h->tab + (size_t)m * st;
         for (int g = 0; g < st; g += 8) {
             afm_v4 re, im;
-            afm_v4_cmul(afm_v4_ld(a + g), afm_v4_ld(a + g + 4), afm_v4_ld(r + g),
-                        afm_v4_ld(r + g + 4), &re, &im);
-            afm_v4_st(o + g, re);
-            afm_v4_st(o + g + 4, im);
+            AFM_V4_CMUL(AFM_V4_LD(a + g), AFM_V4_LD(a + g + 4), AFM_V4_LD(r + g),
+                        AFM_V4_LD(r + g + 4), re, im);
+            AFM_V4_ST(o + g, re);
+            AFM_V4_ST(o + g + 4, im);
         }
     }
 }
@@ -125,101 +127,54 @@ AFM_EST_COLD static void build_table(afm_harm *h) {
 /* s += p c over the lanes (complex, grouped): the chunk sums c rotated by the base phasor p. */
 static inline void cmadd(double *s, const double *p, const double *c, int st) {
     for (int g = 0; g < st; g += 8) {
-        afm_v4 pr = afm_v4_ld(p + g), pi = afm_v4_ld(p + g + 4);
-        afm_v4 cr = afm_v4_ld(c + g), ci = afm_v4_ld(c + g + 4);
-        afm_v4_st(s + g, afm_v4_fma(pr, cr, afm_v4_fnma(pi, ci, afm_v4_ld(s + g))));
-        afm_v4_st(s + g + 4, afm_v4_fma(pr, ci, afm_v4_fma(pi, cr, afm_v4_ld(s + g + 4))));
+        afm_v4 pr = AFM_V4_LD(p + g), pi = AFM_V4_LD(p + g + 4);
+        afm_v4 cr = AFM_V4_LD(c + g), ci = AFM_V4_LD(c + g + 4);
+        AFM_V4_ST(s + g, AFM_V4_FMA(pr, cr, AFM_V4_FNMA(pi, ci, AFM_V4_LD(s + g))));
+        AFM_V4_ST(s + g + 4, AFM_V4_FMA(pr, ci, AFM_V4_FMA(pi, cr, AFM_V4_LD(s + g + 4))));
     }
 }
 
-#if defined(AFM_EST_AVX)
-/* Constants of atan2_v4 and finish_period as whole vectors: read through a pointer the
- * compiler cannot see through, so that each is an instruction's memory operand instead of a
- * broadcast. */
-#define K4(v)                                                                                      \
-    { v, v, v, v }
-static const double harm_k[][4] __attribute__((aligned(32))) = {
-    K4(-0.0), K4(0.66), K4(1.0),
-    /* Cephes atan P, Q */
-    K4(-8.750608600031904122785E-1), K4(-1.615753718733365076637E1), K4(-7.500855792314704667340E1),
-    K4(-1.228866684490136173410E2), K4(-6.485021904942025371773E1), K4(2.485846490142306297962E1),
-    K4(1.650270098316988542046E2), K4(4.328810604912902668951E2), K4(4.853903996359136964868E2),
-    K4(1.945506571482613964425E2),
-    /* pi/4 (low part first), pi/2, pi (high, low) */
-    K4(3.061616997868382943065E-17), K4(7.85398163397448278999E-1), K4(1.57079632679489655800),
-    K4(6.123233995736765886130E-17), K4(3.14159265358979311600), K4(1.2246467991473531772E-16),
-    /* polar4's range of q; finish_period: 1 / (2 pi), 2 pi, 360, 180 / pi */
-    K4(1e-290), K4(1e290), K4(1.0 / AFM_EST_TWO_PI), K4(AFM_EST_TWO_PI), K4(360.0),
-    K4(AFM_EST_RAD2DEG)};
-#undef K4
-enum {
-    K_SGN,
-    K_066,
-    K_ONE,
-    K_P0,
-    K_Q0 = K_P0 + 5,
-    K_PI4LO = K_Q0 + 5,
-    K_PI4,
-    K_PI2,
-    K_PI2LO,
-    K_PI,
-    K_PILO,
-    K_QMIN,
-    K_QMAX,
-    K_INV2PI,
-    K_2PI,
-    K_360,
-    K_R2D
-};
-static inline const double *harm_consts(void) {
-    const double *k = &harm_k[0][0];
-#if defined(__GNUC__)
-    __asm__("" : "+r"(k)); /* opaque: the values are loaded, not folded into broadcasts */
-#endif
-    return k;
-}
-#define KV(k, i) _mm256_load_pd((k) + 4 * (i))
+/* Lane selection (SEL4: m ? x : y per lane, m a lane mask), the sign bit. */
+#define SEL4(m, x, y) ((afm_v4)(((m) & (afm_v4i)(x)) | (~(m) & (afm_v4i)(y))))
+#define SIGN4 ((afm_v4i)AFM_V4_SET1(-0.0))
 
-/* atan2 of 4 lanes, within 2 ulp of libm's (checked on 1.6e7 random pairs over 12 decades
- * of |y| / |x|): the octant reduction to t = min(|x|, |y|) / max(|x|, |y|) in [0, 1], t > 0.66
- * mapped to (t - 1) / (t + 1) around pi / 4, then Cephes's atan rational P(t^2)/Q(t^2)
- * (S. Moshier, Cephes Math Library atan.c: P degree 4, Q degree 5, about 1e-16 relative),
- * then pi / 2 - r, pi - r (with the low parts of pi / 2, pi) and the sign of y. Lanes with
- * max(|x|, |y|) = 0 or not finite are not handled here (t is NaN): the caller checks. */
-static inline __m256d atan2_v4(__m256d y, __m256d x, const double *k) {
-    const __m256d sgn = KV(k, K_SGN);
-    __m256d ax = _mm256_andnot_pd(sgn, x), ay = _mm256_andnot_pd(sgn, y);
-    __m256d mx = _mm256_max_pd(ax, ay), mn = _mm256_min_pd(ax, ay);
-    __m256d t = _mm256_div_pd(mn, mx);
-    __m256d big = _mm256_cmp_pd(t, KV(k, K_066), _CMP_GT_OQ);
-    __m256d one = KV(k, K_ONE);
-    __m256d tr =
-        _mm256_blendv_pd(t, _mm256_div_pd(_mm256_sub_pd(t, one), _mm256_add_pd(t, one)), big);
-    __m256d z = _mm256_mul_pd(tr, tr);
-    __m256d p = KV(k, K_P0);
-    p = _mm256_fmadd_pd(p, z, KV(k, K_P0 + 1));
-    p = _mm256_fmadd_pd(p, z, KV(k, K_P0 + 2));
-    p = _mm256_fmadd_pd(p, z, KV(k, K_P0 + 3));
-    p = _mm256_fmadd_pd(p, z, KV(k, K_P0 + 4));
-    __m256d q = _mm256_add_pd(z, KV(k, K_Q0));
-    q = _mm256_fmadd_pd(q, z, KV(k, K_Q0 + 1));
-    q = _mm256_fmadd_pd(q, z, KV(k, K_Q0 + 2));
-    q = _mm256_fmadd_pd(q, z, KV(k, K_Q0 + 3));
-    q = _mm256_fmadd_pd(q, z, KV(k, K_Q0 + 4));
-    __m256d r = _mm256_fmadd_pd(tr, _mm256_div_pd(_mm256_mul_pd(z, p), q), tr);
+/* atan2 of 4 lanes (*out = atan2(*y, *x)), within 2 ulp of libm's (checked on 1.6e7 random
+ * pairs over 12 decades of |y| / |x|): the octant reduction to t = min(|x|, |y|) / max(|x|,
+ * |y|) in [0, 1], t > 0.66 mapped to (t - 1) / (t + 1) around pi / 4, then Cephes's atan
+ * rational P(t^2)/Q(t^2) (S. Moshier, Cephes Math Library atan.c: P degree 4, Q degree 5,
+ * about 1e-16 relative), then pi / 2 - r, pi - r (with the low parts of pi / 2, pi) and the
+ * sign of y. Lanes with max(|x|, |y|) = 0 or not finite are not handled here (t is NaN): the
+ * caller checks. Every build computes the same bits (afm_v4: one rounding per operation). */
+static inline AFM_EST_INLINE void atan2_v4(const afm_v4 *py, const afm_v4 *px, afm_v4 *out) {
+    const afm_v4 y = *py, x = *px, one = AFM_V4_SET1(1.0);
+    afm_v4 ax = (afm_v4)((afm_v4i)x & ~SIGN4), ay = (afm_v4)((afm_v4i)y & ~SIGN4);
+    afm_v4 mx = SEL4((afm_v4i)(ax > ay), ax, ay), mn = SEL4((afm_v4i)(ax < ay), ax, ay);
+    afm_v4 t = mn / mx;
+    afm_v4i big = (afm_v4i)(t > 0.66);
+    afm_v4 tr = SEL4(big, (t - one) / (t + one), t);
+    afm_v4 z = tr * tr;
+    afm_v4 p = AFM_V4_SET1(-8.750608600031904122785E-1);
+    p = AFM_V4_FMA(p, z, AFM_V4_SET1(-1.615753718733365076637E1));
+    p = AFM_V4_FMA(p, z, AFM_V4_SET1(-7.500855792314704667340E1));
+    p = AFM_V4_FMA(p, z, AFM_V4_SET1(-1.228866684490136173410E2));
+    p = AFM_V4_FMA(p, z, AFM_V4_SET1(-6.485021904942025371773E1));
+    afm_v4 q = z + 2.485846490142306297962E1;
+    q = AFM_V4_FMA(q, z, AFM_V4_SET1(1.650270098316988542046E2));
+    q = AFM_V4_FMA(q, z, AFM_V4_SET1(4.328810604912902668951E2));
+    q = AFM_V4_FMA(q, z, AFM_V4_SET1(4.853903996359136964868E2));
+    q = AFM_V4_FMA(q, z, AFM_V4_SET1(1.945506571482613964425E2));
+    afm_v4 r = AFM_V4_FMA(tr, (z * p) / q, tr);
     /* + pi/4 (with its low part) in the upper range */
-    r = _mm256_add_pd(r, _mm256_and_pd(big, KV(k, K_PI4LO)));
-    r = _mm256_add_pd(r, _mm256_and_pd(big, KV(k, K_PI4)));
+    r = r + (afm_v4)(big & (afm_v4i)AFM_V4_SET1(3.061616997868382943065E-17));
+    r = r + (afm_v4)(big & (afm_v4i)AFM_V4_SET1(7.85398163397448278999E-1));
     /* |y| > |x|: pi/2 - r */
-    __m256d steep = _mm256_cmp_pd(ay, ax, _CMP_GT_OQ);
-    __m256d r2 = _mm256_add_pd(_mm256_sub_pd(KV(k, K_PI2), r), KV(k, K_PI2LO));
-    r = _mm256_blendv_pd(r, r2, steep);
-    /* x < 0: pi - r */
-    __m256d r3 = _mm256_add_pd(_mm256_sub_pd(KV(k, K_PI), r), KV(k, K_PILO));
-    r = _mm256_blendv_pd(r, r3, x);
-    return _mm256_or_pd(r, _mm256_and_pd(sgn, y));
+    afm_v4 r2 = (1.57079632679489655800 - r) + 6.123233995736765886130E-17;
+    r = SEL4((afm_v4i)(ay > ax), r2, r);
+    /* x < 0 (its sign bit): pi - r */
+    afm_v4 r3 = (3.14159265358979311600 - r) + 1.2246467991473531772E-16;
+    r = SEL4((afm_v4i)x >> 63, r3, r);
+    *out = (afm_v4)((afm_v4i)r | ((afm_v4i)y & SIGN4));
 }
-#endif
 
 /* polar4's lanes it does not take: zero, tiny, huge or not finite */
 AFM_EST_COLD static void polar_scalar(const double *z, double *ph, double *mag) {
@@ -231,46 +186,35 @@ AFM_EST_COLD static void polar_scalar(const double *z, double *ph, double *mag) 
 
 /* afm_phase_diff_deg(k, phi1, ph) on 4 lanes: v = k (pi - phi1) + ph (a = pi - phi1),
  * reduced mod 2 pi as afm_clock_wrap (|v| < 2^52), in degrees, 360 read as 0. */
-static void phase_diff4(const double *kd, double a, const double *ph, double *pd) {
-    double v[4];
+static inline AFM_EST_INLINE void phase_diff4(const double *kd, double a, const double *ph,
+                                              afm_v4 *pd) {
+    const afm_v4 two_pi = AFM_V4_SET1(AFM_EST_TWO_PI), one = AFM_V4_SET1(1.0);
+    afm_v4 vv = AFM_V4_LD(kd) * a + AFM_V4_LD(ph);
+    afm_v4 m = vv * (1.0 / AFM_EST_TWO_PI);
     for (int l = 0; l < 4; l++)
-        v[l] = kd[l] * a + ph[l];
-#if defined(AFM_EST_AVX)
-    const double *k = harm_consts();
-    __m256d vv = _mm256_loadu_pd(v), two_pi = KV(k, K_2PI);
-    __m256d m = _mm256_floor_pd(_mm256_mul_pd(vv, KV(k, K_INV2PI)));
-    __m256d w = _mm256_fnmadd_pd(m, two_pi, vv);
-    __m256d lo = _mm256_cmp_pd(w, _mm256_setzero_pd(), _CMP_LT_OQ);
-    __m256d hi = _mm256_cmp_pd(w, two_pi, _CMP_GE_OQ);
-    m = _mm256_sub_pd(_mm256_add_pd(m, _mm256_and_pd(hi, KV(k, K_ONE))),
-                      _mm256_and_pd(lo, KV(k, K_ONE)));
-    __m256d deg = _mm256_mul_pd(_mm256_fnmadd_pd(m, two_pi, vv), KV(k, K_R2D));
-    _mm256_storeu_pd(pd, _mm256_andnot_pd(_mm256_cmp_pd(deg, KV(k, K_360), _CMP_GE_OQ), deg));
-#else
-    for (int l = 0; l < 4; l++) {
-        double deg = afm_clock_wrap(v[l]) * AFM_EST_RAD2DEG;
-        pd[l] = deg >= 360.0 ? 0.0 : deg;
-    }
-#endif
+        m[l] = __builtin_floor(m[l]);
+    afm_v4 w = AFM_V4_FNMA(m, two_pi, vv);
+    afm_v4i lo = (afm_v4i)(w < 0.0), hi = (afm_v4i)(w >= two_pi);
+    m = (m + (afm_v4)(hi & (afm_v4i)one)) - (afm_v4)(lo & (afm_v4i)one);
+    afm_v4 deg = AFM_V4_FNMA(m, two_pi, vv) * AFM_EST_RAD2DEG;
+    *pd = (afm_v4)(~(afm_v4i)(deg >= 360.0) & (afm_v4i)deg);
 }
 
-/* Phases atan2(y, x) (rad) and magnitudes |x + i y| (afm_est_hypot's value) of 4 lanes. */
-static inline void polar4v(afm_v4 x, afm_v4 y, double *ph, double *mag) {
-#if defined(AFM_EST_AVX)
-    const double *k = harm_consts();
-    __m256d q = _mm256_add_pd(_mm256_mul_pd(x, x), _mm256_mul_pd(y, y)); /* as afm_est_hypot */
+/* Phases atan2(y, x) (rad) and magnitudes |x + i y| (afm_est_hypot's value) of 4 lanes: x
+ * in z[0..4), y in z[4..8). */
+static inline AFM_EST_INLINE void polar4v(const double *z, double *ph, double *mag) {
+    afm_v4 x = AFM_V4_LD(z), y = AFM_V4_LD(z + 4);
+    afm_v4 q = x * x + y * y; /* as afm_est_hypot */
     /* q in (1e-290, 1e290): afm_est_hypot's sqrt, and max(|x|, |y|) > 0 and finite */
-    __m256d ok = _mm256_and_pd(_mm256_cmp_pd(q, KV(k, K_QMIN), _CMP_GT_OQ),
-                               _mm256_cmp_pd(q, KV(k, K_QMAX), _CMP_LT_OQ));
-    if (_mm256_movemask_pd(ok) == 15) {
-        _mm256_storeu_pd(ph, atan2_v4(y, x, k));
-        _mm256_storeu_pd(mag, _mm256_sqrt_pd(q));
+    afm_v4i ok = (afm_v4i)(q > 1e-290) & (afm_v4i)(q < 1e290);
+    if ((ok[0] & ok[1]) & (ok[2] & ok[3])) {
+        afm_v4 at;
+        atan2_v4(&y, &x, &at);
+        AFM_V4_ST(ph, at);
+        for (int l = 0; l < 4; l++)
+            mag[l] = __builtin_sqrt(q[l]);
         return;
     }
-#endif
-    double z[8];
-    afm_v4_st(z, x);
-    afm_v4_st(z + 4, y);
     polar_scalar(z, ph, mag);
 }
 
@@ -281,62 +225,23 @@ void afm_harm_set_deferred(afm_harm *h, bool deferred) {
 /* The polar form of a completed period's sums: the phases (rad) and magnitudes of x on every
  * lane (pxs, axs) and of f on the configured ones (pfs, afs) by polar4v, then eq.
  * E.12-E.13 and the records, 4 lanes at a time. */
-void afm_harm_polar(const afm_harm *h, afm_harm_result *r) {
+AFM_CLONES void afm_harm_polar(const afm_harm *h, afm_harm_result *r) {
     double pxs[AFM_HARM_LANES], axs[AFM_HARM_LANES], pfs[AFM_HARM_LANES], afs[AFM_HARM_LANES];
     for (int l = 0; l < h->nl; l += 4) {
         const double *z = r->raw + 4 * l;
-        polar4v(afm_v4_ld(z), afm_v4_ld(z + 4), pxs + l, axs + l);
-        if (l < h->nk) polar4v(afm_v4_ld(z + 8), afm_v4_ld(z + 12), pfs + l, afs + l);
+        polar4v(z, pxs + l, axs + l);
+        if (l < h->nk) polar4v(z + 8, pfs + l, afs + l);
     }
     const double scale = 2.0 / r->samples;
     const double a = AFM_EST_PI - pxs[h->lane1]; /* pi - phi_1 */
     r->n_harmonics = h->nk;
     for (int j = 0; j < h->nk; j++)
         r->h[j].k = h->ks[j];
-    const afm_v4 sc = afm_v4_set1(scale), r2d = afm_v4_set1(AFM_EST_RAD2DEG);
-#if defined(AFM_EST_AVX)
-    /* whole groups in registers: eq. E.12-E.13 as phase_diff4 (kd a, then + phi_k; reduced
-     * as afm_clock_wrap), the 4 x 4 transpose into the contiguous fields x_amp_m ..
-     * f_phase_deg */
-    const double *k = harm_consts();
-    const __m256d av = _mm256_set1_pd(a), two_pi = KV(k, K_2PI), one = KV(k, K_ONE);
-    int j = 0;
-    for (; j + 4 <= h->nk; j += 4) {
-        __m256d phx = _mm256_loadu_pd(pxs + j);
-        __m256d vv = _mm256_add_pd(_mm256_mul_pd(_mm256_loadu_pd(h->kd + j), av), phx);
-        __m256d m = _mm256_floor_pd(_mm256_mul_pd(vv, KV(k, K_INV2PI)));
-        __m256d w = _mm256_fnmadd_pd(m, two_pi, vv);
-        __m256d lo = _mm256_cmp_pd(w, _mm256_setzero_pd(), _CMP_LT_OQ);
-        __m256d hi = _mm256_cmp_pd(w, two_pi, _CMP_GE_OQ);
-        m = _mm256_sub_pd(_mm256_add_pd(m, _mm256_and_pd(hi, one)), _mm256_and_pd(lo, one));
-        __m256d deg = _mm256_mul_pd(_mm256_fnmadd_pd(m, two_pi, vv), KV(k, K_R2D));
-        __m256d pd = _mm256_andnot_pd(_mm256_cmp_pd(deg, KV(k, K_360), _CMP_GE_OQ), deg);
-        __m256d r0 = _mm256_mul_pd(_mm256_loadu_pd(axs + j), sc), r1 = _mm256_mul_pd(phx, r2d);
-        __m256d r2 = _mm256_mul_pd(_mm256_loadu_pd(afs + j), sc);
-        __m256d r3 = _mm256_mul_pd(_mm256_loadu_pd(pfs + j), r2d);
-        __m256d t0 = _mm256_unpacklo_pd(r0, r1), t1 = _mm256_unpackhi_pd(r0, r1);
-        __m256d t2 = _mm256_unpacklo_pd(r2, r3), t3 = _mm256_unpackhi_pd(r2, r3);
-        afm_orbit_harmonic *o = r->h + j;
-        _mm256_storeu_pd(&o[0].x_amp_m, _mm256_permute2f128_pd(t0, t2, 0x20));
-        _mm256_storeu_pd(&o[1].x_amp_m, _mm256_permute2f128_pd(t1, t3, 0x20));
-        _mm256_storeu_pd(&o[2].x_amp_m, _mm256_permute2f128_pd(t0, t2, 0x31));
-        _mm256_storeu_pd(&o[3].x_amp_m, _mm256_permute2f128_pd(t1, t3, 0x31));
-        __m128d plo = _mm256_castpd256_pd128(pd), phi = _mm256_extractf128_pd(pd, 1);
-        _mm_storel_pd(&o[0].phase_diff_deg, plo);
-        _mm_storeh_pd(&o[1].phase_diff_deg, plo);
-        _mm_storel_pd(&o[2].phase_diff_deg, phi);
-        _mm_storeh_pd(&o[3].phase_diff_deg, phi);
-    }
-    for (; j < h->nk; j += 4) {
-#else
     for (int j = 0; j < h->nk; j += 4) {
-#endif
-        double px[4], ax[4], pf[4], af[4], pd[4];
-        phase_diff4(h->kd + j, a, pxs + j, pd);
-        afm_v4_st(ax, afm_v4_mul(afm_v4_ld(axs + j), sc));
-        afm_v4_st(af, afm_v4_mul(afm_v4_ld(afs + j), sc));
-        afm_v4_st(px, afm_v4_mul(afm_v4_ld(pxs + j), r2d));
-        afm_v4_st(pf, afm_v4_mul(afm_v4_ld(pfs + j), r2d));
+        afm_v4 pd;
+        phase_diff4(h->kd + j, a, pxs + j, &pd);
+        afm_v4 ax = AFM_V4_LD(axs + j) * scale, af = AFM_V4_LD(afs + j) * scale;
+        afm_v4 px = AFM_V4_LD(pxs + j) * AFM_EST_RAD2DEG, pf = AFM_V4_LD(pfs + j) * AFM_EST_RAD2DEG;
         afm_orbit_harmonic *o = r->h + j;
         int n = h->nk - j < 4 ? h->nk - j : 4;
         for (int l = 0; l < n; l++) {
@@ -432,75 +337,75 @@ static void harm_slow_weights(afm_harm *h, double x, double f, harm_slow_step *s
  * - imp (|k e| < 1e-6: the dropped terms are below 1e-12 of it), or exact (pex); the chunk
  * into the period sums (s += b c); the ends of a completed period (into h->out.raw); the new
  * period's sums; the new chunk (c = w x: the phasor of the new chunk base is its own). */
-static void harm_slow_lanes(afm_harm *h, double x, double f, const harm_slow_step *s,
-                            const double *pex) {
+AFM_CLONES static void harm_slow_lanes(afm_harm *h, double x, double f, const harm_slow_step *s,
+                                       const double *pex) {
     const int st = 2 * h->nl;
     const double *tm = s->tm;
     const bool exact = s->exact, active = s->active, cross = s->cross, start = s->start;
-    const afm_v4 e = afm_v4_set1(s->e_rad), zero = afm_v4_set1(0.0);
-    const afm_v4 kxp = afm_v4_set1((s->wb[0] - 0.5) * h->x_prev), kxc = afm_v4_set1(s->wb[1] * x);
-    const afm_v4 kfp = afm_v4_set1((s->wb[0] - 0.5) * h->f_prev), kfc = afm_v4_set1(s->wb[1] * f);
-    const afm_v4 nxp = afm_v4_set1(s->wa[0] * h->x_prev), nfp = afm_v4_set1(s->wa[0] * h->f_prev);
-    const afm_v4 wxv = afm_v4_set1(s->wx), wfv = afm_v4_set1(s->wf);
+    const afm_v4 e = AFM_V4_SET1(s->e_rad), zero = AFM_V4_SET1(0.0);
+    const afm_v4 kxp = AFM_V4_SET1((s->wb[0] - 0.5) * h->x_prev), kxc = AFM_V4_SET1(s->wb[1] * x);
+    const afm_v4 kfp = AFM_V4_SET1((s->wb[0] - 0.5) * h->f_prev), kfc = AFM_V4_SET1(s->wb[1] * f);
+    const afm_v4 nxp = AFM_V4_SET1(s->wa[0] * h->x_prev), nfp = AFM_V4_SET1(s->wa[0] * h->f_prev);
+    const afm_v4 wxv = AFM_V4_SET1(s->wx), wfv = AFM_V4_SET1(s->wf);
     for (int g = 0; g < st; g += 8) {
-        const afm_v4 br = afm_v4_ld(h->b + g), bi = afm_v4_ld(h->b + g + 4);
+        const afm_v4 br = AFM_V4_LD(h->b + g), bi = AFM_V4_LD(h->b + g + 4);
         afm_v4 er, ei, pr, pi;
-        afm_v4_cmul(br, bi, afm_v4_ld(tm + g), afm_v4_ld(tm + g + 4), &er, &ei);
+        AFM_V4_CMUL(br, bi, AFM_V4_LD(tm + g), AFM_V4_LD(tm + g + 4), er, ei);
         if (exact) {
-            pr = afm_v4_ld(pex + g);
-            pi = afm_v4_ld(pex + g + 4);
+            pr = AFM_V4_LD(pex + g);
+            pi = AFM_V4_LD(pex + g + 4);
         } else {
             afm_v4 re, im;
-            afm_v4_cmul(br, bi, afm_v4_ld(tm + st + g), afm_v4_ld(tm + st + g + 4), &re, &im);
-            afm_v4 ke = afm_v4_mul(afm_v4_ld(h->kd + g / 2), e);
-            pr = afm_v4_fma(ke, im, re);
-            pi = afm_v4_fnma(ke, re, im);
+            AFM_V4_CMUL(br, bi, AFM_V4_LD(tm + st + g), AFM_V4_LD(tm + st + g + 4), re, im);
+            afm_v4 ke = AFM_V4_MUL(AFM_V4_LD(h->kd + g / 2), e);
+            pr = AFM_V4_FMA(ke, im, re);
+            pi = AFM_V4_FNMA(ke, re, im);
         }
-        afm_v4 sxr = afm_v4_ld(h->sx + g), sxi = afm_v4_ld(h->sx + g + 4);
-        afm_v4 sfr = afm_v4_ld(h->sf + g), sfi = afm_v4_ld(h->sf + g + 4);
+        afm_v4 sxr = AFM_V4_LD(h->sx + g), sxi = AFM_V4_LD(h->sx + g + 4);
+        afm_v4 sfr = AFM_V4_LD(h->sf + g), sfi = AFM_V4_LD(h->sf + g + 4);
         if (active) {
-            afm_v4 cr = afm_v4_ld(h->cx + g), ci = afm_v4_ld(h->cx + g + 4);
-            sxr = afm_v4_fma(br, cr, afm_v4_fnma(bi, ci, sxr));
-            sxi = afm_v4_fma(br, ci, afm_v4_fma(bi, cr, sxi));
-            cr = afm_v4_ld(h->cf + g);
-            ci = afm_v4_ld(h->cf + g + 4);
-            sfr = afm_v4_fma(br, cr, afm_v4_fnma(bi, ci, sfr));
-            sfi = afm_v4_fma(br, ci, afm_v4_fma(bi, cr, sfi));
+            afm_v4 cr = AFM_V4_LD(h->cx + g), ci = AFM_V4_LD(h->cx + g + 4);
+            sxr = AFM_V4_FMA(br, cr, AFM_V4_FNMA(bi, ci, sxr));
+            sxi = AFM_V4_FMA(br, ci, AFM_V4_FMA(bi, cr, sxi));
+            cr = AFM_V4_LD(h->cf + g);
+            ci = AFM_V4_LD(h->cf + g + 4);
+            sfr = AFM_V4_FMA(br, cr, AFM_V4_FNMA(bi, ci, sfr));
+            sfi = AFM_V4_FMA(br, ci, AFM_V4_FMA(bi, cr, sfi));
         }
         if (cross) {
-            sxr = afm_v4_fma(kxc, pr, afm_v4_fma(kxp, er, sxr));
-            sxi = afm_v4_fma(kxc, pi, afm_v4_fma(kxp, ei, sxi));
-            sfr = afm_v4_fma(kfc, pr, afm_v4_fma(kfp, er, sfr));
-            sfi = afm_v4_fma(kfc, pi, afm_v4_fma(kfp, ei, sfi));
+            sxr = AFM_V4_FMA(kxc, pr, AFM_V4_FMA(kxp, er, sxr));
+            sxi = AFM_V4_FMA(kxc, pi, AFM_V4_FMA(kxp, ei, sxi));
+            sfr = AFM_V4_FMA(kfc, pr, AFM_V4_FMA(kfp, er, sfr));
+            sfi = AFM_V4_FMA(kfc, pi, AFM_V4_FMA(kfp, ei, sfi));
             double *z = h->out.raw + 2 * g;
-            afm_v4_st(z, sxr);
-            afm_v4_st(z + 4, sxi);
-            afm_v4_st(z + 8, sfr);
-            afm_v4_st(z + 12, sfi);
+            AFM_V4_ST(z, sxr);
+            AFM_V4_ST(z + 4, sxi);
+            AFM_V4_ST(z + 8, sfr);
+            AFM_V4_ST(z + 12, sfi);
         }
         if (start) {
-            sxr = afm_v4_mul(nxp, er);
-            sxi = afm_v4_mul(nxp, ei);
-            sfr = afm_v4_mul(nfp, er);
-            sfi = afm_v4_mul(nfp, ei);
+            sxr = AFM_V4_MUL(nxp, er);
+            sxi = AFM_V4_MUL(nxp, ei);
+            sfr = AFM_V4_MUL(nfp, er);
+            sfi = AFM_V4_MUL(nfp, ei);
         }
-        afm_v4_st(h->sx + g, sxr);
-        afm_v4_st(h->sx + g + 4, sxi);
-        afm_v4_st(h->sf + g, sfr);
-        afm_v4_st(h->sf + g + 4, sfi);
-        afm_v4_st(h->cx + g, wxv);
-        afm_v4_st(h->cx + g + 4, zero);
-        afm_v4_st(h->cf + g, wfv);
-        afm_v4_st(h->cf + g + 4, zero);
-        afm_v4_st(h->b + g, pr);
-        afm_v4_st(h->b + g + 4, pi);
+        AFM_V4_ST(h->sx + g, sxr);
+        AFM_V4_ST(h->sx + g + 4, sxi);
+        AFM_V4_ST(h->sf + g, sfr);
+        AFM_V4_ST(h->sf + g + 4, sfi);
+        AFM_V4_ST(h->cx + g, wxv);
+        AFM_V4_ST(h->cx + g + 4, zero);
+        AFM_V4_ST(h->cf + g, wfv);
+        AFM_V4_ST(h->cf + g + 4, zero);
+        AFM_V4_ST(h->b + g, pr);
+        AFM_V4_ST(h->b + g + 4, pi);
     }
 }
 
 /* A sample off the fast path, by the exact clock: theta mod 2 pi; boundaries, fractional
  * ends, resynchronisation of the phasors. Returns -1 (rejected, nothing changed), 0, or 1 (a
  * period completed). */
-static int harm_push_slow(afm_harm *h, double x, double f, double theta_rad) {
+AFM_CLONES static int harm_push_slow(afm_harm *h, double x, double f, double theta_rad) {
     if (!isfinite(x) || !isfinite(f)) return -1;
     harm_slow_step s;
     double pex[2 * AFM_HARM_LANES];
@@ -532,43 +437,43 @@ static inline ALWAYS_INLINE void chunk_sig(double *c, const double *tab, const d
     afm_v4 acc[10];
 #pragma GCC unroll 10
     for (int g = 0; g < 2 * NG; g++)
-        acc[g] = afm_v4_ld(c + 4 * g);
+        acc[g] = AFM_V4_LD(c + 4 * g);
     const double *tp = tab;
     int i = 0;
     for (; i + 8 <= n; i += 8, tp += 8 * 8 * NG) {
 #pragma GCC unroll 8
         for (int u = 0; u < 8; u++) {
-            afm_v4 vu = afm_v4_set1(v[i + u]);
+            afm_v4 vu = AFM_V4_SET1(v[i + u]);
 #pragma GCC unroll 10
             for (int g = 0; g < 2 * NG; g++)
-                acc[g] = afm_v4_fma(vu, afm_v4_ld(tp + 8 * NG * u + 4 * g), acc[g]);
+                acc[g] = AFM_V4_FMA(vu, AFM_V4_LD(tp + 8 * NG * u + 4 * g), acc[g]);
         }
     }
     for (; i + 4 <= n; i += 4, tp += 4 * 8 * NG) {
-        afm_v4 v0 = afm_v4_set1(v[i]), v1 = afm_v4_set1(v[i + 1]);
-        afm_v4 v2 = afm_v4_set1(v[i + 2]), v3 = afm_v4_set1(v[i + 3]);
+        afm_v4 v0 = AFM_V4_SET1(v[i]), v1 = AFM_V4_SET1(v[i + 1]);
+        afm_v4 v2 = AFM_V4_SET1(v[i + 2]), v3 = AFM_V4_SET1(v[i + 3]);
 #pragma GCC unroll 10
         for (int g = 0; g < 2 * NG; g++)
-            acc[g] = afm_v4_fma(v0, afm_v4_ld(tp + 4 * g), acc[g]);
+            acc[g] = AFM_V4_FMA(v0, AFM_V4_LD(tp + 4 * g), acc[g]);
 #pragma GCC unroll 10
         for (int g = 0; g < 2 * NG; g++)
-            acc[g] = afm_v4_fma(v1, afm_v4_ld(tp + 8 * NG + 4 * g), acc[g]);
+            acc[g] = AFM_V4_FMA(v1, AFM_V4_LD(tp + 8 * NG + 4 * g), acc[g]);
 #pragma GCC unroll 10
         for (int g = 0; g < 2 * NG; g++)
-            acc[g] = afm_v4_fma(v2, afm_v4_ld(tp + 16 * NG + 4 * g), acc[g]);
+            acc[g] = AFM_V4_FMA(v2, AFM_V4_LD(tp + 16 * NG + 4 * g), acc[g]);
 #pragma GCC unroll 10
         for (int g = 0; g < 2 * NG; g++)
-            acc[g] = afm_v4_fma(v3, afm_v4_ld(tp + 24 * NG + 4 * g), acc[g]);
+            acc[g] = AFM_V4_FMA(v3, AFM_V4_LD(tp + 24 * NG + 4 * g), acc[g]);
     }
     for (; i < n; i++, tp += 8 * NG) {
-        afm_v4 v0 = afm_v4_set1(v[i]);
+        afm_v4 v0 = AFM_V4_SET1(v[i]);
 #pragma GCC unroll 10
         for (int g = 0; g < 2 * NG; g++)
-            acc[g] = afm_v4_fma(v0, afm_v4_ld(tp + 4 * g), acc[g]);
+            acc[g] = AFM_V4_FMA(v0, AFM_V4_LD(tp + 4 * g), acc[g]);
     }
 #pragma GCC unroll 10
     for (int g = 0; g < 2 * NG; g++)
-        afm_v4_st(c + 4 * g, acc[g]);
+        AFM_V4_ST(c + 4 * g, acc[g]);
 }
 
 /* Samples x[0..n), f[0..n) at table entries m0, m0 + 1, ... (m0 + n - 1 <= AFM_HARM_TAB)
@@ -579,7 +484,7 @@ static inline ALWAYS_INLINE void chunk_xf(afm_harm *h, const double *tp, const d
     chunk_sig(h->cf, tp, f, n, NG);
 }
 
-static void chunk_add(afm_harm *h, const double *x, const double *f, int n, int m0) {
+AFM_CLONES static void chunk_add(afm_harm *h, const double *x, const double *f, int n, int m0) {
     const double *tp = h->tab + (size_t)m0 * 2 * h->nl;
     switch (h->nl / 4) { /* the group count as a constant: chunk_sig keeps its sums in registers */
     case 1:
@@ -602,7 +507,7 @@ static void chunk_add(afm_harm *h, const double *x, const double *f, int n, int 
 
 /* n fast-path samples (afm_track_run): weight 1 each into the chunk sums; a full chunk
  * (entry AFM_HARM_TAB) goes into the period sums and the base phasor moves to its end. */
-static void fast_block(afm_harm *h, const double *x, const double *f, int n) {
+AFM_CLONES static void fast_block(afm_harm *h, const double *x, const double *f, int n) {
     const int st = 2 * h->nl;
     int m = (int)(h->trk.n - h->nbase) + 1; /* table entry of x[0] */
     h->trk.n += (double)n;                  /* integer-valued: exact */
@@ -620,10 +525,10 @@ static void fast_block(afm_harm *h, const double *x, const double *f, int n) {
             cmadd(h->sf, h->b, h->cf, st);
             for (int g = 0; g < st; g += 8) {
                 afm_v4 re, im;
-                afm_v4_cmul(afm_v4_ld(h->b + g), afm_v4_ld(h->b + g + 4), afm_v4_ld(tt + g),
-                            afm_v4_ld(tt + g + 4), &re, &im);
-                afm_v4_st(h->b + g, re);
-                afm_v4_st(h->b + g + 4, im);
+                AFM_V4_CMUL(AFM_V4_LD(h->b + g), AFM_V4_LD(h->b + g + 4), AFM_V4_LD(tt + g),
+                            AFM_V4_LD(tt + g + 4), re, im);
+                AFM_V4_ST(h->b + g, re);
+                AFM_V4_ST(h->b + g + 4, im);
             }
             memset(h->cx, 0, (size_t)st * sizeof h->cx[0]);
             memset(h->cf, 0, (size_t)st * sizeof h->cf[0]);
@@ -633,8 +538,8 @@ static void fast_block(afm_harm *h, const double *x, const double *f, int n) {
     }
 }
 
-int afm_harm_push_n(afm_harm *h, const double *x, const double *f, const double *th, int n,
-                    int *done, long long *rejects) {
+AFM_CLONES int afm_harm_push_n(afm_harm *h, const double *x, const double *f, const double *th,
+                               int n, int *done, long long *rejects) {
     *done = 0;
     int i = 0;
     while (i < n) {

@@ -114,7 +114,7 @@ int afm_harm_push(afm_harm *h, double x, double f, double theta_rad);
  * the last of them completed a period (h->out), else 0; rejected samples (-1 from
  * afm_harm_push) are added to *rejects. Same results as afm_harm_push, bit for bit
  * (afm_harm_push is this with n = 1): runs on the tracker's prediction are checked 8
- * samples at a time and summed with the sums in registers (AVX2, 4 harmonics per vector). */
+ * samples at a time and summed with the sums in registers (4 harmonics per afm_v4). */
 int afm_harm_push_n(afm_harm *h, const double *x, const double *f, const double *theta_rad, int n,
                     int *done, long long *rejects);
 

@@ -3,6 +3,8 @@
  * afm_lockin.h). */
 #include "estimators/afm_lockin.h"
 
+#include "config/afm_clones.h"
+
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
@@ -88,19 +90,15 @@ AFM_EST_COLD static void build_tables(afm_lockin *l) {
 /* w = z_b + 2 e^{i theta_b} S over the stages (S = the four sums), NV vectors of 2 stages
  * as (X, Y) pairs: (X, Y) = (imaginary, real) part, = 2 c (im S, re S) + 2 s (re S, -im S). */
 static inline ALWAYS_INLINE void stages_w(const afm_lockin *l, afm_v4 *w, const int NV) {
-    const afm_v4 c2 = afm_v4_set1(2.0 * l->c);
-    const afm_v4 s2 =
-        afm_v4_ld((const double[4]){2.0 * l->s, -2.0 * l->s, 2.0 * l->s, -2.0 * l->s});
+    const afm_v4 c2 = AFM_V4_SET1(2.0 * l->c);
+    const afm_v4 s2 = (afm_v4){2.0 * l->s, -2.0 * l->s, 2.0 * l->s, -2.0 * l->s};
+#pragma GCC unroll 4
     for (int v = 0; v < NV; v++) {
         afm_v4 sum =
-            afm_v4_add(afm_v4_add(afm_v4_ld(l->acc[0] + 4 * v), afm_v4_ld(l->acc[1] + 4 * v)),
-                       afm_v4_add(afm_v4_ld(l->acc[2] + 4 * v), afm_v4_ld(l->acc[3] + 4 * v)));
-#if defined(AFM_EST_AVX)
-        afm_v4 sw = _mm256_permute_pd(sum, 5); /* (im, re) pairs */
-#else
-        afm_v4 sw = {{sum.v[1], sum.v[0], sum.v[3], sum.v[2]}};
-#endif
-        w[v] = afm_v4_add(afm_v4_ld(&l->xy[2 * v][0]), afm_v4_fma(c2, sw, afm_v4_mul(s2, sum)));
+            AFM_V4_ADD(AFM_V4_ADD(AFM_V4_LD(l->acc[0] + 4 * v), AFM_V4_LD(l->acc[1] + 4 * v)),
+                       AFM_V4_ADD(AFM_V4_LD(l->acc[2] + 4 * v), AFM_V4_LD(l->acc[3] + 4 * v)));
+        afm_v4 sw = __builtin_shufflevector(sum, sum, 1, 0, 3, 2); /* (im, re) pairs */
+        w[v] = AFM_V4_ADD(AFM_V4_LD(&l->xy[2 * v][0]), AFM_V4_FMA(c2, sw, AFM_V4_MUL(s2, sum)));
     }
 }
 
@@ -110,11 +108,11 @@ static inline ALWAYS_INLINE void current_nv(const afm_lockin *l, double *x, doub
                                             const int NV) {
     afm_v4 w[4];
     stages_w(l, w, NV);
-    afm_v4 t = afm_v4_mul(w[0], afm_v4_ld(l->apl[l->m]));
+    afm_v4 t = AFM_V4_MUL(w[0], AFM_V4_LD(l->apl[l->m]));
     for (int v = 1; v < NV; v++)
-        t = afm_v4_fma(w[v], afm_v4_ld(l->apl[l->m] + 4 * v), t);
+        t = AFM_V4_FMA(w[v], AFM_V4_LD(l->apl[l->m] + 4 * v), t);
     double q[4];
-    afm_v4_st(q, t);
+    AFM_V4_ST(q, t);
     *x = q[0] + q[2];
     *y = q[1] + q[3];
 }
@@ -142,16 +140,20 @@ static inline ALWAYS_INLINE void flush_nv(afm_lockin *l, const int NV) {
     afm_v4 w[4];
     stages_w(l, w, NV);
     double zp[32]; /* 2 NV - 1 zero stages, then w */
+#pragma GCC unroll 4
     for (int v = 0; v < NV; v++)
-        afm_v4_st(zp + 4 * v, afm_v4_set1(0.0));
+        AFM_V4_ST(zp + 4 * v, AFM_V4_SET1(0.0));
+#pragma GCC unroll 4
     for (int v = 0; v < NV; v++)
-        afm_v4_st(zp + 4 * NV - 2 + 4 * v, w[v]);
+        AFM_V4_ST(zp + 4 * NV - 2 + 4 * v, w[v]);
     const double *a = l->ap[l->m];
+#pragma GCC unroll 4
     for (int v = 0; v < NV; v++) {
-        afm_v4 z = afm_v4_mul(afm_v4_set1(a[0]), w[v]);
+        afm_v4 z = AFM_V4_MUL(AFM_V4_SET1(a[0]), w[v]);
+#pragma GCC unroll 8
         for (int d = 1; d < 2 * NV; d++)
-            z = afm_v4_fma(afm_v4_set1(a[d]), afm_v4_ld(zp + 4 * NV - 2 + 4 * v - 2 * d), z);
-        afm_v4_st(&l->xy[2 * v][0], z);
+            z = AFM_V4_FMA(AFM_V4_SET1(a[d]), AFM_V4_LD(zp + 4 * NV - 2 + 4 * v - 2 * d), z);
+        AFM_V4_ST(&l->xy[2 * v][0], z);
     }
     if (l->order & 1) l->xy[l->order][0] = l->xy[l->order][1] = 0.0; /* the pad stage */
     double pc = l->pr[l->m][0], ps = l->pr[l->m][1];
@@ -159,8 +161,9 @@ static inline ALWAYS_INLINE void flush_nv(afm_lockin *l, const int NV) {
     l->s = fma(l->s, pc, l->c * ps);
     l->c = c;
     for (int q = 0; q < 4; q++)
+#pragma GCC unroll 4
         for (int v = 0; v < NV; v++)
-            afm_v4_st(l->acc[q] + 4 * v, afm_v4_set1(0.0));
+            AFM_V4_ST(l->acc[q] + 4 * v, AFM_V4_SET1(0.0));
     l->m = 0;
 }
 
@@ -227,44 +230,50 @@ static inline ALWAYS_INLINE void block_add(afm_lockin *l, const double *u, int k
     double *s0 = l->acc[p], *s1 = l->acc[(p + 1) & 3], *s2 = l->acc[(p + 2) & 3],
            *s3 = l->acc[(p + 3) & 3];
     afm_v4 r0[4], r1[4], r2[4], r3[4];
+#pragma GCC unroll 4
     for (int v = 0; v < NV; v++) {
-        r0[v] = afm_v4_ld(s0 + 4 * v);
-        r1[v] = afm_v4_ld(s1 + 4 * v);
-        r2[v] = afm_v4_ld(s2 + 4 * v);
-        r3[v] = afm_v4_ld(s3 + 4 * v);
+        r0[v] = AFM_V4_LD(s0 + 4 * v);
+        r1[v] = AFM_V4_LD(s1 + 4 * v);
+        r2[v] = AFM_V4_LD(s2 + 4 * v);
+        r3[v] = AFM_V4_LD(s3 + 4 * v);
     }
     const double *w = l->v[l->m];
     int i = 0;
     for (; i + 4 <= k; i += 4, w += 4 * st) {
-        afm_v4 u0 = afm_v4_set1(u[i]), u1 = afm_v4_set1(u[i + 1]);
-        afm_v4 u2 = afm_v4_set1(u[i + 2]), u3 = afm_v4_set1(u[i + 3]);
+        afm_v4 u0 = AFM_V4_SET1(u[i]), u1 = AFM_V4_SET1(u[i + 1]);
+        afm_v4 u2 = AFM_V4_SET1(u[i + 2]), u3 = AFM_V4_SET1(u[i + 3]);
+#pragma GCC unroll 4
         for (int v = 0; v < NV; v++) {
-            r0[v] = afm_v4_fma(u0, afm_v4_ld(w + 4 * v), r0[v]);
-            r1[v] = afm_v4_fma(u1, afm_v4_ld(w + st + 4 * v), r1[v]);
-            r2[v] = afm_v4_fma(u2, afm_v4_ld(w + 2 * st + 4 * v), r2[v]);
-            r3[v] = afm_v4_fma(u3, afm_v4_ld(w + 3 * st + 4 * v), r3[v]);
+            r0[v] = AFM_V4_FMA(u0, AFM_V4_LD(w + 4 * v), r0[v]);
+            r1[v] = AFM_V4_FMA(u1, AFM_V4_LD(w + st + 4 * v), r1[v]);
+            r2[v] = AFM_V4_FMA(u2, AFM_V4_LD(w + 2 * st + 4 * v), r2[v]);
+            r3[v] = AFM_V4_FMA(u3, AFM_V4_LD(w + 3 * st + 4 * v), r3[v]);
         }
     }
     if (i < k) { /* 1..3 more */
-        afm_v4 u0 = afm_v4_set1(u[i]);
+        afm_v4 u0 = AFM_V4_SET1(u[i]);
+#pragma GCC unroll 4
         for (int v = 0; v < NV; v++)
-            r0[v] = afm_v4_fma(u0, afm_v4_ld(w + 4 * v), r0[v]);
+            r0[v] = AFM_V4_FMA(u0, AFM_V4_LD(w + 4 * v), r0[v]);
         if (i + 1 < k) {
-            afm_v4 u1 = afm_v4_set1(u[i + 1]);
+            afm_v4 u1 = AFM_V4_SET1(u[i + 1]);
+#pragma GCC unroll 4
             for (int v = 0; v < NV; v++)
-                r1[v] = afm_v4_fma(u1, afm_v4_ld(w + st + 4 * v), r1[v]);
+                r1[v] = AFM_V4_FMA(u1, AFM_V4_LD(w + st + 4 * v), r1[v]);
         }
         if (i + 2 < k) {
-            afm_v4 u2 = afm_v4_set1(u[i + 2]);
+            afm_v4 u2 = AFM_V4_SET1(u[i + 2]);
+#pragma GCC unroll 4
             for (int v = 0; v < NV; v++)
-                r2[v] = afm_v4_fma(u2, afm_v4_ld(w + 2 * st + 4 * v), r2[v]);
+                r2[v] = AFM_V4_FMA(u2, AFM_V4_LD(w + 2 * st + 4 * v), r2[v]);
         }
     }
+#pragma GCC unroll 4
     for (int v = 0; v < NV; v++) {
-        afm_v4_st(s0 + 4 * v, r0[v]);
-        afm_v4_st(s1 + 4 * v, r1[v]);
-        afm_v4_st(s2 + 4 * v, r2[v]);
-        afm_v4_st(s3 + 4 * v, r3[v]);
+        AFM_V4_ST(s0 + 4 * v, r0[v]);
+        AFM_V4_ST(s1 + 4 * v, r1[v]);
+        AFM_V4_ST(s2 + 4 * v, r2[v]);
+        AFM_V4_ST(s3 + 4 * v, r3[v]);
     }
     l->m += k;
 }
@@ -291,7 +300,7 @@ static inline ALWAYS_INLINE int push_n(afm_lockin *l, const double *u, const dou
     return rej;
 }
 
-int afm_lockin_push_n(afm_lockin *l, const double *u, const double *th, int n) {
+AFM_CLONES int afm_lockin_push_n(afm_lockin *l, const double *u, const double *th, int n) {
     if (l->m_max == 0) {
         int rej = 0;
         for (int i = 0; i < n; i++)

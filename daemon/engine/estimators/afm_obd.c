@@ -2,6 +2,8 @@
 /* afm_obd.c -- set-up of the OBD sensor model (contract and formulas in afm_obd.h). */
 #include "estimators/afm_obd.h"
 
+#include "config/afm_clones.h"
+
 #include <math.h>
 #include <stddef.h>
 #include <stdio.h>
@@ -108,7 +110,7 @@ static inline long long adc_run(const afm_obd *o, const double *in, int n, const
     return sat;
 }
 
-void afm_obd_read_block(afm_obd *o, const afm_sample *s, int n, double *out) {
+AFM_CLONES void afm_obd_read_block(afm_obd *o, const afm_sample *s, int n, double *out) {
     if (!o->enabled) {
         for (int i = 0; i < n; i++)
             out[i] = s[i].x_m;

@@ -48,12 +48,9 @@
 #define AFM_OBD_POOL 512 /* normals drawn at a time (afm_rng_normal_fill: a multiple of 8) */
 _Static_assert(AFM_OBD_POOL % 8 == 0, "the pool is filled 8 normals at a time");
 
-/* a b + c, fused where the target has FMA (the block and one-sample paths must agree). */
-#if defined(__FMA__)
+/* a b + c, one rounding (the block and one-sample paths must agree, and every build, a
+ * portable one's baseline copy included, gives the same bits: libm's fma without FMA). */
 #define AFM_OBD_MADD(a, b, c) fma(a, b, c)
-#else
-#define AFM_OBD_MADD(a, b, c) ((a) * (b) + (c))
-#endif
 
 typedef struct {
     bool enabled;

@@ -3,6 +3,8 @@
  * (contract in afm_rng.h). */
 #include "forces/afm_rng.h"
 
+#include "config/afm_clones.h"
+
 #include <math.h>
 #include <string.h>
 
@@ -199,7 +201,7 @@ void afm_rng_normal_fill(afm_rng *r, double *out, int n) {
 }
 #else
 /* The same arithmetic one lane at a time (bit-identical to the AVX2 version). */
-void afm_rng_normal_fill(afm_rng *r, double *out, int n) {
+AFM_CLONES void afm_rng_normal_fill(afm_rng *r, double *out, int n) {
     for (int k = 0; k + 8 <= n; k += 8) {
         uint64_t b[4];
         for (int j = 0; j < 4; j++) {

@@ -41,7 +41,7 @@
  * No allocation after init. */
 #include "forces/afm_force_inline.h"
 #include "forces/afm_rng.h"
-#include "integrators/afm_clones.h"
+#include "config/afm_clones.h"
 #include "integrators/afm_rt_coef.h"
 #include "integrators/afm_sim_impl.h"
 
@@ -116,8 +116,8 @@ static inline double rt_squeeze(const afm_sim *s, const rt_state *r, double x, d
 }
 
 /* Total tip force at (x, v) and its partials: afm_force_tip, inlined. */
-static inline double rt_force(const afm_sim *s, const rt_state *r, double x, double v, double *fx,
-                              double *fv) {
+AFM_CLONES static inline double rt_force(const afm_sim *s, const rt_state *r, double x, double v,
+                                         double *fx, double *fv) {
     const afm_force_params *p = &s->f;
     double fc, fvi, kx, kv;
     double f = afm_force_near_terms(p, fma(x, p->cos_alpha, s->z_m), v, &fc, &fvi, &kx, &kv);

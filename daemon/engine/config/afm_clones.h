@@ -1,13 +1,15 @@
 /* SPDX-License-Identifier: MIT */
-/* afm_clones.h -- AFM_CLONES marks the functions that carry the integrator's cost per
- * sample (afm_rt.c: its loop and out-of-line helpers). In a portable build
+/* afm_clones.h -- AFM_CLONES marks the functions that carry the cost per sample: the
+ * integrator's loop and out-of-line helpers (afm_rt.c), the output chain's hot loops (the
+ * estimators' fast paths, the decimators, the OBD and its noise pool). In a portable build
  * (AFMTWIN_MARCH=portable: -march=x86-64 and AFM_MULTIVERSION) each of them is compiled
  * twice, for the baseline and for x86-64-v3 (AVX2, FMA), and the dynamic loader picks the
  * copy the CPU can run (an ifunc per function: gcc and clang target_clones). Elsewhere it
  * is empty and the whole build targets one -march. README "Portable builds" has the cost of
- * each choice (make bench). Not the output chain: its estimators choose AVX2 intrinsics at
- * compile time (afm_est_internal.h, afm_harm.c), so a clone of them would run their portable
- * fallback (libm fma per lane), measured no faster than the baseline build. */
+ * each choice (make bench). The code inside is written with GNU vectors and fma, never
+ * with compile-time intrinsics (those would take the baseline's path in both copies): see
+ * afm_v4 in estimators/afm_est_internal.h. In the config layer (the lowest) so that every
+ * layer can use it. */
 #ifndef AFM_CLONES_H
 #define AFM_CLONES_H
 
