@@ -6,6 +6,7 @@
 #include "beam/afm_linalg.h"
 #include "config/afm_err.h"
 
+#include <complex.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -15,7 +16,10 @@
 #define CONT_MAX_BRANCHES 32
 #define CONT_COS_TURN 0.866 /* largest turn of the tangent per step: 30 deg */
 #define CONT_REFINE_ITER 24
-#define CONT_REFINE_REL 1e-8
+/* The bracket of a refined event, relative to the step: the test functions carry the
+ * sensitivities' error (~1e-4 of their range near zero), below which the secant wanders */
+#define CONT_REFINE_REL 1e-6
+#define CONT_REFINE_ACCEPT 1e-4
 
 typedef struct {
     double y[AFM_CONT_MAX_N], v[AFM_CONT_MAX_N];
@@ -37,33 +41,13 @@ typedef struct {
     double end_lambda[CONT_MAX_BRANCHES]; /* where branches met their parent's PD */
     int end_p[CONT_MAX_BRANCHES], nend;
     afm_cont_pt a, b, r; /* the last point, the new one, a refined event */
+    bool refined;        /* r was located (else it is the later point) */
     char *err;
     size_t errlen;
 } cont_run;
 
-typedef struct {
-    int out_pd;  /* real multipliers below -1 */
-    int out_ns;  /* complex multipliers outside the unit circle */
-    int out_one; /* real multipliers above +1 */
-} cont_counts;
-
-static cont_counts counts_of(const cont_run *R, const afm_cont_pt *pt) {
-    cont_counts k = {0, 0, 0};
-    for (int i = 0; i < R->c.N; i++) {
-        double re = pt->mult_re[i], im = pt->mult_im[i];
-        if (im != 0.0) {
-            if (hypot(re, im) > 1.0) k.out_ns++;
-        } else if (re < -1.0) {
-            k.out_pd++;
-        } else if (re > 1.0) {
-            k.out_one++;
-        }
-    }
-    return k;
-}
-
 /* The multiplier that an event of kind moves through the unit circle: the real one nearest
- * -1 (PD) or +1 (LPC, a branch point), the complex one nearest the circle (NS). */
+ * -1 (PD) or +1 (LPC, a branch point), the complex one nearest the circle (NS); -1 if none. */
 static int critical_of(const cont_run *R, const afm_cont_pt *pt, afm_cont_kind kind) {
     int best = -1;
     double bd = HUGE_VAL;
@@ -81,15 +65,29 @@ static int critical_of(const cont_run *R, const afm_cont_pt *pt, afm_cont_kind k
     return best;
 }
 
-/* Test functions (zero at the event): see afm_cont.h. AFM_CONT_END stands for a branch
- * point (a real multiplier through +1 without a fold). */
+/* Test functions (zero at the event, smooth along a branch: symmetric functions of the
+ * multipliers, i.e. polynomials in M's entries): LPC the tangent's parameter component;
+ * PD det(M + I) = prod (1 + mu); a branch point (AFM_CONT_END here) det(M - I) =
+ * prod (mu - 1); NS prod_{i<j} (mu_i mu_j - 1) (also zero at a neutral saddle, mu_i mu_j = 1
+ * with both real: not reported). Each is divided by its modulus at the event's bracket ends
+ * by the caller's sign test only, so their scale does not matter. */
 static double psi(const cont_run *R, const afm_cont_pt *pt, afm_cont_kind kind) {
-    if (kind == AFM_CONT_LPC) return pt->t[R->c.N];
-    int i = critical_of(R, pt, kind);
-    if (i < 0) return NAN;
-    if (kind == AFM_CONT_NS) return hypot(pt->mult_re[i], pt->mult_im[i]) - 1.0;
-    if (kind == AFM_CONT_PD) return pt->mult_re[i] + 1.0;
-    return pt->mult_re[i] - 1.0;
+    const int N = R->c.N;
+    if (kind == AFM_CONT_LPC) return pt->t[N];
+    double complex prod = 1.0;
+    if (kind == AFM_CONT_NS) {
+        for (int i = 0; i < N; i++)
+            for (int j = i + 1; j < N; j++) {
+                double complex a = CMPLX(pt->mult_re[i], pt->mult_im[i]);
+                double complex b = CMPLX(pt->mult_re[j], pt->mult_im[j]);
+                prod *= a * b - 1.0;
+            }
+        return creal(prod);
+    }
+    double shift = kind == AFM_CONT_PD ? 1.0 : -1.0;
+    for (int i = 0; i < N; i++)
+        prod *= CMPLX(pt->mult_re[i], pt->mult_im[i]) + shift;
+    return creal(prod);
 }
 
 /* Scaled distance between an orbit's start and its state half-way (0 for p odd). */
@@ -123,6 +121,7 @@ static int emit_pt(cont_run *R, const afm_cont_pt *pt, afm_cont_kind kind, int b
     rec.residual = pt->residual;
     rec.iterations = pt->iterations;
     if (kind != AFM_CONT_POINT) {
+        rec.refined = R->refined;
         int i = critical_of(R, pt, kind);
         if (i >= 0) rec.multiplier[0] = pt->mult_re[i], rec.multiplier[1] = pt->mult_im[i];
         R->sum->bifurcations++;
@@ -191,7 +190,7 @@ static int refine(cont_run *R, const afm_cont_pt *a, double hb, double fa, doubl
         }
         if (fabs(hi - lo) < CONT_REFINE_REL * fabs(hb) || f == 0.0) return 0;
     }
-    return 1;
+    return fabs(hi - lo) < CONT_REFINE_ACCEPT * fabs(hb) ? 0 : 1;
 }
 
 /* The step of b from a along a's tangent (the projection of b - a on it). */
@@ -206,7 +205,7 @@ static double step_of(const cont_run *R, const afm_cont_pt *a, const afm_cont_pt
 
 static bool ended_at(const cont_run *R, double lambda, int p) {
     for (int i = 0; i < R->nend; i++)
-        if (R->end_p[i] == p && fabs(R->end_lambda[i] - lambda) < 1e-4 * R->c.ls) return true;
+        if (R->end_p[i] == p && fabs(R->end_lambda[i] - lambda) < 2e-3 * R->c.ls) return true;
     return false;
 }
 
@@ -240,24 +239,24 @@ static void queue_switch(cont_run *R, int branch) {
 static int events(cont_run *R, int branch, int parent, bool *merged) {
     const afm_cont_pt *a = &R->a, *b = &R->b;
     const int N = R->c.N;
-    cont_counts ka = counts_of(R, a), kb = counts_of(R, b);
     bool fold = (a->t[N] > 0) != (b->t[N] > 0);
     afm_cont_kind kinds[4];
     int nk = 0;
     if (fold) kinds[nk++] = AFM_CONT_LPC;
-    if (ka.out_pd != kb.out_pd) kinds[nk++] = AFM_CONT_PD;
-    if (ka.out_ns != kb.out_ns) kinds[nk++] = AFM_CONT_NS;
-    if (!fold && ka.out_one != kb.out_one && a->p > 1) kinds[nk++] = AFM_CONT_END;
+    if ((psi(R, a, AFM_CONT_PD) > 0) != (psi(R, b, AFM_CONT_PD) > 0)) kinds[nk++] = AFM_CONT_PD;
+    if ((psi(R, a, AFM_CONT_NS) > 0) != (psi(R, b, AFM_CONT_NS) > 0)) kinds[nk++] = AFM_CONT_NS;
+    if (!fold && a->p > 1 && (psi(R, a, AFM_CONT_END) > 0) != (psi(R, b, AFM_CONT_END) > 0))
+        kinds[nk++] = AFM_CONT_END;
     double hb = step_of(R, a, b);
     for (int e = 0; e < nk; e++) {
         double fa = psi(R, a, kinds[e]), fb = psi(R, b, kinds[e]);
-        if (!isfinite(fa) || !isfinite(fb) || (fa > 0) == (fb > 0)) {
-            /* a count changed without its test function (a pair that turned complex on the
-             * way): report at the later point, unrefined */
-            R->r = *b;
-        } else {
-            int rc = refine(R, a, hb, fa, fb, kinds[e]);
-            if (rc < 0) return -1;
+        int rc = refine(R, a, hb, fa, fb, kinds[e]);
+        if (rc < 0) return -1;
+        R->refined = rc == 0;
+        if (rc > 0) R->r = *b;         /* not located: reported at the later point */
+        if (kinds[e] == AFM_CONT_NS) { /* a neutral saddle is no bifurcation */
+            int i = critical_of(R, &R->r, AFM_CONT_NS);
+            if (i < 0 || fabs(hypot(R->r.mult_re[i], R->r.mult_im[i]) - 1.0) > 1e-3) continue;
         }
         if (kinds[e] == AFM_CONT_END) {
             if (half_gap(R, &R->r) < 1e-2) {
@@ -266,7 +265,7 @@ static int events(cont_run *R, int branch, int parent, bool *merged) {
             }
             continue; /* a branch point elsewhere: not reported */
         }
-        int rc = emit_pt(R, &R->r, kinds[e], branch, parent);
+        rc = emit_pt(R, &R->r, kinds[e], branch, parent);
         if (rc) return rc;
         if (kinds[e] == AFM_CONT_PD) queue_switch(R, branch);
     }
@@ -279,6 +278,7 @@ static int follow(cont_run *R, int branch, int parent, double h) {
     const int N = R->c.N;
     double h_min = o->h_min > 0 ? o->h_min : 1e-7, h_max = o->h_max > 0 ? o->h_max : 0.25;
     int points = 1;
+    double gap_max = R->a.p > 1 ? half_gap(R, &R->a) : 0.0;
     char why[400];
     double ua0[AFM_CONT_MAX_U];
     afm_cont_scaled(&R->c, R->a.y, R->a.lambda, ua0);
@@ -316,6 +316,14 @@ static int follow(cont_run *R, int branch, int parent, double h) {
         bool merged = false;
         rc = events(R, branch, parent, &merged);
         if (rc) return rc;
+        /* past the merge without a located branch point: the half-orbits collapsed onto the
+         * period-p/2 orbit (now followed as a period-p one) */
+        double gap = R->a.p > 1 ? half_gap(R, &R->b) : 0.0;
+        gap_max = fmax(gap_max, gap);
+        if (!merged && R->a.p > 1 && gap_max > 1e-2 && gap < 1e-4 * gap_max) {
+            merged = true;
+            R->r = R->b;
+        }
         if (merged) {
             if (R->nend < CONT_MAX_BRANCHES) {
                 R->end_lambda[R->nend] = R->r.lambda;

@@ -47,6 +47,7 @@ typedef struct {
     int n_mult;
     const double *mult_re, *mult_im; /* the multipliers, by modulus */
     double multiplier[2];            /* LPC/PD/NS: the critical multiplier (re, im) */
+    bool refined; /* LPC/PD/NS: located (false: at the later point of the step) */
     afm_cont_metrics metrics;
     const double *y;       /* the state at drive phase 0 (2n) */
     double residual;       /* scaled residual of the point */

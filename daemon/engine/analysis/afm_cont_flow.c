@@ -13,11 +13,12 @@
 #define FLOW_DEFAULT_RTOL 1e-10
 /* atol(q_i) = rtol FLOW_X_REF / |tip_i|, as afm_sundials.c. */
 #define FLOW_X_REF 1e-9
-/* Longest step, drive periods: a contact (typically 5% of a period) cannot hide inside one
- * step, where the root finder, which compares the kinks' signs at step ends, would miss
- * it. Only a grazing contact, shorter than this, can go unlocated (its force then goes to
- * CVODES' error control, as in the reference integrator). */
-#define FLOW_MAX_STEP 0.01
+/* Longest step, drive periods: the sensitivities are outside the error test (see
+ * afm_cont_flow.h), so the step must resolve the second mode (6.3 oscillations per period on
+ * the Fig. 4.2 beam: 300 steps each); and a contact (typically 5% of a period) cannot hide
+ * inside one step, where the root finder, which compares the kinks' signs at step ends,
+ * would miss it. In contact the error test takes ~1500 steps per period anyway. */
+#define FLOW_MAX_STEP 0.0005
 #define FLOW_MAX_STEPS 2000000L
 
 static void flow_err_handler(int code, const char *module, const char *function, char *msg,

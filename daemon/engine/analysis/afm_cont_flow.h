@@ -25,10 +25,14 @@
  * Sensitivities: state directions s(0) = v_j with s' = J(tau, y) s (J analytic, the
  * force's partials one-sided at a kink, as afm_force_tip returns them); parameter
  * sensitivities s(0) = 0 with s' = J s + df/dp_k, df/dp_k by the central difference of the
- * vector field between the instances at p_k +- delta (afm_cont_flow_set_model). Both are in
- * CVODES' error control (staggered corrector) with the state's tolerances, each direction
- * scaled to the orbit's size first (afm_cont_flow_set_scale), so M is as accurate as the
- * orbit itself.
+ * vector field between the instances at p_k +- delta (afm_cont_flow_set_model). They are
+ * solved by CVODES' staggered corrector on the state's steps, each direction scaled to the
+ * orbit's size first (afm_cont_flow_set_scale), but are not in its error test: with them in
+ * it at the state's rtol (1e-10) a map costs 30-100 times more (the stiff modes' directions
+ * decide the steps). Their accuracy then rests on the step: FLOW_MAX_STEP (afm_cont_flow.c)
+ * = 1/2000 period, at which the linear model's multipliers have the modulus exp(-xi w T)
+ * to 5e-8 (mode 1, 2) and 1e-9 absolute (the stiff modes 3, 4); at 1/100 period mode 2's was
+ * 2e-4 low (BDF's damping of an unresolved direction). Test: tests/test_continue.c.
  *
  * Tolerances: rtol (create; the config's sim.ref_rtol, default 1e-10), and per mode
  * atol(q_i) = rtol 1e-9 m / |tip_i|, atol(q'_i) = atol(q_i) w_i (1e-19 m of tip motion per
