@@ -336,9 +336,34 @@ static void fig42(void) {
     }
 }
 
+/* AFMTWIN_VALIDATE=full: the whole diagram of Figure 4.2, 80-86 kHz, every branch. */
+static void fig42_full(void) {
+    afm_config cfg;
+    if (!load(&cfg)) return;
+    static recs R;
+    afm_cont_summary sum;
+    afm_cont_opts o = {.param = "fe", .from = 80e3, .to = 86e3};
+    if (!check_true(run(&cfg, &o, &R, &sum) == 0, "Fig. 4.2 80-86 kHz: the continuation runs"))
+        return;
+    int npd = 0, nlpc = 0;
+    for (int k = 0; k < R.n; k++) {
+        const rec *r = &R.r[k];
+        if (r->branch != 0) continue;
+        npd += r->kind == AFM_CONT_PD;
+        nlpc += r->kind == AFM_CONT_LPC;
+        if (r->kind == AFM_CONT_PD || r->kind == AFM_CONT_LPC)
+            printf("# branch 0 %s at %.3f Hz, min(xr) %.4f nm\n",
+                   r->kind == AFM_CONT_PD ? "PD" : "LPC", r->param, r->met.min_deflection_m * 1e9);
+    }
+    check_thesis_abs("Fig. 4.2", "PD bifurcations upon contact (period-1 branch)", npd, 6, 0, "");
+    check_true(nlpc >= 2, "Fig. 4.2: the LPC before contact and the LPC of the high branch");
+}
+
 int main(int argc, char **argv) {
     const char *only = argc > 1 ? argv[1] : "";
     if (!strcmp(only, "") || !strcmp(only, "linear")) linear();
     if (!strcmp(only, "") || !strcmp(only, "fig42")) fig42();
+    const char *v = getenv("AFMTWIN_VALIDATE");
+    if ((v && !strcmp(v, "full")) || !strcmp(only, "full")) fig42_full();
     return check_done();
 }

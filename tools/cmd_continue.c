@@ -77,7 +77,9 @@ static void cont_usage(FILE *f) {
         "                     \"duration_s\"}], \"residual\", \"iterations\"}; per bifurcation\n"
         "                     {\"type\": \"LPC\"|\"PD\"|\"NS\", \"branch\", \"param\", "
         "\"multiplier\":\n"
-        "                     [re, im], ...the point's fields}; per branch end {\"type\":\n"
+        "                     [re, im], \"refined\" (false: not located, at the later point of a "
+        "step),\n"
+        "                     ...the point's fields}; per branch end {\"type\":\n"
         "                     \"end\", \"branch\", \"parent\", \"period\", \"param\", \"points\",\n"
         "                     \"reason\"}; last {\"type\": \"summary\", \"points\", \"branches\",\n"
         "                     \"bifurcations\", \"maps\", \"seconds\", \"seconds_per_point\"}\n"
@@ -199,6 +201,7 @@ static int cont_parse_state(const char *s, int n, double *y) {
 
 typedef struct {
     bool json;
+    const char *name; /* --param */
     const char *unit;
     double scale; /* of the table's parameter column */
 } cont_sink;
@@ -250,6 +253,7 @@ static int cont_emit(void *ctx, const afm_cont_record *r) {
     }
     cJSON *o = cJSON_CreateObject();
     cJSON_AddStringToObject(o, "type", kind_name(r->kind));
+    cJSON_AddStringToObject(o, "param_name", s->name);
     cJSON_AddNumberToObject(o, "branch", r->branch);
     cJSON_AddNumberToObject(o, "parent", r->parent);
     cJSON_AddNumberToObject(o, "param", r->param);
@@ -266,6 +270,7 @@ static int cont_emit(void *ctx, const afm_cont_record *r) {
         cJSON *mu = cJSON_AddArrayToObject(o, "multiplier");
         cJSON_AddItemToArray(mu, cJSON_CreateNumber(r->multiplier[0]));
         cJSON_AddItemToArray(mu, cJSON_CreateNumber(r->multiplier[1]));
+        cJSON_AddBoolToObject(o, "refined", r->refined);
     }
     cJSON *ms = cJSON_AddArrayToObject(o, "multipliers");
     for (int i = 0; i < r->n_mult; i++) {
@@ -333,7 +338,7 @@ int afm_cmd_continue(int argc, char **argv) {
                         .settle_periods = o.settle,
                         .h0 = o.h0,
                         .h_max = o.h_max};
-    cont_sink sink = {.json = o.json, .unit = unit, .scale = is_fe ? 1e-3 : 1.0};
+    cont_sink sink = {.json = o.json, .name = o.param, .unit = unit, .scale = is_fe ? 1e-3 : 1.0};
     if (!o.json)
         printf("# %-3s %3s %2s %14s %-8s %12s %12s %10s %12s %8s\n", "kind", "br", "p", unit, "",
                "min x (nm)", "max x (nm)", "max F (nN)", "ampl (nm)", "lag (deg)");
