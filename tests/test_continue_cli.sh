@@ -29,6 +29,11 @@ done
 tail -1 "$T/lin.json" | grep -q '"type":"summary"' && grep -q '"type":"end"' "$T/lin.json" &&
   ok "an end record with its reason, and a closing summary" || bad "no end or summary record"
 
+"$A" plot continue "$T/lin.json" -o "$T/lin.png" --data "$T/lin.dat" 2>"$T/plot.err" &&
+  [ "$(od -An -tx1 -N8 "$T/lin.png" | tr -d ' \n')" = "89504e470d0a1a0a" ] &&
+  [ "$(grep -cv '^#\|^$' "$T/lin.dat")" -ge 3 ] && ok "plot continue: a PNG and its columns" ||
+  bad "plot continue: $(cat "$T/plot.err")"
+
 refuse() { # refuse WHAT PATTERN ARGS...: exit 2 and PATTERN on stderr
   local what=$1 pat=$2
   shift 2

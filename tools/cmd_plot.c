@@ -408,20 +408,23 @@ static int load_continue(const plot_opts *o, plot_data *d, FILE *gp) {
     const char *xl = c.scale == 1e-3 ? "drive frequency fe (kHz)" : "parameter";
     fprintf(gp, "set multiplot layout 2,1 title '%s'\nset xlabel '%s'\n", d->title, xl);
     const char *ylab[2] = {"min deflection min(xr) (nm)", "amplitude at fe (nm)"};
-    for (int p = 0; p < 2; p++)
+    for (int p = 0; p < 2; p++) {
         fprintf(gp,
                 "set ylabel '%s'\nset key bottom right\n"
                 "plot $B using 1:%d with lines lw 2 lc rgb 'blue' title 'stable', "
-                "$B using 1:%d with lines lw 1 dt 2 lc rgb 'blue' title 'unstable', "
-                "$E using ($4 == 1 ? $1 : 1/0):%d with points pt 7 ps 1.2 lc rgb 'red' "
-                "title 'LPC', "
-                "$E using ($4 == 2 ? $1 : 1/0):%d with points pt 5 ps 1.2 lc rgb 'dark-green' "
-                "title 'PD', "
-                "$E using ($4 == 3 ? $1 : 1/0):%d with points pt 9 ps 1.2 lc rgb 'orange' "
-                "title 'NS', "
-                "$E using 1:%d:(sprintf('%%s%%d', $4 == 1 ? 'L' : $4 == 2 ? 'P' : 'N', $5)) "
-                "with labels offset 1,1 notitle\n",
-                ylab[p], 2 + 2 * p, 3 + 2 * p, 2 + p, 2 + p, 2 + p, 2 + p);
+                "$B using 1:%d with lines lw 1 dt 2 lc rgb 'blue' title 'unstable'",
+                ylab[p], 2 + 2 * p, 3 + 2 * p);
+        static const char *const ev[3][3] = {
+            {"LPC", "7", "red"}, {"PD", "5", "dark-green"}, {"NS", "9", "orange"}};
+        for (int k = 0; k < 3; k++) /* gnuplot's sprintf fails on an empty set's NaN */
+            if (c.count[k + 1] > 0)
+                fprintf(gp,
+                        ", $E using ($4 == %d ? $1 : 1/0):%d with points pt %s ps 1.2 lc "
+                        "rgb '%s' title '%s', $E using ($4 == %d ? $1 : 1/0):%d:"
+                        "(sprintf('%c%%d', $5)) with labels offset 1,1 notitle",
+                        k + 1, 2 + p, ev[k][1], ev[k][2], ev[k][0], k + 1, 2 + p, ev[k][0][0]);
+        fprintf(gp, "\n");
+    }
     fprintf(gp, "unset multiplot\n");
     return 0;
 }
