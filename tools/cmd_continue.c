@@ -91,24 +91,6 @@ static void cont_usage(FILE *f) {
         AFM_CONT_MAX_P);
 }
 
-static int cont_double(const char *opt, const char *v, double *out) {
-    if (afmt_parse_double(v, out) != 0) {
-        fprintf(stderr, "afmtwin continue: %s '%s' is not a finite number\n", opt, v);
-        return -1;
-    }
-    return 0;
-}
-
-static int cont_int(const char *opt, const char *v, int lo, int hi, int *out) {
-    double d;
-    if (afmt_parse_double(v, &d) != 0 || d != floor(d) || d < lo || d > hi) {
-        fprintf(stderr, "afmtwin continue: %s '%s' must be an integer in %d..%d\n", opt, v, lo, hi);
-        return -1;
-    }
-    *out = (int)d;
-    return 0;
-}
-
 /* 0 ok, 1 --help, -1 bad usage (said). */
 static int cont_parse(int argc, char **argv, cont_cli *o) {
     *o = (cont_cli){.from = NAN, .to = NAN, .period = 1};
@@ -136,21 +118,21 @@ static int cont_parse(int argc, char **argv, cont_cli *o) {
         else if (!strcmp(a, "--start"))
             o->start = v;
         else if (!strcmp(a, "--from"))
-            rc = cont_double(a, v, &o->from);
+            rc = afmt_opt_double("continue", a, v, &o->from);
         else if (!strcmp(a, "--to"))
-            rc = cont_double(a, v, &o->to);
+            rc = afmt_opt_double("continue", a, v, &o->to);
         else if (!strcmp(a, "--step"))
-            rc = cont_double(a, v, &o->h0);
+            rc = afmt_opt_double("continue", a, v, &o->h0);
         else if (!strcmp(a, "--max-step"))
-            rc = cont_double(a, v, &o->h_max);
+            rc = afmt_opt_double("continue", a, v, &o->h_max);
         else if (!strcmp(a, "--max-points"))
-            rc = cont_int(a, v, 1, 1000000, &o->max_points);
+            rc = afmt_opt_int("continue", a, v, 1, 1000000, &o->max_points);
         else if (!strcmp(a, "--period"))
-            rc = cont_int(a, v, 1, AFM_CONT_MAX_P, &o->period);
+            rc = afmt_opt_int("continue", a, v, 1, AFM_CONT_MAX_P, &o->period);
         else if (!strcmp(a, "--settle"))
-            rc = cont_int(a, v, 1, 100000000, &o->settle);
+            rc = afmt_opt_int("continue", a, v, 1, 100000000, &o->settle);
         else if (!strcmp(a, "--max-branches"))
-            rc = cont_int(a, v, 1, 32, &o->max_branches);
+            rc = afmt_opt_int("continue", a, v, 1, 32, &o->max_branches);
         else {
             fprintf(stderr, "afmtwin continue: unknown option '%s'\n", a);
             return -1;
@@ -175,21 +157,14 @@ static int cont_parse(int argc, char **argv, cont_cli *o) {
 
 /* --start: exactly n comma-separated finite numbers. 0 or -1 (said). */
 static int cont_parse_state(const char *s, int n, double *y) {
-    int k = 0;
-    const char *p = s;
-    while (*p) {
-        char buf[64];
-        size_t len = strcspn(p, ",");
-        if (len == 0 || len >= sizeof buf || k == n) break;
-        memcpy(buf, p, len);
-        buf[len] = '\0';
-        if (afmt_parse_double(buf, &y[k]) != 0) break;
-        k++;
-        p += len;
-        if (*p == ',') p++;
-        if (*p == '\0' && p[-1] != ',') {
-            if (k == n) return 0;
-            break;
+    double v[AFM_CONT_MAX_N + 1];
+    if (afmt_parse_list(s, v, AFM_CONT_MAX_N + 1) == n) {
+        bool finite = true;
+        for (int i = 0; i < n; i++)
+            finite &= isfinite(v[i]);
+        if (finite) {
+            memcpy(y, v, sizeof(double) * (size_t)n);
+            return 0;
         }
     }
     fprintf(stderr,

@@ -78,15 +78,15 @@ static double psi(const cont_run *R, const afm_cont_pt *pt, afm_cont_kind kind) 
     if (kind == AFM_CONT_NS) {
         for (int i = 0; i < N; i++)
             for (int j = i + 1; j < N; j++) {
-                double complex a = CMPLX(pt->mult_re[i], pt->mult_im[i]);
-                double complex b = CMPLX(pt->mult_re[j], pt->mult_im[j]);
+                double complex a = (pt->mult_re[i] + I * pt->mult_im[i]);
+                double complex b = (pt->mult_re[j] + I * pt->mult_im[j]);
                 prod *= a * b - 1.0;
             }
         return creal(prod);
     }
     double shift = kind == AFM_CONT_PD ? 1.0 : -1.0;
     for (int i = 0; i < N; i++)
-        prod *= CMPLX(pt->mult_re[i], pt->mult_im[i]) + shift;
+        prod *= (pt->mult_re[i] + I * pt->mult_im[i]) + shift;
     return creal(prod);
 }
 

@@ -375,9 +375,9 @@ int afm_cont_flow_integrate(afm_cont_flow *f, flow_engine *e, double *y, int p, 
     f->msg[0] = '\0';
     f->st.maps++;
     if (e->ns > 0) f->st.sens_maps++;
+    double tau = 0.0;
     if (restart(f, e, 0.0, y) != 0) goto fail;
     if (hook) hook(hook_ctx, 0.0, y, NULL);
-    double tau = 0.0;
     int info[FLOW_MAX_KINKS + FLOW_METRIC_ROOTS];
     for (int k = 1; k <= p; k++) {
         if (CVodeSetStopTime(e->mem, (double)k) != CV_SUCCESS) goto fail;
