@@ -272,6 +272,31 @@ static int events(cont_run *R, int branch, int parent, bool *merged) {
     return 0;
 }
 
+/* The merge of a period-2p branch with the period-p orbit between R->a and R->b (whose
+ * half-orbits have collapsed): bisection on the step from R->a for the last point whose
+ * half-orbits still differ by more than gap_min (near the merge the gap falls as the square
+ * root of the distance), into R->r. 0, or -1. */
+static int locate_merge(cont_run *R, double gap_min) {
+    double lo = 0.0, hi = step_of(R, &R->a, &R->b);
+    R->r = R->a;
+    R->refined = false;
+    for (int it = 0; it < 30 && hi - lo > CONT_REFINE_REL * hi; it++) {
+        double h = 0.5 * (lo + hi);
+        static afm_cont_pt t;
+        int rc = step_from(R, &R->a, h, &t);
+        if (rc < 0) return -1;
+        if (rc > 0) break;
+        if (half_gap(R, &t) > gap_min) {
+            lo = h;
+            R->r = t;
+        } else {
+            hi = h;
+        }
+    }
+    R->refined = hi - lo <= CONT_REFINE_REL * hi;
+    return 0;
+}
+
 /* Follow one branch from R->a (a converged point with its tangent), emitted already. */
 static int follow(cont_run *R, int branch, int parent, double h) {
     const afm_cont_opts *o = R->o;
@@ -322,7 +347,8 @@ static int follow(cont_run *R, int branch, int parent, double h) {
         gap_max = fmax(gap_max, gap);
         if (!merged && R->a.p > 1 && gap_max > 1e-2 && gap < 1e-4 * gap_max) {
             merged = true;
-            R->r = R->b;
+            rc = locate_merge(R, 1e-6 * gap_max);
+            if (rc < 0) return -1;
         }
         if (merged) {
             if (R->nend < CONT_MAX_BRANCHES) {
