@@ -41,10 +41,10 @@ CFLAGS   += $(CSTD) $(WARN) $(OPT)
 # client header afmtwin_lcm_layout.h (-Imsgtypes); they also know the version.
 ENGINE_INC := -Idaemon/engine
 OUTER_INC   = -Idaemon/engine -Idaemon -Imsgtypes -I$(BUILD)/gen -DAFMTWIN_VERSION='"$(VERSION)"'
-LDLIBS   += -lsundials_cvode -lsundials_arkode -lsundials_nvecserial \
+LDLIBS   += -lsundials_cvodes -lsundials_arkode -lsundials_nvecserial \
             -llapacke -llapack -lblas -lconfig -lcjson -lfftw3 -lsystemd $(LCM_LIBS) -lpthread -lm
 
-ENGINE_LAYERS := config beam forces integrators estimators runner
+ENGINE_LAYERS := config beam forces integrators estimators runner analysis
 ENGINE_SRC := $(foreach l,$(ENGINE_LAYERS),$(wildcard daemon/engine/$(l)/*.c))
 ENGINE_OBJ := $(patsubst %.c,$(BUILD)/obj/%.o,$(ENGINE_SRC))
 ENGINE_LIB := $(BUILD)/lib/libafmtwin.a
@@ -152,7 +152,7 @@ $(BUILD)/tests/%: $(BUILD)/obj/tests/%.o $(TEST_COMMON) $(LIBS_ALL)
 # The CAN probe that tests/test_can_vm.sh runs inside a VM (static: engine + CAN transport
 # + codec, no LCM). Built by that script; not part of `all`.
 CAN_PROBE  := $(BUILD)/tests/can_vm_probe
-STATIC_LDLIBS := -lsundials_cvode -lsundials_arkode -lsundials_nvecserial -llapacke -llapack \
+STATIC_LDLIBS := -lsundials_cvodes -lsundials_arkode -lsundials_nvecserial -llapacke -llapack \
             -lblas -lgfortran -lquadmath -lconfig -lfftw3 -lpthread -lm
 can-probe: $(CAN_PROBE)
 $(CAN_PROBE): $(BUILD)/obj/tests/can_vm_probe.o $(BUILD)/obj/tests/check.o \

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # test_layers.sh BUILD [ROOT] -- the layering of the sources, from their #include lines: the
 # engine's layers (daemon/engine/<layer>/, lowest first: config, beam, forces, integrators,
-# estimators, runner) include only their own layer and those below, always as
+# estimators, runner, analysis) include only their own layer and those below, always as
 # "layer/afm_x.h"; the engine includes no transport, daemon, tool or generated LCM header
 # (nor LCM itself); the transports (daemon/transport/) include the engine and each other but
 # not the daemon or the tools; the daemon and the tools include neither each other's files;
@@ -11,7 +11,7 @@
 set -u
 ROOT=${2:-$(cd "$(dirname "$0")/.." && pwd)}
 cd "$ROOT" || exit 1
-LAYERS="config beam forces integrators estimators runner"
+LAYERS="config beam forces integrators estimators runner analysis"
 pass=0
 fail=0
 

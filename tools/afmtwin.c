@@ -18,6 +18,8 @@ typedef struct {
 static const command commands[] = {
     {"modes", afm_cmd_modes, "eigenfrequencies, MAC, stiffness and effective mass of a model"},
     {"sweep", afm_cmd_sweep, "stepwise frequency sweep to steady state, with harmonics"},
+    {"continue", afm_cmd_continue,
+     "continuation of periodic orbits: branches, stability, LPC / PD / NS, period doubling"},
     {"approach", afm_cmd_approach, "approach / retract curve in Z: amplitude, phase, forces"},
     {"plot", afm_cmd_plot, "pictures (gnuplot PNG) of sweep, approach, thermal, trace, spectrum"},
     {"curve", afm_cmd_curve, "approach-style curve from a log of the daemon outputs"},

@@ -22,5 +22,6 @@ int afm_cmd_lockstep(int argc, char **argv);
 int afm_cmd_soak(int argc, char **argv);
 int afm_cmd_can_send(int argc, char **argv);
 int afm_cmd_flood(int argc, char **argv);
+int afm_cmd_continue(int argc, char **argv);
 
 #endif

@@ -111,24 +111,6 @@ static void approach_usage(FILE *f) {
             DEFAULT_TOL);
 }
 
-static int opt_double(const char *opt, const char *v, double *out) {
-    if (afmt_parse_double(v, out) != 0) {
-        fprintf(stderr, "afmtwin approach: %s '%s' is not a finite number\n", opt, v);
-        return -1;
-    }
-    return 0;
-}
-
-static int opt_int(const char *opt, const char *v, int lo, int hi, int *out) {
-    double d;
-    if (afmt_parse_double(v, &d) != 0 || d != floor(d) || d < lo || d > hi) {
-        fprintf(stderr, "afmtwin approach: %s '%s' must be an integer in %d..%d\n", opt, v, lo, hi);
-        return -1;
-    }
-    *out = (int)d;
-    return 0;
-}
-
 /* 0 ok, 1 --help, -1 bad usage (said). */
 static int parse_args(int argc, char **argv, approach_opts *o) {
     *o = (approach_opts){.from_m = NAN,
@@ -157,30 +139,30 @@ static int parse_args(int argc, char **argv, approach_opts *o) {
         if (!strcmp(a, "--config"))
             o->config = v;
         else if (!strcmp(a, "--from"))
-            rc = opt_double(a, v, &o->from_m);
+            rc = afmt_opt_double("approach", a, v, &o->from_m);
         else if (!strcmp(a, "--to"))
-            rc = opt_double(a, v, &o->to_m);
+            rc = afmt_opt_double("approach", a, v, &o->to_m);
         else if (!strcmp(a, "--step"))
-            rc = opt_double(a, v, &o->step_m);
+            rc = afmt_opt_double("approach", a, v, &o->step_m);
         else if (!strcmp(a, "--fe"))
-            rc = opt_double(a, v, &o->fe_hz);
+            rc = afmt_opt_double("approach", a, v, &o->fe_hz);
         else if (!strcmp(a, "--ae"))
-            rc = opt_double(a, v, &o->ae_m);
+            rc = afmt_opt_double("approach", a, v, &o->ae_m);
         else if (!strcmp(a, "--tol"))
-            rc = opt_double(a, v, &o->tol);
+            rc = afmt_opt_double("approach", a, v, &o->tol);
         else if (!strcmp(a, "--rate")) {
-            rc = opt_double(a, v, &o->rate_m_s);
+            rc = afmt_opt_double("approach", a, v, &o->rate_m_s);
             if (!rc && !(o->rate_m_s > 0 && o->rate_m_s <= 1.0)) {
                 fprintf(stderr, "afmtwin approach: --rate must be in (0, 1] m/s (got %g)\n",
                         o->rate_m_s);
                 rc = -1;
             }
         } else if (!strcmp(a, "--periods"))
-            rc = opt_int(a, v, 2, 100000000, &o->max_periods);
+            rc = afmt_opt_int("approach", a, v, 2, 100000000, &o->max_periods);
         else if (!strcmp(a, "--analyse"))
-            rc = opt_int(a, v, 1, MAX_ANALYSE, &o->analyse);
+            rc = afmt_opt_int("approach", a, v, 1, MAX_ANALYSE, &o->analyse);
         else if (!strcmp(a, "--harmonics"))
-            rc = opt_int(a, v, 1, AFM_MAX_HARMONICS, &o->k_max);
+            rc = afmt_opt_int("approach", a, v, 1, AFM_MAX_HARMONICS, &o->k_max);
         else if (!strcmp(a, "--integrator")) {
             o->integrator = !strcmp(v, "rt")           ? AFM_INTEGRATOR_RT
                             : !strcmp(v, "reference")  ? AFM_INTEGRATOR_REFERENCE

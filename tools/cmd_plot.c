@@ -75,7 +75,11 @@ static void plot_usage(FILE *f) {
                "  scan      INPUT: afmtwin scan --json output: images (trace) of the height,\n"
                "            phase lag, amplitude error and peak force with their colour bars,\n"
                "            x and y in nm, and the middle line's height profile (trace and\n"
-               "            retrace) against the true height; a one-line scan draws profiles\n\n"
+               "            retrace) against the true height; a one-line scan draws profiles\n"
+               "  continue  INPUT: afmtwin continue --json output: the bifurcation diagram,\n"
+               "            min(xr) and the amplitude at fe against the parameter, stable\n"
+               "            branches solid, unstable dashed, LPC, PD and NS points marked and\n"
+               "            labelled L1.., P1.., N1.. in the order found\n\n"
                "Phase convention: the lag of the deflection behind the drive, 90 deg for a free\n"
                "cantilever at resonance, below 90 in the repulsive regime.\n"
                "Exit status 0 ok, 1 gnuplot or a file failed, 2 bad usage or bad input.\n");
@@ -349,6 +353,86 @@ static int load_approach(const plot_opts *o, plot_data *d, FILE *gp) {
     return 0;
 }
 
+/* ---- continue ---- */
+
+typedef struct {
+    plot_set *pts, *ev;
+    int branch, stable; /* of the previous point (-1: none) */
+    double prev[5];
+    int count[4]; /* events so far per type, for their labels */
+    double scale; /* of the parameter: 1e-3 for fe (kHz) */
+} cont_ctx;
+
+/* Columns: param, min x stable, min x unstable, amplitude stable, amplitude unstable (nm).
+ * A NaN row between branches breaks the lines; at a change of stability the point goes in
+ * both columns, so that the solid and dashed parts meet. */
+static int continue_row(const cJSON *o, void *vctx) {
+    cont_ctx *c = vctx;
+    const cJSON *t = cJSON_GetObjectItemCaseSensitive(o, "type");
+    if (!cJSON_IsString(t)) return plot_err("%s", "a record without type (continue --json?)");
+    const cJSON *pn = cJSON_GetObjectItemCaseSensitive(o, "param_name");
+    if (cJSON_IsString(pn)) c->scale = strcmp(pn->valuestring, "fe") ? 1.0 : 1e-3;
+    const char *ty = t->valuestring;
+    if (!strcmp(ty, "summary") || !strcmp(ty, "end")) return 0;
+    double x = num(o, "param") * c->scale, mn = num(o, "min_deflection_m") * 1e9,
+           am = num(o, "amplitude_m") * 1e9;
+    if (isnan(x) || isnan(mn)) return plot_err("%s", "a continue record without param");
+    int br = (int)num(o, "branch"),
+        st = cJSON_IsTrue(cJSON_GetObjectItemCaseSensitive(o, "stable"));
+    if (strcmp(ty, "point")) {
+        int k = !strcmp(ty, "LPC") ? 1 : !strcmp(ty, "PD") ? 2 : 3;
+        double row[5] = {x, mn, am, k, ++c->count[k]};
+        return set_row(c->ev, row);
+    }
+    static const double gap[5] = {NAN, NAN, NAN, NAN, NAN};
+    if (c->branch >= 0 && br != c->branch && set_row(c->pts, gap)) return -1;
+    double row[5] = {x, st ? mn : NAN, st ? NAN : mn, st ? am : NAN, st ? NAN : am};
+    if (c->branch == br && st != c->stable) { /* join the two parts at this point */
+        row[1] = row[2] = mn;
+        row[3] = row[4] = am;
+    }
+    c->branch = br;
+    c->stable = st;
+    return set_row(c->pts, row);
+}
+
+static int load_continue(const plot_opts *o, plot_data *d, FILE *gp) {
+    cont_ctx c = {set_new(d, "B",
+                          "param min_x_stable_nm min_x_unstable_nm amp_stable_nm "
+                          "amp_unstable_nm",
+                          5),
+                  set_new(d, "E", "param min_x_nm amplitude_nm type(1 LPC 2 PD 3 NS) index", 5),
+                  -1,
+                  0,
+                  {0},
+                  {0},
+                  1.0};
+    if (!c.pts || !c.ev || each_json(o->in[0], continue_row, &c)) return -1;
+    if (c.pts->n == 0) return plot_err("%s: no point records", o->in[0]);
+    const char *xl = c.scale == 1e-3 ? "drive frequency fe (kHz)" : "parameter";
+    fprintf(gp, "set multiplot layout 2,1 title '%s'\nset xlabel '%s'\n", d->title, xl);
+    const char *ylab[2] = {"min deflection min(xr) (nm)", "amplitude at fe (nm)"};
+    for (int p = 0; p < 2; p++) {
+        fprintf(gp,
+                "set ylabel '%s'\nset key bottom right\n"
+                "plot $B using 1:%d with lines lw 2 lc rgb 'blue' title 'stable', "
+                "$B using 1:%d with lines lw 1 dt 2 lc rgb 'blue' title 'unstable'",
+                ylab[p], 2 + 2 * p, 3 + 2 * p);
+        static const char *const ev[3][3] = {
+            {"LPC", "7", "red"}, {"PD", "5", "dark-green"}, {"NS", "9", "orange"}};
+        for (int k = 0; k < 3; k++) /* gnuplot's sprintf fails on an empty set's NaN */
+            if (c.count[k + 1] > 0)
+                fprintf(gp,
+                        ", $E using ($4 == %d ? $1 : 1/0):%d with points pt %s ps 1.2 lc "
+                        "rgb '%s' title '%s', $E using ($4 == %d ? $1 : 1/0):%d:"
+                        "(sprintf('%c%%d', $5)) with labels offset 1,1 notitle",
+                        k + 1, 2 + p, ev[k][1], ev[k][2], ev[k][0], k + 1, 2 + p, ev[k][0][0]);
+        fprintf(gp, "\n");
+    }
+    fprintf(gp, "unset multiplot\n");
+    return 0;
+}
+
 /* ---- thermal ---- */
 
 static int load_thermal(const plot_opts *o, plot_data *d, FILE *gp) {
@@ -611,15 +695,16 @@ int afm_cmd_plot(int argc, char **argv) {
     static const struct {
         const char *kind;
         int (*load)(const plot_opts *, plot_data *, FILE *);
-    } kinds[] = {{"sweep", load_sweep}, {"approach", load_approach}, {"thermal", load_thermal},
-                 {"trace", load_trace}, {"spectrum", load_spectrum}, {"scan", load_scan}};
+    } kinds[] = {{"sweep", load_sweep},      {"approach", load_approach}, {"thermal", load_thermal},
+                 {"trace", load_trace},      {"spectrum", load_spectrum}, {"scan", load_scan},
+                 {"continue", load_continue}};
     int k = -1;
     for (int i = 0; i < (int)(sizeof kinds / sizeof kinds[0]); i++)
         if (!strcmp(o.kind, kinds[i].kind)) k = i;
     if (k < 0) {
         fprintf(stderr,
                 "afmtwin plot: unknown kind '%s' (sweep, approach, thermal, trace, "
-                "spectrum, scan)\n",
+                "spectrum, scan, continue)\n",
                 o.kind);
         return 2;
     }

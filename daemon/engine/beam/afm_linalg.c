@@ -1,8 +1,10 @@
 /* SPDX-License-Identifier: MIT */
-/* afm_linalg.c -- LAPACKE wrappers and small dense products for the model build. */
+/* afm_linalg.c -- LAPACKE wrappers and small dense products for the model build and the
+ * offline orbit analysis (contract in afm_linalg.h). */
 #include "beam/afm_linalg.h"
 
 #include <lapacke.h>
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -56,5 +58,53 @@ int afm_la_solve(int n, const double *A, double *b) {
     }
     free(LU);
     free(piv);
+    return rc;
+}
+
+int afm_la_eigvals(int n, const double *A, double *re, double *im, double *V) {
+    size_t nn = (size_t)n * (size_t)n;
+    double *a = malloc(sizeof(double) * nn), *vr = V ? malloc(sizeof(double) * nn) : NULL;
+    double *wr = malloc(sizeof(double) * (size_t)n), *wi = malloc(sizeof(double) * (size_t)n);
+    int *grp = malloc(sizeof(int) * (size_t)n); /* first index of each group, in order */
+    int rc = -1;
+    if (!a || !wr || !wi || !grp || (V && !vr)) goto done;
+    memcpy(a, A, sizeof(double) * nn);
+    if (LAPACKE_dgeev(LAPACK_ROW_MAJOR, 'N', V ? 'V' : 'N', n, a, n, wr, wi, NULL, 1, vr, n) != 0)
+        goto done;
+    /* groups: a real eigenvalue alone, a complex pair (dgeev puts im > 0 first) together */
+    int ng = 0;
+    for (int j = 0; j < n; j++) {
+        grp[ng++] = j;
+        if (wi[j] != 0.0 && j + 1 < n) j++;
+    }
+    /* stable insertion sort of the groups by modulus, largest first */
+    for (int i = 1; i < ng; i++) {
+        int g = grp[i], k = i;
+        double m = hypot(wr[g], wi[g]);
+        while (k > 0 && hypot(wr[grp[k - 1]], wi[grp[k - 1]]) < m) {
+            grp[k] = grp[k - 1];
+            k--;
+        }
+        grp[k] = g;
+    }
+    int o = 0;
+    for (int i = 0; i < ng; i++) {
+        int g = grp[i], w = (wi[g] != 0.0 && g + 1 < n) ? 2 : 1;
+        for (int c = 0; c < w; c++, o++) {
+            re[o] = wr[g + c];
+            im[o] = wi[g + c];
+            if (V)
+                for (int r = 0; r < n; r++)
+                    V[(size_t)r * (size_t)n + (size_t)o] =
+                        vr[(size_t)r * (size_t)n + (size_t)(g + c)];
+        }
+    }
+    rc = 0;
+done:
+    free(a);
+    free(vr);
+    free(wr);
+    free(wi);
+    free(grp);
     return rc;
 }

@@ -9,7 +9,7 @@
 #include "integrators/afm_sim_impl.h"
 
 #include <arkode/arkode_erkstep.h>
-#include <cvode/cvode.h>
+#include <cvodes/cvodes.h>
 #include <math.h>
 #include <nvector/nvector_serial.h>
 #include <stdio.h>

@@ -1,0 +1,484 @@
+/* SPDX-License-Identifier: MIT */
+/* test_continue.c -- continuation of periodic orbits (analysis/afm_cont.h) against what it
+ * must equal:
+ *  - the linear model (tip forces off, config/thesis-fig-4-2.conf's beam): every point is
+ *    the exact frequency response (the modal steady state in closed form) and every
+ *    multiplier has the modulus exp(-xi_i w_i T) that the damping gives;
+ *  - the lumped 1-DOF model (config/thesis-1dof.conf on a 2 N/m lever at Z 3 nm, vdW only,
+ *    amplitude 0.4 Z, never in contact): the two folds of its softened peak at the
+ *    frequencies of the first-order averaging estimate (first harmonic stiffness of the vdW
+ *    force), the shift f - f0 within 3%: averaging neglects the static vdW deflection
+ *    (0.4% of Z: 1.2% on the Z^-3 stiffness) and second-order terms;
+ *  - config/thesis-fig-4-2.conf near the first resonance (Figure 4.2, Table 4.1): the PD
+ *    points on the contact branch, the switch onto the period-2 branch, Table 4.1's F1-F3
+ *    (period 2) and F4 (period 1) on the computed branches, min(xr) within 1e-4 of the CVODE
+ *    sweep's value of test_thesis_sweeps (docs/validation.md) and 5e-3 of the thesis;
+ *  - time integration: stable points (F1 on the period-2 branch, F4 on the period-1 branch)
+ *    equal the steady state that the reference integrator (CVODE, afm_sundials.c: code
+ *    independent of the continuation's CVODES flow) reaches from the point perturbed by
+ *    1e-4, min/max deflection within 1e-5; an unstable point (the period-1 orbit at F1),
+ *    perturbed as much, leaves its branch.
+ * Tolerances: the continuation converges to 1e-9 of the orbit size (scaled residual) at
+ * CVODES rtol 1e-10; the CVODE dwell settles to 1e-6 of the amplitude (afm_sweep), and its
+ * sampled extremes are Hermite-refined (afm_orbit): 1e-5 is what that allows.
+ * AFMTWIN_VALIDATE=full adds the whole Figure 4.2 diagram (80-86 kHz), with its timing. */
+#include "check.h"
+
+#include "analysis/afm_cont.h"
+#include "runner/afm_twin.h"
+
+#include <complex.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define FIG42 "config/thesis-fig-4-2.conf"
+#define MAXREC 600
+#define TWO_PI 6.283185307179586476925286766559
+
+typedef struct {
+    afm_cont_kind kind;
+    int branch, p;
+    double param;
+    bool stable;
+    double y[AFM_CONT_MAX_N];
+    double mre[AFM_CONT_MAX_N], mim[AFM_CONT_MAX_N];
+    double multiplier[2];
+    afm_cont_metrics met;
+    char reason[400];
+} rec;
+
+typedef struct {
+    rec r[MAXREC];
+    int n, n_mult;
+} recs;
+
+static int collect(void *ctx, const afm_cont_record *r) {
+    recs *R = ctx;
+    if (R->n == MAXREC) return 1;
+    rec *o = &R->r[R->n++];
+    o->kind = r->kind;
+    o->branch = r->branch;
+    o->p = r->p;
+    o->param = r->param;
+    o->stable = r->stable;
+    R->n_mult = r->n_mult > 0 ? r->n_mult : R->n_mult;
+    if (r->kind != AFM_CONT_END) {
+        memcpy(o->y, r->y, sizeof(double) * (size_t)r->n_mult);
+        memcpy(o->mre, r->mult_re, sizeof(double) * (size_t)r->n_mult);
+        memcpy(o->mim, r->mult_im, sizeof(double) * (size_t)r->n_mult);
+        o->met = r->metrics;
+        o->multiplier[0] = r->multiplier[0];
+        o->multiplier[1] = r->multiplier[1];
+    } else {
+        snprintf(o->reason, sizeof o->reason, "%s", r->stop_reason);
+    }
+    return 0;
+}
+
+static bool load(afm_config *cfg) {
+    char err[AFM_ERR_LEN];
+    if (afm_config_load(FIG42, cfg, err, sizeof err) != 0) {
+        check_true(false, err);
+        return false;
+    }
+    return true;
+}
+
+static int run(const afm_config *cfg, afm_cont_opts *o, recs *R, afm_cont_summary *sum) {
+    char err[512];
+    R->n = 0;
+    int rc = afm_cont_run(cfg, o, collect, R, sum, err, sizeof err);
+    if (rc != 0) printf("afm_cont_run: %s\n", err);
+    for (int i = 0; i < R->n; i++)
+        if (R->r[i].kind == AFM_CONT_END)
+            printf("# branch %d (p %d) ends at %.6g: %s\n", R->r[i].branch, R->r[i].p,
+                   R->r[i].param, R->r[i].reason);
+    printf("# %d points, %d branches, %d bifurcations, %ld maps, %.2f s (%.3f s per point)\n",
+           sum->points, sum->branches, sum->bifurcations, sum->maps, sum->seconds,
+           sum->points ? sum->seconds / sum->points : 0.0);
+    return rc;
+}
+
+/* ---- the linear model ---- */
+
+static void linear(void) {
+    afm_config cfg;
+    if (!load(&cfg)) return;
+    cfg.forces.vdw_contact = cfg.forces.viscoelastic = false;
+    cfg.forces.capillary = cfg.forces.electrostatic = false;
+    cfg.forces.squeeze = AFM_SQUEEZE_NONE;
+    /* CVODES at the default rtol 1e-10 has a global error of ~2e-6 of the amplitude on
+     * this lightly damped (Q 200) linear orbit; at 1e-12, 3e-9 */
+    cfg.sim.ref_rtol = 1e-12;
+    afm_modal m = {0};
+    char err[AFM_ERR_LEN];
+    if (afm_model_build(&cfg.model, &m, err, sizeof err) != 0) {
+        check_true(false, err);
+        return;
+    }
+    static recs R;
+    afm_cont_summary sum;
+    afm_cont_opts o = {
+        .param = "fe", .from = 80.0e3, .to = 81.5e3, .no_switch = true, .max_points = 30};
+    if (!check_true(run(&cfg, &o, &R, &sum) == 0, "linear: the continuation runs")) return;
+    double worst_y = 0, worst_mu = 0, worst_stiff = 0, worst_a = 0;
+    int npts = 0, nbif = 0;
+    const double ae = cfg.drive.tones[0].amplitude_m;
+    for (int k = 0; k < R.n; k++) {
+        const rec *r = &R.r[k];
+        if (r->kind == AFM_CONT_LPC || r->kind == AFM_CONT_PD || r->kind == AFM_CONT_NS) nbif++;
+        if (r->kind != AFM_CONT_POINT) continue;
+        npts++;
+        /* exact: q'' + 2 xi w q' + w^2 q = g sin(we t), g = -(base_k - base_m we^2) Ae */
+        double we = TWO_PI * r->param, T = 1.0 / r->param, scale = 0.0;
+        double complex xt = 0.0;
+        double want[AFM_CONT_MAX_N];
+        for (int i = 0; i < m.n; i++) {
+            double w = m.omega_rad_s[i], g = -(m.base_k[i] - m.base_m[i] * we * we) * ae;
+            double complex H = g / (w * w - we * we + 2.0 * I * m.xi[i] * w * we);
+            want[i] = cimag(H);            /* q(0) = Im(H e^{0}) */
+            want[m.n + i] = we * creal(H); /* q'(0) */
+            xt += m.tip[i] * H;
+            scale = fmax(scale, cabs(m.tip[i] * H));
+        }
+        for (int i = 0; i < m.n; i++) {
+            worst_y = fmax(worst_y, fabs(m.tip[i] * (r->y[i] - want[i])) / scale);
+            worst_y = fmax(worst_y, fabs(m.tip[i] * (r->y[m.n + i] - want[m.n + i])) / we / scale);
+        }
+        worst_a = fmax(worst_a, fabs(r->met.amplitude_m - cabs(xt)) / cabs(xt));
+        /* multipliers: each mode's pair has modulus exp(-xi w T) */
+        double want_mod[AFM_CONT_MAX_N], got_mod[AFM_CONT_MAX_N];
+        for (int i = 0; i < m.n; i++)
+            want_mod[2 * i] = want_mod[2 * i + 1] = exp(-m.xi[i] * m.omega_rad_s[i] * T);
+        for (int i = 0; i < 2 * m.n; i++)
+            got_mod[i] = hypot(r->mre[i], r->mim[i]);
+        for (int i = 0; i < 2 * m.n; i++) /* both by modulus, largest first */
+            for (int j = i + 1; j < 2 * m.n; j++)
+                if (want_mod[j] > want_mod[i]) {
+                    double t = want_mod[i];
+                    want_mod[i] = want_mod[j];
+                    want_mod[j] = t;
+                }
+        for (int i = 0; i < 2 * m.n; i++) {
+            /* modes 1, 2 (0.98, 0.90) relative; the stiff modes 3, 4 (1e-5, 4e-11:
+             * xi = 0.1) absolute, as the sensitivities resolve them (to ~1e-10) */
+            double d = fabs(got_mod[i] - want_mod[i]);
+            if (want_mod[i] > 1e-3)
+                worst_mu = fmax(worst_mu, d / want_mod[i]);
+            else
+                worst_stiff = fmax(worst_stiff, d);
+        }
+    }
+    printf("# linear: %d points, worst state error %.3g of the tip amplitude, amplitude %.3g, "
+           "multiplier modulus %.3g (modes 1-2, relative), %.3g (modes 3-4, absolute)\n",
+           npts, worst_y, worst_a, worst_mu, worst_stiff);
+    check_true(npts >= 10, "linear: at least 10 points over 80-81.5 kHz (the resonance)");
+    check_true(nbif == 0, "linear: no bifurcations");
+    check_abs(worst_y, 0.0, 1e-7, "linear: every point is the exact response (state, rel. tip)");
+    check_abs(worst_a, 0.0, 1e-7, "linear: amplitude_m is the exact |x| at fe");
+    check_abs(worst_mu, 0.0, 1e-6, "linear: modes 1-2: multiplier modulus exp(-xi w T) (rel.)");
+    check_abs(worst_stiff, 0.0, 1e-8, "linear: modes 3-4: multiplier modulus exp(-xi w T) (abs.)");
+}
+
+/* ---- Figure 4.2 / Table 4.1 ---- */
+
+/* The point of branch b nearest fe, corrected to exactly fe (parameter fixed). 0 or -1. */
+static int point_at(const recs *R, int b, double fe, const afm_config *cfg, afm_cont_pt *out,
+                    afm_cont_metrics *met) {
+    int best = -1;
+    for (int k = 0; k < R->n; k++)
+        if (R->r[k].kind == AFM_CONT_POINT && R->r[k].branch == b &&
+            (best < 0 || fabs(R->r[k].param - fe) < fabs(R->r[best].param - fe)))
+            best = k;
+    if (best < 0 || fabs(R->r[best].param - fe) > 300.0) return -1;
+    static afm_cont_ctx c;
+    char err[512];
+    if (afm_cont_ctx_init(&c, cfg, "fe", 1000.0, 3e-8, err, sizeof err) != 0) {
+        printf("%s\n", err);
+        return -1;
+    }
+    int rc = afm_cont_correct(&c, R->r[best].y, fe, NULL, R->r[best].p, out, err, sizeof err);
+    if (rc == 0) {
+        afm_cont_set_lambda(&c, fe, err, sizeof err);
+        rc = afm_cont_metrics_of(c.flow, out->y, out->p, met, err, sizeof err);
+    }
+    if (rc != 0) printf("point_at %g: rc %d %s\n", fe, rc, err);
+    afm_cont_ctx_free(&c);
+    return rc == 0 ? 0 : -1;
+}
+
+/* The reference integrator from pt perturbed by rel, dwelt to steady state. 0 or -1. */
+static int dwell_from(const afm_config *cfg0, const afm_cont_pt *pt, double rel, afm_orbit *o,
+                      int *p_out) {
+    afm_config cfg = *cfg0;
+    cfg.sim.integrator = AFM_INTEGRATOR_REFERENCE;
+    cfg.drive.tones[0].frequency_hz = pt->lambda;
+    char err[AFM_ERR_LEN];
+    afm_modal m;
+    afm_force_params f;
+    afm_sim *s = afm_twin_create(&cfg, &m, &f, err, sizeof err);
+    static afm_sweep w;
+    const int ks[1] = {1};
+    if (!s ||
+        afm_sweep_init(&w, cfg.sim.sample_rate_hz, 75e3, 1e-6, 3000, ks, 1, err, sizeof err) != 0) {
+        printf("dwell: %s\n", err);
+        afm_sim_destroy(&s);
+        return -1;
+    }
+    double q[AFM_MAX_MODES], qd[AFM_MAX_MODES];
+    for (int i = 0; i < m.n; i++) {
+        q[i] = pt->y[i] * (1.0 + rel);
+        qd[i] = pt->y[m.n + i] * (1.0 - rel);
+    }
+    int rc = afm_sim_set_state(s, q, qd);
+    if (rc == 0) rc = afm_sweep_dwell(&w, s, o, err, sizeof err) < 0 ? -1 : 0;
+    *p_out = w.st.p;
+    printf("# dwell at %.3f Hz from the point perturbed by %g: p %d after %d periods, min %.9g "
+           "max %.9g nm\n",
+           pt->lambda, rel, w.st.p, w.st.periods, o->min_deflection_m * 1e9,
+           o->max_deflection_m * 1e9);
+    afm_sweep_destroy(&w);
+    afm_sim_destroy(&s);
+    return rc;
+}
+
+static void agree(const afm_config *cfg, const char *what, const afm_cont_pt *pt,
+                  const afm_cont_metrics *met) {
+    afm_orbit o;
+    int p = 0;
+    char item[160];
+    if (dwell_from(cfg, pt, 1e-4, &o, &p) != 0) {
+        check_true(false, "dwell");
+        return;
+    }
+    snprintf(item, sizeof item, "%s: CVODE from the point perturbed by 1e-4 settles to p %d", what,
+             pt->p);
+    check_true(p == pt->p, item);
+    snprintf(item, sizeof item, "%s: min(xr) = CVODE's steady state (1e-5)", what);
+    check_rel(met->min_deflection_m, o.min_deflection_m, 1e-5, item);
+    snprintf(item, sizeof item, "%s: max(xr) = CVODE's steady state (1e-5)", what);
+    check_rel(met->max_deflection_m, o.max_deflection_m, 1e-5, item);
+}
+
+static void fig42(void) {
+    afm_config cfg;
+    if (!load(&cfg)) return;
+    static recs R;
+    afm_cont_summary sum;
+    /* from 82.0 kHz on the contact branch: the first PD (thesis P1), the period-2 branch
+     * through F1 and F2, and the period-1 branch past the stable window to F4 */
+    afm_cont_opts o = {.param = "fe",
+                       .from = 82.0e3,
+                       .to = 84.2e3,
+                       .max_points = 200,
+                       .max_branches = 2,
+                       .h_max = 0.1};
+    if (!check_true(run(&cfg, &o, &R, &sum) == 0, "Fig. 4.2: the continuation runs")) return;
+    int npd = 0;
+    double pd[8];
+    for (int k = 0; k < R.n; k++) {
+        const rec *r = &R.r[k];
+        if (r->kind == AFM_CONT_PD && r->branch == 0) {
+            printf("# PD at %.3f Hz, multiplier %.6f\n", r->param, r->multiplier[0]);
+            if (npd < 8) pd[npd++] = r->param;
+        }
+    }
+    /* the first PD on contact, and the one where the period-1 branch regains stability
+     * (the thesis's period-doubled window starts at about 83.10 kHz) */
+    check_true(npd >= 2, "Fig. 4.2: at least 2 PD points on the contact branch over 82-84.2 kHz");
+    if (npd >= 2) {
+        check_rel(pd[0], 82243.4, 1e-4,
+                  "Fig. 4.2: first PD on contact at 82.243 kHz (a regression value: the thesis "
+                  "prints none)");
+        check_thesis("Fig. 4.2", "PD where the period-1 branch regains stability (kHz)",
+                     pd[1] * 1e-3, 83.10, 2e-3);
+    }
+    bool p2 = false;
+    for (int k = 0; k < R.n; k++)
+        p2 |= R.r[k].kind == AFM_CONT_POINT && R.r[k].branch == 1 && R.r[k].p == 2;
+    if (!check_true(p2, "Fig. 4.2: switched at the first PD onto a period-2 branch")) return;
+    /* Table 4.1 on the branches; sweep values: test_thesis_sweeps (CVODE, docs/validation.md) */
+    static const struct {
+        const char *name;
+        int branch;
+        double fe, sweep_nm, thesis_nm;
+        bool stable_check;
+    } F[] = {
+        {"F1 (82.437 kHz, period 2)", 1, 82437.0, -31.37296139, -31.373, true},
+        {"F2 (83.245 kHz, period 2)", 1, 83245.0, -31.4843923, -31.485, false},
+        {"F3 (84.053 kHz, period 2)", 1, 84053.0, -31.64668353, -31.647, false},
+        {"F4 (84.053 kHz, period 1)", 0, 84053.0, -31.35226891, -31.352, true},
+    };
+    for (size_t i = 0; i < sizeof F / sizeof F[0]; i++) {
+        afm_cont_pt pt;
+        afm_cont_metrics met;
+        char item[160];
+        snprintf(item, sizeof item, "%s: on the computed branch", F[i].name);
+        if (!check_true(point_at(&R, F[i].branch, F[i].fe, &cfg, &pt, &met) == 0, item)) continue;
+        snprintf(item, sizeof item, "%s: min(xr) = the CVODE sweep's (1e-4)", F[i].name);
+        check_rel(met.min_deflection_m * 1e9, F[i].sweep_nm, 1e-4, item);
+        snprintf(item, sizeof item, "%s: min(xr) on the continued branch (nm)", F[i].name);
+        check_thesis("Table 4.1 (continuation)", item, met.min_deflection_m * 1e9, F[i].thesis_nm,
+                     5e-3);
+        if (F[i].stable_check) agree(&cfg, F[i].name, &pt, &met);
+    }
+    /* an unstable point: the period-1 orbit at F1 (between the PDs), perturbed, leaves */
+    afm_cont_pt pt;
+    afm_cont_metrics met;
+    if (point_at(&R, 0, 82437.0, &cfg, &pt, &met) == 0) {
+        afm_orbit ob;
+        int p = 0;
+        double mx = 0.0;
+        for (int i = 0; i < R.n_mult; i++)
+            mx = fmax(mx, hypot(pt.mult_re[i], pt.mult_im[i]));
+        check_true(mx > 1.0, "period-1 orbit at 82.437 kHz: a multiplier outside the circle");
+        if (dwell_from(&cfg, &pt, 1e-4, &ob, &p) == 0)
+            check_true(p != 1 || fabs(ob.min_deflection_m - met.min_deflection_m) >
+                                     1e-4 * fabs(met.min_deflection_m),
+                       "unstable period-1 orbit at 82.437 kHz, perturbed by 1e-4: leaves it");
+    }
+}
+
+/* ---- the lumped 1-DOF model, vdW only, small amplitude: folds vs first-order averaging ---- */
+
+/* First harmonic stiffness of the vdW force at amplitude a: k1 = -(1 / (pi a)) int F(Z + a
+ * cos th) cos th dth, F = -c / d^2 (c = H R / 6; alpha 0), by the periodic trapezoid rule. */
+static double vdw_k1(double c, double z, double a) {
+    const int n = 512;
+    double s = 0.0;
+    for (int j = 0; j < n; j++) {
+        double th = TWO_PI * j / n, d = z + a * cos(th);
+        s += -c / (d * d) * cos(th);
+    }
+    return -(s * TWO_PI / n) / (0.5 * TWO_PI * a);
+}
+
+/* The averaging estimate's folds: along each branch of the amplitude equation
+ * a^2 [(w^2 + tip^2 k1(a) - we^2)^2 + (2 xi w^2)^2] = (tip g(we))^2, the extrema of we(a).
+ * Returns the number found (<= 4) into f_hz. */
+static int averaging_folds(const afm_modal *m, double c, double z, double ae, double *f_hz) {
+    const double w = m->omega_rad_s[0], xi = m->xi[0], tp = m->tip[0];
+    int nf = 0;
+    for (int br = -1; br <= 1; br += 2) {
+        double prev = NAN, prev2 = NAN;
+        for (int i = 1; i <= 20000 && nf < 4; i++) {
+            double a = 0.9 * z * i / 20000.0, we = w;
+            bool ok = true;
+            for (int it = 0; it < 30 && ok; it++) { /* damping at w: first order */
+                double g = -(m->base_k[0] - m->base_m[0] * we * we) * ae;
+                double r = (tp * g / a) * (tp * g / a) - (2 * xi * w * w) * (2 * xi * w * w);
+                if (r < 0)
+                    ok = false;
+                else
+                    we = sqrt(w * w + tp * tp * vdw_k1(c, z, a) + br * sqrt(r));
+            }
+            if (!ok) {
+                prev = prev2 = NAN;
+                continue;
+            }
+            if (isfinite(prev2) && (prev - prev2) * (we - prev) < 0) f_hz[nf++] = prev / TWO_PI;
+            prev2 = prev;
+            prev = we;
+        }
+    }
+    return nf;
+}
+
+static void lumped_vdw(void) {
+    afm_config cfg;
+    char err[AFM_ERR_LEN];
+    if (afm_config_load("config/thesis-1dof.conf", &cfg, err, sizeof err) != 0) {
+        check_true(false, err);
+        return;
+    }
+    /* vdW (and a contact never reached) only, on a soft lever close to the sample: the
+     * first harmonic stiffness -2 c / (Z^2 - a^2)^1.5 shifts f0 by 0.4% and grows by 30%
+     * at a = 0.4 Z, several line widths f0 / Q: the peak folds */
+    cfg.forces.viscoelastic = false;
+    cfg.model.lumped.stiffness_n_m = 2.0;
+    cfg.drive.separation_m = 3e-9;
+    const double q = 2000.0, z = cfg.drive.separation_m;
+    cfg.model.n_damping = 1;
+    cfg.model.damping_ratio[0] = 0.5 / q;
+    afm_modal m = {0};
+    if (afm_model_build(&cfg.model, &m, err, sizeof err) != 0) {
+        check_true(false, err);
+        return;
+    }
+    const double w = m.omega_rad_s[0], f0 = w / TWO_PI;
+    /* the drive for a linear peak of 0.4 Z */
+    const double g1 = fabs(m.tip[0] * (m.base_k[0] - m.base_m[0] * w * w));
+    const double ae = 0.4 * z * 2.0 * m.xi[0] * w * w / g1;
+    cfg.drive.tones[0].amplitude_m = ae;
+    double c = cfg.forces.hamaker_j * cfg.forces.radius_m / 6.0, fa[4];
+    int na = averaging_folds(&m, c, z, ae, fa);
+    for (int i = 0; i < na; i++)
+        printf("# averaging estimate: fold at %.3f Hz (f0 %.3f Hz, shift %.1f Hz)\n", fa[i], f0,
+               fa[i] - f0);
+    static recs R;
+    afm_cont_summary sum;
+    afm_cont_opts o = {
+        .param = "fe", .from = f0 * 0.99, .to = f0 * 1.001, .no_switch = true, .max_points = 300};
+    if (!check_true(run(&cfg, &o, &R, &sum) == 0, "lumped vdW: the continuation runs")) return;
+    double fl[8];
+    int nl = 0;
+    double amin = 0.0;
+    for (int k = 0; k < R.n; k++) {
+        if (R.r[k].kind == AFM_CONT_POINT) amin = fmin(amin, R.r[k].met.min_deflection_m);
+        if (R.r[k].kind == AFM_CONT_LPC && nl < 8) {
+            fl[nl++] = R.r[k].param;
+            printf("# continuation: LPC at %.3f Hz, min(xr) %.3f nm\n", R.r[k].param,
+                   R.r[k].met.min_deflection_m * 1e9);
+        }
+    }
+    printf("# lumped vdW: Z %.1f nm, Ae %.3g m, Q %.0f, deepest min(xr) %.3f nm\n", z * 1e9, ae, q,
+           amin * 1e9);
+    check_true(amin > -(z - cfg.forces.a0_m), "lumped vdW: the tip never reaches contact");
+    if (!check_true(na == 2 && nl == 2, "lumped vdW: two folds, by continuation and averaging"))
+        return;
+    for (int i = 0; i < 2; i++) { /* nearest of the estimate's folds */
+        double best = fa[0];
+        for (int j = 1; j < na; j++)
+            if (fabs(fa[j] - fl[i]) < fabs(best - fl[i])) best = fa[j];
+        char item[160];
+        snprintf(item, sizeof item,
+                 "lumped vdW: LPC at %.2f Hz = the averaging fold %.2f Hz (shift within 3%%)",
+                 fl[i], best);
+        check_rel(fl[i] - f0, best - f0, 0.03, item);
+    }
+}
+
+/* AFMTWIN_VALIDATE=full: the whole diagram of Figure 4.2, 80-86 kHz, every branch. */
+static void fig42_full(void) {
+    afm_config cfg;
+    if (!load(&cfg)) return;
+    static recs R;
+    afm_cont_summary sum;
+    afm_cont_opts o = {.param = "fe", .from = 80e3, .to = 86e3};
+    if (!check_true(run(&cfg, &o, &R, &sum) == 0, "Fig. 4.2 80-86 kHz: the continuation runs"))
+        return;
+    int npd = 0, nlpc = 0;
+    for (int k = 0; k < R.n; k++) {
+        const rec *r = &R.r[k];
+        if (r->branch != 0) continue;
+        npd += r->kind == AFM_CONT_PD;
+        nlpc += r->kind == AFM_CONT_LPC;
+        if (r->kind == AFM_CONT_PD || r->kind == AFM_CONT_LPC)
+            printf("# branch 0 %s at %.3f Hz, min(xr) %.4f nm\n",
+                   r->kind == AFM_CONT_PD ? "PD" : "LPC", r->param, r->met.min_deflection_m * 1e9);
+    }
+    check_thesis_abs("Fig. 4.2", "PD bifurcations upon contact (period-1 branch)", npd, 6, 0, "");
+    check_true(nlpc >= 2, "Fig. 4.2: the LPC before contact and the LPC of the high branch");
+}
+
+int main(int argc, char **argv) {
+    const char *only = argc > 1 ? argv[1] : "";
+    if (!strcmp(only, "") || !strcmp(only, "linear")) linear();
+    if (!strcmp(only, "") || !strcmp(only, "lumped")) lumped_vdw();
+    if (!strcmp(only, "") || !strcmp(only, "fig42")) fig42();
+    const char *v = getenv("AFMTWIN_VALIDATE");
+    if ((v && !strcmp(v, "full")) || !strcmp(only, "full")) fig42_full();
+    return check_done();
+}

@@ -1,0 +1,57 @@
+#!/usr/bin/env bash
+# test_continue_cli.sh BUILD -- `afmtwin continue` as a user meets it: --help, one JSON record
+# per line with the fields the issue names (a short run on the linear model, the forces of
+# thesis-fig-4-2.conf switched off by a config copy), and every bad input refused with exit 2
+# and a message that says what is wrong. The numbers are tests/test_continue.c's job.
+# Prints "N passed, N failed".
+BUILD=${1:-build}
+. "$(dirname "$0")/lib_check.sh"
+check_init continue "$BUILD"
+
+"$A" continue --help >"$T/help.txt" 2>&1 && grep -q "pseudo-arclength" "$T/help.txt" &&
+  grep -q "Phase convention" "$T/help.txt" && ok "--help: exit 0, says the method and the phase convention" ||
+  bad "--help: $(head -3 "$T/help.txt")"
+
+# a linear copy of the Fig. 4.2 beam (no tip forces): quick, no bifurcations
+sed -e '/vdw_contact/d' -e '/viscoelastic/d' -e '/squeeze/d' config/thesis-fig-4-2.conf >"$T/lin.conf"
+"$A" continue --config "$T/lin.conf" --param fe --from 80000 --to 80400 --max-points 6 --json \
+  >"$T/lin.json" 2>"$T/lin.err"
+rc=$?
+[ $rc -eq 0 ] && ok "a linear run: exit 0" || bad "a linear run: exit $rc, $(cat "$T/lin.err")"
+np=$(grep -c '"type":"point"' "$T/lin.json")
+[ "$np" -ge 3 ] && ok "a linear run: $np point records" || bad "a linear run: $np point records"
+miss=""
+for k in branch param period stable multipliers min_deflection_m max_deflection_m max_force_n \
+  amplitude_m phase_lag_deg; do
+  grep '"type":"point"' "$T/lin.json" | head -1 | grep -q "\"$k\":" || miss="$miss $k"
+done
+[ -z "$miss" ] && ok "point records carry every field the issue names" || bad "point records lack:$miss"
+tail -1 "$T/lin.json" | grep -q '"type":"summary"' && grep -q '"type":"end"' "$T/lin.json" &&
+  ok "an end record with its reason, and a closing summary" || bad "no end or summary record"
+
+"$A" plot continue "$T/lin.json" -o "$T/lin.png" --data "$T/lin.dat" 2>"$T/plot.err" &&
+  [ "$(od -An -tx1 -N8 "$T/lin.png" | tr -d ' \n')" = "89504e470d0a1a0a" ] &&
+  [ "$(grep -cv '^#\|^$' "$T/lin.dat")" -ge 3 ] && ok "plot continue: a PNG and its columns" ||
+  bad "plot continue: $(cat "$T/plot.err")"
+
+refuse() { # refuse WHAT PATTERN ARGS...: exit 2 and PATTERN on stderr
+  local what=$1 pat=$2
+  shift 2
+  "$A" continue "$@" >"$T/o.txt" 2>"$T/e.txt"
+  local r=$?
+  if [ $r -eq 2 ] && grep -qi -- "$pat" "$T/e.txt"; then ok "$what: exit 2, '$pat'"; else
+    bad "$what: exit $r, $(head -2 "$T/e.txt")"
+  fi
+}
+C=config/thesis-fig-4-2.conf
+refuse "no --param" "are required" --config $C --from 80000 --to 81000
+refuse "an unknown parameter" "unknown" --config $C --param bogus --from 1 --to 2
+refuse "a geometry parameter" "changes the beam" --config $C --param model.beam.length_m --from 1e-4 --to 2e-4
+refuse "--from = --to" "must differ" --config $C --param fe --from 80000 --to 80000
+refuse "a frequency out of range" "out of its range" --config $C --param fe --from 80000 --to 9e6
+refuse "a non-number" "not a finite number" --config $C --param fe --from abc --to 81000
+refuse "a bad --start" "comma-separated" --config $C --param fe --from 80000 --to 81000 --start 1,2,3
+refuse "a bad --period" "integer" --config $C --param fe --from 80000 --to 81000 --period 0
+refuse "a missing config" "cannot\|no such\|open" --config "$T/none.conf" --param fe --from 80000 --to 81000
+refuse "an unknown option" "unknown option" --config $C --param fe --from 80000 --to 81000 --bogus 1
+check_done
