@@ -1,0 +1,83 @@
+/* SPDX-License-Identifier: MIT */
+/* opts.c -- the subcommands' table-driven option parser (opts.h). */
+#include "opts.h"
+
+#include "lcm_tool.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+
+static const afmt_opt *opt_find(const afmt_opt *opts, const char *name) {
+    for (const afmt_opt *o = opts; o->name; o++)
+        if (!strcmp(o->name, name)) return o;
+    return NULL;
+}
+
+static bool in_range(const afmt_opt *o, double x) {
+    if (!isfinite(x)) return false;
+    if (o->lo == 0 && o->hi == 0 && !o->lo_open) return true;
+    return (o->lo_open ? x > o->lo : x >= o->lo) && x <= o->hi;
+}
+
+/* Store v into o's destination; -1 if it is no value of o's kind and range. */
+static int opt_store(const afmt_opt *o, const char *v) {
+    double x;
+    switch (o->kind) {
+    case AFMT_OPT_STRING:
+        *(const char **)o->dest = v;
+        return 0;
+    case AFMT_OPT_FN:
+        return o->parse(v, o->dest) ? -1 : 0;
+    case AFMT_OPT_DOUBLE:
+        if (afmt_parse_double(v, &x) || !in_range(o, x)) return -1;
+        *(double *)o->dest = x;
+        return 0;
+    case AFMT_OPT_INT:
+    case AFMT_OPT_LONG:
+        if (afmt_parse_double(v, &x) || !in_range(o, x) || x != floor(x)) return -1;
+        if (o->kind == AFMT_OPT_INT)
+            *(int *)o->dest = (int)x;
+        else
+            *(long *)o->dest = (long)x;
+        return 0;
+    case AFMT_OPT_FLAG:
+        break;
+    }
+    return -1;
+}
+
+int afmt_opts_parse(const char *tool, const afmt_opt *opts, int argc, char **argv, int first) {
+    for (int i = first; i < argc; i++) {
+        const char *a = argv[i];
+        if (!strcmp(a, "--help") || !strcmp(a, "-h")) return AFMT_OPTS_HELP;
+        const afmt_opt *o = opt_find(opts, a);
+        if (o && o->kind == AFMT_OPT_FLAG) {
+            *(bool *)o->dest = true;
+            continue;
+        }
+        if (!o || i + 1 >= argc) {
+            fprintf(stderr, "afmtwin %s: unknown or incomplete option '%s' (see --help)\n", tool,
+                    a);
+            return AFMT_OPTS_BAD;
+        }
+        const char *v = argv[++i];
+        double x;
+        bool number =
+            o->kind == AFMT_OPT_DOUBLE || o->kind == AFMT_OPT_INT || o->kind == AFMT_OPT_LONG;
+        if (number && (afmt_parse_double(v, &x) || !isfinite(x))) {
+            fprintf(stderr, "afmtwin %s: %s wants a number, got '%s'\n", tool, a, v);
+            return AFMT_OPTS_BAD;
+        }
+        if (opt_store(o, v)) {
+            fprintf(stderr, "afmtwin %s: %s wants %s, got '%s'\n", tool, a,
+                    o->wants ? o->wants : "a number", v);
+            return AFMT_OPTS_BAD;
+        }
+    }
+    return AFMT_OPTS_OK;
+}
+
+int afmt_opt_channels(const char *value, void *want) {
+    return afmt_parse_outputs(value, false, want);
+}
