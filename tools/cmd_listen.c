@@ -550,11 +550,8 @@ int afm_cmd_listen(int argc, char **argv) {
         AFMT_LONG("--count", &c.count, 1, 1e12, "an integer >= 1"),
         AFMT_DOUBLE_ABOVE("--timeout", &c.timeout_s, 0, 1e7, "seconds > 0"),
         AFMT_FN("--channels", afmt_opt_channels, c.want, AFMT_OPT_CHANNELS_WANTS),
-        AFMT_STRING("--lcm-url", &c.url),
-        AFMT_STRING("--lcm-out-url", &c.out_url),
-        AFMT_STRING("--lcm-samples-url", &c.samples_url),
+        AFMT_LCM_OPTS(&c.url, &c.out_url, &c.samples_url, &c.prefix),
         AFMT_STRING("--log", &c.log),
-        AFMT_STRING("--prefix", &c.prefix),
         AFMT_OPTS_END,
     };
     int prc = afmt_opts_parse("listen", opts, argc, argv, 1);

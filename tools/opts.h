@@ -66,6 +66,11 @@ int afmt_opts_parse(const char *tool, const afmt_opt *opts, int argc, char **arg
 /* --channels of listen and replay: a subset of the output channels into a bool[4] (the
  * destination), afmt_parse_outputs without "all". */
 int afmt_opt_channels(const char *value, void *want);
+/* The LCM tools' URL and channel-prefix options (lcm_tool.h's afmt_lcm_open takes the three
+ * URLs, afmt_channels_init the prefix). */
+#define AFMT_LCM_OPTS(url_, out_url_, samples_url_, prefix_)                                       \
+    AFMT_STRING("--lcm-url", url_), AFMT_STRING("--lcm-out-url", out_url_),                        \
+        AFMT_STRING("--lcm-samples-url", samples_url_), AFMT_STRING("--prefix", prefix_)
 #define AFMT_OPT_CHANNELS_WANTS "a comma-separated subset of samples,harmonics,status,tick_done"
 
 #endif
