@@ -20,15 +20,18 @@ static bool in_range(const afmt_opt *o, double x) {
     return (o->lo_open ? x > o->lo : x >= o->lo) && x <= o->hi;
 }
 
-/* Store v into o's destination; -1 if it is no value of o's kind and range. */
+/* Store v into o's destination; -1 if it is no value of o's kind and range,
+ * AFMT_OPT_REPORTED if o's parse function said so itself. */
 static int opt_store(const afmt_opt *o, const char *v) {
     double x;
     switch (o->kind) {
     case AFMT_OPT_STRING:
         *(const char **)o->dest = v;
         return 0;
-    case AFMT_OPT_FN:
-        return o->parse(v, o->dest) ? -1 : 0;
+    case AFMT_OPT_FN: {
+        int rc = o->parse(v, o->dest);
+        return rc == 0 || rc == AFMT_OPT_REPORTED ? rc : -1;
+    }
     case AFMT_OPT_DOUBLE:
         if (afmt_parse_double(v, &x) || !in_range(o, x)) return -1;
         *(double *)o->dest = x;
@@ -69,7 +72,9 @@ int afmt_opts_parse(const char *tool, const afmt_opt *opts, int argc, char **arg
             fprintf(stderr, "afmtwin %s: %s wants a number, got '%s'\n", tool, a, v);
             return AFMT_OPTS_BAD;
         }
-        if (opt_store(o, v)) {
+        int rc = opt_store(o, v);
+        if (rc == AFMT_OPT_REPORTED) return AFMT_OPTS_BAD;
+        if (rc) {
             fprintf(stderr, "afmtwin %s: %s wants %s, got '%s'\n", tool, a,
                     o->wants ? o->wants : "a number", v);
             return AFMT_OPTS_BAD;

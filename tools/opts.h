@@ -30,7 +30,9 @@ typedef struct {
     double lo, hi;     /* the range of a number, inclusive; both 0: any finite number */
     bool lo_open;      /* the range excludes lo (a value must be > lo) */
     const char *wants; /* the error's "wants ...": "an integer >= 1", "seconds > 0" */
-    int (*parse)(const char *value, void *dest); /* AFMT_OPT_FN */
+    /* AFMT_OPT_FN: 0 for a good value, -1 for a bad one (the parser says what the option
+     * wants), AFMT_OPT_REPORTED when the function printed a more precise message itself */
+    int (*parse)(const char *value, void *dest);
 } afmt_opt;
 
 /* One table row each (designated, so that -Wextra sees every field set). */
@@ -55,6 +57,8 @@ typedef struct {
     { .name = name_, .kind = AFMT_OPT_FN, .dest = dest_, .wants = wants_, .parse = parse_ }
 #define AFMT_OPTS_END                                                                              \
     { .name = NULL }
+
+#define AFMT_OPT_REPORTED (-2)
 
 enum { AFMT_OPTS_OK = 0, AFMT_OPTS_HELP = 1, AFMT_OPTS_BAD = 2 };
 
