@@ -48,9 +48,7 @@
  * so that the daemon's command socket carries commands only. */
 #define BD_URL "udpm://239.255.76.67:7667?ttl=0&recv_buf_size=4194304"
 #define BD_MAX_CMDS 100000
-#define BD_STR_(x) #x
-#define BD_STR(x) BD_STR_(x) /* BD_MAX_CMDS in --commands' error */
-#define BD_CLIENT_PRIO 90    /* above afmtwind's threads (80 and below) */
+#define BD_CLIENT_PRIO 90 /* above afmtwind's threads (80 and below) */
 #define BD_CLIENT_PRIO_TEXT "90"
 #ifdef SCHED_RESET_ON_FORK
 #define BD_RESET_ON_FORK SCHED_RESET_ON_FORK
@@ -571,8 +569,7 @@ int afm_cmd_bench_daemon(int argc, char **argv) {
         AFMT_STRING("--daemon", &o.daemon),
         AFMT_LCM_OPTS(&o.url, &o.out_url, &o.samples_url, &o.prefix),
         AFMT_FN("--config", add_config, &o, "a file, 8 --config at most"),
-        AFMT_INT("--commands", &o.commands, 10, BD_MAX_CMDS,
-                 "an integer in 10.." BD_STR(BD_MAX_CMDS)),
+        AFMT_INT("--commands", &o.commands, 10, BD_MAX_CMDS, NULL),
         AFMT_DOUBLE("--seconds", &o.seconds, 1, 3600, "1..3600"),
         AFMT_OPTS_END,
     };

@@ -430,10 +430,9 @@ int afm_cmd_bench_states(int argc, char **argv) {
         AFMT_STRING("--config", &path),
         AFMT_STRING("--only", &only),
         AFMT_DOUBLE("--uptime", &uptime, 0, 1e6, "0..1e6 s"),
-        AFMT_INT("--runs", &runs, 1, MAX_RUNS, "1..99"),
+        AFMT_INT("--runs", &runs, 1, MAX_RUNS, NULL),
         AFMT_OPTS_END,
     };
-    _Static_assert(MAX_RUNS == 99, "--runs' wants text");
     int prc = afmt_opts_parse("bench-states", opts, argc, argv, 1);
     if (prc == AFMT_OPTS_HELP) usage(stdout);
     if (prc) return prc == AFMT_OPTS_HELP ? 0 : 2;

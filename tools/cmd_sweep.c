@@ -162,20 +162,6 @@ static int parse_harmonics(const char *s, void *dest) {
     return 0;
 }
 
-/* --integrator rt|reference|arkode-erk. */
-static int parse_integrator(const char *v, void *dest) {
-    int *integrator = dest;
-    if (!strcmp(v, "rt"))
-        *integrator = AFM_INTEGRATOR_RT;
-    else if (!strcmp(v, "reference"))
-        *integrator = AFM_INTEGRATOR_REFERENCE;
-    else if (!strcmp(v, "arkode-erk"))
-        *integrator = AFM_INTEGRATOR_ARKODE_ERK;
-    else
-        return -1;
-    return 0;
-}
-
 /* 0 ok, 1 --help printed, -1 bad usage (message printed). */
 static int parse_args(int argc, char **argv, sweep_opts *o) {
     memset(o, 0, sizeof *o);
@@ -192,8 +178,8 @@ static int parse_args(int argc, char **argv, sweep_opts *o) {
         AFMT_DOUBLE("--ae", &o->ae_m, 0, 0, NULL),
         AFMT_DOUBLE("--z", &o->z_m, 0, 0, NULL),
         AFMT_FN("--harmonics", parse_harmonics, o, NULL),
-        AFMT_FN("--integrator", parse_integrator, &o->integrator, "rt, reference or arkode-erk"),
-        AFMT_INT("--max-periods", &o->max_periods, 2, 100000000, "an integer in 2..100000000"),
+        AFMT_FN("--integrator", afmt_opt_integrator, &o->integrator, AFMT_OPT_INTEGRATOR_WANTS),
+        AFMT_INT("--max-periods", &o->max_periods, 2, 100000000, NULL),
         AFMT_DOUBLE("--tol", &o->tol, 0, 0, NULL),
         AFMT_OPTS_END,
     };

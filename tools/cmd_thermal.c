@@ -84,13 +84,12 @@ static int parse_args(int argc, char **argv, thermal_opts *o) {
         AFMT_FLAG("--json", &o->json),
         AFMT_STRING("--config", &o->config),
         AFMT_STRING("--psd", &o->psd_path),
-        AFMT_DOUBLE_ABOVE("--seconds", &o->seconds, 0, MAX_SECONDS, "seconds in (0, 3600]"),
+        AFMT_DOUBLE_ABOVE("--seconds", &o->seconds, 0, MAX_SECONDS, NULL),
         AFMT_DOUBLE_ABOVE("--segment-s", &o->segment_s, 0, HUGE_VAL, "seconds > 0"),
-        AFMT_INT("--modes", &o->modes, 1, AFM_MAX_MODES, "a mode count in 1..24"),
+        AFMT_INT("--modes", &o->modes, 1, AFM_MAX_MODES, NULL),
         AFMT_FN("--signal", parse_signal, &o->obd, "x or obd"),
         AFMT_OPTS_END,
     };
-    _Static_assert(MAX_SECONDS == 3600.0 && AFM_MAX_MODES == 24, "the wants texts above");
     int rc = afmt_opts_parse("thermal", opts, argc, argv, 1);
     if (rc == AFMT_OPTS_HELP) thermal_usage(stdout);
     if (rc) return rc == AFMT_OPTS_HELP ? 1 : -1;

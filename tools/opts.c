@@ -4,6 +4,8 @@
 
 #include "lcm_tool.h"
 
+#include "config/afm_config.h"
+
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
@@ -75,8 +77,14 @@ int afmt_opts_parse(const char *tool, const afmt_opt *opts, int argc, char **arg
         int rc = opt_store(o, v);
         if (rc == AFMT_OPT_REPORTED) return AFMT_OPTS_BAD;
         if (rc) {
-            fprintf(stderr, "afmtwin %s: %s wants %s, got '%s'\n", tool, a,
-                    o->wants ? o->wants : "a number", v);
+            if (o->wants)
+                fprintf(stderr, "afmtwin %s: %s wants %s, got '%s'\n", tool, a, o->wants, v);
+            else
+                fprintf(stderr,
+                        o->lo_open ? "afmtwin %s: %s wants %s in (%g, %g], got '%s'\n"
+                                   : "afmtwin %s: %s wants %s in %g..%g, got '%s'\n",
+                        tool, a, o->kind == AFMT_OPT_DOUBLE ? "a number" : "an integer", o->lo,
+                        o->hi, v);
             return AFMT_OPTS_BAD;
         }
     }
@@ -85,4 +93,17 @@ int afmt_opts_parse(const char *tool, const afmt_opt *opts, int argc, char **arg
 
 int afmt_opt_channels(const char *value, void *want) {
     return afmt_parse_outputs(value, false, want);
+}
+
+int afmt_opt_integrator(const char *value, void *integrator) {
+    int *it = integrator;
+    if (!strcmp(value, "rt"))
+        *it = AFM_INTEGRATOR_RT;
+    else if (!strcmp(value, "reference"))
+        *it = AFM_INTEGRATOR_REFERENCE;
+    else if (!strcmp(value, "arkode-erk"))
+        *it = AFM_INTEGRATOR_ARKODE_ERK;
+    else
+        return -1;
+    return 0;
 }

@@ -27,9 +27,11 @@ typedef struct {
     const char *name; /* "--count" (NULL ends the table) */
     afmt_opt_kind kind;
     void *dest;
-    double lo, hi;     /* the range of a number, inclusive; both 0: any finite number */
-    bool lo_open;      /* the range excludes lo (a value must be > lo) */
-    const char *wants; /* the error's "wants ...": "an integer >= 1", "seconds > 0" */
+    double lo, hi; /* the range of a number, inclusive; both 0: any finite number */
+    bool lo_open;  /* the range excludes lo (a value must be > lo) */
+    /* the error's "wants ...": "an integer >= 1", "seconds > 0"; NULL: "a number in lo..hi"
+     * ("an integer in ...", "(lo, hi]" for lo_open) */
+    const char *wants;
     /* AFMT_OPT_FN: 0 for a good value, -1 for a bad one (the parser says what the option
      * wants), AFMT_OPT_REPORTED when the function printed a more precise message itself */
     int (*parse)(const char *value, void *dest);
@@ -75,6 +77,10 @@ int afmt_opt_channels(const char *value, void *want);
 #define AFMT_LCM_OPTS(url_, out_url_, samples_url_, prefix_)                                       \
     AFMT_STRING("--lcm-url", url_), AFMT_STRING("--lcm-out-url", out_url_),                        \
         AFMT_STRING("--lcm-samples-url", samples_url_), AFMT_STRING("--prefix", prefix_)
+/* --integrator of sweep and approach: rt, reference or arkode-erk into an int
+ * (AFM_INTEGRATOR_*). */
+int afmt_opt_integrator(const char *value, void *integrator);
+#define AFMT_OPT_INTEGRATOR_WANTS "rt, reference or arkode-erk"
 #define AFMT_OPT_CHANNELS_WANTS "a comma-separated subset of samples,harmonics,status,tick_done"
 
 #endif
