@@ -47,6 +47,7 @@ static int opt_store(const afmt_opt *o, const char *v) {
             *(long *)o->dest = (long)x;
         return 0;
     case AFMT_OPT_FLAG:
+    case AFMT_OPT_ARG:
         break;
     }
     return -1;
@@ -56,12 +57,24 @@ int afmt_opts_parse(const char *tool, const afmt_opt *opts, int argc, char **arg
     for (int i = first; i < argc; i++) {
         const char *a = argv[i];
         if (!strcmp(a, "--help") || !strcmp(a, "-h")) return AFMT_OPTS_HELP;
+        if (a[0] != '-') { /* an argument: the first AFMT_ARG row still empty */
+            const afmt_opt *o = opts;
+            while (o->name && !(o->kind == AFMT_OPT_ARG && !*(const char **)o->dest))
+                o++;
+            if (!o->name) {
+                fprintf(stderr, "afmtwin %s: unknown option or extra argument '%s' (see --help)\n",
+                        tool, a);
+                return AFMT_OPTS_BAD;
+            }
+            *(const char **)o->dest = a;
+            continue;
+        }
         const afmt_opt *o = opt_find(opts, a);
         if (o && o->kind == AFMT_OPT_FLAG) {
             *(bool *)o->dest = true;
             continue;
         }
-        if (!o || i + 1 >= argc) {
+        if (!o || o->kind == AFMT_OPT_ARG || i + 1 >= argc) {
             fprintf(stderr, "afmtwin %s: unknown or incomplete option '%s' (see --help)\n", tool,
                     a);
             return AFMT_OPTS_BAD;

@@ -7,7 +7,9 @@
  * that is no number where one is wanted prints "afmtwin TOOL: --opt wants a number, got
  * 'v'", one out of range (or no value of a parse function's) "afmtwin TOOL: --opt wants
  * WANTS, got 'v'", an unknown option or a missing
- * value "afmtwin TOOL: unknown or incomplete option '--x' (see --help)"; both make the tool
+ * value "afmtwin TOOL: unknown or incomplete option '--x' (see --help)", a word that is
+ * no option where the table has no (further) AFMT_ARG row "unknown option or extra argument
+ * 'x' (see --help)"; each makes the tool
  * exit 2 and store nothing more. */
 #ifndef AFMT_OPTS_H
 #define AFMT_OPTS_H
@@ -21,6 +23,7 @@ typedef enum {
     AFMT_OPT_INT,    /* int *: an integer in the range */
     AFMT_OPT_LONG,   /* long *: an integer in the range */
     AFMT_OPT_FN,     /* parse(value, dest) returns 0 for a good value */
+    AFMT_OPT_ARG,    /* const char **: a word that is no option (a file name), once */
 } afmt_opt_kind;
 
 typedef struct {
@@ -57,6 +60,8 @@ typedef struct {
     AFMT_NUMBER(name_, AFMT_OPT_LONG, dest_, lo_, hi_, wants_)
 #define AFMT_FN(name_, parse_, dest_, wants_)                                                      \
     { .name = name_, .kind = AFMT_OPT_FN, .dest = dest_, .wants = wants_, .parse = parse_ }
+#define AFMT_ARG(name_, dest_)                                                                     \
+    { .name = name_, .kind = AFMT_OPT_ARG, .dest = dest_ }
 #define AFMT_OPTS_END                                                                              \
     { .name = NULL }
 
