@@ -57,16 +57,22 @@ int afmt_opts_parse(const char *tool, const afmt_opt *opts, int argc, char **arg
     for (int i = first; i < argc; i++) {
         const char *a = argv[i];
         if (!strcmp(a, "--help") || !strcmp(a, "-h")) return AFMT_OPTS_HELP;
-        if (a[0] != '-') { /* an argument: the first AFMT_ARG row still empty */
+        if (a[0] != '-' || !a[1]) { /* an argument: the first AFMT_ARG row that takes it */
             const afmt_opt *o = opts;
-            while (o->name && !(o->kind == AFMT_OPT_ARG && !*(const char **)o->dest))
+            while (o->name && !(o->kind == AFMT_OPT_ARG && (o->parse || !*(const char **)o->dest)))
                 o++;
             if (!o->name) {
                 fprintf(stderr, "afmtwin %s: unknown option or extra argument '%s' (see --help)\n",
                         tool, a);
                 return AFMT_OPTS_BAD;
             }
-            *(const char **)o->dest = a;
+            if (!o->parse) {
+                *(const char **)o->dest = a;
+            } else if (o->parse(a, o->dest)) {
+                fprintf(stderr, "afmtwin %s: %s '%s': %s\n", tool, o->name, a,
+                        o->wants ? o->wants : "not taken");
+                return AFMT_OPTS_BAD;
+            }
             continue;
         }
         const afmt_opt *o = opt_find(opts, a);

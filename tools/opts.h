@@ -23,7 +23,8 @@ typedef enum {
     AFMT_OPT_INT,    /* int *: an integer in the range */
     AFMT_OPT_LONG,   /* long *: an integer in the range */
     AFMT_OPT_FN,     /* parse(value, dest) returns 0 for a good value */
-    AFMT_OPT_ARG,    /* const char **: a word that is no option (a file name), once */
+    AFMT_OPT_ARG,    /* a word that is no option (a file name; "-" too): into the
+                      * const char ** once, or through parse as often as it accepts */
 } afmt_opt_kind;
 
 typedef struct {
@@ -62,6 +63,8 @@ typedef struct {
     { .name = name_, .kind = AFMT_OPT_FN, .dest = dest_, .wants = wants_, .parse = parse_ }
 #define AFMT_ARG(name_, dest_)                                                                     \
     { .name = name_, .kind = AFMT_OPT_ARG, .dest = dest_ }
+#define AFMT_ARG_FN(name_, parse_, dest_, wants_)                                                  \
+    { .name = name_, .kind = AFMT_OPT_ARG, .dest = dest_, .wants = wants_, .parse = parse_ }
 #define AFMT_OPTS_END                                                                              \
     { .name = NULL }
 
