@@ -47,17 +47,6 @@ static void usage(FILE *f) {
             "reject (the reason is printed).\n");
 }
 
-/* A number as strtod reads it (NaN and inf too: --no-check sends what the daemon must
- * reject). */
-static int num(const char *s, void *out) {
-    char *end;
-    errno = 0;
-    double v = strtod(s, &end);
-    if (errno || end == s || *end) return -1;
-    *(double *)out = v;
-    return 0;
-}
-
 static int send_frames(const char *ifname, const struct canfd_frame *f, int n, bool fd) {
     int s = socket(PF_CAN, SOCK_RAW, CAN_RAW);
     if (s < 0) {
@@ -110,13 +99,13 @@ int afm_cmd_can_send(int argc, char **argv) {
         AFMT_FLAG("--no-check", &no_check),
         AFMT_STRING("--config", &cfg_path),
         AFMT_STRING("--interface", &ifname),
-        AFMT_FN("--tone", num, &tone, "a number"),
-        AFMT_FN("--freq", num, &freq, "a number"),
-        AFMT_FN("--amp", num, &amp, "a number"),
-        AFMT_FN("--phase", num, &phase, "a number"),
-        AFMT_FN("--z", num, &z, "a number"),
-        AFMT_FN("--ramp", num, &ramp, "a number"),
-        AFMT_FN("--state", num, &state, "a number"),
+        AFMT_FN("--tone", afmt_opt_any_number, &tone, "a number"),
+        AFMT_FN("--freq", afmt_opt_any_number, &freq, "a number"),
+        AFMT_FN("--amp", afmt_opt_any_number, &amp, "a number"),
+        AFMT_FN("--phase", afmt_opt_any_number, &phase, "a number"),
+        AFMT_FN("--z", afmt_opt_any_number, &z, "a number"),
+        AFMT_FN("--ramp", afmt_opt_any_number, &ramp, "a number"),
+        AFMT_FN("--state", afmt_opt_any_number, &state, "a number"),
         AFMT_OPTS_END,
     };
     int prc = afmt_opts_parse("can-send", opts, argc, argv, 2);

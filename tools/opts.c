@@ -6,8 +6,10 @@
 
 #include "config/afm_config.h"
 
+#include <errno.h>
 #include <math.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 static const afmt_opt *opt_find(const afmt_opt *opts, const char *name) {
@@ -66,13 +68,15 @@ int afmt_opts_parse(const char *tool, const afmt_opt *opts, int argc, char **arg
                         tool, a);
                 return AFMT_OPTS_BAD;
             }
-            if (!o->parse) {
+            int rc = 0;
+            if (!o->parse)
                 *(const char **)o->dest = a;
-            } else if (o->parse(a, o->dest)) {
+            else
+                rc = o->parse(a, o->dest);
+            if (rc && rc != AFMT_OPT_REPORTED)
                 fprintf(stderr, "afmtwin %s: %s '%s': %s\n", tool, o->name, a,
                         o->wants ? o->wants : "not taken");
-                return AFMT_OPTS_BAD;
-            }
+            if (rc) return AFMT_OPTS_BAD;
             continue;
         }
         const afmt_opt *o = opt_find(opts, a);
@@ -124,5 +128,14 @@ int afmt_opt_integrator(const char *value, void *integrator) {
         *it = AFM_INTEGRATOR_ARKODE_ERK;
     else
         return -1;
+    return 0;
+}
+
+int afmt_opt_any_number(const char *value, void *number) {
+    char *end;
+    errno = 0;
+    double v = strtod(value, &end);
+    if (errno || end == value || *end) return -1;
+    *(double *)number = v;
     return 0;
 }

@@ -85,6 +85,10 @@ int afmt_opt_channels(const char *value, void *want);
 #define AFMT_LCM_OPTS(url_, out_url_, samples_url_, prefix_)                                       \
     AFMT_STRING("--lcm-url", url_), AFMT_STRING("--lcm-out-url", out_url_),                        \
         AFMT_STRING("--lcm-samples-url", samples_url_), AFMT_STRING("--prefix", prefix_)
+/* A number as strtod reads it, NaN and inf too: the commands of send and can-send, whose
+ * --no-check sends what the daemon must reject. */
+int afmt_opt_any_number(const char *value, void *number);
+
 /* --integrator of sweep and approach: rt, reference or arkode-erk into an int
  * (AFM_INTEGRATOR_*). */
 int afmt_opt_integrator(const char *value, void *integrator);
