@@ -67,6 +67,8 @@ opt_bad() { # DESCRIPTION PATTERN ARGS...
 }
 opt_bad "listen --count 0" "--count wants an integer >= 1, got '0'" listen --count 0
 opt_bad "replay --block out of range" "--block wants an integer in 1..1048576, got '0'" replay --block 0
+opt_bad "replay --block above its range" "--block wants an integer in 1..1048576, got '2000000'" replay --block 2000000
+opt_bad "approach --rate above 1 m/s" "--rate wants (0, 1\] m/s, got '2'" approach --rate 2
 opt_bad "replay --tail not a number" "--tail wants a number, got 'x'" replay --tail x
 opt_bad "lockstep --timeout 0 (must be > 0)" "--timeout wants" lockstep --timeout 0
 opt_bad "soak --min-rtf NaN" "--min-rtf wants a number, got 'nan'" soak --min-rtf nan
