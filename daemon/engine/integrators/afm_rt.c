@@ -367,10 +367,11 @@ static inline double rt_slope(const afm_rt_prop *P, double fx, double fv) {
 
 /* rt_tip of st for a following full step. */
 static inline rt_tip rt_tip_of(const rt_state *r, const rt_snap *st) {
+    double rj = st->slope_cells == r->ncell
+                    ? st->tip.inv_slope
+                    : rt_slope(&r->prop[r->ncell - 1], st->dfdx_n_m, st->dfdv_n_s_m);
     rt_tip t = st->tip;
-    t.inv_slope = st->slope_cells == r->ncell
-                      ? st->tip.inv_slope
-                      : rt_slope(&r->prop[r->ncell - 1], st->dfdx_n_m, st->dfdv_n_s_m);
+    t.inv_slope = rj;
     return t;
 }
 
