@@ -249,22 +249,6 @@ static void sleep_until(double t) {
     nanosleep(&ts, NULL);
 }
 
-/* --seq0 N: the first command's seq (long long). */
-static int parse_seq0(const char *v, void *dest) {
-    double x;
-    if (afmt_parse_double(v, &x) || !(x >= 0 && x < 9e15) || x != floor(x)) return -1;
-    *(long long *)dest = (long long)x;
-    return 0;
-}
-
-/* --seed N: the generator's seed (unsigned). */
-static int parse_seed(const char *v, void *dest) {
-    double x;
-    if (afmt_parse_double(v, &x) || !(x >= 0 && x < 4e9) || x != floor(x)) return -1;
-    *(unsigned *)dest = (unsigned)x;
-    return 0;
-}
-
 /* --valid-kind setpoint|param: what the valid commands are (true: param). */
 static int parse_valid_kind(const char *v, void *dest) {
     if (strcmp(v, "setpoint") && strcmp(v, "param")) return -1;
@@ -289,8 +273,8 @@ int afm_cmd_flood(int argc, char **argv) {
         AFMT_DOUBLE("--rate", &o.rate, 1, 200000, "1..200000 messages a second"),
         AFMT_DOUBLE_ABOVE("--seconds", &o.seconds, 0, 600, "seconds in (0, 600]"),
         AFMT_DOUBLE("--valid-rate", &o.valid_rate, 0, 10000, "0..10000 a second"),
-        AFMT_FN("--seq0", parse_seq0, &o.seq0, "an integer in 0..9e15"),
-        AFMT_FN("--seed", parse_seed, &o.seed, "an integer in 0..4e9"),
+        AFMT_NUMBER("--seq0", AFMT_OPT_LLONG, &o.seq0, 0, 9e15 - 1, "an integer in 0..9e15 - 1"),
+        AFMT_NUMBER("--seed", AFMT_OPT_UINT, &o.seed, 0, 4e9 - 1, "an integer in 0..4e9 - 1"),
         AFMT_FN("--valid-kind", parse_valid_kind, &o.valid_param, "setpoint or param"),
         AFMT_FN("--kinds", parse_kinds, o.want, "a comma-separated subset of the kinds (or all)"),
         AFMT_STRING("--lcm-url", &o.url),

@@ -376,14 +376,6 @@ static int cmp_d(const void *a, const void *b) {
     return (x > y) - (x < y);
 }
 
-/* --seed N: an integer >= 0 (uint64_t). */
-static int parse_seed(const char *v, void *dest) {
-    double d;
-    if (afmt_parse_double(v, &d) || !(d >= 0 && d < 1.8e19) || d != floor(d)) return -1;
-    *(uint64_t *)dest = (uint64_t)d;
-    return 0;
-}
-
 /* --block-us US: the block length, stored in seconds. */
 static int parse_block_us(const char *v, void *dest) {
     double d;
@@ -409,7 +401,7 @@ int afm_cmd_soak(int argc, char **argv) {
         AFMT_STRING("--log", &c.log),
         AFMT_LCM_OPTS(&c.url, &c.out_url, &c.samples_url, &c.prefix),
         AFMT_DOUBLE("--seconds", &c.seconds, 1, 1e5, "seconds in 1..1e5"),
-        AFMT_FN("--seed", parse_seed, &c.seed, "an integer >= 0"),
+        AFMT_NUMBER("--seed", AFMT_OPT_U64, &c.seed, 0, 1.8e19, "an integer >= 0"),
         AFMT_DOUBLE("--max-rate-hz", &c.max_rate_hz, 1, 1000, "1..1000 Hz"),
         AFMT_DOUBLE("--min-rtf", &c.min_rtf_ok, 0.5, 1, "a real-time factor in 0.5..1"),
         AFMT_FN("--block-us", parse_block_us, &c.block_s, "10..1e6 us"),

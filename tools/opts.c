@@ -8,6 +8,7 @@
 
 #include <errno.h>
 #include <math.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -42,11 +43,20 @@ static int opt_store(const afmt_opt *o, const char *v) {
         return 0;
     case AFMT_OPT_INT:
     case AFMT_OPT_LONG:
+    case AFMT_OPT_LLONG:
+    case AFMT_OPT_UINT:
+    case AFMT_OPT_U64:
         if (afmt_parse_double(v, &x) || !in_range(o, x) || x != floor(x)) return -1;
         if (o->kind == AFMT_OPT_INT)
             *(int *)o->dest = (int)x;
-        else
+        else if (o->kind == AFMT_OPT_LONG)
             *(long *)o->dest = (long)x;
+        else if (o->kind == AFMT_OPT_LLONG)
+            *(long long *)o->dest = (long long)x;
+        else if (o->kind == AFMT_OPT_UINT)
+            *(unsigned *)o->dest = (unsigned)x;
+        else
+            *(uint64_t *)o->dest = (uint64_t)x;
         return 0;
     case AFMT_OPT_FLAG:
     case AFMT_OPT_ARG:

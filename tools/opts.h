@@ -22,6 +22,9 @@ typedef enum {
     AFMT_OPT_DOUBLE, /* double *: a finite number in the range */
     AFMT_OPT_INT,    /* int *: an integer in the range */
     AFMT_OPT_LONG,   /* long *: an integer in the range */
+    AFMT_OPT_LLONG,  /* long long * */
+    AFMT_OPT_UINT,   /* unsigned * (a range within 0..UINT_MAX) */
+    AFMT_OPT_U64,    /* uint64_t * (a range within 0..1.8e19) */
     AFMT_OPT_FN,     /* parse(value, dest) returns 0 for a good value */
     AFMT_OPT_ARG,    /* a word that is no option (a file name; "-" too): into the
                       * const char ** once, or through parse as often as it accepts */
