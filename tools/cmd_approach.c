@@ -441,10 +441,7 @@ int afm_cmd_approach(int argc, char **argv) {
     }
     static afm_config cfg;
     char err[AFM_ERR_LEN];
-    if (afm_config_load(o.config, &cfg, err, sizeof err) != 0) {
-        fprintf(stderr, "afmtwin approach: %s\n", err);
-        return 2;
-    }
+    if (afmt_config_load("approach", o.config, &cfg)) return 2;
     if (!isnan(o.fe_hz)) cfg.drive.tones[0].frequency_hz = o.fe_hz;
     if (!isnan(o.ae_m)) cfg.drive.tones[0].amplitude_m = o.ae_m;
     if (o.integrator >= 0) cfg.sim.integrator = (afm_integrator_kind)o.integrator;

@@ -437,11 +437,7 @@ int afm_cmd_bench_states(int argc, char **argv) {
     if (prc == AFMT_OPTS_HELP) usage(stdout);
     if (prc) return prc == AFMT_OPTS_HELP ? 0 : 2;
     static afm_config cfg;
-    char err[AFM_ERR_LEN];
-    if (afm_config_load(path, &cfg, err, sizeof err)) {
-        fprintf(stderr, "afmtwin bench-states: %s\n", err);
-        return 2;
-    }
+    if (afmt_config_load("bench-states", path, &cfg)) return 2;
     /* SCHED_FIFO as the daemon's threads: otherwise a 4 ms time slice of another process
      * lands in a window now and then (seen as a worst item of ~4000 ns/sample) */
     struct sched_param prio = {.sched_priority = BENCH_PRIO};

@@ -114,10 +114,7 @@ int afm_cmd_can_send(int argc, char **argv) {
     bool check = !no_check;
     static afm_config cfg;
     char err[AFM_ERR_LEN];
-    if (afm_config_load(cfg_path, &cfg, err, sizeof err)) {
-        fprintf(stderr, "afmtwin can-send: %s\n", err);
-        return 2;
-    }
+    if (afmt_config_load("can-send", cfg_path, &cfg)) return 2;
     const afm_cfg_can *m = &cfg.can; /* the default map when the file has no can group */
     struct canfd_frame f[MAX_FRAMES];
     int n = 0, rc = 0;

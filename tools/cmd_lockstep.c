@@ -550,10 +550,7 @@ int afm_cmd_lockstep(int argc, char **argv) {
     if (rc) return rc == 1 ? 0 : rc;
     static afm_config cfg;
     char err[AFM_ERR_LEN];
-    if (afm_config_load(c.config, &cfg, err, sizeof err)) {
-        fprintf(stderr, "afmtwin lockstep: %s\n", err);
-        return 2;
-    }
+    if (afmt_config_load("lockstep", c.config, &cfg)) return 2;
     c.rate_hz = cfg.sim.sample_rate_hz;
     afm_lcm_digest_init(&c.dg);
     c.n_cap = 1000000;

@@ -99,10 +99,7 @@ int afm_cmd_modes(int argc, char **argv) {
     static afm_config cfg;
     static afm_modes_report rep;
     char err[AFM_ERR_LEN];
-    if (afm_config_load(path, &cfg, err, sizeof err) != 0) {
-        fprintf(stderr, "afmtwin modes: %s\n", err);
-        return 2;
-    }
+    if (afmt_config_load("modes", path, &cfg)) return 2;
     if (afm_model_report(&cfg.model, &rep, err, sizeof err) != 0) {
         fprintf(stderr, "afmtwin modes: %s\n", err);
         return 1;

@@ -417,10 +417,7 @@ int afm_cmd_soak(int argc, char **argv) {
     }
     static afm_config cfg;
     char err[AFM_ERR_LEN];
-    if (afm_config_load(c.config, &cfg, err, sizeof err)) {
-        fprintf(stderr, "afmtwin soak: %s\n", err);
-        return 2;
-    }
+    if (afmt_config_load("soak", c.config, &cfg)) return 2;
     c.fs = cfg.sim.sample_rate_hz;
     c.f1 = cfg.drive.tones[0].frequency_hz;
     {

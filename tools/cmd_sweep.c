@@ -401,10 +401,7 @@ int afm_cmd_sweep(int argc, char **argv) {
 
     static afm_config cfg;
     char err[AFM_ERR_LEN];
-    if (afm_config_load(o.config, &cfg, err, sizeof err) != 0) {
-        fprintf(stderr, "afmtwin sweep: %s\n", err);
-        return 2;
-    }
+    if (afmt_config_load("sweep", o.config, &cfg)) return 2;
     double fs = cfg.sim.sample_rate_hz, f_hi = fmax(o.from_hz, o.to_hz);
     double f_lo = fmin(o.from_hz, o.to_hz);
     if (f_hi >= 0.5 * fs) {

@@ -175,10 +175,7 @@ int afm_cmd_thermal(int argc, char **argv) {
     }
     static afm_config cfg;
     char err[AFM_ERR_LEN];
-    if (afm_config_load(o.config, &cfg, err, sizeof err) != 0) {
-        fprintf(stderr, "afmtwin thermal: %s\n", err);
-        return 2;
-    }
+    if (afmt_config_load("thermal", o.config, &cfg)) return 2;
     afm_thermfit_tune_config(&cfg);
     if (afm_config_validate(&cfg, err, sizeof err) != 0) {
         fprintf(stderr, "afmtwin thermal: %s\n", err);

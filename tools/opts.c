@@ -149,3 +149,10 @@ int afmt_opt_any_number(const char *value, void *number) {
     *(double *)number = v;
     return 0;
 }
+
+int afmt_config_load(const char *tool, const char *path, afm_config *cfg) {
+    char err[AFM_ERR_LEN];
+    if (afm_config_load(path, cfg, err, sizeof err) == 0) return 0;
+    fprintf(stderr, "afmtwin %s: %s\n", tool, err);
+    return -1;
+}

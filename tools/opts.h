@@ -14,6 +14,8 @@
 #ifndef AFMT_OPTS_H
 #define AFMT_OPTS_H
 
+#include "config/afm_config.h"
+
 #include <stdbool.h>
 
 typedef enum {
@@ -91,6 +93,10 @@ int afmt_opt_channels(const char *value, void *want);
 /* A number as strtod reads it, NaN and inf too: the commands of send and can-send, whose
  * --no-check sends what the daemon must reject. */
 int afmt_opt_any_number(const char *value, void *number);
+
+/* Load the config file a tool's --config names into cfg; on failure print "afmtwin TOOL:
+ * reason" and return -1 (the tool exits 2). */
+int afmt_config_load(const char *tool, const char *path, afm_config *cfg);
 
 /* --integrator of sweep and approach: rt, reference or arkode-erk into an int
  * (AFM_INTEGRATOR_*). */
