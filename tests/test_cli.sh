@@ -57,5 +57,26 @@ out=$("$A" bench --quick --runs 1 --json 2>/dev/null)
 for key in cases config integrator ns_per_sample realtime_factor error_rel; do
   echo "$out" | grep -q "\"$key\"" && ok "bench --json has $key" || bad "bench --json lacks $key"
 done
+# the tools' option tables (tools/opts.c): a value out of range, no number, an unknown option
+# and a missing value each exit 2 with the option named
+opt_bad() { # DESCRIPTION PATTERN ARGS...
+  local what=$1 pat=$2; shift 2
+  msg=$("$A" "$@" 2>&1 >/dev/null); rc=$?
+  if [ "$rc" -eq 2 ] && echo "$msg" | grep -q -- "$pat"; then ok "$what: $(echo "$msg" | head -1)"
+  else bad "$what: exit $rc, message '$msg'"; fi
+}
+opt_bad "listen --count 0" "--count wants an integer >= 1, got '0'" listen --count 0
+opt_bad "replay --block out of range" "--block wants an integer in 1..1048576, got '0'" replay --block 0
+opt_bad "replay --block above its range" "--block wants an integer in 1..1048576, got '2000000'" replay --block 2000000
+opt_bad "approach --rate above 1 m/s" "--rate wants (0, 1\] m/s, got '2'" approach --rate 2
+opt_bad "replay --tail not a number" "--tail wants a number, got 'x'" replay --tail x
+opt_bad "lockstep --timeout 0 (must be > 0)" "--timeout wants" lockstep --timeout 0
+opt_bad "soak --min-rtf NaN" "--min-rtf wants a number, got 'nan'" soak --min-rtf nan
+opt_bad "flood --kinds unknown kind" "--kinds wants" flood --kinds frob
+opt_bad "bench-daemon --commands 5" "--commands wants an integer in 10..100000" bench-daemon --commands 5
+opt_bad "thermal --modes 1.5" "--modes wants" thermal --modes 1.5
+opt_bad "modes unknown option" "unknown or incomplete option '--frobnicate' (see --help)" modes --frobnicate
+opt_bad "listen missing value" "unknown or incomplete option '--timeout'" listen --timeout
+expect_rc 0 "flood --help" "$A" flood --help
 echo "$pass passed, $fail failed"
 [ "$fail" -eq 0 ]

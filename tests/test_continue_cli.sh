@@ -49,9 +49,9 @@ refuse "an unknown parameter" "unknown" --config $C --param bogus --from 1 --to 
 refuse "a geometry parameter" "changes the beam" --config $C --param model.beam.length_m --from 1e-4 --to 2e-4
 refuse "--from = --to" "must differ" --config $C --param fe --from 80000 --to 80000
 refuse "a frequency out of range" "out of its range" --config $C --param fe --from 80000 --to 9e6
-refuse "a non-number" "not a finite number" --config $C --param fe --from abc --to 81000
+refuse "a non-number" "wants a number" --config $C --param fe --from abc --to 81000
 refuse "a bad --start" "comma-separated" --config $C --param fe --from 80000 --to 81000 --start 1,2,3
 refuse "a bad --period" "integer" --config $C --param fe --from 80000 --to 81000 --period 0
 refuse "a missing config" "cannot\|no such\|open" --config "$T/none.conf" --param fe --from 80000 --to 81000
-refuse "an unknown option" "unknown option" --config $C --param fe --from 80000 --to 81000 --bogus 1
+refuse "an unknown option" "unknown or incomplete option" --config $C --param fe --from 80000 --to 81000 --bogus 1
 check_done

@@ -14,6 +14,7 @@
  * for a free cantilever driven at resonance, below 90 in the repulsive regime, above in
  * the attractive one; harmonic k's lag is that of A_k sin(k we t - lag_k). */
 #include "afmtwin_cmds.h"
+#include "opts.h"
 
 #include "config/afm_config.h"
 #include "estimators/afm_cycle.h"
@@ -123,64 +124,25 @@ static int parse_args(int argc, char **argv, approach_opts *o) {
                          .k_max = DEFAULT_K,
                          .integrator = -1,
                          .tol = DEFAULT_TOL};
-    for (int i = 1; i < argc; i++) {
-        const char *a = argv[i];
-        if (!strcmp(a, "--help") || !strcmp(a, "-h")) return 1;
-        if (!strcmp(a, "--json") || !strcmp(a, "--retract")) {
-            *(a[2] == 'j' ? &o->json : &o->retract) = true;
-            continue;
-        }
-        if (i + 1 >= argc) {
-            fprintf(stderr, "afmtwin approach: %s needs a value (or is unknown)\n", a);
-            return -1;
-        }
-        const char *v = argv[++i];
-        int rc = 0;
-        if (!strcmp(a, "--config"))
-            o->config = v;
-        else if (!strcmp(a, "--from"))
-            rc = afmt_opt_double("approach", a, v, &o->from_m);
-        else if (!strcmp(a, "--to"))
-            rc = afmt_opt_double("approach", a, v, &o->to_m);
-        else if (!strcmp(a, "--step"))
-            rc = afmt_opt_double("approach", a, v, &o->step_m);
-        else if (!strcmp(a, "--fe"))
-            rc = afmt_opt_double("approach", a, v, &o->fe_hz);
-        else if (!strcmp(a, "--ae"))
-            rc = afmt_opt_double("approach", a, v, &o->ae_m);
-        else if (!strcmp(a, "--tol"))
-            rc = afmt_opt_double("approach", a, v, &o->tol);
-        else if (!strcmp(a, "--rate")) {
-            rc = afmt_opt_double("approach", a, v, &o->rate_m_s);
-            if (!rc && !(o->rate_m_s > 0 && o->rate_m_s <= 1.0)) {
-                fprintf(stderr, "afmtwin approach: --rate must be in (0, 1] m/s (got %g)\n",
-                        o->rate_m_s);
-                rc = -1;
-            }
-        } else if (!strcmp(a, "--periods"))
-            rc = afmt_opt_int("approach", a, v, 2, 100000000, &o->max_periods);
-        else if (!strcmp(a, "--analyse"))
-            rc = afmt_opt_int("approach", a, v, 1, MAX_ANALYSE, &o->analyse);
-        else if (!strcmp(a, "--harmonics"))
-            rc = afmt_opt_int("approach", a, v, 1, AFM_MAX_HARMONICS, &o->k_max);
-        else if (!strcmp(a, "--integrator")) {
-            o->integrator = !strcmp(v, "rt")           ? AFM_INTEGRATOR_RT
-                            : !strcmp(v, "reference")  ? AFM_INTEGRATOR_REFERENCE
-                            : !strcmp(v, "arkode-erk") ? AFM_INTEGRATOR_ARKODE_ERK
-                                                       : -1;
-            if (o->integrator < 0) {
-                fprintf(stderr,
-                        "afmtwin approach: --integrator '%s': expected rt, reference "
-                        "or arkode-erk\n",
-                        v);
-                rc = -1;
-            }
-        } else {
-            fprintf(stderr, "afmtwin approach: unknown option '%s'\n", a);
-            return -1;
-        }
-        if (rc) return -1;
-    }
+    const afmt_opt opts[] = {
+        AFMT_FLAG("--json", &o->json),
+        AFMT_FLAG("--retract", &o->retract),
+        AFMT_STRING("--config", &o->config),
+        AFMT_DOUBLE("--from", &o->from_m, 0, 0, NULL),
+        AFMT_DOUBLE("--to", &o->to_m, 0, 0, NULL),
+        AFMT_DOUBLE("--step", &o->step_m, 0, 0, NULL),
+        AFMT_DOUBLE("--fe", &o->fe_hz, 0, 0, NULL),
+        AFMT_DOUBLE("--ae", &o->ae_m, 0, 0, NULL),
+        AFMT_DOUBLE("--tol", &o->tol, 0, 0, NULL),
+        AFMT_DOUBLE_ABOVE("--rate", &o->rate_m_s, 0, 1.0, "(0, 1] m/s"),
+        AFMT_INT("--periods", &o->max_periods, 2, 100000000, NULL),
+        AFMT_INT("--analyse", &o->analyse, 1, MAX_ANALYSE, NULL),
+        AFMT_INT("--harmonics", &o->k_max, 1, AFM_MAX_HARMONICS, NULL),
+        AFMT_FN("--integrator", afmt_opt_integrator, &o->integrator, AFMT_OPT_INTEGRATOR_WANTS),
+        AFMT_OPTS_END,
+    };
+    int rc = afmt_opts_parse("approach", opts, argc, argv, 1);
+    if (rc) return rc == AFMT_OPTS_HELP ? 1 : -1;
     if (!o->config || isnan(o->from_m) || isnan(o->to_m)) {
         fprintf(stderr, "afmtwin approach: --config, --from and --to are required\n");
         return -1;
@@ -479,10 +441,7 @@ int afm_cmd_approach(int argc, char **argv) {
     }
     static afm_config cfg;
     char err[AFM_ERR_LEN];
-    if (afm_config_load(o.config, &cfg, err, sizeof err) != 0) {
-        fprintf(stderr, "afmtwin approach: %s\n", err);
-        return 2;
-    }
+    if (afmt_config_load("approach", o.config, &cfg)) return 2;
     if (!isnan(o.fe_hz)) cfg.drive.tones[0].frequency_hz = o.fe_hz;
     if (!isnan(o.ae_m)) cfg.drive.tones[0].amplitude_m = o.ae_m;
     if (o.integrator >= 0) cfg.sim.integrator = (afm_integrator_kind)o.integrator;

@@ -8,6 +8,7 @@
  * substeps are raised until its error is no worse than rt's. Then each integrator keeps
  * running on its orbit and `runs` timed blocks of samples give median and minimum cost. */
 #include "afmtwin_cmds.h"
+#include "opts.h"
 #include "json_out.h"
 
 #include "estimators/afm_chain.h"
@@ -669,46 +670,20 @@ static int print_json(const bench_opts *o, const bench_result *res, int n) {
     return afmt_json_emit(root) ? 1 : 0;
 }
 
-static int parse_int(const char *s, int lo, int hi, int *v) {
-    char *end;
-    long x = strtol(s, &end, 10);
-    if (end == s || *end || x < lo || x > hi) return -1;
-    *v = (int)x;
-    return 0;
-}
-
 int afm_cmd_bench(int argc, char **argv) {
     bench_opts o = {.runs = 0, .periods = 5, .dir = "config"};
-    for (int i = 1; i < argc; i++) {
-        const char *a = argv[i];
-        if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
-            bench_usage(stdout);
-            return 0;
-        } else if (!strcmp(a, "--json")) {
-            o.json = true;
-        } else if (!strcmp(a, "--quick")) {
-            o.quick = true;
-        } else if (!strcmp(a, "--runs") && i + 1 < argc) {
-            if (parse_int(argv[++i], 1, 1000, &o.runs) != 0) {
-                fprintf(stderr, "afmtwin bench: --runs wants an integer in [1, 1000], got '%s'\n",
-                        argv[i]);
-                return 2;
-            }
-        } else if (!strcmp(a, "--periods") && i + 1 < argc) {
-            if (parse_int(argv[++i], 1, 1000, &o.periods) != 0) {
-                fprintf(stderr,
-                        "afmtwin bench: --periods wants an integer in [1, 1000], got '%s'\n",
-                        argv[i]);
-                return 2;
-            }
-        } else if (!strcmp(a, "--config-dir") && i + 1 < argc) {
-            o.dir = argv[++i];
-        } else {
-            fprintf(stderr, "afmtwin bench: unknown or incomplete option '%s'\n", a);
-            bench_usage(stderr);
-            return 2;
-        }
-    }
+    const afmt_opt opts[] = {
+        AFMT_FLAG("--json", &o.json),
+        AFMT_FLAG("--quick", &o.quick),
+        AFMT_INT("--runs", &o.runs, 1, 1000, NULL),
+        AFMT_INT("--periods", &o.periods, 1, 1000, NULL),
+        AFMT_STRING("--config-dir", &o.dir),
+        AFMT_OPTS_END,
+    };
+    int prc = afmt_opts_parse("bench", opts, argc, argv, 1);
+    if (prc == AFMT_OPTS_HELP) bench_usage(stdout);
+    if (prc == AFMT_OPTS_BAD) bench_usage(stderr);
+    if (prc) return prc == AFMT_OPTS_HELP ? 0 : 2;
     if (o.runs == 0) o.runs = o.quick ? 2 : 5;
     /* 40 decay times leave e^-40 of the start transient in the linear part. Timed blocks
      * are ~10-50 ms each at the costs numerics.md measured. */

@@ -20,6 +20,7 @@
  * model time over wall time, against the targets 0.9 (1 ms) and 0.3 (0.1 ms). */
 #include "afmtwin_cmds.h"
 #include "lcm_tool.h"
+#include "opts.h"
 
 #include "afmtwin_harmonics_t.h"
 #include "afmtwin_samples_t.h"
@@ -549,63 +550,32 @@ static int reexec_in_netns(int argc, char **argv) {
     return 1;
 }
 
+/* --config FILE: one more of at most 8 configurations. */
+static int add_config(const char *v, void *dest) {
+    bd_opts *o = dest;
+    if (o->n_configs >= 8) return -1;
+    o->configs[o->n_configs++] = v;
+    return 0;
+}
+
 int afm_cmd_bench_daemon(int argc, char **argv) {
     bd_opts o = {.commands = 1000, .seconds = 5.0, .url = BD_URL, .prefix = AFMT_DEFAULT_PREFIX};
     static char daemon_path[4096];
     bool no_netns = false;
-    for (int i = 1; i < argc; i++) {
-        const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
-        double x;
-        if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
-            bd_usage(stdout);
-            return 0;
-        } else if (!strcmp(a, "--inside")) {
-            o.inside = true;
-        } else if (!strcmp(a, "--no-netns")) {
-            no_netns = true;
-        } else if (!strcmp(a, "--json")) {
-            o.json = true;
-        } else if (!strcmp(a, "--daemon") && v) {
-            o.daemon = v;
-            i++;
-        } else if (!strcmp(a, "--lcm-url") && v) {
-            o.url = v;
-            i++;
-        } else if (!strcmp(a, "--lcm-out-url") && v) {
-            o.out_url = v;
-            i++;
-        } else if (!strcmp(a, "--lcm-samples-url") && v) {
-            o.samples_url = v;
-            i++;
-        } else if (!strcmp(a, "--prefix") && v) {
-            o.prefix = v;
-            i++;
-        } else if (!strcmp(a, "--config") && v) {
-            if (o.n_configs >= 8) {
-                fprintf(stderr, "afmtwin bench-daemon: at most 8 --config\n");
-                return 2;
-            }
-            o.configs[o.n_configs++] = v;
-            i++;
-        } else if (!strcmp(a, "--commands") && v) {
-            if (afmt_parse_double(v, &x) || x < 10 || x > BD_MAX_CMDS || x != floor(x)) {
-                fprintf(stderr, "afmtwin bench-daemon: --commands wants an integer in 10..%d\n",
-                        BD_MAX_CMDS);
-                return 2;
-            }
-            o.commands = (int)x;
-            i++;
-        } else if (!strcmp(a, "--seconds") && v) {
-            if (afmt_parse_double(v, &o.seconds) || !(o.seconds >= 1 && o.seconds <= 3600)) {
-                fprintf(stderr, "afmtwin bench-daemon: --seconds wants 1..3600\n");
-                return 2;
-            }
-            i++;
-        } else {
-            fprintf(stderr, "afmtwin bench-daemon: unknown or incomplete option '%s'\n", a);
-            return 2;
-        }
-    }
+    const afmt_opt opts[] = {
+        AFMT_FLAG("--inside", &o.inside),
+        AFMT_FLAG("--no-netns", &no_netns),
+        AFMT_FLAG("--json", &o.json),
+        AFMT_STRING("--daemon", &o.daemon),
+        AFMT_LCM_OPTS(&o.url, &o.out_url, &o.samples_url, &o.prefix),
+        AFMT_FN("--config", add_config, &o, "a file, 8 --config at most"),
+        AFMT_INT("--commands", &o.commands, 10, BD_MAX_CMDS, NULL),
+        AFMT_DOUBLE("--seconds", &o.seconds, 1, 3600, "1..3600"),
+        AFMT_OPTS_END,
+    };
+    int prc = afmt_opts_parse("bench-daemon", opts, argc, argv, 1);
+    if (prc == AFMT_OPTS_HELP) bd_usage(stdout);
+    if (prc) return prc == AFMT_OPTS_HELP ? 0 : 2;
     char err[256];
     if (afmt_channels_init(&o.ch, o.prefix, err, sizeof err)) {
         fprintf(stderr, "afmtwin bench-daemon: %s\n", err);

@@ -15,6 +15,7 @@
 #include "afmtwin_cmds.h"
 #include "json_out.h"
 #include "lcm_tool.h"
+#include "opts.h"
 
 #include "runner/afm_cmd.h"
 #include "config/afm_config.h"
@@ -424,48 +425,19 @@ int afm_cmd_bench_states(int argc, char **argv) {
     double uptime = 20.0;
     int runs = 3;
     bool json = false;
-    for (int i = 1; i < argc; i++) {
-        const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
-        char *end = NULL;
-        if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
-            usage(stdout);
-            return 0;
-        } else if (!strcmp(a, "--json")) {
-            json = true;
-            continue;
-        } else if (!v) {
-            fprintf(stderr, "afmtwin bench-states: unknown or incomplete option '%s'\n", a);
-            return 2;
-        } else if (!strcmp(a, "--config")) {
-            path = v;
-        } else if (!strcmp(a, "--only")) {
-            only = v;
-        } else if (!strcmp(a, "--uptime")) {
-            uptime = strtod(v, &end);
-            if (end == v || *end || !(uptime >= 0 && uptime <= 1e6)) {
-                fprintf(stderr, "afmtwin bench-states: --uptime wants 0..1e6 s, got '%s'\n", v);
-                return 2;
-            }
-        } else if (!strcmp(a, "--runs")) {
-            long n = strtol(v, &end, 10);
-            if (end == v || *end || n < 1 || n > MAX_RUNS) {
-                fprintf(stderr, "afmtwin bench-states: --runs wants 1..%d, got '%s'\n", MAX_RUNS,
-                        v);
-                return 2;
-            }
-            runs = (int)n;
-        } else {
-            fprintf(stderr, "afmtwin bench-states: unknown option '%s' (see --help)\n", a);
-            return 2;
-        }
-        i++;
-    }
+    const afmt_opt opts[] = {
+        AFMT_FLAG("--json", &json),
+        AFMT_STRING("--config", &path),
+        AFMT_STRING("--only", &only),
+        AFMT_DOUBLE("--uptime", &uptime, 0, 1e6, "0..1e6 s"),
+        AFMT_INT("--runs", &runs, 1, MAX_RUNS, NULL),
+        AFMT_OPTS_END,
+    };
+    int prc = afmt_opts_parse("bench-states", opts, argc, argv, 1);
+    if (prc == AFMT_OPTS_HELP) usage(stdout);
+    if (prc) return prc == AFMT_OPTS_HELP ? 0 : 2;
     static afm_config cfg;
-    char err[AFM_ERR_LEN];
-    if (afm_config_load(path, &cfg, err, sizeof err)) {
-        fprintf(stderr, "afmtwin bench-states: %s\n", err);
-        return 2;
-    }
+    if (afmt_config_load("bench-states", path, &cfg)) return 2;
     /* SCHED_FIFO as the daemon's threads: otherwise a 4 ms time slice of another process
      * lands in a window now and then (seen as a worst item of ~4000 ns/sample) */
     struct sched_param prio = {.sched_priority = BENCH_PRIO};

@@ -5,6 +5,7 @@
  * SocketCAN socket. */
 #define _DEFAULT_SOURCE /* struct ifreq */
 #include "afmtwin_cmds.h"
+#include "opts.h"
 
 #include "transport/afm_can_codec.h"
 #include "config/afm_config.h"
@@ -44,18 +45,6 @@ static void usage(FILE *f) {
             "  --help            this text\n\n"
             "Exit status 0 ok, 1 socket failure, 2 bad usage or a frame the daemon would\n"
             "reject (the reason is printed).\n");
-}
-
-static int num(const char *opt, const char *s, double *out) {
-    char *end;
-    errno = 0;
-    double v = s ? strtod(s, &end) : NAN;
-    if (!s || errno || end == s || *end) {
-        fprintf(stderr, "afmtwin can-send: %s needs a number, got '%s'\n", opt, s ? s : "");
-        return -1;
-    }
-    *out = v;
-    return 0;
 }
 
 static int send_frames(const char *ifname, const struct canfd_frame *f, int n, bool fd) {
@@ -98,59 +87,34 @@ fail:
 
 int afm_cmd_can_send(int argc, char **argv) {
     const char *cfg_path = "config/default.conf", *ifname = NULL;
-    bool fd = false, check = true;
+    bool fd = false, no_check = false;
     double tone = -1, freq = NAN, amp = NAN, phase = NAN, z = NAN, ramp = 0, state = 5;
     if (argc < 2 || !strcmp(argv[1], "--help")) {
         usage(argc < 2 ? stderr : stdout);
         return argc < 2 ? 2 : 0;
     }
     const char *kind = argv[1];
-    for (int i = 2; i < argc; i++) {
-        const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
-        int rc = 0;
-        if (!strcmp(a, "--help")) {
-            usage(stdout);
-            return 0;
-        } else if (!strcmp(a, "--fd")) {
-            fd = true;
-            continue;
-        } else if (!strcmp(a, "--no-check")) {
-            check = false;
-            continue;
-        } else if (!v) {
-            fprintf(stderr, "afmtwin can-send: unknown option or missing value: %s\n", a);
-            return 2;
-        } else if (!strcmp(a, "--config")) {
-            cfg_path = v;
-        } else if (!strcmp(a, "--interface")) {
-            ifname = v;
-        } else if (!strcmp(a, "--tone")) {
-            rc = num(a, v, &tone);
-        } else if (!strcmp(a, "--freq")) {
-            rc = num(a, v, &freq);
-        } else if (!strcmp(a, "--amp")) {
-            rc = num(a, v, &amp);
-        } else if (!strcmp(a, "--phase")) {
-            rc = num(a, v, &phase);
-        } else if (!strcmp(a, "--z")) {
-            rc = num(a, v, &z);
-        } else if (!strcmp(a, "--ramp")) {
-            rc = num(a, v, &ramp);
-        } else if (!strcmp(a, "--state")) {
-            rc = num(a, v, &state);
-        } else {
-            fprintf(stderr, "afmtwin can-send: unknown option %s (see --help)\n", a);
-            return 2;
-        }
-        if (rc) return 2;
-        i++;
-    }
+    const afmt_opt opts[] = {
+        AFMT_FLAG("--fd", &fd),
+        AFMT_FLAG("--no-check", &no_check),
+        AFMT_STRING("--config", &cfg_path),
+        AFMT_STRING("--interface", &ifname),
+        AFMT_FN("--tone", afmt_opt_any_number, &tone, "a number"),
+        AFMT_FN("--freq", afmt_opt_any_number, &freq, "a number"),
+        AFMT_FN("--amp", afmt_opt_any_number, &amp, "a number"),
+        AFMT_FN("--phase", afmt_opt_any_number, &phase, "a number"),
+        AFMT_FN("--z", afmt_opt_any_number, &z, "a number"),
+        AFMT_FN("--ramp", afmt_opt_any_number, &ramp, "a number"),
+        AFMT_FN("--state", afmt_opt_any_number, &state, "a number"),
+        AFMT_OPTS_END,
+    };
+    int prc = afmt_opts_parse("can-send", opts, argc, argv, 2);
+    if (prc == AFMT_OPTS_HELP) usage(stdout);
+    if (prc) return prc == AFMT_OPTS_HELP ? 0 : 2;
+    bool check = !no_check;
     static afm_config cfg;
     char err[AFM_ERR_LEN];
-    if (afm_config_load(cfg_path, &cfg, err, sizeof err)) {
-        fprintf(stderr, "afmtwin can-send: %s\n", err);
-        return 2;
-    }
+    if (afmt_config_load("can-send", cfg_path, &cfg)) return 2;
     const afm_cfg_can *m = &cfg.can; /* the default map when the file has no can group */
     struct canfd_frame f[MAX_FRAMES];
     int n = 0, rc = 0;

@@ -12,6 +12,7 @@
 #include "config/afm_config.h"
 #include "json_out.h"
 #include "lcm_tool.h"
+#include "opts.h"
 
 #include <cjson/cJSON.h>
 #include <math.h>
@@ -94,51 +95,24 @@ static void cont_usage(FILE *f) {
 /* 0 ok, 1 --help, -1 bad usage (said). */
 static int cont_parse(int argc, char **argv, cont_cli *o) {
     *o = (cont_cli){.from = NAN, .to = NAN, .period = 1};
-    for (int i = 1; i < argc; i++) {
-        const char *a = argv[i];
-        if (!strcmp(a, "--help") || !strcmp(a, "-h")) return 1;
-        if (!strcmp(a, "--json")) {
-            o->json = true;
-            continue;
-        }
-        if (!strcmp(a, "--no-switch")) {
-            o->no_switch = true;
-            continue;
-        }
-        if (i + 1 >= argc) {
-            fprintf(stderr, "afmtwin continue: %s needs a value (or is unknown)\n", a);
-            return -1;
-        }
-        const char *v = argv[++i];
-        int rc = 0;
-        if (!strcmp(a, "--config"))
-            o->config = v;
-        else if (!strcmp(a, "--param"))
-            o->param = v;
-        else if (!strcmp(a, "--start"))
-            o->start = v;
-        else if (!strcmp(a, "--from"))
-            rc = afmt_opt_double("continue", a, v, &o->from);
-        else if (!strcmp(a, "--to"))
-            rc = afmt_opt_double("continue", a, v, &o->to);
-        else if (!strcmp(a, "--step"))
-            rc = afmt_opt_double("continue", a, v, &o->h0);
-        else if (!strcmp(a, "--max-step"))
-            rc = afmt_opt_double("continue", a, v, &o->h_max);
-        else if (!strcmp(a, "--max-points"))
-            rc = afmt_opt_int("continue", a, v, 1, 1000000, &o->max_points);
-        else if (!strcmp(a, "--period"))
-            rc = afmt_opt_int("continue", a, v, 1, AFM_CONT_MAX_P, &o->period);
-        else if (!strcmp(a, "--settle"))
-            rc = afmt_opt_int("continue", a, v, 1, 100000000, &o->settle);
-        else if (!strcmp(a, "--max-branches"))
-            rc = afmt_opt_int("continue", a, v, 1, 32, &o->max_branches);
-        else {
-            fprintf(stderr, "afmtwin continue: unknown option '%s'\n", a);
-            return -1;
-        }
-        if (rc) return -1;
-    }
+    const afmt_opt opts[] = {
+        AFMT_FLAG("--json", &o->json),
+        AFMT_FLAG("--no-switch", &o->no_switch),
+        AFMT_STRING("--config", &o->config),
+        AFMT_STRING("--param", &o->param),
+        AFMT_STRING("--start", &o->start),
+        AFMT_DOUBLE("--from", &o->from, 0, 0, NULL),
+        AFMT_DOUBLE("--to", &o->to, 0, 0, NULL),
+        AFMT_DOUBLE("--step", &o->h0, 0, 0, NULL),
+        AFMT_DOUBLE("--max-step", &o->h_max, 0, 0, NULL),
+        AFMT_INT("--max-points", &o->max_points, 1, 1000000, NULL),
+        AFMT_INT("--period", &o->period, 1, AFM_CONT_MAX_P, NULL),
+        AFMT_INT("--settle", &o->settle, 1, 100000000, NULL),
+        AFMT_INT("--max-branches", &o->max_branches, 1, 32, NULL),
+        AFMT_OPTS_END,
+    };
+    int rc = afmt_opts_parse("continue", opts, argc, argv, 1);
+    if (rc) return rc == AFMT_OPTS_HELP ? 1 : -1;
     if (!o->config || !o->param || isnan(o->from) || isnan(o->to)) {
         fprintf(stderr, "afmtwin continue: --config, --param, --from and --to are required\n");
         return -1;

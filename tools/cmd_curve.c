@@ -11,6 +11,7 @@
  * per-period metrics as means. Phases are the lag of the deflection behind the drive (90
  * deg free at resonance): lag_k = -(phi_k + 90) for x ~ A_k cos(k theta + phi_k). */
 #include "afmtwin_cmds.h"
+#include "opts.h"
 
 #include "transport/afm_lcm_log.h"
 #include "estimators/afm_orbit.h"
@@ -72,26 +73,15 @@ static void curve_usage(FILE *f) {
 
 static int parse_args(int argc, char **argv, curve_opts *o) {
     *o = (curve_opts){.analyse = 16, .min_records = -1};
-    for (int i = 1; i < argc; i++) {
-        const char *a = argv[i];
-        if (!strcmp(a, "--help") || !strcmp(a, "-h")) return 1;
-        if (!strcmp(a, "--json")) {
-            o->json = true;
-        } else if (!strcmp(a, "--analyse") || !strcmp(a, "--min-records")) {
-            double d;
-            if (i + 1 >= argc || afmt_parse_double(argv[++i], &d) || d != floor(d) || d < 1 ||
-                d > CURVE_MAX_N) {
-                fprintf(stderr, "afmtwin curve: %s needs an integer in 1..%d\n", a, CURVE_MAX_N);
-                return -1;
-            }
-            *(a[2] == 'a' ? &o->analyse : &o->min_records) = (int)d;
-        } else if (a[0] != '-' && !o->log) {
-            o->log = a;
-        } else {
-            fprintf(stderr, "afmtwin curve: unknown option or extra argument '%s'\n", a);
-            return -1;
-        }
-    }
+    const afmt_opt opts[] = {
+        AFMT_FLAG("--json", &o->json),
+        AFMT_INT("--analyse", &o->analyse, 1, CURVE_MAX_N, NULL),
+        AFMT_INT("--min-records", &o->min_records, 1, CURVE_MAX_N, NULL),
+        AFMT_ARG("LOG", &o->log),
+        AFMT_OPTS_END,
+    };
+    int rc = afmt_opts_parse("curve", opts, argc, argv, 1);
+    if (rc) return rc == AFMT_OPTS_HELP ? 1 : -1;
     if (!o->log) {
         fprintf(stderr, "afmtwin curve: LOG is required\n");
         return -1;

@@ -19,6 +19,7 @@
  * check that every valid command was applied. */
 #include "afmtwin_cmds.h"
 #include "lcm_tool.h"
+#include "opts.h"
 
 #include "afmtwin_control_t.h"
 #include "afmtwin_dither_t.h"
@@ -248,6 +249,17 @@ static void sleep_until(double t) {
     nanosleep(&ts, NULL);
 }
 
+/* --valid-kind setpoint|param: what the valid commands are (true: param). */
+static int parse_valid_kind(const char *v, void *dest) {
+    if (strcmp(v, "setpoint") && strcmp(v, "param")) return -1;
+    *(bool *)dest = !strcmp(v, "param");
+    return 0;
+}
+
+static int parse_kinds(const char *v, void *dest) {
+    return afmt_parse_subset(v, kind_name, N_KINDS, true, dest);
+}
+
 int afm_cmd_flood(int argc, char **argv) {
     flood_opts o = {.rate = 20000,
                     .seconds = 5,
@@ -257,48 +269,21 @@ int afm_cmd_flood(int argc, char **argv) {
                     .seq0 = -1};
     for (int i = 0; i < N_KINDS; i++)
         o.want[i] = true;
-    for (int i = 1; i < argc; i++) {
-        const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
-        double x;
-        if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
-            flood_usage(stdout);
-            return 0;
-        }
-        if (!v) goto bad;
-        if (!strcmp(a, "--rate")) {
-            if (afmt_parse_double(v, &x) || !(x >= 1 && x <= 200000)) goto bad;
-            o.rate = x;
-        } else if (!strcmp(a, "--seconds")) {
-            if (afmt_parse_double(v, &x) || !(x > 0 && x <= 600)) goto bad;
-            o.seconds = x;
-        } else if (!strcmp(a, "--valid-rate")) {
-            if (afmt_parse_double(v, &x) || !(x >= 0 && x <= 10000)) goto bad;
-            o.valid_rate = x;
-        } else if (!strcmp(a, "--seq0")) {
-            if (afmt_parse_double(v, &x) || !(x >= 0 && x < 9e15) || x != floor(x)) goto bad;
-            o.seq0 = (long long)x;
-        } else if (!strcmp(a, "--seed")) {
-            if (afmt_parse_double(v, &x) || !(x >= 0 && x < 4e9) || x != floor(x)) goto bad;
-            o.seed = (unsigned)x;
-        } else if (!strcmp(a, "--valid-kind")) {
-            if (strcmp(v, "setpoint") && strcmp(v, "param")) goto bad;
-            o.valid_param = !strcmp(v, "param");
-        } else if (!strcmp(a, "--kinds")) {
-            if (afmt_parse_subset(v, kind_name, N_KINDS, true, o.want)) goto bad;
-        } else if (!strcmp(a, "--lcm-url")) {
-            o.url = v;
-        } else if (!strcmp(a, "--prefix")) {
-            o.prefix = v;
-        } else {
-            goto bad;
-        }
-        i++;
-        continue;
-    bad:
-        fprintf(stderr, "afmtwin flood: bad or incomplete option '%s%s%s' (see --help)\n", a,
-                v ? " " : "", v ? v : "");
-        return 2;
-    }
+    const afmt_opt opts[] = {
+        AFMT_DOUBLE("--rate", &o.rate, 1, 200000, "1..200000 messages a second"),
+        AFMT_DOUBLE_ABOVE("--seconds", &o.seconds, 0, 600, "seconds in (0, 600]"),
+        AFMT_DOUBLE("--valid-rate", &o.valid_rate, 0, 10000, "0..10000 a second"),
+        AFMT_NUMBER("--seq0", AFMT_OPT_LLONG, &o.seq0, 0, 9e15 - 1, "an integer in 0..9e15 - 1"),
+        AFMT_NUMBER("--seed", AFMT_OPT_UINT, &o.seed, 0, 4e9 - 1, "an integer in 0..4e9 - 1"),
+        AFMT_FN("--valid-kind", parse_valid_kind, &o.valid_param, "setpoint or param"),
+        AFMT_FN("--kinds", parse_kinds, o.want, "a comma-separated subset of the kinds (or all)"),
+        AFMT_STRING("--lcm-url", &o.url),
+        AFMT_STRING("--prefix", &o.prefix),
+        AFMT_OPTS_END,
+    };
+    int prc = afmt_opts_parse("flood", opts, argc, argv, 1);
+    if (prc == AFMT_OPTS_HELP) flood_usage(stdout);
+    if (prc) return prc == AFMT_OPTS_HELP ? 0 : 2;
     char err[256];
     if (afmt_channels_init(&o.ch, o.prefix, err, sizeof err)) {
         fprintf(stderr, "afmtwin flood: %s\n", err);

@@ -5,6 +5,7 @@
 #include "afmtwin_cmds.h"
 #include "json_out.h"
 #include "lcm_tool.h"
+#include "opts.h"
 
 #include "config/afm_config.h"
 #include "config/afm_err.h"
@@ -543,58 +544,19 @@ int afm_cmd_listen(int argc, char **argv) {
         c.want[i] = true;
         c.last_seq[i] = -1;
     }
-    for (int i = 1; i < argc; i++) {
-        const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
-        if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
-            listen_usage(stdout);
-            return 0;
-        } else if (!strcmp(a, "--json")) {
-            c.json = true;
-        } else if (!strcmp(a, "--full")) {
-            c.full = true;
-        } else if (!strcmp(a, "--count") && v) {
-            double x;
-            if (afmt_parse_double(v, &x) || x < 1 || x > 1e12 || x != floor(x)) {
-                fprintf(stderr, "afmtwin listen: --count wants an integer >= 1, got '%s'\n", v);
-                return 2;
-            }
-            c.count = (long)x;
-            i++;
-        } else if (!strcmp(a, "--timeout") && v) {
-            if (afmt_parse_double(v, &c.timeout_s) || !(c.timeout_s > 0) || c.timeout_s > 1e7) {
-                fprintf(stderr, "afmtwin listen: --timeout wants seconds > 0, got '%s'\n", v);
-                return 2;
-            }
-            i++;
-        } else if (!strcmp(a, "--channels") && v) {
-            if (afmt_parse_outputs(v, false, c.want)) {
-                fprintf(stderr,
-                        "afmtwin listen: --channels wants a comma-separated subset of "
-                        "samples,harmonics,status,tick_done, got '%s'\n",
-                        v);
-                return 2;
-            }
-            i++;
-        } else if (!strcmp(a, "--lcm-url") && v) {
-            c.url = v;
-            i++;
-        } else if (!strcmp(a, "--lcm-out-url") && v) {
-            c.out_url = v;
-            i++;
-        } else if (!strcmp(a, "--lcm-samples-url") && v) {
-            c.samples_url = v;
-            i++;
-        } else if (!strcmp(a, "--log") && v) {
-            c.log = v;
-            i++;
-        } else if (!strcmp(a, "--prefix") && v) {
-            c.prefix = v;
-            i++;
-        } else {
-            fprintf(stderr, "afmtwin listen: unknown or incomplete option '%s' (see --help)\n", a);
-            return 2;
-        }
-    }
+    const afmt_opt opts[] = {
+        AFMT_FLAG("--json", &c.json),
+        AFMT_FLAG("--full", &c.full),
+        AFMT_LONG("--count", &c.count, 1, 1e12, "an integer >= 1"),
+        AFMT_DOUBLE_ABOVE("--timeout", &c.timeout_s, 0, 1e7, "seconds > 0"),
+        AFMT_FN("--channels", afmt_opt_channels, c.want, AFMT_OPT_CHANNELS_WANTS),
+        AFMT_LCM_OPTS(&c.url, &c.out_url, &c.samples_url, &c.prefix),
+        AFMT_STRING("--log", &c.log),
+        AFMT_OPTS_END,
+    };
+    int prc = afmt_opts_parse("listen", opts, argc, argv, 1);
+    if (prc == AFMT_OPTS_HELP) listen_usage(stdout);
+    if (prc) return prc == AFMT_OPTS_HELP ? 0 : 2;
     char err[256];
     if (afmt_channels_init(&c.ch, c.prefix, err, sizeof err)) {
         fprintf(stderr, "afmtwin listen: %s\n", err);

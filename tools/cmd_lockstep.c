@@ -18,6 +18,7 @@
 #define _GNU_SOURCE /* sched_setaffinity, CPU_SET */
 #include "afmtwin_cmds.h"
 #include "lcm_tool.h"
+#include "opts.h"
 
 #include "transport/afm_cmd_lcm.h"
 #include "config/afm_config.h"
@@ -419,75 +420,39 @@ static int check_with_replay(ls_ctx *c, const char *seq_path) {
 
 /* ---- driver ---------------------------------------------------------------------------- */
 
+/* --bench S: the benchmark mode, for S seconds. */
+static int parse_bench(const char *v, void *dest) {
+    ls_ctx *c = dest;
+    double d;
+    if (afmt_parse_double(v, &d) || !(d > 0 && d <= 3600)) return -1;
+    c->bench = true;
+    c->bench_s = d;
+    return 0;
+}
+
 static int parse_opts(ls_ctx *c, int argc, char **argv) {
-    for (int i = 1; i < argc; i++) {
-        const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
-        double d;
-        if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
-            ls_usage(stdout);
-            return 1;
-        } else if (!strcmp(a, "--check")) {
-            c->check = true;
-            continue;
-        } else if (!strcmp(a, "--quiet")) {
-            c->quiet = true;
-            continue;
-        } else if (!strcmp(a, "--json")) {
-            c->json = true;
-            continue;
-        } else if (!v) {
-            fprintf(stderr, "afmtwin lockstep: unknown or incomplete option '%s'\n", a);
-            return 2;
-        } else if (!strcmp(a, "--in")) {
-            c->in = v;
-        } else if (!strcmp(a, "--config")) {
-            c->config = v;
-        } else if (!strcmp(a, "--sequence")) {
-            c->sequence = v;
-        } else if (!strcmp(a, "--out")) {
-            c->out = v;
-        } else if (!strcmp(a, "--lcm-url")) {
-            c->url = v;
-        } else if (!strcmp(a, "--lcm-out-url")) {
-            c->out_url = v;
-        } else if (!strcmp(a, "--lcm-samples-url")) {
-            c->samples_url = v;
-        } else if (!strcmp(a, "--prefix")) {
-            c->prefix = v;
-        } else if (!strcmp(a, "--tick-us") || !strcmp(a, "--tail") || !strcmp(a, "--timeout") ||
-                   !strcmp(a, "--bench") || !strcmp(a, "--harmonics-every") ||
-                   !strcmp(a, "--rt-priority") || !strcmp(a, "--until") || !strcmp(a, "--cpu")) {
-            if (afmt_parse_double(v, &d) || !isfinite(d)) {
-                fprintf(stderr, "afmtwin lockstep: %s wants a number, got '%s'\n", a, v);
-                return 2;
-            }
-            bool bad = false;
-            if (!strcmp(a, "--tick-us"))
-                bad = !(d >= 1 && d <= 1e6), c->tick_us = d;
-            else if (!strcmp(a, "--tail"))
-                bad = !(d >= 0 && d <= 1e4), c->tail_s = d;
-            else if (!strcmp(a, "--timeout"))
-                bad = !(d > 0 && d <= 1e4), c->timeout_s = d;
-            else if (!strcmp(a, "--cpu"))
-                bad = !(d >= 0 && d <= 1023 && d == floor(d)), c->cpu = (int)d;
-            else if (!strcmp(a, "--until"))
-                bad = !(d > 0 && d <= 1e6), c->until_s = d;
-            else if (!strcmp(a, "--bench"))
-                bad = !(d > 0 && d <= 3600), c->bench = true, c->bench_s = d;
-            else if (!strcmp(a, "--harmonics-every"))
-                bad = !(d >= 1 && d <= 1e9 && d == floor(d)), c->harmonics_every = (int)d;
-            else
-                bad = !(d >= 0 && d <= 99 && d == floor(d)), c->rt_priority = (int)d;
-            if (bad) {
-                fprintf(stderr, "afmtwin lockstep: %s %s is out of range (see --help)\n", a, v);
-                return 2;
-            }
-        } else {
-            fprintf(stderr, "afmtwin lockstep: unknown option '%s' (see --help)\n", a);
-            return 2;
-        }
-        i++;
-    }
+    const afmt_opt opts[] = {
+        AFMT_FLAG("--check", &c->check),
+        AFMT_FLAG("--quiet", &c->quiet),
+        AFMT_FLAG("--json", &c->json),
+        AFMT_STRING("--in", &c->in),
+        AFMT_STRING("--config", &c->config),
+        AFMT_STRING("--sequence", &c->sequence),
+        AFMT_STRING("--out", &c->out),
+        AFMT_LCM_OPTS(&c->url, &c->out_url, &c->samples_url, &c->prefix),
+        AFMT_DOUBLE("--tick-us", &c->tick_us, 1, 1e6, "1..1e6 us"),
+        AFMT_DOUBLE("--tail", &c->tail_s, 0, 1e4, "seconds in 0..1e4"),
+        AFMT_DOUBLE_ABOVE("--timeout", &c->timeout_s, 0, 1e4, "seconds in (0, 1e4]"),
+        AFMT_INT("--cpu", &c->cpu, 0, 1023, "a CPU number in 0..1023"),
+        AFMT_DOUBLE_ABOVE("--until", &c->until_s, 0, 1e6, "model seconds in (0, 1e6]"),
+        AFMT_FN("--bench", parse_bench, c, "seconds in (0, 3600]"),
+        AFMT_INT("--harmonics-every", &c->harmonics_every, 1, 1e9, "an integer >= 1"),
+        AFMT_INT("--rt-priority", &c->rt_priority, 0, 99, "a SCHED_FIFO priority in 0..99"),
+        AFMT_OPTS_END,
+    };
+    int rc = afmt_opts_parse("lockstep", opts, argc, argv, 1);
+    if (rc == AFMT_OPTS_HELP) ls_usage(stdout);
+    if (rc) return rc;
     if (!c->bench && !c->in) {
         fprintf(stderr, "afmtwin lockstep: --in LOG (or --bench S) is required (see --help)\n");
         return 2;
@@ -585,10 +550,7 @@ int afm_cmd_lockstep(int argc, char **argv) {
     if (rc) return rc == 1 ? 0 : rc;
     static afm_config cfg;
     char err[AFM_ERR_LEN];
-    if (afm_config_load(c.config, &cfg, err, sizeof err)) {
-        fprintf(stderr, "afmtwin lockstep: %s\n", err);
-        return 2;
-    }
+    if (afmt_config_load("lockstep", c.config, &cfg)) return 2;
     c.rate_hz = cfg.sim.sample_rate_hz;
     afm_lcm_digest_init(&c.dg);
     c.n_cap = 1000000;

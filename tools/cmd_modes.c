@@ -2,11 +2,13 @@
 /* cmd_modes.c -- `afmtwin modes`: the linear model's frequencies, MAC, stiffness, mass. */
 #include "afmtwin_cmds.h"
 #include "json_out.h"
+#include "opts.h"
 
 #include "config/afm_config.h"
 #include "beam/afm_model.h"
 
 #include <cjson/cJSON.h>
+#include <stdbool.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -79,21 +81,16 @@ static void print_text(const char *path, const afm_modes_report *r) {
 
 int afm_cmd_modes(int argc, char **argv) {
     const char *path = NULL;
-    int json = 0;
-    for (int i = 1; i < argc; i++) {
-        if (!strcmp(argv[i], "--config") && i + 1 < argc)
-            path = argv[++i];
-        else if (!strcmp(argv[i], "--json"))
-            json = 1;
-        else if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
-            modes_usage(stdout);
-            return 0;
-        } else {
-            fprintf(stderr, "afmtwin modes: unknown or incomplete option '%s'\n", argv[i]);
-            modes_usage(stderr);
-            return 2;
-        }
-    }
+    bool json = false;
+    const afmt_opt opts[] = {
+        AFMT_STRING("--config", &path),
+        AFMT_FLAG("--json", &json),
+        AFMT_OPTS_END,
+    };
+    int rc = afmt_opts_parse("modes", opts, argc, argv, 1);
+    if (rc == AFMT_OPTS_HELP) modes_usage(stdout);
+    if (rc == AFMT_OPTS_BAD) modes_usage(stderr);
+    if (rc) return rc == AFMT_OPTS_HELP ? 0 : 2;
     if (!path) {
         fprintf(stderr, "afmtwin modes: --config FILE is required\n");
         modes_usage(stderr);
@@ -102,10 +99,7 @@ int afm_cmd_modes(int argc, char **argv) {
     static afm_config cfg;
     static afm_modes_report rep;
     char err[AFM_ERR_LEN];
-    if (afm_config_load(path, &cfg, err, sizeof err) != 0) {
-        fprintf(stderr, "afmtwin modes: %s\n", err);
-        return 2;
-    }
+    if (afmt_config_load("modes", path, &cfg)) return 2;
     if (afm_model_report(&cfg.model, &rep, err, sizeof err) != 0) {
         fprintf(stderr, "afmtwin modes: %s\n", err);
         return 1;

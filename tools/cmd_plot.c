@@ -12,6 +12,7 @@
  * spectrum (the harmonics of one sweep or approach record). Phases are the lag of the
  * deflection behind the drive (90 deg free at resonance), as the tools print them. */
 #include "afmtwin_cmds.h"
+#include "opts.h"
 
 #include "transport/afm_lcm_log.h"
 #include "transport/afm_lcm_wire.h"
@@ -92,52 +93,46 @@ static int plot_err(const char *fmt, const char *a) {
     return -1;
 }
 
+/* The words after KIND: up to PLOT_MAX_INPUTS input files. */
+static int add_input(const char *v, void *dest) {
+    plot_opts *o = dest;
+    if (o->n_in >= PLOT_MAX_INPUTS) return -1;
+    o->in[o->n_in++] = v;
+    return 0;
+}
+
+/* --size WxH, 100..10000 pixels each. */
+static int parse_size(const char *v, void *dest) {
+    plot_opts *o = dest;
+    int w, h;
+    if (sscanf(v, "%dx%d", &w, &h) != 2 || w < 100 || h < 100 || w > 10000 || h > 10000) return -1;
+    o->width = w;
+    o->height = h;
+    return 0;
+}
+
 /* 0 ok, 1 --help, -1 bad usage (said). */
 static int parse_args(int argc, char **argv, plot_opts *o) {
     *o = (plot_opts){.width = 1000, .height = 750, .t_from_s = NAN, .t_to_s = NAN, .z_m = NAN};
-    for (int i = 1; i < argc; i++) {
-        const char *a = argv[i];
-        if (!strcmp(a, "--help") || !strcmp(a, "-h")) return 1;
-        if (a[0] != '-' || !a[1]) {
-            if (!o->kind)
-                o->kind = a;
-            else if (o->n_in < PLOT_MAX_INPUTS)
-                o->in[o->n_in++] = a;
-            else
-                return plot_err("at most 8 inputs (%s)", a);
-            continue;
-        }
-        if (i + 1 >= argc) return plot_err("%s needs a value (or is unknown)", a);
-        const char *v = argv[++i];
-        double d = 0;
-        bool num = afmt_parse_double(v, &d) == 0;
-        if (!strcmp(a, "-o") || !strcmp(a, "--output"))
-            o->out = v;
-        else if (!strcmp(a, "--data"))
-            o->data = v;
-        else if (!strcmp(a, "--fit"))
-            o->fit = v;
-        else if (!strcmp(a, "--title"))
-            o->title = v;
-        else if (!strcmp(a, "--size")) {
-            if (sscanf(v, "%dx%d", &o->width, &o->height) != 2 || o->width < 100 ||
-                o->height < 100 || o->width > 10000 || o->height > 10000)
-                return plot_err("--size '%s': expected WxH, 100..10000 pixels each", v);
-        } else if (!num) {
-            return plot_err("'%s' is not a number, or the option is unknown", v);
-        } else if (!strcmp(a, "--index") && d == floor(d) && fabs(d) < 1e9)
-            o->index = (int)d;
-        else if (!strcmp(a, "--stream") && d == floor(d) && d >= 0 && d < 128)
-            o->stream = (int)d;
-        else if (!strcmp(a, "--from"))
-            o->t_from_s = d;
-        else if (!strcmp(a, "--to"))
-            o->t_to_s = d;
-        else if (!strcmp(a, "--z"))
-            o->z_m = d;
-        else
-            return plot_err("unknown option or bad value: %s", a);
-    }
+    const afmt_opt opts[] = {
+        AFMT_ARG("KIND", &o->kind),
+        AFMT_ARG_FN("INPUT", add_input, o, "at most 8 inputs"),
+        AFMT_STRING("-o", &o->out),
+        AFMT_STRING("--output", &o->out),
+        AFMT_STRING("--data", &o->data),
+        AFMT_STRING("--fit", &o->fit),
+        AFMT_STRING("--title", &o->title),
+        AFMT_FN("--size", parse_size, o, "WxH, 100..10000 pixels each"),
+        AFMT_INT("--index", &o->index, -1e9 + 1, 1e9 - 1, NULL),
+        AFMT_INT("--stream", &o->stream, 0, 127, NULL),
+        AFMT_DOUBLE("--from", &o->t_from_s, 0, 0, NULL),
+        AFMT_DOUBLE("--to", &o->t_to_s, 0, 0, NULL),
+        AFMT_DOUBLE("--z", &o->z_m, 0, 0, NULL),
+        AFMT_OPTS_END,
+    };
+    _Static_assert(PLOT_MAX_INPUTS == 8, "add_input's error text");
+    int rc = afmt_opts_parse("plot", opts, argc, argv, 1);
+    if (rc) return rc == AFMT_OPTS_HELP ? 1 : -1;
     if (!o->kind)
         return plot_err("%s", "KIND is required (sweep, approach, thermal, trace, spectrum)");
     if (o->n_in == 0) return plot_err("%s", "an INPUT file is required");

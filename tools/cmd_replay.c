@@ -15,6 +15,7 @@
  * messages since the previous one, as the daemon publishes it (afm_lcm_digest). */
 #include "afmtwin_cmds.h"
 #include "lcm_tool.h"
+#include "opts.h"
 
 #include "transport/afm_cmd_lcm.h"
 #include "config/afm_config.h"
@@ -316,72 +317,34 @@ static void apply_event(replay_ctx *x, afm_cmd_kind kind, const afm_lcm_log_even
     afm_runner_model_destroy(&model);
 }
 
+/* --harmonics-max-hz: a rate cap instead of --harmonics-every (which it resets to 0). */
+static int parse_max_hz(const char *v, void *dest) {
+    replay_opts *o = dest;
+    double d;
+    if (afmt_parse_double(v, &d) || !(d >= 1) || d > 1e9) return -1;
+    o->harmonics_max_hz = d;
+    o->harmonics_every = 0;
+    return 0;
+}
+
 static int parse_opts(int argc, char **argv, replay_opts *o) {
-    for (int i = 1; i < argc; i++) {
-        const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
-        double d;
-        if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
-            replay_usage(stdout);
-            return 1;
-        } else if (!strcmp(a, "--lockstep")) {
-            o->lockstep = true;
-            continue;
-        } else if (!strcmp(a, "--quiet")) {
-            o->quiet = true;
-            continue;
-        } else if (!v) {
-            fprintf(stderr, "afmtwin replay: unknown or incomplete option '%s' (see --help)\n", a);
-            return 2;
-        } else if (!strcmp(a, "--config")) {
-            o->config = v;
-        } else if (!strcmp(a, "--in")) {
-            o->in = v;
-        } else if (!strcmp(a, "--out")) {
-            o->out = v;
-        } else if (!strcmp(a, "--prefix")) {
-            o->prefix = v;
-        } else if (!strcmp(a, "--block")) {
-            if (afmt_parse_double(v, &d) || d < 1 || d > 1048576 || d != floor(d)) {
-                fprintf(stderr,
-                        "afmtwin replay: --block wants an integer in 1..1048576, got '%s'\n", v);
-                return 2;
-            }
-            o->block = (int)d;
-        } else if (!strcmp(a, "--harmonics-every")) {
-            if (afmt_parse_double(v, &d) || d < 1 || d > 1e9 || d != floor(d)) {
-                fprintf(stderr,
-                        "afmtwin replay: --harmonics-every wants an integer >= 1, got '%s'\n", v);
-                return 2;
-            }
-            o->harmonics_every = (int)d;
-        } else if (!strcmp(a, "--harmonics-max-hz")) {
-            if (afmt_parse_double(v, &d) || !(d >= 1) || d > 1e9) {
-                fprintf(stderr, "afmtwin replay: --harmonics-max-hz wants 1..1e9 Hz, got '%s'\n",
-                        v);
-                return 2;
-            }
-            o->harmonics_max_hz = d;
-            o->harmonics_every = 0;
-        } else if (!strcmp(a, "--tail")) {
-            if (afmt_parse_double(v, &d) || !(d >= 0) || d > 1e4) {
-                fprintf(stderr, "afmtwin replay: --tail wants seconds in 0..1e4, got '%s'\n", v);
-                return 2;
-            }
-            o->tail_s = d;
-        } else if (!strcmp(a, "--channels")) {
-            if (afmt_parse_outputs(v, false, o->want)) {
-                fprintf(stderr,
-                        "afmtwin replay: --channels wants a comma-separated subset of "
-                        "samples,harmonics,status,tick_done, got '%s'\n",
-                        v);
-                return 2;
-            }
-        } else {
-            fprintf(stderr, "afmtwin replay: unknown option '%s' (see --help)\n", a);
-            return 2;
-        }
-        i++;
-    }
+    const afmt_opt opts[] = {
+        AFMT_FLAG("--lockstep", &o->lockstep),
+        AFMT_FLAG("--quiet", &o->quiet),
+        AFMT_STRING("--config", &o->config),
+        AFMT_STRING("--in", &o->in),
+        AFMT_STRING("--out", &o->out),
+        AFMT_STRING("--prefix", &o->prefix),
+        AFMT_INT("--block", &o->block, 1, 1048576, "an integer in 1..1048576"),
+        AFMT_INT("--harmonics-every", &o->harmonics_every, 1, 1e9, "an integer >= 1"),
+        AFMT_FN("--harmonics-max-hz", parse_max_hz, o, "1..1e9 Hz"),
+        AFMT_DOUBLE("--tail", &o->tail_s, 0, 1e4, "seconds in 0..1e4"),
+        AFMT_FN("--channels", afmt_opt_channels, o->want, AFMT_OPT_CHANNELS_WANTS),
+        AFMT_OPTS_END,
+    };
+    int rc = afmt_opts_parse("replay", opts, argc, argv, 1);
+    if (rc == AFMT_OPTS_HELP) replay_usage(stdout);
+    if (rc) return rc;
     if (!o->config || !o->in || !o->out) {
         fprintf(stderr, "afmtwin replay: --config, --in and --out are required (see --help)\n");
         return 2;

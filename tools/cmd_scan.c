@@ -11,6 +11,7 @@
 #include "runner/afm_scan.h"
 #include "runner/afm_twin.h"
 #include "json_out.h"
+#include "opts.h"
 
 #include <cjson/cJSON.h>
 #include <math.h>
@@ -67,18 +68,16 @@ static void scan_usage(FILE *f) {
                "Exit status 0 ok, 1 simulation failure, 2 bad usage or bad input.\n");
 }
 
-static int opt_num(const char *a, const char *v, double *out) {
-    char *end;
-    double d = strtod(v, &end);
-    if (end == v || *end || !isfinite(d)) {
-        fprintf(stderr, "afmtwin scan: %s wants a number, got '%s'\n", a, v);
-        return -1;
-    }
-    *out = d;
-    return 0;
+/* --integrator: rt or reference into an int (AFM_INTEGRATOR_*). */
+static int opt_scan_integrator(const char *v, void *dest) {
+    int *k = dest;
+    *k = !strcmp(v, "rt")          ? AFM_INTEGRATOR_RT
+         : !strcmp(v, "reference") ? AFM_INTEGRATOR_REFERENCE
+                                   : -1;
+    return *k < 0 ? -1 : 0;
 }
 
-/* 1 help, 0 ok, -1 bad usage (said). */
+/* 1 help, 0 ok, -1 bad usage (said). The ranges are afm_scan's (checked there again). */
 static int parse_args(int argc, char **argv, scan_opts *o) {
     *o = (scan_opts){.sc = {.size_x_m = 4e-7,
                             .pixels = 64,
@@ -93,65 +92,27 @@ static int parse_args(int argc, char **argv, scan_opts *o) {
                             .z_min_m = 0,
                             .z_max_m = 1e-5},
                      .integrator = -1};
-    for (int i = 1; i < argc; i++) {
-        const char *a = argv[i];
-        if (!strcmp(a, "--help") || !strcmp(a, "-h")) return 1;
-        if (!strcmp(a, "--json")) {
-            o->json = true;
-            continue;
-        }
-        if (i + 1 >= argc) {
-            fprintf(stderr, "afmtwin scan: %s needs a value (or is unknown)\n", a);
-            return -1;
-        }
-        const char *v = argv[++i];
-        double d = 0;
-        if (!strcmp(a, "--config")) {
-            o->config = v;
-            continue;
-        }
-        if (!strcmp(a, "--integrator")) {
-            o->integrator = !strcmp(v, "rt")          ? AFM_INTEGRATOR_RT
-                            : !strcmp(v, "reference") ? AFM_INTEGRATOR_REFERENCE
-                                                      : -1;
-            if (o->integrator < 0) {
-                fprintf(stderr, "afmtwin scan: --integrator '%s': expected rt or reference\n", v);
-                return -1;
-            }
-            continue;
-        }
-        if (opt_num(a, v, &d)) return -1;
-        if (!strcmp(a, "--size-x"))
-            o->sc.size_x_m = d;
-        else if (!strcmp(a, "--size-y"))
-            o->sc.size_y_m = d;
-        else if (!strcmp(a, "--x0"))
-            o->sc.x0_m = d;
-        else if (!strcmp(a, "--y0"))
-            o->sc.y0_m = d;
-        else if (!strcmp(a, "--pixels") && d == floor(d) && fabs(d) < 1e9)
-            o->sc.pixels = (int)d;
-        else if (!strcmp(a, "--lines") && d == floor(d) && fabs(d) < 1e9)
-            o->sc.lines = (int)d;
-        else if (!strcmp(a, "--line-rate"))
-            o->sc.line_rate_hz = d;
-        else if (!strcmp(a, "--engage"))
-            o->sc.engage_s = d;
-        else if (!strcmp(a, "--update") && d == floor(d) && fabs(d) < 1e9)
-            o->sc.update_samples = (int)d;
-        else if (!strcmp(a, "--setpoint"))
-            o->pc.setpoint_ratio = d;
-        else if (!strcmp(a, "--kp"))
-            o->pc.kp = d;
-        else if (!strcmp(a, "--ki"))
-            o->pc.ki_hz = d;
-        else if (!strcmp(a, "--z-rate"))
-            o->pc.z_rate_max_m_s = d;
-        else {
-            fprintf(stderr, "afmtwin scan: unknown option or bad value: %s %s\n", a, v);
-            return -1;
-        }
-    }
+    const afmt_opt opts[] = {
+        AFMT_FLAG("--json", &o->json),
+        AFMT_STRING("--config", &o->config),
+        AFMT_DOUBLE_ABOVE("--size-x", &o->sc.size_x_m, 0, 1e-3, "(0, 1e-3] m"),
+        AFMT_DOUBLE("--size-y", &o->sc.size_y_m, 0, 1e-3, "[0, 1e-3] m"),
+        AFMT_DOUBLE("--x0", &o->sc.x0_m, -1, 1, "[-1, 1] m"),
+        AFMT_DOUBLE("--y0", &o->sc.y0_m, -1, 1, "[-1, 1] m"),
+        AFMT_INT("--pixels", &o->sc.pixels, 2, 100000, NULL),
+        AFMT_INT("--lines", &o->sc.lines, 1, 100000, NULL),
+        AFMT_DOUBLE_ABOVE("--line-rate", &o->sc.line_rate_hz, 0, 1e4, "(0, 1e4] Hz"),
+        AFMT_DOUBLE("--engage", &o->sc.engage_s, 0, 10, "[0, 10] s"),
+        AFMT_INT("--update", &o->sc.update_samples, 1, 4096, NULL),
+        AFMT_DOUBLE_ABOVE("--setpoint", &o->pc.setpoint_ratio, 0, 0.999999, "(0, 1)"),
+        AFMT_DOUBLE("--kp", &o->pc.kp, 0, 1e3, "[0, 1e3]"),
+        AFMT_DOUBLE_ABOVE("--ki", &o->pc.ki_hz, 0, 1e8, "(0, 1e8] 1/s"),
+        AFMT_DOUBLE_ABOVE("--z-rate", &o->pc.z_rate_max_m_s, 0, 10, "(0, 10] m/s"),
+        AFMT_FN("--integrator", opt_scan_integrator, &o->integrator, "rt or reference"),
+        AFMT_OPTS_END,
+    };
+    int rc = afmt_opts_parse("scan", opts, argc, argv, 1);
+    if (rc) return rc == AFMT_OPTS_HELP ? 1 : -1;
     if (!o->config) {
         fprintf(stderr, "afmtwin scan: --config is required\n");
         return -1;

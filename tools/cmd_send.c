@@ -3,6 +3,7 @@
  * control, tick), checks it with the daemon's own validation and publishes it on LCM or
  * appends it to an LCM log; `send raw` publishes arbitrary bytes (for bad-input tests). */
 #include "afmtwin_cmds.h"
+#include "opts.h"
 #include "lcm_tool.h"
 #include "send_wait.h"
 
@@ -131,104 +132,107 @@ typedef struct {
     const char *hex;
 } send_args;
 
-static int bad_value(const char *opt, const char *v, const char *want) {
-    fprintf(stderr, "afmtwin send: %s wants %s, got '%s'\n", opt, want, v);
-    return 2;
+static int parse_seq(const char *v, void *dest) {
+    send_common *o = dest;
+    o->have_seq = true;
+    return parse_i64(v, INT64_MIN, INT64_MAX, &o->seq);
+}
+
+static int parse_utime(const char *v, void *dest) {
+    send_common *o = dest;
+    o->have_utime = true;
+    return parse_i64(v, INT64_MIN, INT64_MAX, &o->utime);
+}
+
+static int parse_n(const char *v, void *dest) {
+    send_args *a = dest;
+    a->have_n = true;
+    return parse_i64(v, INT64_MIN, INT64_MAX, &a->n);
+}
+
+static int parse_z(const char *v, void *dest) {
+    send_args *a = dest;
+    a->have_z = true;
+    return afmt_opt_any_number(v, &a->z);
+}
+
+/* --freq, --amp, --phase: 1..AFM_MAX_TONES comma-separated numbers. */
+static int parse_freq(const char *v, void *dest) {
+    send_args *a = dest;
+    return (a->n_freq = afmt_parse_list(v, a->freq, AFM_MAX_TONES)) < 1 ? -1 : 0;
+}
+
+static int parse_amp(const char *v, void *dest) {
+    send_args *a = dest;
+    return (a->n_amp = afmt_parse_list(v, a->amp, AFM_MAX_TONES)) < 1 ? -1 : 0;
+}
+
+static int parse_phase(const char *v, void *dest) {
+    send_args *a = dest;
+    return (a->n_phase = afmt_parse_list(v, a->phase, AFM_MAX_TONES)) < 1 ? -1 : 0;
+}
+
+/* param's NAME=VALUE words (at most SEND_MAX_PARAMS). */
+static int add_param(const char *s, void *dest) {
+    send_args *a = dest;
+    const char *eq = strchr(s, '=');
+    if (!eq || eq == s || a->n_params >= SEND_MAX_PARAMS ||
+        (size_t)(eq - s) >= sizeof a->name_buf[0]) {
+        fprintf(stderr, "afmtwin send param: want NAME=VALUE (at most %d), got '%s'\n",
+                SEND_MAX_PARAMS, s);
+        return AFMT_OPT_REPORTED;
+    }
+    int k = a->n_params;
+    memcpy(a->name_buf[k], s, (size_t)(eq - s));
+    a->name_buf[k][eq - s] = 0;
+    if (afmt_opt_any_number(eq + 1, &a->values[k])) {
+        fprintf(stderr, "afmtwin send param: %s wants a number, got '%s'\n", a->name_buf[k],
+                eq + 1);
+        return AFMT_OPT_REPORTED;
+    }
+    a->names[k] = a->name_buf[k];
+    a->n_params++;
+    return 0;
 }
 
 /* Common and kind options; positional words go to the param list or the control action. */
 static int parse_args(int argc, char **argv, const char *kind, send_common *o, send_args *a) {
-    for (int i = 2; i < argc; i++) {
-        const char *s = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
-        bool takes = true;
-        if (!strcmp(s, "--lcm-url") && v)
-            o->url = v;
-        else if (!strcmp(s, "--prefix") && v)
-            o->prefix = v;
-        else if (!strcmp(s, "--channel") && v)
-            o->channel = v;
-        else if (!strcmp(s, "--config") && v)
-            o->config = v;
-        else if (!strcmp(s, "--lcm-out-url") && v)
-            o->out_url = v;
-        else if (!strcmp(s, "--wait-timeout") && v) {
-            if (afmt_parse_double(v, &o->wait_s) || !(o->wait_s > 0) || o->wait_s > 3600)
-                return bad_value(s, v, "seconds in (0, 3600]");
-        } else if (!strcmp(s, "--log") && v)
-            o->log = v;
-        else if (!strcmp(s, "--log-time") && v) {
-            if (afmt_parse_double(v, &o->log_time_s) || !isfinite(o->log_time_s) ||
-                o->log_time_s < 0 || o->log_time_s > 9e12)
-                return bad_value(s, v, "seconds >= 0");
-        } else if (!strcmp(s, "--seq") && v) {
-            if (parse_i64(v, INT64_MIN, INT64_MAX, &o->seq)) return bad_value(s, v, "an integer");
-            o->have_seq = true;
-        } else if (!strcmp(s, "--utime") && v) {
-            if (parse_i64(v, INT64_MIN, INT64_MAX, &o->utime)) return bad_value(s, v, "an integer");
-            o->have_utime = true;
-        } else if (!strcmp(s, "--truncate") && v) {
-            int64_t t;
-            if (parse_i64(v, 0, SEND_MAX_BYTES, &t)) return bad_value(s, v, "a byte count >= 0");
-            o->truncate = (long)t;
-        } else if (!strcmp(s, "--freq") && v) {
-            if ((a->n_freq = afmt_parse_list(v, a->freq, AFM_MAX_TONES)) < 1)
-                return bad_value(s, v, "1..4 comma-separated numbers (Hz)");
-        } else if (!strcmp(s, "--amp") && v) {
-            if ((a->n_amp = afmt_parse_list(v, a->amp, AFM_MAX_TONES)) < 1)
-                return bad_value(s, v, "1..4 comma-separated numbers (m)");
-        } else if (!strcmp(s, "--phase") && v) {
-            if ((a->n_phase = afmt_parse_list(v, a->phase, AFM_MAX_TONES)) < 1)
-                return bad_value(s, v, "1..4 comma-separated numbers (rad)");
-        } else if (!strcmp(s, "--z") && v) {
-            if (afmt_parse_double(v, &a->z)) return bad_value(s, v, "a number (m)");
-            a->have_z = true;
-        } else if (!strcmp(s, "--ramp") && v) {
-            if (afmt_parse_double(v, &a->ramp)) return bad_value(s, v, "a number (m/s)");
-        } else if (!strcmp(s, "--n") && v) {
-            if (parse_i64(v, INT64_MIN, INT64_MAX, &a->n)) return bad_value(s, v, "an integer");
-            a->have_n = true;
-        } else if (!strcmp(s, "--hex") && v) {
-            a->hex = v;
-        } else {
-            takes = false;
-            if (!strcmp(s, "--no-check"))
-                o->no_check = true;
-            else if (!strcmp(s, "--check"))
-                o->check_only = true;
-            else if (!strcmp(s, "--wait"))
-                o->wait = true;
-            else if (!strcmp(s, "--quiet"))
-                o->quiet = true;
-            else if (s[0] == '-' && s[1] == '-') {
-                fprintf(stderr, "afmtwin send %s: unknown or incomplete option '%s' (see --help)\n",
-                        kind, s);
-                return 2;
-            } else if (!strcmp(kind, "control") && !a->action) {
-                a->action = s;
-            } else if (!strcmp(kind, "param")) {
-                const char *eq = strchr(s, '=');
-                if (!eq || eq == s || a->n_params >= SEND_MAX_PARAMS ||
-                    (size_t)(eq - s) >= sizeof a->name_buf[0]) {
-                    fprintf(stderr, "afmtwin send param: want NAME=VALUE (at most %d), got '%s'\n",
-                            SEND_MAX_PARAMS, s);
-                    return 2;
-                }
-                int k = a->n_params;
-                memcpy(a->name_buf[k], s, (size_t)(eq - s));
-                a->name_buf[k][eq - s] = 0;
-                if (afmt_parse_double(eq + 1, &a->values[k]))
-                    return bad_value(a->name_buf[k], eq + 1, "a number");
-                a->names[k] = a->name_buf[k];
-                a->n_params++;
-            } else {
-                fprintf(stderr, "afmtwin send %s: unexpected argument '%s' (see --help)\n", kind,
-                        s);
-                return 2;
-            }
-        }
-        if (takes) i++;
-    }
-    return 0;
+    afmt_opt opts[] = {
+        AFMT_STRING("--lcm-url", &o->url),
+        AFMT_STRING("--prefix", &o->prefix),
+        AFMT_STRING("--channel", &o->channel),
+        AFMT_STRING("--config", &o->config),
+        AFMT_STRING("--lcm-out-url", &o->out_url),
+        AFMT_DOUBLE_ABOVE("--wait-timeout", &o->wait_s, 0, 3600, "seconds in (0, 3600]"),
+        AFMT_STRING("--log", &o->log),
+        AFMT_DOUBLE("--log-time", &o->log_time_s, 0, 9e12, "seconds >= 0"),
+        AFMT_FN("--seq", parse_seq, o, "an integer"),
+        AFMT_FN("--utime", parse_utime, o, "an integer"),
+        AFMT_LONG("--truncate", &o->truncate, 0, SEND_MAX_BYTES, "a byte count >= 0"),
+        AFMT_FN("--freq", parse_freq, a, "1..4 comma-separated numbers (Hz)"),
+        AFMT_FN("--amp", parse_amp, a, "1..4 comma-separated numbers (m)"),
+        AFMT_FN("--phase", parse_phase, a, "1..4 comma-separated numbers (rad)"),
+        AFMT_FN("--z", parse_z, a, "a number (m)"),
+        AFMT_FN("--ramp", afmt_opt_any_number, &a->ramp, "a number (m/s)"),
+        AFMT_FN("--n", parse_n, a, "an integer"),
+        AFMT_STRING("--hex", &a->hex),
+        AFMT_FLAG("--no-check", &o->no_check),
+        AFMT_FLAG("--check", &o->check_only),
+        AFMT_FLAG("--wait", &o->wait),
+        AFMT_FLAG("--quiet", &o->quiet),
+        AFMT_OPTS_END, /* control's ACTION or param's NAME=VALUE words */
+        AFMT_OPTS_END,
+    };
+    _Static_assert(AFM_MAX_TONES == 4, "the tone lists' error texts");
+    afmt_opt *words = &opts[sizeof opts / sizeof opts[0] - 2];
+    if (!strcmp(kind, "control"))
+        *words = (afmt_opt)AFMT_ARG("ACTION", &a->action);
+    else if (!strcmp(kind, "param"))
+        *words = (afmt_opt)AFMT_ARG_FN("NAME=VALUE", add_param, a, NULL);
+    char tool[64];
+    snprintf(tool, sizeof tool, "send %s", kind);
+    int rc = afmt_opts_parse(tool, opts, argc, argv, 2);
+    return rc == AFMT_OPTS_OK ? 0 : 2; /* --help was answered before */
 }
 
 /* Build and encode the message of kind into buf. Returns the byte count, -2 on bad usage

@@ -19,6 +19,7 @@
  * same seed sends the same commands (the times depend on the echoes). */
 #include "afmtwin_cmds.h"
 #include "lcm_tool.h"
+#include "opts.h"
 
 #include "runner/afm_cmd.h"
 #include "config/afm_config.h"
@@ -375,6 +376,14 @@ static int cmp_d(const void *a, const void *b) {
     return (x > y) - (x < y);
 }
 
+/* --block-us US: the block length, stored in seconds. */
+static int parse_block_us(const char *v, void *dest) {
+    double d;
+    if (afmt_parse_double(v, &d) || !(d >= 10 && d <= 1e6)) return -1;
+    *(double *)dest = d * 1e-6;
+    return 0;
+}
+
 int afm_cmd_soak(int argc, char **argv) {
     static soak_ctx c;
     memset(&c, 0, sizeof c);
@@ -386,61 +395,29 @@ int afm_cmd_soak(int argc, char **argv) {
     c.min_rtf = INFINITY;
     c.min_rtf_ok = 0.99;
     c.echoed_seq = -1;
-    for (int i = 1; i < argc; i++) {
-        const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
-        double d = 0;
-        if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
-            usage(stdout);
-            return 0;
-        } else if (!strcmp(a, "--quiet")) {
-            c.quiet = true;
-            continue;
-        } else if (!v) {
-            fprintf(stderr, "afmtwin soak: unknown or incomplete option '%s'\n", a);
-            return 2;
-        } else if (!strcmp(a, "--config")) {
-            c.config = v;
-        } else if (!strcmp(a, "--log")) {
-            c.log = v;
-        } else if (!strcmp(a, "--lcm-url")) {
-            c.url = v;
-        } else if (!strcmp(a, "--lcm-out-url")) {
-            c.out_url = v;
-        } else if (!strcmp(a, "--lcm-samples-url")) {
-            c.samples_url = v;
-        } else if (!strcmp(a, "--prefix")) {
-            c.prefix = v;
-        } else if (afmt_parse_double(v, &d) || !isfinite(d)) {
-            fprintf(stderr, "afmtwin soak: %s wants a number, got '%s'\n", a, v);
-            return 2;
-        } else if (!strcmp(a, "--seconds") && d >= 1 && d <= 1e5) {
-            c.seconds = d;
-        } else if (!strcmp(a, "--seed") && d >= 0 && d == floor(d)) {
-            c.seed = (uint64_t)d;
-        } else if (!strcmp(a, "--max-rate-hz") && d >= 1 && d <= 1000) {
-            c.max_rate_hz = d;
-        } else if (!strcmp(a, "--min-rtf") && d >= 0.5 && d <= 1) {
-            c.min_rtf_ok = d;
-        } else if (!strcmp(a, "--block-us") && d >= 10 && d <= 1e6) {
-            c.block_s = d * 1e-6;
-        } else if (!strcmp(a, "--rt-priority") && d >= 0 && d <= 99 && d == floor(d)) {
-            c.rt_priority = (int)d;
-        } else {
-            fprintf(stderr, "afmtwin soak: bad option or value: %s %s (see --help)\n", a, v);
-            return 2;
-        }
-        i++;
-    }
+    const afmt_opt opts[] = {
+        AFMT_FLAG("--quiet", &c.quiet),
+        AFMT_STRING("--config", &c.config),
+        AFMT_STRING("--log", &c.log),
+        AFMT_LCM_OPTS(&c.url, &c.out_url, &c.samples_url, &c.prefix),
+        AFMT_DOUBLE("--seconds", &c.seconds, 1, 1e5, "seconds in 1..1e5"),
+        AFMT_NUMBER("--seed", AFMT_OPT_U64, &c.seed, 0, 1.8e19, "an integer >= 0"),
+        AFMT_DOUBLE("--max-rate-hz", &c.max_rate_hz, 1, 1000, "1..1000 Hz"),
+        AFMT_DOUBLE("--min-rtf", &c.min_rtf_ok, 0.5, 1, "a real-time factor in 0.5..1"),
+        AFMT_FN("--block-us", parse_block_us, &c.block_s, "10..1e6 us"),
+        AFMT_INT("--rt-priority", &c.rt_priority, 0, 99, "a SCHED_FIFO priority in 0..99"),
+        AFMT_OPTS_END,
+    };
+    int prc = afmt_opts_parse("soak", opts, argc, argv, 1);
+    if (prc == AFMT_OPTS_HELP) usage(stdout);
+    if (prc) return prc == AFMT_OPTS_HELP ? 0 : 2;
     if (!c.config) {
         fprintf(stderr, "afmtwin soak: --config FILE is required (see --help)\n");
         return 2;
     }
     static afm_config cfg;
     char err[AFM_ERR_LEN];
-    if (afm_config_load(c.config, &cfg, err, sizeof err)) {
-        fprintf(stderr, "afmtwin soak: %s\n", err);
-        return 2;
-    }
+    if (afmt_config_load("soak", c.config, &cfg)) return 2;
     c.fs = cfg.sim.sample_rate_hz;
     c.f1 = cfg.drive.tones[0].frequency_hz;
     {

@@ -7,6 +7,7 @@
  * C.4) and the stepwise experiments, so a forward sweep can climb a high-amplitude branch
  * that a start from rest would miss. */
 #include "afmtwin_cmds.h"
+#include "opts.h"
 #include "json_out.h"
 
 #include "config/afm_config.h"
@@ -126,32 +127,9 @@ static double now_s(void) {
     return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
-/* A finite number that uses the whole string. */
-static int parse_double(const char *opt, const char *s, double *out) {
-    char *end;
-    errno = 0;
-    double v = strtod(s, &end);
-    if (end == s || *end != '\0' || errno == ERANGE || !isfinite(v)) {
-        fprintf(stderr, "afmtwin sweep: %s '%s' is not a finite number\n", opt, s);
-        return -1;
-    }
-    *out = v;
-    return 0;
-}
-
-static int parse_int(const char *opt, const char *s, long lo, long hi, int *out) {
-    char *end;
-    errno = 0;
-    long v = strtol(s, &end, 10);
-    if (end == s || *end != '\0' || errno == ERANGE || v < lo || v > hi) {
-        fprintf(stderr, "afmtwin sweep: %s '%s' must be an integer in %ld..%ld\n", opt, s, lo, hi);
-        return -1;
-    }
-    *out = (int)v;
-    return 0;
-}
-
-static int parse_harmonics(const char *s, sweep_opts *o) {
+/* --harmonics K[,K..] into o->ks, o->nk (its own messages: which part is wrong). */
+static int parse_harmonics(const char *s, void *dest) {
+    sweep_opts *o = dest;
     o->nk = 0;
     const char *p = s;
     while (*p) {
@@ -163,23 +141,23 @@ static int parse_harmonics(const char *s, sweep_opts *o) {
                     "afmtwin sweep: --harmonics '%s': expected integers >= 1 separated by "
                     "commas\n",
                     s);
-            return -1;
+            return AFMT_OPT_REPORTED;
         }
         if (o->nk == AFM_MAX_HARMONICS) {
             fprintf(stderr, "afmtwin sweep: --harmonics '%s': at most %d harmonics\n", s,
                     AFM_MAX_HARMONICS);
-            return -1;
+            return AFMT_OPT_REPORTED;
         }
         o->ks[o->nk++] = (int)k;
         p = *end == ',' ? end + 1 : end;
         if (*end == ',' && *p == '\0') {
             fprintf(stderr, "afmtwin sweep: --harmonics '%s': trailing comma\n", s);
-            return -1;
+            return AFMT_OPT_REPORTED;
         }
     }
     if (o->nk == 0) {
         fprintf(stderr, "afmtwin sweep: --harmonics is empty\n");
-        return -1;
+        return AFMT_OPT_REPORTED;
     }
     return 0;
 }
@@ -191,78 +169,23 @@ static int parse_args(int argc, char **argv, sweep_opts *o) {
     o->integrator = -1;
     o->max_periods = DEFAULT_MAX_PERIODS;
     o->tol = DEFAULT_TOL;
-    bool have_from = false, have_to = false;
-    for (int i = 1; i < argc; i++) {
-        const char *a = argv[i];
-        if (!strcmp(a, "--help") || !strcmp(a, "-h")) return 1;
-        if (!strcmp(a, "--json")) {
-            o->json = true;
-            continue;
-        }
-        static const char *const with_value[] = {
-            "--config", "--from",      "--to",         "--step",        "--ae",
-            "--z",      "--harmonics", "--integrator", "--max-periods", "--tol"};
-        int which = -1;
-        for (int j = 0; j < (int)(sizeof with_value / sizeof with_value[0]); j++)
-            if (!strcmp(a, with_value[j])) which = j;
-        if (which < 0) {
-            fprintf(stderr, "afmtwin sweep: unknown option '%s'\n", a);
-            return -1;
-        }
-        if (i + 1 >= argc) {
-            fprintf(stderr, "afmtwin sweep: %s needs a value\n", a);
-            return -1;
-        }
-        const char *v = argv[++i];
-        int rc = 0;
-        switch (which) {
-        case 0:
-            o->config = v;
-            break;
-        case 1:
-            rc = parse_double(a, v, &o->from_hz);
-            have_from = true;
-            break;
-        case 2:
-            rc = parse_double(a, v, &o->to_hz);
-            have_to = true;
-            break;
-        case 3:
-            rc = parse_double(a, v, &o->step_hz);
-            break;
-        case 4:
-            rc = parse_double(a, v, &o->ae_m);
-            break;
-        case 5:
-            rc = parse_double(a, v, &o->z_m);
-            break;
-        case 6:
-            rc = parse_harmonics(v, o);
-            break;
-        case 7:
-            if (!strcmp(v, "rt"))
-                o->integrator = AFM_INTEGRATOR_RT;
-            else if (!strcmp(v, "reference"))
-                o->integrator = AFM_INTEGRATOR_REFERENCE;
-            else if (!strcmp(v, "arkode-erk"))
-                o->integrator = AFM_INTEGRATOR_ARKODE_ERK;
-            else {
-                fprintf(stderr,
-                        "afmtwin sweep: --integrator '%s': expected rt, reference or "
-                        "arkode-erk\n",
-                        v);
-                rc = -1;
-            }
-            break;
-        case 8:
-            rc = parse_int(a, v, 2, 100000000, &o->max_periods);
-            break;
-        case 9:
-            rc = parse_double(a, v, &o->tol);
-            break;
-        }
-        if (rc) return -1;
-    }
+    const afmt_opt opts[] = {
+        AFMT_FLAG("--json", &o->json),
+        AFMT_STRING("--config", &o->config),
+        AFMT_DOUBLE("--from", &o->from_hz, 0, 0, NULL),
+        AFMT_DOUBLE("--to", &o->to_hz, 0, 0, NULL),
+        AFMT_DOUBLE("--step", &o->step_hz, 0, 0, NULL),
+        AFMT_DOUBLE("--ae", &o->ae_m, 0, 0, NULL),
+        AFMT_DOUBLE("--z", &o->z_m, 0, 0, NULL),
+        AFMT_FN("--harmonics", parse_harmonics, o, NULL),
+        AFMT_FN("--integrator", afmt_opt_integrator, &o->integrator, AFMT_OPT_INTEGRATOR_WANTS),
+        AFMT_INT("--max-periods", &o->max_periods, 2, 100000000, NULL),
+        AFMT_DOUBLE("--tol", &o->tol, 0, 0, NULL),
+        AFMT_OPTS_END,
+    };
+    int rc = afmt_opts_parse("sweep", opts, argc, argv, 1);
+    if (rc) return rc == AFMT_OPTS_HELP ? 1 : -1;
+    bool have_from = !isnan(o->from_hz), have_to = !isnan(o->to_hz); /* only finite values */
     if (!o->config) {
         fprintf(stderr, "afmtwin sweep: --config FILE is required\n");
         return -1;
@@ -478,10 +401,7 @@ int afm_cmd_sweep(int argc, char **argv) {
 
     static afm_config cfg;
     char err[AFM_ERR_LEN];
-    if (afm_config_load(o.config, &cfg, err, sizeof err) != 0) {
-        fprintf(stderr, "afmtwin sweep: %s\n", err);
-        return 2;
-    }
+    if (afmt_config_load("sweep", o.config, &cfg)) return 2;
     double fs = cfg.sim.sample_rate_hz, f_hi = fmax(o.from_hz, o.to_hz);
     double f_lo = fmin(o.from_hz, o.to_hz);
     if (f_hi >= 0.5 * fs) {

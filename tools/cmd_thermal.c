@@ -12,6 +12,7 @@
  * intrinsic Q_n = 1 / (2 xi_n) is only what the tune should see without any of it. */
 #include "afmtwin_cmds.h"
 #include "json_out.h"
+#include "opts.h"
 
 #include "config/afm_config.h"
 #include "runner/afm_thermfit.h"
@@ -70,67 +71,28 @@ static void thermal_usage(FILE *f) {
         MAX_SECONDS, DEFAULT_MODES, DEFAULT_SEGMENT_S, MIN_SEGMENTS);
 }
 
-static int parse_double(const char *s, double *out) {
-    char *end;
-    errno = 0;
-    double v = strtod(s, &end);
-    if (errno || end == s || *end || !isfinite(v)) return -1;
-    *out = v;
+/* --signal x|obd: what the PSD is of (true: the OBD reading). */
+static int parse_signal(const char *v, void *obd) {
+    if (strcmp(v, "x") && strcmp(v, "obd")) return -1;
+    *(bool *)obd = !strcmp(v, "obd");
     return 0;
 }
 
 static int parse_args(int argc, char **argv, thermal_opts *o) {
     *o = (thermal_opts){.seconds = NAN, .segment_s = NAN, .modes = DEFAULT_MODES};
-    for (int i = 1; i < argc; i++) {
-        const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
-        if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
-            thermal_usage(stdout);
-            return 1;
-        } else if (!strcmp(a, "--json")) {
-            o->json = true;
-        } else if (!v) {
-            fprintf(stderr, "afmtwin thermal: unknown or incomplete option '%s'\n", a);
-            return -1;
-        } else if (!strcmp(a, "--config")) {
-            o->config = argv[++i];
-        } else if (!strcmp(a, "--psd")) {
-            o->psd_path = argv[++i];
-        } else if (!strcmp(a, "--seconds")) {
-            if (parse_double(argv[++i], &o->seconds) || !(o->seconds > 0) ||
-                o->seconds > MAX_SECONDS) {
-                fprintf(stderr, "afmtwin thermal: --seconds must be in (0, %g], got '%s'\n",
-                        MAX_SECONDS, argv[i]);
-                return -1;
-            }
-        } else if (!strcmp(a, "--segment-s")) {
-            if (parse_double(argv[++i], &o->segment_s) || !(o->segment_s > 0)) {
-                fprintf(stderr, "afmtwin thermal: --segment-s must be > 0, got '%s'\n", argv[i]);
-                return -1;
-            }
-        } else if (!strcmp(a, "--modes")) {
-            char *end;
-            long n = strtol(argv[++i], &end, 10);
-            if (*end || end == argv[i] || n < 1 || n > AFM_MAX_MODES) {
-                fprintf(stderr, "afmtwin thermal: --modes must be in [1, %d], got '%s'\n",
-                        AFM_MAX_MODES, argv[i]);
-                return -1;
-            }
-            o->modes = (int)n;
-        } else if (!strcmp(a, "--signal")) {
-            i++;
-            if (!strcmp(argv[i], "x"))
-                o->obd = false;
-            else if (!strcmp(argv[i], "obd"))
-                o->obd = true;
-            else {
-                fprintf(stderr, "afmtwin thermal: --signal must be x or obd, got '%s'\n", argv[i]);
-                return -1;
-            }
-        } else {
-            fprintf(stderr, "afmtwin thermal: unknown option '%s'\n", a);
-            return -1;
-        }
-    }
+    const afmt_opt opts[] = {
+        AFMT_FLAG("--json", &o->json),
+        AFMT_STRING("--config", &o->config),
+        AFMT_STRING("--psd", &o->psd_path),
+        AFMT_DOUBLE_ABOVE("--seconds", &o->seconds, 0, MAX_SECONDS, NULL),
+        AFMT_DOUBLE_ABOVE("--segment-s", &o->segment_s, 0, HUGE_VAL, "seconds > 0"),
+        AFMT_INT("--modes", &o->modes, 1, AFM_MAX_MODES, NULL),
+        AFMT_FN("--signal", parse_signal, &o->obd, "x or obd"),
+        AFMT_OPTS_END,
+    };
+    int rc = afmt_opts_parse("thermal", opts, argc, argv, 1);
+    if (rc == AFMT_OPTS_HELP) thermal_usage(stdout);
+    if (rc) return rc == AFMT_OPTS_HELP ? 1 : -1;
     if (!o->config || isnan(o->seconds)) {
         fprintf(stderr, "afmtwin thermal: --config FILE and --seconds S are required\n");
         return -1;
@@ -213,10 +175,7 @@ int afm_cmd_thermal(int argc, char **argv) {
     }
     static afm_config cfg;
     char err[AFM_ERR_LEN];
-    if (afm_config_load(o.config, &cfg, err, sizeof err) != 0) {
-        fprintf(stderr, "afmtwin thermal: %s\n", err);
-        return 2;
-    }
+    if (afmt_config_load("thermal", o.config, &cfg)) return 2;
     afm_thermfit_tune_config(&cfg);
     if (afm_config_validate(&cfg, err, sizeof err) != 0) {
         fprintf(stderr, "afmtwin thermal: %s\n", err);

@@ -130,24 +130,6 @@ int afmt_parse_double(const char *s, double *v) {
     return 0;
 }
 
-int afmt_opt_double(const char *tool, const char *opt, const char *v, double *out) {
-    if (afmt_parse_double(v, out) != 0 || !isfinite(*out)) {
-        fprintf(stderr, "afmtwin %s: %s '%s' is not a finite number\n", tool, opt, v);
-        return -1;
-    }
-    return 0;
-}
-
-int afmt_opt_int(const char *tool, const char *opt, const char *v, int lo, int hi, int *out) {
-    double d;
-    if (afmt_parse_double(v, &d) != 0 || d != floor(d) || d < lo || d > hi) {
-        fprintf(stderr, "afmtwin %s: %s '%s' must be an integer in %d..%d\n", tool, opt, v, lo, hi);
-        return -1;
-    }
-    *out = (int)d;
-    return 0;
-}
-
 int afmt_parse_list(const char *s, double *v, int max) {
     char buf[512];
     if (!s || strlen(s) >= sizeof buf) return -1;

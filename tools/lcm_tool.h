@@ -94,10 +94,6 @@ int afmt_log_write(lcm_eventlog_t *log, int64_t utime_us, const char *channel, c
 /* Whole-string number: 0, or -1 (empty, trailing junk, out of range). Accepts nan/inf
  * spellings, so that callers can test the validation of non-finite values. */
 int afmt_parse_double(const char *s, double *v);
-/* An option's value for tool (e.g. "approach"): a finite number, or an integer in lo..hi;
- * 0, or -1 with "afmtwin TOOL: OPT 'V' ..." said on stderr. */
-int afmt_opt_double(const char *tool, const char *opt, const char *v, double *out);
-int afmt_opt_int(const char *tool, const char *opt, const char *v, int lo, int hi, int *out);
 /* Comma-separated list of up to max numbers: count, or -1. */
 int afmt_parse_list(const char *s, double *v, int max);
 /* A comma-separated subset of names[0..n) into want[0..n) (the rest false): 0, or -1 (an

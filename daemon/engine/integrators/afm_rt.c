@@ -61,17 +61,30 @@
 #define RT_NEWTON_MAX 12
 #define RT_KB_J_K 1.380649e-23 /* Boltzmann constant (exact, SI 2019) */
 
+/* The tip at the end of a piece and what a full step from there needs of it. The free step
+ * carries it in registers from sample to sample (rt_run_t), so that the chain from one force
+ * to the next does not go through a store and a load; rt_snap holds the same struct. */
+typedef struct {
+    double x_m, v_m_s, f_n; /* tip displacement (m), velocity (m/s), tip-sample force (N) */
+    /* x*, v*: the tip at the end of a full step from here without the response to that
+     * step's end force (m, m/s) */
+    double x_free_m, v_free_m_s;
+    /* 1 / max(1 - fx gx - fv gv, 1/4) (dimensionless) at the last force evaluation, for a
+     * piece of rt_snap.slope_cells cells; in a free-standing rt_tip, for a full step */
+    double inv_slope;
+    /* x, v and the gap d = x cos(alpha) + Z at the full step's first guess, its end force
+     * held at f_n: x_free_m + gx f_n, ... (m, m/s, m) */
+    double x_guess_m, v_guess_m_s, gap_guess_m;
+} rt_tip;
+
 /* The state a step reads and writes; two of them so a trial step can be dropped. */
 typedef struct {
-    double q[AFM_MAX_MODES], v[AFM_MAX_MODES];       /* homogeneous part qh, qh' */
+    double q[AFM_MAX_MODES], v[AFM_MAX_MODES];       /* homogeneous part qh (m), qh' (m/s) */
     double z_re[AFM_MAX_TONES], z_im[AFM_MAX_TONES]; /* e^{i theta_j} */
-    double x, xd, f;                                 /* tip displacement, velocity, force */
-    double xn, vn;     /* x*, v* of a full step from here: the tip without its F1 response */
-    double xg, vg, dg; /* x, v, d at that step's first guess (F held at f): rt_tip */
-    double fx, fv;     /* df/dx, df/dv from the last force evaluation */
-    double rj;         /* 1 / (1 - fx gx - fv gv) there, for the step length rk... */
-    int rk;            /* ...in cells (0: none) */
-    double dfc;        /* force change per cell over the piece that ended here (N) */
+    rt_tip tip;
+    double dfdx_n_m, dfdv_n_s_m; /* df/dx (N/m), df/dv (N s/m) at the last force evaluation */
+    int slope_cells;             /* the piece length tip.inv_slope is for, in cells (0: none) */
+    double df_per_cell_n;        /* force change per cell over the piece that ended here (N) */
 } rt_snap;
 
 typedef struct {
@@ -87,9 +100,11 @@ typedef struct {
     double th_re[AFM_MAX_TONES], th_im[AFM_MAX_TONES]; /* theta = rot . qh + Im(th z) */
     double xc;                                         /* tip x at which the gap is a0 */
     double cos_alpha, z_m; /* d = x cos(alpha) + Z (copies of s->f's and s's) */
-    double ghx, ghv, ghd;  /* full step: gx + hx, gv + hv, (gx + hx) cos(alpha) */
-    bool kinked;           /* the force has a kink at d = a0 (contact, capillary, electrostatic) */
-    double ftol;           /* Newton tolerance on F (N) */
+    /* A full step's first guess per unit end force of the step before (rt_tip's x_guess_m,
+     * v_guess_m_s, gap_guess_m): gx + hx (m/N), gv + hv (m/s/N), (gx + hx) cos(alpha) (m/N) */
+    double guess_x_per_n, guess_v_per_n, guess_gap_per_n;
+    bool kinked; /* the force has a kink at d = a0 (contact, capillary, electrostatic) */
+    double ftol; /* Newton tolerance on F (N) */
     double inv_cells[RT_MAX_SUBSTEPS * RT_GRID + 1]; /* 1 / k */
     double clear_k; /* 4/27 dt: the Hermite path's largest dip per unit end speed */
     afm_rt_starr starr;
@@ -185,9 +200,9 @@ static inline __attribute__((always_inline)) double rt_solve_in(const afm_sim *s
             F = fn;
         }
     }
-    o->fx = fx;
-    o->fv = fv;
-    o->rj = rj;
+    o->dfdx_n_m = fx;
+    o->dfdv_n_s_m = fv;
+    o->tip.inv_slope = rj;
     return fn;
 }
 
@@ -241,9 +256,9 @@ rt_solve_fast(const afm_sim *s, const rt_state *r, double xs, double vs, double 
     jac = jac > 0.25 ? jac : 0.25;
     double est = fabs(fn - F) * fabs(1.0 - jac * rj);
     if (__builtin_expect(est > r->ftol, 0)) return rt_solve(s, r, xs, vs, gx, gv, F, rj, o);
-    o->fx = fx;
-    o->fv = fv;
-    o->rj = 1.0 / jac;
+    o->dfdx_n_m = fx;
+    o->dfdv_n_s_m = fv;
+    o->tip.inv_slope = 1.0 / jac;
     return fn;
 }
 
@@ -309,16 +324,16 @@ static void rt_predict(const rt_state *r, rt_snap *st) {
         xs4 = rt_fma4(RT_V4(c + 8 * np + i), q, rt_fma4(RT_V4(c + 9 * np + i), v, xs4));
         vs4 = rt_fma4(RT_V4(c + 10 * np + i), q, rt_fma4(RT_V4(c + 11 * np + i), v, vs4));
     }
-    double xs = P->gx0 * st->f + rt_hsum(xs4), vs = P->gv0 * st->f + rt_hsum(vs4);
+    double xs = P->gx0 * st->tip.f_n + rt_hsum(xs4), vs = P->gv0 * st->tip.f_n + rt_hsum(vs4);
     for (int j = 0; j < r->ntones; j++) {
         xs += P->dx_re[j] * st->z_im[j] + P->dx_im[j] * st->z_re[j];
         vs += P->dv_re[j] * st->z_im[j] + P->dv_im[j] * st->z_re[j];
     }
-    st->xn = xs;
-    st->vn = vs;
-    st->xg = fma(P->gx, st->f, xs);
-    st->vg = fma(P->gv, st->f, vs);
-    st->dg = rt_gap(r, st->xg);
+    st->tip.x_free_m = xs;
+    st->tip.v_free_m_s = vs;
+    st->tip.x_guess_m = fma(P->gx, st->tip.f_n, xs);
+    st->tip.v_guess_m_s = fma(P->gv, st->tip.f_n, vs);
+    st->tip.gap_guess_m = rt_gap(r, st->tip.x_guess_m);
 }
 
 /* The thermal increment of a piece of k cells: (nq, nv) per mode (zero past n) and its tip
@@ -343,15 +358,6 @@ static inline void rt_thermal_draw(const rt_state *r, int k, double *nq, double 
     *xv = sv;
 }
 
-/* What the free step needs of the step before and leaves for the next, carried in registers
- * from sample to sample (rt_run_t) so that the chain from one force to the next does not go
- * through a store and a load: tip position, velocity and force, the predictor x*, v* of the
- * next full step and its reciprocal slope rj. */
-typedef struct {
-    double x, xd, f, xn, vn, rj;
-    double xg, vg, dg; /* x, v and d at the free step's guess (F held): xn + gx f, ... */
-} rt_tip;
-
 /* The reciprocal slope of a piece with coefficients P that starts where the force's partials
  * are fx, fv: 1 / max(1 - fx gx - fv gv, 1/4). */
 static inline double rt_slope(const afm_rt_prop *P, double fx, double fv) {
@@ -361,32 +367,46 @@ static inline double rt_slope(const afm_rt_prop *P, double fx, double fv) {
 
 /* rt_tip of st for a following full step. */
 static inline rt_tip rt_tip_of(const rt_state *r, const rt_snap *st) {
-    double rj = st->rk == r->ncell ? st->rj : rt_slope(&r->prop[r->ncell - 1], st->fx, st->fv);
-    return (rt_tip){st->x, st->xd, st->f, st->xn, st->vn, rj, st->xg, st->vg, st->dg};
+    double rj = st->slope_cells == r->ncell
+                    ? st->tip.inv_slope
+                    : rt_slope(&r->prop[r->ncell - 1], st->dfdx_n_m, st->dfdv_n_s_m);
+    rt_tip t = st->tip;
+    t.inv_slope = rj;
+    return t;
 }
 
-/* Advance in by k cells (tau = k dt / ncell) into o; o may be in. Mode arrays run to np =
- * n rounded up to 4, with zero coefficients past n. A full step (k = ncell) takes x*, v*
- * from in's predictor; a shorter piece from its own tip-weighted rows. pred: also leave the
- * predictor of a following full step in o (the free step does; contact pieces leave it to
- * one rt_predict after the sample's last piece). noise: add the thermal increment. fast (the
- * free step, k = ncell, pred): in's tip values come from *ti, and o's go to *to as well. */
-static inline __attribute__((always_inline)) void
-rt_piece_t(const afm_sim *s, const rt_state *r, const rt_snap *in, rt_snap *o, int k, const int np,
-           const int nt, const bool fast, const bool noise, const bool pred, const rt_tip *ti,
-           rt_tip *to) {
+/* Which piece rt_piece_t advances. Every call passes constants, so that each kind becomes
+ * its own straight-line code (rt_piece_t is always inlined). */
+typedef struct {
+    int np;         /* mode stride: n rounded up to 4 (coefficients are zero past n) */
+    int ntones;     /* drive tones */
+    bool free_step; /* the free step (k = ncell, predict): in's tip comes from *ti and o's
+                     * goes to *to as well; one linearly implicit solve (rt_solve_fast) */
+    bool thermal;   /* add the thermal increment (afm_sim_set_thermal) */
+    bool predict;   /* leave the predictor of a following full step in o (the free step
+                     * does; contact pieces leave it to one rt_predict after the sample) */
+} rt_piece_kind;
+
+/* Advance in by k cells (tau = k dt / ncell) into o; o may be in. A full step
+ * (k = ncell) takes x*, v* from in's predictor; a shorter piece from its own tip-weighted
+ * rows. */
+static inline __attribute__((always_inline)) void rt_piece_t(const afm_sim *s, const rt_state *r,
+                                                             const rt_snap *in, rt_snap *o, int k,
+                                                             const rt_piece_kind kind,
+                                                             const rt_tip *ti, rt_tip *to) {
+    const int np = kind.np, nt = kind.ntones;
     const afm_rt_prop *P = &r->prop[k - 1], *PF = &r->prop[r->ncell - 1];
     const double *c = P->c, *cf = PF->c;
-    const double F0 = fast ? ti->f : in->f;
+    const double F0 = kind.free_step ? ti->f_n : in->tip.f_n;
     double xs, vs, rj;
     double nq[AFM_MAX_MODES] __attribute__((aligned(32)));
     double nv[AFM_MAX_MODES] __attribute__((aligned(32)));
-    if (fast) {
-        xs = ti->xn;
-        vs = ti->vn;
+    if (kind.free_step) {
+        xs = ti->x_free_m;
+        vs = ti->v_free_m_s;
     } else if (k == r->ncell) {
-        xs = in->xn;
-        vs = in->vn;
+        xs = in->tip.x_free_m;
+        vs = in->tip.v_free_m_s;
     } else {
         rt_v4 xs4 = rt_splat(0.0), vs4 = rt_splat(0.0);
         for (int i = 0; i < np; i += 4) {
@@ -402,23 +422,25 @@ rt_piece_t(const afm_sim *s, const rt_state *r, const rt_snap *in, rt_snap *o, i
             vs += P->dv_re[j] * in->z_im[j] + P->dv_im[j] * in->z_re[j];
         }
     }
-    if (noise) {
+    if (kind.thermal) {
         double xq, xv;
         rt_thermal_draw(r, k, nq, nv, &xq, &xv);
         xs += xq;
         vs += xv;
     }
-    if (fast) {
-        rj = ti->rj;
+    if (kind.free_step) {
+        rj = ti->inv_slope;
     } else {
-        rj = in->rk == k ? in->rj : rt_slope(P, in->fx, in->fv);
+        rj = in->slope_cells == k ? in->tip.inv_slope : rt_slope(P, in->dfdx_n_m, in->dfdv_n_s_m);
     }
     /* The force first (the critical path); the modal update below does not wait for it
      * until its last multiply-add. */
     /* In contact the force changes fast: the iteration starts from the force extrapolated
      * along the last piece's slope (about one force evaluation fewer per piece). */
-    double F1 = fast ? rt_solve_fast(s, r, xs, vs, P->gx, P->gv, F0, rj, ti->xg, ti->vg, ti->dg, o)
-                     : rt_solve_in(s, r, xs, vs, P->gx, P->gv, fma(in->dfc, (double)k, F0), rj, o);
+    double F1 = kind.free_step ? rt_solve_fast(s, r, xs, vs, P->gx, P->gv, F0, rj, ti->x_guess_m,
+                                               ti->v_guess_m_s, ti->gap_guess_m, o)
+                               : rt_solve_in(s, r, xs, vs, P->gx, P->gv,
+                                             fma(in->df_per_cell_n, (double)k, F0), rj, o);
     const double dfc = (F1 - F0) * r->inv_cells[k];
     double zr1[AFM_MAX_TONES], zi1[AFM_MAX_TONES];
     double xn = 0.0, vn = 0.0;
@@ -426,7 +448,7 @@ rt_piece_t(const afm_sim *s, const rt_state *r, const rt_snap *in, rt_snap *o, i
         double zr = in->z_re[j], zi = in->z_im[j];
         zr1[j] = zr * P->rot_re[j] - zi * P->rot_im[j];
         zi1[j] = zr * P->rot_im[j] + zi * P->rot_re[j];
-        if (pred) {
+        if (kind.predict) {
             xn += PF->dx_re[j] * zi1[j] + PF->dx_im[j] * zr1[j];
             vn += PF->dv_re[j] * zi1[j] + PF->dv_im[j] * zr1[j];
         }
@@ -439,12 +461,12 @@ rt_piece_t(const afm_sim *s, const rt_state *r, const rt_snap *in, rt_snap *o, i
             rt_fma4(RT_V4(c + i), q, rt_fma4(RT_V4(c + np + i), v, RT_V4(c + 4 * np + i) * f0));
         rt_v4 w = rt_fma4(RT_V4(c + 2 * np + i), q,
                           rt_fma4(RT_V4(c + 3 * np + i), v, RT_V4(c + 5 * np + i) * f0));
-        if (noise) {
+        if (kind.thermal) {
             a += RT_V4(nq + i);
             w += RT_V4(nv + i);
         }
         /* next full step's x*, v* without this F1 (its F1 part is P->hx F1, P->hv F1) */
-        if (pred) {
+        if (kind.predict) {
             xn4 = rt_fma4(RT_V4(cf + 8 * np + i), a, rt_fma4(RT_V4(cf + 9 * np + i), w, xn4));
             vn4 = rt_fma4(RT_V4(cf + 10 * np + i), a, rt_fma4(RT_V4(cf + 11 * np + i), w, vn4));
         }
@@ -455,25 +477,31 @@ rt_piece_t(const afm_sim *s, const rt_state *r, const rt_snap *in, rt_snap *o, i
         o->z_re[j] = zr1[j];
         o->z_im[j] = zi1[j];
     }
-    o->rk = k;
-    o->dfc = dfc;
+    o->slope_cells = k;
+    o->df_per_cell_n = dfc;
     const double x1 = fma(P->gx, F1, xs), v1 = fma(P->gv, F1, vs);
-    o->x = x1;
-    o->xd = v1;
-    if (pred) {
+    if (kind.predict) {
         double xh, vh;
         rt_hsum2(xn4, vn4, &xh, &vh);
         const double xr = xn + xh, vr = vn + vh;
-        o->xn = fma(P->hx, F1, xr);
-        o->vn = fma(P->hv, F1, vr);
         /* The next guess straight from F1 (one multiply-add each, not two: the force chain
          * from one step to the next is shorter; the same point up to rounding). */
-        o->xg = fma(r->ghx, F1, xr);
-        o->vg = fma(r->ghv, F1, vr);
-        o->dg = fma(r->ghd, F1, rt_gap(r, xr));
-        if (fast) *to = (rt_tip){x1, v1, F1, o->xn, o->vn, o->rj, o->xg, o->vg, o->dg};
+        const rt_tip t = {.x_m = x1,
+                          .v_m_s = v1,
+                          .f_n = F1,
+                          .x_free_m = fma(P->hx, F1, xr),
+                          .v_free_m_s = fma(P->hv, F1, vr),
+                          .inv_slope = o->tip.inv_slope, /* the solve's */
+                          .x_guess_m = fma(r->guess_x_per_n, F1, xr),
+                          .v_guess_m_s = fma(r->guess_v_per_n, F1, vr),
+                          .gap_guess_m = fma(r->guess_gap_per_n, F1, rt_gap(r, xr))};
+        o->tip = t;
+        if (kind.free_step) *to = t;
+    } else {
+        o->tip.x_m = x1;
+        o->tip.v_m_s = v1;
+        o->tip.f_n = F1;
     }
-    o->f = F1;
 }
 
 /* rt_piece_t for the pieces of contact samples (iterated solve), without the predictor of
@@ -481,13 +509,14 @@ rt_piece_t(const afm_sim *s, const rt_state *r, const rt_snap *in, rt_snap *o, i
 static AFM_CLONES_NOINLINE void rt_piece(const afm_sim *s, const rt_state *r, const rt_snap *in,
                                          rt_snap *o, int k) {
     if (r->noise)
-        rt_piece_t(s, r, in, o, k, r->np, r->ntones, false, true, false, NULL, NULL);
+        rt_piece_t(s, r, in, o, k,
+                   (rt_piece_kind){.np = r->np, .ntones = r->ntones, .thermal = true}, NULL, NULL);
     else if (r->ntones == 1 && r->np == 4)
-        rt_piece_t(s, r, in, o, k, 4, 1, false, false, false, NULL, NULL);
+        rt_piece_t(s, r, in, o, k, (rt_piece_kind){.np = 4, .ntones = 1}, NULL, NULL);
     else if (r->ntones == 1 && r->np == 8)
-        rt_piece_t(s, r, in, o, k, 8, 1, false, false, false, NULL, NULL);
+        rt_piece_t(s, r, in, o, k, (rt_piece_kind){.np = 8, .ntones = 1}, NULL, NULL);
     else
-        rt_piece_t(s, r, in, o, k, r->np, r->ntones, false, false, false, NULL, NULL);
+        rt_piece_t(s, r, in, o, k, (rt_piece_kind){.np = r->np, .ntones = r->ntones}, NULL, NULL);
 }
 
 /* ---- contact location on the cubic Hermite path x(sigma), sigma in [0, 1] ---- */
@@ -528,7 +557,7 @@ static double rt_cubic_root(const rt_cubic *p, double xc, double lo, double hi) 
  * search; a dip between two ends out of contact is found by its stationary point first. */
 static int rt_crossing_cell(const rt_state *r, const rt_snap *a, const rt_snap *b, double tau,
                             bool locate) {
-    double x0 = a->x, v0 = a->xd, x1 = b->x, v1 = b->xd, xc = r->xc;
+    double x0 = a->tip.x_m, v0 = a->tip.v_m_s, x1 = b->tip.x_m, v1 = b->tip.v_m_s, xc = r->xc;
     bool in0 = x0 < xc, in1 = x1 < xc;
     bool dip = !in0 && !in1 && v0 < 0 && v1 > 0;
     if (in0 == in1 && !dip) return -1;
@@ -592,9 +621,9 @@ static void rt_publish(afm_sim *s, const rt_state *r, const rt_snap *b) {
     double u = 0.0;
     for (int j = 0; j < r->ntones; j++)
         u += s->drive.amp_m[j] * b->z_im[j];
-    s->f_last_n = b->f;
-    s->x_last_m = b->x;
-    s->v_last_m = b->xd;
+    s->f_last_n = b->tip.f_n;
+    s->x_last_m = b->tip.x_m;
+    s->v_last_m = b->tip.v_m_s;
     s->base_last_m = u;
 }
 
@@ -650,12 +679,15 @@ static inline __attribute__((always_inline)) int rt_run_t(afm_sim *s, rt_state *
             rt_snap *bb = a == b0 ? b1 : b0;
             /* in contact at the start, or predicted to end there (the end's x with F held at
              * F0: a free step would be redone in substeps anyway) */
-            bool contact = r->kinked && (ta.x < r->xc || fma(gx_full, ta.f, ta.xn) < r->xc);
+            bool contact =
+                r->kinked && (ta.x_m < r->xc || fma(gx_full, ta.f_n, ta.x_free_m) < r->xc);
             if (!contact) {
-                rt_piece_t(s, r, a, bb, r->ncell, np, nt, true, noise, true, &ta, &tb);
+                const rt_piece_kind free_step = {
+                    .np = np, .ntones = nt, .free_step = true, .thermal = noise, .predict = true};
+                rt_piece_t(s, r, a, bb, r->ncell, free_step, &ta, &tb);
                 if (r->kinked) {
-                    double low =
-                        (ta.x < tb.x ? ta.x : tb.x) - r->clear_k * (fabs(ta.xd) + fabs(tb.xd));
+                    double low = (ta.x_m < tb.x_m ? ta.x_m : tb.x_m) -
+                                 r->clear_k * (fabs(ta.v_m_s) + fabs(tb.v_m_s));
                     contact = low < r->xc && rt_crossing_cell(r, a, bb, dt, false) >= 0;
                 }
             }
@@ -668,7 +700,7 @@ static inline __attribute__((always_inline)) int rt_run_t(afm_sim *s, rt_state *
             ta = tb;
             stepd += 1.0;
             /* A tip excursion of a millimetre is no cantilever any more. */
-            if (!(fabs(ta.x) < 1e-3)) {
+            if (!(fabs(ta.x_m) < 1e-3)) {
                 rc = AFM_SIM_EBLOWUP;
                 j++;
                 break;
@@ -683,16 +715,16 @@ static inline __attribute__((always_inline)) int rt_run_t(afm_sim *s, rt_state *
                     u += s->drive.amp_m[jt] * b->z_im[jt];
                 }
                 o->t_s = t0 + stepd * dt;
-                o->x_m = ta.x;
-                o->v_m_s = ta.xd;
-                o->f_n = ta.f;
+                o->x_m = ta.x_m;
+                o->v_m_s = ta.v_m_s;
+                o->f_n = ta.f_n;
                 o->theta_rad = th;
                 o->base_m = u;
                 o++;
             }
         }
         cur = a == b0 ? 0 : 1;
-        if (rc == AFM_SIM_OK && !(fabs(b->xd) < HUGE_VAL && fabs(b->f) < HUGE_VAL))
+        if (rc == AFM_SIM_OK && !(fabs(b->tip.v_m_s) < HUGE_VAL && fabs(b->tip.f_n) < HUGE_VAL))
             rc = AFM_SIM_EBLOWUP;
         step += j;
         since += j - 1;
@@ -743,13 +775,13 @@ static void rt_changed(afm_sim *s) {
     r->cos_alpha = s->f.cos_alpha;
     r->z_m = s->z_m;
     const afm_rt_prop *PF = &r->prop[r->ncell - 1];
-    r->ghx = PF->gx + PF->hx;
-    r->ghv = PF->gv + PF->hv;
-    r->ghd = r->ghx * r->cos_alpha;
+    r->guess_x_per_n = PF->gx + PF->hx;
+    r->guess_v_per_n = PF->gv + PF->hv;
+    r->guess_gap_per_n = r->guess_x_per_n * r->cos_alpha;
     afm_rt_starr_build(&r->starr, &s->f, s->z_m);
     rt_snap *st = &r->buf[r->cur];
     rt_sync_phasors(s, r, st);
-    st->x = st->xd = 0.0;
+    st->tip.x_m = st->tip.v_m_s = 0.0;
     for (int i = 0; i < r->n; i++) {
         double q = s->q[i], v = s->qd[i];
         for (int j = 0; j < r->ntones; j++) {
@@ -759,12 +791,12 @@ static void rt_changed(afm_sim *s) {
         }
         st->q[i] = q;
         st->v[i] = v;
-        st->x += m->tip[i] * s->q[i];
-        st->xd += m->tip[i] * s->qd[i];
+        st->tip.x_m += m->tip[i] * s->q[i];
+        st->tip.v_m_s += m->tip[i] * s->qd[i];
     }
-    st->f = rt_force(s, r, st->x, st->xd, &st->fx, &st->fv);
-    st->rk = 0;
-    st->dfc = 0.0;
+    st->tip.f_n = rt_force(s, r, st->tip.x_m, st->tip.v_m_s, &st->dfdx_n_m, &st->dfdv_n_s_m);
+    st->slope_cells = 0;
+    st->df_per_cell_n = 0.0;
     rt_predict(r, st);
     s->be_fills_tip = true;
     rt_publish(s, r, st);
@@ -895,11 +927,11 @@ static void rt_changed_z(afm_sim *s) {
                              AFM_RT_STARR_KEEP * r->starr.hw))
         afm_rt_starr_build(&r->starr, &s->f, s->z_m);
     rt_snap *st = &r->buf[r->cur];
-    st->f = rt_force(s, r, st->x, st->xd, &st->fx, &st->fv);
-    st->rk = 0;
-    st->dfc = 0.0;
+    st->tip.f_n = rt_force(s, r, st->tip.x_m, st->tip.v_m_s, &st->dfdx_n_m, &st->dfdv_n_s_m);
+    st->slope_cells = 0;
+    st->df_per_cell_n = 0.0;
     rt_predict(r, st);
-    s->f_last_n = st->f;
+    s->f_last_n = st->tip.f_n;
 }
 
 const afm_sim_backend afm_rt_backend = {

@@ -1,0 +1,107 @@
+/* SPDX-License-Identifier: MIT */
+/* opts.h -- the subcommands' option parser: each tool describes its options in one table
+ * (name, kind, destination, range, what a bad value is told) instead of an else-if chain.
+ *
+ * afmt_opts_parse walks argv: --help / -h asks for the usage, a flag sets its bool, any other
+ * option takes the next word, checks it against its kind and range and stores it. A value
+ * that is no number where one is wanted prints "afmtwin TOOL: --opt wants a number, got
+ * 'v'", one out of range (or no value of a parse function's) "afmtwin TOOL: --opt wants
+ * WANTS, got 'v'", an unknown option or a missing
+ * value "afmtwin TOOL: unknown or incomplete option '--x' (see --help)", a word that is
+ * no option where the table has no (further) AFMT_ARG row "unknown option or extra argument
+ * 'x' (see --help)"; each makes the tool
+ * exit 2 and store nothing more. */
+#ifndef AFMT_OPTS_H
+#define AFMT_OPTS_H
+
+#include "config/afm_config.h"
+
+#include <stdbool.h>
+
+typedef enum {
+    AFMT_OPT_FLAG,   /* bool *: set to true, no value */
+    AFMT_OPT_STRING, /* const char **: the value as given */
+    AFMT_OPT_DOUBLE, /* double *: a finite number in the range */
+    AFMT_OPT_INT,    /* int *: an integer in the range */
+    AFMT_OPT_LONG,   /* long *: an integer in the range */
+    AFMT_OPT_LLONG,  /* long long * */
+    AFMT_OPT_UINT,   /* unsigned * (a range within 0..UINT_MAX) */
+    AFMT_OPT_U64,    /* uint64_t * (a range within 0..1.8e19) */
+    AFMT_OPT_FN,     /* parse(value, dest) returns 0 for a good value */
+    AFMT_OPT_ARG,    /* a word that is no option (a file name; "-" too): into the
+                      * const char ** once, or through parse as often as it accepts */
+} afmt_opt_kind;
+
+typedef struct {
+    const char *name; /* "--count" (NULL ends the table) */
+    afmt_opt_kind kind;
+    void *dest;
+    double lo, hi; /* the range of a number, inclusive; both 0: any finite number */
+    bool lo_open;  /* the range excludes lo (a value must be > lo) */
+    /* the error's "wants ...": "an integer >= 1", "seconds > 0"; NULL: "a number in lo..hi"
+     * ("an integer in ...", "(lo, hi]" for lo_open) */
+    const char *wants;
+    /* AFMT_OPT_FN: 0 for a good value, -1 for a bad one (the parser says what the option
+     * wants), AFMT_OPT_REPORTED when the function printed a more precise message itself */
+    int (*parse)(const char *value, void *dest);
+} afmt_opt;
+
+/* One table row each (designated, so that -Wextra sees every field set). */
+#define AFMT_FLAG(name_, dest_)                                                                    \
+    { .name = name_, .kind = AFMT_OPT_FLAG, .dest = dest_ }
+#define AFMT_STRING(name_, dest_)                                                                  \
+    { .name = name_, .kind = AFMT_OPT_STRING, .dest = dest_ }
+#define AFMT_NUMBER(name_, kind_, dest_, lo_, hi_, wants_)                                         \
+    { .name = name_, .kind = kind_, .dest = dest_, .lo = lo_, .hi = hi_, .wants = wants_ }
+#define AFMT_DOUBLE(name_, dest_, lo_, hi_, wants_)                                                \
+    AFMT_NUMBER(name_, AFMT_OPT_DOUBLE, dest_, lo_, hi_, wants_)
+#define AFMT_DOUBLE_ABOVE(name_, dest_, lo_, hi_, wants_) /* > lo_ */                              \
+    {                                                                                              \
+        .name = name_, .kind = AFMT_OPT_DOUBLE, .dest = dest_, .lo = lo_, .hi = hi_,               \
+        .lo_open = true, .wants = wants_                                                           \
+    }
+#define AFMT_INT(name_, dest_, lo_, hi_, wants_)                                                   \
+    AFMT_NUMBER(name_, AFMT_OPT_INT, dest_, lo_, hi_, wants_)
+#define AFMT_LONG(name_, dest_, lo_, hi_, wants_)                                                  \
+    AFMT_NUMBER(name_, AFMT_OPT_LONG, dest_, lo_, hi_, wants_)
+#define AFMT_FN(name_, parse_, dest_, wants_)                                                      \
+    { .name = name_, .kind = AFMT_OPT_FN, .dest = dest_, .wants = wants_, .parse = parse_ }
+#define AFMT_ARG(name_, dest_)                                                                     \
+    { .name = name_, .kind = AFMT_OPT_ARG, .dest = dest_ }
+#define AFMT_ARG_FN(name_, parse_, dest_, wants_)                                                  \
+    { .name = name_, .kind = AFMT_OPT_ARG, .dest = dest_, .wants = wants_, .parse = parse_ }
+#define AFMT_OPTS_END                                                                              \
+    { .name = NULL }
+
+#define AFMT_OPT_REPORTED (-2)
+
+enum { AFMT_OPTS_OK = 0, AFMT_OPTS_HELP = 1, AFMT_OPTS_BAD = 2 };
+
+/* Parse argv[first..argc-1] against the table opts for "afmtwin TOOL". Returns
+ * AFMT_OPTS_OK, AFMT_OPTS_HELP (--help or -h: print the usage, exit 0) or AFMT_OPTS_BAD
+ * (the message is printed: exit 2). */
+int afmt_opts_parse(const char *tool, const afmt_opt *opts, int argc, char **argv, int first);
+
+/* --channels of listen and replay: a subset of the output channels into a bool[4] (the
+ * destination), afmt_parse_outputs without "all". */
+int afmt_opt_channels(const char *value, void *want);
+/* The LCM tools' URL and channel-prefix options (lcm_tool.h's afmt_lcm_open takes the three
+ * URLs, afmt_channels_init the prefix). */
+#define AFMT_LCM_OPTS(url_, out_url_, samples_url_, prefix_)                                       \
+    AFMT_STRING("--lcm-url", url_), AFMT_STRING("--lcm-out-url", out_url_),                        \
+        AFMT_STRING("--lcm-samples-url", samples_url_), AFMT_STRING("--prefix", prefix_)
+/* A number as strtod reads it, NaN and inf too: the commands of send and can-send, whose
+ * --no-check sends what the daemon must reject. */
+int afmt_opt_any_number(const char *value, void *number);
+
+/* Load the config file a tool's --config names into cfg; on failure print "afmtwin TOOL:
+ * reason" and return -1 (the tool exits 2). */
+int afmt_config_load(const char *tool, const char *path, afm_config *cfg);
+
+/* --integrator of sweep and approach: rt, reference or arkode-erk into an int
+ * (AFM_INTEGRATOR_*). */
+int afmt_opt_integrator(const char *value, void *integrator);
+#define AFMT_OPT_INTEGRATOR_WANTS "rt, reference or arkode-erk"
+#define AFMT_OPT_CHANNELS_WANTS "a comma-separated subset of samples,harmonics,status,tick_done"
+
+#endif
