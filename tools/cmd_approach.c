@@ -430,15 +430,8 @@ static int approach_ramp(afm_sim *sim, approach_est *e, const approach_opts *o, 
 
 int afm_cmd_approach(int argc, char **argv) {
     approach_opts o;
-    int rc = parse_args(argc, argv, &o);
-    if (rc == 1) {
-        approach_usage(stdout);
-        return 0;
-    }
-    if (rc < 0) {
-        fprintf(stderr, "(afmtwin approach --help describes every option)\n");
-        return 2;
-    }
+    int rc = afmt_opts_done("approach", parse_args(argc, argv, &o), approach_usage);
+    if (rc >= 0) return rc;
     static afm_config cfg;
     char err[AFM_ERR_LEN];
     if (afmt_config_load("approach", o.config, &cfg)) return 2;

@@ -241,15 +241,8 @@ static int cont_emit(void *ctx, const afm_cont_record *r) {
 
 int afm_cmd_continue(int argc, char **argv) {
     cont_cli o;
-    int rc = cont_parse(argc, argv, &o);
-    if (rc == 1) {
-        cont_usage(stdout);
-        return 0;
-    }
-    if (rc) {
-        cont_usage(stderr);
-        return 2;
-    }
+    int rc = afmt_opts_done("continue", cont_parse(argc, argv, &o), cont_usage);
+    if (rc >= 0) return rc;
     char err[512];
     afm_config cfg;
     if (afm_config_load(o.config, &cfg, err, sizeof err) != 0) {

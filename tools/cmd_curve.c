@@ -193,15 +193,8 @@ static void flush_run(curve_state *c, const curve_opts *o) {
 
 int afm_cmd_curve(int argc, char **argv) {
     curve_opts o;
-    int rc = parse_args(argc, argv, &o);
-    if (rc == 1) {
-        curve_usage(stdout);
-        return 0;
-    }
-    if (rc < 0) {
-        fprintf(stderr, "(afmtwin curve --help describes the options)\n");
-        return 2;
-    }
+    int rc = afmt_opts_done("curve", parse_args(argc, argv, &o), curve_usage);
+    if (rc >= 0) return rc;
     char err[256];
     afm_lcm_log *l = afm_lcm_log_open(o.log, 0, err, sizeof err);
     if (!l) {

@@ -678,15 +678,8 @@ static void title_of(const plot_opts *o, plot_data *d) {
 
 int afm_cmd_plot(int argc, char **argv) {
     plot_opts o;
-    int rc = parse_args(argc, argv, &o);
-    if (rc == 1) {
-        plot_usage(stdout);
-        return 0;
-    }
-    if (rc < 0) {
-        fprintf(stderr, "(afmtwin plot --help describes every kind and option)\n");
-        return 2;
-    }
+    int rc = afmt_opts_done("plot", parse_args(argc, argv, &o), plot_usage);
+    if (rc >= 0) return rc;
     static const struct {
         const char *kind;
         int (*load)(const plot_opts *, plot_data *, FILE *);

@@ -156,15 +156,8 @@ static void print_pixel(void *ctx, const afm_scan_pixel *p) {
 
 int afm_cmd_scan(int argc, char **argv) {
     scan_opts o;
-    int rc = parse_args(argc, argv, &o);
-    if (rc == 1) {
-        scan_usage(stdout);
-        return 0;
-    }
-    if (rc < 0) {
-        fprintf(stderr, "(afmtwin scan --help describes every option)\n");
-        return 2;
-    }
+    int rc = afmt_opts_done("scan", parse_args(argc, argv, &o), scan_usage);
+    if (rc >= 0) return rc;
     static afm_config cfg;
     static afm_modal m;
     char err[AFM_ERR_LEN];

@@ -389,15 +389,8 @@ static void progress_end(progress *pg) {
 
 int afm_cmd_sweep(int argc, char **argv) {
     sweep_opts o;
-    int rc = parse_args(argc, argv, &o);
-    if (rc == 1) {
-        sweep_usage(stdout);
-        return 0;
-    }
-    if (rc < 0) {
-        fprintf(stderr, "(afmtwin sweep --help describes every option)\n");
-        return 2;
-    }
+    int rc = afmt_opts_done("sweep", parse_args(argc, argv, &o), sweep_usage);
+    if (rc >= 0) return rc;
 
     static afm_config cfg;
     char err[AFM_ERR_LEN];

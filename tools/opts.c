@@ -156,3 +156,15 @@ int afmt_config_load(const char *tool, const char *path, afm_config *cfg) {
     fprintf(stderr, "afmtwin %s: %s\n", tool, err);
     return -1;
 }
+
+int afmt_opts_done(const char *tool, int parse_rc, void (*usage)(FILE *)) {
+    if (parse_rc == 1) {
+        usage(stdout);
+        return 0;
+    }
+    if (parse_rc < 0) {
+        fprintf(stderr, "(afmtwin %s --help describes every option)\n", tool);
+        return 2;
+    }
+    return -1;
+}

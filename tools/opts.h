@@ -17,6 +17,7 @@
 #include "config/afm_config.h"
 
 #include <stdbool.h>
+#include <stdio.h>
 
 typedef enum {
     AFMT_OPT_FLAG,   /* bool *: set to true, no value */
@@ -101,6 +102,13 @@ int afmt_config_load(const char *tool, const char *path, afm_config *cfg);
 /* --integrator of sweep and approach: rt, reference or arkode-erk into an int
  * (AFM_INTEGRATOR_*). */
 int afmt_opt_integrator(const char *value, void *integrator);
+/* What a tool does with its parse_args result (1: --help was asked, -1: bad usage, already
+ * said, 0: go on): the usage on stdout for --help, the hint "(afmtwin TOOL --help describes
+ * every option)" on stderr for bad usage. Returns the exit code (0 or 2), or -1 to go on:
+ *     int rc = afmt_opts_done("sweep", parse_args(argc, argv, &o), sweep_usage);
+ *     if (rc >= 0) return rc; */
+int afmt_opts_done(const char *tool, int parse_rc, void (*usage)(FILE *));
+
 #define AFMT_OPT_INTEGRATOR_WANTS "rt, reference or arkode-erk"
 #define AFMT_OPT_CHANNELS_WANTS "a comma-separated subset of samples,harmonics,status,tick_done"
 
