@@ -77,7 +77,7 @@ static int opt_scan_integrator(const char *v, void *dest) {
     return *k < 0 ? -1 : 0;
 }
 
-/* 1 help, 0 ok, -1 bad usage (said). The ranges are afm_scan's (checked there again). */
+/* 1 help, 0 ok, -1 bad usage (said). The ranges are afm_scan's (AFM_SCAN_*, AFM_PI_*). */
 static int parse_args(int argc, char **argv, scan_opts *o) {
     *o = (scan_opts){.sc = {.size_x_m = 4e-7,
                             .pixels = 64,
@@ -95,19 +95,19 @@ static int parse_args(int argc, char **argv, scan_opts *o) {
     const afmt_opt opts[] = {
         AFMT_FLAG("--json", &o->json),
         AFMT_STRING("--config", &o->config),
-        AFMT_DOUBLE_ABOVE("--size-x", &o->sc.size_x_m, 0, 1e-3, "(0, 1e-3] m"),
-        AFMT_DOUBLE("--size-y", &o->sc.size_y_m, 0, 1e-3, "[0, 1e-3] m"),
-        AFMT_DOUBLE("--x0", &o->sc.x0_m, -1, 1, "[-1, 1] m"),
-        AFMT_DOUBLE("--y0", &o->sc.y0_m, -1, 1, "[-1, 1] m"),
-        AFMT_INT("--pixels", &o->sc.pixels, 2, 100000, NULL),
-        AFMT_INT("--lines", &o->sc.lines, 1, 100000, NULL),
-        AFMT_DOUBLE_ABOVE("--line-rate", &o->sc.line_rate_hz, 0, 1e4, "(0, 1e4] Hz"),
-        AFMT_DOUBLE("--engage", &o->sc.engage_s, 0, 10, "[0, 10] s"),
-        AFMT_INT("--update", &o->sc.update_samples, 1, 4096, NULL),
+        AFMT_DOUBLE_ABOVE("--size-x", &o->sc.size_x_m, 0, AFM_SCAN_SIZE_MAX_M, NULL),
+        AFMT_DOUBLE("--size-y", &o->sc.size_y_m, 0, AFM_SCAN_SIZE_MAX_M, NULL),
+        AFMT_DOUBLE("--x0", &o->sc.x0_m, -AFM_SCAN_ORIGIN_MAX_M, AFM_SCAN_ORIGIN_MAX_M, NULL),
+        AFMT_DOUBLE("--y0", &o->sc.y0_m, -AFM_SCAN_ORIGIN_MAX_M, AFM_SCAN_ORIGIN_MAX_M, NULL),
+        AFMT_INT("--pixels", &o->sc.pixels, 2, AFM_SCAN_PIXELS_MAX, NULL),
+        AFMT_INT("--lines", &o->sc.lines, 1, AFM_SCAN_LINES_MAX, NULL),
+        AFMT_DOUBLE_ABOVE("--line-rate", &o->sc.line_rate_hz, 0, AFM_SCAN_LINE_RATE_MAX_HZ, NULL),
+        AFMT_DOUBLE("--engage", &o->sc.engage_s, 0, AFM_SCAN_ENGAGE_MAX_S, NULL),
+        AFMT_INT("--update", &o->sc.update_samples, 1, AFM_SCAN_UPDATE_MAX, NULL),
         AFMT_DOUBLE_ABOVE("--setpoint", &o->pc.setpoint_ratio, 0, 0.999999, "(0, 1)"),
-        AFMT_DOUBLE("--kp", &o->pc.kp, 0, 1e3, "[0, 1e3]"),
-        AFMT_DOUBLE_ABOVE("--ki", &o->pc.ki_hz, 0, 1e8, "(0, 1e8] 1/s"),
-        AFMT_DOUBLE_ABOVE("--z-rate", &o->pc.z_rate_max_m_s, 0, 10, "(0, 10] m/s"),
+        AFMT_DOUBLE("--kp", &o->pc.kp, 0, AFM_PI_KP_MAX, NULL),
+        AFMT_DOUBLE_ABOVE("--ki", &o->pc.ki_hz, 0, AFM_PI_KI_MAX_HZ, NULL),
+        AFMT_DOUBLE_ABOVE("--z-rate", &o->pc.z_rate_max_m_s, 0, AFM_PI_Z_RATE_MAX_M_S, NULL),
         AFMT_FN("--integrator", opt_scan_integrator, &o->integrator, "rt or reference"),
         AFMT_OPTS_END,
     };

@@ -10,6 +10,11 @@
 #ifndef AFM_PI_H
 #define AFM_PI_H
 
+/* The gains and slew limits afm_scan_run accepts. */
+#define AFM_PI_KP_MAX 1e3
+#define AFM_PI_KI_MAX_HZ 1e8
+#define AFM_PI_Z_RATE_MAX_M_S 10.0
+
 typedef struct {
     double kp;             /* proportional gain (m of Z per m of amplitude error), >= 0 */
     double ki_hz;          /* integral gain (1/s: Z moves ki e per second), > 0 */

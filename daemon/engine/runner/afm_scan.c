@@ -11,14 +11,12 @@
 #include <stdlib.h>
 #include <string.h>
 
-#define SCAN_MAX_UPDATE 4096 /* samples per update at most */
-
 /* What a run keeps (heap: the lock-in's tables are large). */
 typedef struct {
     afm_lockin lockin;
     afm_cycle cycle;
     afm_force_params mat[AFM_MAX_MATERIALS + 1];
-    afm_sample buf[SCAN_MAX_UPDATE];
+    afm_sample buf[AFM_SCAN_UPDATE_MAX];
     afm_pi pi;
     int material;    /* the region whose forces the integrator has */
     double z_eff_m;  /* the separation it has */
@@ -49,35 +47,33 @@ void afm_scan_position(const afm_scan_cfg *sc, double t_s, double *x_m, double *
 }
 
 static int check_cfg(const afm_scan_cfg *sc, const afm_pi_cfg *pc, char *err, size_t errlen) {
-    const char *why = NULL;
-    if (!(sc->pixels >= 2 && sc->pixels <= 100000))
-        why = "pixels must be 2..100000";
-    else if (!(sc->lines >= 1 && sc->lines <= 100000))
-        why = "lines must be 1..100000";
-    else if (!(sc->line_rate_hz > 0 && sc->line_rate_hz <= 1e4))
-        why = "line rate must be in (0, 1e4] Hz";
-    else if (!(isfinite(sc->size_x_m) && sc->size_x_m > 0 && sc->size_x_m <= 1e-3))
-        why = "scan size x must be in (0, 1e-3] m";
-    else if (!(isfinite(sc->size_y_m) && sc->size_y_m >= 0 && sc->size_y_m <= 1e-3))
-        why = "scan size y must be in [0, 1e-3] m";
-    else if (!(isfinite(sc->x0_m) && isfinite(sc->y0_m)))
-        why = "the origin must be finite";
-    else if (!(sc->engage_s >= 0 && sc->engage_s <= 10))
-        why = "engage time must be 0..10 s";
-    else if (!(sc->update_samples >= 1 && sc->update_samples <= SCAN_MAX_UPDATE))
-        why = "update period must be 1..4096 samples";
-    else if (!(pc->kp >= 0 && pc->kp <= 1e3))
-        why = "kp must be in [0, 1e3]";
-    else if (!(pc->ki_hz > 0 && pc->ki_hz <= 1e8))
-        why = "ki must be in (0, 1e8] 1/s";
-    else if (!(pc->setpoint_ratio > 0 && pc->setpoint_ratio < 1))
-        why = "the set-point ratio must be in (0, 1)";
-    else if (!(pc->z_rate_max_m_s > 0 && pc->z_rate_max_m_s <= 10))
-        why = "the Z slew limit must be in (0, 10] m/s";
-    else if (!(pc->z_min_m < pc->z_max_m))
-        why = "the Z range is empty";
-    if (why) snprintf(err, errlen, "scan: %s", why);
-    return why ? -1 : 0;
+#define SCAN_BAD(...) return snprintf(err, errlen, "scan: " __VA_ARGS__), -1
+    if (!(sc->pixels >= 2 && sc->pixels <= AFM_SCAN_PIXELS_MAX))
+        SCAN_BAD("pixels must be 2..%d", AFM_SCAN_PIXELS_MAX);
+    if (!(sc->lines >= 1 && sc->lines <= AFM_SCAN_LINES_MAX))
+        SCAN_BAD("lines must be 1..%d", AFM_SCAN_LINES_MAX);
+    if (!(sc->line_rate_hz > 0 && sc->line_rate_hz <= AFM_SCAN_LINE_RATE_MAX_HZ))
+        SCAN_BAD("line rate must be in (0, %g] Hz", AFM_SCAN_LINE_RATE_MAX_HZ);
+    if (!(sc->size_x_m > 0 && sc->size_x_m <= AFM_SCAN_SIZE_MAX_M))
+        SCAN_BAD("scan size x must be in (0, %g] m", AFM_SCAN_SIZE_MAX_M);
+    if (!(sc->size_y_m >= 0 && sc->size_y_m <= AFM_SCAN_SIZE_MAX_M))
+        SCAN_BAD("scan size y must be in [0, %g] m", AFM_SCAN_SIZE_MAX_M);
+    if (!(fabs(sc->x0_m) <= AFM_SCAN_ORIGIN_MAX_M && fabs(sc->y0_m) <= AFM_SCAN_ORIGIN_MAX_M))
+        SCAN_BAD("the origin must be within %g m of 0", AFM_SCAN_ORIGIN_MAX_M);
+    if (!(sc->engage_s >= 0 && sc->engage_s <= AFM_SCAN_ENGAGE_MAX_S))
+        SCAN_BAD("engage time must be 0..%g s", AFM_SCAN_ENGAGE_MAX_S);
+    if (!(sc->update_samples >= 1 && sc->update_samples <= AFM_SCAN_UPDATE_MAX))
+        SCAN_BAD("update period must be 1..%d samples", AFM_SCAN_UPDATE_MAX);
+    if (!(pc->kp >= 0 && pc->kp <= AFM_PI_KP_MAX)) SCAN_BAD("kp must be in [0, %g]", AFM_PI_KP_MAX);
+    if (!(pc->ki_hz > 0 && pc->ki_hz <= AFM_PI_KI_MAX_HZ))
+        SCAN_BAD("ki must be in (0, %g] 1/s", AFM_PI_KI_MAX_HZ);
+    if (!(pc->setpoint_ratio > 0 && pc->setpoint_ratio < 1))
+        SCAN_BAD("the set-point ratio must be in (0, 1)");
+    if (!(pc->z_rate_max_m_s > 0 && pc->z_rate_max_m_s <= AFM_PI_Z_RATE_MAX_M_S))
+        SCAN_BAD("the Z slew limit must be in (0, %g] m/s", AFM_PI_Z_RATE_MAX_M_S);
+    if (!(pc->z_min_m < pc->z_max_m)) SCAN_BAD("the Z range is empty");
+#undef SCAN_BAD
+    return 0;
 }
 
 /* Hand the integrator the separation and forces at the tip's position (x, y). */
@@ -104,7 +100,7 @@ static int place_tip(afm_sim *s, const afm_surface *surf, scan_state *st, double
     return 0;
 }
 
-/* Run n samples through the estimators. *periods gets the periods completed. */
+/* Run n samples through the estimators; periods that end while a pixel is open count in it. */
 static int advance(afm_sim *s, scan_state *st, int n, char *err, size_t errlen) {
     int rc = afm_sim_run(s, n, st->buf);
     if (rc != AFM_SIM_OK) {
@@ -166,7 +162,7 @@ static int free_amplitude(afm_sim *s, scan_state *st, double settle_s, char *err
     }
     long n = (long)ceil(settle_s / afm_sim_dt(s));
     while (n > 0) {
-        int k = n > SCAN_MAX_UPDATE ? SCAN_MAX_UPDATE : (int)n;
+        int k = n > AFM_SCAN_UPDATE_MAX ? AFM_SCAN_UPDATE_MAX : (int)n;
         if (advance(s, st, k, err, errlen)) return -1;
         n -= k;
     }

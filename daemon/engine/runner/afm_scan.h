@@ -31,6 +31,15 @@
 #include <stdbool.h>
 #include <stddef.h>
 
+/* The ranges afm_scan_run accepts (afmtwin scan's options use the same). */
+#define AFM_SCAN_PIXELS_MAX 100000
+#define AFM_SCAN_LINES_MAX 100000
+#define AFM_SCAN_LINE_RATE_MAX_HZ 1e4
+#define AFM_SCAN_SIZE_MAX_M 1e-3
+#define AFM_SCAN_ORIGIN_MAX_M 1.0 /* |x0|, |y0| */
+#define AFM_SCAN_ENGAGE_MAX_S 10.0
+#define AFM_SCAN_UPDATE_MAX 4096 /* samples per update */
+
 typedef struct {
     double x0_m, y0_m;         /* the first pixel of the first line */
     double size_x_m, size_y_m; /* scan size (size_y 0: the same line again and again) */
