@@ -197,12 +197,7 @@ static int scan(const char *path, double line_rate_hz, double ki_hz, int n_px, p
     afm_surface *surf = NULL;
     if (afm_surface_create(&surf, &scan_cfg.sample, scan_cfg.forces.radius_m, err, sizeof err))
         return -1;
-    afm_cfg_forces f0;
-    afm_surface_material_forces(&scan_cfg.sample, &scan_cfg.forces, 0, &f0);
-    scan_cfg.forces = f0;
-    afm_sim *sim = afm_twin_create(&scan_cfg, &scan_m, NULL, err, sizeof err);
-    double len, wid;
-    afm_twin_plate(&scan_cfg, &scan_m, &len, &wid);
+    afm_sim *sim = afm_scan_twin_create(&scan_cfg, &scan_m, err, sizeof err);
     afm_scan_cfg sc = {.size_x_m = 4e-7,
                        .pixels = n_px,
                        .lines = 1,
@@ -215,9 +210,8 @@ static int scan(const char *path, double line_rate_hz, double ki_hz, int n_px, p
                      .z_min_m = 0,
                      .z_max_m = 1e-5};
     P->n = 0;
-    int rc = sim ? afm_scan_run(sim, surf, &scan_cfg.sample, &scan_cfg.forces, len, wid,
-                                &scan_cfg.lockin, &sc, &pc, keep, P, err, sizeof err)
-                 : -1;
+    int rc =
+        sim ? afm_scan_run(sim, &scan_cfg, &scan_m, surf, &sc, &pc, keep, P, err, sizeof err) : -1;
     if (rc) printf("     %s\n", err);
     afm_sim_destroy(&sim);
     afm_surface_destroy(&surf);

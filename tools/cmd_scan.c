@@ -173,18 +173,12 @@ int afm_cmd_scan(int argc, char **argv) {
         fprintf(stderr, "afmtwin scan: %s\n", err);
         return 2;
     }
-    afm_cfg_forces f0; /* the terms of every material on (afm_surface_material_forces) */
-    afm_surface_material_forces(&cfg.sample, &cfg.forces, 0, &f0);
-    cfg.forces = f0;
-    afm_sim *sim = afm_twin_create(&cfg, &m, NULL, err, sizeof err);
+    afm_sim *sim = afm_scan_twin_create(&cfg, &m, err, sizeof err);
     if (!sim) {
         fprintf(stderr, "afmtwin scan: %s\n", err);
         afm_surface_destroy(&surf);
         return 1;
     }
-    double len, wid;
-    afm_twin_plate(&cfg, &m, &len, &wid);
-    afm_cfg_lockin lk = cfg.lockin;
     if (!o.json)
         printf("# afmtwin scan %s: integrator %s, %d x %d pixels, %.4g x %.4g nm, %g lines/s, "
                "set-point %g, ki %g 1/s, kp %g; phase: lag of the deflection behind the drive "
@@ -193,8 +187,7 @@ int afm_cmd_scan(int argc, char **argv) {
                "lag_deg  peak_force_nN  E_diss_eV\n",
                o.config, afm_sim_integrator_name(sim), o.sc.pixels, o.sc.lines, o.sc.size_x_m * 1e9,
                o.sc.size_y_m * 1e9, o.sc.line_rate_hz, o.pc.setpoint_ratio, o.pc.ki_hz, o.pc.kp);
-    rc = afm_scan_run(sim, surf, &cfg.sample, &cfg.forces, len, wid, &lk, &o.sc, &o.pc, print_pixel,
-                      &o, err, sizeof err);
+    rc = afm_scan_run(sim, &cfg, &m, surf, &o.sc, &o.pc, print_pixel, &o, err, sizeof err);
     if (rc) fprintf(stderr, "afmtwin %s\n", err);
     afm_sim_destroy(&sim);
     afm_surface_destroy(&surf);

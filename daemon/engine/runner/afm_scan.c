@@ -5,6 +5,7 @@
 #include "estimators/afm_cycle.h"
 #include "estimators/afm_lockin.h"
 #include "integrators/afm_sim_live.h"
+#include "runner/afm_twin.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -170,11 +171,21 @@ static int free_amplitude(afm_sim *s, scan_state *st, double settle_s, char *err
     return 0;
 }
 
-int afm_scan_run(afm_sim *s, const afm_surface *surf, const afm_cfg_sample *sample,
-                 const afm_cfg_forces *forces, double beam_length_m, double beam_width_m,
-                 const afm_cfg_lockin *lockin, const afm_scan_cfg *sc, const afm_pi_cfg *pc,
-                 afm_scan_on_pixel on_pixel, void *ctx, char *err, size_t errlen) {
+afm_sim *afm_scan_twin_create(afm_config *cfg, afm_modal *m, char *err, size_t errlen) {
+    afm_cfg_forces f0;
+    afm_surface_material_forces(&cfg->sample, &cfg->forces, 0, &f0);
+    cfg->forces = f0;
+    return afm_twin_create(cfg, m, NULL, err, errlen);
+}
+
+int afm_scan_run(afm_sim *s, const afm_config *cfg, const afm_modal *m, const afm_surface *surf,
+                 const afm_scan_cfg *sc, const afm_pi_cfg *pc, afm_scan_on_pixel on_pixel,
+                 void *ctx, char *err, size_t errlen) {
     if (check_cfg(sc, pc, err, errlen)) return -1;
+    const afm_cfg_sample *sample = &cfg->sample;
+    const afm_cfg_lockin *lockin = &cfg->lockin;
+    double len, wid;
+    afm_twin_plate(cfg, m, &len, &wid);
     scan_state *st = calloc(1, sizeof *st);
     if (!st) {
         snprintf(err, errlen, "scan: out of memory");
@@ -182,10 +193,10 @@ int afm_scan_run(afm_sim *s, const afm_surface *surf, const afm_cfg_sample *samp
     }
     int rc = -1;
     double dt = afm_sim_dt(s), z0 = afm_sim_separation(s);
-    for (int m = 0; m <= sample->n_materials; m++) {
+    for (int k = 0; k <= sample->n_materials; k++) {
         afm_cfg_forces f;
-        afm_surface_material_forces(sample, forces, m, &f);
-        if (afm_force_init(&st->mat[m], &f, beam_length_m, beam_width_m, err, errlen)) goto out;
+        afm_surface_material_forces(sample, &cfg->forces, k, &f);
+        if (afm_force_init(&st->mat[k], &f, len, wid, err, errlen)) goto out;
     }
     if (afm_lockin_init(&st->lockin, lockin, dt, err, errlen) ||
         afm_cycle_init(&st->cycle, afm_force_contact_x(&st->mat[0], 1e-6), st->mat[0].cos_alpha,

@@ -68,14 +68,18 @@ typedef struct {
 
 typedef void (*afm_scan_on_pixel)(void *ctx, const afm_scan_pixel *px);
 
-/* Image the sample: s is a twin from afm_twin_create (its separation is the approach's
- * start); forces is the config's forces group (materials derive from it), beam_length_m
- * and beam_width_m as for afm_force_init. on_pixel gets every pixel in scan order. 0, or -1
- * with err (bad scan parameters, a failed simulation). */
-int afm_scan_run(afm_sim *s, const afm_surface *surf, const afm_cfg_sample *sample,
-                 const afm_cfg_forces *forces, double beam_length_m, double beam_width_m,
-                 const afm_cfg_lockin *lockin, const afm_scan_cfg *sc, const afm_pi_cfg *pc,
-                 afm_scan_on_pixel on_pixel, void *ctx, char *err, size_t errlen);
+/* The twin for a scan of cfg's sample: cfg->forces becomes material 0's (with the terms of
+ * every material on: afm_surface_material_forces), then afm_twin_create (the model into m).
+ * NULL with err on failure. */
+afm_sim *afm_scan_twin_create(afm_config *cfg, afm_modal *m, char *err, size_t errlen);
+
+/* Image the sample: s and m from afm_scan_twin_create(cfg) (its separation is the approach's
+ * start), surf from cfg->sample; the materials derive from cfg->forces, the lock-in is
+ * cfg->lockin. on_pixel gets every pixel in scan order. 0, or -1 with err (bad scan
+ * parameters, a failed simulation). */
+int afm_scan_run(afm_sim *s, const afm_config *cfg, const afm_modal *m, const afm_surface *surf,
+                 const afm_scan_cfg *sc, const afm_pi_cfg *pc, afm_scan_on_pixel on_pixel,
+                 void *ctx, char *err, size_t errlen);
 
 /* The tip's lateral position at time t_s after the first line's start. */
 void afm_scan_position(const afm_scan_cfg *sc, double t_s, double *x_m, double *y_m, int *line,
