@@ -55,6 +55,7 @@ typedef enum {
     ST_BIMODAL,
     ST_SOAK_MIX,
     ST_SOAK_MIX1,
+    ST_SOAK_MIX2,
     ST_PAUSE_RESUME,
     ST_RESET,
     ST_GEOMETRY,
@@ -79,6 +80,7 @@ static const struct {
     [ST_BIMODAL] = {"bimodal: + 0.02 nm at mode 2, tapping Z 15 nm", 0.01},
     [ST_SOAK_MIX] = {"a soak's 4-tone mix, 342.5 kHz, Z 17.8 nm", 0.01},
     [ST_SOAK_MIX1] = {"the same, tone 0 alone", 0.01},
+    [ST_SOAK_MIX2] = {"a soak's 4-tone contact, Z 15.6 nm (seed 1)", 0.01},
     [ST_PAUSE_RESUME] = {"paused, 5 steps of 1000, resumed: first 5 ms", 0.005},
     [ST_RESET] = {"after a reset (from rest), first 5 ms", 0.005},
     [ST_GEOMETRY] = {"after a geometry rebuild (length +1 %), first 5 ms", 0.005},
@@ -280,6 +282,16 @@ static int run_state(const afm_config *cfg, double uptime_s, state_id id, state_
         c = setpoint(17.8e-9, 0);
         apply(&t, &c);
         c = dither(id == ST_SOAK_MIX ? 4 : 1, f, a);
+        apply(&t, &c);
+        run(&t, llround(0.01 * fs));
+        break;
+    }
+    case ST_SOAK_MIX2: { /* the soak of seed 1 at 7.85 s: 1.35x the budget before issue 12 */
+        const double f[4] = {337945.868, 403324.829, 227633.019, 756669.365};
+        const double a[4] = {0.07595e-9, 0.012589e-9, 0.01431e-9, 0.0040618e-9};
+        c = setpoint(15.62e-9, 0);
+        apply(&t, &c);
+        c = dither(4, f, a);
         apply(&t, &c);
         run(&t, llround(0.01 * fs));
         break;

@@ -98,8 +98,9 @@ typedef struct {
     double wd[AFM_MAX_TONES];
     double cq_re[AFM_MAX_TONES][AFM_MAX_MODES], cq_im[AFM_MAX_TONES][AFM_MAX_MODES];
     double th_re[AFM_MAX_TONES], th_im[AFM_MAX_TONES]; /* theta = rot . qh + Im(th z) */
-    double xc;                                         /* tip x at which the gap is a0 */
-    double cos_alpha, z_m; /* d = x cos(alpha) + Z (copies of s->f's and s's) */
+    double amp_m[AFM_MAX_TONES]; /* base amplitude of each tone (m); zero past ntones */
+    double xc;                   /* tip x at which the gap is a0 */
+    double cos_alpha, z_m;       /* d = x cos(alpha) + Z (copies of s->f's and s's) */
     /* A full step's first guess per unit end force of the step before (rt_tip's x_guess_m,
      * v_guess_m_s, gap_guess_m): gx + hx (m/N), gv + hv (m/s/N), (gx + hx) cos(alpha) (m/N) */
     double guess_x_per_n, guess_v_per_n, guess_gap_per_n;
@@ -312,6 +313,45 @@ static inline double rt_gap(const rt_state *r, double x) {
     return fma(x, r->cos_alpha, r->z_m);
 }
 
+/* The drive's tones. nt is a constant in every hot copy: 1 (scalar), or RT_TONES_V4 when
+ * several tones run: then all AFM_MAX_TONES phasors are rotated and summed as one vector,
+ * whatever their number (every per-tone array is zero past ntones: rt_changed,
+ * afm_rt_coef_drive, rt_sync_phasors), so four tones cost what one does (a scalar loop over
+ * four tones cost +14 ns/sample, the soak's worst state, issue 12). */
+#define RT_TONES_V4 AFM_MAX_TONES
+_Static_assert(AFM_MAX_TONES == 4, "the tone vector is one rt_v4");
+
+/* The nt of r's tones: 0, 1 or RT_TONES_V4. */
+static inline int rt_tones_kind(const rt_state *r) {
+    return r->ntones > 1 ? RT_TONES_V4 : r->ntones;
+}
+
+/* sum_j Im(c_j z_j) = c_re z_im + c_im z_re over nt tones. */
+static inline double rt_tones_im(const double *c_re, const double *c_im, const double *z_re,
+                                 const double *z_im, int nt) {
+    if (nt == RT_TONES_V4)
+        return rt_hsum(rt_fma4(RT_V4(c_re), RT_V4(z_im), RT_V4(c_im) * RT_V4(z_re)));
+    double t = 0.0;
+    for (int j = 0; j < nt; j++)
+        t += c_re[j] * z_im[j] + c_im[j] * z_re[j];
+    return t;
+}
+
+/* o = z rot per tone (complex); o may not be z. */
+static inline void rt_tones_rotate(const double *z_re, const double *z_im, const double *rot_re,
+                                   const double *rot_im, double *o_re, double *o_im, int nt) {
+    if (nt == RT_TONES_V4) {
+        rt_v4 zr = RT_V4(z_re), zi = RT_V4(z_im), rr = RT_V4(rot_re), ri = RT_V4(rot_im);
+        RT_V4W(o_re) = zr * rr - zi * ri;
+        RT_V4W(o_im) = zr * ri + zi * rr;
+        return;
+    }
+    for (int j = 0; j < nt; j++) {
+        o_re[j] = z_re[j] * rot_re[j] - z_im[j] * rot_im[j];
+        o_im[j] = z_re[j] * rot_im[j] + z_im[j] * rot_re[j];
+    }
+}
+
 /* x*, v* of a full step from st (the tip at the step's end without its F1 response), and
  * x, v, d at its first guess. */
 static void rt_predict(const rt_state *r, rt_snap *st) {
@@ -417,10 +457,8 @@ static inline __attribute__((always_inline)) void rt_piece_t(const afm_sim *s, c
         rt_hsum2(xs4, vs4, &xs, &vs);
         xs = fma(P->gx0, F0, xs);
         vs = fma(P->gv0, F0, vs);
-        for (int j = 0; j < nt; j++) {
-            xs += P->dx_re[j] * in->z_im[j] + P->dx_im[j] * in->z_re[j];
-            vs += P->dv_re[j] * in->z_im[j] + P->dv_im[j] * in->z_re[j];
-        }
+        xs += rt_tones_im(P->dx_re, P->dx_im, in->z_re, in->z_im, nt);
+        vs += rt_tones_im(P->dv_re, P->dv_im, in->z_re, in->z_im, nt);
     }
     if (kind.thermal) {
         double xq, xv;
@@ -444,14 +482,10 @@ static inline __attribute__((always_inline)) void rt_piece_t(const afm_sim *s, c
     const double dfc = (F1 - F0) * r->inv_cells[k];
     double zr1[AFM_MAX_TONES], zi1[AFM_MAX_TONES];
     double xn = 0.0, vn = 0.0;
-    for (int j = 0; j < nt; j++) {
-        double zr = in->z_re[j], zi = in->z_im[j];
-        zr1[j] = zr * P->rot_re[j] - zi * P->rot_im[j];
-        zi1[j] = zr * P->rot_im[j] + zi * P->rot_re[j];
-        if (kind.predict) {
-            xn += PF->dx_re[j] * zi1[j] + PF->dx_im[j] * zr1[j];
-            vn += PF->dv_re[j] * zi1[j] + PF->dv_im[j] * zr1[j];
-        }
+    rt_tones_rotate(in->z_re, in->z_im, P->rot_re, P->rot_im, zr1, zi1, nt);
+    if (kind.predict) {
+        xn = rt_tones_im(PF->dx_re, PF->dx_im, zr1, zi1, nt);
+        vn = rt_tones_im(PF->dv_re, PF->dv_im, zr1, zi1, nt);
     }
     const rt_v4 f0 = rt_splat(F0), f1 = rt_splat(F1);
     rt_v4 xn4 = rt_splat(0.0), vn4 = rt_splat(0.0);
@@ -473,9 +507,14 @@ static inline __attribute__((always_inline)) void rt_piece_t(const afm_sim *s, c
         RT_V4W(o->q + i) = rt_fma4(RT_V4(c + 6 * np + i), f1, a);
         RT_V4W(o->v + i) = rt_fma4(RT_V4(c + 7 * np + i), f1, w);
     }
-    for (int j = 0; j < nt; j++) { /* after the loop: in == o is allowed */
-        o->z_re[j] = zr1[j];
-        o->z_im[j] = zi1[j];
+    if (nt == RT_TONES_V4) { /* after the loop: in == o is allowed */
+        RT_V4W(o->z_re) = RT_V4(zr1);
+        RT_V4W(o->z_im) = RT_V4(zi1);
+    } else {
+        for (int j = 0; j < nt; j++) {
+            o->z_re[j] = zr1[j];
+            o->z_im[j] = zi1[j];
+        }
     }
     o->slope_cells = k;
     o->df_per_cell_n = dfc;
@@ -510,13 +549,19 @@ static AFM_CLONES_NOINLINE void rt_piece(const afm_sim *s, const rt_state *r, co
                                          rt_snap *o, int k) {
     if (r->noise)
         rt_piece_t(s, r, in, o, k,
-                   (rt_piece_kind){.np = r->np, .ntones = r->ntones, .thermal = true}, NULL, NULL);
+                   (rt_piece_kind){.np = r->np, .ntones = rt_tones_kind(r), .thermal = true}, NULL,
+                   NULL);
     else if (r->ntones == 1 && r->np == 4)
         rt_piece_t(s, r, in, o, k, (rt_piece_kind){.np = 4, .ntones = 1}, NULL, NULL);
     else if (r->ntones == 1 && r->np == 8)
         rt_piece_t(s, r, in, o, k, (rt_piece_kind){.np = 8, .ntones = 1}, NULL, NULL);
+    else if (r->ntones > 1 && r->np == 4)
+        rt_piece_t(s, r, in, o, k, (rt_piece_kind){.np = 4, .ntones = RT_TONES_V4}, NULL, NULL);
+    else if (r->ntones > 1 && r->np == 8)
+        rt_piece_t(s, r, in, o, k, (rt_piece_kind){.np = 8, .ntones = RT_TONES_V4}, NULL, NULL);
     else
-        rt_piece_t(s, r, in, o, k, (rt_piece_kind){.np = r->np, .ntones = r->ntones}, NULL, NULL);
+        rt_piece_t(s, r, in, o, k, (rt_piece_kind){.np = r->np, .ntones = rt_tones_kind(r)}, NULL,
+                   NULL);
 }
 
 /* ---- contact location on the cubic Hermite path x(sigma), sigma in [0, 1] ---- */
@@ -597,6 +642,8 @@ static void rt_substep(const afm_sim *s, const rt_state *r, const rt_snap *a, rt
 
 /* Phasors exactly from afm_drive at s->t_s. */
 static void rt_sync_phasors(const afm_sim *s, rt_state *r, rt_snap *st) {
+    for (int j = 0; j < AFM_MAX_TONES; j++)
+        st->z_re[j] = st->z_im[j] = 0.0; /* zero past ntones (RT_TONES_V4) */
     for (int j = 0; j < r->ntones; j++) {
         double th = afm_drive_phase(&s->drive, j, s->t_s);
         st->z_re[j] = cos(th);
@@ -620,7 +667,7 @@ static void rt_publish(afm_sim *s, const rt_state *r, const rt_snap *b) {
     }
     double u = 0.0;
     for (int j = 0; j < r->ntones; j++)
-        u += s->drive.amp_m[j] * b->z_im[j];
+        u += r->amp_m[j] * b->z_im[j];
     s->f_last_n = b->tip.f_n;
     s->x_last_m = b->tip.x_m;
     s->v_last_m = b->tip.v_m_s;
@@ -710,10 +757,12 @@ static inline __attribute__((always_inline)) int rt_run_t(afm_sim *s, rt_state *
                 for (int i = 0; i < np; i += 4)
                     th4 = rt_fma4(RT_V4(r->rot + i), RT_V4(b->q + i), th4);
                 double th = rt_hsum(th4), u = 0.0;
-                for (int jt = 0; jt < nt; jt++) {
-                    th += r->th_re[jt] * b->z_im[jt] + r->th_im[jt] * b->z_re[jt];
-                    u += s->drive.amp_m[jt] * b->z_im[jt];
-                }
+                th += rt_tones_im(r->th_re, r->th_im, b->z_re, b->z_im, nt);
+                if (nt == RT_TONES_V4)
+                    u = rt_hsum(RT_V4(r->amp_m) * RT_V4(b->z_im));
+                else
+                    for (int jt = 0; jt < nt; jt++)
+                        u += r->amp_m[jt] * b->z_im[jt];
                 o->t_s = t0 + stepd * dt;
                 o->x_m = ta.x_m;
                 o->v_m_s = ta.v_m_s;
@@ -740,10 +789,12 @@ static inline __attribute__((always_inline)) int rt_run_t(afm_sim *s, rt_state *
 
 AFM_CLONES static int rt_run(afm_sim *s, int n, afm_sample *out) {
     rt_state *r = s->be_state;
-    if (r->noise) return rt_run_t(s, r, n, out, r->np, r->ntones, true);
+    if (r->noise) return rt_run_t(s, r, n, out, r->np, rt_tones_kind(r), true);
     if (r->ntones == 1 && r->np == 4) return rt_run_t(s, r, n, out, 4, 1, false);
     if (r->ntones == 1 && r->np == 8) return rt_run_t(s, r, n, out, 8, 1, false);
-    return rt_run_t(s, r, n, out, r->np, r->ntones, false);
+    if (r->ntones > 1 && r->np == 4) return rt_run_t(s, r, n, out, 4, RT_TONES_V4, false);
+    if (r->ntones > 1 && r->np == 8) return rt_run_t(s, r, n, out, 8, RT_TONES_V4, false);
+    return rt_run_t(s, r, n, out, r->np, rt_tones_kind(r), false);
 }
 
 /* Recompute the drive tables and reload the state from s->q, s->qd at s->t_s. */
@@ -752,7 +803,11 @@ static void rt_changed(afm_sim *s) {
     const afm_modal *m = &s->m;
     double cx_re[AFM_MAX_TONES], cx_im[AFM_MAX_TONES];
     r->ntones = s->drive.n;
+    for (int j = 0; j < AFM_MAX_TONES; j++) { /* zero past ntones (RT_TONES_V4) */
+        r->wd[j] = cx_re[j] = cx_im[j] = r->th_re[j] = r->th_im[j] = r->amp_m[j] = 0.0;
+    }
     for (int j = 0; j < r->ntones; j++) {
+        r->amp_m[j] = s->drive.amp_m[j];
         r->wd[j] = s->drive.omega_rad_s[j];
         cx_re[j] = cx_im[j] = 0.0;
         r->th_re[j] = m->rot_base * s->drive.amp_m[j];

@@ -115,6 +115,8 @@ void afm_rt_coef_drive(afm_rt_prop *p, int ntones, const double *wd, const doubl
         p->dv_re[j] = -wd[j] * p->dx_im[j]; /* i wd dx */
         p->dv_im[j] = wd[j] * p->dx_re[j];
     }
+    for (int j = ntones; j < AFM_MAX_TONES; j++) /* zeros past ntones: afm_rt.c's tone vector */
+        p->rot_re[j] = p->rot_im[j] = p->dx_re[j] = p->dx_im[j] = p->dv_re[j] = p->dv_im[j] = 0.0;
 }
 
 void afm_rt_coef_thermal(const afm_rt_prop *p, int n, int np, const double *w, const double *xi,
