@@ -45,6 +45,24 @@
 #include "integrators/afm_rt_coef.h"
 #include "integrators/afm_sim_impl.h"
 
+/* A portable x86-64 build compiles this file twice (Makefile, AFM_RT_COPY): for the
+ * baseline (afm_rt_backend_base) and for x86-64-v3 (afm_rt_backend_v3, the same code as an
+ * x86-64-v3 build's, so the same bits), and afm_sim picks the copy the CPU runs. Inside a
+ * copy nothing is cloned. */
+#if defined(AFM_RT_COPY)
+#undef AFM_CLONES
+#undef AFM_CLONES_NOINLINE
+#define AFM_CLONES
+#define AFM_CLONES_NOINLINE __attribute__((noinline))
+#if AFM_RT_COPY == 2
+#define AFM_RT_BACKEND afm_rt_backend_v3
+#else
+#define AFM_RT_BACKEND afm_rt_backend_base
+#endif
+#else
+#define AFM_RT_BACKEND afm_rt_backend
+#endif
+
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -278,12 +296,17 @@ typedef double rt_v4 __attribute__((vector_size(32), aligned(8), may_alias));
 #define RT_V4(p) (*(const rt_v4 *)(const void *)(p))
 #define RT_V4W(p) (*(rt_v4 *)(void *)(p))
 
-/* a b + c, fused where the target has FMA (-std=c11 keeps gcc from contracting). */
-static inline rt_v4 rt_fma4(rt_v4 a, rt_v4 b, rt_v4 c) {
+/* a b + c, rounded once per lane in every build (-std=c11 keeps gcc from contracting
+ * anything else): one vfmadd in an x86-64-v3 build; elsewhere lane by lane with
+ * __builtin_fma, which gcc and clang fold into one vfmadd in the x86-64-v3 clone of a
+ * portable build (AFM_CLONES) and into fmla on arm64, so every copy gives the same bits (the
+ * baseline x86-64 copy calls libm's fma: slow, exact). As AFM_V4_FMA of the estimators. */
+static inline __attribute__((always_inline)) rt_v4 rt_fma4(rt_v4 a, rt_v4 b, rt_v4 c) {
 #if defined(__FMA__) && defined(__AVX__)
     return (rt_v4)_mm256_fmadd_pd((__m256d)a, (__m256d)b, (__m256d)c);
 #else
-    return a * b + c;
+    return (rt_v4){__builtin_fma(a[0], b[0], c[0]), __builtin_fma(a[1], b[1], c[1]),
+                   __builtin_fma(a[2], b[2], c[2]), __builtin_fma(a[3], b[3], c[3])};
 #endif
 }
 
@@ -989,7 +1012,7 @@ static void rt_changed_z(afm_sim *s) {
     s->f_last_n = st->tip.f_n;
 }
 
-const afm_sim_backend afm_rt_backend = {
+const afm_sim_backend AFM_RT_BACKEND = {
     .name = "rt",
     .init = rt_init,
     .run = rt_run,

@@ -9,10 +9,24 @@
 #include <stdlib.h>
 #include <string.h>
 
+/* The rt backend; in a portable x86-64 build (AFM_MULTIVERSION) the copy of afm_rt.c
+ * compiled for x86-64-v3 where the CPU has AVX2, FMA and BMI1/2, else the baseline copy
+ * (afm_rt.c's head). */
+static const afm_sim_backend *rt_backend(void) {
+#if defined(AFM_MULTIVERSION) && defined(__x86_64__) && defined(__GNUC__)
+    __builtin_cpu_init();
+    bool v3 = __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma") &&
+              __builtin_cpu_supports("bmi") && __builtin_cpu_supports("bmi2");
+    return v3 ? &afm_rt_backend_v3 : &afm_rt_backend_base;
+#else
+    return &afm_rt_backend;
+#endif
+}
+
 static const afm_sim_backend *backend_for(afm_integrator_kind k) {
     switch (k) {
     case AFM_INTEGRATOR_RT:
-        return &afm_rt_backend;
+        return rt_backend();
     case AFM_INTEGRATOR_REFERENCE:
         return &afm_cvode_backend;
     case AFM_INTEGRATOR_ARKODE_ERK:

@@ -57,6 +57,8 @@ struct afm_sim {
 };
 
 extern const afm_sim_backend afm_rt_backend;
+/* A portable x86-64 build's two copies of afm_rt.c (AFM_RT_COPY): afm_sim picks one. */
+extern const afm_sim_backend afm_rt_backend_base, afm_rt_backend_v3;
 extern const afm_sim_backend afm_cvode_backend;
 extern const afm_sim_backend afm_arkode_erk_backend;
 
