@@ -36,7 +36,7 @@ endif
 OPT      ?= -O2 $(MARCH_FLAGS) -g
 LCM_CFLAGS := $(shell pkg-config --cflags lcm 2>/dev/null)
 LCM_LIBS   := $(shell pkg-config --libs lcm 2>/dev/null)
-CFLAGS   += $(CSTD) $(WARN) $(OPT)
+CFLAGS   += $(CSTD) $(WARN) $(OPT) $(EXTRA_CFLAGS)
 # Include paths: the engine sees only itself; transports, the daemon, tools, tests and
 # fuzzers also see "transport/afm_x.h" (-Idaemon), the generated LCM types and the installed
 # client header afmtwin_lcm_layout.h (-Imsgtypes); they also know the version.
@@ -168,7 +168,7 @@ $(BUILD)/bin/afmtwind: $(DAEMON_OBJ) $(LIBS_ALL)
 
 $(BUILD)/tests/%: $(BUILD)/obj/tests/%.o $(TEST_COMMON) $(LIBS_ALL)
 	@mkdir -p $(dir $@)
-	$(CC) $(CFLAGS) -o $@ $^ $(LDLIBS)
+	$(CC) $(CFLAGS) $(LDFLAGS) -o $@ $^ $(LDLIBS)
 
 # The CAN probe that tests/test_can_vm.sh runs inside a VM (static: engine + CAN transport
 # + codec, no LCM). Built by that script; not part of `all`.
