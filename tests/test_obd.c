@@ -189,7 +189,8 @@ static void noise(void) {
  * vectorising the moment loop below: not vectorised there. */
 __attribute__((optimize("no-tree-vectorize")))
 #endif
-static void bulk_normals(void) {
+static void
+bulk_normals(void) {
     enum { N = 4000000, LAGS = 8 };
     static double z[N];
     afm_rng r;
