@@ -187,10 +187,11 @@ static void noise(void) {
 #if defined(__GNUC__) && !defined(__clang__) && defined(__aarch64__)
 /* gcc 12 for arm64 stops with an internal compiler error (vect_transform_reduction)
  * vectorising the moment loop below: not vectorised there. */
-__attribute__((optimize("no-tree-vectorize")))
+#define NOT_VECTORISED_ON_ARM64 __attribute__((optimize("no-tree-vectorize")))
+#else
+#define NOT_VECTORISED_ON_ARM64
 #endif
-static void
-bulk_normals(void) {
+NOT_VECTORISED_ON_ARM64 static void bulk_normals(void) {
     enum { N = 4000000, LAGS = 8 };
     static double z[N];
     afm_rng r;
