@@ -189,6 +189,27 @@ static void tone_change_case(void) {
     afm_sim_destroy(&s);
 }
 
+/* rt at `substeps`, rt with 64 contact substeps and CVODE for one model, forces and drive;
+ * false (all destroyed, the reason printed) if one cannot be created. */
+static bool create_trio(const afm_modal *m, const afm_force_params *f, const afm_cfg_drive *dc,
+                        int substeps, afm_sim **s, afm_sim **fine, afm_sim **ref,
+                        const char *label) {
+    char err[AFM_ERR_LEN], what[128];
+    afm_cfg_sim sc = sim_cfg(AFM_INTEGRATOR_RT, substeps);
+    *s = afm_sim_create(m, f, dc, &sc, err, sizeof err);
+    sc.rt_substeps_contact = 64;
+    *fine = afm_sim_create(m, f, dc, &sc, err, sizeof err);
+    sc = sim_cfg(AFM_INTEGRATOR_REFERENCE, 0);
+    *ref = afm_sim_create(m, f, dc, &sc, err, sizeof err);
+    snprintf(what, sizeof what, "%s: create rt, rt-64 and CVODE", label);
+    if (check_true(*s && *fine && *ref, what)) return true;
+    printf("  (%s)\n", err);
+    afm_sim_destroy(s);
+    afm_sim_destroy(fine);
+    afm_sim_destroy(ref);
+    return false;
+}
+
 /* (3) Tapping, 4-mode model at 50 nm free amplitude, Z = 30 nm. The rt run at the default
  * substeps runs from rest to its steady orbit; CVODE (rtol 1e-10) is started on the orbit of
  * an rt run with 64 substeps at the same phase (a whole number of drive periods of 38
@@ -201,20 +222,9 @@ static void tapping_case(int substeps, double tol) {
     double wd = two_pi * rate_hz / div;
     double a_base = 50e-9 / cabs(fixture_tip_gain(&m, wd)); /* 50 nm free amplitude */
     afm_cfg_drive dc = one_tone(a_base, rate_hz / div, 0.0, 30e-9);
-    char err[AFM_ERR_LEN], what[256];
-    afm_cfg_sim sc = sim_cfg(AFM_INTEGRATOR_RT, substeps);
-    afm_sim *s = afm_sim_create(&m, &f, &dc, &sc, err, sizeof err);
-    sc.rt_substeps_contact = 64;
-    afm_sim *fine = afm_sim_create(&m, &f, &dc, &sc, err, sizeof err);
-    sc = sim_cfg(AFM_INTEGRATOR_REFERENCE, 0);
-    afm_sim *ref = afm_sim_create(&m, &f, &dc, &sc, err, sizeof err);
-    if (!check_true(s && fine && ref, "tapping: create rt, rt-64 and CVODE")) {
-        printf("  (%s)\n", err);
-        afm_sim_destroy(&s);
-        afm_sim_destroy(&fine);
-        afm_sim_destroy(&ref);
-        return;
-    }
+    char what[256];
+    afm_sim *s, *fine, *ref;
+    if (!create_trio(&m, &f, &dc, substeps, &s, &fine, &ref, "tapping")) return;
     long settle = 80000L / div * div; /* 30 time constants of mode 1 */
     int rc1 = run_long(s, settle), rc2 = run_long(fine, settle);
     double q[AFM_MAX_MODES], qd[AFM_MAX_MODES];
@@ -268,20 +278,9 @@ static void multitone_case(void) {
         dc.tones[1 + j].phase_rad = ph[j];
     }
     dc.n_tones = 4;
-    char err[AFM_ERR_LEN], what[256];
-    afm_cfg_sim sc = sim_cfg(AFM_INTEGRATOR_RT, 0);
-    afm_sim *s = afm_sim_create(&m, &f, &dc, &sc, err, sizeof err);
-    sc.rt_substeps_contact = 64;
-    afm_sim *fine = afm_sim_create(&m, &f, &dc, &sc, err, sizeof err);
-    sc = sim_cfg(AFM_INTEGRATOR_REFERENCE, 0);
-    afm_sim *ref = afm_sim_create(&m, &f, &dc, &sc, err, sizeof err);
-    if (!check_true(s && fine && ref, "4 tones: create rt, rt-64 and CVODE")) {
-        printf("  (%s)\n", err);
-        afm_sim_destroy(&s);
-        afm_sim_destroy(&fine);
-        afm_sim_destroy(&ref);
-        return;
-    }
+    char what[256];
+    afm_sim *s, *fine, *ref;
+    if (!create_trio(&m, &f, &dc, 0, &s, &fine, &ref, "4 tones")) return;
     for (int pass = 0; pass < 2; pass++) {
         int nt = pass == 0 ? 4 : 2;
         int rc0 = 0;

@@ -275,23 +275,22 @@ static int run_state(const afm_config *cfg, double uptime_s, state_id id, state_
         run(&t, llround(0.005 * fs));
         break;
     }
-    case ST_SOAK_MIX: /* the state the soak of seed 1 found slowest (default.conf) */
-    case ST_SOAK_MIX1: {
-        const double f[4] = {342479, 590778, 141987, 838028};
-        const double a[4] = {50e-9 / 50e-9 * 0.076e-9, 0.0121e-9, 0.00331e-9, 0.0163e-9};
-        c = setpoint(17.8e-9, 0);
+    case ST_SOAK_MIX:  /* the state the soak of seed 1 found slowest (default.conf) */
+    case ST_SOAK_MIX1: /* the same, tone 0 alone */
+    case ST_SOAK_MIX2: /* the soak of seed 1 at 7.85 s: 1.35x the budget before issue 12 */
+    {
+        static const struct {
+            double z_m, f_hz[4], a_m[4];
+        } mix[2] = {{17.8e-9,
+                     {342479, 590778, 141987, 838028},
+                     {0.076e-9, 0.0121e-9, 0.00331e-9, 0.0163e-9}},
+                    {15.62e-9,
+                     {337945.868, 403324.829, 227633.019, 756669.365},
+                     {0.07595e-9, 0.012589e-9, 0.01431e-9, 0.0040618e-9}}};
+        int k = id == ST_SOAK_MIX2;
+        c = setpoint(mix[k].z_m, 0);
         apply(&t, &c);
-        c = dither(id == ST_SOAK_MIX ? 4 : 1, f, a);
-        apply(&t, &c);
-        run(&t, llround(0.01 * fs));
-        break;
-    }
-    case ST_SOAK_MIX2: { /* the soak of seed 1 at 7.85 s: 1.35x the budget before issue 12 */
-        const double f[4] = {337945.868, 403324.829, 227633.019, 756669.365};
-        const double a[4] = {0.07595e-9, 0.012589e-9, 0.01431e-9, 0.0040618e-9};
-        c = setpoint(15.62e-9, 0);
-        apply(&t, &c);
-        c = dither(4, f, a);
+        c = dither(id == ST_SOAK_MIX1 ? 1 : 4, mix[k].f_hz, mix[k].a_m);
         apply(&t, &c);
         run(&t, llround(0.01 * fs));
         break;
