@@ -189,6 +189,28 @@ static void tone_change_case(void) {
     afm_sim_destroy(&s);
 }
 
+/* buf (rt) against buf2 (the reference) over samples [from, to): the largest |x difference|,
+ * the reference's half peak-to-peak amplitude, lowest x, peak force and samples with the tip
+ * below xc (in contact). */
+typedef struct {
+    double emax_m, amp_m, xmin_m, fmax_n;
+    int in_contact;
+} rt_vs_ref;
+
+static rt_vs_ref compare_window(int from, int to, double xc) {
+    rt_vs_ref c = {0, 0, 1, 0, 0};
+    double xmax = -1;
+    for (int k = from; k < to; k++) {
+        c.emax_m = fmax(c.emax_m, fabs(buf[k].x_m - buf2[k].x_m));
+        c.xmin_m = fmin(c.xmin_m, buf2[k].x_m);
+        xmax = fmax(xmax, buf2[k].x_m);
+        c.fmax_n = fmax(c.fmax_n, buf2[k].f_n);
+        c.in_contact += buf2[k].x_m < xc;
+    }
+    c.amp_m = 0.5 * (xmax - c.xmin_m);
+    return c;
+}
+
 /* rt at `substeps`, rt with 64 contact substeps and CVODE for one model, forces and drive;
  * false (all destroyed, the reason printed) if one cannot be created. */
 static bool create_trio(const afm_modal *m, const afm_force_params *f, const afm_cfg_drive *dc,
@@ -235,17 +257,10 @@ static void tapping_case(int substeps, double tol) {
     snprintf(what, sizeof what, "tapping m=%d: runs ok (rc %d %d %d %d %d)", substeps, rc1, rc2,
              rc3, rc4, rc5);
     check_true(!rc1 && !rc2 && !rc3 && !rc4 && !rc5, what);
-    double emax = 0, xmin = 1, xmax = -1, fmax_n = 0;
-    int incontact = 0;
     double xc = afm_force_contact_x(&f, 30e-9);
-    for (int k = nrun - div; k < nrun; k++) {
-        emax = fmax(emax, fabs(buf[k].x_m - buf2[k].x_m));
-        xmin = fmin(xmin, buf2[k].x_m);
-        xmax = fmax(xmax, buf2[k].x_m);
-        fmax_n = fmax(fmax_n, buf2[k].f_n);
-        incontact += buf2[k].x_m < xc;
-    }
-    double amp = 0.5 * (xmax - xmin);
+    rt_vs_ref w = compare_window(nrun - div, nrun, xc);
+    double emax = w.emax_m, xmin = w.xmin_m, fmax_n = w.fmax_n, amp = w.amp_m;
+    int incontact = w.in_contact;
     printf("     tapping: amplitude %.3f nm, indentation %.3f nm, peak force %.1f nN, %d of %d "
            "samples in contact\n",
            amp * 1e9, (xc - xmin) * 1e9, fmax_n * 1e9, incontact, div);
@@ -296,16 +311,9 @@ static void multitone_case(void) {
         snprintf(what, sizeof what, "%d tones: runs ok (rc %d %d %d %d %d %d)", nt, rc0, rc1, rc2,
                  rc3, rc4, rc5);
         check_true(!rc0 && !rc1 && !rc2 && !rc3 && !rc4 && !rc5, what);
-        double emax = 0, xmin = 1, xmax = -1;
-        int incontact = 0;
-        double xc = afm_force_contact_x(&f, 30e-9);
-        for (int k = 0; k < nrun; k++) {
-            emax = fmax(emax, fabs(buf[k].x_m - buf2[k].x_m));
-            xmin = fmin(xmin, buf2[k].x_m);
-            xmax = fmax(xmax, buf2[k].x_m);
-            incontact += buf2[k].x_m < xc;
-        }
-        double amp = 0.5 * (xmax - xmin);
+        rt_vs_ref w = compare_window(0, nrun, afm_force_contact_x(&f, 30e-9));
+        double emax = w.emax_m, amp = w.amp_m;
+        int incontact = w.in_contact;
         printf("     %d tones: amplitude %.3f nm, %d of %d samples in contact\n", nt, amp * 1e9,
                incontact, nrun);
         snprintf(what, sizeof what, "%d tones: the tip taps (samples in contact > 0)", nt);
@@ -795,16 +803,10 @@ static void measure_config(const char *path, int substeps, double free_amp_m, do
     double t_ref = now_s() - t0;
     afm_sim_run(s, per, buf);
     afm_sim_run(ref, per, buf2);
-    double emax = 0, xmin = 1, xmax = -1;
-    int inc = 0;
     double xc = afm_force_contact_x(&f, cfg.drive.separation_m);
-    for (int k = 0; k < per; k++) {
-        emax = fmax(emax, fabs(buf[k].x_m - buf2[k].x_m));
-        xmin = fmin(xmin, buf2[k].x_m);
-        xmax = fmax(xmax, buf2[k].x_m);
-        inc += buf2[k].x_m < xc;
-    }
-    double amp = 0.5 * (xmax - xmin);
+    rt_vs_ref w = compare_window(0, per, xc);
+    double emax = w.emax_m, xmin = w.xmin_m, amp = w.amp_m;
+    int inc = w.in_contact;
     /* cost: best of 3 x 1e6 samples on the steady orbit, with and without output */
     double best_out = 1e9, best_no = 1e9;
     for (int rep = 0; rep < 3; rep++) {
