@@ -51,7 +51,7 @@ ENGINE_OBJ := $(patsubst %.c,$(BUILD)/obj/%.o,$(ENGINE_SRC))
 # A portable x86-64 build compiles the integrator twice: for the baseline and for
 # x86-64-v3 (the same code as an x86-64-v3 build: same bits); afm_sim.c picks the copy the
 # CPU runs (README "Portable builds"). The output chain's hot loops are target_clones.
-ifneq ($(filter -DAFM_MULTIVERSION=1,$(MARCH_FLAGS)),)
+ifneq ($(filter -DAFM_MULTIVERSION=1,$(OPT) $(EXTRA_CFLAGS)),)
 RT_COPY_OBJ := $(BUILD)/obj/daemon/engine/integrators/afm_rt.o
 RT_V3_OBJ   := $(BUILD)/obj/daemon/engine/integrators/afm_rt_v3.o
 ENGINE_OBJ  += $(RT_V3_OBJ)
@@ -148,15 +148,15 @@ $(BUILD)/obj/%.o: %.c $(BUILD)/gen/.stamp $(FLAGS_STAMP)
 
 $(MSG_LIB): $(MSG_OBJ)
 	@mkdir -p $(dir $@)
-	$(AR) rcs $@ $^
+	rm -f $@ && $(AR) rcs $@ $^
 
 $(IO_LIB): $(IO_OBJ) $(WIRE_OBJ)
 	@mkdir -p $(dir $@)
-	$(AR) rcs $@ $^
+	rm -f $@ && $(AR) rcs $@ $^
 
 $(ENGINE_LIB): $(ENGINE_OBJ)
 	@mkdir -p $(dir $@)
-	$(AR) rcs $@ $^
+	rm -f $@ && $(AR) rcs $@ $^
 
 $(BUILD)/bin/afmtwin: $(TOOL_OBJ) $(LIBS_ALL)
 	@mkdir -p $(dir $@)
