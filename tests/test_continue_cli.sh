@@ -34,6 +34,34 @@ tail -1 "$T/lin.json" | grep -q '"type":"summary"' && grep -q '"type":"end"' "$T
   [ "$(grep -cv '^#\|^$' "$T/lin.dat")" -ge 3 ] && ok "plot continue: a PNG and its columns" ||
   bad "plot continue: $(cat "$T/plot.err")"
 
+# --param2: the fold curve of config/lumped-vdw-fold.conf from its lower LPC, 3 points a side
+# (the numbers: tests/test_continue.c's lumped case)
+"$A" continue --config config/lumped-vdw-fold.conf --param fe --from 298700 --to 298300 \
+  --no-switch --param2 ae --from2 3e-13 --to2 6e-13 --curves 1 --curve-points 3 --json \
+  >"$T/cv.json" 2>"$T/cv.err"
+rc=$?
+[ $rc -eq 0 ] && ok "--param2 ae: exit 0" || bad "--param2 ae: exit $rc, $(cat "$T/cv.err")"
+nc=$(grep -c '"type":"curve_point"' "$T/cv.json")
+[ "$nc" -ge 3 ] && ok "--param2 ae: $nc curve_point records" || bad "--param2 ae: $nc curve_point records"
+miss=""
+for k in curve kind side param param_name param2 param2_name period stable multiplier g \
+  multipliers min_deflection_m max_force_n amplitude_m phase_lag_deg state residual; do
+  grep '"type":"curve_point"' "$T/cv.json" | head -1 | grep -q "\"$k\":" || miss="$miss $k"
+done
+[ -z "$miss" ] && ok "curve_point records carry the point's fields and the curve's" ||
+  bad "curve_point records lack:$miss"
+grep -q '"type":"curve_end".*"side":0.*the start is on the edge' "$T/cv.json" &&
+  grep -q '"type":"curve_end".*"side":1.*the most points per side' "$T/cv.json" &&
+  ok "each side ends with its reason (a start on the edge of Ae: side 0 has no points)" ||
+  bad "curve_end records: $(grep curve_end "$T/cv.json" | cut -c1-160)"
+tail -1 "$T/cv.json" | grep -q '"curves":1,"curve_points":4' &&
+  ok "the summary counts the curves and their points" || bad "summary: $(tail -1 "$T/cv.json" | cut -c1-200)"
+# every curve point: a multiplier at +1 (the fold), on the lower fold's side of the cusp
+bad_pts=$(grep '"type":"curve_point"' "$T/cv.json" | grep -o '"multiplier":\[[^,]*' |
+  awk -F'[' '{m=$2+0; if (m < 0.9999 || m > 1.0001) n++} END {print n+0}')
+[ "$bad_pts" -eq 0 ] && ok "every curve point has its multiplier at +1 (1e-4)" ||
+  bad "$bad_pts curve points with a multiplier away from +1"
+
 refuse() { # refuse WHAT PATTERN ARGS...: exit 2 and PATTERN on stderr
   local what=$1 pat=$2
   shift 2
@@ -54,4 +82,10 @@ refuse "a bad --start" "comma-separated" --config $C --param fe --from 80000 --t
 refuse "a bad --period" "integer" --config $C --param fe --from 80000 --to 81000 --period 0
 refuse "a missing config" "cannot\|no such\|open" --config "$T/none.conf" --param fe --from 80000 --to 81000
 refuse "an unknown option" "unknown or incomplete option" --config $C --param fe --from 80000 --to 81000 --bogus 1
+refuse "--param2 without a range" "needs --from2 and --to2" --config $C --param fe --from 80000 --to 81000 --param2 z
+refuse "--from2 without --param2" "needs --from2 and --to2" --config $C --param fe --from 80000 --to 81000 --from2 1e-9 --to2 2e-9
+refuse "--param2 = --param" "must differ from --param" --config $C --param fe --from 80000 --to 81000 --param2 fe --from2 1 --to2 2
+refuse "an unknown --param2" "unknown parameter" --config $C --param fe --from 80000 --to 81000 --param2 bogus --from2 1 --to2 2
+refuse "--param2's config value outside its range" "outside \[--from2, --to2\]" --config $C --param fe --from 80000 --to 81000 --param2 z --from2 1e-9 --to2 2e-9
+refuse "--curves 0" "--curves wants an integer in 1..32" --config $C --param fe --from 80000 --to 81000 --param2 z --from2 29e-9 --to2 31e-9 --curves 0
 check_done

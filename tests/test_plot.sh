@@ -14,7 +14,7 @@ else
 fi
 # PNG: 8-byte signature, then the IHDR chunk with width and height (big-endian) at 16, 20
 png_size() { od -An -tu1 -j16 -N8 "$1" | awk '{print $1*16777216+$2*65536+$3*256+$4 "x" $5*16777216+$6*65536+$7*256+$8}'; }
-for k in sweep approach spectrum thermal trace scan; do
+for k in sweep approach spectrum thermal trace scan continue; do
   f="$T/$k.png"
   sig=$(od -An -tx1 -N8 "$f" 2>/dev/null | tr -d ' \n')
   if [ "$sig" = "89504e470d0a1a0a" ] && [ "$(png_size "$f")" = "1000x750" ]; then
@@ -41,4 +41,7 @@ done
 [ $rc -eq 2 ] && grep -q "unknown kind" "$T/e3.txt" && ok "an unknown kind: exit 2" || bad "unknown kind: exit $rc"
 "$A" plot sweep "$T/approach.json" -o "$T/x.png" 2>"$T/e4.txt"; rc=$?
 [ $rc -eq 2 ] && grep -q "without fe_hz" "$T/e4.txt" && ok "approach JSON as a sweep: exit 2" || bad "approach JSON as a sweep: exit $rc, $(cat "$T/e4.txt")"
+"$A" plot continue "$T/continue.json" 2>"$T/e6.txt"; rc=$?
+[ $rc -eq 2 ] && grep -q "\-o FILE.png is required" "$T/e6.txt" && ok "no -o: exit 2, '-o FILE.png is required'" \
+  || bad "no -o: exit $rc, $(cat "$T/e6.txt")"
 check_done

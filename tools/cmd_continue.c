@@ -2,13 +2,16 @@
 /* cmd_continue.c -- `afmtwin continue`: numerical continuation of the periodic orbits of a
  * config in one parameter (analysis/afm_cont.h): the whole branch, stable and unstable,
  * with its LPC, PD and NS bifurcations, switching at each PD onto the period-doubled
- * branch. One JSON record per point or bifurcation and line (--json), or a table.
+ * branch; with --param2, the curves of its LPC and PD points in the plane of two parameters
+ * (analysis/afm_cont_curve.h). One JSON record per point or bifurcation and line (--json),
+ * or a table.
  *
  * Phases are the lag of the deflection behind the drive (x_dit = Ae sin(we t)): 90 deg for a
  * free cantilever at resonance, below 90 in the repulsive regime. */
 #include "afmtwin_cmds.h"
 
 #include "analysis/afm_cont.h"
+#include "analysis/afm_cont_curve.h"
 #include "config/afm_config.h"
 #include "json_out.h"
 #include "lcm_tool.h"
@@ -21,9 +24,9 @@
 #include <string.h>
 
 typedef struct {
-    const char *config, *param, *start;
-    double from, to;
-    int max_points, period, settle, max_branches;
+    const char *config, *param, *start, *param2;
+    double from, to, from2, to2;
+    int max_points, period, settle, max_branches, curves, curve_points;
     double h0, h_max;
     bool json, no_switch;
 } cont_cli;
@@ -34,7 +37,9 @@ static void cont_usage(FILE *f) {
         "usage: afmtwin continue --config FILE --param fe|z|ae|NAME --from X --to X\n"
         "                        [--start STATE] [--max-points N] [--period P]\n"
         "                        [--settle N] [--no-switch] [--max-branches N]\n"
-        "                        [--step H] [--max-step H] [--json]\n\n"
+        "                        [--step H] [--max-step H] [--json]\n"
+        "                        [--param2 NAME --from2 X --to2 X [--curves N]\n"
+        "                         [--curve-points N]]\n\n"
         "Numerical continuation of the periodic orbits of the modal model with its tip\n"
         "forces (the config's drive must be one tone): starting from the orbit at --from\n"
         "(found by time integration from rest, or from --start), the branch is followed by\n"
@@ -45,7 +50,12 @@ static void cont_usage(FILE *f) {
         "located by root finding. Stability from the Floquet multipliers (the eigenvalues of\n"
         "the monodromy matrix): LPC (a multiplier through +1, a fold), PD (through -1) and NS\n"
         "(a complex pair through the unit circle) are located and refined to the parameter.\n"
-        "At each PD the period-doubled branch is continued too (unless --no-switch).\n\n"
+        "At each PD the period-doubled branch is continued too (unless --no-switch).\n"
+        "With --param2, each LPC and PD found is then continued in the plane of the two\n"
+        "parameters (a minimally augmented system: the orbit and a test function that is zero\n"
+        "where M - I or M + I is singular): the curves that bound the bistable windows (LPC)\n"
+        "and the period-doubled regions (PD), both ways from the point until they leave the\n"
+        "rectangle of the two ranges or close.\n\n"
         "Phase convention: the lag of the deflection behind the drive (x_dit = Ae sin(we t)),\n"
         "90 deg for a free cantilever at resonance, below 90 in the repulsive regime.\n\n"
         "options:\n"
@@ -66,6 +76,12 @@ static void cont_usage(FILE *f) {
         "  --step H           first step (scaled arclength: 1 = the range in the parameter,\n"
         "                     or the start orbit's amplitude in the state; default 0.02)\n"
         "  --max-step H       largest step (default 0.25)\n"
+        "  --param2 NAME      a second parameter (names as --param): continue every LPC and\n"
+        "                     PD point found in (--param, --param2); its config value must lie\n"
+        "                     in [--from2, --to2]\n"
+        "  --from2 X, --to2 X the second parameter's range\n"
+        "  --curves N         most curves, 1..32 (default 8: the first N LPC / PD points)\n"
+        "  --curve-points N   most points per side of a curve (default 400)\n"
         "  --json             one JSON object per line: {\"type\": \"point\", \"branch\", "
         "\"param\",\n"
         "                     \"period\", \"stable\", \"multipliers\": [[re, im], ...],\n"
@@ -82,8 +98,15 @@ static void cont_usage(FILE *f) {
         "step),\n"
         "                     ...the point's fields}; per branch end {\"type\":\n"
         "                     \"end\", \"branch\", \"parent\", \"period\", \"param\", \"points\",\n"
+        "                     \"reason\"}; with --param2 per curve point {\"type\":\n"
+        "                     \"curve_point\", \"curve\", \"kind\": \"LPC\"|\"PD\", \"side\",\n"
+        "                     \"param\", \"param2\", \"period\", \"stable\" (the other\n"
+        "                     multipliers inside the circle), \"multiplier\", \"g\",\n"
+        "                     ...the point's fields}, per side's end {\"type\": \"curve_end\",\n"
+        "                     \"curve\", \"kind\", \"side\", \"param\", \"param2\", \"points\",\n"
         "                     \"reason\"}; last {\"type\": \"summary\", \"points\", \"branches\",\n"
-        "                     \"bifurcations\", \"maps\", \"seconds\", \"seconds_per_point\"}\n"
+        "                     \"bifurcations\", \"maps\", \"seconds\", \"seconds_per_point\",\n"
+        "                     and with --param2 \"curves\", \"curve_points\", \"curve_seconds\"}\n"
         "  --help             this text\n\n"
         "Without --json a table (kHz or the parameter's unit, nm, nN). The config's sim.ref_rtol\n"
         "(default 1e-10) is the integration tolerance.\n"
@@ -94,13 +117,18 @@ static void cont_usage(FILE *f) {
 
 /* 0 ok, 1 --help, -1 bad usage (said). */
 static int cont_parse(int argc, char **argv, cont_cli *o) {
-    *o = (cont_cli){.from = NAN, .to = NAN, .period = 1};
+    *o = (cont_cli){.from = NAN, .to = NAN, .from2 = NAN, .to2 = NAN, .period = 1, .curves = 8};
     const afmt_opt opts[] = {
         AFMT_FLAG("--json", &o->json),
         AFMT_FLAG("--no-switch", &o->no_switch),
         AFMT_STRING("--config", &o->config),
         AFMT_STRING("--param", &o->param),
         AFMT_STRING("--start", &o->start),
+        AFMT_STRING("--param2", &o->param2),
+        AFMT_DOUBLE("--from2", &o->from2, 0, 0, NULL),
+        AFMT_DOUBLE("--to2", &o->to2, 0, 0, NULL),
+        AFMT_INT("--curves", &o->curves, 1, 32, NULL),
+        AFMT_INT("--curve-points", &o->curve_points, 1, 100000, NULL),
         AFMT_DOUBLE("--from", &o->from, 0, 0, NULL),
         AFMT_DOUBLE("--to", &o->to, 0, 0, NULL),
         AFMT_DOUBLE("--step", &o->h0, 0, 0, NULL),
@@ -119,6 +147,16 @@ static int cont_parse(int argc, char **argv, cont_cli *o) {
     }
     if (o->from == o->to) {
         fprintf(stderr, "afmtwin continue: --from and --to must differ\n");
+        return -1;
+    }
+    bool r2 = !isnan(o->from2) || !isnan(o->to2);
+    if ((o->param2 || r2) && (!o->param2 || isnan(o->from2) || isnan(o->to2))) {
+        fprintf(stderr, "afmtwin continue: --param2 needs --from2 and --to2 (and they need it)\n");
+        return -1;
+    }
+    if (o->param2 && (!strcmp(o->param2, o->param) || o->from2 == o->to2)) {
+        fprintf(stderr, "afmtwin continue: --param2 must differ from --param, and --from2 from "
+                        "--to2\n");
         return -1;
     }
     if ((o->h0 != 0 && !(o->h0 > 0 && o->h0 <= 1)) ||
@@ -148,11 +186,22 @@ static int cont_parse_state(const char *s, int n, double *y) {
     return -1;
 }
 
+#define CONT_MAX_CURVES 32
+
+/* An LPC or PD point of the one-parameter run, kept to start its curve from. */
+typedef struct {
+    afm_cont_kind kind;
+    int p;
+    double param, y[AFM_CONT_MAX_N];
+} cont_event;
+
 typedef struct {
     bool json;
-    const char *name; /* --param */
+    const char *name, *name2; /* --param, --param2 */
     const char *unit;
     double scale; /* of the table's parameter column */
+    cont_event ev[CONT_MAX_CURVES];
+    int n_ev, max_ev;
 } cont_sink;
 
 static const char *kind_name(afm_cont_kind k) {
@@ -185,8 +234,40 @@ static void json_metrics(cJSON *o, const afm_cont_metrics *m) {
     }
 }
 
+/* The multipliers and the state of a point (n entries each). */
+static void json_pair(cJSON *o, const char *key, const double *v) {
+    cJSON *a = cJSON_AddArrayToObject(o, key);
+    cJSON_AddItemToArray(a, cJSON_CreateNumber(v[0]));
+    cJSON_AddItemToArray(a, cJSON_CreateNumber(v[1]));
+}
+
+/* The orbit's fields of a point record: metrics, multipliers, state, residual, iterations. */
+static void json_orbit(cJSON *o, const afm_cont_metrics *met, int n, const double *re,
+                       const double *im, const double *y, double residual, int iterations) {
+    json_metrics(o, met);
+    cJSON *ms = cJSON_AddArrayToObject(o, "multipliers");
+    for (int i = 0; i < n; i++) {
+        cJSON *e = cJSON_CreateArray();
+        cJSON_AddItemToArray(e, cJSON_CreateNumber(re[i]));
+        cJSON_AddItemToArray(e, cJSON_CreateNumber(im[i]));
+        cJSON_AddItemToArray(ms, e);
+    }
+    cJSON *st = cJSON_AddArrayToObject(o, "state");
+    for (int i = 0; i < n; i++)
+        cJSON_AddItemToArray(st, cJSON_CreateNumber(y[i]));
+    cJSON_AddNumberToObject(o, "residual", residual);
+    cJSON_AddNumberToObject(o, "iterations", iterations);
+}
+
 static int cont_emit(void *ctx, const afm_cont_record *r) {
-    const cont_sink *s = ctx;
+    cont_sink *s = ctx;
+    if ((r->kind == AFM_CONT_LPC || r->kind == AFM_CONT_PD) && r->refined && s->n_ev < s->max_ev) {
+        cont_event *e = &s->ev[s->n_ev++];
+        e->kind = r->kind;
+        e->p = r->p;
+        e->param = r->param;
+        memcpy(e->y, r->y, sizeof(double) * (size_t)r->n_mult);
+    }
     if (!s->json) {
         if (r->kind == AFM_CONT_END)
             printf("# branch %d (period %d, from branch %d) ends after %d points: %s\n", r->branch,
@@ -216,27 +297,98 @@ static int cont_emit(void *ctx, const afm_cont_record *r) {
     }
     cJSON_AddBoolToObject(o, "stable", r->stable);
     if (r->kind != AFM_CONT_POINT) {
-        cJSON *mu = cJSON_AddArrayToObject(o, "multiplier");
-        cJSON_AddItemToArray(mu, cJSON_CreateNumber(r->multiplier[0]));
-        cJSON_AddItemToArray(mu, cJSON_CreateNumber(r->multiplier[1]));
+        json_pair(o, "multiplier", r->multiplier);
         cJSON_AddBoolToObject(o, "refined", r->refined);
     }
-    cJSON *ms = cJSON_AddArrayToObject(o, "multipliers");
-    for (int i = 0; i < r->n_mult; i++) {
-        cJSON *e = cJSON_CreateArray();
-        cJSON_AddItemToArray(e, cJSON_CreateNumber(r->mult_re[i]));
-        cJSON_AddItemToArray(e, cJSON_CreateNumber(r->mult_im[i]));
-        cJSON_AddItemToArray(ms, e);
-    }
-    json_metrics(o, &r->metrics);
-    cJSON *st = cJSON_AddArrayToObject(o, "state");
-    for (int i = 0; i < r->n_mult; i++)
-        cJSON_AddItemToArray(st, cJSON_CreateNumber(r->y[i]));
-    cJSON_AddNumberToObject(o, "residual", r->residual);
-    cJSON_AddNumberToObject(o, "iterations", r->iterations);
+    json_orbit(o, &r->metrics, r->n_mult, r->mult_re, r->mult_im, r->y, r->residual, r->iterations);
     afmt_json_emit(o);
     fflush(stdout);
     return 0;
+}
+
+static int curve_emit(void *ctx, const afm_cont_curve_record *r) {
+    const cont_sink *s = ctx;
+    const char *kind = kind_name(r->kind);
+    if (!s->json) {
+        if (r->end)
+            printf("# curve %d (%s, period %d) side %d ends after %d points: %s\n", r->curve, kind,
+                   r->p, r->side, r->points, r->stop_reason);
+        else
+            printf("%-5s %3d %2d %14.8g %14.8g %-8s %12.6f %12.6f %10.5f %12.6f\n", kind, r->curve,
+                   r->side, r->param * s->scale, r->param2, r->stable ? "stable" : "unstable",
+                   r->metrics.min_deflection_m * 1e9, r->metrics.max_deflection_m * 1e9,
+                   r->metrics.max_force_n * 1e9, r->metrics.amplitude_m * 1e9);
+        fflush(stdout);
+        return 0;
+    }
+    cJSON *o = cJSON_CreateObject();
+    cJSON_AddStringToObject(o, "type", r->end ? "curve_end" : "curve_point");
+    cJSON_AddNumberToObject(o, "curve", r->curve);
+    cJSON_AddStringToObject(o, "kind", kind);
+    cJSON_AddNumberToObject(o, "side", r->side);
+    cJSON_AddStringToObject(o, "param_name", s->name);
+    cJSON_AddNumberToObject(o, "param", r->param);
+    cJSON_AddStringToObject(o, "param2_name", s->name2);
+    cJSON_AddNumberToObject(o, "param2", r->param2);
+    cJSON_AddNumberToObject(o, "period", r->p);
+    if (r->end) {
+        cJSON_AddNumberToObject(o, "points", r->points);
+        cJSON_AddStringToObject(o, "reason", r->stop_reason);
+    } else {
+        cJSON_AddBoolToObject(o, "stable", r->stable);
+        json_pair(o, "multiplier", r->multiplier);
+        cJSON_AddNumberToObject(o, "g", r->g);
+        json_orbit(o, &r->metrics, r->n_mult, r->mult_re, r->mult_im, r->y, r->residual,
+                   r->iterations);
+    }
+    afmt_json_emit(o);
+    fflush(stdout);
+    return 0;
+}
+
+/* --param2: the curve of every kept event. Returns the points; *secs the time. */
+static int run_curves(const afm_config *cfg, const cont_cli *o, cont_sink *sink, long *maps,
+                      double *secs) {
+    int points = 0;
+    *maps = 0;
+    *secs = 0.0;
+    if (sink->n_ev == 0)
+        fprintf(stderr, "afmtwin continue: no LPC or PD point in the range: no curve in %s\n",
+                o->param2);
+    else if (!o->json)
+        printf("# %-3s %3s %4s %14s %14s %-8s %12s %12s %10s %12s\n", "kind", "cv", "side",
+               sink->unit, o->param2, "", "min x (nm)", "max x (nm)", "max F (nN)", "ampl (nm)");
+    for (int k = 0; k < sink->n_ev; k++) {
+        const cont_event *e = &sink->ev[k];
+        afm_cont_curve_opts co = {.param = o->param,
+                                  .param2 = o->param2,
+                                  .from = o->from,
+                                  .to = o->to,
+                                  .from2 = o->from2,
+                                  .to2 = o->to2,
+                                  .kind = e->kind,
+                                  .p = e->p,
+                                  .y = e->y,
+                                  .lambda = e->param,
+                                  .curve = k,
+                                  .max_points = o->curve_points};
+        afm_cont_summary sum;
+        char err[360];
+        if (afm_cont_curve_run(cfg, &co, curve_emit, sink, &sum, err, sizeof err) != 0) {
+            afm_cont_curve_record r = {.end = true,
+                                       .kind = e->kind,
+                                       .curve = k,
+                                       .p = e->p,
+                                       .param = e->param,
+                                       .param2 = NAN};
+            snprintf(r.stop_reason, sizeof r.stop_reason, "not started: %s", err);
+            curve_emit(sink, &r);
+        }
+        points += sum.points;
+        *maps += sum.maps;
+        *secs += sum.seconds;
+    }
+    return points;
 }
 
 int afm_cmd_continue(int argc, char **argv) {
@@ -258,6 +410,20 @@ int afm_cmd_continue(int argc, char **argv) {
     afm_cont_inst inst;
     int bad = afm_cont_inst_at(&probe.base, &probe.par, &o.from, 1, &inst, err, sizeof err) ||
               afm_cont_inst_at(&probe.base, &probe.par, &o.to, 1, &inst, err, sizeof err);
+    if (!bad && o.param2) { /* the second parameter: a name, a range holding its value */
+        afm_cont_param p2;
+        bad = afm_cont_param_parse(&probe.base, o.param2, &p2, err, sizeof err) ||
+              afm_cont_inst_at(&probe.base, &p2, &o.from2, 1, &inst, err, sizeof err) ||
+              afm_cont_inst_at(&probe.base, &p2, &o.to2, 1, &inst, err, sizeof err);
+        double v2 = bad ? 0.0 : afm_cont_param_value(&probe.base, &p2);
+        if (!bad && !(v2 >= fmin(o.from2, o.to2) && v2 <= fmax(o.from2, o.to2))) {
+            snprintf(err, sizeof err,
+                     "the config's %s = %g is outside [--from2, --to2]: the curves start at "
+                     "the one-parameter run's points, which are at the config's %s",
+                     o.param2, v2, o.param2);
+            bad = 1;
+        }
+    }
     int N = probe.N;
     bool is_fe = probe.par.kind == AFM_CONT_FE;
     char unit[16];
@@ -280,7 +446,13 @@ int afm_cmd_continue(int argc, char **argv) {
                         .settle_periods = o.settle,
                         .h0 = o.h0,
                         .h_max = o.h_max};
-    cont_sink sink = {.json = o.json, .name = o.param, .unit = unit, .scale = is_fe ? 1e-3 : 1.0};
+    static cont_sink sink;
+    sink = (cont_sink){.json = o.json,
+                       .name = o.param,
+                       .name2 = o.param2,
+                       .unit = unit,
+                       .scale = is_fe ? 1e-3 : 1.0,
+                       .max_ev = o.param2 ? o.curves : 0};
     if (!o.json)
         printf("# %-3s %3s %2s %14s %-8s %12s %12s %10s %12s %8s\n", "kind", "br", "p", unit, "",
                "min x (nm)", "max x (nm)", "max F (nN)", "ampl (nm)", "lag (deg)");
@@ -289,7 +461,9 @@ int afm_cmd_continue(int argc, char **argv) {
         fprintf(stderr, "afmtwin continue: %s\n", err);
         return 1;
     }
-    double per = sum.points > 0 ? sum.seconds / sum.points : 0.0;
+    double per = sum.points > 0 ? sum.seconds / sum.points : 0.0, csecs = 0.0;
+    long cmaps = 0;
+    int cpoints = o.param2 ? run_curves(&cfg, &o, &sink, &cmaps, &csecs) : 0;
     if (o.json) {
         cJSON *s = cJSON_CreateObject();
         cJSON_AddStringToObject(s, "type", "summary");
@@ -300,11 +474,20 @@ int afm_cmd_continue(int argc, char **argv) {
         cJSON_AddNumberToObject(s, "flow_steps", (double)sum.flow_steps);
         cJSON_AddNumberToObject(s, "seconds", sum.seconds);
         cJSON_AddNumberToObject(s, "seconds_per_point", per);
+        if (o.param2) {
+            cJSON_AddNumberToObject(s, "curves", sink.n_ev);
+            cJSON_AddNumberToObject(s, "curve_points", cpoints);
+            cJSON_AddNumberToObject(s, "curve_maps", (double)cmaps);
+            cJSON_AddNumberToObject(s, "curve_seconds", csecs);
+        }
         afmt_json_emit(s);
     } else {
         printf("# %d points on %d branches, %d bifurcations, %ld Newton maps, %.2f s (%.3f s "
                "per point)\n",
                sum.points, sum.branches, sum.bifurcations, sum.maps, sum.seconds, per);
+        if (o.param2)
+            printf("# %d curves, %d points, %ld Newton maps, %.2f s\n", sink.n_ev, cpoints, cmaps,
+                   csecs);
     }
     return 0;
 }

@@ -134,14 +134,15 @@ static int parse_args(int argc, char **argv, plot_opts *o) {
     int rc = afmt_opts_parse("plot", opts, argc, argv, 1);
     if (rc) return rc == AFMT_OPTS_HELP ? 1 : -1;
     if (!o->kind)
-        return plot_err("%s", "KIND is required (sweep, approach, thermal, trace, spectrum)");
+        return plot_err("%s", "KIND is required (sweep, approach, thermal, trace, spectrum, scan, "
+                              "continue)");
     if (o->n_in == 0) return plot_err("%s", "an INPUT file is required");
     for (int i = 0; i < o->n_in; i++)
         if (strpbrk(o->in[i], "'\\\n"))
             return plot_err("'%s': no quotes or backslashes in names", o->in[i]);
+    if (!o->out) return plot_err("%s", "-o FILE.png is required");
     if (strpbrk(o->out, "'\\\n"))
         return plot_err("'%s': no quotes or backslashes in names", o->out);
-    if (!o->out) return plot_err("%s", "-o FILE.png is required");
     return 0;
 }
 
@@ -351,12 +352,48 @@ static int load_approach(const plot_opts *o, plot_data *d, FILE *gp) {
 /* ---- continue ---- */
 
 typedef struct {
-    plot_set *pts, *ev;
+    plot_set *pts, *ev, *cv;
     int branch, stable; /* of the previous point (-1: none) */
     double prev[5];
-    int count[4]; /* events so far per type, for their labels */
-    double scale; /* of the parameter: 1e-3 for fe (kHz) */
+    int count[4];  /* events so far per type, for their labels */
+    double scale;  /* of the parameter: 1e-3 for fe (kHz) */
+    double scale2; /* of the second parameter (--param2): 1e-3 fe, 1e9 z and ae (nm) */
+    char name2[64];
+    int curve, side; /* of the previous curve point (-1: none) */
+    double start[4]; /* the row of the current curve's first point (its start) */
+    int ncurve[3];   /* curve points per kind (1 LPC, 2 PD) */
 } cont_ctx;
+
+/* Columns of a curve_point: param, param2 (scaled), kind (1 LPC, 2 PD), curve index. A NaN
+ * row between curves and sides; side 1 starts again at the curve's start point, so that the
+ * two sides draw as one line. */
+static int curve_row(cont_ctx *c, const cJSON *o) {
+    const cJSON *n2 = cJSON_GetObjectItemCaseSensitive(o, "param2_name");
+    if (cJSON_IsString(n2)) {
+        snprintf(c->name2, sizeof c->name2, "%s", n2->valuestring);
+        c->scale2 = !strcmp(n2->valuestring, "fe")                                    ? 1e-3
+                    : !strcmp(n2->valuestring, "z") || !strcmp(n2->valuestring, "ae") ? 1e9
+                                                                                      : 1.0;
+    }
+    const cJSON *kd = cJSON_GetObjectItemCaseSensitive(o, "kind");
+    double x = num(o, "param") * c->scale, y = num(o, "param2") * c->scale2;
+    int cv = (int)num(o, "curve"), side = (int)num(o, "side");
+    if (isnan(x) || isnan(y) || !cJSON_IsString(kd))
+        return plot_err("%s", "a curve_point record without param, param2 or kind");
+    int k = !strcmp(kd->valuestring, "PD") ? 2 : 1;
+    static const double gap[4] = {NAN, NAN, NAN, NAN};
+    double row[4] = {x, y, k, cv};
+    if (cv != c->curve) {
+        if (c->curve >= 0 && set_row(c->cv, gap)) return -1;
+        memcpy(c->start, row, sizeof row);
+    } else if (side != c->side && (set_row(c->cv, gap) || set_row(c->cv, c->start))) {
+        return -1;
+    }
+    c->curve = cv;
+    c->side = side;
+    c->ncurve[k]++;
+    return set_row(c->cv, row);
+}
 
 /* Columns: param, min x stable, min x unstable, amplitude stable, amplitude unstable (nm).
  * A NaN row between branches breaks the lines; at a change of stability the point goes in
@@ -368,7 +405,8 @@ static int continue_row(const cJSON *o, void *vctx) {
     const cJSON *pn = cJSON_GetObjectItemCaseSensitive(o, "param_name");
     if (cJSON_IsString(pn)) c->scale = strcmp(pn->valuestring, "fe") ? 1.0 : 1e-3;
     const char *ty = t->valuestring;
-    if (!strcmp(ty, "summary") || !strcmp(ty, "end")) return 0;
+    if (!strcmp(ty, "summary") || !strcmp(ty, "end") || !strcmp(ty, "curve_end")) return 0;
+    if (!strcmp(ty, "curve_point")) return curve_row(c, o);
     double x = num(o, "param") * c->scale, mn = num(o, "min_deflection_m") * 1e9,
            am = num(o, "amplitude_m") * 1e9;
     if (isnan(x) || isnan(mn)) return plot_err("%s", "a continue record without param");
@@ -392,20 +430,24 @@ static int continue_row(const cJSON *o, void *vctx) {
 }
 
 static int load_continue(const plot_opts *o, plot_data *d, FILE *gp) {
-    cont_ctx c = {set_new(d, "B",
-                          "param min_x_stable_nm min_x_unstable_nm amp_stable_nm "
-                          "amp_unstable_nm",
-                          5),
-                  set_new(d, "E", "param min_x_nm amplitude_nm type(1 LPC 2 PD 3 NS) index", 5),
-                  -1,
-                  0,
-                  {0},
-                  {0},
-                  1.0};
-    if (!c.pts || !c.ev || each_json(o->in[0], continue_row, &c)) return -1;
+    cont_ctx c = {.pts = set_new(d, "B",
+                                 "param min_x_stable_nm min_x_unstable_nm amp_stable_nm "
+                                 "amp_unstable_nm",
+                                 5),
+                  .ev =
+                      set_new(d, "E", "param min_x_nm amplitude_nm type(1 LPC 2 PD 3 NS) index", 5),
+                  .cv = set_new(d, "C", "param param2 kind(1 LPC 2 PD) curve", 4),
+                  .branch = -1,
+                  .scale = 1.0,
+                  .scale2 = 1.0,
+                  .curve = -1,
+                  .side = -1};
+    if (!c.pts || !c.ev || !c.cv || each_json(o->in[0], continue_row, &c)) return -1;
     if (c.pts->n == 0) return plot_err("%s: no point records", o->in[0]);
     const char *xl = c.scale == 1e-3 ? "drive frequency fe (kHz)" : "parameter";
-    fprintf(gp, "set multiplot layout 2,1 title '%s'\nset xlabel '%s'\n", d->title, xl);
+    const bool curves = c.cv->n > 0;
+    fprintf(gp, "set multiplot layout %d,1 title '%s'\nset xlabel '%s'\n", curves ? 3 : 2, d->title,
+            xl);
     const char *ylab[2] = {"min deflection min(xr) (nm)", "amplitude at fe (nm)"};
     for (int p = 0; p < 2; p++) {
         fprintf(gp,
@@ -422,6 +464,41 @@ static int load_continue(const plot_opts *o, plot_data *d, FILE *gp) {
                         "rgb '%s' title '%s', $E using ($4 == %d ? $1 : 1/0):%d:"
                         "(sprintf('%c%%d', $5)) with labels offset 1,1 notitle",
                         k + 1, 2 + p, ev[k][1], ev[k][2], ev[k][0], k + 1, 2 + p, ev[k][0][0]);
+        fprintf(gp, "\n");
+    }
+    if (curves) { /* the parameter plane: the LPC and PD curves through the events */
+        const char *u2 = c.scale2 == 1e-3 ? " (kHz)" : c.scale2 == 1e9 ? " (nm)" : "";
+        double big = 0.0;
+        for (size_t i = 0; i < c.cv->n; i++)
+            if (isfinite(c.cv->v[4 * i + 1])) big = fmax(big, fabs(c.cv->v[4 * i + 1]));
+        if (c.scale2 == 1e9 && big < 0.1) { /* sub-0.1 nm drive amplitudes: in pm */
+            for (size_t i = 0; i < c.cv->n; i++)
+                c.cv->v[4 * i + 1] *= 1e3;
+            u2 = " (pm)";
+        }
+        char yl[128];
+        const char *n2 = !strcmp(c.name2, "fe")   ? "drive frequency fe"
+                         : !strcmp(c.name2, "z")  ? "separation Z"
+                         : !strcmp(c.name2, "ae") ? "drive amplitude Ae"
+                         : c.name2[0]             ? c.name2
+                                                  : "param2";
+        snprintf(yl, sizeof yl, "%s%s", n2, u2);
+        fprintf(
+            gp,
+            "set title 'the bifurcation curves in the plane of the two parameters (own "
+            "scales)'\nset ylabel '%s'\nset offsets 0, 0, graph 0.3, 0\nset key top center\nplot ",
+            yl);
+        static const char *const kn[2][2] = {{"LPC curve (fold)", "red"},
+                                             {"PD curve (period doubling)", "dark-green"}};
+        const char *sep = "";
+        for (int k = 1; k <= 2; k++)
+            if (c.ncurve[k] > 0) {
+                fprintf(gp,
+                        "%s$C using 1:($3 == %d || $3 != $3 ? $2 : 1/0) with linespoints lw 2 "
+                        "pt 7 ps 0.5 lc rgb '%s' title '%s'",
+                        sep, k, kn[k - 1][1], kn[k - 1][0]);
+                sep = ", ";
+            }
         fprintf(gp, "\n");
     }
     fprintf(gp, "unset multiplot\n");

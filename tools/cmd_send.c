@@ -102,8 +102,17 @@ static void send_usage(FILE *f) {
         "  --help            this text\n\n"
         "Exit status 0 sent (with --wait: applied), 1 LCM or file failure (with --wait:\n"
         "rejected, refused or no answer), 2 bad usage, no config, or a value the daemon\n"
-        "would reject.\n",
+        "would reject.\n\n",
         AFMT_DEFAULT_PREFIX, SEND_WAIT_S);
+    int n;
+    const afm_param_def *d = afm_param_table(&n);
+    fprintf(f, "live parameters (send param NAME=VALUE; [i]: one element, the bare name: all):\n");
+    for (int i = 0; i < n; i++) {
+        char nm[96];
+        snprintf(nm, sizeof nm, "%s%s", d[i].name, d[i].n_index ? "[i]" : "");
+        fprintf(f, "  %-44s %c%g, %g%c %s\n", nm, d[i].min_open ? '(' : '[', d[i].min, d[i].max,
+                d[i].max_open ? ')' : ']', d[i].unit);
+    }
 }
 
 static int parse_i64(const char *s, int64_t lo, int64_t hi, int64_t *v) {

@@ -40,3 +40,9 @@ mkdir -p "$O"
   --line-rate 20 --json >"$O/scan.json"
 "$A" plot scan "$O/scan.json" -o "$O/scan.png" --data "$O/scan.dat" \
   --title "scan-grating.conf, 5 nm lines, 20 lines/s"
+# continue: the folded peak of a soft lever with vdW only, and its fold curve in (fe, Ae)
+# through the cusp (two-parameter continuation, issue 17)
+"$A" continue --config config/lumped-vdw-fold.conf --param fe --from 297500 --to 298700 \
+  --no-switch --param2 ae --from2 3e-13 --to2 6e-13 --curves 1 --json >"$O/continue.json"
+"$A" plot continue "$O/continue.json" -o "$O/continue.png" --data "$O/continue.dat" \
+  --title "lumped-vdw-fold.conf: the folded peak and its fold curve in (fe, Ae)"

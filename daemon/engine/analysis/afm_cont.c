@@ -11,7 +11,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
 #define CONT_MAX_BRANCHES 32
 #define CONT_COS_TURN 0.866 /* largest turn of the tangent per step: 30 deg */
@@ -471,16 +470,10 @@ static int start_orbit(cont_run *R) {
     return 0;
 }
 
-static double now_s(void) {
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
-
 int afm_cont_run(const afm_config *cfg, const afm_cont_opts *o, afm_cont_emit emit, void *ectx,
                  afm_cont_summary *sum, char *err, size_t errlen) {
     memset(sum, 0, sizeof *sum);
-    double t0 = now_s();
+    double t0 = afm_cont_now_s();
     if (!o->param || !isfinite(o->from) || !isfinite(o->to) || o->from == o->to || o->p < 0 ||
         o->p > AFM_CONT_MAX_P || o->max_points < 0 || o->h0 < 0 || o->h_min < 0 || o->h_max < 0) {
         afm_err_set(err, errlen,
@@ -505,6 +498,10 @@ int afm_cont_run(const afm_config *cfg, const afm_cont_opts *o, afm_cont_emit em
     R->max_points = o->max_points > 0 ? o->max_points : 2000;
     int rc = afm_cont_ctx_init(&R->c, cfg, o->param, R->hi - R->lo,
                                o->a_ref_m > 0 ? o->a_ref_m : 1e-9, err, errlen);
+    if (rc == 0 && o->sens_rtol != 0 && afm_cont_flow_set_sens_rtol(R->c.flow, o->sens_rtol) != 0) {
+        afm_err_set(err, errlen, "continuation: sens_rtol %g (0..1e-3)", o->sens_rtol);
+        rc = -1;
+    }
     if (rc == 0)
         rc = afm_cont_inst_at(&R->c.base, &R->c.par, &o->from, 1, &(afm_cont_inst){0}, err, errlen);
     if (rc == 0) rc = start_orbit(R);
@@ -538,7 +535,7 @@ int afm_cont_run(const afm_config *cfg, const afm_cont_opts *o, afm_cont_emit em
     sum->branches = R->nbranch;
     sum->maps = R->c.maps;
     if (R->c.flow) sum->flow_steps = afm_cont_flow_get_stats(R->c.flow)->steps;
-    sum->seconds = now_s() - t0;
+    sum->seconds = afm_cont_now_s() - t0;
     afm_cont_ctx_free(&R->c);
     free(R);
     return rc;

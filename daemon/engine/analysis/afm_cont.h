@@ -70,6 +70,8 @@ typedef struct {
     int settle_periods;      /* time integration before the start (0: 5 Q1 / pi, >= 50) */
     double h0, h_min, h_max; /* scaled steps (0: 0.02, 1e-7, 0.25) */
     double a_ref_m;          /* orbit size of a scaled unit (0: the start orbit's amplitude) */
+    double sens_rtol;        /* > 0: the sensitivities in CVODES' error test at this rtol
+                                (0: outside it, the step capped; afm_cont_flow.h) */
 } afm_cont_opts;
 
 typedef struct {

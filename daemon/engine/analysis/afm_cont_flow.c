@@ -271,6 +271,12 @@ int afm_cont_flow_set_model(afm_cont_flow *f, const afm_cont_inst *at, int np,
     return 0;
 }
 
+int afm_cont_flow_set_sens_rtol(afm_cont_flow *f, double rtol_sens) {
+    if (f->n_eng > 0 || !(rtol_sens >= 0 && rtol_sens <= 1e-3)) return -1;
+    f->rtol_sens = rtol_sens;
+    return 0;
+}
+
 void afm_cont_flow_set_scale(afm_cont_flow *f, double a_ref_m) {
     if (a_ref_m > 0 && isfinite(a_ref_m)) f->a_ref = a_ref_m;
 }
@@ -315,11 +321,12 @@ static int engine_init(afm_cont_flow *f, flow_engine *e, int ns, bool metric) {
         }
         for (int s = 0; s < ns; s++) {
             N_VConst(0.0, e->yS[s]);
-            N_VScale(1.0, f->atol, aS[s]);
+            N_VScale(f->rtol_sens > 0 ? f->rtol_sens / f->rtol : 1.0, f->atol, aS[s]);
         }
         int rc = CVodeSensInit(e->mem, ns, CV_STAGGERED, flow_sens_rhs, e->yS);
-        if (rc == CV_SUCCESS) rc = CVodeSensSVtolerances(e->mem, f->rtol, aS);
-        if (rc == CV_SUCCESS) rc = CVodeSetSensErrCon(e->mem, SUNFALSE);
+        bool con = f->rtol_sens > 0;
+        if (rc == CV_SUCCESS) rc = CVodeSensSVtolerances(e->mem, con ? f->rtol_sens : f->rtol, aS);
+        if (rc == CV_SUCCESS) rc = CVodeSetSensErrCon(e->mem, con ? SUNTRUE : SUNFALSE);
         N_VDestroyVectorArray(aS, ns);
         if (rc != CV_SUCCESS) return -1;
     }

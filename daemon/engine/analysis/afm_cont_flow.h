@@ -27,7 +27,8 @@
  * sensitivities s(0) = 0 with s' = J s + df/dp_k, df/dp_k by the central difference of the
  * vector field between the instances at p_k +- delta (afm_cont_flow_set_model). They are
  * solved by CVODES' staggered corrector on the state's steps, each direction scaled to the
- * orbit's size first (afm_cont_flow_set_scale), but are not in its error test: with them in
+ * orbit's size first (afm_cont_flow_set_scale), but are not in its error test (unless
+ * afm_cont_flow_set_sens_rtol asks): with them in
  * it at the state's rtol (1e-10) a map costs 30-100 times more (the stiff modes' directions
  * decide the steps). Their accuracy then rests on the step: FLOW_MAX_STEP (afm_cont_flow.c)
  * = 1/2000 period, at which the linear model's multipliers have the modulus exp(-xi w T)
@@ -74,6 +75,13 @@ void afm_cont_flow_destroy(afm_cont_flow **f);
 int afm_cont_flow_set_model(afm_cont_flow *f, const afm_cont_inst *at, int np,
                             const afm_cont_inst *plus, const afm_cont_inst *minus,
                             const double *dpar);
+
+/* rtol_sens > 0: the sensitivities in CVODES' error test at that relative tolerance (their
+ * absolute tolerances the state's scaled alike), for callers that need M to better than the
+ * ~1e-4 that the step rule alone gives in hard contact (second derivatives by differences
+ * of M, afm_cont_curve); 0 (default): out of it. Before the first run only (the engines are
+ * made on first use). 0, or -1 (too late, or out of [0, 1e-3]). */
+int afm_cont_flow_set_sens_rtol(afm_cont_flow *f, double rtol_sens);
 
 /* The orbit size (tip metres) that each state direction is scaled to before integration
  * (tolerances of the sensitivities); default 1e-8 m. Values <= 0 are ignored. */

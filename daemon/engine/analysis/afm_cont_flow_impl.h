@@ -34,6 +34,7 @@ struct afm_cont_flow {
     SUNContext ctx;
     int n, N; /* modes, state size 2n */
     double rtol;
+    double rtol_sens; /* > 0: the sensitivities in the error test at this rtol */
     N_Vector y, atol;
     afm_cont_inst at, plus[AFM_CONT_MAX_PAR], minus[AFM_CONT_MAX_PAR];
     double dpar[AFM_CONT_MAX_PAR];

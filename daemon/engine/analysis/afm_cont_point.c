@@ -9,6 +9,7 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 /* Relative step of the +-delta instances of the parameter derivative (of ls). */
 #define POINT_DELTA 1e-6
@@ -46,6 +47,12 @@ void afm_cont_set_aref(afm_cont_ctx *c, double a_ref_m) {
     for (int i = 0; i < c->N; i++)
         c->ys[i] = a_ref_m / w[i];
     afm_cont_flow_set_scale(c->flow, a_ref_m);
+}
+
+double afm_cont_now_s(void) {
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
 void afm_cont_ctx_free(afm_cont_ctx *c) {

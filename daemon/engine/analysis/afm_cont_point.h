@@ -57,6 +57,9 @@ typedef struct {
 int afm_cont_ctx_init(afm_cont_ctx *c, const afm_config *cfg, const char *name, double ls,
                       double a_ref_m, char *err, size_t errlen);
 void afm_cont_ctx_free(afm_cont_ctx *c);
+
+/* Monotonic wall time in seconds, for the summaries' run times. */
+double afm_cont_now_s(void);
 /* A new orbit size of one scaled unit (> 0; others ignored). */
 void afm_cont_set_aref(afm_cont_ctx *c, double a_ref_m);
 

@@ -15,7 +15,10 @@
 
 /* AFM_CLONES_NOINLINE: for a function that must stay out of line; a multiversioned one
  * always is (called through its ifunc), and clang refuses noinline beside target_clones. */
-#if defined(AFM_MULTIVERSION) && defined(__x86_64__) && defined(__GNUC__)
+/* clang before 16 names the ifunc "f.ifunc" and leaves "f" undefined for the callers in
+ * other files (the link fails): there the portable build is one baseline copy. */
+#if defined(AFM_MULTIVERSION) && defined(__x86_64__) && defined(__GNUC__) &&                       \
+    (!defined(__clang__) || __clang_major__ >= 16)
 #define AFM_CLONES __attribute__((target_clones("arch=x86-64-v3", "default")))
 #define AFM_CLONES_NOINLINE AFM_CLONES
 #else

@@ -189,13 +189,17 @@ int afm_param_lookup(const char *name, int *entry, int *index, char *err, size_t
         return 0;
     }
     {
-        char list[400] = "";
+        char list[300] = ""; /* whole names that fit, then how many more */
         size_t n = 0;
-        for (int i = 0; i < N_ROWS && n < sizeof list; i++) {
-            int w = snprintf(list + n, sizeof list - n, "%s%s", i ? ", " : "", defs[i].name);
-            if (w < 0) break;
-            n += (size_t)w;
+        int i = 0;
+        for (; i < N_ROWS; i++) {
+            size_t w = strlen(defs[i].name) + (i ? 2 : 0);
+            if (n + w + 40 >= sizeof list) break;
+            snprintf(list + n, sizeof list - n, "%s%s", i ? ", " : "", defs[i].name);
+            n += w;
         }
+        if (i < N_ROWS)
+            snprintf(list + n, sizeof list - n, " and %d more (afmtwin send --help)", N_ROWS - i);
         char b[4 * AFM_CMD_NAME_LEN];
         afm_err_printable(b, sizeof b, name, base);
         afm_err_set(err, errlen, "unknown parameter '%s' (known: %s)", b, list);
