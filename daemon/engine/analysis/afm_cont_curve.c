@@ -203,9 +203,10 @@ static void scaled_u(const curve_run *R, const double *y, const double *lam, dou
 }
 
 /* Newton from the predictor (y, lam) with the constraint normal cn (N + 2, scaled; NULL:
- * lambda_2 fixed), into out. 0 converged, 1 not, -1 error. */
+ * lambda_2 fixed), into out. G0: the predictor already evaluated into out (its M and fl),
+ * G0 its orbit residual, or NULL. 0 converged, 1 not, -1 error. */
 static int correct(curve_run *R, const double *y_pred, const double *lam_pred, const double *cn,
-                   int p, curve_pt *out) {
+                   int p, const double *G0, curve_pt *out) {
     const int N = R->c.N, U = N + 2;
     double u_pred[UMAX], en[UMAX] = {0}, y[NMAX], lam[2] = {lam_pred[0], lam_pred[1]};
     scaled_u(R, y_pred, lam_pred, u_pred);
@@ -218,7 +219,10 @@ static int correct(curve_run *R, const double *y_pred, const double *lam_pred, c
     double last = HUGE_VAL, g_last = HUGE_VAL;
     for (int it = 1; it <= CURVE_MAX_ITER; it++) {
         double G[NMAX], A[NMAX * NMAX];
-        if (eval(R, y, lam, p, G, out) != 0) return it == 1 ? -1 : 1;
+        if (it == 1 && G0)
+            memcpy(G, G0, sizeof(double) * (size_t)N);
+        else if (eval(R, y, lam, p, G, out) != 0)
+            return it == 1 ? -1 : 1;
         double r = 0.0;
         for (int i = 0; i < N; i++)
             r = fmax(r, fabs(G[i] / R->c.ys[i]));
@@ -373,7 +377,7 @@ static int step(curve_run *R, double h) {
         y[i] = R->a.y[i] + h * R->a.t[i] * R->c.ys[i];
     lam[0] = R->a.lam[0] + h * R->a.t[N] * R->c.ls;
     lam[1] = R->a.lam[1] + h * R->a.t[N + 1] * R->ls2;
-    int rc = correct(R, y, lam, R->a.t, R->o->p, &R->b);
+    int rc = correct(R, y, lam, R->a.t, R->o->p, NULL, &R->b);
     if (rc != 0) return rc;
     if (tangent(R, &R->b, R->a.t, 1) != 0) return 1;
     double dot = 0.0;
@@ -406,7 +410,7 @@ static int land_on_edge(curve_run *R, int *edge) {
     lam[k_edge] = bound;
     cn[N + k_edge] = 1.0;
     curve_pt keep = R->b;
-    int rc = correct(R, y, lam, cn, R->o->p, &R->b);
+    int rc = correct(R, y, lam, cn, R->o->p, NULL, &R->b);
     if (rc < 0) return -1;
     if (rc > 0 || tangent(R, &R->b, R->a.t, 1) != 0) {
         R->b = keep;
@@ -521,7 +525,7 @@ static int start(curve_run *R) {
         s->w[i] = W[i * N + iw] * R->c.ys[i];
     }
     rebord(R, s);
-    int rc = correct(R, o->y, lam, NULL, o->p, s);
+    int rc = correct(R, o->y, lam, NULL, o->p, G, s); /* the map above is its first */
     if (rc < 0) return -1;
     if (rc > 0) {
         afm_err_set(R->err, R->errlen,
