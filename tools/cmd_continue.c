@@ -116,6 +116,8 @@ static void cont_usage(FILE *f) {
         AFM_CONT_MAX_P);
 }
 
+#define CONT_MAX_CURVES 32 /* --curves */
+
 /* 0 ok, 1 --help, -1 bad usage (said). */
 static int cont_parse(int argc, char **argv, cont_cli *o) {
     *o = (cont_cli){.from = NAN, .to = NAN, .from2 = NAN, .to2 = NAN, .period = 1, .curves = 8};
@@ -128,7 +130,7 @@ static int cont_parse(int argc, char **argv, cont_cli *o) {
         AFMT_STRING("--param2", &o->param2),
         AFMT_DOUBLE("--from2", &o->from2, 0, 0, NULL),
         AFMT_DOUBLE("--to2", &o->to2, 0, 0, NULL),
-        AFMT_INT("--curves", &o->curves, 1, 32, NULL),
+        AFMT_INT("--curves", &o->curves, 1, CONT_MAX_CURVES, NULL),
         AFMT_INT("--curve-points", &o->curve_points, 1, 100000, NULL),
         AFMT_DOUBLE("--from", &o->from, 0, 0, NULL),
         AFMT_DOUBLE("--to", &o->to, 0, 0, NULL),
@@ -187,8 +189,6 @@ static int cont_parse_state(const char *s, int n, double *y) {
     return -1;
 }
 
-#define CONT_MAX_CURVES 32
-
 /* An LPC or PD point of the one-parameter run, kept to start its curve from. */
 typedef struct {
     afm_cont_kind kind;
@@ -235,7 +235,7 @@ static void json_metrics(cJSON *o, const afm_cont_metrics *m) {
     }
 }
 
-/* The multipliers and the state of a point (n entries each). */
+/* A two-element array, e.g. a multiplier (re, im). */
 static void json_pair(cJSON *o, const char *key, const double *v) {
     cJSON *a = cJSON_AddArrayToObject(o, key);
     cJSON_AddItemToArray(a, cJSON_CreateNumber(v[0]));
@@ -315,7 +315,7 @@ static int curve_emit(void *ctx, const afm_cont_curve_record *r) {
             printf("# curve %d (%s, period %d) side %d ends after %d points: %s\n", r->curve, kind,
                    r->p, r->side, r->points, r->stop_reason);
         else
-            printf("%-5s %3d %2d %14.8g %14.8g %-8s %12.6f %12.6f %10.5f %12.6f\n", kind, r->curve,
+            printf("%-5s %3d %4d %14.8g %14.8g %-8s %12.6f %12.6f %10.5f %12.6f\n", kind, r->curve,
                    r->side, r->param * s->scale, r->param2, r->stable ? "stable" : "unstable",
                    r->metrics.min_deflection_m * 1e9, r->metrics.max_deflection_m * 1e9,
                    r->metrics.max_force_n * 1e9, r->metrics.amplitude_m * 1e9);
