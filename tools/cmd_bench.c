@@ -355,7 +355,7 @@ static int bench_settle(const bench_opts *o, bench_run *b, bench_result *res) {
     afm_sim_get_state(s, b->q0, b->qd0);
     const afm_drive *d = afm_sim_drive(s);
     for (int j = 0; j < d->n && j < b->cfg.drive.n_tones; j++)
-        b->cfg.drive.tones[j].phase_rad = fmod(afm_drive_phase(d, j, afm_sim_time(s)), two_pi);
+        b->cfg.drive.tones[j].phase_rad = afm_drive_phase_mod(d, j, afm_sim_time(s));
     afm_sim_destroy(&s);
     return 0;
 }

@@ -58,7 +58,10 @@ typedef struct {
  * 4e-9 rad at 20 s, growing with uptime), which the estimators' trackers must not mistake
  * for a changing rate. Everything is a function of the sample index (the origin moves at
  * fixed indices), so how the samples are cut into pushes changes no bit. A new drive (or
- * chain) starts from its own origin: p_org of the segment it is in, from phase_rad. */
+ * chain) starts from its own origin: p_org of the segment it is in, from phase_rad. A tone on
+ * a simulator's sample grid takes each origin from afm_drive_phase_mod (exact from the step
+ * count), not from the sum of the segments before: over a week the sum's roundings would add
+ * up to ~1e-4 rad of lock-in phase. */
 #define PHASE_REBASE 1048576.0
 typedef struct {
     bool set;
@@ -403,12 +406,16 @@ static void drive_phase(afm_chain *c, const afm_sample *s, int n, double *th, do
     if (!g->set || k < g->k_org) { /* the segment of the first sample */
         g->k_org = afm_floor(k / PHASE_REBASE) * PHASE_REBASE;
         g->p_org = g->k_org > 0 ? afm_clock_wrap(fma(g->wdt, g->k_org, g->ph)) : g->ph;
+        if (g->k_org > 0 && d->on_grid[0])
+            g->p_org = afm_drive_phase_mod(d, 0, g->t0 + g->k_org / c->fs);
         g->set = true;
     }
     for (int i = 0; i < n;) {
         while (k + i >= g->k_org + PHASE_REBASE) { /* into the next segment */
             g->p_org = afm_clock_wrap(fma(g->wdt, PHASE_REBASE, g->p_org));
             g->k_org += PHASE_REBASE;
+            if (d->on_grid[0]) /* no accumulated rounding (afm_drive.h) */
+                g->p_org = afm_drive_phase_mod(d, 0, g->t0 + g->k_org / c->fs);
         }
         double left = g->k_org + PHASE_REBASE - (k + i);
         int m = left < (double)(n - i) ? (int)left : n - i;

@@ -668,7 +668,7 @@ static void rt_sync_phasors(const afm_sim *s, rt_state *r, rt_snap *st) {
     for (int j = 0; j < AFM_MAX_TONES; j++)
         st->z_re[j] = st->z_im[j] = 0.0; /* zero past ntones (RT_TONES_V4) */
     for (int j = 0; j < r->ntones; j++) {
-        double th = afm_drive_phase(&s->drive, j, s->t_s);
+        double th = afm_drive_phase_mod(&s->drive, j, s->t_s);
         st->z_re[j] = cos(th);
         st->z_im[j] = sin(th);
     }

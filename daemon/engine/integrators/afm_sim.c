@@ -77,6 +77,7 @@ afm_sim *afm_sim_create(const afm_modal *m, const afm_force_params *f, const afm
     afm_drive_init(&s->drive, drive);
     s->z_m = drive->separation_m;
     s->dt_s = 1.0 / cfg->sample_rate_hz;
+    afm_drive_set_grid(&s->drive, s->t_start_s, s->dt_s);
     s->be = be;
     if (be->init(s, err, errlen) != 0) {
         free(s);

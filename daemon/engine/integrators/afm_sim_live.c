@@ -26,8 +26,11 @@ int afm_sim_start_tone(afm_sim *s, int j, double amp_m, double freq_hz, double p
 int afm_sim_drop_tones(afm_sim *s, int n) {
     if (n < 1 || n > s->drive.n) return AFM_SIM_EINVAL;
     if (n == s->drive.n) return AFM_SIM_OK;
-    for (int j = n; j < AFM_MAX_TONES; j++)
-        s->drive.amp_m[j] = s->drive.omega_rad_s[j] = s->drive.phase_rad[j] = s->drive.t0_s[j] = 0;
+    for (int j = n; j < AFM_MAX_TONES; j++) {
+        s->drive.amp_m[j] = s->drive.omega_rad_s[j] = s->drive.freq_hz[j] = 0;
+        s->drive.phase_rad[j] = s->drive.t0_s[j] = 0;
+        s->drive.on_grid[j] = false;
+    }
     s->drive.n = n;
     s->be->changed(s);
     return AFM_SIM_OK;
@@ -48,13 +51,10 @@ int afm_sim_set_forces(afm_sim *s, const afm_force_params *f) {
 
 int afm_sim_set_time(afm_sim *s, double t_s) {
     if (!isfinite(t_s) || t_s < 0 || t_s > 1e9) return AFM_SIM_EINVAL;
-    for (int j = 0; j < s->drive.n; j++) {
-        double ph = fmod(afm_drive_phase(&s->drive, j, s->t_s), two_pi);
-        s->drive.phase_rad[j] = ph < 0 ? ph + two_pi : ph;
-        s->drive.t0_s[j] = t_s;
-    }
+    afm_drive_retime(&s->drive, s->t_s, t_s);
     s->t_start_s = s->t_s = t_s;
     s->step = 0;
+    afm_drive_set_grid(&s->drive, s->t_start_s, s->dt_s);
     s->be->changed(s);
     return AFM_SIM_OK;
 }
@@ -75,10 +75,11 @@ int afm_sim_continue(afm_sim *dst, const afm_sim *src, unsigned what) {
     if (what & AFM_SIM_KEEP_DRIVE) {
         dst->drive = src->drive;
         dst->z_m = src->z_m;
+        afm_drive_retime(&dst->drive, t, t); /* from t, exact on src's grid */
     } else {
-        for (int j = 0; j < dst->drive.n; j++)
-            dst->drive.t0_s[j] = t; /* phase_rad[j] is the configured phase */
+        afm_drive_restart(&dst->drive, t); /* phase_rad[j] is the configured phase */
     }
+    afm_drive_set_grid(&dst->drive, dst->t_start_s, dst->dt_s);
     if (what & AFM_SIM_KEEP_STATE) {
         memcpy(dst->q, src->q, sizeof dst->q);
         memcpy(dst->qd, src->qd, sizeof dst->qd);

@@ -45,8 +45,8 @@ afm_sim *afm_twin_fork(const afm_sim *src, const afm_cfg_sim *sim, char *err, si
     afm_cfg_drive dc = {.separation_m = afm_sim_separation(src), .n_tones = d->n};
     for (int j = 0; j < d->n; j++) {
         dc.tones[j].amplitude_m = d->amp_m[j];
-        dc.tones[j].frequency_hz = d->omega_rad_s[j] / 6.283185307179586476925286766559;
-        dc.tones[j].phase_rad = afm_drive_phase(d, j, t);
+        dc.tones[j].frequency_hz = d->freq_hz[j];
+        dc.tones[j].phase_rad = afm_drive_phase_mod(d, j, t);
     }
     afm_sim *s = afm_sim_create(afm_sim_model(src), afm_sim_forces(src), &dc, sim, err, errlen);
     afm_sim_get_state(src, q, qd);
