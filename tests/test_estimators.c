@@ -715,7 +715,7 @@ static void test_phase_tracking_uptime(double t_up, bool exact) {
  * chain runs) against sample-by-sample pushes: the same state bit for bit, over a clipped
  * (tapping-like) orbit with contact crossings, two tone changes, a NaN sample and blocks of
  * odd lengths that end anywhere in a period. */
-static void test_block_equivalence(void) {
+static void test_block_equivalence(bool law) {
     afm_cfg_drive c = {.separation_m = 30e-9, .n_tones = 1};
     c.tones[0].amplitude_m = 0.7e-9;
     c.tones[0].frequency_hz = fe;
@@ -733,6 +733,20 @@ static void test_block_equivalence(void) {
     afm_cycle c1, c2;
     afm_cycle_init(&c1, -8e-9, 0.98, NULL, 0);
     afm_cycle_init(&c2, -8e-9, 0.98, NULL, 0);
+    /* law: a DMT contact whose line is x = -8 nm (Z = a0 + 8 nm cos alpha, alpha = 0): the
+     * local maxima in contact go through local_peak's Hermite path, in both functions */
+    static afm_force_params fl;
+    afm_cfg_forces cf = {.radius_m = 8e-9,
+                         .vdw_contact = true,
+                         .hamaker_j = 1.5e-19,
+                         .a0_m = 0.3e-9,
+                         .reduced_modulus_pa = 5e10};
+    if (law && (afm_force_init(&fl, &cf, 0, 0, NULL, 0) != 0 ||
+                afm_cycle_set_forces(&c1, &fl, 8.3e-9) != 0 ||
+                afm_cycle_set_forces(&c2, &fl, 8.3e-9) != 0)) {
+        check_true(false, "block functions with the force law: set up");
+        return;
+    }
     enum { NB = 4000 };
     static afm_sample s[NB];
     static double th[NB], x[NB], f[NB];
@@ -776,13 +790,20 @@ static void test_block_equivalence(void) {
     }
     same = same && memcmp(&h1, &h2, sizeof h1) == 0 && memcmp(&l1, &l2, sizeof l1) == 0 &&
            memcmp(&c1, &c2, sizeof c1) == 0;
-    printf("  block functions: %ld samples, %ld harm / %ld cycle periods, rejects %lld %lld %d "
-           "(per sample %d)\n",
-           n0, h1.periods, c1.periods, rej_h, rej_c, rej_l, rej1);
-    check_true(h1.periods > 100 && c1.periods > 100, "block functions: periods completed");
-    check_true(per_h == h1.periods && per_c == c1.periods, "block functions: period flags");
-    check_true(rej_h + rej_c + rej_l == rej1 && rej1 == 3, "block functions: the same rejects");
-    check_true(same, "block functions: state bit for bit as sample-by-sample pushes");
+    const char *how = law ? " (force law)" : "";
+    char what[160];
+    printf("  block functions%s: %ld samples, %ld harm / %ld cycle periods, rejects %lld %lld %d "
+           "(per sample %d), last peak %.4g N\n",
+           how, n0, h1.periods, c1.periods, rej_h, rej_c, rej_l, rej1, c1.out.peak_force_n);
+    snprintf(what, sizeof what, "block functions%s: periods completed", how);
+    check_true(h1.periods > 100 && c1.periods > 100, what);
+    snprintf(what, sizeof what, "block functions%s: period flags", how);
+    check_true(per_h == h1.periods && per_c == c1.periods, what);
+    snprintf(what, sizeof what, "block functions%s: the same rejects", how);
+    check_true(rej_h + rej_c + rej_l == rej1 && rej1 == 3, what);
+    snprintf(what, sizeof what, "block functions%s: state bit for bit as sample-by-sample pushes",
+             how);
+    check_true(same, what);
 }
 
 int main(void) {
@@ -817,6 +838,7 @@ int main(void) {
     test_phase_tracking_uptime(20.0, false);
     test_phase_tracking_uptime(60.0, false);
     test_phase_tracking_uptime(60.0, true);
-    test_block_equivalence();
+    test_block_equivalence(false);
+    test_block_equivalence(true);
     return check_done();
 }

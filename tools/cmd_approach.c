@@ -385,7 +385,7 @@ static int approach_run(afm_sim *sim, approach_est *e, int need, double z0, doub
                 snprintf(err, errlen, "cannot set Z = %g m", z);
                 return -1;
             }
-            afm_cycle_set_contact(&e->cycle, afm_force_contact_x(afm_sim_forces(sim), z));
+            afm_cycle_set_forces(&e->cycle, afm_sim_forces(sim), z);
         }
         if (afm_sim_run(sim, 64, buf) != AFM_SIM_OK) {
             snprintf(err, errlen, "simulation failed at Z = %g m", z);
@@ -403,7 +403,7 @@ static int approach_step(afm_sweep *sw, afm_sim *sim, approach_est *e, const app
         snprintf(err, errlen, "cannot set Z = %g m", z);
         return -1;
     }
-    afm_cycle_set_contact(&e->cycle, afm_force_contact_x(afm_sim_forces(sim), z));
+    afm_cycle_set_forces(&e->cycle, afm_sim_forces(sim), z);
     static afm_orbit ob;
     int settled = afm_sweep_dwell(sw, sim, &ob, err, errlen);
     if (settled < 0) return -1;
@@ -477,6 +477,7 @@ int afm_cmd_approach(int argc, char **argv) {
     if (afm_sweep_init(&sw, fs, fe, o.tol, o.max_periods, ks, 1, err, sizeof err) != 0 ||
         afm_lockin_init(&est.lockin, &lk, afm_sim_dt(sim), err, sizeof err) != 0 ||
         afm_cycle_init(&est.cycle, xc, afm_sim_forces(sim)->cos_alpha, err, sizeof err) != 0 ||
+        afm_cycle_set_forces(&est.cycle, afm_sim_forces(sim), o.from_m) != 0 ||
         afm_harm_init(&est.harm, ks, o.k_max, err, sizeof err) != 0) {
         fprintf(stderr, "afmtwin approach: %s\n", err);
         afm_sim_destroy(&sim);

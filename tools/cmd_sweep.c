@@ -458,7 +458,8 @@ int afm_cmd_sweep(int argc, char **argv) {
     if (lk.time_constant_s == 0) lk.time_constant_s = 10.0 / f_lo;
     if (lk.order == 0) lk.order = 4;
     if (afm_lockin_init(&est.lockin, &lk, afm_sim_dt(sim), err, sizeof err) != 0 ||
-        afm_cycle_init(&est.cycle, xc, afm_sim_forces(sim)->cos_alpha, err, sizeof err) != 0) {
+        afm_cycle_init(&est.cycle, xc, afm_sim_forces(sim)->cos_alpha, err, sizeof err) != 0 ||
+        afm_cycle_set_forces(&est.cycle, afm_sim_forces(sim), afm_sim_separation(sim)) != 0) {
         fprintf(stderr, "afmtwin sweep: %s\n", err);
         afm_sweep_destroy(&sw);
         afm_sim_destroy(&sim);

@@ -224,6 +224,7 @@ int afm_chain_attach(afm_chain *c, const afm_sim *sim, char *err, size_t errlen)
     const afm_force_params *f = afm_sim_forces(sim);
     double xc = afm_force_contact_x(f, afm_sim_separation(sim));
     if (afm_cycle_init(&c->cycle, xc, f->cos_alpha, err, errlen)) return -1;
+    afm_cycle_set_forces(&c->cycle, f, afm_sim_separation(sim));
     c->forces = f;
     c->cos_alpha = f->cos_alpha;
     c->drive = afm_sim_drive(sim);
@@ -237,7 +238,7 @@ int afm_chain_attach(afm_chain *c, const afm_sim *sim, char *err, size_t errlen)
 
 int afm_chain_set_separation(afm_chain *c, double z_m) {
     if (!c->attached || !isfinite(z_m)) return -1;
-    return afm_cycle_set_contact(&c->cycle, afm_force_contact_x(c->forces, z_m));
+    return afm_cycle_set_forces(&c->cycle, c->forces, z_m);
 }
 
 /* Append this pass's output of stream s to its ring (dropping the oldest when full). */

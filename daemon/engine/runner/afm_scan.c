@@ -81,7 +81,8 @@ static int check_cfg(const afm_scan_cfg *sc, const afm_pi_cfg *pc, char *err, si
 static int place_tip(afm_sim *s, const afm_surface *surf, scan_state *st, double z_ctrl_m, double x,
                      double y, char *err, size_t errlen) {
     int m = afm_surface_material(surf, x, y);
-    if (m != st->material) {
+    bool changed = m != st->material;
+    if (changed) {
         if (afm_sim_set_forces(s, &st->mat[m]) != AFM_SIM_OK) {
             snprintf(err, errlen, "scan: the forces of material %d were refused", m);
             return -1;
@@ -95,9 +96,10 @@ static int place_tip(afm_sim *s, const afm_surface *surf, scan_state *st, double
                      z);
             return -1;
         }
-        afm_cycle_set_contact(&st->cycle, afm_force_contact_x(&st->mat[m], z));
         st->z_eff_m = z;
+        changed = true;
     }
+    if (changed) afm_cycle_set_forces(&st->cycle, &st->mat[m], z);
     return 0;
 }
 
