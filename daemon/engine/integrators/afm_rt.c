@@ -10,7 +10,9 @@
  *    full q, so tone changes are phase-continuous and q never jumps.
  *  - Thermal noise (afm_sim_set_thermal): each piece adds the exact Gaussian increment of
  *    the Langevin force to (qh, qh') (afm_rt_coef_thermal), drawn before the force solve so
- *    that the implicit force sees it.
+ *    that the implicit force sees it. A redone piece is drawn given the increment already
+ *    drawn for its interval (Brownian bridge: rt_noise, rt_bridge_draw), so that redoing a
+ *    sample does not depend on the noise it discards.
  *  - The tip force enters through one channel. It is taken as linear over each step
  *    (exponential trapezoidal rule) and solved implicitly: the end force F1 satisfies
  *    F1 = f(x* + gx F1, v* + gv F1). Out of contact that is one linearly implicit step (one
@@ -131,7 +133,25 @@ typedef struct {
     bool noise;   /* thermal force on */
     double *lth;  /* thermal Cholesky factors: step of k cells at lth + 3 np (k - 1) */
     afm_rng *rng; /* its generator (allocated by the first afm_sim_set_thermal) */
+    /* Brownian-bridge gains (afm_rt_coef_bridge), 4 np each: a substep's first kc cells
+     * (kc = 1 .. RT_GRID - 1), then a substep of the rest of a sample of j substeps
+     * (j = 2 .. m); see rt_bridge_gain */
+    double *bridge;
+    struct rt_noise *nz; /* the increments being split (mutable scratch) */
 } rt_state;
+
+/* A redone piece takes the noise already drawn for its interval (issue 11): the increment
+ * the next piece must take, the last piece's, and what of a sample's increment its
+ * substeps have not taken yet (per mode, on (qh, qh')). */
+typedef struct rt_noise {
+    double gq[AFM_MAX_MODES], gv[AFM_MAX_MODES]; /* given to the next piece of given_cells */
+    int given_cells;                             /* 0: the next piece draws afresh */
+    double lq[AFM_MAX_MODES], lv[AFM_MAX_MODES]; /* the last piece's (last_cells) */
+    int last_cells;
+    double rq[AFM_MAX_MODES], rv[AFM_MAX_MODES]; /* the sample's rest, rem_cells */
+    int rem_cells;
+    double sq[AFM_MAX_MODES], sv[AFM_MAX_MODES]; /* a substep's rest after its crossing */
+} rt_noise;
 
 /* ---- forces ---- */
 
@@ -400,25 +420,72 @@ static void rt_predict(const rt_state *r, rt_snap *st) {
 }
 
 /* The thermal increment of a piece of k cells: (nq, nv) per mode (zero past n) and its tip
- * sums (*xq, *xv). */
+ * sums (*xq, *xv). The increment given for it (a redone piece: rt_noise) if there is one,
+ * else a fresh draw; kept as the last piece's. */
 static inline void rt_thermal_draw(const rt_state *r, int k, double *nq, double *nv, double *xq,
                                    double *xv) {
     const int np = r->np;
     const double *l = r->lth + 3 * (size_t)np * (size_t)(k - 1);
+    rt_noise *z = r->nz;
+    bool given = z->given_cells == k;
+    z->given_cells = 0;
     double sx = 0.0, sv = 0.0;
     for (int i = 0; i < np; i++) {
-        double n1 = 0.0, n2 = 0.0;
-        if (i < r->n) {
-            n1 = afm_rng_normal(r->rng);
-            n2 = afm_rng_normal(r->rng);
+        if (given) {
+            nq[i] = z->gq[i];
+            nv[i] = z->gv[i];
+        } else {
+            double n1 = 0.0, n2 = 0.0;
+            if (i < r->n) {
+                n1 = afm_rng_normal(r->rng);
+                n2 = afm_rng_normal(r->rng);
+            }
+            nq[i] = l[i] * n1;
+            nv[i] = fma(l[np + i], n1, l[2 * np + i] * n2);
         }
-        nq[i] = l[i] * n1;
-        nv[i] = fma(l[np + i], n1, l[2 * np + i] * n2);
+        z->lq[i] = nq[i];
+        z->lv[i] = nv[i];
         sx = fma(r->tip[i], nq[i], sx);
         sv = fma(r->tip[i], nv[i], sv);
     }
+    z->last_cells = k;
     *xq = sx;
     *xv = sv;
+}
+
+/* The bridge gain of the first k1 cells of an interval of len cells (rt_state.bridge). */
+static const double *rt_bridge_gain(const rt_state *r, int k1, int len) {
+    size_t at = len == RT_GRID ? (size_t)(k1 - 1) : (size_t)(RT_GRID - 1 + len / RT_GRID - 2);
+    return r->bridge + 4 * (size_t)r->np * at;
+}
+
+/* The increment of the first k1 cells of an interval of len cells whose increment (rq, rv)
+ * is drawn, distributed as it is given that one (Matheron's rule with fresh draws of both
+ * parts: afm_rt_coef_bridge), into r->nz's given; (rq, rv) becomes the rest's increment. */
+static void rt_bridge_draw(const rt_state *r, int k1, int len, double *rq, double *rv) {
+    const size_t np = (size_t)r->np;
+    const double *kg = rt_bridge_gain(r, k1, len);
+    const double *l1 = r->lth + 3 * np * (size_t)(k1 - 1);
+    const double *l2 = r->lth + 3 * np * (size_t)(len - k1 - 1);
+    const double *p2 = r->prop[len - k1 - 1].c; /* Phi of the rest */
+    rt_noise *z = r->nz;
+    for (size_t i = 0; i < np; i++) {
+        z->gq[i] = z->gv[i] = 0.0;
+        if (i >= (size_t)r->n) continue;
+        double a1 = afm_rng_normal(r->rng), a2 = afm_rng_normal(r->rng);
+        double b1 = afm_rng_normal(r->rng), b2 = afm_rng_normal(r->rng);
+        double xq = l1[i] * a1, xv = fma(l1[np + i], a1, l1[2 * np + i] * a2);
+        double yq = l2[i] * b1, yv = fma(l2[np + i], b1, l2[2 * np + i] * b2);
+        double p11 = p2[i], p12 = p2[np + i], p21 = p2[2 * np + i], p22 = p2[3 * np + i];
+        double eq = rq[i] - (p11 * xq + p12 * xv + yq), ev = rv[i] - (p21 * xq + p22 * xv + yv);
+        double gq = xq + kg[i] * eq + kg[np + i] * ev;
+        double gv = xv + kg[2 * np + i] * eq + kg[3 * np + i] * ev;
+        z->gq[i] = gq;
+        z->gv[i] = gv;
+        rq[i] -= p11 * gq + p12 * gv;
+        rv[i] -= p21 * gq + p22 * gv;
+    }
+    z->given_cells = k1;
 }
 
 /* The reciprocal slope of a piece with coefficients P that starts where the force's partials
@@ -657,7 +724,18 @@ static void rt_substep(const afm_sim *s, const rt_state *r, const rt_snap *a, rt
     rt_piece(s, r, a, b, RT_GRID);
     int kc = rt_crossing_cell(r, a, b, tau, true);
     if (kc <= 0 || kc >= RT_GRID) return;
+    rt_noise *z = r->nz;
+    if (r->noise) { /* both parts from the substep's increment, drawn above */
+        memcpy(z->sq, z->lq, sizeof z->sq);
+        memcpy(z->sv, z->lv, sizeof z->sv);
+        rt_bridge_draw(r, kc, RT_GRID, z->sq, z->sv);
+    }
     rt_piece(s, r, a, b, kc);
+    if (r->noise) {
+        memcpy(z->gq, z->sq, sizeof z->gq);
+        memcpy(z->gv, z->sv, sizeof z->gv);
+        z->given_cells = RT_GRID - kc;
+    }
     rt_piece(s, r, b, b, RT_GRID - kc);
 }
 
@@ -698,11 +776,31 @@ static void rt_publish(afm_sim *s, const rt_state *r, const rt_snap *b) {
 }
 
 /* One sample that touches contact, from a: m substeps, each split at a crossing. The
- * result is in *a or *b; returns which. */
+ * result is in *a or *b; returns which. redo: the sample's free step was taken (and its
+ * thermal increment drawn: the substeps' are drawn given it, rt_noise). */
 static AFM_CLONES_NOINLINE rt_snap *rt_contact(const afm_sim *s, const rt_state *r, rt_snap *a,
-                                               rt_snap *b) {
+                                               rt_snap *b, bool redo) {
     double tau = s->dt_s / r->m;
+    rt_noise *z = r->nz;
+    if (r->noise) {
+        z->given_cells = 0;
+        z->rem_cells = redo ? r->ncell : 0;
+        if (redo) {
+            memcpy(z->rq, z->lq, sizeof z->rq);
+            memcpy(z->rv, z->lv, sizeof z->rv);
+        }
+    }
     for (int k = 0; k < r->m; k++) {
+        if (r->noise && z->rem_cells > 0) { /* this substep's part of the sample's increment */
+            if (z->rem_cells == RT_GRID) {
+                memcpy(z->gq, z->rq, sizeof z->gq);
+                memcpy(z->gv, z->rv, sizeof z->gv);
+                z->given_cells = RT_GRID;
+            } else {
+                rt_bridge_draw(r, RT_GRID, z->rem_cells, z->rq, z->rv);
+            }
+            z->rem_cells -= RT_GRID;
+        }
         rt_substep(s, r, a, b, tau);
         rt_snap *t = a;
         a = b;
@@ -749,8 +847,9 @@ static inline __attribute__((always_inline)) int rt_run_t(afm_sim *s, rt_state *
             rt_snap *bb = a == b0 ? b1 : b0;
             /* in contact at the start, or predicted to end there (the end's x with F held at
              * F0: a free step would be redone in substeps anyway) */
-            bool contact =
+            const bool at_once =
                 r->kinked && (ta.x_m < r->xc || fma(gx_full, ta.f_n, ta.x_free_m) < r->xc);
+            bool contact = at_once;
             if (!contact) {
                 const rt_piece_kind free_step = {
                     .np = np, .ntones = nt, .free_step = true, .thermal = noise, .predict = true};
@@ -762,7 +861,7 @@ static inline __attribute__((always_inline)) int rt_run_t(afm_sim *s, rt_state *
                 }
             }
             if (contact) {
-                bb = rt_contact(s, r, a, bb);
+                bb = rt_contact(s, r, a, bb, noise && !at_once);
                 tb = rt_tip_of(r, bb);
             }
             a = bb;
@@ -888,25 +987,41 @@ static int rt_thermal(afm_sim *s, const afm_cfg_thermal *t, char *err, size_t er
         r->noise = false;
         return 0;
     }
+    const size_t np = (size_t)r->np, n_bridge = (size_t)(RT_GRID - 1 + r->m - 1);
     if (!r->lth) {
-        double *l = calloc(3 * (size_t)r->np * (size_t)r->ncell, sizeof *l);
+        double *l = calloc(3 * np * (size_t)r->ncell, sizeof *l);
+        double *bg = calloc(4 * np * n_bridge, sizeof *bg);
         afm_rng *g = calloc(1, sizeof *g);
-        if (!l || !g) {
+        rt_noise *z = calloc(1, sizeof *z);
+        if (!l || !g || !bg || !z) {
             free(l);
             free(g);
+            free(bg);
+            free(z);
             snprintf(err, errlen, "rt integrator: out of memory");
             return -1;
         }
         r->lth = l;
         r->rng = g;
+        r->bridge = bg;
+        r->nz = z;
     }
     const double kt = RT_KB_J_K * t->temperature_k;
-    const size_t np = (size_t)r->np;
     for (int k = 0; k < r->ncell; k++) {
         double *l = r->lth + 3 * np * (size_t)k;
         afm_rt_coef_thermal(&r->prop[k], r->n, r->np, s->m.omega_rad_s, s->m.xi, kt, l, l + np,
                             l + 2 * np);
     }
+    /* the bridges: (kc, RT_GRID) for a crossing, (RT_GRID, j RT_GRID) for a substep */
+    for (size_t b = 0; b < n_bridge; b++) {
+        int k1 = b < RT_GRID - 1 ? (int)b + 1 : RT_GRID;
+        int len = b < RT_GRID - 1 ? RT_GRID : (int)(b - (RT_GRID - 1) + 2) * RT_GRID;
+        const double *l = r->lth;
+        afm_rt_coef_bridge(r->n, r->np, r->prop[k1 - 1].tau_s, l + 3 * np * (size_t)(k1 - 1),
+                           l + 3 * np * (size_t)(len - 1), r->prop[len - k1 - 1].c,
+                           (double *)rt_bridge_gain(r, k1, len));
+    }
+    memset(r->nz, 0, sizeof *r->nz);
     afm_rng_seed(r->rng, (uint64_t)t->seed);
     r->noise = true;
     return 0;
@@ -919,6 +1034,8 @@ static void rt_destroy(afm_sim *s) {
     free(r->prop);
     free(r->lth);
     free(r->rng);
+    free(r->bridge);
+    free(r->nz);
     free(r);
     s->be_state = NULL;
 }

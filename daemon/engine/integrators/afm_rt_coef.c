@@ -164,6 +164,42 @@ void afm_rt_coef_thermal(const afm_rt_prop *p, int n, int np, const double *w, c
     }
 }
 
+/* Sigma of a piece from its Cholesky factor (l11, l21, l22 of mode i, stride np), in the
+ * coordinates (q, q' sv). */
+static void bridge_sigma(const double *l, int np, int i, long double sv, long double sg[3]) {
+    long double a = l[i], b = l[np + i] * sv, c = l[2 * np + i] * sv;
+    sg[0] = a * a;
+    sg[1] = a * b;
+    sg[2] = b * b + c * c;
+}
+
+void afm_rt_coef_bridge(int n, int np, double tau1_s, const double *l1, const double *ll,
+                        const double *phi2, double *k) {
+    for (int i = 0; i < 4 * np; i++)
+        k[i] = 0.0;
+    const long double sv = tau1_s; /* q' tau1: the scaled covariances are O(1) relative */
+    for (int i = 0; i < n; i++) {
+        long double s1[3], sl[3];
+        bridge_sigma(l1, np, i, sv, s1);
+        bridge_sigma(ll, np, i, sv, sl);
+        long double det = sl[0] * sl[2] - sl[1] * sl[1];
+        if (!(det > 0)) continue; /* a mode without noise */
+        /* Phi2 in the scaled coordinates, then A = Sigma1 Phi2^T, K = A Sigma(L)^-1 */
+        long double p11 = phi2[i], p12 = phi2[np + i] / sv, p21 = phi2[2 * np + i] * sv,
+                    p22 = phi2[3 * np + i];
+        long double a11 = s1[0] * p11 + s1[1] * p12, a12 = s1[0] * p21 + s1[1] * p22;
+        long double a21 = s1[1] * p11 + s1[2] * p12, a22 = s1[1] * p21 + s1[2] * p22;
+        long double i11 = sl[2] / det, i12 = -sl[1] / det, i22 = sl[0] / det;
+        long double k11 = a11 * i11 + a12 * i12, k12 = a11 * i12 + a12 * i22;
+        long double k21 = a21 * i11 + a22 * i12, k22 = a21 * i12 + a22 * i22;
+        /* back to (q, q'): K = S^-1 Ky S with S = diag(1, sv) */
+        k[i] = (double)k11;
+        k[np + i] = (double)(k12 * sv);
+        k[2 * np + i] = (double)(k21 / sv);
+        k[3 * np + i] = (double)k22;
+    }
+}
+
 void afm_rt_starr_build(afm_rt_starr *st, const afm_force_params *p, double z_m) {
     const int nn = 5;
     const double pi = 3.14159265358979323846;

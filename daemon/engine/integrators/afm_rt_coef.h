@@ -68,6 +68,18 @@ void afm_rt_coef_drive(afm_rt_prop *p, int ntones, const double *wd, const doubl
 void afm_rt_coef_thermal(const afm_rt_prop *p, int n, int np, const double *w, const double *xi,
                          double kt_j, double *l11, double *l21, double *l22);
 
+/* Brownian bridge of the thermal increment. An interval of length L whose increment xi
+ * (per mode, on (q, q')) is already drawn is cut into a first part of length tau1 and the
+ * rest: xi = Phi2 xi1 + xi2 with xi1 ~ N(0, Sigma1), xi2 independent. Writes the gain
+ * K = Sigma1 Phi2^T Sigma(L)^-1 (k11, k12, k21, k22 at stride np), with which xi1 = xi1' +
+ * K (xi - Phi2 xi1' - xi2') for fresh draws xi1', xi2' is distributed as xi1 given xi
+ * (Matheron's rule). l1, ll: the Cholesky factors of Sigma1 and Sigma(L) as
+ * afm_rt_coef_thermal writes them (l11, l21, l22 at stride np); phi2: Phi of the rest (the
+ * first 4 np entries of its afm_rt_prop.c). Computed in (q, q' tau1), in long double; zero
+ * for a mode without noise. */
+void afm_rt_coef_bridge(int n, int np, double tau1_s, const double *l1, const double *ll,
+                        const double *phi2, double *k);
+
 /* exp(A) of an n x n row-major matrix (n <= 8), scaling and squaring with a Taylor series
  * of the scaled matrix; relative accuracy about 1e-15 for the well-scaled, dissipative
  * matrices used here. */
