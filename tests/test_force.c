@@ -365,7 +365,36 @@ static void test_reject(void) {
     init_ok(&c, "accept radius 0 when no term needs it");
 }
 
+/* afm_force_cons_work: its derivative in the end point is the conservative force (the
+ * total at v = 0), out of contact and in it, with every conservative term (vdW/DMT,
+ * capillary, electrostatic) on and the tip inclined; central differences of 10 fm against
+ * length scales >= 0.1 nm: truncation ~1e-8. */
+static void test_cons_work(void) {
+    afm_cfg_forces c = thesis_cfg();
+    c.capillary = true;
+    c.electrostatic = true;
+    c.viscoelastic = true; /* velocity terms: zero at v = 0, not in the work */
+    c.squeeze = AFM_SQUEEZE_LINEAR;
+    afm_force_params p = init_ok(&c, "cons work: init");
+    const double z = 30e-9, xc = afm_force_contact_x(&p, z), h = 1e-14;
+    static const double off[] = {3e-9, 1e-9, 0.2e-9, -0.1e-9, -0.5e-9, -1.5e-9};
+    double worst = 0.0;
+    for (size_t i = 0; i < sizeof off / sizeof off[0]; i++) {
+        double x = xc + off[i];
+        double dw = (afm_force_cons_work(&p, z, xc + 5e-9, x + h) -
+                     afm_force_cons_work(&p, z, xc + 5e-9, x - h)) /
+                    (2 * h);
+        double f = afm_force_tip(&p, z, x, 0.0, NULL, NULL);
+        worst = fmax(worst, fabs(dw - f) / fabs(f));
+    }
+    check_abs(worst, 0, 1e-6, "cons work: d/dx of the work = the conservative force (relative)");
+    check_abs(afm_force_cons_work(&p, z, xc + 2e-9, xc - 1e-9) +
+                  afm_force_cons_work(&p, z, xc - 1e-9, xc + 2e-9),
+              0, 1e-30, "cons work: there and back is zero");
+}
+
 int main(void) {
+    test_cons_work();
     test_table_4_1_f4();
     test_continuity();
     test_partials();

@@ -29,7 +29,15 @@
  *  pre_contact_velocity_m_s  v at the first inward crossing (cubic's slope); NAN if none
  *  dissipated_energy_j E = -int f v dt: the work the tip-sample force takes out of the
  *                     cantilever over the period (positive when dissipating; its
- *                     conservative part integrates to ~0 over a closed orbit)
+ *                     conservative part integrates to ~0 over a closed orbit). With the
+ *                     force law, the steps with an end in contact or within
+ *                     AFM_CYCLE_NEAR_GAP_M of it (where vdW is steep) take their work on the
+ *                     continuous path instead of the trapezoid: the conservative part
+ *                     exactly (afm_force_cons_work), the velocity terms by Gauss-Legendre
+ *                     on the Hermite cubic (the trapezoid over 2-3 samples of a contact
+ *                     left 0.1 eV per period on CVODE's own orbit and scattered rt's by
+ *                     several eV from period to period; with the contact steps alone,
+ *                     the steep vdW just above it still left 0.13 eV)
  *  mean_deflection_m  (1 / T) int x dt
  * Integrals: trapezoid with fractional ends (the step containing a boundary is split there,
  * linear interpolant of the integrand), as afm_harm.
@@ -44,6 +52,10 @@
 
 #include "estimators/afm_est_internal.h"
 #include "forces/afm_force.h"
+
+/* Gap above a0 (m) within which a step's tip-sample work is taken on the continuous path
+ * (dissipated_energy_j; with the force law). */
+#define AFM_CYCLE_NEAR_GAP_M 1e-9
 
 typedef struct {
     long period;       /* sequence number: 0 for the first whole period since init/reset */
@@ -66,6 +78,7 @@ typedef struct {
  * boundary step's parts are added when the period ends. */
 typedef struct {
     double x_contact_m, cos_alpha;
+    double x_near_m;                /* the gap AFM_CYCLE_NEAR_GAP_M above a0 */
     const afm_force_params *forces; /* the force law for the peak (NULL: none) */
     double z_m;                     /* its separation Z */
     afm_phase_track trk;
@@ -83,6 +96,8 @@ typedef struct {
     afm_cycle_metrics cur; /* accumulating: duration, energy: the start step's part; peak,
                             * minimum (first sample, Hermite minima), contacts so far */
     double x_int;          /* int x dt over the start step's part */
+    double e_corr;         /* with the force law: the period's contact steps' work on the
+                              continuous path less their trapezoids (J) */
     long periods;          /* completed periods since init/reset */
     afm_cycle_metrics out; /* last completed period (valid if periods > 0) */
 } afm_cycle;

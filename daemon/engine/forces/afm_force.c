@@ -210,6 +210,46 @@ void afm_force_parts_at(const afm_force_params *p, double z_m, double x_m, doubl
     out->squeeze_n = part[2];
 }
 
+/* An antiderivative in the gap d of the conservative force F_cons(d) (N m): continuous,
+ * with the terms' own closed forms out of contact and the DMT/Hertz term (capillary and
+ * electrostatic frozen at a0) integrated from a0 in contact. */
+static double cons_antiderivative(const afm_force_params *p, double d) {
+    const double a0 = p->a0_m, dd = d < a0 ? a0 : d;
+    double a = 0.0, f_a0 = 0.0; /* out of contact at max(d, a0); f_a0: the frozen terms */
+    if (p->vdw_contact) a += p->vdw_coef / dd;
+    if (p->capillary) {
+        a += -p->cap_coef_n * p->cap_d_m * log1p(dd / p->cap_d_m);
+        f_a0 += -p->cap_coef_n / (1.0 + a0 / p->cap_d_m);
+    }
+    if (p->electrostatic) {
+        double l4 = 0.25 * p->es_cone_m, de = dd < l4 ? dd : l4;
+        a += -p->es_coef_n * (de * log(l4 / de) + de);
+        if (a0 < l4) f_a0 += -p->es_coef_n * log(l4 / a0);
+    }
+    if (d < a0) { /* minus the integral of F_in over u = a0 - d' from 0 to a0 - d */
+        double u = a0 - d, fin0 = f_a0;
+        if (p->vdw_contact) {
+            a -= p->hertz_coef * u * u * sqrt(u) / 2.5;
+            fin0 -= p->f_adhesion_n;
+        }
+        a -= fin0 * u;
+    }
+    return a;
+}
+
+double afm_force_cons(const afm_force_params *p, double z_m, double x_m) {
+    double fc, fv, jx, jv;
+    afm_force_near_terms(p, fma(x_m, p->cos_alpha, z_m), 0.0, &fc, &fv, &jx, &jv);
+    return fc;
+}
+
+double afm_force_cons_work(const afm_force_params *p, double z_m, double x0_m, double x1_m) {
+    const double ca = p->cos_alpha;
+    return (cons_antiderivative(p, fma(x1_m, ca, z_m)) -
+            cons_antiderivative(p, fma(x0_m, ca, z_m))) /
+           ca;
+}
+
 double afm_force_contact_x(const afm_force_params *p, double z_m) {
     return (p->a0_m - z_m) / p->cos_alpha;
 }

@@ -71,6 +71,15 @@ double afm_force_tip(const afm_force_params *p, double z_m, double x_m, double v
 void afm_force_parts_at(const afm_force_params *p, double z_m, double x_m, double v_m_s,
                         afm_force_parts *out);
 
+/* The conservative part alone (vdW or DMT/Hertz, capillary, electrostatic) at x_m (N). */
+double afm_force_cons(const afm_force_params *p, double z_m, double x_m);
+
+/* Work of the conservative part (vdW or DMT/Hertz, capillary, electrostatic) on the tip
+ * moving from x0_m to x1_m at separation z_m (J), exactly: the difference of its
+ * antiderivative in the gap, divided by cos(alpha). Over a closed orbit it is zero; what
+ * the tip-sample force dissipates is then the work of the velocity terms alone. */
+double afm_force_cons_work(const afm_force_params *p, double z_m, double x0_m, double x1_m);
+
 /* Tip displacement at which the gap closes to a0: x_c = (a0 - Z) / cos(alpha). */
 double afm_force_contact_x(const afm_force_params *p, double z_m);
 
