@@ -76,6 +76,14 @@ static int setup(const char *path, afm_config *cfg, afm_modal *m) {
     return 0;
 }
 
+/* default.conf with a noiseless, unquantised sensor (obd_m = the calibrated signal). */
+static int setup_noiseless(afm_config *cfg, afm_modal *m) {
+    if (setup("config/default.conf", cfg, m)) return -1;
+    cfg->obd.noise_density_m_rthz = 0;
+    cfg->obd.adc_bits = 0;
+    return 0;
+}
+
 static void calibration(void) {
     afm_config cfg;
     afm_modal m;
@@ -374,9 +382,7 @@ static void chain(void) {
     afm_config cfg;
     afm_modal m;
     char err[AFM_ERR_LEN];
-    if (setup("config/default.conf", &cfg, &m)) return;
-    cfg.obd.noise_density_m_rthz = 0;
-    cfg.obd.adc_bits = 0;
+    if (setup_noiseless(&cfg, &m)) return;
     afm_chain *c = afm_chain_create(&cfg, &m, err, sizeof err);
     if (!check_true(c != NULL, "chain: create on default.conf")) {
         printf("  %s\n", err);
@@ -527,9 +533,7 @@ static void week_of_uptime(void) {
     afm_config cfg;
     afm_modal m;
     char err[AFM_ERR_LEN];
-    if (setup("config/default.conf", &cfg, &m)) return;
-    cfg.obd.noise_density_m_rthz = 0;
-    cfg.obd.adc_bits = 0;
+    if (setup_noiseless(&cfg, &m)) return;
     afm_force_params nof = fixture_no_forces();
     afm_sim *sim = afm_sim_create(&m, &nof, &cfg.drive, &cfg.sim, err, sizeof err);
     afm_chain *c = afm_chain_create(&cfg, &m, err, sizeof err);
