@@ -33,6 +33,15 @@ typedef enum {
     AFM_INTEGRATOR_REFERENCE = 1,
     AFM_INTEGRATOR_ARKODE_ERK = 2
 } afm_integrator_kind;
+/* The rt integrator's scheme (docs/numerics.md): accurate (the tip force cubic Hermite in
+ * time, fourth order out of contact: CVODE's steady state) or fast (the force linear in
+ * time, second order, cheaper). auto: accurate in the engine and every offline tool; the
+ * daemon measures both before real time starts and runs accurate where it fits the budget. */
+typedef enum {
+    AFM_RT_SCHEME_AUTO = 0,
+    AFM_RT_SCHEME_ACCURATE = 1,
+    AFM_RT_SCHEME_FAST = 2
+} afm_rt_scheme_kind;
 
 /* Euler-Bernoulli beam (thesis ch. 3.2, Table E.1). Width and height vary linearly from
  * the clamp (index 0) to the free end (index 1); equal values give a uniform beam. */
@@ -114,6 +123,7 @@ typedef struct {
     double sample_rate_hz; /* OBD sample rate; integrator output step = 1/rate. 14.06e6 */
     afm_integrator_kind integrator;
     int rt_substeps_contact; /* substeps per sample while in contact (rt); default set by engine */
+    afm_rt_scheme_kind rt_scheme; /* sim.rt_scheme: auto (default), accurate, fast */
     double ref_rtol;         /* CVODE relative tolerance; default 1e-10 */
     int n_harmonics;         /* 0: the estimators choose 1, 2, 3 and the harmonics
                                 nearest f2/fe and f3/fe */

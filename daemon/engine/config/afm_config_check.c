@@ -196,6 +196,9 @@ static int check_drive_sim(const afm_config *c, char *key, char *why, size_t why
     NEED(s->rt_substeps_contact >= 0 && s->rt_substeps_contact <= AFM_MAX_RT_SUBSTEPS,
          "sim.rt_substeps_contact", "must be in [0, %d] (0 = engine default), got %d",
          AFM_MAX_RT_SUBSTEPS, s->rt_substeps_contact);
+    NEED(s->rt_scheme == AFM_RT_SCHEME_AUTO || s->rt_scheme == AFM_RT_SCHEME_ACCURATE ||
+             s->rt_scheme == AFM_RT_SCHEME_FAST,
+         "sim.rt_scheme", "unknown scheme %d", (int)s->rt_scheme);
     NEED(isfinite(s->ref_rtol) && s->ref_rtol > 0 && s->ref_rtol < 1e-2, "sim.ref_rtol",
          "must be in (0, 1e-2) (got %g)", s->ref_rtol);
     NEED(s->n_harmonics >= 0 && s->n_harmonics <= AFM_MAX_HARMONICS, "sim.harmonics",

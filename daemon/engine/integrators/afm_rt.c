@@ -76,6 +76,7 @@
 
 #define RT_GRID 8             /* table cells per contact substep: crossing resolution */
 #define RT_DEFAULT_SUBSTEPS 4 /* substeps per sample in contact (measured, numerics.md) */
+#define RT_ACC_DEFAULT_SUBSTEPS 8 /* the accurate scheme's (4 moved steady states: numerics.md) */
 #define RT_MAX_SUBSTEPS AFM_MAX_RT_SUBSTEPS
 #define RT_RESYNC 4096 /* steps between phasor resynchronisations */
 #define RT_NEWTON_MAX 12
@@ -105,7 +106,17 @@ typedef struct {
     double dfdx_n_m, dfdv_n_s_m; /* df/dx (N/m), df/dv (N s/m) at the last force evaluation */
     int slope_cells;             /* the piece length tip.inv_slope is for, in cells (0: none) */
     double df_per_cell_n;        /* force change per cell over the piece that ended here (N) */
+    double fdot_n_s; /* dF/dt here (N/s): the accurate scheme's Hermite end slope */
 } rt_snap;
+
+/* The step tables of one scheme: contact substeps m, ncell = m RT_GRID cells, the
+ * coefficients of a piece of k cells at prop[k - 1] (in block), and, once thermal noise was
+ * set, its Cholesky factors and bridge gains (rt_state.lth, .bridge). */
+typedef struct {
+    int m, ncell;
+    afm_rt_prop *prop;
+    double *block, *lth, *bridge;
+} rt_tables;
 
 typedef struct {
     int n, np, m, ncell, ntones; /* np: n rounded up to a multiple of 4 */
@@ -138,6 +149,15 @@ typedef struct {
      * (j = 2 .. m); see rt_bridge_gain */
     double *bridge;
     struct rt_noise *nz; /* the increments being split (mutable scratch) */
+    /* The accurate scheme (cfg.rt_scheme; rt_run_acc): the force cubic Hermite in time.
+     * m, ncell, prop, block, lth and bridge above are tab[acc]'s (rt_use). */
+    bool acc;
+    rt_tables tab[2]; /* [0] the fast scheme's, [1] the accurate one's */
+    /* the tip acceleration: sum_i aq_i qh_i + av_i qh'_i + tip2 F + Im(ax_j z_j) with
+     * aq = -tip w^2, av = -2 tip xi w (1/s^2, 1/s; zero past n), tip2 = sum tip^2 (1/kg),
+     * ax_j = -wd_j^2 cx_j (m/s^2; zero past ntones) */
+    double aq[AFM_MAX_MODES], av[AFM_MAX_MODES], tip2;
+    double ax_re[AFM_MAX_TONES], ax_im[AFM_MAX_TONES];
 } rt_state;
 
 /* A redone piece takes the noise already drawn for its interval (issue 11): the increment
@@ -810,6 +830,268 @@ static AFM_CLONES_NOINLINE rt_snap *rt_contact(const afm_sim *s, const rt_state 
     return a;
 }
 
+/* ---- the accurate scheme: the force cubic Hermite in time (cfg.rt_scheme) ----
+ *
+ * Each piece takes the force as the Hermite interpolant of F0, F1 and the slopes D0, D1
+ * (afm_rt_coef.h), fourth order in the step where the force is smooth. D = tau dF/dt with
+ * dF/dt = f_x v + f_v a from the force law's partials at the last evaluation and the tip's
+ * velocity and acceleration. The solve takes D1 = D0 (the force's slope carried over);
+ * then D1 is computed at the end and the state takes Gd1 (D1 - D0). A sample runs as one
+ * such piece while its path stays clear of the contact line (as the fast scheme's free
+ * step); a sample that touches it is redone in m substeps, each first taken whole, and a
+ * substep whose path crosses the contact line (or starts and ends beside it) is redone with
+ * the force linear in time (the fast scheme's piece), split at the located crossing: no
+ * polynomial in time follows a kink, and a slope from one side does not hold on the other. */
+
+/* dF/dt at st from its force partials and the tip's velocity and acceleration. */
+static inline double rt_fdot(const rt_state *r, const rt_snap *st, int np, int nt) {
+    rt_v4 a4 = rt_splat(0.0);
+    for (int i = 0; i < np; i += 4)
+        a4 = rt_fma4(RT_V4(r->aq + i), RT_V4(st->q + i), rt_fma4(RT_V4(r->av + i), RT_V4(st->v + i), a4));
+    double acc = rt_hsum(a4) + r->tip2 * st->tip.f_n;
+    acc += rt_tones_im(r->ax_re, r->ax_im, st->z_re, st->z_im, nt);
+    return fma(st->dfdx_n_m, st->tip.v_m_s, st->dfdv_n_s_m * acc);
+}
+
+/* Advance in by k cells into o (o may be in); herm: the force Hermite in time, else linear
+ * (a piece beside a crossing). Leaves o->fdot_n_s for the next piece. */
+static inline __attribute__((always_inline)) void rt_piece_acc_t(const afm_sim *s,
+                                                                 const rt_state *r,
+                                                                 const rt_snap *in, rt_snap *o,
+                                                                 int k, bool herm, const int np,
+                                                                 const int nt, const bool noise) {
+    const afm_rt_prop *P = &r->prop[k - 1];
+    const double *c = P->c, *ch = P->c + AFM_RT_ROW_GC * np;
+    const double F0 = in->tip.f_n, tau = P->tau_s;
+    const double D0 = herm ? tau * in->fdot_n_s : 0.0;
+    double nq[AFM_MAX_MODES] __attribute__((aligned(32)));
+    double nv[AFM_MAX_MODES] __attribute__((aligned(32)));
+    double xs, vs;
+    rt_v4 xs4 = rt_splat(0.0), vs4 = rt_splat(0.0);
+    for (int i = 0; i < np; i += 4) {
+        rt_v4 q = RT_V4(in->q + i), v = RT_V4(in->v + i);
+        xs4 = rt_fma4(RT_V4(c + 8 * np + i), q, rt_fma4(RT_V4(c + 9 * np + i), v, xs4));
+        vs4 = rt_fma4(RT_V4(c + 10 * np + i), q, rt_fma4(RT_V4(c + 11 * np + i), v, vs4));
+    }
+    rt_hsum2(xs4, vs4, &xs, &vs);
+    double gxe = P->gx, gve = P->gv;
+    if (herm) { /* F0 (1 + c) + D0 (h10 + h11), and F1 (sigma - c) */
+        xs = fma(P->gx0 + P->gcx, F0, fma(P->gd0x + P->gd1x, D0, xs));
+        vs = fma(P->gv0 + P->gcv, F0, fma(P->gd0v + P->gd1v, D0, vs));
+        gxe -= P->gcx;
+        gve -= P->gcv;
+    } else {
+        xs = fma(P->gx0, F0, xs);
+        vs = fma(P->gv0, F0, vs);
+    }
+    xs += rt_tones_im(P->dx_re, P->dx_im, in->z_re, in->z_im, nt);
+    vs += rt_tones_im(P->dv_re, P->dv_im, in->z_re, in->z_im, nt);
+    if (noise) {
+        double xq, xv;
+        rt_thermal_draw(r, k, nq, nv, &xq, &xv);
+        xs += xq;
+        vs += xv;
+    }
+    double jj = 1.0 - in->dfdx_n_m * gxe - in->dfdv_n_s_m * gve;
+    const double rj = 1.0 / (jj > 0.25 ? jj : 0.25);
+    const double F1 =
+        rt_solve_in(s, r, xs, vs, gxe, gve, fma(in->df_per_cell_n, (double)k, F0), rj, o);
+    double zr1[AFM_MAX_TONES], zi1[AFM_MAX_TONES];
+    rt_tones_rotate(in->z_re, in->z_im, P->rot_re, P->rot_im, zr1, zi1, nt);
+    const rt_v4 f0 = rt_splat(F0), f1 = rt_splat(F1), fc = rt_splat(F0 - F1), d0 = rt_splat(D0);
+    rt_v4 a4 = rt_splat(0.0);
+    for (int i = 0; i < np; i += 4) {
+        rt_v4 q = RT_V4(in->q + i), v = RT_V4(in->v + i);
+        rt_v4 a = rt_fma4(RT_V4(c + i), q,
+                          rt_fma4(RT_V4(c + np + i), v,
+                                  rt_fma4(RT_V4(c + 4 * np + i), f0, RT_V4(c + 6 * np + i) * f1)));
+        rt_v4 w = rt_fma4(RT_V4(c + 2 * np + i), q,
+                          rt_fma4(RT_V4(c + 3 * np + i), v,
+                                  rt_fma4(RT_V4(c + 5 * np + i), f0, RT_V4(c + 7 * np + i) * f1)));
+        if (herm) { /* D1 = D0 for now: Gd0 + Gd1 */
+            a = rt_fma4(RT_V4(ch + i), fc, rt_fma4(RT_V4(ch + 2 * np + i) + RT_V4(ch + 4 * np + i), d0, a));
+            w = rt_fma4(RT_V4(ch + np + i), fc,
+                        rt_fma4(RT_V4(ch + 3 * np + i) + RT_V4(ch + 5 * np + i), d0, w));
+        }
+        if (noise) {
+            a += RT_V4(nq + i);
+            w += RT_V4(nv + i);
+        }
+        RT_V4W(o->q + i) = a;
+        RT_V4W(o->v + i) = w;
+        a4 = rt_fma4(RT_V4(r->aq + i), a, rt_fma4(RT_V4(r->av + i), w, a4));
+    }
+    if (nt == RT_TONES_V4) {
+        RT_V4W(o->z_re) = RT_V4(zr1);
+        RT_V4W(o->z_im) = RT_V4(zi1);
+    } else {
+        for (int j = 0; j < nt; j++) {
+            o->z_re[j] = zr1[j];
+            o->z_im[j] = zi1[j];
+        }
+    }
+    double x1 = fma(gxe, F1, xs), v1 = fma(gve, F1, vs);
+    double acc = rt_hsum(a4) + r->tip2 * F1 + rt_tones_im(r->ax_re, r->ax_im, zr1, zi1, nt);
+    double fdot = fma(o->dfdx_n_m, v1, o->dfdv_n_s_m * acc);
+    if (herm) { /* the end slope found: the state takes Gd1 (D1 - D0) */
+        const double dd = fma(tau, fdot, -D0);
+        const rt_v4 dd4 = rt_splat(dd);
+        for (int i = 0; i < np; i += 4) {
+            RT_V4W(o->q + i) = rt_fma4(RT_V4(ch + 4 * np + i), dd4, RT_V4(o->q + i));
+            RT_V4W(o->v + i) = rt_fma4(RT_V4(ch + 5 * np + i), dd4, RT_V4(o->v + i));
+        }
+        x1 = fma(P->gd1x, dd, x1);
+        v1 = fma(P->gd1v, dd, v1);
+    }
+    o->slope_cells = 0;
+    o->df_per_cell_n = (F1 - F0) * r->inv_cells[k];
+    o->tip.x_m = x1;
+    o->tip.v_m_s = v1;
+    o->tip.f_n = F1;
+    o->fdot_n_s = fdot;
+}
+
+/* rt_piece_acc_t out of line for the contact pieces, the sizes picked once. */
+static AFM_CLONES_NOINLINE void rt_piece_acc(const afm_sim *s, const rt_state *r,
+                                             const rt_snap *in, rt_snap *o, int k, bool herm) {
+    if (r->noise)
+        rt_piece_acc_t(s, r, in, o, k, herm, r->np, rt_tones_kind(r), true);
+    else if (r->ntones == 1 && r->np == 4)
+        rt_piece_acc_t(s, r, in, o, k, herm, 4, 1, false);
+    else if (r->ntones == 1 && r->np == 8)
+        rt_piece_acc_t(s, r, in, o, k, herm, 8, 1, false);
+    else if (r->ntones > 1 && r->np == 4)
+        rt_piece_acc_t(s, r, in, o, k, herm, 4, RT_TONES_V4, false);
+    else if (r->ntones > 1 && r->np == 8)
+        rt_piece_acc_t(s, r, in, o, k, herm, 8, RT_TONES_V4, false);
+    else
+        rt_piece_acc_t(s, r, in, o, k, herm, r->np, rt_tones_kind(r), false);
+}
+
+/* One contact substep of RT_GRID cells from a into b: Hermite, or, where its path crosses
+ * the contact line, linear and split at the crossing (rt_substep's thermal bookkeeping). */
+static void rt_substep_acc(const afm_sim *s, const rt_state *r, const rt_snap *a, rt_snap *b,
+                           double tau) {
+    rt_piece_acc(s, r, a, b, RT_GRID, true);
+    int kc = rt_crossing_cell(r, a, b, tau, true);
+    if (kc < 0) return;
+    rt_noise *z = r->nz;
+    if (kc == 0 || kc >= RT_GRID) { /* at an end: the whole substep linear */
+        if (r->noise) {
+            memcpy(z->gq, z->lq, sizeof z->gq);
+            memcpy(z->gv, z->lv, sizeof z->gv);
+            z->given_cells = RT_GRID;
+        }
+        rt_piece_acc(s, r, a, b, RT_GRID, false);
+        return;
+    }
+    if (r->noise) {
+        memcpy(z->sq, z->lq, sizeof z->sq);
+        memcpy(z->sv, z->lv, sizeof z->sv);
+        rt_bridge_draw(r, kc, RT_GRID, z->sq, z->sv);
+    }
+    rt_piece_acc(s, r, a, b, kc, false);
+    if (r->noise) {
+        memcpy(z->gq, z->sq, sizeof z->gq);
+        memcpy(z->gv, z->sv, sizeof z->gv);
+        z->given_cells = RT_GRID - kc;
+    }
+    rt_piece_acc(s, r, b, b, RT_GRID - kc, false);
+}
+
+/* rt_contact for the accurate scheme. */
+static AFM_CLONES_NOINLINE rt_snap *rt_contact_acc(const afm_sim *s, const rt_state *r,
+                                                   rt_snap *a, rt_snap *b, bool redo) {
+    double tau = s->dt_s / r->m;
+    rt_noise *z = r->nz;
+    if (r->noise) {
+        z->given_cells = 0;
+        z->rem_cells = redo ? r->ncell : 0;
+        if (redo) {
+            memcpy(z->rq, z->lq, sizeof z->rq);
+            memcpy(z->rv, z->lv, sizeof z->rv);
+        }
+    }
+    for (int k = 0; k < r->m; k++) {
+        if (r->noise && z->rem_cells > 0) {
+            if (z->rem_cells == RT_GRID) {
+                memcpy(z->gq, z->rq, sizeof z->gq);
+                memcpy(z->gv, z->rv, sizeof z->gv);
+                z->given_cells = RT_GRID;
+            } else {
+                rt_bridge_draw(r, RT_GRID, z->rem_cells, z->rq, z->rv);
+            }
+            z->rem_cells -= RT_GRID;
+        }
+        rt_substep_acc(s, r, a, b, tau);
+        rt_snap *t = a;
+        a = b;
+        b = t;
+    }
+    return a;
+}
+
+/* n output steps of the accurate scheme (afm_sim_backend.run when r->acc). */
+static inline __attribute__((always_inline)) int rt_run_acc_t(afm_sim *s, rt_state *r, int n,
+                                                              afm_sample *out, const int np,
+                                                              const int nt, const bool noise) {
+    int rc = AFM_SIM_OK;
+    long step = s->step;
+    const double t0 = s->t_start_s, dt = s->dt_s;
+    rt_snap *a = &r->buf[r->cur];
+    for (int k = 0; k < n; k++) {
+        if (__builtin_expect(++r->since_sync >= RT_RESYNC, 0)) {
+            s->step = step;
+            s->t_s = t0 + (double)step * dt;
+            rt_sync_phasors(s, r, a);
+            a->fdot_n_s = rt_fdot(r, a, np, nt);
+        }
+        rt_snap *b = a == &r->buf[0] ? &r->buf[1] : &r->buf[0];
+        const bool at_once = r->kinked && a->tip.x_m < r->xc;
+        bool contact = at_once;
+        if (!contact) {
+            rt_piece_acc_t(s, r, a, b, r->ncell, true, np, nt, noise);
+            if (r->kinked) {
+                double low = (a->tip.x_m < b->tip.x_m ? a->tip.x_m : b->tip.x_m) -
+                             r->clear_k * (fabs(a->tip.v_m_s) + fabs(b->tip.v_m_s));
+                contact = low < r->xc && rt_crossing_cell(r, a, b, dt, false) >= 0;
+            }
+        }
+        if (contact) b = rt_contact_acc(s, r, a, b, noise && !at_once);
+        a = b;
+        step++;
+        if (!(fabs(a->tip.x_m) < 1e-3) ||
+            !(fabs(a->tip.v_m_s) < HUGE_VAL && fabs(a->tip.f_n) < HUGE_VAL)) {
+            rc = AFM_SIM_EBLOWUP;
+            break;
+        }
+        if (out) {
+            afm_sample *o = out + k;
+            rt_v4 th4 = rt_splat(0.0);
+            for (int i = 0; i < np; i += 4)
+                th4 = rt_fma4(RT_V4(r->rot + i), RT_V4(a->q + i), th4);
+            double th = rt_hsum(th4) + rt_tones_im(r->th_re, r->th_im, a->z_re, a->z_im, nt);
+            double u = 0.0;
+            if (nt == RT_TONES_V4)
+                u = rt_hsum(RT_V4(r->amp_m) * RT_V4(a->z_im));
+            else
+                for (int jt = 0; jt < nt; jt++)
+                    u += r->amp_m[jt] * a->z_im[jt];
+            o->t_s = t0 + (double)step * dt;
+            o->x_m = a->tip.x_m;
+            o->v_m_s = a->tip.v_m_s;
+            o->f_n = a->tip.f_n;
+            o->theta_rad = th;
+            o->base_m = u;
+        }
+    }
+    s->step = step;
+    s->t_s = t0 + (double)step * dt;
+    r->cur = a == &r->buf[0] ? 0 : 1;
+    rt_publish(s, r, a);
+    return rc;
+}
+
 /* n output steps (afm_sim_backend.run), with the common sizes (up to 8 modes, one tone)
  * and the thermal switch as constants so that the full step's loops unroll and the
  * phasors stay in registers. */
@@ -911,12 +1193,37 @@ static inline __attribute__((always_inline)) int rt_run_t(afm_sim *s, rt_state *
 
 AFM_CLONES static int rt_run(afm_sim *s, int n, afm_sample *out) {
     rt_state *r = s->be_state;
+    if (r->acc) {
+        if (r->noise) return rt_run_acc_t(s, r, n, out, r->np, rt_tones_kind(r), true);
+        if (r->ntones == 1 && r->np == 4) return rt_run_acc_t(s, r, n, out, 4, 1, false);
+        if (r->ntones == 1 && r->np == 8) return rt_run_acc_t(s, r, n, out, 8, 1, false);
+        if (r->ntones > 1 && r->np == 4) return rt_run_acc_t(s, r, n, out, 4, RT_TONES_V4, false);
+        if (r->ntones > 1 && r->np == 8) return rt_run_acc_t(s, r, n, out, 8, RT_TONES_V4, false);
+        return rt_run_acc_t(s, r, n, out, r->np, rt_tones_kind(r), false);
+    }
     if (r->noise) return rt_run_t(s, r, n, out, r->np, rt_tones_kind(r), true);
     if (r->ntones == 1 && r->np == 4) return rt_run_t(s, r, n, out, 4, 1, false);
     if (r->ntones == 1 && r->np == 8) return rt_run_t(s, r, n, out, 8, 1, false);
     if (r->ntones > 1 && r->np == 4) return rt_run_t(s, r, n, out, 4, RT_TONES_V4, false);
     if (r->ntones > 1 && r->np == 8) return rt_run_t(s, r, n, out, 8, RT_TONES_V4, false);
     return rt_run_t(s, r, n, out, r->np, rt_tones_kind(r), false);
+}
+
+/* Make tab[acc] the tables in force (the fields of r that alias them, and the first
+ * guess of a full step, which depends on them). */
+static void rt_tables_use(rt_state *r, bool acc) {
+    const rt_tables *t = &r->tab[acc];
+    r->acc = acc;
+    r->m = t->m;
+    r->ncell = t->ncell;
+    r->prop = t->prop;
+    r->block = t->block;
+    r->lth = t->lth;
+    r->bridge = t->bridge;
+    const afm_rt_prop *PF = &r->prop[r->ncell - 1];
+    r->guess_x_per_n = PF->gx + PF->hx;
+    r->guess_v_per_n = PF->gv + PF->hv;
+    r->guess_gap_per_n = r->guess_x_per_n * r->cos_alpha;
 }
 
 /* Recompute the drive tables and reload the state from s->q, s->qd at s->t_s. */
@@ -946,15 +1253,17 @@ static void rt_changed(afm_sim *s) {
             r->th_im[j] += m->rot[i] * r->cq_im[j][i];
         }
     }
-    for (int k = 0; k < r->ncell; k++)
-        afm_rt_coef_drive(&r->prop[k], r->ntones, r->wd, cx_re, cx_im);
+    for (int a = 0; a < 2; a++)
+        for (int k = 0; k < r->tab[a].ncell; k++)
+            afm_rt_coef_drive(&r->tab[a].prop[k], r->ntones, r->wd, cx_re, cx_im);
+    for (int j = 0; j < AFM_MAX_TONES; j++) { /* x_p'' = -wd^2 x_p */
+        r->ax_re[j] = -r->wd[j] * r->wd[j] * cx_re[j];
+        r->ax_im[j] = -r->wd[j] * r->wd[j] * cx_im[j];
+    }
     r->xc = afm_force_contact_x(&s->f, s->z_m);
     r->cos_alpha = s->f.cos_alpha;
     r->z_m = s->z_m;
-    const afm_rt_prop *PF = &r->prop[r->ncell - 1];
-    r->guess_x_per_n = PF->gx + PF->hx;
-    r->guess_v_per_n = PF->gv + PF->hv;
-    r->guess_gap_per_n = r->guess_x_per_n * r->cos_alpha;
+    rt_tables_use(r, r->acc);
     afm_rt_starr_build(&r->starr, &s->f, s->z_m);
     rt_snap *st = &r->buf[r->cur];
     rt_sync_phasors(s, r, st);
@@ -974,67 +1283,101 @@ static void rt_changed(afm_sim *s) {
     st->tip.f_n = rt_force(s, r, st->tip.x_m, st->tip.v_m_s, &st->dfdx_n_m, &st->dfdv_n_s_m);
     st->slope_cells = 0;
     st->df_per_cell_n = 0.0;
+    st->fdot_n_s = rt_fdot(r, st, r->np, rt_tones_kind(r));
     rt_predict(r, st);
     s->be_fills_tip = true;
     rt_publish(s, r, st);
 }
 
-/* afm_sim_set_thermal: the Cholesky factors of every step length's increment, and the
- * generator seeded. */
+/* afm_sim_set_thermal: the Cholesky factors of every step length's increment (both
+ * schemes' tables), and the generator seeded. */
 static int rt_thermal(afm_sim *s, const afm_cfg_thermal *t, char *err, size_t errlen) {
     rt_state *r = s->be_state;
     if (!t->enabled) {
         r->noise = false;
         return 0;
     }
-    const size_t np = (size_t)r->np, n_bridge = (size_t)(RT_GRID - 1 + r->m - 1);
-    if (!r->lth) {
-        double *l = calloc(3 * np * (size_t)r->ncell, sizeof *l);
-        double *bg = calloc(4 * np * n_bridge, sizeof *bg);
+    const size_t np = (size_t)r->np;
+    if (!r->rng) {
         afm_rng *g = calloc(1, sizeof *g);
         rt_noise *z = calloc(1, sizeof *z);
-        if (!l || !g || !bg || !z) {
-            free(l);
+        if (!g || !z) {
             free(g);
-            free(bg);
             free(z);
             snprintf(err, errlen, "rt integrator: out of memory");
             return -1;
         }
-        r->lth = l;
         r->rng = g;
-        r->bridge = bg;
         r->nz = z;
     }
+    for (int a = 0; a < 2; a++) {
+        rt_tables *tb = &r->tab[a];
+        const size_t n_bridge = (size_t)(RT_GRID - 1 + tb->m - 1);
+        if (!tb->lth) {
+            tb->lth = calloc(3 * np * (size_t)tb->ncell, sizeof *tb->lth);
+            tb->bridge = calloc(4 * np * n_bridge, sizeof *tb->bridge);
+            if (!tb->lth || !tb->bridge) {
+                snprintf(err, errlen, "rt integrator: out of memory");
+                return -1; /* what was allocated is freed by rt_destroy */
+            }
+        }
+    }
+    const bool acc = r->acc;
     const double kt = RT_KB_J_K * t->temperature_k;
-    for (int k = 0; k < r->ncell; k++) {
-        double *l = r->lth + 3 * np * (size_t)k;
-        afm_rt_coef_thermal(&r->prop[k], r->n, r->np, s->m.omega_rad_s, s->m.xi, kt, l, l + np,
-                            l + 2 * np);
+    for (int a = 0; a < 2; a++) {
+        rt_tables_use(r, a);
+        const size_t n_bridge = (size_t)(RT_GRID - 1 + r->m - 1);
+        for (int k = 0; k < r->ncell; k++) {
+            double *l = r->lth + 3 * np * (size_t)k;
+            afm_rt_coef_thermal(&r->prop[k], r->n, r->np, s->m.omega_rad_s, s->m.xi, kt, l,
+                                l + np, l + 2 * np);
+        }
+        /* the bridges: (kc, RT_GRID) for a crossing, (RT_GRID, j RT_GRID) for a substep */
+        for (size_t b = 0; b < n_bridge; b++) {
+            int k1 = b < RT_GRID - 1 ? (int)b + 1 : RT_GRID;
+            int len = b < RT_GRID - 1 ? RT_GRID : (int)(b - (RT_GRID - 1) + 2) * RT_GRID;
+            const double *l = r->lth;
+            afm_rt_coef_bridge(r->n, r->np, r->prop[k1 - 1].tau_s, l + 3 * np * (size_t)(k1 - 1),
+                               l + 3 * np * (size_t)(len - 1), r->prop[len - k1 - 1].c,
+                               (double *)rt_bridge_gain(r, k1, len));
+        }
     }
-    /* the bridges: (kc, RT_GRID) for a crossing, (RT_GRID, j RT_GRID) for a substep */
-    for (size_t b = 0; b < n_bridge; b++) {
-        int k1 = b < RT_GRID - 1 ? (int)b + 1 : RT_GRID;
-        int len = b < RT_GRID - 1 ? RT_GRID : (int)(b - (RT_GRID - 1) + 2) * RT_GRID;
-        const double *l = r->lth;
-        afm_rt_coef_bridge(r->n, r->np, r->prop[k1 - 1].tau_s, l + 3 * np * (size_t)(k1 - 1),
-                           l + 3 * np * (size_t)(len - 1), r->prop[len - k1 - 1].c,
-                           (double *)rt_bridge_gain(r, k1, len));
-    }
+    rt_tables_use(r, acc);
     memset(r->nz, 0, sizeof *r->nz);
     afm_rng_seed(r->rng, (uint64_t)t->seed);
     r->noise = true;
     return 0;
 }
 
+/* afm_sim_set_scheme: hand the state over to the other scheme at this sample. Both share
+ * the modal state, the phasors and the force; what each keeps of its own (the fast one's
+ * predictor, the accurate one's dF/dt) is recomputed here. No allocation. */
+static void rt_set_scheme(afm_sim *s, bool accurate) {
+    rt_state *r = s->be_state;
+    if (r->acc == accurate) return;
+    rt_tables_use(r, accurate);
+    rt_snap *st = &r->buf[r->cur];
+    st->slope_cells = 0;
+    st->fdot_n_s = rt_fdot(r, st, r->np, rt_tones_kind(r));
+    rt_predict(r, st);
+}
+
+/* The scheme in force: "accurate" or "fast". */
+static const char *rt_scheme_name(const afm_sim *s) {
+    const rt_state *r = s->be_state;
+    return r && r->acc ? "accurate" : "fast";
+}
+
 static void rt_destroy(afm_sim *s) {
     rt_state *r = s->be_state;
     if (!r) return;
-    free(r->block);
-    free(r->prop);
-    free(r->lth);
+    for (int a = 0; a < 2; a++) {
+        free(r->tab[a].block);
+        free(r->tab[a].prop);
+        free(r->tab[a].lth);
+        free(r->tab[a].bridge);
+    }
     free(r->rng);
-    free(r->bridge);
     free(r->nz);
     free(r);
     s->be_state = NULL;
@@ -1042,9 +1385,10 @@ static void rt_destroy(afm_sim *s) {
 
 static int rt_init(afm_sim *s, char *err, size_t errlen) {
     const afm_modal *m = &s->m;
+    const bool acc = s->cfg.rt_scheme != AFM_RT_SCHEME_FAST;
+    /* substeps in contact: the config's for both schemes, else each scheme's default */
     int sub = s->cfg.rt_substeps_contact;
-    if (sub == 0) sub = RT_DEFAULT_SUBSTEPS;
-    if (sub < 1 || sub > RT_MAX_SUBSTEPS) {
+    if (sub < 0 || sub > RT_MAX_SUBSTEPS) {
         snprintf(err, errlen, "rt integrator: rt_substeps_contact %d not in 1..%d", sub,
                  RT_MAX_SUBSTEPS);
         return -1;
@@ -1072,30 +1416,38 @@ static int rt_init(afm_sim *s, char *err, size_t errlen) {
     for (int i = 0; i < r->n; i++) {
         r->tip[i] = m->tip[i];
         r->rot[i] = m->rot[i];
+        r->aq[i] = -m->tip[i] * m->omega_rad_s[i] * m->omega_rad_s[i];
+        r->av[i] = -2.0 * m->tip[i] * m->xi[i] * m->omega_rad_s[i];
+        r->tip2 += m->tip[i] * m->tip[i];
     }
-    r->m = sub;
-    r->ncell = sub * RT_GRID;
-    for (int k = 1; k <= r->ncell; k++)
+    for (int k = 1; k <= RT_MAX_SUBSTEPS * RT_GRID; k++)
         r->inv_cells[k] = 1.0 / k;
     const size_t per = (size_t)AFM_RT_COEF_ROWS * (size_t)r->np;
-    r->prop = calloc((size_t)r->ncell, sizeof *r->prop);
-    r->block = calloc((size_t)r->ncell * per, sizeof(double));
     _Static_assert(AFM_MAX_MODES % 4 == 0, "rt_piece works in blocks of 4 modes");
-    if (!r->prop || !r->block) {
-        free(r->prop);
-        free(r->block);
-        free(r);
-        snprintf(err, errlen, "rt integrator: out of memory");
-        return -1;
+    for (int a = 0; a < 2; a++) {
+        rt_tables *t = &r->tab[a];
+        t->m = sub > 0 ? sub : a ? RT_ACC_DEFAULT_SUBSTEPS : RT_DEFAULT_SUBSTEPS;
+        t->ncell = t->m * RT_GRID;
+        t->prop = calloc((size_t)t->ncell, sizeof *t->prop);
+        t->block = calloc((size_t)t->ncell * per, sizeof(double));
+        if (!t->prop || !t->block) {
+            s->be_state = r;
+            rt_destroy(s);
+            snprintf(err, errlen, "rt integrator: out of memory");
+            return -1;
+        }
+        for (int k = 0; k < t->ncell; k++) {
+            afm_rt_prop *P = &t->prop[k];
+            P->c = t->block + (size_t)k * per;
+            afm_rt_coef_modes(P, r->n, r->np, m->omega_rad_s, m->xi, m->tip,
+                              s->dt_s * (double)(k + 1) / (double)t->ncell);
+            if (a) afm_rt_coef_hermite(P, r->n, r->np, m->omega_rad_s, m->xi, m->tip);
+        }
+        for (int k = 0; k < t->ncell; k++)
+            afm_rt_coef_chain(&t->prop[k], &t->prop[t->ncell - 1], r->np);
     }
-    for (int k = 0; k < r->ncell; k++) {
-        afm_rt_prop *P = &r->prop[k];
-        P->c = r->block + (size_t)k * per;
-        afm_rt_coef_modes(P, r->n, r->np, m->omega_rad_s, m->xi, m->tip,
-                          s->dt_s * (double)(k + 1) / (double)r->ncell);
-    }
-    for (int k = 0; k < r->ncell; k++)
-        afm_rt_coef_chain(&r->prop[k], &r->prop[r->ncell - 1], r->np);
+    r->cos_alpha = s->f.cos_alpha;
+    rt_tables_use(r, acc);
     r->kinked = s->f.vdw_contact || s->f.capillary || s->f.electrostatic;
     r->clear_k = 4.0 / 27.0 * s->dt_s;
     /* F tolerance on the estimated next Newton correction: 1e-3 of the force that bends the
@@ -1125,12 +1477,15 @@ static void rt_changed_z(afm_sim *s) {
     st->tip.f_n = rt_force(s, r, st->tip.x_m, st->tip.v_m_s, &st->dfdx_n_m, &st->dfdv_n_s_m);
     st->slope_cells = 0;
     st->df_per_cell_n = 0.0;
+    st->fdot_n_s = rt_fdot(r, st, r->np, rt_tones_kind(r));
     rt_predict(r, st);
     s->f_last_n = st->tip.f_n;
 }
 
 const afm_sim_backend AFM_RT_BACKEND = {
     .name = "rt",
+    .scheme = rt_scheme_name,
+    .set_scheme = rt_set_scheme,
     .init = rt_init,
     .run = rt_run,
     .changed = rt_changed,

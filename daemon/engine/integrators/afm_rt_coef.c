@@ -62,6 +62,7 @@ void afm_rt_coef_modes(afm_rt_prop *p, int n, int np, const double *w, const dou
         c[i] = 0.0;
     p->tau_s = tau_s;
     p->gx = p->gv = p->gx0 = p->gv0 = 0.0;
+    p->gcx = p->gcv = p->gd0x = p->gd0v = p->gd1x = p->gd1v = 0.0;
     for (int i = 0; i < n; i++) {
         /* Scaled state u = (q, q'/w), scaled time sigma = s/tau in [0, 1]:
          *   du/dsigma = tau w [[0, 1], [-1, -2 xi]] u + [0; tau/w] F(sigma),
@@ -90,6 +91,53 @@ void afm_rt_coef_modes(afm_rt_prop *p, int n, int np, const double *w, const dou
         p->gv0 += tip[i] * c[5 * np + i];
         for (int r = 0; r < 4; r++)
             c[(8 + r) * np + i] = tip[i] * c[r * np + i];
+    }
+}
+
+void afm_rt_coef_hermite(afm_rt_prop *p, int n, int np, const double *w, const double *xi,
+                         const double *tip) {
+    double *c = p->c + AFM_RT_ROW_GC * np;
+    const double tau_s = p->tau_s;
+    p->gcx = p->gcv = p->gd0x = p->gd0v = p->gd1x = p->gd1v = 0.0;
+    for (int i = 0; i < n; i++) {
+        /* As afm_rt_coef_modes, augmented with a shift chain a3' = a4, a4' = a5, a5' = a6:
+         * a3(sigma) = a3 + a4 sigma + a5 sigma^2 / 2 + a6 sigma^3 / 6, so the response of u to
+         * sigma^k is k! times column 2 + k of the exponential. */
+        double wt = w[i] * tau_s;
+        double m[36] = {0}, e[36];
+        m[0 * 6 + 1] = wt;
+        m[1 * 6 + 0] = -wt;
+        m[1 * 6 + 1] = -2.0 * xi[i] * wt;
+        m[1 * 6 + 2] = tau_s / w[i];
+        m[2 * 6 + 3] = 1.0;
+        m[3 * 6 + 4] = 1.0;
+        m[4 * 6 + 5] = 1.0;
+        afm_rt_coef_expm(6, m, e);
+        double r[2][4]; /* u1, u2 response to sigma^0 .. sigma^3 */
+        for (int u = 0; u < 2; u++) {
+            r[u][0] = e[u * 6 + 2];
+            r[u][1] = e[u * 6 + 3];
+            r[u][2] = 2.0 * e[u * 6 + 4];
+            r[u][3] = 6.0 * e[u * 6 + 5];
+        }
+        double gc[2], gd0[2], gd1[2];
+        for (int u = 0; u < 2; u++) {
+            gc[u] = r[u][1] - 3.0 * r[u][2] + 2.0 * r[u][3];
+            gd0[u] = r[u][1] - 2.0 * r[u][2] + r[u][3];
+            gd1[u] = r[u][3] - r[u][2];
+        }
+        c[i] = tip[i] * gc[0];
+        c[np + i] = tip[i] * w[i] * gc[1];
+        c[2 * np + i] = tip[i] * gd0[0];
+        c[3 * np + i] = tip[i] * w[i] * gd0[1];
+        c[4 * np + i] = tip[i] * gd1[0];
+        c[5 * np + i] = tip[i] * w[i] * gd1[1];
+        p->gcx += tip[i] * c[i];
+        p->gcv += tip[i] * c[np + i];
+        p->gd0x += tip[i] * c[2 * np + i];
+        p->gd0v += tip[i] * c[3 * np + i];
+        p->gd1x += tip[i] * c[4 * np + i];
+        p->gd1v += tip[i] * c[5 * np + i];
     }
 }
 

@@ -23,10 +23,18 @@
 #include <math.h>
 
 /* All coefficients for one step length tau and n modes, stored with a stride np >= n
- * (zeros past n). c points into a block the owner allocates: 12 np doubles (p11, p12, p21,
- * p22, g0q, g0v, g1q, g1v, then tip_i times p11, p12, p21, p22: the rows that give x and x'
- * directly; np each). */
-#define AFM_RT_COEF_ROWS 12
+ * (zeros past n). c points into a block the owner allocates: AFM_RT_COEF_ROWS np doubles
+ * (p11, p12, p21, p22, g0q, g0v, g1q, g1v, then tip_i times p11, p12, p21, p22: the rows
+ * that give x and x' directly; then the accurate scheme's Hermite rows gcq, gcv, gd0q, gd0v,
+ * gd1q, gd1v (afm_rt_coef_hermite; zero until it is called); np each).
+ *
+ * The accurate scheme takes the force over a step as the cubic Hermite interpolant of F0,
+ * F1 and D0 = tau F'(0), D1 = tau F'(tau): in sigma = s / tau,
+ *   F(sigma) = F0 (1 - sigma) + F1 sigma + (F0 - F1) c(sigma) + D0 h10(sigma) + D1 h11(sigma),
+ *   c = sigma - 3 sigma^2 + 2 sigma^3, h10 = sigma - 2 sigma^2 + sigma^3, h11 = sigma^3 - sigma^2,
+ * so its response is the linear one (G0, G1) plus Gc (F0 - F1) + Gd0 D0 + Gd1 D1. */
+#define AFM_RT_COEF_ROWS 18
+#define AFM_RT_ROW_GC 12 /* first Hermite row: gcq; gcv, gd0q, gd0v, gd1q, gd1v follow */
 typedef struct {
     double tau_s;
     double gx, gv;                                       /* sum_i tip_i G1_i: d(x, v)(tau) / dF1 */
@@ -38,6 +46,8 @@ typedef struct {
     double dx_re[AFM_MAX_TONES], dx_im[AFM_MAX_TONES];
     double dv_re[AFM_MAX_TONES], dv_im[AFM_MAX_TONES];
     double hx, hv; /* d(x*, v*) / dF1 of a full step that follows this one (coef_chain) */
+    /* sum_i tip_i of the Hermite rows: d(x, v)(tau) / d(F0 - F1), / dD0, / dD1 */
+    double gcx, gcv, gd0x, gd0v, gd1x, gd1v;
     double *c;
 } afm_rt_prop;
 
@@ -45,6 +55,12 @@ typedef struct {
  * stride np >= n. */
 void afm_rt_coef_modes(afm_rt_prop *p, int n, int np, const double *w, const double *xi,
                        const double *tip, double tau_s);
+
+/* The Hermite rows of p (AFM_RT_ROW_GC .. + 5) and their tip sums, for the same n, np, w,
+ * xi, tip as afm_rt_coef_modes (called first: it zeroes them). One 6x6 exponential per mode
+ * gives the responses to sigma^k, k = 0..3. Build time only. */
+void afm_rt_coef_hermite(afm_rt_prop *p, int n, int np, const double *w, const double *xi,
+                         const double *tip);
 
 /* hx, hv of p for a full step pf after it: x*, v* of pf (the tip rows of pf applied to the
  * state after p, plus pf's G0 term) depend on p's end force F1 through

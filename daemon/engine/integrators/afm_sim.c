@@ -217,6 +217,16 @@ const char *afm_sim_integrator_name(const afm_sim *s) {
     return s->be->name;
 }
 
+const char *afm_sim_scheme_name(const afm_sim *s) {
+    return s->be->scheme ? s->be->scheme(s) : "-";
+}
+
+int afm_sim_set_scheme(afm_sim *s, bool accurate) {
+    if (!s->be->set_scheme) return AFM_SIM_EINVAL;
+    s->be->set_scheme(s, accurate);
+    return AFM_SIM_OK;
+}
+
 void afm_sim_get_state(const afm_sim *s, double *q, double *qd) {
     for (int i = 0; i < s->m.n; i++) {
         if (q) q[i] = s->q[i];

@@ -54,6 +54,13 @@ const afm_drive *afm_sim_drive(const afm_sim *s);
 const afm_modal *afm_sim_model(const afm_sim *s);
 const afm_force_params *afm_sim_forces(const afm_sim *s);
 const char *afm_sim_integrator_name(const afm_sim *s);
+/* The rt integrator's scheme in force, "accurate" or "fast" (cfg.rt_scheme; auto is
+ * accurate here), or "-" for the SUNDIALS integrators. */
+const char *afm_sim_scheme_name(const afm_sim *s);
+/* Hand the rt integrator over to the accurate (true) or the fast scheme at the current
+ * sample: the modal state is shared, so the outputs do not jump. Real-time safe (no
+ * allocation, bounded). AFM_SIM_EINVAL for an integrator without schemes. */
+int afm_sim_set_scheme(afm_sim *s, bool accurate);
 
 /* Thermal (Langevin) force per mode at t->temperature_k (fluctuation-dissipation: each
  * mass-normalised mode gets <q^2> = kB T / w^2), from a generator seeded with t->seed, or

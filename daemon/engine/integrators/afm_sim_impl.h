@@ -31,6 +31,11 @@ typedef struct afm_sim_backend {
      * alone (a Z ramp calls this every AFM_RUNNER_RAMP_SAMPLES samples). NULL: changed. */
     void (*changed_z)(afm_sim *s);
     void (*destroy)(afm_sim *s);
+    /* Optional: the name of the scheme in force ("accurate", "fast"); NULL: no schemes. */
+    const char *(*scheme)(const afm_sim *s);
+    /* Optional: switch to the accurate (true) or fast scheme at the current state, without
+     * allocating; NULL: no schemes. */
+    void (*set_scheme)(afm_sim *s, bool accurate);
 } afm_sim_backend;
 
 struct afm_sim {
