@@ -76,7 +76,11 @@
 
 #define RT_GRID 8             /* table cells per contact substep: crossing resolution */
 #define RT_DEFAULT_SUBSTEPS 4 /* substeps per sample in contact (measured, numerics.md) */
-#define RT_ACC_DEFAULT_SUBSTEPS 8 /* the accurate scheme's (4 moved steady states: numerics.md) */
+#define RT_ACC_DEFAULT_SUBSTEPS 16 /* the accurate scheme's (docs/numerics.md, issue 28) */
+/* The accurate scheme redoes a sample in substeps when its path comes within this many
+ * travels ((|v0| + |v1|) dt) of the contact line (docs/numerics.md: 0 leaves 0.013 deg and
+ * 1.3e-4 of amplitude on probe-q300, 0.5 and more 0.001 deg and 2e-5) */
+#define RT_ACC_NEAR_TRAVELS 1.0
 #define RT_MAX_SUBSTEPS AFM_MAX_RT_SUBSTEPS
 #define RT_RESYNC 4096 /* steps between phasor resynchronisations */
 #define RT_NEWTON_MAX 12
@@ -1052,9 +1056,12 @@ static inline __attribute__((always_inline)) int rt_run_acc_t(afm_sim *s, rt_sta
         if (!contact) {
             rt_piece_acc_t(s, r, a, b, r->ncell, true, np, nt, noise);
             if (r->kinked) {
-                double low = (a->tip.x_m < b->tip.x_m ? a->tip.x_m : b->tip.x_m) -
-                             r->clear_k * (fabs(a->tip.v_m_s) + fabs(b->tip.v_m_s));
-                contact = low < r->xc && rt_crossing_cell(r, a, b, dt, false) >= 0;
+                /* the path's low bound; within one travel of the contact line the steep
+                 * van der Waals pulse needs the substeps even where it does not cross */
+                const double sp = fabs(a->tip.v_m_s) + fabs(b->tip.v_m_s);
+                const double low =
+                    (a->tip.x_m < b->tip.x_m ? a->tip.x_m : b->tip.x_m) - r->clear_k * sp;
+                contact = low < r->xc + RT_ACC_NEAR_TRAVELS * sp * dt;
             }
         }
         if (contact) b = rt_contact_acc(s, r, a, b, noise && !at_once);
