@@ -47,6 +47,13 @@ static void usage(FILE *f) {
             "                         udpm port + 2, so that status and harmonics subscribers\n"
             "                         do not receive it)\n"
             "  --mode M               realtime (default), freerun or lockstep\n"
+            "  --scheme S             the rt integrator's scheme (docs/realtime.md): auto (the\n"
+            "                         default unless the config's sim.rt_scheme names one):\n"
+            "                         both measured on this model before real time starts,\n"
+            "                         accurate where its worst state fits 90%% of the budget,\n"
+            "                         else fast; adaptive: accurate, handed over to fast while\n"
+            "                         the loop falls behind and back when the margin returns;\n"
+            "                         accurate or fast: forced (real time may be lost)\n"
             "  --prefix NAME_         channel prefix (default AFMTWIN_)\n"
             "  --cpu N                pin the integrator thread to CPU N\n"
             "  --chain-cpu N          pin the output-chain thread to CPU N\n"
@@ -183,6 +190,21 @@ static int parse_args(int argc, char **argv, twind_opts *o) {
                         "afmtwind: --mode must be realtime, freerun or lockstep, got '%s'\n", v);
                 return -1;
             }
+        } else if (!strcmp(a, "--scheme")) {
+            if (!strcmp(v, "auto"))
+                o->scheme = TWIND_SCHEME_AUTO;
+            else if (!strcmp(v, "adaptive"))
+                o->scheme = TWIND_SCHEME_ADAPTIVE;
+            else if (!strcmp(v, "accurate"))
+                o->scheme = TWIND_SCHEME_ACCURATE;
+            else if (!strcmp(v, "fast"))
+                o->scheme = TWIND_SCHEME_FAST;
+            else {
+                fprintf(stderr,
+                        "afmtwind: --scheme must be auto, adaptive, accurate or fast, got '%s'\n",
+                        v);
+                return -1;
+            }
         } else if (!strcmp(a, "--cpu")) {
             if (parse_num(a, v, 0, 1023, &x) || x != floor(x)) return -1;
             o->cpu = (int)x;
@@ -232,7 +254,8 @@ static void status_line(twind *d, twind_rtf_state *rs, char *buf, size_t len) {
              "t %.6f s  rtf(1 s) %.3f  busy %.0f%%/%.0f%%  lag %.4f s  overruns %lld  resyncs %lld "
              "(%.4f s skipped)  chain stalls %lld lag %.4f s  lock-in %.4g nm, phase lag %.1f deg  "
              "peak force %.4g nN  rx %lld  applied %lld  rej %lld  ref %lld  drop %lld  blowups "
-             "%lld  seq %lld  Z %.3f nm  fe %.1f Hz  A %.4g nm  %s",
+             "%lld  seq %lld  Z %.3f nm  fe %.1f Hz  A %.4g nm  scheme %s (%lld handovers; "
+             "%.0f%% of model time accurate)  %s",
              s.model_time_s, s.realtime_factor_1s, 100.0 * snap.busy_fraction,
              100.0 * cs.busy_fraction, s.lag_s, (long long)s.overruns, (long long)s.resyncs,
              s.resync_skipped_s, (long long)s.chain_stalls, s.chain_lag_s,
@@ -240,6 +263,10 @@ static void status_line(twind *d, twind_rtf_state *rs, char *buf, size_t len) {
              (long long)s.received, (long long)s.applied, (long long)s.rejected,
              (long long)s.refused, (long long)s.dropped, (long long)s.blowups,
              (long long)s.seq_applied, s.separation_m * 1e9, s.fe_hz, s.amplitude_m * 1e9,
+             s.rt_scheme, (long long)s.scheme_handovers,
+             s.model_s_accurate + s.model_s_fast > 0
+                 ? 100.0 * s.model_s_accurate / (s.model_s_accurate + s.model_s_fast)
+                 : 0.0,
              s.auto_paused ? "PAUSED ITSELF (blow-ups)"
              : s.running   ? "running"
                            : "paused");
@@ -362,6 +389,9 @@ static void print_started(const twind *d, double fs_hz, long long block, long lo
             afm_sim_integrator_name(afm_runner_sim(d->runner)), fs_hz * 1e-6, block,
             (double)block / fs_hz * 1e6, ring, AFM_RUNNER_SLOT_SAMPLES, d->opt.prefix, cmd_u, out_u,
             smp_u);
+    fprintf(stderr, "afmtwind: rt scheme %s (--scheme %s): %s\n",
+            afm_sim_scheme_name(afm_runner_sim(d->runner)), twind_scheme_opt_name(d->opt.scheme),
+            d->scheme.reason);
 }
 
 /* What the once-a-second report remembers from the last one. */
@@ -489,6 +519,10 @@ int main(int argc, char **argv) {
     pthread_sigmask(SIG_BLOCK, &sigs, NULL);
 
     twind_rt_setup_process(d.rt_warn, sizeof d.rt_warn);
+    if (twind_scheme_choose(&d, &cfg, err, sizeof err)) {
+        fprintf(stderr, "afmtwind: %s: measuring the schemes: %s\n", d.opt.config_path, err);
+        return 1;
+    }
     long long block, ring;
     if (start_runner(&d, &cfg, &block, &ring, err, sizeof err)) {
         fprintf(stderr, "afmtwind: %s: %s\n", d.opt.config_path, err);

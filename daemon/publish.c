@@ -60,6 +60,17 @@ void twind_status_fill(twind *d, afm_io_status *o, twind_rtf_state *rs) {
     o->lockin_amplitude_m = cs.have_period ? cs.lockin_amplitude_m : NAN;
     o->lockin_phase_deg = cs.have_period ? cs.lockin_phase_deg : NAN;
     o->peak_force_n = cs.have_period ? cs.peak_force_n : NAN;
+    if (d->scheme.rt) {
+        snprintf(o->rt_scheme, sizeof o->rt_scheme, "%s", s.scheme_accurate ? "accurate" : "fast");
+        snprintf(o->rt_scheme_reason, sizeof o->rt_scheme_reason, "%s",
+                 s.scheme_reason[0] ? s.scheme_reason : d->scheme.reason);
+    } else {
+        snprintf(o->rt_scheme, sizeof o->rt_scheme, "-");
+        snprintf(o->rt_scheme_reason, sizeof o->rt_scheme_reason, "%s", d->scheme.reason);
+    }
+    o->scheme_handovers = s.scheme_handovers;
+    o->model_s_accurate = s.model_s_accurate;
+    o->model_s_fast = s.model_s_fast;
     pthread_mutex_lock(&d->lock);
     o->last_reject_age_s = d->last_reject[0] ? wall - d->last_reject_mono : -1.0;
     o->last_reject_old = d->last_reject[0] && s.last_applied_order > d->last_reject_order;

@@ -141,6 +141,7 @@ static void apply_commands(rt_ctx *c) {
 void *twind_rt_main(void *arg) {
     twind *d = arg;
     rt_ctx c = {.d = d, .r = d->runner};
+    c.snap.scheme_accurate = d->scheme.accurate;
     twind_rt_setup_thread(d->opt.rt_priority, d->opt.cpu, d->rt_warn, sizeof d->rt_warn);
     struct timespec origin, now, deadline;
     clock_gettime(CLOCK_MONOTONIC, &origin);
@@ -219,6 +220,8 @@ void *twind_rt_main(void *arg) {
             double late = ts_sec(&now) - ts_sec(&deadline);
             c.snap.lag_s = late > 0 ? late : 0;
             if (late > 0) c.snap.overruns++;
+            twind_scheme_turn(d, c.r, &c.snap, late, (double)(st.samples - before) * dt,
+                              ts_sec(&now));
             if (late > d->opt.max_lag_s) {
                 /* Resync: drop the backlog of deadlines; model time goes on from here. */
                 c.snap.resyncs++;
@@ -231,6 +234,8 @@ void *twind_rt_main(void *arg) {
             if (late < 0) clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &deadline, NULL);
         } else {
             c.snap.lag_s = 0;
+            twind_scheme_turn(d, c.r, &c.snap, 0.0, (double)(st.samples - before) * dt,
+                              ts_sec(&now));
             twind_snap_write(d, &c.snap);
         }
         clock_gettime(CLOCK_MONOTONIC, &now); /* after the sleep: the turn's whole wall time */

@@ -49,6 +49,16 @@
 #include <time.h>
 
 typedef enum { TWIND_REALTIME = 0, TWIND_FREERUN = 1, TWIND_LOCKSTEP = 2 } twind_mode;
+/* --scheme (scheme.c): CONFIG (no option: the config's sim.rt_scheme, auto by default),
+ * auto (measure, accurate where it fits, hand over under overload), adaptive (accurate,
+ * hand over under overload and back), accurate or fast (forced). */
+typedef enum {
+    TWIND_SCHEME_CONFIG = 0,
+    TWIND_SCHEME_AUTO,
+    TWIND_SCHEME_ADAPTIVE,
+    TWIND_SCHEME_ACCURATE,
+    TWIND_SCHEME_FAST
+} twind_scheme;
 
 typedef struct {
     const char *config_path;
@@ -70,7 +80,18 @@ typedef struct {
     int harmonics_every; /* publish every k-th period; 0: auto (at most harmonics_max_hz) */
     double harmonics_max_hz;
     int quiet; /* no status line */
+    twind_scheme scheme;
 } twind_opts;
+
+/* scheme.c's choice: main thread before start, then the rt thread's. */
+typedef struct {
+    bool accurate;               /* the scheme the rt thread keeps in force */
+    bool rt;                     /* the rt integrator (else no schemes) */
+    bool handover;               /* to fast under overload, and back (auto, adaptive) */
+    double ns_accurate, ns_fast; /* auto: measured worst-state cost per sample */
+    double t_switch_s, hold_s;   /* last hand-over (monotonic s), hold-off before going back */
+    char reason[160];            /* why, at start */
+} twind_scheme_state;
 
 /* cmd_q item: a validated command and, for damping/geometry/reload, the model to swap in.
  * The RT thread hands models back through trash_q (what was swapped out, or the unused
@@ -114,6 +135,11 @@ typedef struct {
     long long reasons_lost;     /* ... whose reason did not fit rtrej_q */
     double rtf_1s;              /* model s / wall s over the last second of running; 0 at first */
     int64_t last_applied_order; /* twind_cmd_item.order of the last command applied */
+    /* the rt scheme in force (scheme.c): hand-overs, model time run by each, why */
+    bool scheme_accurate;
+    long long scheme_handovers;
+    double model_s_accurate, model_s_fast;
+    char scheme_reason[160]; /* "" until the first hand-over: then twind.scheme.reason */
 } twind_snapshot;
 
 /* What the chain thread publishes (its own seqlock). */
@@ -162,6 +188,7 @@ typedef struct {
     unsigned drive_gen;             /* changes with it */
     atomic_ullong mc_sent, mc_done; /* model changes queued / taken or refused by rt */
     atomic_int mc_last_ok;          /* rt: 1 if the last one was applied */
+    twind_scheme_state scheme;      /* main thread, then the rt thread only */
     /* RT scheduling result, for the start-up report */
     char rt_warn[512];
 } twind;
@@ -182,6 +209,16 @@ void twind_rt_setup_aux(int priority, int cpu);
  * takes only the time the integrator and chain threads leave but no ordinary process delays
  * it; back to SCHED_FIFO priority after. */
 void twind_rt_setup_build(int priority, bool building);
+
+/* scheme.c: resolve d->opt.scheme for cfg (measuring both schemes for auto, main thread,
+ * before the threads start) into d->scheme and cfg->sim.rt_scheme. 0, or -1 with err. */
+int twind_scheme_choose(twind *d, afm_config *cfg, char *err, size_t errlen);
+/* rt thread, after each turn: account model_s to the scheme in force, hand over on
+ * overload (late_s: the lag) or back when the margin returned, keep the runner's sim in
+ * the chosen scheme. */
+void twind_scheme_turn(twind *d, afm_runner *r, twind_snapshot *snap, double late_s, double model_s,
+                       double now_s);
+const char *twind_scheme_opt_name(twind_scheme s);
 
 /* rt_loop.c: the real-time thread (arg: twind *). */
 void *twind_rt_main(void *arg);

@@ -48,7 +48,7 @@ typedef struct {
     double from_m, to_m, step_m; /* Z */
     double fe_hz, ae_m;          /* NAN: the config's tone 0 */
     bool retract, json;
-    int max_periods, analyse, k_max, integrator;
+    int max_periods, analyse, k_max, integrator, scheme;
     double tol;
     double rate_m_s; /* > 0: Z ramped continuously at this speed instead of stepped */
 } approach_opts;
@@ -58,6 +58,7 @@ static void approach_usage(FILE *f) {
             "usage: afmtwin approach --config FILE --from Z --to Z --step DZ [--retract]\n"
             "                        [--periods N] [--analyse N] [--harmonics K] [--fe HZ]\n"
             "                        [--ae M] [--integrator rt|reference|arkode-erk]\n"
+            "                        [--scheme accurate|fast]\n"
             "                        [--tol X] [--rate M_S] [--json]\n\n"
             "Approach curve: the tip-sample separation Z (m) goes from --from to --to in steps\n"
             "of --step (towards the sample when --to < --from), and with --retract back again.\n"
@@ -88,7 +89,8 @@ static void approach_usage(FILE *f) {
             "  --analyse N        whole periods analysed per step, 1..%d (default %d)\n"
             "  --harmonics K      harmonics 1..K reported, 1..%d (default %d)\n"
             "  --fe HZ, --ae M    tone 0's frequency and amplitude; default the config's\n"
-            "  --integrator NAME  rt, reference (CVODE BDF) or arkode-erk; default the config's\n"
+            "  --integrator NAME  rt, reference (CVODE BDF) or arkode-erk; default the "
+            "config's\n" AFMT_OPT_SCHEME_HELP
             "  --tol X            steady-state tolerance as in `afmtwin sweep` (default %g)\n"
             "  --rate M_S         ramp Z continuously at M_S m/s (as the daemon's setpoint\n"
             "                     --ramp: a new Z every 64 samples) instead of stepping and\n"
@@ -123,6 +125,7 @@ static int parse_args(int argc, char **argv, approach_opts *o) {
                          .analyse = DEFAULT_ANALYSE,
                          .k_max = DEFAULT_K,
                          .integrator = -1,
+                         .scheme = -1,
                          .tol = DEFAULT_TOL};
     const afmt_opt opts[] = {
         AFMT_FLAG("--json", &o->json),
@@ -139,6 +142,7 @@ static int parse_args(int argc, char **argv, approach_opts *o) {
         AFMT_INT("--analyse", &o->analyse, 1, MAX_ANALYSE, NULL),
         AFMT_INT("--harmonics", &o->k_max, 1, AFM_MAX_HARMONICS, NULL),
         AFMT_FN("--integrator", afmt_opt_integrator, &o->integrator, AFMT_OPT_INTEGRATOR_WANTS),
+        AFMT_FN("--scheme", afmt_opt_scheme, &o->scheme, AFMT_OPT_SCHEME_WANTS),
         AFMT_OPTS_END,
     };
     int rc = afmt_opts_parse("approach", opts, argc, argv, 1);
@@ -300,9 +304,14 @@ static const char *regime(bool attractive) {
     return attractive ? "attractive" : "repulsive";
 }
 
+/* What made the records: the integrator and its scheme (set once the twin exists). */
+static const char *json_integrator = "-", *json_scheme = "-";
+
 static int print_json(const approach_point *p, int nk) {
     cJSON *o = cJSON_CreateObject();
     cJSON_AddNumberToObject(o, "z_m", p->z_m);
+    cJSON_AddStringToObject(o, "integrator", json_integrator);
+    cJSON_AddStringToObject(o, "scheme", json_scheme);
     cJSON_AddStringToObject(o, "direction", p->retract ? "retract" : "approach");
     cJSON_AddNumberToObject(o, "amplitude_m", p->amp_m[0]);
     cJSON_AddNumberToObject(o, "phase_lag_deg", p->lag_deg[0]);
@@ -438,6 +447,7 @@ int afm_cmd_approach(int argc, char **argv) {
     if (!isnan(o.fe_hz)) cfg.drive.tones[0].frequency_hz = o.fe_hz;
     if (!isnan(o.ae_m)) cfg.drive.tones[0].amplitude_m = o.ae_m;
     if (o.integrator >= 0) cfg.sim.integrator = (afm_integrator_kind)o.integrator;
+    if (o.scheme >= 0) cfg.sim.rt_scheme = (afm_rt_scheme_kind)o.scheme;
     cfg.drive.separation_m = o.from_m;
     const double fe = cfg.drive.tones[0].frequency_hz, fs = cfg.sim.sample_rate_hz;
     if (o.k_max * fe >= 0.5 * fs) {
@@ -486,12 +496,14 @@ int afm_cmd_approach(int argc, char **argv) {
     est.lockin_tau_s = lk.time_constant_s;
     sw.on_samples = on_samples;
     sw.on_samples_ctx = &est;
+    json_integrator = afm_sim_integrator_name(sim);
+    json_scheme = afm_sim_scheme_name(sim);
     if (!o.json) {
-        printf("# afmtwin approach %s: integrator %s, fe %.6g Hz, Ae %.4g m, %d periods "
-               "analysed per step; phase: lag of the deflection behind the drive (90 deg free "
-               "at resonance)\n",
-               o.config, afm_sim_integrator_name(sim), fe, cfg.drive.tones[0].amplitude_m,
-               o.analyse);
+        printf("# afmtwin approach %s: integrator %s (scheme %s), fe %.6g Hz, Ae %.4g m, %d "
+               "periods analysed per step; phase: lag of the deflection behind the drive (90 deg "
+               "free at resonance)\n",
+               o.config, afm_sim_integrator_name(sim), afm_sim_scheme_name(sim), fe,
+               cfg.drive.tones[0].amplitude_m, o.analyse);
         printf("%-8s %10s %10s %9s %10s %9s %10s %10s %9s %11s %9s %3s\n", "# dir", "Z_nm", "A1_nm",
                "lag_deg", "lockin_nm", "li_lag", "Fpeak_nN", "Fattr_nN", "indent_nm", "contact_s",
                "Ediss_eV", "p");

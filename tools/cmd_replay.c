@@ -223,6 +223,9 @@ static void emit_status(replay_ctx *x, const afm_runner_status *st) {
     s.lockin_phase_deg = x->have_period ? x->lockin_phase_deg : NAN;
     s.peak_force_n = x->have_period ? x->peak_force_n : NAN;
     s.last_reject_age_s = -1.0; /* no wall clock in replay */
+    snprintf(s.rt_scheme, sizeof s.rt_scheme, "%s", afm_sim_scheme_name(afm_runner_sim(x->r)));
+    snprintf(s.rt_scheme_reason, sizeof s.rt_scheme_reason,
+             "replay: the config's (offline: accurate)");
     afmtwin_status_t m;
     afm_lcm_status_msg(&s, &m);
     WRITE_MSG(x, afmtwin_status_t, OUT_STATUS, &m);

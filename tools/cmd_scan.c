@@ -180,13 +180,15 @@ int afm_cmd_scan(int argc, char **argv) {
         return 1;
     }
     if (!o.json)
-        printf("# afmtwin scan %s: integrator %s, %d x %d pixels, %.4g x %.4g nm, %g lines/s, "
+        printf("# afmtwin scan %s: integrator %s (scheme %s), %d x %d pixels, %.4g x %.4g nm, %g "
+               "lines/s, "
                "set-point %g, ki %g 1/s, kp %g; phase: lag of the deflection behind the drive "
                "(90 deg free at resonance)\n"
                "# line pixel T/R  x_nm  y_nm  true_nm  material  height_nm  A_nm  error_nm  "
                "lag_deg  peak_force_nN  E_diss_eV\n",
-               o.config, afm_sim_integrator_name(sim), o.sc.pixels, o.sc.lines, o.sc.size_x_m * 1e9,
-               o.sc.size_y_m * 1e9, o.sc.line_rate_hz, o.pc.setpoint_ratio, o.pc.ki_hz, o.pc.kp);
+               o.config, afm_sim_integrator_name(sim), afm_sim_scheme_name(sim), o.sc.pixels,
+               o.sc.lines, o.sc.size_x_m * 1e9, o.sc.size_y_m * 1e9, o.sc.line_rate_hz,
+               o.pc.setpoint_ratio, o.pc.ki_hz, o.pc.kp);
     rc = afm_scan_run(sim, &cfg, &m, surf, &o.sc, &o.pc, print_pixel, &o, err, sizeof err);
     if (rc) fprintf(stderr, "afmtwin %s\n", err);
     afm_sim_destroy(&sim);

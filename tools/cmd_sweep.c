@@ -40,6 +40,7 @@ typedef struct {
     double ae_m, z_m;               /* NAN: keep the config's */
     int ks[AFM_MAX_HARMONICS], nk;  /* nk 0: config's list, else default_harmonics */
     int integrator;                 /* -1: config's */
+    int scheme;                     /* -1: config's (AFM_RT_SCHEME_*) */
     int max_periods;
     double tol;
     bool json;
@@ -50,6 +51,7 @@ static void sweep_usage(FILE *f) {
         f,
         "usage: afmtwin sweep --config FILE --from HZ --to HZ --step HZ [--ae M] [--z M]\n"
         "                     [--harmonics K,K,...] [--integrator rt|reference|arkode-erk]\n"
+        "                     [--scheme accurate|fast]\n"
         "                     [--max-periods N] [--tol X] [--json]\n\n"
         "Stepwise excitation-frequency sweep, as in the thesis's experiments: forward when\n"
         "--to > --from, backward otherwise. One simulation runs the whole sweep, so the\n"
@@ -76,6 +78,9 @@ static void sweep_usage(FILE *f) {
         "                      may be omitted for a single point\n"
         "  --ae M              excitation amplitude of tone 0 (m), 0 <= M <= 1e-6;\n"
         "                      default the config's\n"
+        "  --scheme NAME       the rt integrator's scheme: accurate (the default offline: the\n"
+        "                      tip force cubic Hermite in time, CVODE's steady state) or fast\n"
+        "                      (the daemon's fallback, second order; docs/numerics.md)\n"
         "  --z M               tip-sample separation Z (m), 0 <= M <= 1e-3; default the\n"
         "                      config's\n"
         "  --harmonics LIST    harmonic numbers k >= 1, comma-separated, at most %d, with\n"
@@ -167,6 +172,7 @@ static int parse_args(int argc, char **argv, sweep_opts *o) {
     memset(o, 0, sizeof *o);
     o->from_hz = o->to_hz = o->step_hz = o->ae_m = o->z_m = NAN;
     o->integrator = -1;
+    o->scheme = -1;
     o->max_periods = DEFAULT_MAX_PERIODS;
     o->tol = DEFAULT_TOL;
     const afmt_opt opts[] = {
@@ -179,6 +185,7 @@ static int parse_args(int argc, char **argv, sweep_opts *o) {
         AFMT_DOUBLE("--z", &o->z_m, 0, 0, NULL),
         AFMT_FN("--harmonics", parse_harmonics, o, NULL),
         AFMT_FN("--integrator", afmt_opt_integrator, &o->integrator, AFMT_OPT_INTEGRATOR_WANTS),
+        AFMT_FN("--scheme", afmt_opt_scheme, &o->scheme, AFMT_OPT_SCHEME_WANTS),
         AFMT_INT("--max-periods", &o->max_periods, 2, 100000000, NULL),
         AFMT_DOUBLE("--tol", &o->tol, 0, 0, NULL),
         AFMT_OPTS_END,
@@ -431,6 +438,7 @@ int afm_cmd_sweep(int argc, char **argv) {
     if (!isnan(o.ae_m)) cfg.drive.tones[0].amplitude_m = o.ae_m;
     if (!isnan(o.z_m)) cfg.drive.separation_m = o.z_m;
     if (o.integrator >= 0) cfg.sim.integrator = (afm_integrator_kind)o.integrator;
+    if (o.scheme >= 0) cfg.sim.rt_scheme = (afm_rt_scheme_kind)o.scheme;
     cfg.drive.tones[0].frequency_hz = o.from_hz;
     if (afm_config_validate(&cfg, err, sizeof err) != 0) {
         fprintf(stderr, "afmtwin sweep: %s\n", err);
@@ -466,10 +474,10 @@ int afm_cmd_sweep(int argc, char **argv) {
         return 2;
     }
     if (!o.json) {
-        printf("# afmtwin sweep %s: integrator %s, Ae %.4g m, Z %.4g m, contact at xr < %.5g nm, "
-               "tol %.1e, max %d periods\n",
-               o.config, afm_sim_integrator_name(sim), ae, afm_sim_separation(sim), xc * 1e9, o.tol,
-               o.max_periods);
+        printf("# afmtwin sweep %s: integrator %s (scheme %s), Ae %.4g m, Z %.4g m, contact at "
+               "xr < %.5g nm, tol %.1e, max %d periods\n",
+               o.config, afm_sim_integrator_name(sim), afm_sim_scheme_name(sim), ae,
+               afm_sim_separation(sim), xc * 1e9, o.tol, o.max_periods);
         printf("# phases: phi_k of A_k cos(k theta + phi_k) (thesis App. E.4); lag = -(phi + 90): "
                "the lag of the deflection behind the drive, 90 deg free at resonance (the "
                "lock-in's)\n");

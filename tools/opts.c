@@ -141,6 +141,17 @@ int afmt_opt_integrator(const char *value, void *integrator) {
     return 0;
 }
 
+int afmt_opt_scheme(const char *value, void *scheme) {
+    int *it = scheme;
+    if (!strcmp(value, "accurate"))
+        *it = AFM_RT_SCHEME_ACCURATE;
+    else if (!strcmp(value, "fast"))
+        *it = AFM_RT_SCHEME_FAST;
+    else
+        return -1;
+    return 0;
+}
+
 int afmt_opt_any_number(const char *value, void *number) {
     char *end;
     errno = 0;

@@ -110,6 +110,15 @@ int afmt_opt_integrator(const char *value, void *integrator);
 int afmt_opts_done(const char *tool, int parse_rc, void (*usage)(FILE *));
 
 #define AFMT_OPT_INTEGRATOR_WANTS "rt, reference or arkode-erk"
+
+/* --scheme of the offline tools: the rt integrator's scheme, accurate or fast, into an int
+ * (AFM_RT_SCHEME_*). Offline the default (auto) is accurate. */
+int afmt_opt_scheme(const char *value, void *scheme);
+#define AFMT_OPT_SCHEME_WANTS "accurate or fast"
+#define AFMT_OPT_SCHEME_HELP                                                                       \
+    "  --scheme NAME      the rt integrator's scheme: accurate (the default offline: the tip\n"    \
+    "                     force cubic Hermite in time, CVODE's steady state) or fast (the\n"       \
+    "                     daemon's fallback, second order; docs/numerics.md)\n"
 #define AFMT_OPT_CHANNELS_WANTS "a comma-separated subset of samples,harmonics,status,tick_done"
 
 #endif

@@ -91,6 +91,12 @@ typedef struct {
     double peak_force_n;
     double last_reject_age_s; /* wall seconds since last_reject; -1: none */
     int last_reject_old;      /* 1: a command or reload received after it was applied */
+    /* Issue 28: the rt integrator's scheme in force ("accurate", "fast"; "" offline), why,
+     * hand-overs between them, and the model time each has run since start. */
+    char rt_scheme[16];
+    char rt_scheme_reason[AFM_IO_REASON_LEN];
+    int64_t scheme_handovers;
+    double model_s_accurate, model_s_fast;
 } afm_io_status;
 
 /* Lockstep (and STEP) completion: the tick or step command seq's samples are all run and

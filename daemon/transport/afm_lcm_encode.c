@@ -109,6 +109,11 @@ void afm_lcm_status_msg(const afm_io_status *s, afmtwin_status_t *m) {
         .peak_force_n = s->peak_force_n,
         .last_reject_age_s = s->last_reject_age_s,
         .last_reject_old = (int8_t)s->last_reject_old,
+        .rt_scheme = (char *)s->rt_scheme,
+        .rt_scheme_reason = (char *)s->rt_scheme_reason,
+        .scheme_handovers = s->scheme_handovers,
+        .model_s_accurate = s->model_s_accurate,
+        .model_s_fast = s->model_s_fast,
     };
 }
 

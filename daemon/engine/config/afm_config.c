@@ -561,9 +561,9 @@ static int load_drive(const loader *L, const config_setting_t *root, afm_cfg_dri
 }
 
 static int load_sim(const loader *L, const config_setting_t *root, afm_cfg_sim *s) {
-    static const char *const keys[] = {"sample_rate_hz", "integrator", "rt_substeps_contact",
-                                       "rt_scheme",      "ref_rtol",   "harmonics",
-                                       NULL};
+    static const char *const keys[] = {
+        "sample_rate_hz", "integrator", "rt_substeps_contact", "rt_scheme", "ref_rtol",
+        "harmonics",      NULL};
     static const char *const integrators[] = {"rt", "reference", "arkode-erk", NULL};
     static const char *const schemes[] = {"auto", "accurate", "fast", NULL};
     config_setting_t *g, *h;

@@ -123,10 +123,10 @@ typedef struct {
     double sample_rate_hz; /* OBD sample rate; integrator output step = 1/rate. 14.06e6 */
     afm_integrator_kind integrator;
     int rt_substeps_contact; /* substeps per sample while in contact (rt); default set by engine */
-    afm_rt_scheme_kind rt_scheme; /* sim.rt_scheme: auto (default), accurate, fast */
-    double ref_rtol;         /* CVODE relative tolerance; default 1e-10 */
-    int n_harmonics;         /* 0: the estimators choose 1, 2, 3 and the harmonics
-                                nearest f2/fe and f3/fe */
+    afm_rt_scheme_kind rt_scheme;     /* sim.rt_scheme: auto (default), accurate, fast */
+    double ref_rtol;                  /* CVODE relative tolerance; default 1e-10 */
+    int n_harmonics;                  /* 0: the estimators choose 1, 2, 3 and the harmonics
+                                         nearest f2/fe and f3/fe */
     int harmonics[AFM_MAX_HARMONICS]; /* harmonic numbers k >= 1 to estimate */
 } afm_cfg_sim;
 

@@ -74,8 +74,8 @@
 #include <immintrin.h>
 #endif
 
-#define RT_GRID 8             /* table cells per contact substep: crossing resolution */
-#define RT_DEFAULT_SUBSTEPS 4 /* substeps per sample in contact (measured, numerics.md) */
+#define RT_GRID 8                  /* table cells per contact substep: crossing resolution */
+#define RT_DEFAULT_SUBSTEPS 4      /* substeps per sample in contact (measured, numerics.md) */
 #define RT_ACC_DEFAULT_SUBSTEPS 16 /* the accurate scheme's (docs/numerics.md, issue 28) */
 /* The accurate scheme redoes a sample in substeps when its path comes within this many
  * travels ((|v0| + |v1|) dt) of the contact line (docs/numerics.md: 0 leaves 0.013 deg and
@@ -110,7 +110,7 @@ typedef struct {
     double dfdx_n_m, dfdv_n_s_m; /* df/dx (N/m), df/dv (N s/m) at the last force evaluation */
     int slope_cells;             /* the piece length tip.inv_slope is for, in cells (0: none) */
     double df_per_cell_n;        /* force change per cell over the piece that ended here (N) */
-    double fdot_n_s; /* dF/dt here (N/s): the accurate scheme's Hermite end slope */
+    double fdot_n_s;             /* dF/dt here (N/s): the accurate scheme's Hermite end slope */
 } rt_snap;
 
 /* The step tables of one scheme: contact substeps m, ncell = m RT_GRID cells, the
@@ -851,7 +851,8 @@ static AFM_CLONES_NOINLINE rt_snap *rt_contact(const afm_sim *s, const rt_state 
 static inline double rt_fdot(const rt_state *r, const rt_snap *st, int np, int nt) {
     rt_v4 a4 = rt_splat(0.0);
     for (int i = 0; i < np; i += 4)
-        a4 = rt_fma4(RT_V4(r->aq + i), RT_V4(st->q + i), rt_fma4(RT_V4(r->av + i), RT_V4(st->v + i), a4));
+        a4 = rt_fma4(RT_V4(r->aq + i), RT_V4(st->q + i),
+                     rt_fma4(RT_V4(r->av + i), RT_V4(st->v + i), a4));
     double acc = rt_hsum(a4) + r->tip2 * st->tip.f_n;
     acc += rt_tones_im(r->ax_re, r->ax_im, st->z_re, st->z_im, nt);
     return fma(st->dfdx_n_m, st->tip.v_m_s, st->dfdv_n_s_m * acc);
@@ -859,11 +860,9 @@ static inline double rt_fdot(const rt_state *r, const rt_snap *st, int np, int n
 
 /* Advance in by k cells into o (o may be in); herm: the force Hermite in time, else linear
  * (a piece beside a crossing). Leaves o->fdot_n_s for the next piece. */
-static inline __attribute__((always_inline)) void rt_piece_acc_t(const afm_sim *s,
-                                                                 const rt_state *r,
-                                                                 const rt_snap *in, rt_snap *o,
-                                                                 int k, bool herm, const int np,
-                                                                 const int nt, const bool noise) {
+static inline __attribute__((always_inline)) void
+rt_piece_acc_t(const afm_sim *s, const rt_state *r, const rt_snap *in, rt_snap *o, int k, bool herm,
+               const int np, const int nt, const bool noise) {
     const afm_rt_prop *P = &r->prop[k - 1];
     const double *c = P->c, *ch = P->c + AFM_RT_ROW_GC * np;
     const double F0 = in->tip.f_n, tau = P->tau_s;
@@ -913,7 +912,8 @@ static inline __attribute__((always_inline)) void rt_piece_acc_t(const afm_sim *
                           rt_fma4(RT_V4(c + 3 * np + i), v,
                                   rt_fma4(RT_V4(c + 5 * np + i), f0, RT_V4(c + 7 * np + i) * f1)));
         if (herm) { /* D1 = D0 for now: Gd0 + Gd1 */
-            a = rt_fma4(RT_V4(ch + i), fc, rt_fma4(RT_V4(ch + 2 * np + i) + RT_V4(ch + 4 * np + i), d0, a));
+            a = rt_fma4(RT_V4(ch + i), fc,
+                        rt_fma4(RT_V4(ch + 2 * np + i) + RT_V4(ch + 4 * np + i), d0, a));
             w = rt_fma4(RT_V4(ch + np + i), fc,
                         rt_fma4(RT_V4(ch + 3 * np + i) + RT_V4(ch + 5 * np + i), d0, w));
         }
@@ -956,8 +956,8 @@ static inline __attribute__((always_inline)) void rt_piece_acc_t(const afm_sim *
 }
 
 /* rt_piece_acc_t out of line for the contact pieces, the sizes picked once. */
-static AFM_CLONES_NOINLINE void rt_piece_acc(const afm_sim *s, const rt_state *r,
-                                             const rt_snap *in, rt_snap *o, int k, bool herm) {
+static AFM_CLONES_NOINLINE void rt_piece_acc(const afm_sim *s, const rt_state *r, const rt_snap *in,
+                                             rt_snap *o, int k, bool herm) {
     if (r->noise)
         rt_piece_acc_t(s, r, in, o, k, herm, r->np, rt_tones_kind(r), true);
     else if (r->ntones == 1 && r->np == 4)
@@ -1004,8 +1004,8 @@ static void rt_substep_acc(const afm_sim *s, const rt_state *r, const rt_snap *a
 }
 
 /* rt_contact for the accurate scheme. */
-static AFM_CLONES_NOINLINE rt_snap *rt_contact_acc(const afm_sim *s, const rt_state *r,
-                                                   rt_snap *a, rt_snap *b, bool redo) {
+static AFM_CLONES_NOINLINE rt_snap *rt_contact_acc(const afm_sim *s, const rt_state *r, rt_snap *a,
+                                                   rt_snap *b, bool redo) {
     double tau = s->dt_s / r->m;
     rt_noise *z = r->nz;
     if (r->noise) {
@@ -1336,8 +1336,8 @@ static int rt_thermal(afm_sim *s, const afm_cfg_thermal *t, char *err, size_t er
         const size_t n_bridge = (size_t)(RT_GRID - 1 + r->m - 1);
         for (int k = 0; k < r->ncell; k++) {
             double *l = r->lth + 3 * np * (size_t)k;
-            afm_rt_coef_thermal(&r->prop[k], r->n, r->np, s->m.omega_rad_s, s->m.xi, kt, l,
-                                l + np, l + 2 * np);
+            afm_rt_coef_thermal(&r->prop[k], r->n, r->np, s->m.omega_rad_s, s->m.xi, kt, l, l + np,
+                                l + 2 * np);
         }
         /* the bridges: (kc, RT_GRID) for a crossing, (RT_GRID, j RT_GRID) for a substep */
         for (size_t b = 0; b < n_bridge; b++) {

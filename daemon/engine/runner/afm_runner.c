@@ -853,6 +853,9 @@ const afm_config *afm_runner_config(const afm_runner *r) {
 const afm_sim *afm_runner_sim(const afm_runner *r) {
     return r->sim;
 }
+int afm_runner_set_scheme(afm_runner *r, bool accurate) {
+    return afm_sim_set_scheme(r->sim, accurate);
+}
 bool afm_runner_pipelined(const afm_runner *r) {
     return r->pipelined;
 }

@@ -217,5 +217,10 @@ void afm_runner_pause_reason(const afm_runner_status *st, char *buf, size_t len)
 const afm_config *afm_runner_config(const afm_runner *r);
 /* The simulator (read-only: for its drive, model, separation). */
 const afm_sim *afm_runner_sim(const afm_runner *r);
+/* Front stage: hand the rt integrator over to the accurate (true) or fast scheme at the
+ * current sample (afm_sim_set_scheme; no allocation, no jump). A model swapped in later
+ * starts in its config's scheme: the caller applies its choice again. 0, or
+ * AFM_SIM_EINVAL for an integrator without schemes. */
+int afm_runner_set_scheme(afm_runner *r, bool accurate);
 
 #endif
