@@ -253,6 +253,7 @@ bench: deps
 	$(MAKE) $(BUILD)/bin/afmtwin $(BUILD)/bin/afmtwind
 	$(BUILD)/bin/afmtwin bench
 	$(BUILD)/bin/afmtwin bench-states
+	$(BUILD)/bin/afmtwin bench-scheme
 	$(BUILD)/bin/afmtwin bench-daemon --daemon $(BUILD)/bin/afmtwind
 	bash tools/bench-march.sh $(BUILD)
 

@@ -4,11 +4,9 @@
  * handed over from the real-time thread to the fast scheme when the loop falls behind, and
  * back when the margin returns (with a growing hold-off, so it never flaps).
  *
- * Measurement (main thread, before the threads start): a twin of the config per scheme,
- * settled from rest at each state, then MEASURE_REPEATS timed windows; the state's cost is
- * the median window, the scheme's the worst state. States: the config's operating point,
- * half its separation (harder contact) and free (Z 1 um). The accurate scheme runs when its
- * worst state fits FIT_SHARE of the per-sample budget dt / speed.
+ * Measurement (main thread, before the threads start): afm_scheme_cost_measure, both
+ * schemes' worst state; the accurate scheme runs when its worst state fits
+ * AFM_SCHEME_FIT_SHARE of the per-sample budget dt / speed.
  *
  * Hand-over (rt thread, realtime mode, auto and adaptive only): the accurate scheme hands
  * over to the fast one when the lag passes LAG_SHARE of --max-lag-ms (before any resync);
@@ -17,17 +15,13 @@
  * Both schemes share the modal state, so a hand-over is continuous (afm_sim_set_scheme). */
 #include "twind.h"
 
-#include "runner/afm_twin.h"
+#include "runner/afm_scheme_cost.h"
 
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
 #include <time.h>
 
-#define MEASURE_SETTLE_S 2e-3
-#define MEASURE_WINDOW_S 0.5e-3
-#define MEASURE_REPEATS 3
-#define FIT_SHARE 0.9
 #define LAG_SHARE 0.25
 #define HOLD_S 2.0
 #define HOLD_MAX_S 64.0
@@ -47,51 +41,6 @@ const char *twind_scheme_opt_name(twind_scheme s) {
         return "config";
     }
     return "?";
-}
-
-/* ns per sample of cfg's twin in scheme sc at separation z_m, settled from rest: the median
- * of the timed windows; -1 with err on failure. */
-static double cost_ns(const afm_config *cfg, afm_rt_scheme_kind sc, double z_m, char *err,
-                      size_t errlen) {
-    static afm_config c; /* main thread only; large */
-    c = *cfg;
-    c.sim.rt_scheme = sc;
-    afm_sim *s = afm_twin_create(&c, NULL, NULL, err, errlen);
-    if (!s) return -1;
-    double dt = afm_sim_dt(s), t[MEASURE_REPEATS];
-    if (afm_sim_set_separation(s, z_m) != AFM_SIM_OK) {
-        afm_sim_destroy(&s);
-        snprintf(err, errlen, "cannot set Z %g m", z_m);
-        return -1;
-    }
-    long n_settle = lround(MEASURE_SETTLE_S / dt), n_win = lround(MEASURE_WINDOW_S / dt);
-    afm_sim_run(s, (int)n_settle, NULL);
-    for (int k = 0; k < MEASURE_REPEATS; k++) {
-        double t0 = twind_mono_now();
-        afm_sim_run(s, (int)n_win, NULL);
-        t[k] = (twind_mono_now() - t0) / (double)n_win * 1e9;
-    }
-    afm_sim_destroy(&s);
-    for (int i = 0; i < MEASURE_REPEATS; i++) /* sort: median */
-        for (int j = i + 1; j < MEASURE_REPEATS; j++)
-            if (t[j] < t[i]) {
-                double x = t[i];
-                t[i] = t[j];
-                t[j] = x;
-            }
-    return t[MEASURE_REPEATS / 2];
-}
-
-/* The worst state's cost of scheme sc (see the top); -1 with err. */
-static double worst_ns(const afm_config *cfg, afm_rt_scheme_kind sc, char *err, size_t errlen) {
-    const double z0 = cfg->drive.separation_m, zs[3] = {z0, 0.5 * z0, 1e-6};
-    double worst = 0;
-    for (int i = 0; i < 3; i++) {
-        double ns = cost_ns(cfg, sc, zs[i], err, errlen);
-        if (ns < 0) return -1;
-        if (ns > worst) worst = ns;
-    }
-    return worst;
 }
 
 int twind_scheme_choose(twind *d, afm_config *cfg, char *err, size_t errlen) {
@@ -131,16 +80,19 @@ int twind_scheme_choose(twind *d, afm_config *cfg, char *err, size_t errlen) {
         }
         double budget = cfg->sim.sample_rate_hz > 0 ? 1e9 / cfg->sim.sample_rate_hz : 0;
         if (d->opt.speed > 0) budget /= d->opt.speed;
-        sc->ns_accurate = worst_ns(cfg, AFM_RT_SCHEME_ACCURATE, err, errlen);
-        sc->ns_fast = sc->ns_accurate < 0 ? -1 : worst_ns(cfg, AFM_RT_SCHEME_FAST, err, errlen);
-        if (sc->ns_accurate < 0 || sc->ns_fast < 0) return -1;
-        sc->accurate = sc->ns_accurate <= FIT_SHARE * budget;
+        afm_scheme_cost ca, cf;
+        if (afm_scheme_cost_measure(cfg, AFM_RT_SCHEME_ACCURATE, &ca, err, errlen) ||
+            afm_scheme_cost_measure(cfg, AFM_RT_SCHEME_FAST, &cf, err, errlen))
+            return -1;
+        sc->ns_accurate = ca.worst_ns;
+        sc->ns_fast = cf.worst_ns;
+        sc->accurate = sc->ns_accurate <= AFM_SCHEME_FIT_SHARE * budget;
         sc->handover = sc->accurate;
         snprintf(sc->reason, sizeof sc->reason,
                  "auto: accurate %.0f ns/sample in its worst state %s %.0f ns (%.0f%% of %.1f "
                  "ns); fast %.0f ns",
-                 sc->ns_accurate, sc->accurate ? "<=" : ">", FIT_SHARE * budget, 100.0 * FIT_SHARE,
-                 budget, sc->ns_fast);
+                 sc->ns_accurate, sc->accurate ? "<=" : ">", AFM_SCHEME_FIT_SHARE * budget,
+                 100.0 * AFM_SCHEME_FIT_SHARE, budget, sc->ns_fast);
     }
     }
     cfg->sim.rt_scheme = sc->accurate ? AFM_RT_SCHEME_ACCURATE : AFM_RT_SCHEME_FAST;

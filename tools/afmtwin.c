@@ -28,6 +28,8 @@ static const command commands[] = {
     {"bench", afm_cmd_bench, "integrator speed and accuracy side by side"},
     {"bench-states", afm_cmd_bench_states,
      "integrator and chain cost per sample in every state, and of a Z change"},
+    {"bench-scheme", afm_cmd_bench_scheme,
+     "which rt scheme afmtwind --scheme auto runs on each shipped config here"},
     {"thermal", afm_cmd_thermal,
      "thermal tune: PSD of the Brownian motion, eq. 5.1 fit of f, Q, k"},
     {"send", afm_cmd_send, "publish one command to the daemon (validated as the daemon does)"},

@@ -1,0 +1,60 @@
+/* SPDX-License-Identifier: MIT */
+/* afm_scheme_cost.c -- per-sample cost of each rt scheme on a model (see afm_scheme_cost.h). */
+#include "runner/afm_scheme_cost.h"
+
+#include "runner/afm_twin.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <time.h>
+
+static double mono_s(void) {
+    struct timespec t;
+    clock_gettime(CLOCK_MONOTONIC, &t);
+    return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
+}
+
+/* ns per sample of cfg's twin in scheme sc at separation z_m: the median window. */
+static double state_ns(const afm_config *cfg, afm_rt_scheme_kind sc, double z_m, char *err,
+                       size_t errlen) {
+    static afm_config c; /* large; one caller at a time (start-up, tools) */
+    c = *cfg;
+    c.sim.integrator = AFM_INTEGRATOR_RT;
+    c.sim.rt_scheme = sc;
+    afm_sim *s = afm_twin_create(&c, NULL, NULL, err, errlen);
+    if (!s) return -1;
+    double dt = afm_sim_dt(s), t[AFM_SCHEME_REPEATS];
+    if (afm_sim_set_separation(s, z_m) != AFM_SIM_OK) {
+        afm_sim_destroy(&s);
+        snprintf(err, errlen, "cannot set Z %g m", z_m);
+        return -1;
+    }
+    long n_settle = lround(AFM_SCHEME_SETTLE_S / dt), n_win = lround(AFM_SCHEME_WINDOW_S / dt);
+    afm_sim_run(s, (int)n_settle, NULL);
+    for (int k = 0; k < AFM_SCHEME_REPEATS; k++) {
+        double t0 = mono_s();
+        afm_sim_run(s, (int)n_win, NULL);
+        t[k] = (mono_s() - t0) / (double)n_win * 1e9;
+    }
+    afm_sim_destroy(&s);
+    for (int i = 0; i < AFM_SCHEME_REPEATS; i++)
+        for (int j = i + 1; j < AFM_SCHEME_REPEATS; j++)
+            if (t[j] < t[i]) {
+                double x = t[i];
+                t[i] = t[j];
+                t[j] = x;
+            }
+    return t[AFM_SCHEME_REPEATS / 2];
+}
+
+int afm_scheme_cost_measure(const afm_config *cfg, afm_rt_scheme_kind scheme, afm_scheme_cost *out,
+                            char *err, size_t errlen) {
+    const double z0 = cfg->drive.separation_m, zs[AFM_SCHEME_STATES] = {z0, 0.5 * z0, 1e-6};
+    out->worst_ns = 0;
+    for (int i = 0; i < AFM_SCHEME_STATES; i++) {
+        out->ns[i] = state_ns(cfg, scheme, zs[i], err, errlen);
+        if (out->ns[i] < 0) return -1;
+        if (out->ns[i] > out->worst_ns) out->worst_ns = out->ns[i];
+    }
+    return 0;
+}

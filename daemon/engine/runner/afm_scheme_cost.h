@@ -1,0 +1,34 @@
+/* SPDX-License-Identifier: MIT */
+/* afm_scheme_cost.h -- what each scheme of the rt integrator costs per sample on a model on
+ * this machine: the measurement behind the daemon's `--scheme auto` (daemon/scheme.c) and
+ * `afmtwin bench-scheme`, in the runner layer so that both use one method.
+ *
+ * Method: a twin of the config per scheme, settled from rest at each state for
+ * AFM_SCHEME_SETTLE_S, then AFM_SCHEME_REPEATS timed windows of AFM_SCHEME_WINDOW_S model
+ * time; a state's cost is its median window, a scheme's the worst state. States: the
+ * config's operating point, half its separation (harder contact) and free (Z 1 um).
+ * Wall-clock: call it before real time starts, never on the real-time thread. */
+#ifndef AFM_SCHEME_COST_H
+#define AFM_SCHEME_COST_H
+
+#include "config/afm_config.h"
+
+#include <stddef.h>
+
+#define AFM_SCHEME_SETTLE_S 2e-3
+#define AFM_SCHEME_WINDOW_S 0.5e-3
+#define AFM_SCHEME_REPEATS 3
+#define AFM_SCHEME_STATES 3
+/* The accurate scheme runs when its worst state fits this share of the budget 1 / rate. */
+#define AFM_SCHEME_FIT_SHARE 0.9
+
+typedef struct {
+    double ns[AFM_SCHEME_STATES]; /* per state: operating point, half Z, free */
+    double worst_ns;
+} afm_scheme_cost;
+
+/* Cost of cfg's rt twin in scheme (AFM_RT_SCHEME_ACCURATE or _FAST). 0, or -1 with err. */
+int afm_scheme_cost_measure(const afm_config *cfg, afm_rt_scheme_kind scheme, afm_scheme_cost *out,
+                            char *err, size_t errlen);
+
+#endif
