@@ -325,6 +325,11 @@ static void print_status(const listen_ctx *c, const char *channel, const afmtwin
         json_lockin(o, m->lockin_amplitude_m, m->lockin_phase_deg, m->peak_force_n);
         json_num(o, "last_reject_age_s", m->last_reject_age_s);
         cJSON_AddNumberToObject(o, "last_reject_old", m->last_reject_old);
+        json_str(o, "rt_scheme", m->rt_scheme);
+        json_str(o, "rt_scheme_reason", m->rt_scheme_reason);
+        json_int(o, "scheme_handovers", m->scheme_handovers);
+        json_num(o, "model_s_accurate", m->model_s_accurate);
+        json_num(o, "model_s_fast", m->model_s_fast);
         afmt_json_emit(o);
         return;
     }
@@ -355,6 +360,14 @@ static void print_status(const listen_ctx *c, const char *channel, const afmtwin
         printf(" (last rejected %.1f s ago%s: %s)", m->last_reject_age_s,
                m->last_reject_old ? ", old: later commands applied" : "", lr);
     printf("\n");
+    if (m->rt_scheme && m->rt_scheme[0]) {
+        char sr[SHOW_LEN];
+        show(sr, m->rt_scheme_reason);
+        printf("          rt scheme %s (%s), %lld handovers, model time accurate %.4g s, fast "
+               "%.4g s\n",
+               m->rt_scheme, sr, (long long)m->scheme_handovers, m->model_s_accurate,
+               m->model_s_fast);
+    }
     if (m->auto_paused) printf("          %s\n", pr);
     if (cs[0] && strcmp(cs, "off") != 0)
         printf("          CAN %s, heartbeat %s, frames %lld rejected %lld errors %lld reconnects "
