@@ -1,0 +1,278 @@
+/* SPDX-License-Identifier: MIT */
+/* afm_rt_acc.h -- the accurate scheme: the tip force cubic Hermite in time (issue 28,
+ * docs/numerics.md), its contact samples and its sample loop (rt_run_acc_t).
+ * Private to the rt backend: included once, by afm_rt.c (which is compiled once per CPU copy,
+ * AFM_RT_COPY), so its static functions stay in that one translation unit. */
+#ifndef AFM_RT_ACC_H
+#define AFM_RT_ACC_H
+
+#include "integrators/afm_rt_cross.h"
+#include "integrators/afm_rt_force.h"
+#include "integrators/afm_rt_noise.h"
+
+/* ---- the accurate scheme: the force cubic Hermite in time (cfg.rt_scheme) ----
+ *
+ * Each piece takes the force as the Hermite interpolant of F0, F1 and the slopes D0, D1
+ * (afm_rt_coef.h), fourth order in the step where the force is smooth. D = tau dF/dt with
+ * dF/dt = f_x v + f_v a from the force law's partials at the last evaluation and the tip's
+ * velocity and acceleration. The solve takes D1 = D0 (the force's slope carried over);
+ * then D1 is computed at the end and the state takes Gd1 (D1 - D0). A sample runs as one
+ * such piece while its path stays clear of the contact line (as the fast scheme's free
+ * step); a sample that touches it is redone in m substeps, each first taken whole, and a
+ * substep whose path crosses the contact line (or starts and ends beside it) is redone with
+ * the force linear in time (the fast scheme's piece), split at the located crossing: no
+ * polynomial in time follows a kink, and a slope from one side does not hold on the other. */
+
+/* dF/dt at st from its force partials and the tip's velocity and acceleration. */
+static inline double rt_fdot(const rt_state *r, const rt_snap *st, int np, int nt) {
+    rt_v4 a4 = rt_splat(0.0);
+    for (int i = 0; i < np; i += 4)
+        a4 = rt_fma4(RT_V4(r->aq + i), RT_V4(st->q + i),
+                     rt_fma4(RT_V4(r->av + i), RT_V4(st->v + i), a4));
+    double acc = rt_hsum(a4) + r->tip2 * st->tip.f_n;
+    acc += rt_tones_im(r->ax_re, r->ax_im, st->z_re, st->z_im, nt);
+    return fma(st->dfdx_n_m, st->tip.v_m_s, st->dfdv_n_s_m * acc);
+}
+
+/* Advance in by k cells into o (o may be in); herm: the force Hermite in time, else linear
+ * (a piece beside a crossing). Leaves o->fdot_n_s for the next piece. */
+static inline __attribute__((always_inline)) void
+rt_piece_acc_t(const afm_sim *s, const rt_state *r, const rt_snap *in, rt_snap *o, int k, bool herm,
+               const int np, const int nt, const bool noise) {
+    const afm_rt_prop *P = &r->prop[k - 1];
+    const double *c = P->c, *ch = P->c + AFM_RT_ROW_GC * np;
+    const double F0 = in->tip.f_n, tau = P->tau_s;
+    const double D0 = herm ? tau * in->fdot_n_s : 0.0;
+    double nq[AFM_MAX_MODES] __attribute__((aligned(32)));
+    double nv[AFM_MAX_MODES] __attribute__((aligned(32)));
+    double xs, vs;
+    rt_v4 xs4 = rt_splat(0.0), vs4 = rt_splat(0.0);
+    for (int i = 0; i < np; i += 4) {
+        rt_v4 q = RT_V4(in->q + i), v = RT_V4(in->v + i);
+        xs4 = rt_fma4(RT_V4(c + 8 * np + i), q, rt_fma4(RT_V4(c + 9 * np + i), v, xs4));
+        vs4 = rt_fma4(RT_V4(c + 10 * np + i), q, rt_fma4(RT_V4(c + 11 * np + i), v, vs4));
+    }
+    rt_hsum2(xs4, vs4, &xs, &vs);
+    double gxe = P->gx, gve = P->gv;
+    if (herm) { /* F0 (1 + c) + D0 (h10 + h11), and F1 (sigma - c) */
+        xs = fma(P->gx0 + P->gcx, F0, fma(P->gd0x + P->gd1x, D0, xs));
+        vs = fma(P->gv0 + P->gcv, F0, fma(P->gd0v + P->gd1v, D0, vs));
+        gxe -= P->gcx;
+        gve -= P->gcv;
+    } else {
+        xs = fma(P->gx0, F0, xs);
+        vs = fma(P->gv0, F0, vs);
+    }
+    xs += rt_tones_im(P->dx_re, P->dx_im, in->z_re, in->z_im, nt);
+    vs += rt_tones_im(P->dv_re, P->dv_im, in->z_re, in->z_im, nt);
+    if (noise) {
+        double xq, xv;
+        rt_thermal_draw(r, k, nq, nv, &xq, &xv);
+        xs += xq;
+        vs += xv;
+    }
+    double jj = 1.0 - in->dfdx_n_m * gxe - in->dfdv_n_s_m * gve;
+    const double rj = 1.0 / (jj > 0.25 ? jj : 0.25);
+    const double F1 =
+        rt_solve_in(s, r, xs, vs, gxe, gve, fma(in->df_per_cell_n, (double)k, F0), rj, o);
+    double zr1[AFM_MAX_TONES], zi1[AFM_MAX_TONES];
+    rt_tones_rotate(in->z_re, in->z_im, P->rot_re, P->rot_im, zr1, zi1, nt);
+    const rt_v4 f0 = rt_splat(F0), f1 = rt_splat(F1), fc = rt_splat(F0 - F1), d0 = rt_splat(D0);
+    rt_v4 a4 = rt_splat(0.0);
+    for (int i = 0; i < np; i += 4) {
+        rt_v4 q = RT_V4(in->q + i), v = RT_V4(in->v + i);
+        rt_v4 a = rt_fma4(RT_V4(c + i), q,
+                          rt_fma4(RT_V4(c + np + i), v,
+                                  rt_fma4(RT_V4(c + 4 * np + i), f0, RT_V4(c + 6 * np + i) * f1)));
+        rt_v4 w = rt_fma4(RT_V4(c + 2 * np + i), q,
+                          rt_fma4(RT_V4(c + 3 * np + i), v,
+                                  rt_fma4(RT_V4(c + 5 * np + i), f0, RT_V4(c + 7 * np + i) * f1)));
+        if (herm) { /* D1 = D0 for now: Gd0 + Gd1 */
+            a = rt_fma4(RT_V4(ch + i), fc,
+                        rt_fma4(RT_V4(ch + 2 * np + i) + RT_V4(ch + 4 * np + i), d0, a));
+            w = rt_fma4(RT_V4(ch + np + i), fc,
+                        rt_fma4(RT_V4(ch + 3 * np + i) + RT_V4(ch + 5 * np + i), d0, w));
+        }
+        if (noise) {
+            a += RT_V4(nq + i);
+            w += RT_V4(nv + i);
+        }
+        RT_V4W(o->q + i) = a;
+        RT_V4W(o->v + i) = w;
+        a4 = rt_fma4(RT_V4(r->aq + i), a, rt_fma4(RT_V4(r->av + i), w, a4));
+    }
+    if (nt == RT_TONES_V4) {
+        RT_V4W(o->z_re) = RT_V4(zr1);
+        RT_V4W(o->z_im) = RT_V4(zi1);
+    } else {
+        for (int j = 0; j < nt; j++) {
+            o->z_re[j] = zr1[j];
+            o->z_im[j] = zi1[j];
+        }
+    }
+    double x1 = fma(gxe, F1, xs), v1 = fma(gve, F1, vs);
+    double acc = rt_hsum(a4) + r->tip2 * F1 + rt_tones_im(r->ax_re, r->ax_im, zr1, zi1, nt);
+    double fdot = fma(o->dfdx_n_m, v1, o->dfdv_n_s_m * acc);
+    if (herm) { /* the end slope found: the state takes Gd1 (D1 - D0) */
+        const double dd = fma(tau, fdot, -D0);
+        const rt_v4 dd4 = rt_splat(dd);
+        for (int i = 0; i < np; i += 4) {
+            RT_V4W(o->q + i) = rt_fma4(RT_V4(ch + 4 * np + i), dd4, RT_V4(o->q + i));
+            RT_V4W(o->v + i) = rt_fma4(RT_V4(ch + 5 * np + i), dd4, RT_V4(o->v + i));
+        }
+        x1 = fma(P->gd1x, dd, x1);
+        v1 = fma(P->gd1v, dd, v1);
+    }
+    o->slope_cells = 0;
+    o->df_per_cell_n = (F1 - F0) * r->inv_cells[k];
+    o->tip.x_m = x1;
+    o->tip.v_m_s = v1;
+    o->tip.f_n = F1;
+    o->fdot_n_s = fdot;
+}
+
+/* rt_piece_acc_t out of line for the contact pieces, the sizes picked once. */
+static AFM_CLONES_NOINLINE void rt_piece_acc(const afm_sim *s, const rt_state *r, const rt_snap *in,
+                                             rt_snap *o, int k, bool herm) {
+    if (r->noise)
+        rt_piece_acc_t(s, r, in, o, k, herm, r->np, rt_tones_kind(r), true);
+    else if (r->ntones == 1 && r->np == 4)
+        rt_piece_acc_t(s, r, in, o, k, herm, 4, 1, false);
+    else if (r->ntones == 1 && r->np == 8)
+        rt_piece_acc_t(s, r, in, o, k, herm, 8, 1, false);
+    else if (r->ntones > 1 && r->np == 4)
+        rt_piece_acc_t(s, r, in, o, k, herm, 4, RT_TONES_V4, false);
+    else if (r->ntones > 1 && r->np == 8)
+        rt_piece_acc_t(s, r, in, o, k, herm, 8, RT_TONES_V4, false);
+    else
+        rt_piece_acc_t(s, r, in, o, k, herm, r->np, rt_tones_kind(r), false);
+}
+
+/* One contact substep of RT_GRID cells from a into b: Hermite, or, where its path crosses
+ * the contact line, linear and split at the crossing (rt_substep's thermal bookkeeping). */
+static void rt_substep_acc(const afm_sim *s, const rt_state *r, const rt_snap *a, rt_snap *b,
+                           double tau) {
+    rt_piece_acc(s, r, a, b, RT_GRID, true);
+    int kc = rt_crossing_cell(r, a, b, tau, true);
+    if (kc < 0) return;
+    rt_noise *z = r->nz;
+    if (kc == 0 || kc >= RT_GRID) { /* at an end: the whole substep linear */
+        if (r->noise) {
+            memcpy(z->gq, z->lq, sizeof z->gq);
+            memcpy(z->gv, z->lv, sizeof z->gv);
+            z->given_cells = RT_GRID;
+        }
+        rt_piece_acc(s, r, a, b, RT_GRID, false);
+        return;
+    }
+    if (r->noise) {
+        memcpy(z->sq, z->lq, sizeof z->sq);
+        memcpy(z->sv, z->lv, sizeof z->sv);
+        rt_bridge_draw(r, kc, RT_GRID, z->sq, z->sv);
+    }
+    rt_piece_acc(s, r, a, b, kc, false);
+    if (r->noise) {
+        memcpy(z->gq, z->sq, sizeof z->gq);
+        memcpy(z->gv, z->sv, sizeof z->gv);
+        z->given_cells = RT_GRID - kc;
+    }
+    rt_piece_acc(s, r, b, b, RT_GRID - kc, false);
+}
+
+/* rt_contact for the accurate scheme. */
+static AFM_CLONES_NOINLINE rt_snap *rt_contact_acc(const afm_sim *s, const rt_state *r, rt_snap *a,
+                                                   rt_snap *b, bool redo) {
+    double tau = s->dt_s / r->m;
+    rt_noise *z = r->nz;
+    if (r->noise) {
+        z->given_cells = 0;
+        z->rem_cells = redo ? r->ncell : 0;
+        if (redo) {
+            memcpy(z->rq, z->lq, sizeof z->rq);
+            memcpy(z->rv, z->lv, sizeof z->rv);
+        }
+    }
+    for (int k = 0; k < r->m; k++) {
+        if (r->noise && z->rem_cells > 0) {
+            if (z->rem_cells == RT_GRID) {
+                memcpy(z->gq, z->rq, sizeof z->gq);
+                memcpy(z->gv, z->rv, sizeof z->gv);
+                z->given_cells = RT_GRID;
+            } else {
+                rt_bridge_draw(r, RT_GRID, z->rem_cells, z->rq, z->rv);
+            }
+            z->rem_cells -= RT_GRID;
+        }
+        rt_substep_acc(s, r, a, b, tau);
+        rt_snap *t = a;
+        a = b;
+        b = t;
+    }
+    return a;
+}
+
+/* n output steps of the accurate scheme (afm_sim_backend.run when r->acc). */
+static inline __attribute__((always_inline)) int rt_run_acc_t(afm_sim *s, rt_state *r, int n,
+                                                              afm_sample *out, const int np,
+                                                              const int nt, const bool noise) {
+    int rc = AFM_SIM_OK;
+    long step = s->step;
+    const double t0 = s->t_start_s, dt = s->dt_s;
+    rt_snap *a = &r->buf[r->cur];
+    for (int k = 0; k < n; k++) {
+        if (__builtin_expect(++r->since_sync >= RT_RESYNC, 0)) {
+            s->step = step;
+            s->t_s = t0 + (double)step * dt;
+            rt_sync_phasors(s, r, a);
+            a->fdot_n_s = rt_fdot(r, a, np, nt);
+        }
+        rt_snap *b = a == &r->buf[0] ? &r->buf[1] : &r->buf[0];
+        const bool at_once = r->kinked && a->tip.x_m < r->xc;
+        bool contact = at_once;
+        if (!contact) {
+            rt_piece_acc_t(s, r, a, b, r->ncell, true, np, nt, noise);
+            if (r->kinked) {
+                /* the path's low bound; within one travel of the contact line the steep
+                 * van der Waals pulse needs the substeps even where it does not cross */
+                const double sp = fabs(a->tip.v_m_s) + fabs(b->tip.v_m_s);
+                const double low =
+                    (a->tip.x_m < b->tip.x_m ? a->tip.x_m : b->tip.x_m) - r->clear_k * sp;
+                contact = low < r->xc + RT_ACC_NEAR_TRAVELS * sp * dt;
+            }
+        }
+        if (contact) b = rt_contact_acc(s, r, a, b, noise && !at_once);
+        a = b;
+        step++;
+        if (!(fabs(a->tip.x_m) < 1e-3) ||
+            !(fabs(a->tip.v_m_s) < HUGE_VAL && fabs(a->tip.f_n) < HUGE_VAL)) {
+            rc = AFM_SIM_EBLOWUP;
+            break;
+        }
+        if (out) {
+            afm_sample *o = out + k;
+            rt_v4 th4 = rt_splat(0.0);
+            for (int i = 0; i < np; i += 4)
+                th4 = rt_fma4(RT_V4(r->rot + i), RT_V4(a->q + i), th4);
+            double th = rt_hsum(th4) + rt_tones_im(r->th_re, r->th_im, a->z_re, a->z_im, nt);
+            double u = 0.0;
+            if (nt == RT_TONES_V4)
+                u = rt_hsum(RT_V4(r->amp_m) * RT_V4(a->z_im));
+            else
+                for (int jt = 0; jt < nt; jt++)
+                    u += r->amp_m[jt] * a->z_im[jt];
+            o->t_s = t0 + (double)step * dt;
+            o->x_m = a->tip.x_m;
+            o->v_m_s = a->tip.v_m_s;
+            o->f_n = a->tip.f_n;
+            o->theta_rad = th;
+            o->base_m = u;
+        }
+    }
+    s->step = step;
+    s->t_s = t0 + (double)step * dt;
+    r->cur = a == &r->buf[0] ? 0 : 1;
+    rt_publish(s, r, a);
+    return rc;
+}
+
+#endif

@@ -1,0 +1,252 @@
+/* SPDX-License-Identifier: MIT */
+/* afm_rt_impl.h -- the rt backend's state (tables, the two snapshots a step reads and writes, the
+ * thermal bookkeeping), its vector helpers, the drive's tones, and the state to and from
+ * struct afm_sim (phasor resync, publish). Shared by both schemes.
+ * Private to the rt backend: included once, by afm_rt.c (which is compiled once per CPU copy,
+ * AFM_RT_COPY), so its static functions stay in that one translation unit. */
+#ifndef AFM_RT_IMPL_H
+#define AFM_RT_IMPL_H
+
+#include "forces/afm_rng.h"
+#include "integrators/afm_rt_coef.h"
+#include "integrators/afm_sim_impl.h"
+
+#include <math.h>
+#include <string.h>
+
+#if defined(__FMA__) && defined(__AVX__)
+#include <immintrin.h>
+#endif
+
+#define RT_GRID 8                  /* table cells per contact substep: crossing resolution */
+#define RT_DEFAULT_SUBSTEPS 4      /* substeps per sample in contact (measured, numerics.md) */
+#define RT_ACC_DEFAULT_SUBSTEPS 16 /* the accurate scheme's (docs/numerics.md, issue 28) */
+/* The accurate scheme redoes a sample in substeps when its path comes within this many
+ * travels ((|v0| + |v1|) dt) of the contact line (docs/numerics.md: 0 leaves 0.013 deg and
+ * 1.3e-4 of amplitude on probe-q300, 0.5 and more 0.001 deg and 2e-5) */
+#define RT_ACC_NEAR_TRAVELS 1.0
+#define RT_MAX_SUBSTEPS AFM_MAX_RT_SUBSTEPS
+#define RT_RESYNC 4096 /* steps between phasor resynchronisations */
+#define RT_NEWTON_MAX 12
+#define RT_KB_J_K 1.380649e-23 /* Boltzmann constant (exact, SI 2019) */
+
+/* The tip at the end of a piece and what a full step from there needs of it. The free step
+ * carries it in registers from sample to sample (rt_run_t), so that the chain from one force
+ * to the next does not go through a store and a load; rt_snap holds the same struct. */
+typedef struct {
+    double x_m, v_m_s, f_n; /* tip displacement (m), velocity (m/s), tip-sample force (N) */
+    /* x*, v*: the tip at the end of a full step from here without the response to that
+     * step's end force (m, m/s) */
+    double x_free_m, v_free_m_s;
+    /* 1 / max(1 - fx gx - fv gv, 1/4) (dimensionless) at the last force evaluation, for a
+     * piece of rt_snap.slope_cells cells; in a free-standing rt_tip, for a full step */
+    double inv_slope;
+    /* x, v and the gap d = x cos(alpha) + Z at the full step's first guess, its end force
+     * held at f_n: x_free_m + gx f_n, ... (m, m/s, m) */
+    double x_guess_m, v_guess_m_s, gap_guess_m;
+} rt_tip;
+
+/* The state a step reads and writes; two of them so a trial step can be dropped. */
+typedef struct {
+    double q[AFM_MAX_MODES], v[AFM_MAX_MODES];       /* homogeneous part qh (m), qh' (m/s) */
+    double z_re[AFM_MAX_TONES], z_im[AFM_MAX_TONES]; /* e^{i theta_j} */
+    rt_tip tip;
+    double dfdx_n_m, dfdv_n_s_m; /* df/dx (N/m), df/dv (N s/m) at the last force evaluation */
+    int slope_cells;             /* the piece length tip.inv_slope is for, in cells (0: none) */
+    double df_per_cell_n;        /* force change per cell over the piece that ended here (N) */
+    double fdot_n_s;             /* dF/dt here (N/s): the accurate scheme's Hermite end slope */
+} rt_snap;
+
+/* The step tables of one scheme: contact substeps m, ncell = m RT_GRID cells, the
+ * coefficients of a piece of k cells at prop[k - 1] (in block), and, once thermal noise was
+ * set, its Cholesky factors and bridge gains (rt_state.lth, .bridge). */
+typedef struct {
+    int m, ncell;
+    afm_rt_prop *prop;
+    double *block, *lth, *bridge;
+} rt_tables;
+
+typedef struct {
+    int n, np, m, ncell, ntones; /* np: n rounded up to a multiple of 4 */
+    double tip[AFM_MAX_MODES];   /* tip_i, zero past n */
+    double rot[AFM_MAX_MODES];   /* rot_i (tip rotation per unit q_i), zero past n */
+    afm_rt_prop *prop;           /* prop[k - 1]: step of k cells, tau = k dt / ncell */
+    double *block;
+    rt_snap buf[2];
+    int cur;
+    double wd[AFM_MAX_TONES];
+    double cq_re[AFM_MAX_TONES][AFM_MAX_MODES], cq_im[AFM_MAX_TONES][AFM_MAX_MODES];
+    double th_re[AFM_MAX_TONES], th_im[AFM_MAX_TONES]; /* theta = rot . qh + Im(th z) */
+    double amp_m[AFM_MAX_TONES]; /* base amplitude of each tone (m); zero past ntones */
+    double xc;                   /* tip x at which the gap is a0 */
+    double cos_alpha, z_m;       /* d = x cos(alpha) + Z (copies of s->f's and s's) */
+    /* A full step's first guess per unit end force of the step before (rt_tip's x_guess_m,
+     * v_guess_m_s, gap_guess_m): gx + hx (m/N), gv + hv (m/s/N), (gx + hx) cos(alpha) (m/N) */
+    double guess_x_per_n, guess_v_per_n, guess_gap_per_n;
+    bool kinked; /* the force has a kink at d = a0 (contact, capillary, electrostatic) */
+    double ftol; /* Newton tolerance on F (N) */
+    double inv_cells[RT_MAX_SUBSTEPS * RT_GRID + 1]; /* 1 / k */
+    double clear_k; /* 4/27 dt: the Hermite path's largest dip per unit end speed */
+    afm_rt_starr starr;
+    long since_sync;
+    bool noise;   /* thermal force on */
+    double *lth;  /* thermal Cholesky factors: step of k cells at lth + 3 np (k - 1) */
+    afm_rng *rng; /* its generator (allocated by the first afm_sim_set_thermal) */
+    /* Brownian-bridge gains (afm_rt_coef_bridge), 4 np each: a substep's first kc cells
+     * (kc = 1 .. RT_GRID - 1), then a substep of the rest of a sample of j substeps
+     * (j = 2 .. m); see rt_bridge_gain */
+    double *bridge;
+    struct rt_noise *nz; /* the increments being split (mutable scratch) */
+    /* The accurate scheme (cfg.rt_scheme; rt_run_acc): the force cubic Hermite in time.
+     * m, ncell, prop, block, lth and bridge above are tab[acc]'s (rt_use). */
+    bool acc;
+    rt_tables tab[2]; /* [0] the fast scheme's, [1] the accurate one's */
+    /* the tip acceleration: sum_i aq_i qh_i + av_i qh'_i + tip2 F + Im(ax_j z_j) with
+     * aq = -tip w^2, av = -2 tip xi w (1/s^2, 1/s; zero past n), tip2 = sum tip^2 (1/kg),
+     * ax_j = -wd_j^2 cx_j (m/s^2; zero past ntones) */
+    double aq[AFM_MAX_MODES], av[AFM_MAX_MODES], tip2;
+    double ax_re[AFM_MAX_TONES], ax_im[AFM_MAX_TONES];
+} rt_state;
+
+/* A redone piece takes the noise already drawn for its interval (issue 11): the increment
+ * the next piece must take, the last piece's, and what of a sample's increment its
+ * substeps have not taken yet (per mode, on (qh, qh')). */
+typedef struct rt_noise {
+    double gq[AFM_MAX_MODES], gv[AFM_MAX_MODES]; /* given to the next piece of given_cells */
+    int given_cells;                             /* 0: the next piece draws afresh */
+    double lq[AFM_MAX_MODES], lv[AFM_MAX_MODES]; /* the last piece's (last_cells) */
+    int last_cells;
+    double rq[AFM_MAX_MODES], rv[AFM_MAX_MODES]; /* the sample's rest, rem_cells */
+    int rem_cells;
+    double sq[AFM_MAX_MODES], sv[AFM_MAX_MODES]; /* a substep's rest after its crossing */
+} rt_noise;
+
+/* Four modes at a time. GCC/Clang vector extension (plain C would leave it to the
+ * auto-vectoriser, which at -O2 turned these loops into memcpy calls and scalar code);
+ * aligned(8) and may_alias make loads from any double array legal. */
+typedef double rt_v4 __attribute__((vector_size(32), aligned(8), may_alias));
+#if !defined(__AVX__) && defined(__GNUC__) && !defined(__clang__)
+/* Without AVX, gcc warns that passing rt_v4 by value has another ABI; every such function
+ * here is static, so no other object file sees that ABI. */
+#pragma GCC diagnostic ignored "-Wpsabi"
+#endif
+#if !defined(__AVX__) && defined(__clang__) /* the same warning from clang (portable builds) */
+#pragma clang diagnostic ignored "-Wpsabi"
+#endif
+#define RT_V4(p) (*(const rt_v4 *)(const void *)(p))
+#define RT_V4W(p) (*(rt_v4 *)(void *)(p))
+
+/* a b + c, rounded once per lane in every build (-std=c11 keeps gcc from contracting
+ * anything else): one vfmadd in an x86-64-v3 build; elsewhere lane by lane with
+ * __builtin_fma, which gcc and clang fold into one vfmadd in the x86-64-v3 clone of a
+ * portable build (AFM_CLONES) and into fmla on arm64, so every copy gives the same bits (the
+ * baseline x86-64 copy calls libm's fma: slow, exact). As AFM_V4_FMA of the estimators. */
+static inline __attribute__((always_inline)) rt_v4 rt_fma4(rt_v4 a, rt_v4 b, rt_v4 c) {
+#if defined(__FMA__) && defined(__AVX__)
+    return (rt_v4)_mm256_fmadd_pd((__m256d)a, (__m256d)b, (__m256d)c);
+#else
+    return (rt_v4){__builtin_fma(a[0], b[0], c[0]), __builtin_fma(a[1], b[1], c[1]),
+                   __builtin_fma(a[2], b[2], c[2]), __builtin_fma(a[3], b[3], c[3])};
+#endif
+}
+
+static inline rt_v4 rt_splat(double x) {
+    return (rt_v4){x, x, x, x};
+}
+
+static inline double rt_hsum(rt_v4 a) {
+    return (a[0] + a[1]) + (a[2] + a[3]);
+}
+
+/* rt_hsum of a and b at once (one horizontal add), same rounding. */
+static inline void rt_hsum2(rt_v4 a, rt_v4 b, double *sa, double *sb) {
+#if defined(__AVX__)
+    __m256d t = _mm256_hadd_pd((__m256d)a, (__m256d)b); /* a0+a1, b0+b1, a2+a3, b2+b3 */
+    __m128d u = _mm_add_pd(_mm256_castpd256_pd128(t), _mm256_extractf128_pd(t, 1));
+    *sa = u[0];
+    *sb = u[1];
+#else
+    *sa = rt_hsum(a);
+    *sb = rt_hsum(b);
+#endif
+}
+
+/* d = x cos(alpha) + Z. */
+static inline double rt_gap(const rt_state *r, double x) {
+    return fma(x, r->cos_alpha, r->z_m);
+}
+
+/* The drive's tones. nt is a constant in every hot copy: 1 (scalar), or RT_TONES_V4 when
+ * several tones run: then all AFM_MAX_TONES phasors are rotated and summed as one vector,
+ * whatever their number (every per-tone array is zero past ntones: rt_changed,
+ * afm_rt_coef_drive, rt_sync_phasors), so four tones cost what one does (a scalar loop over
+ * four tones cost +14 ns/sample, the soak's worst state, issue 12). */
+#define RT_TONES_V4 AFM_MAX_TONES
+_Static_assert(AFM_MAX_TONES == 4, "the tone vector is one rt_v4");
+
+/* The nt of r's tones: 0, 1 or RT_TONES_V4. */
+static inline int rt_tones_kind(const rt_state *r) {
+    return r->ntones > 1 ? RT_TONES_V4 : r->ntones;
+}
+
+/* sum_j Im(c_j z_j) = c_re z_im + c_im z_re over nt tones. */
+static inline double rt_tones_im(const double *c_re, const double *c_im, const double *z_re,
+                                 const double *z_im, int nt) {
+    if (nt == RT_TONES_V4)
+        return rt_hsum(rt_fma4(RT_V4(c_re), RT_V4(z_im), RT_V4(c_im) * RT_V4(z_re)));
+    double t = 0.0;
+    for (int j = 0; j < nt; j++)
+        t += c_re[j] * z_im[j] + c_im[j] * z_re[j];
+    return t;
+}
+
+/* o = z rot per tone (complex); o may not be z. */
+static inline void rt_tones_rotate(const double *z_re, const double *z_im, const double *rot_re,
+                                   const double *rot_im, double *o_re, double *o_im, int nt) {
+    if (nt == RT_TONES_V4) {
+        rt_v4 zr = RT_V4(z_re), zi = RT_V4(z_im), rr = RT_V4(rot_re), ri = RT_V4(rot_im);
+        RT_V4W(o_re) = zr * rr - zi * ri;
+        RT_V4W(o_im) = zr * ri + zi * rr;
+        return;
+    }
+    for (int j = 0; j < nt; j++) {
+        o_re[j] = z_re[j] * rot_re[j] - z_im[j] * rot_im[j];
+        o_im[j] = z_re[j] * rot_im[j] + z_im[j] * rot_re[j];
+    }
+}
+
+/* Phasors exactly from afm_drive at s->t_s. */
+static void rt_sync_phasors(const afm_sim *s, rt_state *r, rt_snap *st) {
+    for (int j = 0; j < AFM_MAX_TONES; j++)
+        st->z_re[j] = st->z_im[j] = 0.0; /* zero past ntones (RT_TONES_V4) */
+    for (int j = 0; j < r->ntones; j++) {
+        double th = afm_drive_phase_mod(&s->drive, j, s->t_s);
+        st->z_re[j] = cos(th);
+        st->z_im[j] = sin(th);
+    }
+    r->since_sync = 0;
+}
+
+/* The full state into struct afm_sim: q = qh + sum_j Im(c_j z_j), q' = qh' + sum_j
+ * Im(i wd_j c_j z_j), and the tip outputs (be_fills_tip). Once per afm_sim_run. */
+static void rt_publish(afm_sim *s, const rt_state *r, const rt_snap *b) {
+    for (int i = 0; i < r->n; i++) {
+        double q = b->q[i], v = b->v[i];
+        for (int j = 0; j < r->ntones; j++) {
+            double cr = r->cq_re[j][i], ci = r->cq_im[j][i];
+            q += cr * b->z_im[j] + ci * b->z_re[j];
+            v += r->wd[j] * (cr * b->z_re[j] - ci * b->z_im[j]);
+        }
+        s->q[i] = q;
+        s->qd[i] = v;
+    }
+    double u = 0.0;
+    for (int j = 0; j < r->ntones; j++)
+        u += r->amp_m[j] * b->z_im[j];
+    s->f_last_n = b->tip.f_n;
+    s->x_last_m = b->tip.x_m;
+    s->v_last_m = b->tip.v_m_s;
+    s->base_last_m = u;
+}
+
+#endif
