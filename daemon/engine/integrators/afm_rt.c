@@ -124,7 +124,7 @@ static void rt_tables_use(rt_state *r, bool acc) {
 static void rt_changed(afm_sim *s) {
     rt_state *r = s->be_state;
     const afm_modal *m = &s->m;
-    double cx_re[AFM_MAX_TONES], cx_im[AFM_MAX_TONES];
+    double *cx_re = r->cx_re, *cx_im = r->cx_im;
     r->ntones = s->drive.n;
     for (int j = 0; j < AFM_MAX_TONES; j++) { /* zero past ntones (RT_TONES_V4) */
         r->wd[j] = cx_re[j] = cx_im[j] = r->th_re[j] = r->th_im[j] = r->amp_m[j] = 0.0;
@@ -147,9 +147,12 @@ static void rt_changed(afm_sim *s) {
             r->th_im[j] += m->rot[i] * r->cq_im[j][i];
         }
     }
-    for (int a = 0; a < 2; a++)
-        for (int k = 0; k < r->tab[a].ncell; k++)
-            afm_rt_coef_drive(&r->tab[a].prop[k], r->ntones, r->wd, cx_re, cx_im);
+    /* the tables in force now; the other set when a hand-over needs it (rt_set_scheme):
+     * a drive change then costs one set's sincos, not both (bench-states' frequency steps) */
+    for (int k = 0; k < r->tab[r->acc].ncell; k++)
+        afm_rt_coef_drive(&r->tab[r->acc].prop[k], r->ntones, r->wd, cx_re, cx_im);
+    r->drive_stale[r->acc] = false;
+    r->drive_stale[!r->acc] = true;
     for (int j = 0; j < AFM_MAX_TONES; j++) { /* x_p'' = -wd^2 x_p */
         r->ax_re[j] = -r->wd[j] * r->wd[j] * cx_re[j];
         r->ax_im[j] = -r->wd[j] * r->wd[j] * cx_im[j];
@@ -249,6 +252,11 @@ static int rt_thermal(afm_sim *s, const afm_cfg_thermal *t, char *err, size_t er
 static void rt_set_scheme(afm_sim *s, bool accurate) {
     rt_state *r = s->be_state;
     if (r->acc == accurate) return;
+    if (r->drive_stale[accurate]) { /* bounded: one table set's drive rows */
+        for (int k = 0; k < r->tab[accurate].ncell; k++)
+            afm_rt_coef_drive(&r->tab[accurate].prop[k], r->ntones, r->wd, r->cx_re, r->cx_im);
+        r->drive_stale[accurate] = false;
+    }
     rt_tables_use(r, accurate);
     rt_snap *st = &r->buf[r->cur];
     st->slope_cells = 0;

@@ -106,6 +106,10 @@ typedef struct {
      * ax_j = -wd_j^2 cx_j (m/s^2; zero past ntones) */
     double aq[AFM_MAX_MODES], av[AFM_MAX_MODES], tip2;
     double ax_re[AFM_MAX_TONES], ax_im[AFM_MAX_TONES];
+    /* the tones' steady tip responses cx_j (m), for the drive rows of the tables not in
+     * force, which rt_changed leaves stale (drive_stale) until a hand-over needs them */
+    double cx_re[AFM_MAX_TONES], cx_im[AFM_MAX_TONES];
+    bool drive_stale[2];
 } rt_state;
 
 /* A redone piece takes the noise already drawn for its interval (issue 11): the increment
