@@ -15,7 +15,7 @@ CC      ?= cc
 DEB_PKGS := build-essential pkg-config liblcm-dev liblcm-bin libglib2.0-dev libsundials-dev \
             liblapacke-dev libconfig-dev libsystemd-dev libcjson-dev can-utils gnuplot-nox \
             libfftw3-dev systemd qemu-system-x86 busybox-static cpio clang libclang-rt-dev \
-            liblcm-java default-jdk-headless help2man debhelper dpkg-dev fakeroot
+            liblcm-java default-jdk-headless help2man debhelper dpkg-dev fakeroot gwyddion
 
 CSTD     := -std=c11 -D_POSIX_C_SOURCE=200809L
 WARN     := -Wall -Wextra -Werror -Wshadow -Wstrict-prototypes -Wmissing-prototypes

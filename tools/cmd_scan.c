@@ -3,21 +3,27 @@
  * controller (issue 18; afm_scan.h): a raster of lines, a PI loop on the lock-in amplitude
  * acting on Z, and per pixel the controller's height beside the true height, the amplitude
  * error, the phase (lag of the deflection behind the drive, 90 deg free at resonance), the
- * peak force and the energy dissipated per period. */
+ * peak force and the energy dissipated per period. With --gsf every image also goes to a
+ * Gwyddion Simple Field file, trace and retrace apart (issue 30; gsf_write.h). */
 #include "afmtwin_cmds.h"
 
 #include "config/afm_config.h"
 #include "forces/afm_surface.h"
 #include "runner/afm_scan.h"
 #include "runner/afm_twin.h"
+#include "gsf_write.h"
 #include "json_out.h"
 #include "opts.h"
 
 #include <cjson/cJSON.h>
+#include <errno.h>
 #include <math.h>
+#include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+
+typedef struct gsf_out gsf_out;
 
 typedef struct {
     const char *config;
@@ -25,13 +31,16 @@ typedef struct {
     afm_pi_cfg pc;
     int integrator; /* -1: the config's */
     bool json;
+    const char *gsf_prefix; /* --gsf */
+    gsf_out *gsf;           /* its files while the scan runs */
 } scan_opts;
 
 static void scan_usage(FILE *f) {
     fprintf(f, "usage: afmtwin scan --config FILE [--size-x M] [--size-y M] [--x0 M] [--y0 M]\n"
                "                    [--pixels N] [--lines N] [--line-rate HZ] [--engage S]\n"
                "                    [--setpoint R] [--kp K] [--ki HZ] [--z-rate M_S]\n"
-               "                    [--update N] [--integrator rt|reference] [--json]\n\n"
+               "                    [--update N] [--integrator rt|reference] [--json]\n"
+               "                    [--gsf PREFIX]\n\n"
                "Image the sample of the config's `sample` group offline, as an AM-AFM does: the\n"
                "tip rasters lines along x (trace, then retrace), the slow axis y moving one line\n"
                "pitch per line, while a PI loop on the lock-in amplitude (the config's lockin\n"
@@ -64,8 +73,17 @@ static void scan_usage(FILE *f) {
                "                   y_m, true_height_m, material, height_m, z_m, amplitude_m,\n"
                "                   error_m, phase_lag_deg, peak_force_n, dissipated_energy_j,\n"
                "                   periods, free_amplitude_m\n"
+               "  --gsf PREFIX     also write each image as a Gwyddion Simple Field file, as AFM\n"
+               "                   software opens it: PREFIX-NAME-trace.gsf and\n"
+               "                   PREFIX-NAME-retrace.gsf for NAME height, true-height, z,\n"
+               "                   amplitude, error (m), phase (lag, deg), peak-force (N),\n"
+               "                   dissipation (J per period) and material (region index); a\n"
+               "                   row per line, x0 and y0 its offsets, size-x wide and lines x\n"
+               "                   line pitch high (square pixels without a slow axis); NaN\n"
+               "                   where a pixel has no value\n"
                "  --help           this text\n\n"
-               "Exit status 0 ok, 1 simulation failure, 2 bad usage or bad input.\n");
+               "Exit status 0 ok, 1 simulation failure or a .gsf file not written, 2 bad usage\n"
+               "or bad input (a .gsf file that cannot be created).\n");
 }
 
 /* --integrator: rt or reference into an int (AFM_INTEGRATOR_*). */
@@ -95,6 +113,7 @@ static int parse_args(int argc, char **argv, scan_opts *o) {
     const afmt_opt opts[] = {
         AFMT_FLAG("--json", &o->json),
         AFMT_STRING("--config", &o->config),
+        AFMT_STRING("--gsf", &o->gsf_prefix),
         AFMT_DOUBLE_ABOVE("--size-x", &o->sc.size_x_m, 0, AFM_SCAN_SIZE_MAX_M, NULL),
         AFMT_DOUBLE("--size-y", &o->sc.size_y_m, 0, AFM_SCAN_SIZE_MAX_M, NULL),
         AFMT_DOUBLE("--x0", &o->sc.x0_m, -AFM_SCAN_ORIGIN_MAX_M, AFM_SCAN_ORIGIN_MAX_M, NULL),
@@ -120,8 +139,163 @@ static int parse_args(int argc, char **argv, scan_opts *o) {
     return 0;
 }
 
+/* --gsf: the images, one per channel and direction (gsf_write.h), in SI units. */
+static const struct {
+    const char *name, *title, *z_units; /* PREFIX-name-trace.gsf, ...-retrace.gsf */
+    size_t off;                         /* the value in afm_scan_pixel: a double, */
+    bool is_int;                        /* or an int (material) */
+} gsf_chan[] = {
+    {"height", "Height", "m", offsetof(afm_scan_pixel, height_m), false},
+    {"true-height", "True height", "m", offsetof(afm_scan_pixel, true_height_m), false},
+    {"z", "Z", "m", offsetof(afm_scan_pixel, z_m), false},
+    {"amplitude", "Amplitude", "m", offsetof(afm_scan_pixel, amplitude_m), false},
+    {"error", "Amplitude error", "m", offsetof(afm_scan_pixel, error_m), false},
+    {"phase", "Phase lag", "deg", offsetof(afm_scan_pixel, phase_lag_deg), false},
+    {"peak-force", "Peak force", "N", offsetof(afm_scan_pixel, peak_force_n), false},
+    {"dissipation", "Dissipated energy", "J", offsetof(afm_scan_pixel, dissipated_energy_j), false},
+    {"material", "Material", "", offsetof(afm_scan_pixel, material), true},
+};
+#define GSF_NCHAN ((int)(sizeof gsf_chan / sizeof gsf_chan[0]))
+static const char *const gsf_dir[2] = {"trace", "retrace"};
+
+struct gsf_out {
+    int pixels, lines;
+    FILE *f[GSF_NCHAN][2]; /* [channel][retrace] */
+    char *path[GSF_NCHAN][2];
+    float *row;      /* the line being scanned: [retrace][channel][pixel], NaN until imaged */
+    int line;        /* its index; the rows before it are written */
+    int write_errno; /* the first write error, 0 none */
+};
+
+static float *gsf_row(gsf_out *g, int retrace, int ch) {
+    return g->row + ((size_t)retrace * GSF_NCHAN + (size_t)ch) * (size_t)g->pixels;
+}
+
+/* Write the current line's rows to every file, then start the next line. */
+static void gsf_next_line(gsf_out *g) {
+    for (int d = 0; d < 2; d++)
+        for (int c = 0; c < GSF_NCHAN; c++) {
+            float *r = gsf_row(g, d, c);
+            if (!g->write_errno && afmt_gsf_write_values(g->f[c][d], r, (size_t)g->pixels))
+                g->write_errno = errno ? errno : EIO;
+            for (int i = 0; i < g->pixels; i++)
+                r[i] = NAN;
+        }
+    g->line++;
+}
+
+static void gsf_pixel(gsf_out *g, const afm_scan_pixel *p) {
+    if (p->line < g->line || p->line >= g->lines || p->pixel < 0 || p->pixel >= g->pixels) return;
+    while (g->line < p->line)
+        gsf_next_line(g);
+    for (int c = 0; c < GSF_NCHAN; c++) {
+        const char *v = (const char *)p + gsf_chan[c].off;
+        double x;
+        if (gsf_chan[c].is_int) {
+            int k;
+            memcpy(&k, v, sizeof k);
+            x = k;
+        } else
+            memcpy(&x, v, sizeof x);
+        gsf_row(g, p->retrace, c)[p->pixel] = (float)x;
+    }
+}
+
+/* Close every file; remove them all when `keep` is false. -1 when one did not close well. */
+static int gsf_close(gsf_out *g, bool keep) {
+    int rc = 0;
+    for (int c = 0; c < GSF_NCHAN; c++)
+        for (int d = 0; d < 2; d++) {
+            if (g->f[c][d] && fclose(g->f[c][d]) != 0) rc = -1;
+            if (!keep && g->path[c][d]) remove(g->path[c][d]);
+            free(g->path[c][d]);
+        }
+    free(g->row);
+    free(g);
+    return rc;
+}
+
+/* Create the files of --gsf and write their headers: the image is the scan's raster, x along
+ * the lines (pixel i spans x0 + [i, i+1) size_x / pixels), a row per line (line j spans y0 +
+ * [j, j+1) pitch while it is traced and retraced; the pitch is size_y / (lines - 1), or with
+ * no slow axis the pixel's width). NULL with a message. */
+static gsf_out *gsf_open(const char *prefix, const afm_scan_cfg *sc) {
+    gsf_out *g = calloc(1, sizeof *g);
+    size_t n = (size_t)sc->pixels * 2 * GSF_NCHAN;
+    if (!g || !(g->row = malloc(n * sizeof *g->row))) {
+        fprintf(stderr, "afmtwin scan: --gsf: out of memory\n");
+        free(g);
+        return NULL;
+    }
+    for (size_t i = 0; i < n; i++)
+        g->row[i] = NAN;
+    g->pixels = sc->pixels;
+    g->lines = sc->lines;
+    double dx = sc->size_x_m / sc->pixels;
+    double pitch = sc->lines > 1 && sc->size_y_m > 0 ? sc->size_y_m / (sc->lines - 1) : dx;
+    for (int c = 0; c < GSF_NCHAN; c++)
+        for (int d = 0; d < 2; d++) {
+            char title[64];
+            snprintf(title, sizeof title, "%s (%s)", gsf_chan[c].title, gsf_dir[d]);
+            afmt_gsf_header h = {.xres = sc->pixels,
+                                 .yres = sc->lines,
+                                 .xreal = sc->size_x_m,
+                                 .yreal = sc->lines * pitch,
+                                 .xoffset = sc->x0_m,
+                                 .yoffset = sc->y0_m,
+                                 .xy_units = "m",
+                                 .z_units = gsf_chan[c].z_units,
+                                 .title = title};
+            size_t len = strlen(prefix) + strlen(gsf_chan[c].name) + 16;
+            char *path = g->path[c][d] = malloc(len);
+            if (!path) {
+                fprintf(stderr, "afmtwin scan: --gsf: out of memory\n");
+                gsf_close(g, false);
+                return NULL;
+            }
+            snprintf(path, len, "%s-%s-%s.gsf", prefix, gsf_chan[c].name, gsf_dir[d]);
+            if (!(g->f[c][d] = fopen(path, "wb")) || afmt_gsf_write_header(g->f[c][d], &h)) {
+                fprintf(stderr, "afmtwin scan: cannot write %s: %s\n", path, strerror(errno));
+                if (!g->f[c][d]) {
+                    free(path);
+                    g->path[c][d] = NULL;
+                }
+                gsf_close(g, false);
+                return NULL;
+            }
+        }
+    return g;
+}
+
+/* The scan is over: the rows not yet written (NaN for lines it did not reach), then close.
+ * 0, or -1 with a message and no files left. */
+static int gsf_finish(gsf_out *g) {
+    while (g->line < g->lines)
+        gsf_next_line(g);
+    int e = g->write_errno;
+    const char *bad = g->path[0][0];
+    for (int c = 0; c < GSF_NCHAN && !e; c++)
+        for (int d = 0; d < 2 && !e; d++)
+            if (fflush(g->f[c][d]) != 0 || ferror(g->f[c][d])) {
+                e = errno ? errno : EIO;
+                bad = g->path[c][d];
+            }
+    if (e) {
+        fprintf(stderr, "afmtwin scan: cannot write %s: %s (no .gsf file kept)\n", bad,
+                strerror(e));
+        gsf_close(g, false);
+        return -1;
+    }
+    if (gsf_close(g, true)) {
+        fprintf(stderr, "afmtwin scan: cannot close the .gsf files of %s\n", bad);
+        return -1;
+    }
+    return 0;
+}
+
 static void print_pixel(void *ctx, const afm_scan_pixel *p) {
     const scan_opts *o = ctx;
+    if (o->gsf) gsf_pixel(o->gsf, p);
     if (o->json) {
         cJSON *j = cJSON_CreateObject();
         cJSON_AddNumberToObject(j, "line", p->line);
@@ -189,9 +363,20 @@ int afm_cmd_scan(int argc, char **argv) {
                o.config, afm_sim_integrator_name(sim), afm_sim_scheme_name(sim), o.sc.pixels,
                o.sc.lines, o.sc.size_x_m * 1e9, o.sc.size_y_m * 1e9, o.sc.line_rate_hz,
                o.pc.setpoint_ratio, o.pc.ki_hz, o.pc.kp);
+    if (o.gsf_prefix && !(o.gsf = gsf_open(o.gsf_prefix, &o.sc))) {
+        afm_sim_destroy(&sim);
+        afm_surface_destroy(&surf);
+        return 2;
+    }
     rc = afm_scan_run(sim, &cfg, &m, surf, &o.sc, &o.pc, print_pixel, &o, err, sizeof err);
     if (rc) fprintf(stderr, "afmtwin %s\n", err);
     afm_sim_destroy(&sim);
     afm_surface_destroy(&surf);
+    if (o.gsf) {
+        if (rc)
+            gsf_close(o.gsf, false);
+        else if (gsf_finish(o.gsf))
+            return 1;
+    }
     return rc ? (strstr(err, "simulation failed") ? 1 : 2) : 0;
 }
