@@ -20,7 +20,7 @@
 
 #define RT_GRID 8                  /* table cells per contact substep: crossing resolution */
 #define RT_DEFAULT_SUBSTEPS 4      /* substeps per sample in contact (measured, numerics.md) */
-#define RT_ACC_DEFAULT_SUBSTEPS 16 /* the accurate scheme's (docs/numerics.md, issue 28) */
+#define RT_ACC_DEFAULT_SUBSTEPS 32 /* the accurate scheme's (docs/numerics.md, issue 28) */
 /* The accurate scheme redoes a sample in substeps when its path comes within this many
  * travels ((|v0| + |v1|) dt) of the contact line (docs/numerics.md: 0 leaves 0.013 deg and
  * 1.3e-4 of amplitude on probe-q300, 0.5 and more 0.001 deg and 2e-5) */
