@@ -21,17 +21,19 @@
  * relative, peak force 2e-3 relative (where CVODE's exceeds 1 nN), energy per period within
  * 0.05 eV, the regime jumps between the same two steps; and, for the cases flagged "must
  * settle", a settled orbit at every step CVODE settled. The fast scheme is pinned at today's
- * level only, loosely (phase 0.6 deg, amplitude 5e-3): it is ~0.1-0.45 deg off, so its figures
- * in place of the accurate ones fail the accurate bounds, which shows the bounds bite.
- * AFMTWIN_VALIDATE=full: 0.5 nm steps on the two Q 300 curves and 15 MHz too.
+ * level only, loosely (phase 2 deg, amplitude 5e-3): it is ~0.1-0.5 deg off (1.46 deg at 15 MHz, 50
+ * samples per period, in the full grid), so its figures in place of the accurate ones fail the
+ * accurate bounds, which shows the bounds bite. AFMTWIN_VALIDATE=full: 0.5 nm steps on the two Q
+ * 300 curves and 15 MHz too.
  *
- * Measured at bf22dd0 (accurate; worst over the curve): phase 0.0001-0.002 deg, amplitude
- * <= 4e-6, peak force <= 1.5e-4, energy <= 0.034 eV (NCHV), jumps the same, every Q 300 step
- * settled -- except 12 MHz: 0.0224 deg, amplitude 2.3e-5 (40 samples per period put the
- * contact on the same sample phase every period, so the 16 contact substeps' error does not
- * average out; 64 substeps give 0.0003 deg). Of the steps CVODE settles, rt leaves 5 of 5
- * unsettled on NCHV and 2 of 5 on the 1-DOF model (not asserted there). Fast: 0.02-0.52 deg,
- * amplitude <= 2.3e-3; at 15 MHz (50 per period, full only) 1.46 deg. */
+ * Measured with 32 contact substeps (the accurate scheme's default; worst over the curve):
+ * phase 0.0001-0.003 deg (12 MHz, 40 samples per period: 0.0030; with 16 substeps it was
+ * 0.0224, over the bound, because a whole multiple of fe puts the contact on the same cell of
+ * the crossing grid every period and its rounding does not average out), amplitude <= 2.3e-5,
+ * peak force <= 1.5e-4, energy <= 0.034 eV (NCHV), jumps the same, every Q 300 step settled.
+ * Of the steps CVODE settles, rt leaves NCHV's and some of the 1-DOF model's unsettled at
+ * 1e-6 (not asserted there). Fast: 0.02-0.52 deg, amplitude <= 2.3e-3; at 15 MHz (50 per
+ * period, full only) 1.46 deg. */
 #include "check.h"
 
 #include <cjson/cJSON.h>
@@ -198,7 +200,7 @@ static void assert_accurate(const steady_case *k, const figures *f) {
 static void assert_fast(const steady_case *k, const figures *f) {
     char what[256];
     snprintf(what, sizeof what, "%s, fast (today's level): max |phase lag - CVODE| (deg)", k->name);
-    check_abs(f->phase_deg, 0.0, 0.6, what);
+    check_abs(f->phase_deg, 0.0, 2.0, what);
     snprintf(what, sizeof what, "%s, fast (today's level): max |amplitude / CVODE - 1|", k->name);
     check_abs(f->amp_rel, 0.0, 5e-3, what);
 }
