@@ -21,6 +21,8 @@ static const command commands[] = {
     {"continue", afm_cmd_continue,
      "continuation of periodic orbits: branches, stability, LPC / PD / NS, period doubling"},
     {"approach", afm_cmd_approach, "approach / retract curve in Z: amplitude, phase, forces"},
+    {"force-curve", afm_cmd_force_curve,
+     "quasi-static force-distance curve: snap-in, adhesion, pull-off, contact slope"},
     {"plot", afm_cmd_plot,
      "pictures (gnuplot PNG): sweep, approach, thermal, trace, spectrum, scan, continue"},
     {"curve", afm_cmd_curve, "approach-style curve from a log of the daemon outputs"},

@@ -8,6 +8,7 @@
 int afm_cmd_modes(int argc, char **argv);
 int afm_cmd_sweep(int argc, char **argv);
 int afm_cmd_approach(int argc, char **argv);
+int afm_cmd_force_curve(int argc, char **argv);
 int afm_cmd_plot(int argc, char **argv);
 int afm_cmd_curve(int argc, char **argv);
 int afm_cmd_scan(int argc, char **argv);
