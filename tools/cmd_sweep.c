@@ -278,9 +278,14 @@ static void add_estimators_json(cJSON *o, const estimators *e) {
     cJSON_AddNumberToObject(c, "mean_deflection_m", m->mean_deflection_m);
 }
 
+/* What made the records: the integrator and its scheme (set once the twin exists). */
+static const char *json_integrator = "-", *json_scheme = "-";
+
 static cJSON *orbit_json(const afm_orbit *ob, const afm_orbit_settler *st, bool settled) {
     cJSON *o = cJSON_CreateObject();
     cJSON_AddNumberToObject(o, "fe_hz", ob->fe_hz);
+    cJSON_AddStringToObject(o, "integrator", json_integrator);
+    cJSON_AddStringToObject(o, "scheme", json_scheme);
     cJSON_AddNumberToObject(o, "periodicity", settled ? st->p : 0);
     cJSON_AddNumberToObject(o, "settle_periods", st->periods);
     cJSON_AddBoolToObject(o, "settled", settled);
@@ -450,6 +455,8 @@ int afm_cmd_sweep(int argc, char **argv) {
         fprintf(stderr, "afmtwin sweep: %s\n", err);
         return 1;
     }
+    json_integrator = afm_sim_integrator_name(sim);
+    json_scheme = afm_sim_scheme_name(sim);
     afm_sweep sw;
     if (afm_sweep_init(&sw, fs, f_lo, o.tol, o.max_periods, o.ks, o.nk, err, sizeof err) != 0) {
         fprintf(stderr, "afmtwin sweep: %s\n", err);
