@@ -177,8 +177,12 @@ static void report(const steady_case *k, const char *scheme, const curve *ref, c
 
 static void assert_accurate(const steady_case *k, const figures *f) {
     char what[256];
-    snprintf(what, sizeof what, "%s, accurate: max |phase lag - CVODE| (deg)", k->name);
-    check_abs(f->phase_deg, 0.0, 0.02, what);
+    /* issue 11's bound is 0.02 deg; asserted at 0.008, 2.6x the worst measured (0.0031 at
+     * 12 MHz), so that a regression inside the issue's bound still fails: without the split
+     * at the crossing (a crossing substep one linear piece) 12 MHz reads 0.0136 */
+    snprintf(what, sizeof what, "%s, accurate: max |phase lag - CVODE| (deg, issue 11: 0.02)",
+             k->name);
+    check_abs(f->phase_deg, 0.0, 0.008, what);
     snprintf(what, sizeof what, "%s, accurate: max |amplitude / CVODE - 1|", k->name);
     check_abs(f->amp_rel, 0.0, 1e-4, what);
     if (f->n_peak > 0) {

@@ -211,6 +211,24 @@ static AFM_CLONES_NOINLINE rt_snap *rt_contact_acc(const afm_sim *s, const rt_st
     return a;
 }
 
+/* A sample near the contact line in RT_ACC_NEAR_PIECES Hermite pieces from a into b; false (b
+ * undefined) when a piece's path crosses the contact line. */
+static inline __attribute__((always_inline)) bool rt_near_acc(const afm_sim *s, const rt_state *r,
+                                                              const rt_snap *a, rt_snap *b,
+                                                              const int np, const int nt) {
+    const int k = r->ncell / RT_ACC_NEAR_PIECES;
+    const double tau = s->dt_s / RT_ACC_NEAR_PIECES;
+    rt_snap t[2];
+    const rt_snap *in = a;
+    for (int p = 0; p < RT_ACC_NEAR_PIECES; p++) {
+        rt_snap *o = p == RT_ACC_NEAR_PIECES - 1 ? b : &t[p & 1];
+        rt_piece_acc_t(s, r, in, o, k, true, np, nt, false);
+        if (in->tip.x_m < r->xc || rt_crossing_cell(r, in, o, tau, false) >= 0) return false;
+        in = o;
+    }
+    return true;
+}
+
 /* n output steps of the accurate scheme (afm_sim_backend.run when r->acc). */
 static inline __attribute__((always_inline)) int rt_run_acc_t(afm_sim *s, rt_state *r, int n,
                                                               afm_sample *out, const int np,
@@ -240,6 +258,10 @@ static inline __attribute__((always_inline)) int rt_run_acc_t(afm_sim *s, rt_sta
                 contact = low < r->xc + RT_ACC_NEAR_TRAVELS * sp * dt;
             }
         }
+        if (contact && !at_once && !noise && rt_crossing_cell(r, a, b, dt, false) < 0)
+            /* near the contact line without crossing it: a few whole Hermite pieces follow
+             * the van der Waals pulse; the substeps only if one of them crosses */
+            contact = !rt_near_acc(s, r, a, b, np, nt);
         if (contact) b = rt_contact_acc(s, r, a, b, noise && !at_once);
         a = b;
         step++;
