@@ -359,15 +359,9 @@ static void print_status(const listen_ctx *c, const char *channel, const afmtwin
     if (lr[0])
         printf(" (last rejected %.1f s ago%s: %s)", m->last_reject_age_s,
                m->last_reject_old ? ", old: later commands applied" : "", lr);
+    if (m->rt_scheme && m->rt_scheme[0]) /* one line per message: the reason is in --json */
+        printf(" | rt scheme %s, %lld handovers", m->rt_scheme, (long long)m->scheme_handovers);
     printf("\n");
-    if (m->rt_scheme && m->rt_scheme[0]) {
-        char sr[SHOW_LEN];
-        show(sr, m->rt_scheme_reason);
-        printf("          rt scheme %s (%s), %lld handovers, model time accurate %.4g s, fast "
-               "%.4g s\n",
-               m->rt_scheme, sr, (long long)m->scheme_handovers, m->model_s_accurate,
-               m->model_s_fast);
-    }
     if (m->auto_paused) printf("          %s\n", pr);
     if (cs[0] && strcmp(cs, "off") != 0)
         printf("          CAN %s, heartbeat %s, frames %lld rejected %lld errors %lld reconnects "
