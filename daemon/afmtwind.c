@@ -4,6 +4,7 @@
  * shutdown in reverse order. */
 #include "twind.h"
 
+#include "runner/afm_a0.h"
 #include "transport/afm_lcm_url.h"
 
 #include <errno.h>
@@ -373,9 +374,29 @@ static void stop_threads(twind *d, twind_threads *t) {
         afm_runner_model_destroy(&it.model);
 }
 
+/* A0, the free amplitude (runner/afm_a0.h), of cfg on the scheme the rt thread starts with:
+ * what the lock-in reads at Z = 1 um (the status type has no A/A0: clients divide by this).
+ * Computed before real time starts (a short simulation); NAN with err on failure. */
+static afm_a0 started_a0(const twind *d, const afm_config *cfg, char *err, size_t errlen) {
+    afm_config *c = malloc(sizeof *c);
+    afm_a0 a0 = {.amplitude_m = NAN, .lag_deg = NAN};
+    if (!c) {
+        snprintf(err, errlen, "out of memory");
+        return a0;
+    }
+    *c = *cfg;
+    if (d->scheme.rt)
+        c->sim.rt_scheme = d->scheme.accurate ? AFM_RT_SCHEME_ACCURATE : AFM_RT_SCHEME_FAST;
+    if (afm_a0_compute(c, &a0, err, errlen)) a0.amplitude_m = a0.lag_deg = NAN;
+    free(c);
+    return a0;
+}
+
 /* The start-up line: config, mode, integrator, sample rate (MHz), block (samples, us), the
- * chain's ring, channels and the three LCM URLs (commands, outputs, samples). */
-static void print_started(const twind *d, double fs_hz, long long block, long long ring) {
+ * chain's ring, channels and the three LCM URLs (commands, outputs, samples); then the
+ * scheme, and A0. */
+static void print_started(const twind *d, double fs_hz, long long block, long long ring,
+                          const afm_a0 *a0, const char *a0_err) {
     char cmd_u[AFM_LCM_URL_LEN], out_u[AFM_LCM_URL_LEN], smp_u[AFM_LCM_URL_LEN], err[AFM_ERR_LEN];
     if (afm_lcm_urls(d->opt.lcm_url, d->opt.lcm_out_url, cmd_u, out_u, sizeof cmd_u, err,
                      sizeof err) || /* cannot fail here: the transport resolved them already */
@@ -392,6 +413,15 @@ static void print_started(const twind *d, double fs_hz, long long block, long lo
     fprintf(stderr, "afmtwind: rt scheme %s (--scheme %s): %s\n",
             afm_sim_scheme_name(afm_runner_sim(d->runner)), twind_scheme_opt_name(d->opt.scheme),
             d->scheme.reason);
+    if (isfinite(a0->amplitude_m))
+        fprintf(stderr,
+                "afmtwind: free amplitude A0 %.6f nm, lag %.4f deg (harmonic 1 at Z %.0f nm, "
+                "gap-dependent tip forces off, squeeze film on, scheme %s): the status's "
+                "lock-in amplitude / A0 is A/A0\n",
+                a0->amplitude_m * 1e9, a0->lag_deg, a0->z_m * 1e9,
+                afm_sim_scheme_name(afm_runner_sim(d->runner)));
+    else
+        fprintf(stderr, "afmtwind: warning: free amplitude A0 not computed: %s\n", a0_err);
 }
 
 /* What the once-a-second report remembers from the last one. */
@@ -523,6 +553,8 @@ int main(int argc, char **argv) {
         fprintf(stderr, "afmtwind: %s: measuring the schemes: %s\n", d.opt.config_path, err);
         return 1;
     }
+    char a0_err[AFM_ERR_LEN] = "";
+    const afm_a0 a0 = started_a0(&d, &cfg, a0_err, sizeof a0_err);
     long long block, ring;
     if (start_runner(&d, &cfg, &block, &ring, err, sizeof err)) {
         fprintf(stderr, "afmtwind: %s: %s\n", d.opt.config_path, err);
@@ -539,7 +571,7 @@ int main(int argc, char **argv) {
         fprintf(stderr, "afmtwind: cannot start threads\n");
         exit(1); /* threads may be running: no orderly way back */
     }
-    print_started(&d, cfg.sim.sample_rate_hz, block, ring);
+    print_started(&d, cfg.sim.sample_rate_hz, block, ring, &a0, a0_err);
     twind_notify_ready();
 
     twind_watch w = {.last_beat = -1};

@@ -3,12 +3,18 @@
  * write one: a PI loop that holds the tapping amplitude at a set-point by moving Z.
  *
  * It reads the lock-in amplitude of each published drive period (HARMONICS, on the output
- * URL), measures the free amplitude at the start Z first, then commands Z (SETPOINT, on the
- * command URL) after every period so that the amplitude is ratio x free:
+ * URL), measures the free amplitude A0 first, then commands Z (SETPOINT, on the command URL)
+ * after every period so that the amplitude is ratio x A0:
  *     e = A - A_set,   Z = Zi - kp e,   dZi/dt = -ki e   (t: model time of the periods)
  * A above the set-point moves the tip towards the sample (Z down). It exits 0 once the mean
  * amplitude over the last --hold seconds of model time is within --tol of the set-point, 1
  * if it is not locked within --seconds of model time, 2 on bad usage or LCM failure.
+ *
+ * A0 is afmtwin's one free amplitude (README, "Free amplitude"): harmonic 1 of the deflection
+ * far from the sample, at the drive in force. The client measures it as the daemon's
+ * lock-in amplitude at Z = 1 um (no tip force reaches that far; the squeeze film of the beam
+ * stays as it is there), which afmtwind prints as A0 on start-up; then it returns to the
+ * start Z. (At the start Z the lever may already tap: its amplitude there is not A0.)
  *
  * Built only from installed files: cc hil_pi.c $(pkg-config --cflags --libs afmtwin). */
 #include "afmtwin_harmonics_t.h"
@@ -23,9 +29,10 @@
 #include <string.h>
 #include <sys/time.h>
 
-#define FREE_SKIP 20    /* records skipped first (the ring-up from rest) */
-#define FREE_PERIODS 50 /* records averaged for the free amplitude after them */
-#define SEQ0 5000000    /* our setpoint commands: seq 5e6, 5e6 + 1, ... */
+#define A0_Z_M 1e-6      /* where A0 is measured: Z far from the sample */
+#define A0_SETTLE_S 0.02 /* model time the lever rings in there first (~50 time constants) */
+#define A0_PERIODS 50    /* records averaged for A0 after that */
+#define SEQ0 5000000     /* our setpoint commands: seq 5e6 (to A0_Z_M), 5e6 + 1, ... */
 
 typedef struct {
     double ratio, kp, ki, seconds, hold_s, tol;
@@ -33,8 +40,9 @@ typedef struct {
     char ch_setpoint[128];
     int64_t seq;
     /* state */
-    int n_free;
-    double a_free_sum, a_free, a_set, z0, zi, z, t_start, t_last;
+    int n_free, n_a0; /* records heard while measuring A0, and averaged */
+    double t_far;     /* model time of the first record at A0_Z_M (NAN before) */
+    double a0_sum, a0, a_set, z0, zi, z, t_start, t_last;
     int have_z0;
     double hold_sum, hold_t0;
     long hold_n, records;
@@ -61,6 +69,7 @@ static void on_status(const lcm_recv_buf_t *rb, const char *ch, const afmtwin_st
     if (!c->have_z0) {
         c->z0 = c->zi = c->z = m->separation_m;
         c->have_z0 = 1;
+        send_z(c, A0_Z_M); /* seq SEQ0: retract to measure A0 */
     }
 }
 
@@ -71,14 +80,20 @@ static void on_harmonics(const lcm_recv_buf_t *rb, const char *ch, const afmtwin
     pi_ctx *c = user;
     double a = m->lockin_amplitude_m;
     if (!c->have_z0 || c->done || !isfinite(a)) return;
-    if (c->n_free < FREE_SKIP + FREE_PERIODS) { /* the free amplitude, before any command */
-        if (c->n_free >= FREE_SKIP) c->a_free_sum += a;
-        if (++c->n_free == FREE_SKIP + FREE_PERIODS) {
-            c->a_free = c->a_free_sum / FREE_PERIODS;
-            c->a_set = c->ratio * c->a_free;
+    if (c->n_a0 < A0_PERIODS) { /* A0 first, at Z = A0_Z_M, before any PI command */
+        c->n_free++;
+        if (m->seq_applied < SEQ0) return; /* the retract is not applied yet */
+        if (isnan(c->t_far)) c->t_far = m->t_s;
+        if (m->t_s - c->t_far < A0_SETTLE_S) return;
+        c->a0_sum += a;
+        if (++c->n_a0 == A0_PERIODS) {
+            c->a0 = c->a0_sum / A0_PERIODS;
+            c->a_set = c->ratio * c->a0;
+            send_z(c, c->z0); /* back to the start Z: the PI starts there */
             c->t_start = c->t_last = m->t_s;
-            printf("free amplitude %.4f nm at Z %.3f nm; set-point %.4f nm (%.2f x free)\n",
-                   c->a_free * 1e9, c->z0 * 1e9, c->a_set * 1e9, c->ratio);
+            printf("A0 %.4f nm (free amplitude: lock-in at Z %.0f nm); set-point %.4f nm "
+                   "(A/A0 %.4f); PI from Z %.3f nm\n",
+                   c->a0 * 1e9, A0_Z_M * 1e9, c->a_set * 1e9, c->ratio, c->z0 * 1e9);
         }
         return;
     }
@@ -99,16 +114,17 @@ static void on_harmonics(const lcm_recv_buf_t *rb, const char *ch, const afmtwin
     c->hold_n++;
     if (m->t_s - c->hold_t0 >= c->hold_s) {
         double mean = c->hold_sum / c->hold_n, rel = (mean - c->a_set) / c->a_set;
-        printf("t %.3f s: amplitude %.4f nm (mean of %ld periods), set-point %.4f nm, error "
-               "%+.3f %%, Z %.3f nm\n",
-               t, mean * 1e9, c->hold_n, c->a_set * 1e9, 100 * rel, c->z * 1e9);
+        printf("t %.3f s: amplitude %.4f nm, A/A0 %.4f (mean of %ld periods), set-point %.4f "
+               "nm, error %+.3f %%, Z %.3f nm\n",
+               t, mean * 1e9, mean / c->a0, c->hold_n, c->a_set * 1e9, 100 * rel, c->z * 1e9);
         c->hold_n = 0;
         c->hold_sum = 0;
         if (fabs(rel) <= c->tol) {
             c->locked = c->done = 1;
-            printf("locked: amplitude %.4f nm, set-point %.4f nm, error %+.3f %% (tolerance "
-                   "%.2f %%), Z %.3f nm, after %.3f s of model time\n",
-                   mean * 1e9, c->a_set * 1e9, 100 * rel, 100 * c->tol, c->z * 1e9, t);
+            printf("locked: amplitude %.4f nm, A/A0 %.4f, set-point %.4f nm, error %+.3f %% "
+                   "(tolerance %.2f %%), Z %.3f nm, after %.3f s of model time\n",
+                   mean * 1e9, mean / c->a0, c->a_set * 1e9, 100 * rel, 100 * c->tol, c->z * 1e9,
+                   t);
         }
     }
     if (t >= c->seconds) c->done = 1;
@@ -118,15 +134,18 @@ static void usage(FILE *f) {
     fprintf(f, "usage: hil_pi [--lcm-url URL] [--lcm-out-url URL] [--prefix NAME_]\n"
                "              [--ratio R] [--kp KP] [--ki KI_PER_S] [--seconds S] [--hold S]\n"
                "              [--tol FRACTION] [--timeout S]\n"
-               "Holds afmtwind's tapping amplitude at R x the free amplitude (default 0.8) with a\n"
-               "PI loop on Z (defaults kp 0.2, ki 200 /s; --seconds 2 and --hold 0.1 s of model\n"
+               "Holds afmtwind's tapping amplitude at A/A0 = R (default 0.8) with a PI loop on\n"
+               "Z; A0, the free amplitude, is measured first as the lock-in amplitude at Z 1 um\n"
+               "(what afmtwind prints as A0 at start-up), then Z returns to where it was\n"
+               "(defaults kp 0.2, ki 200 /s; --seconds 2 and --hold 0.1 s of model\n"
                "time, --tol 0.01). URLs default to " AFMTWIN_DEFAULT_URL " (commands)\n"
                "and " AFMTWIN_DEFAULT_OUT_URL " (outputs). Exit 0 locked, 1 not locked\n"
                "(or nothing heard within --timeout wall seconds, default 10), 2 usage/LCM.\n");
 }
 
 int main(int argc, char **argv) {
-    pi_ctx c = {.ratio = 0.8, .kp = 0.2, .ki = 200, .seconds = 2, .hold_s = 0.1, .tol = 0.01};
+    pi_ctx c = {
+        .ratio = 0.8, .kp = 0.2, .ki = 200, .seconds = 2, .hold_s = 0.1, .tol = 0.01, .t_far = NAN};
     const char *url = AFMTWIN_DEFAULT_URL, *out_url = AFMTWIN_DEFAULT_OUT_URL;
     const char *prefix = AFMTWIN_DEFAULT_PREFIX;
     double timeout_s = 10;

@@ -95,7 +95,14 @@ static void far_field(const char *integrator) {
     check_rel(num(lk, "amplitude_m"), amp, 1e-4, what);
     snprintf(what, sizeof what, "%s, Z 1 mm: lock-in phase lag vs -arg G(we) (deg)", integrator);
     check_abs(num(lk, "phase_lag_deg"), lag, 0.01, what);
-    check_rel(num(r[0], "free_amplitude_m"), amp, 1e-12, "free_amplitude_m is Ae |G(we)|");
+    /* A0 (runner/afm_a0.h): this config has no squeeze film, so A0 is Ae |G(we)| to the
+     * integrator's accuracy, and it is what the same integrator settles to far away */
+    snprintf(what, sizeof what, "%s: free_amplitude_m (A0) is Ae |G(we)| (no squeeze film)",
+             integrator);
+    check_rel(num(r[0], "free_amplitude_m"), amp, 1e-5, what);
+    snprintf(what, sizeof what, "%s: free_amplitude_m (A0) is the DFT amplitude at Z 1 mm",
+             integrator);
+    check_rel(num(r[0], "free_amplitude_m"), num(r[0], "amplitude_m"), 1e-4, what);
     free_all(r, n);
 }
 
@@ -131,7 +138,7 @@ static void gradient_shift(void) {
     check_rel(got, lag1 - lag0, 0.01,
               "attractive, small amplitude: phase shift vs the force "
               "gradient's linear response (deg)");
-    check_abs(num(r[0], "free_phase_lag_deg"), lag0, 1e-9, "lumped free lag = 90 at resonance");
+    check_abs(num(r[0], "free_phase_lag_deg"), lag0, 1e-4, "lumped free lag = 90 at resonance");
     free_all(r, n);
 }
 

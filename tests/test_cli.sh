@@ -78,5 +78,72 @@ opt_bad "thermal --modes 1.5" "--modes wants" thermal --modes 1.5
 opt_bad "modes unknown option" "unknown or incomplete option '--frobnicate' (see --help)" modes --frobnicate
 opt_bad "listen missing value" "unknown or incomplete option '--timeout'" listen --timeout
 expect_rc 0 "flood --help" "$A" flood --help
+
+# SI suffixes on lengths and frequencies (tools/opts.c, afmt_parse_si): the same message as
+# the plain SI number (send --log writes it byte for byte), the value echoed in SI on stderr
+# only when a suffix was given, a suffix of the other unit or an unknown one refused (exit 2)
+T=$(mktemp -d /tmp/afmtwin-cli.XXXXXX)
+trap 'rm -rf "$T"' EXIT
+send_log() { # FILE ARGS...: one message into the log FILE, fixed seq and times
+  local f=$1; shift
+  "$A" send "$@" --config config/default.conf --seq 1 --utime 1 --log-time 0 --log "$f" --quiet
+}
+send_log "$T/z_si.log" setpoint --z 30nm 2>"$T/z_si.err" && send_log "$T/z.log" setpoint --z 30e-9 2>"$T/z.err" &&
+  cmp -s "$T/z_si.log" "$T/z.log" && ok "send setpoint --z 30nm: the message of --z 30e-9" ||
+  bad "send setpoint --z 30nm differs from --z 30e-9: $(cat "$T/z_si.err")"
+grep -qx "afmtwin send setpoint: --z 30nm = 3e-08 m" "$T/z_si.err" && ok "--z 30nm echoed: $(cat "$T/z_si.err")" ||
+  bad "--z 30nm echo: '$(cat "$T/z_si.err")'"
+[ ! -s "$T/z.err" ] && ok "--z 30e-9 (no suffix): no echo" || bad "--z 30e-9 echoed: $(cat "$T/z.err")"
+send_log "$T/d_si.log" dither --freq 338kHz --amp 0.087nm 2>"$T/d_si.err" &&
+  send_log "$T/d.log" dither --freq 338000 --amp 0.087e-9 2>/dev/null &&
+  cmp -s "$T/d_si.log" "$T/d.log" && ok "send dither --freq 338kHz --amp 0.087nm: the message of 338000, 0.087e-9" ||
+  bad "send dither --freq 338kHz differs: $(cat "$T/d_si.err")"
+grep -q -- "--freq 338kHz = 338000 Hz" "$T/d_si.err" && ok "--freq 338kHz echoed as 338000 Hz" ||
+  bad "--freq 338kHz echo: '$(cat "$T/d_si.err")'"
+send_log "$T/um.log" setpoint --z 1e-6 2>/dev/null
+for v in 1um 1µm 1e-6m "1 um" 1000nm 0.001mm 1000000pm; do
+  rm -f "$T/v.log"; send_log "$T/v.log" setpoint --z "$v" 2>/dev/null && cmp -s "$T/v.log" "$T/um.log" &&
+    ok "send setpoint --z '$v' = 1e-6 m" || bad "send setpoint --z '$v' is not 1e-6 m"
+done
+send_log "$T/mhz.log" dither --freq 1.5MHz,5kHz --amp 5pm,1fm --no-check 2>/dev/null &&
+  send_log "$T/hz.log" dither --freq 1500000,5000 --amp 5e-12,1e-15 --no-check 2>/dev/null &&
+  cmp -s "$T/mhz.log" "$T/hz.log" && ok "send dither --freq 1.5MHz,5kHz --amp 5pm,1fm: in SI" ||
+  bad "send dither --freq 1.5MHz,5kHz --amp 5pm,1fm differs from SI"
+"$A" approach --from 11nm --help 2>&1 >/dev/null | grep -q . && bad "approach --help echoed a value" ||
+  ok "no echo with --help"
+out=$("$A" sweep --config $C --from 338.112kHz --to 338.112kHz --z 1um --ae 0.087nm --json 2>"$T/sw.err")
+echo "$out" | grep -q '"fe_hz":338112[,}]' && ok "sweep --from 338.112kHz runs at fe 338112 Hz" ||
+  bad "sweep --from 338.112kHz: $(echo "$out" | head -c 200) $(cat "$T/sw.err")"
+for e in "--from 338.112kHz = 338112 Hz" "--z 1um = 1e-06 m" "--ae 0.087nm = 8.7e-11 m"; do
+  grep -q -- "afmtwin sweep: $e\$" "$T/sw.err" && ok "sweep echoes '$e'" || bad "sweep lacks '$e': $(cat "$T/sw.err")"
+done
+opt_bad "sweep --z 30kHz (a frequency for a length)" "--z wants a length in m (or with a suffix: mm, um, µm, nm, pm, fm), got '30kHz': not a unit of length" \
+  sweep --config $C --from 3e5 --to 3e5 --z 30kHz
+opt_bad "approach --fe 11nm (a length for a frequency)" "--fe wants a frequency in Hz (or with a suffix: kHz, MHz, GHz), got '11nm'" \
+  approach --config $C --from 20nm --to 10nm --fe 11nm
+opt_bad "send setpoint --z 30kHz" "--z wants a length in m" send setpoint --z 30kHz --config config/default.conf --check
+opt_bad "sweep --z 30xnm (garbage suffix)" "--z wants a number (m, or with a suffix: mm, um, µm, nm, pm, fm), got '30xnm'" \
+  sweep --config $C --from 3e5 --to 3e5 --z 30xnm
+opt_bad "scan --size-x 4 furlongs" "--size-x wants a number (m" scan --config config/scan-grating.conf --size-x 4furlong
+opt_bad "send dither --freq 338kHz,5q" "--freq wants 1..4 comma-separated numbers" \
+  send dither --freq 338kHz,5q --amp 1nm --config config/default.conf --check
+opt_bad "force-curve --from 2mm out of range, the SI value told" "--from wants a Z in 0..1e-3 m, got '2mm' (= 0.002 m)" \
+  force-curve --config $C --from 2mm --to 1nm
+msg=$("$A" sweep --config $C --from 3e5 --to 3e5 --z 30kHz 2>&1 >/dev/null)
+echo "$msg" | grep -q " = " && bad "a refused value was echoed: $msg" || ok "a refused command line echoes nothing"
+
+# progress: a line on stderr ("\r...") when it is a terminal (script(1) gives a pty), none
+# when it is not; the progress waits 1 s, so the run takes about 2 s
+SCAN="$A scan --config config/scan-grating.conf --pixels 8 --line-rate 100 --engage 0.002 --lines 16 --size-y 100nm"
+if command -v script >/dev/null 2>&1; then
+  script -qc "$SCAN >/dev/null" /dev/null >"$T/tty.txt" 2>&1
+  tr '\r' '\n' <"$T/tty.txt" | grep -aq "^scan: line [0-9]*/16 " && ok "scan: progress on a terminal" ||
+    bad "scan: no progress on a terminal: $(od -c "$T/tty.txt" | head -5)"
+else
+  ok "scan progress on a terminal: skipped (no script(1))"
+fi
+$SCAN >/dev/null 2>"$T/notty.txt"
+grep -q $'\r' "$T/notty.txt" && bad "scan: progress without a terminal: $(od -c "$T/notty.txt" | head -3)" ||
+  ok "scan: no progress without a terminal"
 echo "$pass passed, $fail failed"
 [ "$fail" -eq 0 ]

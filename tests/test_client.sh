@@ -3,8 +3,9 @@
 # into a scratch DESTDIR (PREFIX=/usr), the headers, libraries, afmtwin.pc, .lcm files and
 # the Java jar there; examples/hil_pi built from the staged tree through pkg-config only
 # (PKG_CONFIG_SYSROOT_DIR), linked to the staged shared library; then, inside a private
-# network namespace, run against afmtwind, where it must lock the tapping amplitude to 0.8
-# x the free amplitude within 1 %. Prints "N passed, N failed".
+# network namespace, run against afmtwind, where it must lock the tapping amplitude to
+# A/A0 = 0.8 within 1 %, A0 (the free amplitude, issue 30) measured at Z = 1 um equal to the
+# one the daemon prints on start-up within 1e-4. Prints "N passed, N failed".
 BUILD=${1:-build}
 cd "$(dirname "$0")/.." || exit 1
 . tests/lib_daemon.sh
@@ -82,11 +83,17 @@ cat "$T/pi.out" | sed 's/^/     /' | tail -6
 line=$(grep '^locked:' "$T/pi.out")
 err=$(echo "$line" | sed -n 's/.*error \([-+0-9.]*\) %.*/\1/p')
 [ "$rc" -eq 0 ] && [ -n "$err" ] && awk -v e="$err" 'BEGIN{exit !(e < 1 && e > -1)}' &&
-  ok "hil_pi locks the amplitude to 0.8 x free within 1 % ($line)" ||
+  ok "hil_pi locks the amplitude to A/A0 = 0.8 within 1 % ($line)" ||
   bad "hil_pi did not lock (exit $rc): $(tail -3 "$T/pi.out") $(tail -3 "$T/daemon.err")"
 # the daemon's own view: the status lock-in amplitude at the set-point too
-free=$(sed -n 's/^free amplitude \([0-9.]*\) nm.*/\1/p' "$T/pi.out")
+# A0, the one free amplitude (issue 30): what hil_pi measures at Z = 1 um is the daemon's A0
+a0_pi=$(sed -n 's/^A0 \([0-9.]*\) nm.*/\1/p' "$T/pi.out")
+a0_d=$(sed -n 's/^afmtwind: free amplitude A0 \([0-9.]*\) nm.*/\1/p' "$T/daemon.err")
+[ -n "$a0_pi" ] && [ -n "$a0_d" ] &&
+  awk -v a="$a0_pi" -v b="$a0_d" 'BEGIN{d = (a - b) / b; exit !(d <= 1e-4 && d >= -1e-4)}' &&
+  ok "hil_pi's A0 $a0_pi nm = the daemon's start-up A0 $a0_d nm within 1e-4" ||
+  bad "hil_pi's A0 ${a0_pi:-?} nm, the daemon's ${a0_d:-?} nm (1e-4)"
 kill -TERM "$DPID"; wait "$DPID"; drc=$?; DPID=""
-[ "$drc" -eq 0 ] && ok "daemon stopped cleanly (free amplitude measured ${free:-?} nm)" || bad "daemon exit $drc"
+[ "$drc" -eq 0 ] && ok "daemon stopped cleanly" || bad "daemon exit $drc"
 echo "$pass passed, $fail failed"
 [ "$fail" -eq 0 ]

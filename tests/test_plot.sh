@@ -2,7 +2,14 @@
 # test_plot.sh BUILD -- every `afmtwin plot` kind drawn from the example runs of
 # tools/doc-plots.sh (the runs behind docs/img/): gnuplot succeeded, each output is a PNG of
 # the requested size (signature and IHDR), its columns file has data, and bad input is
-# refused with exit 2. Needs no network. Prints "N passed, N failed".
+# refused with exit 2. Then what makes a picture fit for a paper (issue 30), read off the
+# gnuplot script each plot keeps (--script): no legend on the data, scan images at one
+# scale in x and y ending at the pixels' edges with few x tics and colour bars with units,
+# titles that name the config and the drive and not the input file, a CSV of each curve
+# with units in its header; and on small hand-written inputs: the approach's force peaks
+# clipped (repulsive >= 0, attractive <= 0) and its unsettled steps marked, its jump arrow
+# from z_before to z_after, a continuation's branches cut at each change of stability
+# (solid stable, dashed unstable). Needs no network. Prints "N passed, N failed".
 BUILD=${1:-build}
 . "$(dirname "$0")/lib_check.sh"
 check_init plot "$BUILD"
@@ -44,4 +51,143 @@ done
 "$A" plot continue "$T/continue.json" 2>"$T/e6.txt"; rc=$?
 [ $rc -eq 2 ] && grep -q "\-o FILE.png is required" "$T/e6.txt" && ok "no -o: exit 2, '-o FILE.png is required'" \
   || bad "no -o: exit $rc, $(cat "$T/e6.txt")"
+# ---- issue 30: plots fit for a paper ----
+# 1. legends: before every plot command the key is outside the panels (at screen, outside,
+# a margin) or off; gnuplot's default key (inside, top right) counts as on the data
+key_outside() {
+  awk '/^set key/ { st = ($0 ~ /outside|at screen|[tblr]margin/) ? "out" : "in"; keys++ }
+       /^unset key/ { st = "off" }
+       /^plot / { n++; if (st == "" || st == "in") bad++ }
+       END { if (n == 0 || keys == 0 || bad > 0) { print n + 0, "plots,", bad + 0, "with a key on the data"; exit 1 } }' "$1"
+}
+for k in sweep approach spectrum thermal trace scan continue; do
+  if why=$(key_outside "$T/$k.gp" 2>&1); then ok "plot $k: every legend outside the data"
+  else bad "plot $k: a legend on the data ($why)"; fi
+done
+# 2. scan images: size ratio -1, autoscale fix, the axes at the pixels' edges (the plot
+# area's aspect that of the x and y ranges: square nm), at most 6 x tic labels, a colour
+# bar label with its unit
+scan_images() {
+  awk -v W=1000 -v H=750 '
+    /^set lmargin at screen/ { l = $5 } /^set rmargin at screen/ { r = $5 }
+    /^set bmargin at screen/ { b = $5 } /^set tmargin at screen/ { t = $5 }
+    /^set size ratio -1/ { ratio = 1 } /^set size noratio/ { ratio = 0 }
+    /^set autoscale fix/ { fix = 1 }
+    /^set xrange \[/ { split(substr($3, 2, length($3) - 2), a, ":"); x0 = a[1]; x1 = a[2] }
+    /^set yrange \[/ { split(substr($3, 2, length($3) - 2), a, ":"); y0 = a[1]; y1 = a[2] }
+    /^set xtics [0-9.e+-]+$/ { xs = $3 }
+    /^set cblabel / { cb = $0 }
+    /^plot .*with image/ {
+      n++
+      if (!ratio) { print "no size ratio -1"; e++ }
+      if (!fix) { print "no autoscale fix"; e++ }
+      if (cb !~ /\(.+\)/) { print "colour bar without unit: " cb; e++ }
+      if (xs <= 0 || (x1 - x0) / xs + 1 > 6.01) { print "x tics every " xs " over " x1 - x0; e++ }
+      asp = ((t - b) * H) / ((r - l) * W); want = (y1 - y0) / (x1 - x0)
+      if (asp / want > 1.02 || want / asp > 1.02) { print "aspect " asp " for ranges " want; e++ }
+    }
+    END { if (n != 4) { print n + 0, "images"; e++ } exit e > 0 }' "$1"
+}
+if why=$(scan_images "$T/scan.gp" 2>&1); then
+  ok "plot scan: 4 images at one scale, pixel-true axes, few x tics, colour bars with units"
+else bad "plot scan images: $(echo $why)"; fi
+# 6. titles: the config and the drive, never the input file's name
+title_of() { grep -m1 '^set multiplot title' "$1"; }
+t=$(title_of "$T/sweep.gp")
+case "$t" in
+  *"thesis-1dof.conf: f0 300 kHz, Q 100, k 40 N/m; drive fe 295-305 kHz, Ae 200 pm"*)
+    ok "sweep title: config, f0, Q, k and the drive" ;;
+  *) bad "sweep title: $t" ;;
+esac
+t=$(title_of "$T/approach.gp")
+case "$t" in
+  *"probe-q300.conf: f0 300 kHz, Q 300"*"fe 300 kHz, Ae 66.67 pm, A0 20 nm; Z 4-22 nm"*)
+    ok "approach title: config, f0, Q and the drive (A0 from the records)" ;;
+  *) bad "approach title: $t" ;;
+esac
+if grep -l 'sweep-fwd\|sweep-bwd\|approach\.json\|scan\.json\|continue\.json\|thermal\.psd' \
+  "$T"/*.gp >"$T/names.txt"; then bad "input file names in the pictures: $(cat "$T/names.txt")"
+else ok "no picture names its input file"; fi
+# 7. the CSV of every picture: a header of names with units, as many fields on every line
+csv_ok() {
+  awk -F, 'NR == 1 { n = NF; for (i = 1; i <= NF; i++) if ($i !~ /^[^()]+ \(.+\)$/) e = e " " $i; next }
+           NF != n { rows_bad++ } { rows++ }
+           END { if (e != "" || rows_bad || rows < 3) { print "header" e ", rows " rows + 0 ", bad rows " rows_bad + 0; exit 1 } }' "$1"
+}
+for k in sweep approach spectrum thermal trace scan continue; do
+  if why=$(csv_ok "$T/$k.csv" 2>&1); then ok "plot $k --csv: $(head -1 "$T/$k.csv" | cut -c1-60)..."
+  else bad "plot $k --csv: $why"; fi
+done
+
+# ---- hand-written inputs ----
+cat >"$T/zz-input-name.json" <<'END'
+{"fe_hz":299000,"periodicity":1,"settled":true,"min_deflection_m":-5e-9,"max_deflection_m":5e-9,"max_force_n":-1e-13,"lockin":{"phase_deg":40}}
+{"fe_hz":300000,"periodicity":0,"settled":false,"min_deflection_m":-6e-9,"max_deflection_m":6e-9,"max_force_n":2e-9,"lockin":{"phase_deg":50}}
+{"fe_hz":301000,"periodicity":2,"settled":true,"min_deflection_m":-7e-9,"max_deflection_m":7e-9,"max_force_n":3e-9,"lockin":{"phase_deg":60}}
+END
+"$A" plot sweep "$T/zz-input-name.json" --config config/thesis-1dof.conf -o "$T/h1.png" \
+  --csv "$T/h1.csv" --data "$T/h1d.csv" --script "$T/h1.gp" 2>"$T/h1.err"; rc=$?
+if [ $rc -eq 0 ] && [ "$(head -1 "$T/h1.csv")" = "fe (kHz),amplitude (nm),lag (deg),max_force (nN),periodicity (periods),settled (0/1)" ] \
+  && [ "$(sed -n 2p "$T/h1.csv")" = "299,5,40,-0.0001,1,1" ] && [ "$(wc -l <"$T/h1.csv")" -eq 4 ] \
+  && cmp -s "$T/h1.csv" "$T/h1d.csv"; then
+  ok "plot sweep --csv (and --data FILE.csv): a header of names with units, one line per step"
+else bad "plot sweep --csv: exit $rc, $(head -2 "$T/h1.csv" 2>/dev/null | tr '\n' '|') $(cat "$T/h1.err")"; fi
+if grep -q 'zz-input-name' "$T/h1.gp" 2>/dev/null; then bad "the input's name is in the sweep picture"
+elif title_of "$T/h1.gp" 2>/dev/null | grep -q 'thesis-1dof.conf: f0 300 kHz, Q 100, k 40 N/m; drive fe 299-301 kHz, Ae 200 pm; Z 14 nm'; then
+  ok "a sweep of zz-input-name.json: titled by its config and drive, not by the file"
+else bad "sweep title: $(title_of "$T/h1.gp" 2>&1)"; fi
+"$A" plot --help | grep -q -- '--csv FILE' && ok "plot --help documents --csv" || bad "plot --help: no --csv"
+
+# the approach: an attractive step (max force < 0), an unsettled one, a jump between 19
+# and 18 nm, two repulsive steps
+cat >"$T/ap.json" <<'END'
+{"z_m":2e-08,"direction":"approach","amplitude_m":1.98e-08,"phase_lag_deg":97,"peak_force_n":-1e-13,"attractive_force_n":-4.5e-09,"dissipated_energy_j":1e-22,"indentation_m":0,"periodicity":1,"settled":true,"free_amplitude_m":2e-08,"free_phase_lag_deg":90,"harmonics":[{"k":1,"amplitude_m":1.98e-08}]}
+{"z_m":1.9e-08,"direction":"approach","amplitude_m":1.91e-08,"phase_lag_deg":107,"peak_force_n":-2e-13,"attractive_force_n":-5.9e-09,"dissipated_energy_j":2e-22,"indentation_m":0,"periodicity":0,"settled":false,"free_amplitude_m":2e-08,"free_phase_lag_deg":90,"harmonics":[{"k":1,"amplitude_m":1.91e-08}]}
+{"jump":{"direction":"approach","from":"attractive","to":"repulsive","z_before_m":1.9e-08,"z_after_m":1.8e-08,"amplitude_before_m":1.91e-08,"amplitude_after_m":1.99e-08,"phase_before_deg":107,"phase_after_deg":84}}
+{"z_m":1.8e-08,"direction":"approach","amplitude_m":1.99e-08,"phase_lag_deg":84,"peak_force_n":6.2e-09,"attractive_force_n":-5.4e-09,"dissipated_energy_j":3e-22,"indentation_m":1e-10,"periodicity":1,"settled":true,"free_amplitude_m":2e-08,"free_phase_lag_deg":90,"harmonics":[{"k":1,"amplitude_m":1.99e-08}]}
+{"z_m":1.7e-08,"direction":"approach","amplitude_m":1.91e-08,"phase_lag_deg":73,"peak_force_n":8.7e-09,"attractive_force_n":-4.8e-09,"dissipated_energy_j":4e-22,"indentation_m":2e-10,"periodicity":1,"settled":true,"free_amplitude_m":2e-08,"free_phase_lag_deg":90,"harmonics":[{"k":1,"amplitude_m":1.91e-08}]}
+END
+"$A" plot approach "$T/ap.json" -o "$T/ap.png" --csv "$T/ap.csv" --script "$T/ap.gp" 2>"$T/ap.err"; rc=$?
+# 3a. the repulsive peak max(F, 0) and the attractive peak min(F, 0): no negative force
+# drawn as repulsive
+rep=$(awk -F, 'NR == 1 { for (i = 1; i <= NF; i++) { if ($i ~ /^repulsive_peak/) r = i; if ($i ~ /^attractive_peak/) a = i } next }
+  r && a { printf "%s/%s ", $r, $a }' "$T/ap.csv" 2>/dev/null)
+if [ $rc -eq 0 ] && [ "$rep" = "0/-4.5 0/-5.9 6.2/-5.4 8.7/-4.8 " ] \
+  && grep -q "keyentry .*title 'force: attractive peak min(F, 0)'" "$T/ap.gp" \
+  && ! grep -q "peak repulsive force" "$T/ap.gp"; then
+  ok "approach forces: the repulsive peak clipped at 0, the attractive peak drawn apart ($rep)"
+else bad "approach forces: exit $rc, repulsive/attractive '$rep' $(cat "$T/ap.err")"; fi
+# 3b. the unsettled step (Z 19 nm) marked on every panel, the marker in the legend
+um=$(awk '/^\$UM << EOD/ { f = 1; next } /^EOD/ { f = 0 } f { print $1 }' "$T/ap.gp" 2>/dev/null | tr '\n' ' ')
+if [ "$um" = "19 " ] && [ "$(grep -c '^plot .*\$UM using 1:[0-9]* with points ls 12' "$T/ap.gp")" -eq 4 ] \
+  && grep -q "keyentry with points ls 12 title 'not settled" "$T/ap.gp"; then
+  ok "approach: the unsettled step marked on all 4 panels and explained in the legend"
+else bad "approach unsettled marks: '$um', $(grep -c '\$UM' "$T/ap.gp" 2>/dev/null) uses"; fi
+# 5. the jump arrow from (z_before, A before) to (z_after, A after), not at the midpoint
+jr=$(awk '/^\$J << EOD/ { f = 1; next } /^EOD/ { f = 0 } f' "$T/ap.gp" 2>/dev/null)
+if [ "$jr" = "19 18 19.1 19.9 107 84 0" ] \
+  && grep -q '\$J using 1:(\$7 == 0 ? \$3 : 1/0):(\$2 - \$1):(\$4 - \$3) with vectors' "$T/ap.gp"; then
+  ok "approach jump arrow: from Z 19 nm (A 19.1) to Z 18 nm (A 19.9), where the branch changes"
+else bad "approach jump: '$jr'"; fi
+
+# 4. a continuation: stable up to a PD at 81.5 kHz, unstable, stable again after 83 kHz
+# with no event between (the largest multiplier 1.5 -> 0.5: crosses 1 half way, 83.5 kHz)
+pt() { printf '{"type":"%s","param_name":"fe","branch":0,"parent":-1,"param":%s,"period":1,"stable":%s,"min_deflection_m":%s,"amplitude_m":%s,"multipliers":[[%s,0],[0.1,0]]}\n' "$@"; }
+{ pt point 80000 true -3.0e-8 3.0e-8 0.5; pt point 81000 true -3.1e-8 3.1e-8 0.9
+  pt PD 81500 true -3.15e-8 3.15e-8 -1.0; pt point 82000 false -3.2e-8 3.2e-8 -1.22
+  pt point 83000 false -3.3e-8 3.3e-8 -1.5; pt point 84000 true -3.4e-8 3.4e-8 0.5
+  echo '{"type":"end","param_name":"fe","branch":0,"parent":-1,"param":84000,"period":1,"points":5,"reason":"end"}'
+} >"$T/cont.json"
+"$A" plot continue "$T/cont.json" -o "$T/cont.png" --script "$T/cont.gp" 2>"$T/cont.err"; rc=$?
+# the segments of $B (blank-line separated): solid or dashed, and their parameters
+segs=$(awk '/^\$B << EOD/ { f = 1; next }
+  f && (/^EOD/ || NF == 0) { if (n) printf "%s ", s; n = 0; if (/^EOD/) f = 0; next }
+  f { s = n ? s "," $1 : ($4 == 1 ? "solid:" : "dashed:") $1; if (n && $4 != st) s = s "!"; st = $4; n++ }' \
+  "$T/cont.gp" 2>/dev/null)
+if [ $rc -eq 0 ] && [ "$segs" = "solid:80,81,81.5 dashed:81.5,82,83,83.5 solid:83.5,84 " ] \
+  && grep -q '\$B using 1:(\$4 == 1 && \$6 == 1 ? \$2 : 1/0) with lines ls 1 notitle' "$T/cont.gp" \
+  && grep -q '\$B using 1:(\$4 == 0 && \$6 == 1 ? \$2 : 1/0) with lines ls 2 notitle' "$T/cont.gp" \
+  && grep -q "^set style line 2 .* dt 2" "$T/cont.gp" && ! grep -q "^set style line 1 .* dt " "$T/cont.gp"; then
+  ok "continue: cut at the PD (81.5 kHz) and where |mu| crosses 1 (83.5 kHz), both segments sharing the point"
+else bad "continue segments: exit $rc, '$segs' $(cat "$T/cont.err")"; fi
 check_done

@@ -22,9 +22,9 @@
 #include "estimators/afm_harm.h"
 #include "estimators/afm_lockin.h"
 #include "estimators/afm_orbit.h"
-#include "beam/afm_model.h"
 #include "integrators/afm_sim.h"
 #include "runner/afm_twin.h"
+#include "runner/afm_a0.h"
 #include "json_out.h"
 #include "lcm_tool.h"
 
@@ -103,11 +103,14 @@ static void approach_usage(FILE *f) {
             "                     amplitude_m, phase_lag_deg}], mean_deflection_m,\n"
             "                     peak_force_n, attractive_force_n, mean_force_n,\n"
             "                     indentation_m, contact_time_s, dissipated_energy_j,\n"
-            "                     virial_j, periodicity, settled, settle_periods, regime;\n"
+            "                     virial_j, periodicity, settled, settle_periods, regime,\n"
+            "                     free_amplitude_m, free_phase_lag_deg (A0: harmonic 1 at\n"
+            "                     Z 1 um with the gap-dependent tip forces off and the\n"
+            "                     squeeze film on, the same A0 as scan and the daemon);\n"
             "                     and one {\"jump\": {direction, from, to, z_before_m,\n"
             "                     z_after_m, amplitude_before_m, amplitude_after_m,\n"
             "                     phase_before_deg, phase_after_deg}} per change of regime\n"
-            "  --help             this text\n\n"
+            "  --help             this text\n\n" AFMT_OPT_SI_HELP
             "Without --json a table (nm, deg, nN, eV). Progress on stderr (terminals only).\n"
             "Exit status 0 ok, 1 simulation failure, 2 bad usage or bad input.\n",
             DEFAULT_MAX_PERIODS, MAX_ANALYSE, DEFAULT_ANALYSE, AFM_MAX_HARMONICS, DEFAULT_K,
@@ -131,11 +134,11 @@ static int parse_args(int argc, char **argv, approach_opts *o) {
         AFMT_FLAG("--json", &o->json),
         AFMT_FLAG("--retract", &o->retract),
         AFMT_STRING("--config", &o->config),
-        AFMT_DOUBLE("--from", &o->from_m, 0, 0, NULL),
-        AFMT_DOUBLE("--to", &o->to_m, 0, 0, NULL),
-        AFMT_DOUBLE("--step", &o->step_m, 0, 0, NULL),
-        AFMT_DOUBLE("--fe", &o->fe_hz, 0, 0, NULL),
-        AFMT_DOUBLE("--ae", &o->ae_m, 0, 0, NULL),
+        AFMT_LENGTH("--from", &o->from_m, 0, 0, NULL),
+        AFMT_LENGTH("--to", &o->to_m, 0, 0, NULL),
+        AFMT_LENGTH("--step", &o->step_m, 0, 0, NULL),
+        AFMT_FREQ("--fe", &o->fe_hz, 0, 0, NULL),
+        AFMT_LENGTH("--ae", &o->ae_m, 0, 0, NULL),
         AFMT_DOUBLE("--tol", &o->tol, 0, 0, NULL),
         AFMT_DOUBLE_ABOVE("--rate", &o->rate_m_s, 0, 1.0, "(0, 1] m/s"),
         AFMT_INT("--periods", &o->max_periods, 2, 100000000, NULL),
@@ -264,7 +267,7 @@ typedef struct {
     extra_period ext;      /* means */
     int periodicity, settle_periods;
     bool settled, attractive;
-    double free_amp_m, free_lag_deg; /* the model's linear response (tip forces off) */
+    double free_amp_m, free_lag_deg; /* A0 and its lag (runner/afm_a0.h) */
 } approach_point;
 
 /* Means over the last n periods of each ring. */
@@ -508,14 +511,19 @@ int afm_cmd_approach(int argc, char **argv) {
                "lag_deg", "lockin_nm", "li_lag", "Fpeak_nN", "Fattr_nN", "indent_nm", "contact_s",
                "Ediss_eV", "p");
     }
-    /* the free reference: base Ae sin(we t) gives x = Ae |G| sin(we t + arg G) */
-    double g_re, g_im, ae = cfg.drive.tones[0].amplitude_m;
-    afm_model_tip_response(afm_sim_model(sim), TWO_PI * fe, &g_re, &g_im);
-    const double free_amp = ae * hypot(g_re, g_im);
-    const double free_lag = afm_orbit_lag_deg(atan2(g_im, g_re) * (360.0 / TWO_PI) - 90.0);
+    /* the free amplitude A0 (afm_a0.h: harmonic 1 at Z 1 um, gap forces off, squeeze on) */
+    afm_a0 a0;
+    if (afm_a0_compute(&cfg, &a0, err, sizeof err) != 0) {
+        fprintf(stderr, "afmtwin approach: %s\n", err);
+        afm_sweep_destroy(&sw);
+        afm_sim_destroy(&sim);
+        return 1;
+    }
+    const double free_amp = a0.amplitude_m, free_lag = a0.lag_deg;
     if (!o.json)
-        printf("# free (tip forces off): amplitude %.6g nm, lag %.4f deg\n", free_amp * 1e9,
-               free_lag);
+        printf("# free amplitude A0 (harmonic 1 at Z %.0f nm, gap-dependent tip forces off, "
+               "squeeze film on): %.6g nm, lag %.4f deg\n",
+               a0.z_m * 1e9, free_amp * 1e9, free_lag);
     const bool tty = isatty(STDERR_FILENO) != 0;
     int status = 0;
     approach_point prev = {0}, pt;

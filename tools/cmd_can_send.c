@@ -42,7 +42,7 @@ static void usage(FILE *f) {
             "  --interface IF    send on IF (e.g. can0, vcan0) instead of only printing\n"
             "  --fd              send as CAN FD frames (needs can.fd = true)\n"
             "  --no-check        print/send even frames the daemon would reject\n"
-            "  --help            this text\n\n"
+            "  --help            this text\n\n" AFMT_OPT_SI_HELP
             "Exit status 0 ok, 1 socket failure, 2 bad usage or a frame the daemon would\n"
             "reject (the reason is printed).\n");
 }
@@ -100,10 +100,13 @@ int afm_cmd_can_send(int argc, char **argv) {
         AFMT_STRING("--config", &cfg_path),
         AFMT_STRING("--interface", &ifname),
         AFMT_FN("--tone", afmt_opt_any_number, &tone, "a number"),
-        AFMT_FN("--freq", afmt_opt_any_number, &freq, "a number"),
-        AFMT_FN("--amp", afmt_opt_any_number, &amp, "a number"),
+        AFMT_FN_UNIT("--freq", afmt_opt_any_freq, &freq,
+                     "a number (Hz, or with a suffix: kHz, MHz, GHz)", AFMT_UNIT_HZ),
+        AFMT_FN_UNIT("--amp", afmt_opt_any_length, &amp,
+                     "a number (m, or with a suffix: mm, um, nm, pm, fm)", AFMT_UNIT_M),
         AFMT_FN("--phase", afmt_opt_any_number, &phase, "a number"),
-        AFMT_FN("--z", afmt_opt_any_number, &z, "a number"),
+        AFMT_FN_UNIT("--z", afmt_opt_any_length, &z,
+                     "a number (m, or with a suffix: mm, um, nm, pm, fm)", AFMT_UNIT_M),
         AFMT_FN("--ramp", afmt_opt_any_number, &ramp, "a number"),
         AFMT_FN("--state", afmt_opt_any_number, &state, "a number"),
         AFMT_OPTS_END,

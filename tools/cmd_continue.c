@@ -16,6 +16,7 @@
 #include "json_out.h"
 #include "lcm_tool.h"
 #include "opts.h"
+#include "runner/afm_cmd.h"
 
 #include <cjson/cJSON.h>
 #include <math.h>
@@ -26,6 +27,7 @@
 typedef struct {
     const char *config, *param, *start, *param2;
     double from, to, from2, to2;
+    const char *from_s, *to_s, *from2_s, *to2_s; /* in the unit of --param / --param2 */
     int max_points, period, settle, max_branches, curves, curve_points;
     double h0, h_max;
     bool json, no_switch;
@@ -65,7 +67,8 @@ static void cont_usage(FILE *f) {
         "                     (listed by `afmtwin send --help`) with a force or damping\n"
         "                     effect (e.g. forces.vdw_contact.hamaker_j,\n"
         "                     model.damping_ratio[0])\n"
-        "  --from X, --to X   the range; the branch starts at --from (X in the unit of NAME)\n"
+        "  --from X, --to X   the range; the branch starts at --from (X in the unit of NAME;\n"
+        "                     a length or frequency may have a suffix: 11nm, 338kHz)\n"
         "  --start STATE      the start state at drive phase 0 instead of the time\n"
         "                     integration: 2n comma-separated modal values q1..qn,q1'..qn'\n"
         "  --period P         drive periods of the start orbit, 1..%d (default 1)\n"
@@ -111,12 +114,30 @@ static void cont_usage(FILE *f) {
         "  --help             this text\n\n"
         "Without --json a table (kHz or the parameter's unit, nm, nN). The config's sim.ref_rtol\n"
         "(default 1e-10) is the integration tolerance.\n"
+        "Progress on stderr (terminals only).\n"
         "Exit status 0 ok, 1 the start orbit was not found or the integration failed, 2 bad\n"
         "usage or bad input.\n",
         AFM_CONT_MAX_P);
 }
 
 #define CONT_MAX_CURVES 32 /* --curves */
+
+/* The unit of a --param name, for the SI suffixes of its range: fe Hz, z and ae m, a live
+ * parameter's if it is m or Hz, else none (plain numbers). */
+static afmt_unit param_unit(const char *name) {
+    if (!name) return AFMT_UNIT_NONE;
+    if (!strcmp(name, "fe")) return AFMT_UNIT_HZ;
+    if (!strcmp(name, "z") || !strcmp(name, "ae")) return AFMT_UNIT_M;
+    size_t len = strcspn(name, "[");
+    int n;
+    const afm_param_def *d = afm_param_table(&n);
+    for (int i = 0; i < n; i++)
+        if (strlen(d[i].name) == len && !strncmp(d[i].name, name, len) && d[i].unit)
+            return !strcmp(d[i].unit, "m")    ? AFMT_UNIT_M
+                   : !strcmp(d[i].unit, "Hz") ? AFMT_UNIT_HZ
+                                              : AFMT_UNIT_NONE;
+    return AFMT_UNIT_NONE;
+}
 
 /* 0 ok, 1 --help, -1 bad usage (said). */
 static int cont_parse(int argc, char **argv, cont_cli *o) {
@@ -128,12 +149,12 @@ static int cont_parse(int argc, char **argv, cont_cli *o) {
         AFMT_STRING("--param", &o->param),
         AFMT_STRING("--start", &o->start),
         AFMT_STRING("--param2", &o->param2),
-        AFMT_DOUBLE("--from2", &o->from2, 0, 0, NULL),
-        AFMT_DOUBLE("--to2", &o->to2, 0, 0, NULL),
+        AFMT_STRING("--from2", &o->from2_s),
+        AFMT_STRING("--to2", &o->to2_s),
         AFMT_INT("--curves", &o->curves, 1, CONT_MAX_CURVES, NULL),
         AFMT_INT("--curve-points", &o->curve_points, 1, 100000, NULL),
-        AFMT_DOUBLE("--from", &o->from, 0, 0, NULL),
-        AFMT_DOUBLE("--to", &o->to, 0, 0, NULL),
+        AFMT_STRING("--from", &o->from_s),
+        AFMT_STRING("--to", &o->to_s),
         AFMT_DOUBLE("--step", &o->h0, 0, 0, NULL),
         AFMT_DOUBLE("--max-step", &o->h_max, 0, 0, NULL),
         AFMT_INT("--max-points", &o->max_points, 1, 1000000, NULL),
@@ -144,6 +165,18 @@ static int cont_parse(int argc, char **argv, cont_cli *o) {
     };
     int rc = afmt_opts_parse("continue", opts, argc, argv, 1);
     if (rc) return rc == AFMT_OPTS_HELP ? 1 : -1;
+    /* the ranges in the parameters' units, known once the names are */
+    const struct {
+        const char *opt, *s, *param;
+        double *v;
+    } ranges[] = {{"--from", o->from_s, o->param, &o->from},
+                  {"--to", o->to_s, o->param, &o->to},
+                  {"--from2", o->from2_s, o->param2, &o->from2},
+                  {"--to2", o->to2_s, o->param2, &o->to2}};
+    for (size_t i = 0; i < sizeof ranges / sizeof ranges[0]; i++)
+        if (ranges[i].s && afmt_opt_si_value("continue", ranges[i].opt, ranges[i].s,
+                                             param_unit(ranges[i].param), ranges[i].v))
+            return -1;
     if (!o->config || !o->param || isnan(o->from) || isnan(o->to)) {
         fprintf(stderr, "afmtwin continue: --config, --param, --from and --to are required\n");
         return -1;
@@ -203,6 +236,8 @@ typedef struct {
     double scale; /* of the table's parameter column */
     cont_event ev[CONT_MAX_CURVES];
     int n_ev, max_ev;
+    int points;       /* records so far, for the progress */
+    afmt_progress pg; /* on stderr, terminals only */
 } cont_sink;
 
 static const char *kind_name(afm_cont_kind k) {
@@ -260,7 +295,7 @@ static void json_orbit(cJSON *o, const afm_cont_metrics *met, int n, const doubl
     cJSON_AddNumberToObject(o, "iterations", iterations);
 }
 
-static int cont_emit(void *ctx, const afm_cont_record *r) {
+static int cont_emit_record(void *ctx, const afm_cont_record *r) {
     cont_sink *s = ctx;
     if ((r->kind == AFM_CONT_LPC || r->kind == AFM_CONT_PD) && r->refined && s->n_ev < s->max_ev) {
         cont_event *e = &s->ev[s->n_ev++];
@@ -307,7 +342,7 @@ static int cont_emit(void *ctx, const afm_cont_record *r) {
     return 0;
 }
 
-static int curve_emit(void *ctx, const afm_cont_curve_record *r) {
+static int curve_emit_record(void *ctx, const afm_cont_curve_record *r) {
     const cont_sink *s = ctx;
     const char *kind = kind_name(r->kind);
     if (!s->json) {
@@ -345,6 +380,29 @@ static int curve_emit(void *ctx, const afm_cont_curve_record *r) {
     afmt_json_emit(o);
     fflush(stdout);
     return 0;
+}
+
+/* The records through the progress line: hidden around the output, updated after. */
+static int cont_emit(void *ctx, const afm_cont_record *r) {
+    cont_sink *s = ctx;
+    s->points++;
+    afmt_progress_hide(&s->pg);
+    int rc = cont_emit_record(ctx, r);
+    afmt_progress_update(&s->pg, "continue: branch %d (period %d), %d records, %s %.8g %s",
+                         r->branch, r->p, s->points, s->name, r->param * s->scale, s->unit);
+    afmt_progress_redraw(&s->pg);
+    return rc;
+}
+
+static int curve_emit(void *ctx, const afm_cont_curve_record *r) {
+    cont_sink *s = ctx;
+    s->points++;
+    afmt_progress_hide(&s->pg);
+    int rc = curve_emit_record(ctx, r);
+    afmt_progress_update(&s->pg, "continue: curve %d side %d, %d records, %s %.6g, %s %.6g",
+                         r->curve, r->side, s->points, s->name, r->param, s->name2, r->param2);
+    afmt_progress_redraw(&s->pg);
+    return rc;
 }
 
 /* --param2: the curve of every kept event. Returns the points; *secs the time. */
@@ -458,13 +516,16 @@ int afm_cmd_continue(int argc, char **argv) {
         printf("# %-3s %3s %2s %14s %-8s %12s %12s %10s %12s %8s\n", "kind", "br", "p", unit, "",
                "min x (nm)", "max x (nm)", "max F (nN)", "ampl (nm)", "lag (deg)");
     afm_cont_summary sum;
+    afmt_progress_init(&sink.pg);
     if (afm_cont_run(&cfg, &co, cont_emit, &sink, &sum, err, sizeof err) != 0) {
+        afmt_progress_end(&sink.pg);
         fprintf(stderr, "afmtwin continue: %s\n", err);
         return 1;
     }
     double per = sum.points > 0 ? sum.seconds / sum.points : 0.0, csecs = 0.0;
     long cmaps = 0;
     int cpoints = o.param2 ? run_curves(&cfg, &o, &sink, &cmaps, &csecs) : 0;
+    afmt_progress_end(&sink.pg);
     if (o.json) {
         cJSON *s = cJSON_CreateObject();
         cJSON_AddStringToObject(s, "type", "summary");

@@ -104,7 +104,7 @@ static void fc_usage(FILE *f) {
         "                     pull_off_z_m, pull_off_deflection_m, adhesion_force_n,\n"
         "                     pull_off_jump, contact_slope, contact_slope_points,\n"
         "                     contact_stiffness_n_m}} (null where there is none)\n"
-        "  --help             this text\n\n"
+        "  --help             this text\n\n" AFMT_OPT_SI_HELP
         "Without --json a table (nm, nN) with the events and the summary as # lines.\n"
         "Progress on stderr (terminals only).\n"
         "Exit status 0 ok, 1 simulation failure, 2 bad usage or bad input.\n",
@@ -118,8 +118,8 @@ static int parse_args(int argc, char **argv, fc_opts *o) {
     const afmt_opt opts[] = {
         AFMT_FLAG("--json", &o->json),
         AFMT_STRING("--config", &o->config),
-        AFMT_DOUBLE("--from", &o->from_m, 0, 1e-3, "a Z in 0..1e-3 m"),
-        AFMT_DOUBLE("--to", &o->to_m, 0, 1e-3, "a Z in 0..1e-3 m"),
+        AFMT_LENGTH("--from", &o->from_m, 0, 1e-3, "a Z in 0..1e-3 m"),
+        AFMT_LENGTH("--to", &o->to_m, 0, 1e-3, "a Z in 0..1e-3 m"),
         AFMT_DOUBLE_ABOVE("--speed", &o->speed_m_s, 0, 1.0, "a speed in (0, 1] m/s"),
         AFMT_INT("--points", &o->points, 2, MAX_POINTS, NULL),
         AFMT_OPTS_END,

@@ -1,6 +1,7 @@
 /* SPDX-License-Identifier: MIT */
 /* cmd_plot.c -- `afmtwin plot KIND INPUT... -o FILE.png`: pictures of the tools' results
- * through gnuplot, and the same data as columns beside them (--data).
+ * through gnuplot, the plotted curves beside them as columns (--data) or CSV (--csv), and
+ * the gnuplot script itself (--script).
  *
  * Why a C command and not a set of gnuplot scripts: the inputs are the tools' own JSON
  * lines and LCM logs, which gnuplot cannot read; the command turns them into columns (the
@@ -9,10 +10,18 @@
  *
  * Kinds: sweep (afmtwin sweep --json), approach (afmtwin approach --json), thermal
  * (afmtwin thermal --psd, with its --json fit), trace (an LCM log of the daemon's outputs),
- * spectrum (the harmonics of one sweep or approach record). Phases are the lag of the
- * deflection behind the drive (90 deg free at resonance), as the tools print them. */
+ * spectrum (the harmonics of one sweep or approach record), scan (afmtwin scan --json),
+ * continue (afmtwin continue --json). Phases are the lag of the deflection behind the drive
+ * (90 deg free at resonance), as the tools print them.
+ *
+ * Every picture is laid out the same way, for a paper: the title (--title, else what the
+ * kind draws) and under it the config and the drive (plot_info.h); one legend for all
+ * panels in a strip of its own under the title (an empty plot of key entries), so that no
+ * legend covers data; the panels at fixed places under it, those that share an axis with
+ * its tic labels once. Scan images keep x and y at one scale and end at the pixels' edges. */
 #include "afmtwin_cmds.h"
 #include "opts.h"
+#include "plot_info.h"
 
 #include "transport/afm_lcm_log.h"
 #include "transport/afm_lcm_wire.h"
@@ -26,22 +35,38 @@
 #include <string.h>
 
 #define PLOT_MAX_INPUTS 8
-#define PLOT_MAX_COLS 12
-#define PLOT_MAX_SETS 8
+#define PLOT_MAX_COLS 16
+#define PLOT_MAX_SETS 24
+#define PLOT_MAX_KEYS 16
 #define PLOT_LINE_MAX (1 << 20)
 #define PLOT_EV 1.602176634e-19 /* J per eV */
 
+/* Text in pixels (pngcairo's default font): a line, and a character of a legend entry
+ * (generous: a legend that needs more rows than planned would run into the panels). */
+#define PX_LINE 19.0
+#define PX_CHAR 9.0
+/* The panels' margins in pixels: left (tic labels and the y label), right, bottom (tic
+ * labels and the x label), and between panels that share x (one set of tic labels). */
+#define PX_LEFT 85.0
+#define PX_RIGHT 25.0
+#define PX_BOTTOM 55.0
+#define PX_GAP 18.0
+
 typedef struct {
-    const char *kind, *out, *data, *fit, *title;
+    const char *kind, *out, *data, *csv, *script, *fit, *title, *config;
     const char *in[PLOT_MAX_INPUTS];
     int n_in, index, stream, width, height;
-    double t_from_s, t_to_s, z_m;
+    double t_from_s, t_to_s, z_m, fe_hz, ae_m;
 } plot_opts;
 
-/* A data set: rows of ncol numbers (NAN prints as "NaN", which gnuplot skips). */
+/* A data set: rows of ncol numbers (NAN prints as "NaN", which gnuplot skips). The header
+ * names the columns as NAME[UNIT]; a set with seg_col >= 0 is cut into line segments (a
+ * blank line for gnuplot) where that column changes. The sets marked csv are the curves
+ * --csv writes, label naming each in the CSV's first column. */
 typedef struct {
-    char name[32], header[256];
-    int ncol;
+    char name[16], label[48], header[320];
+    int ncol, seg_col;
+    bool csv;
     size_t n, cap;
     double *v;
 } plot_set;
@@ -49,41 +74,79 @@ typedef struct {
 typedef struct {
     plot_set set[PLOT_MAX_SETS];
     int nset;
-    char title[512];
+    char title[512], sub[512]; /* the title's two lines (sub may be empty) */
+    plot_info info;
+    double W, H; /* the picture, pixels */
 } plot_data;
 
+/* Legend entries: a gnuplot style ("with linespoints ls 1") and a title. */
+typedef struct {
+    int n;
+    char with[PLOT_MAX_KEYS][128], title[PLOT_MAX_KEYS][96];
+} plot_key;
+
 static void plot_usage(FILE *f) {
-    fprintf(f, "usage: afmtwin plot KIND INPUT... -o FILE.png [--data FILE] [--title TEXT]\n"
-               "                    [--size WxH] [kind options]\n\n"
-               "Draws a result with gnuplot (pngcairo; an output name ending in .svg gives SVG)\n"
-               "and, with --data, writes the plotted columns to FILE (blank-line separated data\n"
-               "sets, each with a # header) for plotting elsewhere. Kinds:\n"
-               "  sweep     INPUT: afmtwin sweep --json output(s), e.g. a forward and a backward\n"
-               "            sweep: amplitude (half peak-to-peak of xr), lock-in phase lag and\n"
-               "            peak force against fe; steps with periodicity p > 1 marked, steps\n"
-               "            that did not settle marked x\n"
-               "  approach  INPUT: afmtwin approach --json output: amplitude and phase lag\n"
-               "            against Z, approach and retract, the regime jumps marked; peak\n"
-               "            force, indentation and dissipated energy against Z\n"
-               "  thermal   INPUT: a PSD from afmtwin thermal --psd; --fit FILE: its --json\n"
-               "            output, whose eq. 5.1 fit per mode is drawn over the PSD\n"
-               "  trace     INPUT: an LCM log of the daemon's outputs (lcm-logger, afmtwin\n"
-               "            listen): deflection, OBD signal and force of one sample stream\n"
-               "            (--stream N, default 0) over --from S --to S of model time (default\n"
-               "            the first 2 ms); --z M also draws the gap d = xr + Z (cos alpha 1)\n"
-               "  spectrum  INPUT: sweep or approach --json output; --index N: the record (step)\n"
-               "            to draw, 0 the first (default), -1 the last: harmonic amplitudes\n"
-               "  scan      INPUT: afmtwin scan --json output: images (trace) of the height,\n"
-               "            phase lag, amplitude error and peak force with their colour bars,\n"
-               "            x and y in nm, and the middle line's height profile (trace and\n"
-               "            retrace) against the true height; a one-line scan draws profiles\n"
-               "  continue  INPUT: afmtwin continue --json output: the bifurcation diagram,\n"
-               "            min(xr) and the amplitude at fe against the parameter, stable\n"
-               "            branches solid, unstable dashed, LPC, PD and NS points marked and\n"
-               "            labelled L1.., P1.., N1.. in the order found\n\n"
-               "Phase convention: the lag of the deflection behind the drive, 90 deg for a free\n"
-               "cantilever at resonance, below 90 in the repulsive regime.\n"
-               "Exit status 0 ok, 1 gnuplot or a file failed, 2 bad usage or bad input.\n");
+    fprintf(f,
+            "usage: afmtwin plot KIND INPUT... -o FILE.png [--title TEXT] [--config FILE\n"
+            "                    [--fe HZ] [--ae M] [--z M]] [--data FILE] [--csv FILE]\n"
+            "                    [--script FILE] [--size WxH] [kind options]\n\n"
+            "Draws a result with gnuplot (pngcairo; an output name ending in .svg gives SVG):\n"
+            "the title, under it the config and the drive, one legend for all panels in a\n"
+            "strip under the title (never on the data), and the panels. Kinds:\n"
+            "  sweep     INPUT: afmtwin sweep --json output(s), e.g. a forward and a backward\n"
+            "            sweep: amplitude (half peak-to-peak of xr), lock-in phase lag and the\n"
+            "            largest tip-sample force against fe; steps with periodicity p > 1\n"
+            "            marked o and labelled with p, steps that did not settle (settled\n"
+            "            false or periodicity 0) marked x\n"
+            "  approach  INPUT: afmtwin approach --json output: amplitude, phase lag, the\n"
+            "            repulsive peak max(F, 0) and the attractive peak min(F, 0) of the\n"
+            "            tip-sample force, and the dissipated energy against Z, approach and\n"
+            "            retract; each jump an arrow from its last point on the old branch to\n"
+            "            its first on the new one (z_before_m to z_after_m); p > 1 and\n"
+            "            unsettled steps marked as in sweep\n"
+            "  thermal   INPUT: a PSD from afmtwin thermal --psd; --fit FILE: its --json\n"
+            "            output, whose eq. 5.1 fit per mode is drawn over the PSD (its config\n"
+            "            names the model in the title unless --config does)\n"
+            "  trace     INPUT: an LCM log of the daemon's outputs (lcm-logger, afmtwin\n"
+            "            listen): deflection, OBD signal and force of one sample stream\n"
+            "            (--stream N, default 0) over --from S --to S of model time (default\n"
+            "            the first 2 ms); --z M also draws the gap d = xr + Z (cos alpha 1)\n"
+            "  spectrum  INPUT: sweep or approach --json output; --index N: the record (step)\n"
+            "            to draw, 0 the first (default), -1 the last: harmonic amplitudes\n"
+            "  scan      INPUT: afmtwin scan --json output: images (trace) of the height,\n"
+            "            phase lag, amplitude error and peak force, x and y in nm at one\n"
+            "            scale, the axes ending at the pixels' edges, each with a colour bar\n"
+            "            and its unit; the middle line's height profile (trace and retrace)\n"
+            "            against the true height; a one-line scan draws profiles only\n"
+            "  continue  INPUT: afmtwin continue --json output: the bifurcation diagram,\n"
+            "            min(xr) and the amplitude at fe against the parameter, stable solid,\n"
+            "            unstable dashed, cut at every change of stability (at the LPC, PD or\n"
+            "            NS point found there, else where the largest Floquet multiplier\n"
+            "            crosses 1 between the two points), branches of period 2 and more in\n"
+            "            their own colour; LPC, PD and NS points labelled L1.., P1.., N1.. in\n"
+            "            the order found; with --param2, the curves in the parameter plane\n\n"
+            "options:\n"
+            "  -o, --output FILE  the picture (.png, or .svg)\n"
+            "  --title TEXT       the title's first line (default: what the kind draws)\n"
+            "  --config FILE      the run's config: the title's second line names it, its\n"
+            "                     model's f0, Q and k and the drive (fe, Ae, the free amplitude\n"
+            "                     A0, Z); what the records carry wins (a sweep's fe, an\n"
+            "                     approach's Z and A0, the continuation parameter)\n"
+            "  --fe HZ, --ae M, --z M  the run's own --fe, --ae or --z where it overrode the\n"
+            "                     config's (trace: --z is the Z of the gap, and the title's)\n"
+            "  --data FILE        the plotted columns: blank-line separated data sets, each\n"
+            "                     with a '# NAME: COLUMN[UNIT]...' header (a FILE ending in\n"
+            "                     .csv is written as --csv)\n"
+            "  --csv FILE         the plotted curve(s) as CSV: one header line of column\n"
+            "                     names with their units, e.g. 'fe (kHz),amplitude (nm)', then\n"
+            "                     one line per point; a first column 'curve (name)' names the\n"
+            "                     curve (forward, retract, ...) where a picture has several\n"
+            "  --script FILE      the gnuplot script as run, data inline (gnuplot FILE redraws)\n"
+            "  --size WxH         pixels, 100..10000 each (default 1000x750)\n"
+            "  --index N, --stream N, --from S, --to S, --fit FILE  as the kinds say\n\n"
+            "Phase convention: the lag of the deflection behind the drive, 90 deg for a free\n"
+            "cantilever at resonance, below 90 in the repulsive regime.\n"
+            "Exit status 0 ok, 1 gnuplot or a file failed, 2 bad usage or bad input.\n");
 }
 
 static int plot_err(const char *fmt, const char *a) {
@@ -111,23 +174,43 @@ static int parse_size(const char *v, void *dest) {
     return 0;
 }
 
+/* A name gnuplot reads in single quotes: no quotes, backslashes or newlines. */
+static int quotable(const char *what, const char *v) {
+    if (v && strpbrk(v, "'\"\\\n")) {
+        fprintf(stderr, "afmtwin plot: %s '%s': no quotes or backslashes in names\n", what, v);
+        return -1;
+    }
+    return 0;
+}
+
 /* 0 ok, 1 --help, -1 bad usage (said). */
 static int parse_args(int argc, char **argv, plot_opts *o) {
-    *o = (plot_opts){.width = 1000, .height = 750, .t_from_s = NAN, .t_to_s = NAN, .z_m = NAN};
+    *o = (plot_opts){.width = 1000,
+                     .height = 750,
+                     .t_from_s = NAN,
+                     .t_to_s = NAN,
+                     .z_m = NAN,
+                     .fe_hz = NAN,
+                     .ae_m = NAN};
     const afmt_opt opts[] = {
         AFMT_ARG("KIND", &o->kind),
         AFMT_ARG_FN("INPUT", add_input, o, "at most 8 inputs"),
         AFMT_STRING("-o", &o->out),
         AFMT_STRING("--output", &o->out),
         AFMT_STRING("--data", &o->data),
+        AFMT_STRING("--csv", &o->csv),
+        AFMT_STRING("--script", &o->script),
         AFMT_STRING("--fit", &o->fit),
         AFMT_STRING("--title", &o->title),
+        AFMT_STRING("--config", &o->config),
         AFMT_FN("--size", parse_size, o, "WxH, 100..10000 pixels each"),
         AFMT_INT("--index", &o->index, -1e9 + 1, 1e9 - 1, NULL),
         AFMT_INT("--stream", &o->stream, 0, 127, NULL),
         AFMT_DOUBLE("--from", &o->t_from_s, 0, 0, NULL),
         AFMT_DOUBLE("--to", &o->t_to_s, 0, 0, NULL),
         AFMT_DOUBLE("--z", &o->z_m, 0, 0, NULL),
+        AFMT_DOUBLE("--fe", &o->fe_hz, 0, 1e9, NULL),
+        AFMT_DOUBLE("--ae", &o->ae_m, 0, 1e-3, NULL),
         AFMT_OPTS_END,
     };
     _Static_assert(PLOT_MAX_INPUTS == 8, "add_input's error text");
@@ -138,21 +221,35 @@ static int parse_args(int argc, char **argv, plot_opts *o) {
                               "continue)");
     if (o->n_in == 0) return plot_err("%s", "an INPUT file is required");
     for (int i = 0; i < o->n_in; i++)
-        if (strpbrk(o->in[i], "'\\\n"))
-            return plot_err("'%s': no quotes or backslashes in names", o->in[i]);
+        if (quotable("input", o->in[i])) return -1;
     if (!o->out) return plot_err("%s", "-o FILE.png is required");
-    if (strpbrk(o->out, "'\\\n"))
-        return plot_err("'%s': no quotes or backslashes in names", o->out);
+    if (quotable("output", o->out) || quotable("--script", o->script) ||
+        quotable("--config", o->config))
+        return -1;
     return 0;
 }
 
+/* ---- data sets ---- */
+
 static plot_set *set_new(plot_data *d, const char *name, const char *header, int ncol) {
-    if (d->nset == PLOT_MAX_SETS) return NULL;
+    if (d->nset == PLOT_MAX_SETS || ncol > PLOT_MAX_COLS) return NULL;
     plot_set *s = &d->set[d->nset++];
     memset(s, 0, sizeof *s);
     snprintf(s->name, sizeof s->name, "%s", name);
     snprintf(s->header, sizeof s->header, "%s", header);
     s->ncol = ncol;
+    s->seg_col = -1;
+    return s;
+}
+
+/* A curve of the CSV, named label there. */
+static plot_set *curve_new(plot_data *d, const char *name, const char *label, const char *header,
+                           int ncol) {
+    plot_set *s = set_new(d, name, header, ncol);
+    if (s) {
+        s->csv = true;
+        snprintf(s->label, sizeof s->label, "%s", label);
+    }
     return s;
 }
 
@@ -169,24 +266,75 @@ static int set_row(plot_set *s, const double *row) {
     return 0;
 }
 
+static double cell(const plot_set *s, size_t r, int c) {
+    return s->v[r * (size_t)s->ncol + c];
+}
+
 static void data_free(plot_data *d) {
     for (int i = 0; i < d->nset; i++)
         free(d->set[i].v);
 }
 
-static void set_write(FILE *f, const plot_set *s) {
+/* The rows, sep between the numbers; a blank line between segments unless csv (whose
+ * rows start with the set's label, if any). */
+static void set_write(FILE *f, const plot_set *s, const char *sep, bool csv) {
     for (size_t r = 0; r < s->n; r++) {
-        for (int c = 0; c < s->ncol; c++) {
-            double v = s->v[r * (size_t)s->ncol + c];
-            fprintf(f, c ? " %.10g" : "%.10g", v);
-        }
+        if (!csv && s->seg_col >= 0 && r > 0 &&
+            cell(s, r, s->seg_col) != cell(s, r - 1, s->seg_col))
+            fputc('\n', f);
+        if (csv && s->label[0]) fprintf(f, "%s%s", s->label, sep);
+        for (int c = 0; c < s->ncol; c++)
+            fprintf(f, "%s%.10g", c ? sep : "", cell(s, r, c));
         fputc('\n', f);
     }
 }
 
+/* The CSV: the header line (NAME[UNIT] as "NAME (UNIT)"), then the rows of the curves that
+ * share the first curve's columns. 0 ok, -1 no curve. */
+static int csv_write(FILE *f, const plot_data *d) {
+    int first = -1, curves = 0;
+    for (int i = 0; i < d->nset; i++)
+        if (d->set[i].csv && (first < 0 || !strcmp(d->set[i].header, d->set[first].header))) {
+            if (first < 0) first = i;
+            curves++;
+        }
+    if (first < 0) return -1;
+    if (curves > 1) fprintf(f, "curve (name),");
+    const char *h = d->set[first].header;
+    for (int c = 0; *h; c++) {
+        size_t n = strcspn(h, " ");
+        const char *u = memchr(h, '[', n);
+        if (u && h[n - 1] == ']')
+            fprintf(f, "%s%.*s (%.*s)", c ? "," : "", (int)(u - h), h, (int)(h + n - u - 2), u + 1);
+        else
+            fprintf(f, "%s%.*s", c ? "," : "", (int)n, h);
+        h += n;
+        h += strspn(h, " ");
+    }
+    fputc('\n', f);
+    for (int i = first; i < d->nset; i++)
+        if (d->set[i].csv && !strcmp(d->set[i].header, d->set[first].header)) {
+            plot_set s = d->set[i];
+            if (curves == 1) s.label[0] = 0;
+            set_write(f, &s, ",", true);
+        }
+    return 0;
+}
+
+/* ---- JSON input ---- */
+
 static double num(const cJSON *o, const char *key) {
     const cJSON *v = cJSON_GetObjectItemCaseSensitive(o, key);
     return cJSON_IsNumber(v) ? v->valuedouble : NAN;
+}
+
+static bool is_true(const cJSON *o, const char *key) {
+    return cJSON_IsTrue(cJSON_GetObjectItemCaseSensitive(o, key));
+}
+
+static bool str_is(const cJSON *o, const char *key, const char *want) {
+    const cJSON *v = cJSON_GetObjectItemCaseSensitive(o, key);
+    return cJSON_IsString(v) && !strcmp(v->valuestring, want);
 }
 
 /* Each JSON line of path into fn (objects only; a line that is no JSON is an error). */
@@ -213,18 +361,99 @@ static int each_json(const char *path, int (*fn)(const cJSON *, void *), void *c
     return rc;
 }
 
-/* The file name without its directories (a legend entry; quotes cannot occur in it: the
- * title check below applies to the whole path). */
-static const char *base_name(const char *path) {
-    const char *b = strrchr(path, '/');
-    return b ? b + 1 : path;
+/* max(v, 0) and min(v, 0), NAN kept */
+static double clip_pos(double v) {
+    return isnan(v) ? v : v > 0 ? v : 0.0;
+}
+static double clip_neg(double v) {
+    return isnan(v) ? v : v < 0 ? v : 0.0;
+}
+
+/* ---- the figure ---- */
+
+/* gnuplot string text: no quotes, backslashes or newlines. */
+static void clean(char *s) {
+    for (char *p = s; *p; p++)
+        if (*p == '\'' || *p == '"' || *p == '\\' || *p == '\n') *p = ' ';
+}
+
+static void key_add(plot_key *k, const char *with, const char *title) {
+    if (k->n == PLOT_MAX_KEYS) return;
+    snprintf(k->with[k->n], sizeof k->with[0], "%s", with);
+    snprintf(k->title[k->n], sizeof k->title[0], "%s", title);
+    clean(k->title[k->n]);
+    k->n++;
+}
+
+/* The plot area of the next panel, screen fractions. */
+static void area(FILE *gp, double l, double r, double b, double t) {
+    fprintf(gp,
+            "set lmargin at screen %.4f\nset rmargin at screen %.4f\nset bmargin at screen "
+            "%.4f\nset tmargin at screen %.4f\n",
+            l, r, b, t);
+}
+
+/* The title and, in a strip under it from l to r, the legend k: an empty plot of its
+ * entries. Returns the top of the panels (screen); the panels have no key of their own. */
+static double figure(FILE *gp, plot_data *d, const plot_key *k, double l, double r) {
+    plot_info_line(&d->info, d->sub, sizeof d->sub);
+    clean(d->sub);
+    fprintf(gp, "set multiplot title \"%s%s%s\"\n", d->title, d->sub[0] ? "\\n" : "", d->sub);
+    double y = 1 - ((d->sub[0] ? 2 : 1) * PX_LINE + 12) / d->H; /* under the title */
+    if (k->n > 0) {
+        int len = 0;
+        for (int i = 0; i < k->n; i++)
+            if ((int)strlen(k->title[i]) > len) len = (int)strlen(k->title[i]);
+        int cols = (int)(((r - l) * d->W - 20) / (len * PX_CHAR + 90));
+        cols = cols < 1 ? 1 : cols > k->n ? k->n : cols;
+        int rows = (k->n + cols - 1) / cols;
+        double h = (rows * PX_LINE + 10) / d->H;
+        area(gp, l, r, y - h, y);
+        fprintf(gp,
+                "unset border\nunset xtics\nunset ytics\nunset xlabel\nunset ylabel\nset xrange "
+                "[0:1]\nset yrange [0:1]\nset key at screen %.4f,%.4f center top vertical maxrows "
+                "%d Left reverse box samplen 2.5 width 1\nplot -1 notitle",
+                0.5 * (l + r), y, rows);
+        for (int i = 0; i < k->n; i++)
+            fprintf(gp, ", keyentry %s title '%s'", k->with[i], k->title[i]);
+        fprintf(gp, "\nunset key\nset border\nset xtics\nset ytics\nset autoscale\n");
+        y -= h;
+    } else {
+        fprintf(gp, "unset key\n");
+    }
+    return y - 10 / d->H;
+}
+
+/* Panel i of n stacked from top to bottom (screen), gap between them. */
+static void stack(FILE *gp, int i, int n, double l, double r, double bottom, double top,
+                  double gap) {
+    double h = (top - bottom - (n - 1) * gap) / n;
+    double t = top - i * (h + gap);
+    area(gp, l, r, t - h, t);
+}
+
+/* Panels sharing x: tic labels and the x label only under the last. */
+static void shared_x(FILE *gp, int i, int n, const char *xlabel) {
+    if (i < n - 1)
+        fprintf(gp, "set format x ''\nunset xlabel\n");
+    else
+        fprintf(gp, "set format x\nset xlabel '%s'\n", xlabel);
 }
 
 /* ---- sweep ---- */
 
+static const char *const plot_colour[PLOT_MAX_INPUTS] = {
+    "#0072b2", "#d55e00", "#009e73", "#cc79a7", "#e69f00", "#56b4e9", "#000000", "#f0e442"};
+
 typedef struct {
-    plot_set *all, *marks;
+    plot_set *all, *pm, *um;
+    plot_info *pi;
+    double first, last;
+    int n;
 } sweep_ctx;
+
+#define SWEEP_HEADER                                                                               \
+    "fe[kHz] amplitude[nm] lag[deg] max_force[nN] periodicity[periods] settled[0/1]"
 
 static int sweep_row(const cJSON *o, void *vctx) {
     sweep_ctx *c = vctx;
@@ -233,40 +462,73 @@ static int sweep_row(const cJSON *o, void *vctx) {
     const cJSON *lk = cJSON_GetObjectItemCaseSensitive(o, "lockin");
     double lag = num(lk, "phase_deg"), p = num(o, "periodicity");
     if (isnan(fe)) return plot_err("%s", "a sweep record without fe_hz (is it sweep --json?)");
-    double row[6] = {
-        fe * 1e-3, amp * 1e9,
-        lag,       num(o, "max_force_n") * 1e9,
-        p,         cJSON_IsTrue(cJSON_GetObjectItemCaseSensitive(o, "settled")) ? 1 : 0};
+    bool settled = is_true(o, "settled");
+    double row[6] = {fe * 1e-3, amp * 1e9, lag, num(o, "max_force_n") * 1e9, p, settled ? 1 : 0};
     if (set_row(c->all, row)) return -1;
-    if (p != 1) return set_row(c->marks, row);
+    if (c->n++ == 0) c->first = fe;
+    c->last = fe;
+    plot_info_fe(c->pi, fe);
+    if (settled && p > 1 && set_row(c->pm, row)) return -1;
+    if ((!settled || p == 0) && set_row(c->um, row)) return -1;
     return 0;
 }
 
 static int load_sweep(const plot_opts *o, plot_data *d, FILE *gp) {
+    plot_set *pm = set_new(d, "PM", SWEEP_HEADER, 6), *um = set_new(d, "UM", SWEEP_HEADER, 6);
+    plot_set *s[PLOT_MAX_INPUTS];
+    if (!pm || !um) return -1;
     for (int i = 0; i < o->n_in; i++) {
-        char name[32];
+        char name[16];
         snprintf(name, sizeof name, "S%d", i);
-        sweep_ctx c = {set_new(d, name, "fe_kHz amplitude_nm lag_deg peak_force_nN p settled", 6),
-                       NULL};
-        snprintf(name, sizeof name, "M%d", i);
-        c.marks = set_new(d, name, "fe_kHz amplitude_nm lag_deg peak_force_nN p settled", 6);
-        if (!c.all || !c.marks || each_json(o->in[i], sweep_row, &c)) return -1;
+        sweep_ctx c = {
+            s[i] = curve_new(d, name, "", SWEEP_HEADER, 6), pm, um, &d->info, NAN, NAN, 0};
+        if (!c.all || each_json(o->in[i], sweep_row, &c)) return -1;
+        snprintf(s[i]->label, sizeof s[i]->label, "%s",
+                 c.n < 2            ? "one step"
+                 : c.last > c.first ? "forward (fe up)"
+                                    : "backward (fe down)");
     }
-    fprintf(gp, "set multiplot layout 3,1 title '%s'\nset key top left\n", d->title);
-    const char *ylab[3] = {"amplitude (nm)", "phase lag (deg)", "peak force (nN)"};
-    for (int panel = 0; panel < 3; panel++) {
-        fprintf(gp, "set ylabel '%s'\n%s", ylab[panel],
-                panel == 2 ? "set xlabel 'drive frequency fe (kHz)'\n" : "unset xlabel\n");
-        fprintf(gp, "plot ");
+    for (int i = 0; i < o->n_in; i++) /* the same direction twice: numbered */
+        for (int j = 0; j < o->n_in; j++)
+            if (i != j && !strncmp(s[i]->label, s[j]->label, 8)) {
+                char t[48];
+                snprintf(t, sizeof t, "%.24s, sweep %d", s[i]->label, i + 1);
+                snprintf(s[i]->label, sizeof s[i]->label, "%s", t);
+                break;
+            }
+    plot_key k = {0};
+    for (int i = 0; i < o->n_in; i++) {
+        char with[64];
+        fprintf(gp, "set style line %d lc rgb '%s' lw 1.5 pt 7 ps 0.6\n", i + 1, plot_colour[i]);
+        snprintf(with, sizeof with, "with linespoints ls %d", i + 1);
+        key_add(&k, with, s[i]->label);
+    }
+    fprintf(gp, "set style line 11 lc rgb 'red' lw 1.5 pt 6 ps 1.8\n"
+                "set style line 12 lc rgb 'black' lw 1.5 pt 2 ps 1.6\n");
+    if (pm->n) key_add(&k, "with points ls 11", "period p > 1 (p labelled)");
+    if (um->n) key_add(&k, "with points ls 12", "not settled (or periodicity 0)");
+    const double l = PX_LEFT / d->W, r = 1 - PX_RIGHT / d->W;
+    double top = figure(gp, d, &k, l, r);
+    static const char *const ylab[3] = {"amplitude (nm)", "phase lag (deg)",
+                                        "max tip-sample force (nN)"};
+    for (int p = 0; p < 3; p++) {
+        stack(gp, p, 3, l, r, PX_BOTTOM / d->H, top, PX_GAP / d->H);
+        shared_x(gp, p, 3, "drive frequency fe (kHz)");
+        /* room over the top points for their p labels */
+        fprintf(gp, "set offsets 0, 0, graph %g, 0\nset ylabel '%s'\nplot ",
+                p == 0 && pm->n ? 0.12 : 0.0, ylab[p]);
         for (int i = 0; i < o->n_in; i++)
-            fprintf(gp,
-                    "%s$S%d using 1:%d with linespoints pt 7 ps 0.4 title '%s', "
-                    "$M%d using 1:($6 > 0 ? $%d : 1/0) with points pt 6 ps 1.5 lc rgb 'red' "
-                    "title %s, $M%d using 1:($6 > 0 ? 1/0 : $%d) with points pt 2 ps 1.5 "
-                    "lc rgb 'black' title %s",
-                    i ? ", " : "", i, panel + 2, base_name(o->in[i]), i, panel + 2,
-                    i ? "''" : "'p > 1 (period doubling)'", i, panel + 2,
-                    i ? "''" : "'not settled'");
+            fprintf(gp, "%s$S%d using 1:%d with linespoints ls %d notitle", i ? ", " : "", i, p + 2,
+                    i + 1);
+        if (pm->n) {
+            fprintf(gp, ", $PM using 1:%d with points ls 11 notitle", p + 2);
+            if (p == 0)
+                fprintf(gp,
+                        ", $PM using 1:%d:(sprintf('p %%d', $5)) with labels offset 0,1.3 "
+                        "tc rgb 'red' notitle",
+                        p + 2);
+        }
+        if (um->n) fprintf(gp, ", $UM using 1:%d with points ls 12 notitle", p + 2);
         fprintf(gp, "\n");
     }
     fprintf(gp, "unset multiplot\n");
@@ -275,74 +537,131 @@ static int load_sweep(const plot_opts *o, plot_data *d, FILE *gp) {
 
 /* ---- approach ---- */
 
+#define APPROACH_COLS 12
+#define APPROACH_HEADER                                                                            \
+    "Z[nm] amplitude[nm] lag[deg] repulsive_peak[nN] attractive_peak[nN] "                         \
+    "dissipated[eV] indentation[nm] max_force[nN] min_force[nN] virial[eV] "                       \
+    "periodicity[periods] settled[0/1]"
+
 typedef struct {
-    plot_set *app, *ret, *jump;
+    plot_set *app, *ret, *jump, *pm, *um;
+    plot_info *pi;
+    int jumps[2]; /* approach, retract */
 } approach_ctx;
 
 static int approach_row(const cJSON *o, void *vctx) {
     approach_ctx *c = vctx;
     const cJSON *j = cJSON_GetObjectItemCaseSensitive(o, "jump");
     if (j) {
-        double row[9] = {0.5e9 * (num(j, "z_before_m") + num(j, "z_after_m")),
+        bool ret = str_is(j, "direction", "retract");
+        double row[7] = {num(j, "z_before_m") * 1e9,
+                         num(j, "z_after_m") * 1e9,
                          num(j, "amplitude_before_m") * 1e9,
                          num(j, "amplitude_after_m") * 1e9,
                          num(j, "phase_before_deg"),
                          num(j, "phase_after_deg"),
-                         0,
-                         0,
-                         0,
-                         0};
-        const cJSON *dir = cJSON_GetObjectItemCaseSensitive(j, "direction");
-        row[5] = cJSON_IsString(dir) && !strcmp(dir->valuestring, "retract");
+                         ret ? 1 : 0};
+        c->jumps[ret]++;
         return set_row(c->jump, row);
     }
     double z = num(o, "z_m");
     if (isnan(z)) return plot_err("%s", "an approach record without z_m (approach --json?)");
-    const cJSON *dir = cJSON_GetObjectItemCaseSensitive(o, "direction");
-    bool ret = cJSON_IsString(dir) && !strcmp(dir->valuestring, "retract");
-    double row[9] = {z * 1e9,
-                     num(o, "amplitude_m") * 1e9,
-                     num(o, "phase_lag_deg"),
-                     num(o, "peak_force_n") * 1e9,
-                     num(o, "indentation_m") * 1e9,
-                     num(o, "dissipated_energy_j") / PLOT_EV,
-                     num(o, "attractive_force_n") * 1e9,
-                     num(o, "virial_j") / PLOT_EV,
-                     num(o, "periodicity")};
+    plot_info_z(c->pi, z);
+    if (!isfinite(c->pi->a0_m)) {
+        c->pi->a0_m = num(o, "free_amplitude_m");
+        c->pi->a0_lag_deg = num(o, "free_phase_lag_deg");
+    }
+    bool ret = str_is(o, "direction", "retract"), settled = is_true(o, "settled");
+    double fmax = num(o, "peak_force_n") * 1e9, fmin = num(o, "attractive_force_n") * 1e9,
+           p = num(o, "periodicity");
+    double row[APPROACH_COLS] = {z * 1e9,
+                                 num(o, "amplitude_m") * 1e9,
+                                 num(o, "phase_lag_deg"),
+                                 clip_pos(fmax),
+                                 clip_neg(fmin),
+                                 num(o, "dissipated_energy_j") / PLOT_EV,
+                                 num(o, "indentation_m") * 1e9,
+                                 fmax,
+                                 fmin,
+                                 num(o, "virial_j") / PLOT_EV,
+                                 p,
+                                 settled ? 1 : 0};
+    if (settled && p > 1 && set_row(c->pm, row)) return -1;
+    if ((!settled || p == 0) && set_row(c->um, row)) return -1;
     return set_row(ret ? c->ret : c->app, row);
 }
 
 static int load_approach(const plot_opts *o, plot_data *d, FILE *gp) {
-    const char *h = "Z_nm amplitude_nm lag_deg peak_force_nN indentation_nm dissipated_eV "
-                    "attractive_force_nN virial_eV p";
-    approach_ctx c = {set_new(d, "A", h, 9), set_new(d, "R", h, 9),
+    approach_ctx c = {curve_new(d, "A", "approach", APPROACH_HEADER, APPROACH_COLS),
+                      curve_new(d, "R", "retract", APPROACH_HEADER, APPROACH_COLS),
                       set_new(d, "J",
-                              "Z_nm amp_before_nm amp_after_nm lag_before_deg "
-                              "lag_after_deg retract 0 0 0",
-                              9)};
-    if (!c.app || !c.ret || !c.jump || each_json(o->in[0], approach_row, &c)) return -1;
+                              "Z_before[nm] Z_after[nm] amplitude_before[nm] amplitude_after[nm] "
+                              "lag_before[deg] lag_after[deg] retract[0/1]",
+                              7),
+                      set_new(d, "PM", APPROACH_HEADER, APPROACH_COLS),
+                      set_new(d, "UM", APPROACH_HEADER, APPROACH_COLS),
+                      &d->info,
+                      {0, 0}};
+    if (!c.app || !c.ret || !c.jump || !c.pm || !c.um || each_json(o->in[0], approach_row, &c))
+        return -1;
     if (c.app->n + c.ret->n == 0) return plot_err("%s: no approach records", o->in[0]);
-    fprintf(gp, "set multiplot layout 2,2 title '%s'\nset xlabel 'separation Z (nm)'\n", d->title);
-    struct {
+    fprintf(gp, "set style line 1 lc rgb '#0072b2' lw 1.5 pt 7 ps 0.6\n"
+                "set style line 2 lc rgb '#009e73' lw 1.5 pt 6 ps 0.7\n"
+                "set style line 3 lc rgb '#0072b2' lw 1.5 pt 7 ps 0.6 dt 2\n"
+                "set style line 4 lc rgb '#009e73' lw 1.5 pt 6 ps 0.7 dt 2\n"
+                "set style line 5 lc rgb 'red' lw 2.5\n"
+                "set style line 6 lc rgb '#e69f00' lw 2.5\n"
+                "set style line 11 lc rgb 'red' lw 1.5 pt 6 ps 1.8\n"
+                "set style line 12 lc rgb 'black' lw 1.5 pt 2 ps 1.6\n"
+                "set style arrow 1 head filled size screen 0.012,20 ls 5\n"
+                "set style arrow 2 head filled size screen 0.012,20 ls 6\n");
+    plot_key k = {0};
+    if (c.app->n) key_add(&k, "with linespoints ls 1", "approach");
+    if (c.ret->n) key_add(&k, "with linespoints ls 2", "retract");
+    if (c.jumps[0]) key_add(&k, "with vectors arrowstyle 1", "jump on approach");
+    if (c.jumps[1]) key_add(&k, "with vectors arrowstyle 2", "jump on retract");
+    if (c.pm->n) key_add(&k, "with points ls 11", "period p > 1");
+    if (c.um->n) key_add(&k, "with points ls 12", "not settled (or periodicity 0)");
+    key_add(&k, "with lines lw 1.5 lc rgb 'black'", "force: repulsive peak max(F, 0)");
+    key_add(&k, "with lines lw 1.5 dt 2 lc rgb 'black'", "force: attractive peak min(F, 0)");
+    const double l = PX_LEFT / d->W, r = 1 - PX_RIGHT / d->W;
+    double top = figure(gp, d, &k, l, r);
+    static const struct {
         const char *ylab;
-        int col;
-    } panel[4] = {{"amplitude (nm)", 2},
-                  {"phase lag (deg)", 3},
-                  {"peak repulsive force (nN)", 4},
-                  {"dissipated energy per period (eV)", 6}};
+        int col, col2; /* a second column, drawn dashed (0: none) */
+    } panel[4] = {{"amplitude (nm)", 2, 0},
+                  {"phase lag (deg)", 3, 0},
+                  {"tip-sample force peaks (nN)", 4, 5},
+                  {"dissipated energy per period (eV)", 6, 0}};
     for (int p = 0; p < 4; p++) {
-        fprintf(gp,
-                "set key %s left\nset ylabel '%s'\nplot $A using 1:%d with linespoints pt "
-                "7 ps 0.4 title 'approach'",
-                p < 2 ? "top" : "bottom", panel[p].ylab, panel[p].col);
-        if (c.ret->n)
-            fprintf(gp, ", $R using 1:%d with linespoints pt 6 ps 0.4 title 'retract'",
-                    panel[p].col);
-        if (c.jump->n && p < 2)
-            fprintf(gp,
-                    ", $J using 1:%d:(0):($%d - $%d) with vectors lw 2 lc rgb 'red' title "
-                    "'jump'",
-                    2 + 2 * p, 3 + 2 * p, 2 + 2 * p);
+        double pl = p % 2 ? 0.5 + (PX_LEFT + 15) / d->W : l, pr = p % 2 ? r : 0.5 - 30 / d->W;
+        stack(gp, p / 2, 2, pl, pr, PX_BOTTOM / d->H, top, PX_GAP / d->H);
+        shared_x(gp, p / 2, 2, "separation Z (nm)");
+        fprintf(gp, "set ylabel '%s'\n%s", panel[p].ylab,
+                p >= 2 ? "set xzeroaxis lt -1 lw 0.5\n" : "unset xzeroaxis\n");
+        const char *sep = "plot ";
+        for (int pass = 0; pass < (panel[p].col2 ? 2 : 1); pass++) {
+            int col = pass ? panel[p].col2 : panel[p].col;
+            if (c.app->n) {
+                fprintf(gp, "%s$A using 1:%d with linespoints ls %d notitle", sep, col,
+                        1 + 2 * pass);
+                sep = ", ";
+            }
+            if (c.ret->n) {
+                fprintf(gp, "%s$R using 1:%d with linespoints ls %d notitle", sep, col,
+                        2 + 2 * pass);
+                sep = ", ";
+            }
+            if (c.pm->n) fprintf(gp, ", $PM using 1:%d with points ls 11 notitle", col);
+            if (c.um->n) fprintf(gp, ", $UM using 1:%d with points ls 12 notitle", col);
+        }
+        /* the jumps: from the last point on the old branch to the first on the new one */
+        for (int dir = 0; dir < 2 && p < 2; dir++)
+            if (c.jumps[dir])
+                fprintf(gp,
+                        ", $J using 1:($7 == %d ? $%d : 1/0):($2 - $1):($%d - $%d) with vectors "
+                        "arrowstyle %d notitle",
+                        dir, 3 + 2 * p, 4 + 2 * p, 3 + 2 * p, dir + 1);
         fprintf(gp, "\n");
     }
     fprintf(gp, "unset multiplot\n");
@@ -351,18 +670,36 @@ static int load_approach(const plot_opts *o, plot_data *d, FILE *gp) {
 
 /* ---- continue ---- */
 
+/* A point or a bifurcation of a branch, in the order of the file. */
 typedef struct {
-    plot_set *pts, *ev, *cv;
-    int branch, stable; /* of the previous point (-1: none) */
-    double prev[5];
+    int branch, period, event; /* event: 0 a point, 1 LPC, 2 PD, 3 NS */
+    bool stable;
+    double x, mn, am, mu; /* mu: the largest |multiplier| (NAN unknown) */
+} cont_rec;
+
+typedef struct {
+    plot_set *ev, *cv;
+    cont_rec *rec;
+    size_t n, cap;
     int count[4];  /* events so far per type, for their labels */
-    double scale;  /* of the parameter: 1e-3 for fe (kHz) */
-    double scale2; /* of the second parameter (--param2): 1e-3 fe, 1e9 z and ae (nm) */
+    double scale;  /* of the parameter: 1e-3 for fe (kHz), 1e9 for z and ae (nm) */
+    char name[32]; /* the parameter */
+    double scale2; /* of the second parameter (--param2) */
     char name2[64];
     int curve, side; /* of the previous curve point (-1: none) */
     double start[4]; /* the row of the current curve's first point (its start) */
     int ncurve[3];   /* curve points per kind (1 LPC, 2 PD) */
+    int max_period;
+    plot_info *pi;
 } cont_ctx;
+
+static double param_scale(const char *name) {
+    return !strcmp(name, "fe") ? 1e-3 : !strcmp(name, "z") || !strcmp(name, "ae") ? 1e9 : 1.0;
+}
+
+static const char *scale_unit(double scale) {
+    return scale == 1e-3 ? "kHz" : scale == 1e9 ? "nm" : scale == 1e12 ? "pm" : "SI";
+}
 
 /* Columns of a curve_point: param, param2 (scaled), kind (1 LPC, 2 PD), curve index. A NaN
  * row between curves and sides; side 1 starts again at the curve's start point, so that the
@@ -371,9 +708,7 @@ static int curve_row(cont_ctx *c, const cJSON *o) {
     const cJSON *n2 = cJSON_GetObjectItemCaseSensitive(o, "param2_name");
     if (cJSON_IsString(n2)) {
         snprintf(c->name2, sizeof c->name2, "%s", n2->valuestring);
-        c->scale2 = !strcmp(n2->valuestring, "fe")                                    ? 1e-3
-                    : !strcmp(n2->valuestring, "z") || !strcmp(n2->valuestring, "ae") ? 1e9
-                                                                                      : 1.0;
+        c->scale2 = param_scale(n2->valuestring);
     }
     const cJSON *kd = cJSON_GetObjectItemCaseSensitive(o, "kind");
     double x = num(o, "param") * c->scale, y = num(o, "param2") * c->scale2;
@@ -395,86 +730,250 @@ static int curve_row(cont_ctx *c, const cJSON *o) {
     return set_row(c->cv, row);
 }
 
-/* Columns: param, min x stable, min x unstable, amplitude stable, amplitude unstable (nm).
- * A NaN row between branches breaks the lines; at a change of stability the point goes in
- * both columns, so that the solid and dashed parts meet. */
+/* The largest modulus of a point's multipliers ([[re, im], ...]). */
+static double max_multiplier(const cJSON *o) {
+    const cJSON *ms = cJSON_GetObjectItemCaseSensitive(o, "multipliers"), *m;
+    double best = NAN;
+    cJSON_ArrayForEach(m, ms) {
+        const cJSON *re = cJSON_GetArrayItem(m, 0), *im = cJSON_GetArrayItem(m, 1);
+        if (!cJSON_IsNumber(re) || !cJSON_IsNumber(im)) continue;
+        double a = hypot(re->valuedouble, im->valuedouble);
+        if (!(best >= a)) best = a;
+    }
+    return best;
+}
+
 static int continue_row(const cJSON *o, void *vctx) {
     cont_ctx *c = vctx;
     const cJSON *t = cJSON_GetObjectItemCaseSensitive(o, "type");
     if (!cJSON_IsString(t)) return plot_err("%s", "a record without type (continue --json?)");
     const cJSON *pn = cJSON_GetObjectItemCaseSensitive(o, "param_name");
-    if (cJSON_IsString(pn)) c->scale = strcmp(pn->valuestring, "fe") ? 1.0 : 1e-3;
+    if (cJSON_IsString(pn)) {
+        snprintf(c->name, sizeof c->name, "%s", pn->valuestring);
+        c->scale = param_scale(pn->valuestring);
+    }
     const char *ty = t->valuestring;
     if (!strcmp(ty, "summary") || !strcmp(ty, "end") || !strcmp(ty, "curve_end")) return 0;
     if (!strcmp(ty, "curve_point")) return curve_row(c, o);
-    double x = num(o, "param") * c->scale, mn = num(o, "min_deflection_m") * 1e9,
+    double x = num(o, "param"), mn = num(o, "min_deflection_m") * 1e9,
            am = num(o, "amplitude_m") * 1e9;
     if (isnan(x) || isnan(mn)) return plot_err("%s", "a continue record without param");
-    int br = (int)num(o, "branch"),
-        st = cJSON_IsTrue(cJSON_GetObjectItemCaseSensitive(o, "stable"));
-    if (strcmp(ty, "point")) {
-        int k = !strcmp(ty, "LPC") ? 1 : !strcmp(ty, "PD") ? 2 : 3;
-        double row[5] = {x, mn, am, k, ++c->count[k]};
-        return set_row(c->ev, row);
+    plot_info_param(c->pi, c->name[0] ? c->name : "param", x);
+    x *= c->scale;
+    int ev = !strcmp(ty, "point") ? 0 : !strcmp(ty, "LPC") ? 1 : !strcmp(ty, "PD") ? 2 : 3;
+    if (ev) {
+        double row[6] = {x, mn, am, ev, ++c->count[ev], 0};
+        if (set_row(c->ev, row)) return -1;
     }
-    static const double gap[5] = {NAN, NAN, NAN, NAN, NAN};
-    if (c->branch >= 0 && br != c->branch && set_row(c->pts, gap)) return -1;
-    double row[5] = {x, st ? mn : NAN, st ? NAN : mn, st ? am : NAN, st ? NAN : am};
-    if (c->branch == br && st != c->stable) { /* join the two parts at this point */
-        row[1] = row[2] = mn;
-        row[3] = row[4] = am;
+    if (c->n == c->cap) {
+        size_t cap = c->cap ? 2 * c->cap : 256;
+        cont_rec *r = realloc(c->rec, cap * sizeof *r);
+        if (!r) return -1;
+        c->rec = r;
+        c->cap = cap;
     }
-    c->branch = br;
-    c->stable = st;
-    return set_row(c->pts, row);
+    double per = num(o, "period");
+    int period = isfinite(per) && per >= 1 ? (int)per : 1;
+    if (period > c->max_period) c->max_period = period;
+    c->rec[c->n++] = (cont_rec){.branch = (int)num(o, "branch"),
+                                .period = period,
+                                .event = ev,
+                                .stable = is_true(o, "stable"),
+                                .x = x,
+                                .mn = mn,
+                                .am = am,
+                                .mu = ev ? NAN : max_multiplier(o)};
+    return 0;
+}
+
+/* One row of the branch set: param, min_x, amplitude, stable, branch, period, segment. */
+static int branch_row(plot_set *s, const cont_rec *r, bool stable, int seg) {
+    double row[7] = {r->x, r->mn, r->am, stable ? 1 : 0, r->branch, r->period, seg};
+    return set_row(s, row);
+}
+
+/* The branches cut into segments of one stability each. Where the stability of two
+ * consecutive points of a branch differs, the segments meet at the bifurcation found
+ * between them (the first, if several), else where the largest multiplier modulus crosses
+ * 1 on the straight line between them (half way if unknown); that point ends the one
+ * segment and starts the next. A bifurcation where the stability does not change is a
+ * point of its segment. */
+static int continue_segments(const cont_ctx *c, plot_set *b) {
+    int seg = 0;
+    for (size_t i = 0; i < c->n; i++) {
+        int br = c->rec[i].branch;
+        bool seen = false; /* an earlier record of this branch: done with it */
+        for (size_t j = 0; j < i && !seen; j++)
+            seen = c->rec[j].branch == br;
+        if (seen) continue;
+        int st = -1;             /* the segment's stability (-1: no point yet) */
+        size_t pend[64], np = 0; /* events since the last point */
+        const cont_rec *last = NULL;
+        for (size_t j = i; j < c->n; j++) {
+            const cont_rec *r = &c->rec[j];
+            if (r->branch != br) continue;
+            if (r->event) {
+                if (np < sizeof pend / sizeof pend[0]) pend[np++] = j;
+                continue;
+            }
+            size_t e0 = 0;
+            if (st >= 0 && last && r->stable != (st == 1)) {
+                cont_rec cut;
+                if (np > 0) {
+                    cut = c->rec[pend[0]];
+                    e0 = 1;
+                } else {
+                    double u = 0.5;
+                    if (isfinite(last->mu) && isfinite(r->mu) && (last->mu - 1) * (r->mu - 1) < 0)
+                        u = (1 - last->mu) / (r->mu - last->mu);
+                    cut = *r;
+                    cut.x = last->x + u * (r->x - last->x);
+                    cut.mn = last->mn + u * (r->mn - last->mn);
+                    cut.am = last->am + u * (r->am - last->am);
+                }
+                cut.branch = br;
+                cut.period = r->period;
+                if (branch_row(b, &cut, st == 1, seg) || branch_row(b, &cut, r->stable, ++seg))
+                    return -1;
+                st = r->stable;
+            }
+            if (st < 0) st = r->stable;
+            for (size_t e = e0; e < np; e++)
+                if (branch_row(b, &c->rec[pend[e]], st == 1, seg)) return -1;
+            np = 0;
+            if (branch_row(b, r, st == 1, seg)) return -1;
+            last = r;
+        }
+        for (size_t e = 0; e < np && st >= 0; e++) /* events after the last point */
+            if (branch_row(b, &c->rec[pend[e]], st == 1, seg)) return -1;
+        seg++;
+    }
+    return 0;
 }
 
 static int load_continue(const plot_opts *o, plot_data *d, FILE *gp) {
-    cont_ctx c = {.pts = set_new(d, "B",
-                                 "param min_x_stable_nm min_x_unstable_nm amp_stable_nm "
-                                 "amp_unstable_nm",
-                                 5),
-                  .ev =
-                      set_new(d, "E", "param min_x_nm amplitude_nm type(1 LPC 2 PD 3 NS) index", 5),
-                  .cv = set_new(d, "C", "param param2 kind(1 LPC 2 PD) curve", 4),
-                  .branch = -1,
+    cont_ctx c = {.ev = set_new(d, "E", "", 6),
+                  .cv = set_new(d, "C", "", 4),
                   .scale = 1.0,
                   .scale2 = 1.0,
                   .curve = -1,
-                  .side = -1};
-    if (!c.pts || !c.ev || !c.cv || each_json(o->in[0], continue_row, &c)) return -1;
-    if (c.pts->n == 0) return plot_err("%s: no point records", o->in[0]);
-    const char *xl = c.scale == 1e-3 ? "drive frequency fe (kHz)" : "parameter";
+                  .side = -1,
+                  .max_period = 1,
+                  .pi = &d->info};
+    int rc = (!c.ev || !c.cv) ? -1 : each_json(o->in[0], continue_row, &c);
+    size_t points = 0;
+    for (size_t i = 0; i < c.n; i++)
+        points += c.rec[i].event == 0;
+    if (rc == 0 && points == 0) rc = plot_err("%s: no point records", o->in[0]);
+    const char *pname = c.name[0] ? c.name : "param", *u = scale_unit(c.scale);
+    char hdr[200];
+    snprintf(hdr, sizeof hdr,
+             "%s[%s] min_x[nm] amplitude[nm] stable[0/1] branch[index] period[periods] "
+             "segment[index]",
+             pname, u);
+    plot_set *b = rc ? NULL : curve_new(d, "B", "", hdr, 7);
+    if (b) b->seg_col = 6;
+    if (rc == 0 && (!b || continue_segments(&c, b))) rc = -1;
+    free(c.rec);
+    if (rc) return -1;
+    snprintf(c.ev->header, sizeof c.ev->header,
+             "%s[%s] min_x[nm] amplitude[nm] type[1_LPC_2_PD_3_NS] index[count] "
+             "label_row[count]",
+             pname, u);
+    /* labels of events close in the parameter one over the other: the row of each, the
+     * events before it within 1.5 % of the parameter's span */
+    double xlo = INFINITY, xhi = -INFINITY, ylo[2] = {INFINITY, INFINITY},
+           yhi[2] = {-INFINITY, -INFINITY};
+    for (size_t i = 0; i < b->n; i++) {
+        xlo = fmin(xlo, cell(b, i, 0));
+        xhi = fmax(xhi, cell(b, i, 0));
+        for (int p = 0; p < 2; p++) {
+            ylo[p] = fmin(ylo[p], cell(b, i, 1 + p));
+            yhi[p] = fmax(yhi[p], cell(b, i, 1 + p));
+        }
+    }
+    for (size_t i = 0; i < c.ev->n; i++)
+        for (size_t j = 0; j < i; j++)
+            if (fabs(cell(c.ev, i, 0) - cell(c.ev, j, 0)) < 0.015 * (xhi - xlo))
+                c.ev->v[i * 6 + 5]++;
+    const char *xl = !strcmp(c.name, "fe")   ? "drive frequency fe (kHz)"
+                     : !strcmp(c.name, "z")  ? "separation Z (nm)"
+                     : !strcmp(c.name, "ae") ? "drive amplitude Ae (nm)"
+                                             : pname;
     const bool curves = c.cv->n > 0;
-    fprintf(gp, "set multiplot layout %d,1 title '%s'\nset xlabel '%s'\n", curves ? 3 : 2, d->title,
-            xl);
-    const char *ylab[2] = {"min deflection min(xr) (nm)", "amplitude at fe (nm)"};
-    for (int p = 0; p < 2; p++) {
+    /* period 1 blue, 2 purple, 3 and more green; stable solid, unstable dashed */
+    static const char *const pc[3] = {"#0072b2", "#cc79a7", "#009e73"};
+    for (int p = 0; p < 3; p++)
         fprintf(gp,
-                "set ylabel '%s'\nset key bottom right\n"
-                "plot $B using 1:%d with lines lw 2 lc rgb 'blue' title 'stable', "
-                "$B using 1:%d with lines lw 1 dt 2 lc rgb 'blue' title 'unstable'",
-                ylab[p], 2 + 2 * p, 3 + 2 * p);
-        static const char *const ev[3][3] = {
-            {"LPC", "7", "red"}, {"PD", "5", "dark-green"}, {"NS", "9", "orange"}};
-        for (int k = 0; k < 3; k++) /* gnuplot's sprintf fails on an empty set's NaN */
-            if (c.count[k + 1] > 0)
+                "set style line %d lc rgb '%s' lw 2\nset style line %d lc rgb '%s' lw 1.2 dt "
+                "2\n",
+                1 + 2 * p, pc[p], 2 + 2 * p, pc[p]);
+    static const char *const ev[3][3] = {{"LPC (fold)", "7", "red"},
+                                         {"PD (period doubling)", "5", "dark-green"},
+                                         {"NS (torus)", "9", "orange"}};
+    for (int k = 0; k < 3; k++)
+        fprintf(gp, "set style line %d lc rgb '%s' pt %s ps 1.3\n", 11 + k, ev[k][2], ev[k][1]);
+    plot_key k = {0};
+    key_add(&k, "with lines lw 2 lc rgb 'black'", "stable");
+    key_add(&k, "with lines lw 1.2 dt 2 lc rgb 'black'", "unstable");
+    const int np = c.max_period >= 3 ? 3 : c.max_period;
+    if (np > 1)
+        for (int p = 0; p < np; p++) {
+            char with[64], t[32];
+            snprintf(with, sizeof with, "with lines ls %d", 1 + 2 * p);
+            snprintf(t, sizeof t, p < 2 ? "period %d" : "period %d and more", p + 1);
+            key_add(&k, with, t);
+        }
+    for (int e = 0; e < 3; e++)
+        if (c.count[e + 1] > 0) {
+            char with[32];
+            snprintf(with, sizeof with, "with points ls %d", 11 + e);
+            key_add(&k, with, ev[e][0]);
+        }
+    if (c.ncurve[1]) key_add(&k, "with linespoints lw 2 pt 7 ps 0.5 lc rgb 'red'", "LPC curve");
+    if (c.ncurve[2])
+        key_add(&k, "with linespoints lw 2 pt 7 ps 0.5 lc rgb 'dark-green'", "PD curve");
+    const double l = PX_LEFT / d->W, r = 1 - PX_RIGHT / d->W;
+    double top = figure(gp, d, &k, l, r);
+    /* the diagram's two panels share x; the parameter plane under them has its own */
+    double bottom = PX_BOTTOM / d->H;
+    if (curves) bottom += 0.36 * (top - bottom);
+    const char *ylab[2] = {"minimum of xr (nm)", "amplitude at fe (nm)"};
+    for (int p = 0; p < 2; p++) {
+        stack(gp, p, 2, l, r, bottom, top, PX_GAP / d->H);
+        shared_x(gp, p, 2, xl);
+        /* y: the branches, and over them room for the stacked labels */
+        double span = yhi[p] - ylo[p], ytop = yhi[p];
+        for (size_t i = 0; i < c.ev->n; i++)
+            ytop = fmax(ytop, cell(c.ev, i, 1 + p) + (cell(c.ev, i, 5) + 1.5) * 0.09 * span);
+        if (span > 0) fprintf(gp, "set yrange [%g:%g]\n", ylo[p] - 0.04 * span, ytop + 0.02 * span);
+        fprintf(gp, "set ylabel '%s'\nplot ", ylab[p]);
+        const char *sep = "";
+        for (int q = 0; q < np; q++)
+            for (int s = 1; s >= 0; s--) {
                 fprintf(gp,
-                        ", $E using ($4 == %d ? $1 : 1/0):%d with points pt %s ps 1.2 lc "
-                        "rgb '%s' title '%s', $E using ($4 == %d ? $1 : 1/0):%d:"
-                        "(sprintf('%c%%d', $5)) with labels offset 1,1 notitle",
-                        k + 1, 2 + p, ev[k][1], ev[k][2], ev[k][0], k + 1, 2 + p, ev[k][0][0]);
+                        "%s$B using 1:($4 == %d && $6 %s %d ? $%d : 1/0) with lines ls %d notitle",
+                        sep, s, q < 2 ? "==" : ">=", q + 1, 2 + p, 1 + 2 * q + (1 - s));
+                sep = ", ";
+            }
+        for (int e = 0; e < 3; e++) /* gnuplot's sprintf fails on an empty set's NaN */
+            if (c.count[e + 1] > 0)
+                fprintf(gp,
+                        ", $E using ($4 == %d ? $1 : 1/0):%d with points ls %d notitle, $E using "
+                        "($4 == %d ? $1 : 1/0):($%d + $6 * %g):(sprintf('%c%%d', $5)) with labels "
+                        "offset 1,1 notitle",
+                        e + 1, 2 + p, 11 + e, e + 1, 2 + p, 0.09 * (yhi[p] - ylo[p]), ev[e][0][0]);
         fprintf(gp, "\n");
     }
+    double s2 = c.scale2;
     if (curves) { /* the parameter plane: the LPC and PD curves through the events */
-        const char *u2 = c.scale2 == 1e-3 ? " (kHz)" : c.scale2 == 1e9 ? " (nm)" : "";
         double big = 0.0;
         for (size_t i = 0; i < c.cv->n; i++)
             if (isfinite(c.cv->v[4 * i + 1])) big = fmax(big, fabs(c.cv->v[4 * i + 1]));
-        if (c.scale2 == 1e9 && big < 0.1) { /* sub-0.1 nm drive amplitudes: in pm */
+        if (s2 == 1e9 && big < 0.1) { /* sub-0.1 nm drive amplitudes: in pm */
             for (size_t i = 0; i < c.cv->n; i++)
                 c.cv->v[4 * i + 1] *= 1e3;
-            u2 = " (pm)";
+            s2 = 1e12;
         }
         char yl[128];
         const char *n2 = !strcmp(c.name2, "fe")   ? "drive frequency fe"
@@ -482,25 +981,27 @@ static int load_continue(const plot_opts *o, plot_data *d, FILE *gp) {
                          : !strcmp(c.name2, "ae") ? "drive amplitude Ae"
                          : c.name2[0]             ? c.name2
                                                   : "param2";
-        snprintf(yl, sizeof yl, "%s%s", n2, u2);
-        fprintf(
-            gp,
-            "set title 'the bifurcation curves in the plane of the two parameters (own "
-            "scales)'\nset ylabel '%s'\nset offsets 0, 0, graph 0.3, 0\nset key top center\nplot ",
-            yl);
-        static const char *const kn[2][2] = {{"LPC curve (fold)", "red"},
-                                             {"PD curve (period doubling)", "dark-green"}};
+        snprintf(yl, sizeof yl, "%s (%s)", n2, scale_unit(s2));
+        area(gp, l, r, PX_BOTTOM / d->H, bottom - (PX_BOTTOM + 2.5 * PX_LINE) / d->H);
+        fprintf(gp,
+                "set autoscale y\nset format x\nset xlabel '%s'\nset title 'the bifurcation curves "
+                "in the plane "
+                "of the two parameters (own scales)'\nset ylabel '%s'\nplot ",
+                xl, yl);
+        static const char *const kc[2] = {"red", "dark-green"};
         const char *sep = "";
-        for (int k = 1; k <= 2; k++)
-            if (c.ncurve[k] > 0) {
+        for (int kind = 1; kind <= 2; kind++)
+            if (c.ncurve[kind] > 0) {
                 fprintf(gp,
                         "%s$C using 1:($3 == %d || $3 != $3 ? $2 : 1/0) with linespoints lw 2 "
-                        "pt 7 ps 0.5 lc rgb '%s' title '%s'",
-                        sep, k, kn[k - 1][1], kn[k - 1][0]);
+                        "pt 7 ps 0.5 lc rgb '%s' notitle",
+                        sep, kind, kc[kind - 1]);
                 sep = ", ";
             }
-        fprintf(gp, "\n");
+        fprintf(gp, "\nunset title\n");
     }
+    snprintf(c.cv->header, sizeof c.cv->header, "%s[%s] %s[%s] kind[1_LPC_2_PD] curve[index]",
+             pname, u, c.name2[0] ? c.name2 : "param2", scale_unit(s2));
     fprintf(gp, "unset multiplot\n");
     return 0;
 }
@@ -510,7 +1011,7 @@ static int load_continue(const plot_opts *o, plot_data *d, FILE *gp) {
 static int load_thermal(const plot_opts *o, plot_data *d, FILE *gp) {
     FILE *f = fopen(o->in[0], "r");
     if (!f) return plot_err("cannot open %s", o->in[0]);
-    plot_set *s = set_new(d, "P", "f_hz psd_m2_per_hz", 2);
+    plot_set *s = curve_new(d, "P", "", "f[Hz] psd[m^2/Hz]", 2);
     char line[256];
     int bad = 0;
     while (s && fgets(line, sizeof line, f)) {
@@ -524,11 +1025,13 @@ static int load_thermal(const plot_opts *o, plot_data *d, FILE *gp) {
     }
     fclose(f);
     if (!s || bad || s->n == 0) return plot_err("%s is no PSD (afmtwin thermal --psd)", o->in[0]);
-    fprintf(gp,
-            "set logscale xy\nset format y '%%.0e'\nset xlabel 'frequency (Hz)'\nset ylabel "
-            "'deflection PSD (m^2/Hz)'\nset title '%s'\n",
-            d->title);
-    fprintf(gp, "plot $P using 1:2 with lines lc rgb 'gray40' title 'PSD (Welch)'");
+    d->info.no_drive = true;
+    plot_key k = {0};
+    key_add(&k, "with lines lc rgb 'gray40'", "deflection PSD (Welch)");
+    char *fit = NULL;
+    size_t fit_len = 0;
+    FILE *ff = open_memstream(&fit, &fit_len);
+    if (!ff) return -1;
     if (o->fit) {
         FILE *jf = fopen(o->fit, "r");
         static char buf[PLOT_LINE_MAX];
@@ -540,22 +1043,51 @@ static int load_thermal(const plot_opts *o, plot_data *d, FILE *gp) {
         double T = num(j, "temperature_k");
         if (!cJSON_IsArray(ms) || isnan(T)) {
             cJSON_Delete(j);
+            fclose(ff);
+            free(fit);
             return plot_err("--fit %s is no afmtwin thermal --json output", o->fit);
         }
+        d->info.temperature_k = T;
+        d->info.seconds = num(j, "seconds");
+        const cJSON *cf = cJSON_GetObjectItemCaseSensitive(j, "config");
+        if (!o->config && cJSON_IsString(cf)) { /* the model too where the file is there */
+            FILE *t = fopen(cf->valuestring, "r");
+            if (t) fclose(t);
+            if (!t || plot_info_config(&d->info, cf->valuestring) != 0) {
+                const char *bn = strrchr(cf->valuestring, '/');
+                snprintf(d->info.config, sizeof d->info.config, "%s",
+                         bn ? bn + 1 : cf->valuestring);
+            }
+        }
+        static const char *const fc[4] = {"#d55e00", "#009e73", "#0072b2", "#cc79a7"};
         int i = 0;
         cJSON_ArrayForEach(m, ms) {
-            double fn = num(m, "f_hz"), q = num(m, "q"), k = num(m, "k_n_per_m");
+            double fn = num(m, "f_hz"), q = num(m, "q"), kk = num(m, "k_n_per_m");
             double fl = num(m, "floor_m_rthz");
+            char with[64], t[96];
+            snprintf(with, sizeof with, "with lines lw 2 lc rgb '%s'", fc[i % 4]);
+            snprintf(t, sizeof t, "eq. 5.1 fit, mode %d: f %.6g kHz, Q %.4g, k %.4g N/m", i + 1,
+                     fn * 1e-3, q, kk);
+            key_add(&k, with, t);
             /* eq. 5.1 */
-            fprintf(gp,
+            fprintf(ff,
                     ", [%g:%g] 2*1.380649e-23*%g/(pi*%g*%g*%g)/((x**2/%g**2-1)**2+(x/(%g*%g))**2)"
-                    "+%g**2 with lines lw 2 title 'eq. 5.1 fit, mode %d: f %.5g Hz, Q %.4g, k "
-                    "%.4g N/m'",
-                    fn * (1 - 8 / q), fn * (1 + 8 / q), T, k, fn, q, fn, fn, q, fl, ++i, fn, q, k);
+                    "+%g**2 with lines lw 2 lc rgb '%s' notitle",
+                    fn * (1 - 8 / q), fn * (1 + 8 / q), T, kk, fn, q, fn, fn, q, fl, fc[i % 4]);
+            i++;
         }
         cJSON_Delete(j);
     }
-    fprintf(gp, "\n");
+    fclose(ff);
+    const double l = PX_LEFT / d->W, r = 1 - PX_RIGHT / d->W;
+    double top = figure(gp, d, &k, l, r);
+    area(gp, l, r, PX_BOTTOM / d->H, top);
+    fprintf(gp,
+            "set logscale xy\nset format y '%%.0e'\nset format x '%%.0s%%c'\nset autoscale xfix\n"
+            "set xlabel 'frequency (Hz)'\nset ylabel 'deflection PSD (m^2/Hz)'\n"
+            "plot $P using 1:2 with lines lc rgb 'gray40' notitle%s\nunset multiplot\n",
+            fit ? fit : "");
+    free(fit);
     return 0;
 }
 
@@ -563,14 +1095,14 @@ static int load_thermal(const plot_opts *o, plot_data *d, FILE *gp) {
 
 static int load_trace(const plot_opts *o, plot_data *d, FILE *gp) {
     char err[256];
-    afm_lcm_log *l = afm_lcm_log_open(o->in[0], 0, err, sizeof err);
-    if (!l) return plot_err("cannot read the log: %s", err);
-    plot_set *s = set_new(d, "T", "t_ms deflection_nm obd_nm force_nN gap_nm", 5);
+    afm_lcm_log *lg = afm_lcm_log_open(o->in[0], 0, err, sizeof err);
+    if (!lg) return plot_err("cannot read the log: %s", err);
+    plot_set *s = curve_new(d, "T", "", "t[ms] deflection[nm] obd[nm] force[nN] gap[nm]", 5);
     double t0 = isnan(o->t_from_s) ? -HUGE_VAL : o->t_from_s;
     double t1 = isnan(o->t_to_s) ? HUGE_VAL : o->t_to_s, first = NAN;
     afm_lcm_log_event ev;
-    int r, blocks = 0;
-    while (s && (r = afm_lcm_log_next(l, &ev, err, sizeof err)) > 0) {
+    int rr, blocks = 0;
+    while (s && (rr = afm_lcm_log_next(lg, &ev, err, sizeof err)) > 0) {
         size_t cl = strlen(ev.channel);
         if (cl < 7 || strcmp(ev.channel + cl - 7, "SAMPLES")) continue;
         afmtwin_samples_t m;
@@ -592,19 +1124,41 @@ static int load_trace(const plot_opts *o, plot_data *d, FILE *gp) {
         }
         afm_wire_free(&afm_wire_samples_t, &m);
     }
-    afm_lcm_log_close(&l);
+    afm_lcm_log_close(&lg);
     if (!s || s->n == 0) {
         fprintf(stderr, "afmtwin plot: %s: no samples of stream %d in the window (%d blocks)\n",
                 o->in[0], o->stream, blocks);
         return -1;
     }
-    fprintf(gp, "set multiplot layout %d,1 title '%s'\n", isnan(o->z_m) ? 2 : 3, d->title);
-    fprintf(gp, "unset xlabel\nset ylabel 'deflection (nm)'\nplot $T using 1:2 with lines title "
-                "'tip deflection xr', $T using 1:3 with lines title 'OBD signal'\n");
-    if (!isnan(o->z_m))
-        fprintf(gp, "set ylabel 'gap (nm)'\nplot $T using 1:5 with lines title 'gap xr + Z'\n");
-    fprintf(gp, "set xlabel 'model time (ms)'\nset ylabel 'force (nN)'\nplot $T using 1:4 with "
-                "lines lc rgb 'red' title 'tip-sample force'\nunset multiplot\n");
+    /* the daemon's drive is what it was sent, not the config's: only --fe and --ae */
+    d->info.cfg_fe_hz = d->info.cfg_ae_m = NAN;
+    fprintf(gp, "set style line 1 lc rgb '#0072b2' lw 1.5 pt 7 ps 0.5\nset style line 2 lc rgb "
+                "'#e69f00' lw 1.5 dt 2 pt 6 ps 0.7\nset style line 3 lc rgb '#009e73' lw 1.5 pt 7 "
+                "ps 0.5\nset style line 4 lc rgb '#d55e00' lw 1.5 pt 7 ps 0.5\n");
+    const bool gap = !isnan(o->z_m);
+    plot_key k = {0};
+    key_add(&k, "with linespoints ls 1", "tip deflection xr");
+    key_add(&k, "with linespoints ls 2", "OBD signal");
+    if (gap) key_add(&k, "with linespoints ls 3", "gap xr + Z");
+    key_add(&k, "with linespoints ls 4", "tip-sample force");
+    const double l = PX_LEFT / d->W, r = 1 - PX_RIGHT / d->W, b0 = PX_BOTTOM / d->H,
+                 g = PX_GAP / d->H;
+    double top = figure(gp, d, &k, l, r);
+    const int n = gap ? 3 : 2;
+    int i = 0;
+    stack(gp, i, n, l, r, b0, top, g);
+    shared_x(gp, i++, n, "model time (ms)");
+    fprintf(gp, "set ylabel 'deflection (nm)'\nplot $T using 1:2 with linespoints ls 1 notitle, $T "
+                "using 1:3 with linespoints ls 2 notitle\n");
+    if (gap) {
+        stack(gp, i, n, l, r, b0, top, g);
+        shared_x(gp, i++, n, "model time (ms)");
+        fprintf(gp, "set ylabel 'gap (nm)'\nplot $T using 1:5 with linespoints ls 3 notitle\n");
+    }
+    stack(gp, i, n, l, r, b0, top, g);
+    shared_x(gp, i, n, "model time (ms)");
+    fprintf(gp, "set ylabel 'force (nN)'\nplot $T using 1:4 with linespoints ls 4 notitle\nunset "
+                "multiplot\n");
     return 0;
 }
 
@@ -613,7 +1167,7 @@ static int load_trace(const plot_opts *o, plot_data *d, FILE *gp) {
 typedef struct {
     int want, seen;
     plot_set *s;
-    double z, fe;
+    double z, fe, a0, lag0;
 } spectrum_ctx;
 
 static int spectrum_row(const cJSON *o, void *vctx) {
@@ -624,6 +1178,8 @@ static int spectrum_row(const cJSON *o, void *vctx) {
     c->s->n = 0; /* -1: the last one wins */
     c->z = num(o, "z_m");
     c->fe = num(o, "fe_hz");
+    c->a0 = num(o, "free_amplitude_m");
+    c->lag0 = num(o, "free_phase_lag_deg");
     cJSON_ArrayForEach(h, hs) {
         double a = num(h, "amplitude_m");
         if (isnan(a)) a = num(h, "deflection_amplitude_m");
@@ -634,25 +1190,42 @@ static int spectrum_row(const cJSON *o, void *vctx) {
 }
 
 static int load_spectrum(const plot_opts *o, plot_data *d, FILE *gp) {
-    spectrum_ctx c = {.want = o->index, .s = set_new(d, "H", "k amplitude_nm", 2)};
+    spectrum_ctx c = {.want = o->index, .s = curve_new(d, "H", "", "k[harmonic] amplitude[nm]", 2)};
     if (!c.s || each_json(o->in[0], spectrum_row, &c)) return -1;
     if (c.s->n == 0) return plot_err("%s: no record with harmonics at that --index", o->in[0]);
-    fprintf(gp, "set logscale y\nset format y '%%.0e'\nset boxwidth 0.6\nset style fill solid 0.6\n"
-                "set xlabel 'harmonic k'\nset ylabel 'deflection amplitude (nm)'\nset xtics 1\n");
-    fprintf(gp, "set title '%s%s", d->title, isnan(c.z) ? "" : ", ");
-    if (!isnan(c.z)) fprintf(gp, "Z %.4g nm", c.z * 1e9);
-    if (!isnan(c.fe)) fprintf(gp, ", fe %.6g Hz", c.fe);
-    fprintf(gp, "'\nplot $H using 1:2 with boxes title 'A_k'\n");
+    plot_info_z(&d->info, c.z);
+    plot_info_fe(&d->info, c.fe);
+    d->info.a0_m = c.a0;
+    d->info.a0_lag_deg = c.lag0;
+    double kmax = 1;
+    for (size_t i = 0; i < c.s->n; i++)
+        kmax = fmax(kmax, cell(c.s, i, 0));
+    plot_key k = {0};
+    key_add(&k, "with boxes fill solid 0.6 lc rgb '#0072b2'",
+            "harmonic amplitudes A_k of the deflection");
+    const double l = PX_LEFT / d->W, r = 1 - PX_RIGHT / d->W;
+    double top = figure(gp, d, &k, l, r);
+    area(gp, l, r, PX_BOTTOM / d->H, top);
+    fprintf(gp,
+            "set logscale y\nset format y '%%.0e'\nset boxwidth 0.6\nset style fill solid 0.6\n"
+            "set xlabel 'harmonic k'\nset ylabel 'deflection amplitude (nm)'\nset xtics 1\n"
+            "set xrange [0.4:%g]\nplot $H using 1:2 with boxes lc rgb '#0072b2' notitle\n"
+            "unset multiplot\n",
+            kmax + 0.6);
     return 0;
 }
 
 /* ---- scan ---- */
 
-#define SCAN_COLS 9 /* x_nm y_nm line height_nm true_nm lag_deg error_nm peak_nN dissipated_eV */
+#define SCAN_COLS 9
+#define SCAN_HEADER                                                                                \
+    "x[nm] y[nm] line[index] height[nm] true_height[nm] lag[deg] error[nm] peak_force[nN] "        \
+    "dissipated[eV]"
 
 typedef struct {
     plot_set *tr, *re;
     int lines;
+    plot_info *pi;
 } scan_ctx;
 
 static int scan_row(const cJSON *o, void *vctx) {
@@ -661,6 +1234,7 @@ static int scan_row(const cJSON *o, void *vctx) {
     if (isnan(line) || isnan(num(o, "height_m")))
         return plot_err("%s", "a record without line or height_m (afmtwin scan --json?)");
     if (line + 1 > c->lines) c->lines = (int)line + 1;
+    if (!isfinite(c->pi->a0_m)) c->pi->a0_m = num(o, "free_amplitude_m");
     double row[SCAN_COLS] = {num(o, "x_m") * 1e9,
                              num(o, "y_m") * 1e9,
                              line,
@@ -670,8 +1244,7 @@ static int scan_row(const cJSON *o, void *vctx) {
                              num(o, "error_m") * 1e9,
                              num(o, "peak_force_n") * 1e9,
                              num(o, "dissipated_energy_j") / PLOT_EV};
-    return set_row(cJSON_IsTrue(cJSON_GetObjectItemCaseSensitive(o, "retrace")) ? c->re : c->tr,
-                   row);
+    return set_row(is_true(o, "retrace") ? c->re : c->tr, row);
 }
 
 /* Each line's y: the mean of its pixels' (the slow axis moves during a line), so that the
@@ -687,70 +1260,186 @@ static void scan_line_y(plot_set *s, int lines) {
     }
 }
 
+/* A 1-2-5 tic step for an axis of span (data units) drawn px pixels long, each label and
+ * the room to the next lab pixels: at most 5 labels, and as many as fit apart (two at
+ * least: then the step is the span). */
+static double tic_step(double span, double px, double lab) {
+    if (!(span > 0)) return 1;
+    int most = (int)(px / lab); /* labels */
+    most = most < 2 ? 2 : most > 5 ? 5 : most;
+    double step = pow(10, floor(log10(span / most)));
+    static const double m[4] = {1, 2, 5, 10};
+    for (int i = 0; i < 4; i++)
+        if (span / (step * m[i]) <= most - 1 + 1e-9) return step * m[i] > span ? span : step * m[i];
+    return span;
+}
+
+/* Characters of the longer %g label of a and b. */
+static int label_chars(double a, double b) {
+    char s[2][32];
+    int na = snprintf(s[0], sizeof s[0], "%g", a), nb = snprintf(s[1], sizeof s[1], "%g", b);
+    return na > nb ? na : nb;
+}
+
+/* The largest rectangle of aspect (height / width) in the box l..r x b..t (screen), at its
+ * top, centred across (shift: what it moved right): the plot area of an image with square
+ * nm. Its left, right and bottom edges out. */
+static void aspect_area(FILE *gp, const plot_data *d, double l, double r, double b, double t,
+                        double aspect, double *al, double *ar, double *ab) {
+    double w = (r - l) * d->W, h = (t - b) * d->H;
+    if (h > w * aspect)
+        h = w * aspect;
+    else
+        w = h / aspect;
+    *al = l + 0.5 * ((r - l) - w / d->W);
+    *ar = *al + w / d->W;
+    *ab = t - h / d->H;
+    area(gp, *al, *ar, *ab, t);
+}
+
 static int load_scan(const plot_opts *o, plot_data *d, FILE *gp) {
-    const char *h = "x_nm y_nm line height_nm true_height_nm lag_deg error_nm peak_force_nN "
-                    "dissipated_eV";
-    scan_ctx c = {set_new(d, "T", h, SCAN_COLS), set_new(d, "R", h, SCAN_COLS), 0};
+    scan_ctx c = {curve_new(d, "T", "trace", SCAN_HEADER, SCAN_COLS),
+                  curve_new(d, "R", "retrace", SCAN_HEADER, SCAN_COLS), 0, &d->info};
     if (!c.tr || !c.re || each_json(o->in[0], scan_row, &c)) return -1;
     if (c.tr->n == 0) return plot_err("%s: no trace pixels", o->in[0]);
+    d->info.no_z = true;
     scan_line_y(c.tr, c.lines);
     /* the profile: the middle line's trace and retrace against the truth */
     int mid = c.lines / 2;
-    plot_set *pt = set_new(d, "PT", h, SCAN_COLS), *pr = set_new(d, "PR", h, SCAN_COLS);
+    plot_set *pt = set_new(d, "PT", SCAN_HEADER, SCAN_COLS),
+             *pr = set_new(d, "PR", SCAN_HEADER, SCAN_COLS);
     if (!pt || !pr) return -1;
-    for (size_t r = 0; r < c.tr->n; r++)
-        if (c.tr->v[r * SCAN_COLS + 2] == mid && set_row(pt, c.tr->v + r * SCAN_COLS)) return -1;
-    for (size_t r = 0; r < c.re->n; r++)
-        if (c.re->v[r * SCAN_COLS + 2] == mid && set_row(pr, c.re->v + r * SCAN_COLS)) return -1;
+    for (size_t i = 0; i < c.tr->n; i++)
+        if (c.tr->v[i * SCAN_COLS + 2] == mid && set_row(pt, c.tr->v + i * SCAN_COLS)) return -1;
+    for (size_t i = 0; i < c.re->n; i++)
+        if (c.re->v[i * SCAN_COLS + 2] == mid && set_row(pr, c.re->v + i * SCAN_COLS)) return -1;
     static const struct {
-        const char *label;
+        const char *title, *unit;
         int col;
-    } img[4] = {{"height (nm)", 4},
-                {"phase lag (deg)", 6},
-                {"amplitude error (nm)", 7},
-                {"peak force (nN)", 8}};
-    /* x tics: a 1-2-5 step giving about 4 intervals over the scan */
-    double x0 = INFINITY, x1 = -INFINITY;
-    for (size_t r = 0; r < c.tr->n; r++) {
-        x0 = fmin(x0, c.tr->v[r * SCAN_COLS]);
-        x1 = fmax(x1, c.tr->v[r * SCAN_COLS]);
+    } img[4] = {{"height", "height (nm)", 4},
+                {"phase lag", "phase lag (deg)", 6},
+                {"amplitude error", "amplitude error (nm)", 7},
+                {"peak force", "peak force (nN)", 8}};
+    /* the pixels' edges: half a pixel pitch (line pitch in y) beyond the outer centres */
+    double x0 = INFINITY, x1 = -INFINITY, y0 = INFINITY, y1 = -INFINITY;
+    for (size_t i = 0; i < c.tr->n; i++) {
+        x0 = fmin(x0, c.tr->v[i * SCAN_COLS]);
+        x1 = fmax(x1, c.tr->v[i * SCAN_COLS]);
+        y0 = fmin(y0, c.tr->v[i * SCAN_COLS + 1]);
+        y1 = fmax(y1, c.tr->v[i * SCAN_COLS + 1]);
     }
-    double step = x1 > x0 ? pow(10, floor(log10((x1 - x0) / 4))) : 1;
-    double ratio = x1 > x0 ? (x1 - x0) / 4 / step : 1;
-    step *= ratio >= 5 ? 5 : ratio >= 2 ? 2 : 1;
-    fprintf(gp,
-            "set xtics %g\nset multiplot layout %d,%d title '%s (phase: lag behind the drive, 90 "
-            "deg free at resonance)'\n",
-            step, c.lines > 1 ? 2 : 3, c.lines > 1 ? 3 : 2, d->title);
+    double dx = x1 > x0 && pt->n > 1 ? (x1 - x0) / (double)(pt->n - 1) : 1;
+    double dy = c.lines > 1 ? (y1 - y0) / (c.lines - 1) : dx;
+    x0 -= dx / 2, x1 += dx / 2, y0 -= dy / 2, y1 += dy / 2;
+    if (fabs(x0) < 1e-6 * (x1 - x0)) x0 = 0; /* rounding: an edge at 0 is 0 */
+    if (fabs(y0) < 1e-6 * (y1 - y0)) y0 = 0;
+    fprintf(gp, "set style line 1 lc rgb 'black' lw 2\nset style line 2 lc rgb '#0072b2' lw 1.5 "
+                "pt 7 ps 0.5\nset style line 3 lc rgb '#d55e00' lw 1.5 pt 6 ps 0.6\n");
+    plot_key none = {0};
+    const double W = d->W, H = d->H;
+    const double top = figure(gp, d, &none, 0, 1);
+    char xr[96];
+    snprintf(xr, sizeof xr, "set xrange [%.6g:%.6g]\n", x0, x1);
+    /* the profile's legend: right of it */
+    static const char key[] =
+        "set key at screen %.4f,%.4f left top vertical Left reverse box samplen 2.5\n";
+    if (c.lines == 1) { /* profiles only, two by two */
+        const double kr = 1 - 190 / W, h = (top - PX_BOTTOM / H - PX_LINE / H) / 2;
+        for (int p = 0; p < 4; p++) {
+            double cl = p % 2 ? 0.5 + 60 / W : PX_LEFT / W, cr = p % 2 ? kr : 0.5 - 40 / W;
+            double t = top - (p / 2) * (h + PX_LINE / H);
+            area(gp, cl, cr, t - h + (p < 2 ? (PX_BOTTOM - 10) / H : 0), t);
+            fprintf(gp, "%sset xlabel 'x (nm)'\nset ylabel '%s'\n", xr, img[p].unit);
+            if (p == 0) fprintf(gp, key, kr + 12 / W, top);
+            fprintf(gp,
+                    "plot $PT using 1:%d with linespoints ls 2 %s, $PR using 1:%d with "
+                    "linespoints ls 3 %s%s\nunset key\n",
+                    img[p].col, p ? "notitle" : "title 'trace'", img[p].col,
+                    p ? "notitle" : "title 'retrace'",
+                    p ? "" : ", $PT using 1:5 with lines ls 1 title 'true height'");
+        }
+        fprintf(gp, "unset multiplot\n");
+        return 0;
+    }
+    /* the images two by two, the two in a column sharing the x tic labels, the profile
+     * under them */
+    const double aspect = (y1 - y0) / (x1 - x0);
+    const double prof_h = 0.2 * top, img_bot = PX_BOTTOM / H + prof_h + 12 / H;
+    const double title = (PX_LINE + 8) / H, xlab = (PX_BOTTOM + 6) / H;
+    const double img_h = (top - img_bot - 2 * title - 12 / H - xlab) / 2;
     for (int p = 0; p < 4; p++) {
-        if (c.lines > 1)
-            fprintf(gp,
-                    "set xlabel 'x (nm)'\nset ylabel 'y (nm)'\nset size ratio -1\nset title "
-                    "'%s (trace)'\nunset key\nplot $T using 1:2:%d with image notitle\nset size "
-                    "noratio\nset key\n",
-                    img[p].label, img[p].col);
-        else
-            fprintf(gp,
-                    "set xlabel 'x (nm)'\nset ylabel '%s'\nset title '%s'\nplot $PT using 1:%d "
-                    "with linespoints pt 7 ps 0.4 title 'trace', $PR using 1:%d with "
-                    "linespoints pt 6 ps 0.4 title 'retrace'\n",
-                    img[p].label, img[p].label, img[p].col, img[p].col);
+        /* the plot area: under the panel's title, right of its y labels, left of its
+         * colour bar */
+        double cl = (p % 2) * 0.5, t = top - title - (p / 2) * (img_h + 12 / H + title);
+        double l = cl + 70 / W, r = cl + 0.5 - 110 / W, al, ar, ab;
+        aspect_area(gp, d, l, r, t - img_h, t, aspect, &al, &ar, &ab);
+        double xs = tic_step(x1 - x0, (ar - al) * W, label_chars(x0, x1) * PX_CHAR + 12);
+        double ys = tic_step(y1 - y0, (t - ab) * H, PX_LINE + 8);
+        shared_x(gp, p / 2, 2, "x (nm)");
+        fprintf(gp,
+                "set size ratio -1\nset autoscale fix\n%sset yrange [%.6g:%.6g]\nset xtics %g\n"
+                "set ytics %g\nset ylabel 'y (nm)'\nset title '%s (trace)'\nset cblabel '%s'\n"
+                "set colorbox user origin screen %.4f,%.4f size screen %.4f,%.4f\nplot $T using "
+                "1:2:%d with image notitle\nset size noratio\n",
+                xr, y0, y1, xs, ys, img[p].title, img[p].unit, ar + 10 / W, ab, 18 / W, t - ab,
+                img[p].col);
     }
+    const double pl = 70 / W, prr = 1 - 190 / W, ptop = PX_BOTTOM / H + prof_h - (PX_LINE + 8) / H;
+    area(gp, pl, prr, PX_BOTTOM / H, ptop);
     fprintf(gp,
-            "set xlabel 'x (nm)'\nset ylabel 'height (nm)'\nset title 'line %d: height against "
-            "the truth'\nplot $PT using 1:5 with lines lw 2 lc rgb 'black' title 'true', $PT "
-            "using 1:4 with linespoints pt 7 ps 0.4 title 'trace', $PR using 1:4 with "
-            "linespoints pt 6 ps 0.4 title 'retrace'\nunset multiplot\n",
-            mid);
+            "set autoscale y\nset xtics auto\nset ytics auto\n%sset xlabel 'x (nm)'\nset ylabel "
+            "'height (nm)'\nset title 'line %d: height against the truth'\n",
+            xr, mid);
+    fprintf(gp, key, prr + 12 / W, ptop);
+    fprintf(gp, "plot $PT using 1:5 with lines ls 1 title 'true height', $PT using 1:4 with "
+                "linespoints ls 2 title 'trace', $PR using 1:4 with linespoints ls 3 title "
+                "'retrace'\nunset key\nunset multiplot\n");
     return 0;
 }
 
-/* gnuplot string literal text: no quotes or backslashes from file names. */
-static void title_of(const plot_opts *o, plot_data *d) {
-    const char *t = o->title ? o->title : o->in[0];
-    snprintf(d->title, sizeof d->title, "afmtwin %s: %s", o->kind, t);
-    for (char *p = d->title; *p; p++)
-        if (*p == '\'' || *p == '\\' || *p == '\n') *p = ' ';
+/* ---- the command ---- */
+
+static const char *kind_title(const char *kind) {
+    static const struct {
+        const char *kind, *title;
+    } t[] = {{"sweep", "frequency sweep"},       {"approach", "approach curve"},
+             {"thermal", "thermal tune"},        {"trace", "time trace of the daemon outputs"},
+             {"spectrum", "harmonic spectrum"},  {"scan", "scan"},
+             {"continue", "bifurcation diagram"}};
+    for (size_t i = 0; i < sizeof t / sizeof t[0]; i++)
+        if (!strcmp(kind, t[i].kind)) return t[i].title;
+    return kind;
+}
+
+/* --data and --csv: 0, or 1 (said). */
+static int write_data(const plot_opts *o, const plot_data *d) {
+    size_t dl = o->data ? strlen(o->data) : 0;
+    bool data_csv = dl > 4 && !strcmp(o->data + dl - 4, ".csv");
+    const char *files[2] = {o->data, o->csv};
+    for (int i = 0; i < 2; i++) {
+        if (!files[i]) continue;
+        FILE *df = fopen(files[i], "w");
+        if (!df) {
+            fprintf(stderr, "afmtwin plot: cannot write %s\n", files[i]);
+            return 1;
+        }
+        if (i == 1 || data_csv) {
+            if (csv_write(df, d) != 0) fprintf(stderr, "afmtwin plot: no curve for the CSV\n");
+        } else {
+            fprintf(df, "# %s%s%s\n", d->title, d->sub[0] ? ": " : "", d->sub);
+            for (int s = 0; s < d->nset; s++) {
+                fprintf(df, "%s# %s%s%s%s: %s\n", s ? "\n\n" : "", d->set[s].name,
+                        d->set[s].label[0] ? " (" : "", d->set[s].label,
+                        d->set[s].label[0] ? ")" : "", d->set[s].header);
+                set_write(df, &d->set[s], " ", false);
+            }
+        }
+        if (fclose(df) != 0) {
+            fprintf(stderr, "afmtwin plot: cannot write %s\n", files[i]);
+            return 1;
+        }
+    }
+    return 0;
 }
 
 int afm_cmd_plot(int argc, char **argv) {
@@ -773,10 +1462,18 @@ int afm_cmd_plot(int argc, char **argv) {
                 o.kind);
         return 2;
     }
-    /* the plot commands first into memory: the data blocks go before them */
     static plot_data d;
     memset(&d, 0, sizeof d);
-    title_of(&o, &d);
+    d.W = o.width;
+    d.H = o.height;
+    snprintf(d.title, sizeof d.title, "%s", o.title ? o.title : kind_title(o.kind));
+    clean(d.title);
+    plot_info_init(&d.info);
+    if (o.config && plot_info_config(&d.info, o.config) != 0) return 2;
+    d.info.opt_fe_hz = o.fe_hz;
+    d.info.opt_ae_m = o.ae_m;
+    d.info.opt_z_m = o.z_m;
+    /* the plot commands first into memory: the data blocks go before them */
     char *cmds = NULL;
     size_t cmds_len = 0;
     FILE *cf = open_memstream(&cmds, &cmds_len);
@@ -788,41 +1485,44 @@ int afm_cmd_plot(int argc, char **argv) {
         data_free(&d);
         return 2;
     }
-    int status = 0;
-    if (o.data) {
-        FILE *df = fopen(o.data, "w");
-        if (!df) {
-            fprintf(stderr, "afmtwin plot: cannot write %s\n", o.data);
-            status = 1;
-        } else {
-            fprintf(df, "# %s\n", d.title);
-            for (int i = 0; i < d.nset; i++) {
-                fprintf(df, "%s# %s: %s\n", i ? "\n\n" : "", d.set[i].name, d.set[i].header);
-                set_write(df, &d.set[i]);
-            }
-            if (fclose(df) != 0) status = 1;
-        }
-    }
-    size_t ol = strlen(o.out);
-    bool svg = ol > 4 && !strcmp(o.out + ol - 4, ".svg");
-    FILE *gp = status ? NULL : popen("gnuplot", "w");
-    if (gp) {
-        fprintf(gp,
-                "set terminal %s size %d,%d noenhanced\nset output '%s'\nset grid\nset key "
-                "box opaque\n",
+    int status = write_data(&o, &d);
+    /* the whole script: terminal, data blocks, commands */
+    char *script = NULL;
+    size_t script_len = 0;
+    FILE *sf = status ? NULL : open_memstream(&script, &script_len);
+    if (sf) {
+        size_t ol = strlen(o.out);
+        bool svg = ol > 4 && !strcmp(o.out + ol - 4, ".svg");
+        fprintf(sf, "set terminal %s size %d,%d noenhanced\nset output '%s'\nset grid\n",
                 svg ? "svg" : "pngcairo", o.width, o.height, o.out);
         for (int i = 0; i < d.nset; i++) { /* empty sets are still defined (one NaN row) */
-            fprintf(gp, "$%s << EOD\n", d.set[i].name);
-            set_write(gp, &d.set[i]);
+            fprintf(sf, "$%s << EOD\n", d.set[i].name);
+            set_write(sf, &d.set[i], " ", false);
             if (d.set[i].n == 0) {
                 for (int c = 0; c < d.set[i].ncol; c++)
-                    fprintf(gp, c ? " NaN" : "NaN");
-                fputc('\n', gp);
+                    fprintf(sf, c ? " NaN" : "NaN");
+                fputc('\n', sf);
             }
-            fprintf(gp, "EOD\n");
+            fprintf(sf, "EOD\n");
         }
-        fwrite(cmds, 1, cmds_len, gp);
-        fprintf(gp, "set output\n");
+        fwrite(cmds, 1, cmds_len, sf);
+        fprintf(sf, "set output\n");
+        if (fclose(sf) != 0) status = 1;
+    } else {
+        status = 1;
+    }
+    if (!status && o.script) {
+        FILE *f = fopen(o.script, "w");
+        bool ok = f && fwrite(script, 1, script_len, f) == script_len;
+        if (f && fclose(f) != 0) ok = false;
+        if (!ok) {
+            fprintf(stderr, "afmtwin plot: cannot write %s\n", o.script);
+            status = 1;
+        }
+    }
+    FILE *gp = status ? NULL : popen("gnuplot", "w");
+    if (gp) {
+        fwrite(script, 1, script_len, gp);
         int grc = pclose(gp);
         if (grc != 0) {
             fprintf(stderr, "afmtwin plot: gnuplot failed (status %d)\n", grc);
@@ -832,6 +1532,7 @@ int afm_cmd_plot(int argc, char **argv) {
         fprintf(stderr, "afmtwin plot: cannot run gnuplot (package gnuplot-nox)\n");
         status = 1;
     }
+    free(script);
     free(cmds);
     data_free(&d);
     return status;

@@ -77,6 +77,7 @@ typedef struct {
     int cap;
     afm_io_samples rec; /* large: one per context */
     afm_chain_period periods[REPLAY_PERIODS_MAX];
+    afmt_progress pg; /* on stderr, terminals only (not with --quiet) */
 } replay_ctx;
 
 static void replay_usage(FILE *f) {
@@ -112,13 +113,14 @@ static void replay_usage(FILE *f) {
             "                   --harmonics-every K gives the same records)\n"
             "  --harmonics-max-hz F  default: K chosen as the daemon does, the smallest with at\n"
             "                   most F records a second at the drive frequency (default %.0f)\n"
-            "  --quiet          no summary on stderr\n"
+            "  --quiet          no summary (and no progress) on stderr\n"
             "  --help           this text\n\n"
             "Status messages come every %.1f s of model time and at the end; in them mode is\n"
             "\"replay\" (or \"lockstep\"), realtime_factor and lag_s are 0. When a tick (or,\n"
             "paused, a step) budget is used up a tick_done event follows its outputs, with the\n"
             "digest of the samples and harmonics messages since the previous one, as afmtwind\n"
-            "publishes it. Exit status 0 ok, 1 simulation or file failure, 2 bad usage, a bad\n"
+            "publishes it. Progress on stderr (terminals only).\n"
+            "Exit status 0 ok, 1 simulation or file failure, 2 bad usage, a bad\n"
             "config or an unreadable log.\n",
             AFMT_DEFAULT_PREFIX, REPLAY_DEFAULT_BLOCK, AFM_IO_HARMONICS_MAX_HZ,
             REPLAY_STATUS_INTERVAL_S);
@@ -278,6 +280,9 @@ static void run_to(replay_ctx *x, long long target) {
         long long adv = afm_runner_run(x->r, n);
         s += adv;
         if (s % x->o.block == 0 || adv < n) emit_all(x, false);
+        afmt_progress_update(&x->pg, "replay: model time %.4f s, %lld commands, %lld output events",
+                             (double)s / afm_runner_config(x->r)->sim.sample_rate_hz, x->received,
+                             x->written);
         if (adv < n) break;
     }
 }
@@ -324,7 +329,7 @@ static void apply_event(replay_ctx *x, afm_cmd_kind kind, const afm_lcm_log_even
 static int parse_max_hz(const char *v, void *dest) {
     replay_opts *o = dest;
     double d;
-    if (afmt_parse_double(v, &d) || !(d >= 1) || d > 1e9) return -1;
+    if (afmt_parse_si(v, AFMT_UNIT_HZ, &d) < 0 || !(d >= 1) || d > 1e9) return -1;
     o->harmonics_max_hz = d;
     o->harmonics_every = 0;
     return 0;
@@ -340,7 +345,8 @@ static int parse_opts(int argc, char **argv, replay_opts *o) {
         AFMT_STRING("--prefix", &o->prefix),
         AFMT_INT("--block", &o->block, 1, 1048576, "an integer in 1..1048576"),
         AFMT_INT("--harmonics-every", &o->harmonics_every, 1, 1e9, "an integer >= 1"),
-        AFMT_FN("--harmonics-max-hz", parse_max_hz, o, "1..1e9 Hz"),
+        AFMT_FN_UNIT("--harmonics-max-hz", parse_max_hz, o,
+                     "1..1e9 Hz (or with a suffix: kHz, MHz, GHz)", AFMT_UNIT_HZ),
         AFMT_DOUBLE("--tail", &o->tail_s, 0, 1e4, "seconds in 0..1e4"),
         AFMT_FN("--channels", afmt_opt_channels, o->want, AFMT_OPT_CHANNELS_WANTS),
         AFMT_OPTS_END,
@@ -398,6 +404,8 @@ int afm_cmd_replay(int argc, char **argv) {
     x.status_every = llround(REPLAY_STATUS_INTERVAL_S * rate);
     x.next_status = 0;
     double wall0 = afmt_mono_s();
+    afmt_progress_init(&x.pg);
+    if (x.o.quiet) x.pg.tty = false;
     emit_all(&x, true); /* status at model time 0 */
 
     bool have_first = false;
@@ -449,6 +457,7 @@ int afm_cmd_replay(int argc, char **argv) {
             if (b > 0 && b < (1LL << 60)) run_to(&x, st.samples + b);
         }
     }
+    afmt_progress_end(&x.pg); /* before the messages; the tail may draw it again */
     long long junk = afm_lcm_log_skipped(in);
     afm_lcm_log_close(&in);
     if (bad[0]) {
@@ -474,6 +483,7 @@ int afm_cmd_replay(int argc, char **argv) {
         run_to(&x, end);
     }
     emit_all(&x, true); /* final status */
+    afmt_progress_end(&x.pg);
     afm_runner_status st;
     afm_runner_status_get(x.r, &st);
     lcm_eventlog_destroy(x.log);

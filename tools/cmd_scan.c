@@ -33,6 +33,7 @@ typedef struct {
     bool json;
     const char *gsf_prefix; /* --gsf */
     gsf_out *gsf;           /* its files while the scan runs */
+    afmt_progress pg;       /* on stderr, terminals only */
 } scan_opts;
 
 static void scan_usage(FILE *f) {
@@ -44,8 +45,10 @@ static void scan_usage(FILE *f) {
                "Image the sample of the config's `sample` group offline, as an AM-AFM does: the\n"
                "tip rasters lines along x (trace, then retrace), the slow axis y moving one line\n"
                "pitch per line, while a PI loop on the lock-in amplitude (the config's lockin\n"
-               "group) moves Z to hold set-point x free amplitude (the free amplitude is measured\n"
-               "first, 1 um off the surface); the tip engages at the origin first. The gap is\n"
+               "group) moves Z to hold set-point x A0 (A0, the free amplitude: harmonic 1 at Z 1\n"
+               "um with the gap-dependent tip forces off and the squeeze film on, as approach and\n"
+               "the daemon; the lever rings up there first); the tip engages at the origin\n"
+               "first. The gap is\n"
                "d = x cos(alpha) + Z - z_s(x_tip, y_tip) with the material under the tip.\n"
                "Per pixel: the controller's height (Z less its value after the engage, plus the\n"
                "true height at the origin: a perfect loop images z_s), the true height and\n"
@@ -61,7 +64,7 @@ static void scan_usage(FILE *f) {
                "  --lines N        lines, 1..100000 (default 1)\n"
                "  --line-rate HZ   lines (trace + retrace) per second (default 10)\n"
                "  --engage S       dwell at the origin before the first line (default 0.02 s)\n"
-               "  --setpoint R     amplitude set-point as a fraction of the free amplitude,\n"
+               "  --setpoint R     amplitude set-point as a fraction of A0 (the free amplitude),\n"
                "                   0 < R < 1 (default 0.8)\n"
                "  --kp K           proportional gain, m of Z per m of error (default 0)\n"
                "  --ki HZ          integral gain, 1/s (default 2000)\n"
@@ -81,7 +84,8 @@ static void scan_usage(FILE *f) {
                "                   row per line, x0 and y0 its offsets, size-x wide and lines x\n"
                "                   line pitch high (square pixels without a slow axis); NaN\n"
                "                   where a pixel has no value\n"
-               "  --help           this text\n\n"
+               "  --help           this text\n\n" AFMT_OPT_SI_HELP
+               "Progress on stderr (terminals only).\n"
                "Exit status 0 ok, 1 simulation failure or a .gsf file not written, 2 bad usage\n"
                "or bad input (a .gsf file that cannot be created).\n");
 }
@@ -114,13 +118,13 @@ static int parse_args(int argc, char **argv, scan_opts *o) {
         AFMT_FLAG("--json", &o->json),
         AFMT_STRING("--config", &o->config),
         AFMT_STRING("--gsf", &o->gsf_prefix),
-        AFMT_DOUBLE_ABOVE("--size-x", &o->sc.size_x_m, 0, AFM_SCAN_SIZE_MAX_M, NULL),
-        AFMT_DOUBLE("--size-y", &o->sc.size_y_m, 0, AFM_SCAN_SIZE_MAX_M, NULL),
-        AFMT_DOUBLE("--x0", &o->sc.x0_m, -AFM_SCAN_ORIGIN_MAX_M, AFM_SCAN_ORIGIN_MAX_M, NULL),
-        AFMT_DOUBLE("--y0", &o->sc.y0_m, -AFM_SCAN_ORIGIN_MAX_M, AFM_SCAN_ORIGIN_MAX_M, NULL),
+        AFMT_LENGTH_ABOVE("--size-x", &o->sc.size_x_m, 0, AFM_SCAN_SIZE_MAX_M, NULL),
+        AFMT_LENGTH("--size-y", &o->sc.size_y_m, 0, AFM_SCAN_SIZE_MAX_M, NULL),
+        AFMT_LENGTH("--x0", &o->sc.x0_m, -AFM_SCAN_ORIGIN_MAX_M, AFM_SCAN_ORIGIN_MAX_M, NULL),
+        AFMT_LENGTH("--y0", &o->sc.y0_m, -AFM_SCAN_ORIGIN_MAX_M, AFM_SCAN_ORIGIN_MAX_M, NULL),
         AFMT_INT("--pixels", &o->sc.pixels, 2, AFM_SCAN_PIXELS_MAX, NULL),
         AFMT_INT("--lines", &o->sc.lines, 1, AFM_SCAN_LINES_MAX, NULL),
-        AFMT_DOUBLE_ABOVE("--line-rate", &o->sc.line_rate_hz, 0, AFM_SCAN_LINE_RATE_MAX_HZ, NULL),
+        AFMT_FREQ_ABOVE("--line-rate", &o->sc.line_rate_hz, 0, AFM_SCAN_LINE_RATE_MAX_HZ, NULL),
         AFMT_DOUBLE("--engage", &o->sc.engage_s, 0, AFM_SCAN_ENGAGE_MAX_S, NULL),
         AFMT_INT("--update", &o->sc.update_samples, 1, AFM_SCAN_UPDATE_MAX, NULL),
         AFMT_DOUBLE_ABOVE("--setpoint", &o->pc.setpoint_ratio, 0, 0.999999, "(0, 1)"),
@@ -293,9 +297,20 @@ static int gsf_finish(gsf_out *g) {
     return 0;
 }
 
+static void print_pixel_row(const scan_opts *o, const afm_scan_pixel *p);
+
+/* afm_scan_run's callback: the progress, the .gsf files, the row. */
 static void print_pixel(void *ctx, const afm_scan_pixel *p) {
-    const scan_opts *o = ctx;
+    scan_opts *o = ctx;
+    afmt_progress_update(&o->pg, "scan: line %d/%d %s, pixel %d/%d", p->line + 1, o->sc.lines,
+                         p->retrace ? "retrace" : "trace", p->pixel + 1, o->sc.pixels);
     if (o->gsf) gsf_pixel(o->gsf, p);
+    afmt_progress_hide(&o->pg);
+    print_pixel_row(o, p);
+    afmt_progress_redraw(&o->pg);
+}
+
+static void print_pixel_row(const scan_opts *o, const afm_scan_pixel *p) {
     if (o->json) {
         cJSON *j = cJSON_CreateObject();
         cJSON_AddNumberToObject(j, "line", p->line);
@@ -368,7 +383,9 @@ int afm_cmd_scan(int argc, char **argv) {
         afm_surface_destroy(&surf);
         return 2;
     }
+    afmt_progress_init(&o.pg);
     rc = afm_scan_run(sim, &cfg, &m, surf, &o.sc, &o.pc, print_pixel, &o, err, sizeof err);
+    afmt_progress_end(&o.pg);
     if (rc) fprintf(stderr, "afmtwin %s\n", err);
     afm_sim_destroy(&sim);
     afm_surface_destroy(&surf);

@@ -58,10 +58,10 @@ static void send_usage(FILE *f) {
         "        most 4 x the model's highest mode, amplitude 0 <= M <= 1e-6 m with all\n"
         "        tones together <= 1e-6 m and a predicted free tip amplitude <= 100 um\n"
         "        (README, 'Bad input'), start phase of new tones (rad, default 0);\n"
-        "        e.g. send dither --freq 338112 --amp 0.087e-9\n"
+        "        e.g. send dither --freq 338.112kHz --amp 0.087nm\n"
         "  setpoint --z M [--ramp M_S]\n"
         "        tip-sample separation Z, 0 <= M <= 1e-3 m; --ramp > 0 ramps to it at that\n"
-        "        rate (m/s), 0 (default) steps; e.g. send setpoint --z 30e-9 --ramp 1e-6\n"
+        "        rate (m/s), 0 (default) steps; e.g. send setpoint --z 30nm --ramp 1e-6\n"
         "  param NAME=VALUE [NAME=VALUE ...]\n"
         "        live change of 1..16 config parameters by key path, e.g.\n"
         "        send param forces.viscoelastic.eta_pa_s=400 forces.vdw_contact.hamaker_j=1e-19\n"
@@ -99,7 +99,7 @@ static void send_usage(FILE *f) {
         "  --log-time S      event time stamp in the log, seconds (default: wall clock);\n"
         "                    replay applies an event at model time t - t(first event)\n"
         "  --quiet           print nothing on success\n"
-        "  --help            this text\n\n"
+        "  --help            this text\n\n" AFMT_OPT_SI_HELP
         "Exit status 0 sent (with --wait: applied), 1 LCM or file failure (with --wait:\n"
         "rejected, refused or no answer), 2 bad usage, no config, or a value the daemon\n"
         "would reject.\n\n",
@@ -162,18 +162,18 @@ static int parse_n(const char *v, void *dest) {
 static int parse_z(const char *v, void *dest) {
     send_args *a = dest;
     a->have_z = true;
-    return afmt_opt_any_number(v, &a->z);
+    return afmt_opt_any_length(v, &a->z);
 }
 
 /* --freq, --amp, --phase: 1..AFM_MAX_TONES comma-separated numbers. */
 static int parse_freq(const char *v, void *dest) {
     send_args *a = dest;
-    return (a->n_freq = afmt_parse_list(v, a->freq, AFM_MAX_TONES)) < 1 ? -1 : 0;
+    return (a->n_freq = afmt_parse_si_list(v, AFMT_UNIT_HZ, a->freq, AFM_MAX_TONES)) < 1 ? -1 : 0;
 }
 
 static int parse_amp(const char *v, void *dest) {
     send_args *a = dest;
-    return (a->n_amp = afmt_parse_list(v, a->amp, AFM_MAX_TONES)) < 1 ? -1 : 0;
+    return (a->n_amp = afmt_parse_si_list(v, AFMT_UNIT_M, a->amp, AFM_MAX_TONES)) < 1 ? -1 : 0;
 }
 
 static int parse_phase(const char *v, void *dest) {
@@ -218,10 +218,15 @@ static int parse_args(int argc, char **argv, const char *kind, send_common *o, s
         AFMT_FN("--seq", parse_seq, o, "an integer"),
         AFMT_FN("--utime", parse_utime, o, "an integer"),
         AFMT_LONG("--truncate", &o->truncate, 0, SEND_MAX_BYTES, "a byte count >= 0"),
-        AFMT_FN("--freq", parse_freq, a, "1..4 comma-separated numbers (Hz)"),
-        AFMT_FN("--amp", parse_amp, a, "1..4 comma-separated numbers (m)"),
+        AFMT_FN_UNIT("--freq", parse_freq, a,
+                     "1..4 comma-separated numbers (Hz, or with a suffix: kHz, MHz, GHz)",
+                     AFMT_UNIT_HZ),
+        AFMT_FN_UNIT("--amp", parse_amp, a,
+                     "1..4 comma-separated numbers (m, or with a suffix: mm, um, nm, pm, fm)",
+                     AFMT_UNIT_M),
         AFMT_FN("--phase", parse_phase, a, "1..4 comma-separated numbers (rad)"),
-        AFMT_FN("--z", parse_z, a, "a number (m)"),
+        AFMT_FN_UNIT("--z", parse_z, a, "a number (m, or with a suffix: mm, um, nm, pm, fm)",
+                     AFMT_UNIT_M),
         AFMT_FN("--ramp", afmt_opt_any_number, &a->ramp, "a number (m/s)"),
         AFMT_FN("--n", parse_n, a, "an integer"),
         AFMT_STRING("--hex", &a->hex),

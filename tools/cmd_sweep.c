@@ -118,7 +118,7 @@ static void sweep_usage(FILE *f) {
         "                      contact_time_s, pre_contact_velocity_m_s (null without\n"
         "                      contact), dissipated_energy_j (-int F v dt), mean_deflection_m}\n"
         "                      over the last whole drive period of the dwell"
-        "  --help              this text\n\n"
+        "  --help              this text\n\n" AFMT_OPT_SI_HELP
         "Without --json a readable table. A progress line goes to stderr (terminals only)\n"
         "when the sweep takes more than a second. Exit status 0 ok, 1 simulation failure,\n"
         "2 bad usage or bad input.\n",
@@ -178,11 +178,11 @@ static int parse_args(int argc, char **argv, sweep_opts *o) {
     const afmt_opt opts[] = {
         AFMT_FLAG("--json", &o->json),
         AFMT_STRING("--config", &o->config),
-        AFMT_DOUBLE("--from", &o->from_hz, 0, 0, NULL),
-        AFMT_DOUBLE("--to", &o->to_hz, 0, 0, NULL),
-        AFMT_DOUBLE("--step", &o->step_hz, 0, 0, NULL),
-        AFMT_DOUBLE("--ae", &o->ae_m, 0, 0, NULL),
-        AFMT_DOUBLE("--z", &o->z_m, 0, 0, NULL),
+        AFMT_FREQ("--from", &o->from_hz, 0, 0, NULL),
+        AFMT_FREQ("--to", &o->to_hz, 0, 0, NULL),
+        AFMT_FREQ("--step", &o->step_hz, 0, 0, NULL),
+        AFMT_LENGTH("--ae", &o->ae_m, 0, 0, NULL),
+        AFMT_LENGTH("--z", &o->z_m, 0, 0, NULL),
         AFMT_FN("--harmonics", parse_harmonics, o, NULL),
         AFMT_FN("--integrator", afmt_opt_integrator, &o->integrator, AFMT_OPT_INTEGRATOR_WANTS),
         AFMT_FN("--scheme", afmt_opt_scheme, &o->scheme, AFMT_OPT_SCHEME_WANTS),

@@ -33,6 +33,14 @@ typedef enum {
                       * const char ** once, or through parse as often as it accepts */
 } afmt_opt_kind;
 
+/* The unit of a length or frequency option: its value may carry an SI suffix (opts.c,
+ * afmt_parse_si), echoed in SI on stderr when one was given. */
+typedef enum {
+    AFMT_UNIT_NONE = 0,
+    AFMT_UNIT_M,  /* m, mm, um (µm), nm, pm, fm */
+    AFMT_UNIT_HZ, /* Hz, kHz, MHz, GHz */
+} afmt_unit;
+
 typedef struct {
     const char *name; /* "--count" (NULL ends the table) */
     afmt_opt_kind kind;
@@ -45,6 +53,10 @@ typedef struct {
     /* AFMT_OPT_FN: 0 for a good value, -1 for a bad one (the parser says what the option
      * wants), AFMT_OPT_REPORTED when the function printed a more precise message itself */
     int (*parse)(const char *value, void *dest);
+    /* AFMT_OPT_DOUBLE: the value may have this unit's suffix; AFMT_OPT_FN: a suffix of the
+     * other unit is refused (and a suffix given is echoed) before parse is called, which
+     * takes the suffix with afmt_parse_si / afmt_parse_si_list */
+    afmt_unit unit;
 } afmt_opt;
 
 /* One table row each (designated, so that -Wextra sees every field set). */
@@ -61,12 +73,39 @@ typedef struct {
         .name = name_, .kind = AFMT_OPT_DOUBLE, .dest = dest_, .lo = lo_, .hi = hi_,               \
         .lo_open = true, .wants = wants_                                                           \
     }
+/* A length (m) or frequency (Hz): a number, or one with a suffix (30nm, 338.112kHz). */
+#define AFMT_LENGTH(name_, dest_, lo_, hi_, wants_)                                                \
+    {                                                                                              \
+        .name = name_, .kind = AFMT_OPT_DOUBLE, .dest = dest_, .lo = lo_, .hi = hi_,               \
+        .wants = wants_, .unit = AFMT_UNIT_M                                                       \
+    }
+#define AFMT_LENGTH_ABOVE(name_, dest_, lo_, hi_, wants_) /* > lo_ */                              \
+    {                                                                                              \
+        .name = name_, .kind = AFMT_OPT_DOUBLE, .dest = dest_, .lo = lo_, .hi = hi_,               \
+        .lo_open = true, .wants = wants_, .unit = AFMT_UNIT_M                                      \
+    }
+#define AFMT_FREQ(name_, dest_, lo_, hi_, wants_)                                                  \
+    {                                                                                              \
+        .name = name_, .kind = AFMT_OPT_DOUBLE, .dest = dest_, .lo = lo_, .hi = hi_,               \
+        .wants = wants_, .unit = AFMT_UNIT_HZ                                                      \
+    }
+#define AFMT_FREQ_ABOVE(name_, dest_, lo_, hi_, wants_) /* > lo_ */                                \
+    {                                                                                              \
+        .name = name_, .kind = AFMT_OPT_DOUBLE, .dest = dest_, .lo = lo_, .hi = hi_,               \
+        .lo_open = true, .wants = wants_, .unit = AFMT_UNIT_HZ                                     \
+    }
 #define AFMT_INT(name_, dest_, lo_, hi_, wants_)                                                   \
     AFMT_NUMBER(name_, AFMT_OPT_INT, dest_, lo_, hi_, wants_)
 #define AFMT_LONG(name_, dest_, lo_, hi_, wants_)                                                  \
     AFMT_NUMBER(name_, AFMT_OPT_LONG, dest_, lo_, hi_, wants_)
 #define AFMT_FN(name_, parse_, dest_, wants_)                                                      \
     { .name = name_, .kind = AFMT_OPT_FN, .dest = dest_, .wants = wants_, .parse = parse_ }
+/* An AFMT_FN row whose value (or comma-separated values) has a unit. */
+#define AFMT_FN_UNIT(name_, parse_, dest_, wants_, unit_)                                          \
+    {                                                                                              \
+        .name = name_, .kind = AFMT_OPT_FN, .dest = dest_, .wants = wants_, .parse = parse_,       \
+        .unit = unit_                                                                              \
+    }
 #define AFMT_ARG(name_, dest_)                                                                     \
     { .name = name_, .kind = AFMT_OPT_ARG, .dest = dest_ }
 #define AFMT_ARG_FN(name_, parse_, dest_, wants_)                                                  \
@@ -75,6 +114,27 @@ typedef struct {
     { .name = NULL }
 
 #define AFMT_OPT_REPORTED (-2)
+
+/* A number as strtod reads it, with an optional suffix of unit u (none for
+ * AFMT_UNIT_NONE), into *v in SI: "30nm" 3e-08, "338.112kHz" 338112. Returns 0 for a plain
+ * number, 1 for one with a suffix, AFMT_SI_BAD for no number or an unknown suffix,
+ * AFMT_SI_WRONG_UNIT for a suffix of the other unit ("30kHz" for a length). */
+#define AFMT_SI_BAD (-1)
+#define AFMT_SI_WRONG_UNIT (-2)
+int afmt_parse_si(const char *s, afmt_unit u, double *v);
+/* 1..max comma-separated values of afmt_parse_si: the count, or -1. */
+int afmt_parse_si_list(const char *s, afmt_unit u, double *v, int max);
+/* "m" or "Hz" ("" for none); the other suffixes a unit takes, "mm, um, µm, nm, pm, fm". */
+const char *afmt_unit_name(afmt_unit u);
+const char *afmt_unit_suffixes(afmt_unit u);
+/* One value of a length / frequency option parsed outside a table (e.g. when its unit is
+ * known only after parsing): 0 with *v set (and the SI echo on stderr if a suffix was
+ * given), or -1 after "afmtwin TOOL: OPT wants ..., got 'value'" on stderr. */
+int afmt_opt_si_value(const char *tool, const char *opt, const char *value, afmt_unit u, double *v);
+/* The sentence the tools' --help texts share. */
+#define AFMT_OPT_SI_HELP                                                                           \
+    "Lengths (m) and frequencies (Hz) may carry an SI suffix: 30nm, 1um (or 1µm), 5pm,\n"         \
+    "338.112kHz, 1.5MHz (m, mm, um, nm, pm, fm; Hz, kHz, MHz, GHz).\n"
 
 enum { AFMT_OPTS_OK = 0, AFMT_OPTS_HELP = 1, AFMT_OPTS_BAD = 2 };
 
@@ -94,6 +154,10 @@ int afmt_opt_channels(const char *value, void *want);
 /* A number as strtod reads it, NaN and inf too: the commands of send and can-send, whose
  * --no-check sends what the daemon must reject. */
 int afmt_opt_any_number(const char *value, void *number);
+/* The same with a length's (m) or a frequency's (Hz) suffix (afmt_parse_si), for
+ * AFMT_FN_UNIT rows. */
+int afmt_opt_any_length(const char *value, void *number);
+int afmt_opt_any_freq(const char *value, void *number);
 
 /* Load the config file a tool's --config names into cfg; on failure print "afmtwin TOOL:
  * reason" and return -1 (the tool exits 2). */
@@ -119,6 +183,25 @@ int afmt_opt_scheme(const char *value, void *scheme);
     "  --scheme NAME      the rt integrator's scheme: accurate (the default offline: the tip\n"    \
     "                     force cubic Hermite in time, CVODE's steady state) or fast (the\n"       \
     "                     daemon's fallback, second order; docs/numerics.md)\n"
+/* A one-line progress report on stderr for the long offline runs (scan, continue, replay),
+ * in the style of sweep's and approach's: only when stderr is a terminal, nothing in the
+ * first second (a quick run stays quiet), redrawn at most every 0.2 s with "\r", cleared at
+ * the end. When stdout is the same terminal, the tool hides the line around its output. */
+typedef struct {
+    bool tty, out_tty, shown;
+    double t_start, t_last;
+    char line[160];
+} afmt_progress;
+void afmt_progress_init(afmt_progress *p);
+/* Format and draw the line if it is due (printf-style; cheap when not). */
+void afmt_progress_update(afmt_progress *p, const char *fmt, ...)
+    __attribute__((format(printf, 2, 3)));
+/* Around a line on stdout: hide the progress line (if stdout is a terminal), draw it again. */
+void afmt_progress_hide(afmt_progress *p);
+void afmt_progress_redraw(afmt_progress *p);
+/* Clear the line for good. */
+void afmt_progress_end(afmt_progress *p);
+
 #define AFMT_OPT_CHANNELS_WANTS "a comma-separated subset of samples,harmonics,status,tick_done"
 
 #endif

@@ -228,26 +228,9 @@ static void rt_substep(const afm_sim *s, const rt_state *r, const rt_snap *a, rt
 static AFM_CLONES_NOINLINE rt_snap *rt_contact(const afm_sim *s, const rt_state *r, rt_snap *a,
                                                rt_snap *b, bool redo) {
     double tau = s->dt_s / r->m;
-    rt_noise *z = r->nz;
-    if (r->noise) {
-        z->given_cells = 0;
-        z->rem_cells = redo ? r->ncell : 0;
-        if (redo) {
-            memcpy(z->rq, z->lq, sizeof z->rq);
-            memcpy(z->rv, z->lv, sizeof z->rv);
-        }
-    }
+    if (r->noise) rt_noise_sample_begin(r, redo);
     for (int k = 0; k < r->m; k++) {
-        if (r->noise && z->rem_cells > 0) { /* this substep's part of the sample's increment */
-            if (z->rem_cells == RT_GRID) {
-                memcpy(z->gq, z->rq, sizeof z->gq);
-                memcpy(z->gv, z->rv, sizeof z->gv);
-                z->given_cells = RT_GRID;
-            } else {
-                rt_bridge_draw(r, RT_GRID, z->rem_cells, z->rq, z->rv);
-            }
-            z->rem_cells -= RT_GRID;
-        }
+        if (r->noise) rt_noise_substep(r);
         rt_substep(s, r, a, b, tau);
         rt_snap *t = a;
         a = b;

@@ -77,4 +77,30 @@ static void rt_bridge_draw(const rt_state *r, int k1, int len, double *rq, doubl
     z->given_cells = k1;
 }
 
+/* A contact sample's thermal bookkeeping. redo: its free step was taken and its increment
+ * drawn, so the substeps' increments are drawn given it (the rest of the sample's). */
+static inline void rt_noise_sample_begin(const rt_state *r, bool redo) {
+    rt_noise *z = r->nz;
+    z->given_cells = 0;
+    z->rem_cells = redo ? r->ncell : 0;
+    if (redo) {
+        memcpy(z->rq, z->lq, sizeof z->rq);
+        memcpy(z->rv, z->lv, sizeof z->rv);
+    }
+}
+
+/* Before each substep of a contact sample: its part of the sample's increment, if drawn. */
+static inline void rt_noise_substep(const rt_state *r) {
+    rt_noise *z = r->nz;
+    if (z->rem_cells <= 0) return;
+    if (z->rem_cells == RT_GRID) {
+        memcpy(z->gq, z->rq, sizeof z->gq);
+        memcpy(z->gv, z->rv, sizeof z->gv);
+        z->given_cells = RT_GRID;
+    } else {
+        rt_bridge_draw(r, RT_GRID, z->rem_cells, z->rq, z->rv);
+    }
+    z->rem_cells -= RT_GRID;
+}
+
 #endif

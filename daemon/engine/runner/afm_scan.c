@@ -5,6 +5,7 @@
 #include "estimators/afm_cycle.h"
 #include "estimators/afm_lockin.h"
 #include "integrators/afm_sim_live.h"
+#include "runner/afm_a0.h"
 #include "runner/afm_twin.h"
 
 #include <math.h>
@@ -21,7 +22,7 @@ typedef struct {
     afm_pi pi;
     int material;    /* the region whose forces the integrator has */
     double z_eff_m;  /* the separation it has */
-    double a_free_m; /* free amplitude */
+    double a_free_m; /* A0, the free amplitude (runner/afm_a0.h) */
     double z_origin; /* height offset of the image: z_s(origin) - Z at the engage's end */
     /* the pixel being accumulated */
     int px_line, px_pixel, px_n, px_periods;
@@ -157,10 +158,16 @@ static void pixel_open(scan_state *st, int line, int pixel, bool retrace) {
     st->s_z = st->s_a = st->s_e = st->s_ph = st->s_fmax = st->s_ed = 0.0;
 }
 
-/* The free amplitude: the lock-in after settling far from the surface (Z = 1 um). */
-static int free_amplitude(afm_sim *s, scan_state *st, double settle_s, char *err, size_t errlen) {
-    if (afm_sim_set_separation(s, 1e-6) != AFM_SIM_OK) {
-        snprintf(err, errlen, "scan: cannot retract to measure the free amplitude");
+/* Retract to Z = 1 um and ring up there (the lock-in settles too) before the engage; the
+ * set-point's reference is A0 (runner/afm_a0.h), the same free amplitude as approach's and
+ * the daemon's. */
+static int free_amplitude(afm_sim *s, const afm_config *cfg, scan_state *st, double settle_s,
+                          char *err, size_t errlen) {
+    afm_a0 a0;
+    if (afm_a0_compute(cfg, &a0, err, errlen)) return -1;
+    st->a_free_m = a0.amplitude_m;
+    if (afm_sim_set_separation(s, a0.z_m) != AFM_SIM_OK) {
+        snprintf(err, errlen, "scan: cannot retract to ring up far from the sample");
         return -1;
     }
     long n = (long)ceil(settle_s / afm_sim_dt(s));
@@ -169,7 +176,6 @@ static int free_amplitude(afm_sim *s, scan_state *st, double settle_s, char *err
         if (advance(s, st, k, err, errlen)) return -1;
         n -= k;
     }
-    st->a_free_m = afm_lockin_amplitude(&st->lockin);
     return 0;
 }
 
@@ -209,7 +215,7 @@ int afm_scan_run(afm_sim *s, const afm_config *cfg, const afm_modal *m, const af
         goto out;
     }
     double settle = fmax(sc->engage_s, 12.0 * lockin->time_constant_s * lockin->order);
-    if (free_amplitude(s, st, settle, err, errlen)) goto out;
+    if (free_amplitude(s, cfg, st, settle, err, errlen)) goto out;
     afm_pi_init(&st->pi, pc, st->a_free_m, z0);
     st->z_eff_m = NAN;
     const int N = sc->update_samples;

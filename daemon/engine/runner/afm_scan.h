@@ -62,7 +62,7 @@ typedef struct {
     double phase_lag_deg;       /* lock-in lag, mean over the pixel */
     double peak_force_n;        /* mean over the periods that ended in the pixel */
     double dissipated_energy_j; /* per period, mean over those periods */
-    double free_amplitude_m;    /* A_free (the set-point is its setpoint_ratio) */
+    double free_amplitude_m;    /* A0 (runner/afm_a0.h; the set-point is its setpoint_ratio) */
     int periods;                /* drive periods that ended in the pixel */
 } afm_scan_pixel;
 
