@@ -15,7 +15,8 @@ CC      ?= cc
 DEB_PKGS := build-essential pkg-config liblcm-dev liblcm-bin libglib2.0-dev libsundials-dev \
             liblapacke-dev libconfig-dev libsystemd-dev libcjson-dev can-utils gnuplot-nox \
             libfftw3-dev systemd qemu-system-x86 busybox-static cpio clang libclang-rt-dev \
-            liblcm-java default-jdk-headless help2man debhelper dpkg-dev fakeroot gwyddion
+            liblcm-java default-jdk-headless help2man debhelper dpkg-dev fakeroot gwyddion \
+            libopenmpi-dev openmpi-bin
 
 CSTD     := -std=c11 -D_POSIX_C_SOURCE=200809L
 WARN     := -Wall -Wextra -Werror -Wshadow -Wstrict-prototypes -Wmissing-prototypes
@@ -158,6 +159,19 @@ $(ENGINE_LIB): $(ENGINE_OBJ)
 	@mkdir -p $(dir $@)
 	rm -f $@ && $(AR) rcs $@ $^
 
+# MPI (Open MPI) in the tools layer only: `afmtwin map` (tools/cmd_map.c) runs its lines on
+# MPI ranks; its headers as system headers (no warnings of ours), the library on the tool.
+# AFMTWIN_MPI=0 builds map as one process without MPI (the arm64 cross build: no arm64 MPI).
+AFMTWIN_MPI ?= 1
+ifeq ($(AFMTWIN_MPI),0)
+MPI_CFLAGS := -DAFMT_NO_MPI=1
+MPI_LIBS   :=
+else
+MPI_CFLAGS := $(patsubst -I%,-isystem %,$(shell pkg-config --cflags ompi-c 2>/dev/null))
+MPI_LIBS   := $(shell pkg-config --libs ompi-c 2>/dev/null || echo -lmpi)
+endif
+$(BUILD)/obj/tools/cmd_map.o: OUTER_INC += $(MPI_CFLAGS)
+$(BUILD)/bin/afmtwin: LDLIBS += $(MPI_LIBS)
 $(BUILD)/bin/afmtwin: $(TOOL_OBJ) $(LIBS_ALL)
 	@mkdir -p $(dir $@)
 	$(CC) $(CFLAGS) $(LDFLAGS) -o $@ $(TOOL_OBJ) $(LIBS_ALL) $(LDLIBS)
@@ -256,6 +270,7 @@ bench: deps
 	$(BUILD)/bin/afmtwin bench-scheme
 	$(BUILD)/bin/afmtwin bench-daemon --daemon $(BUILD)/bin/afmtwind
 	bash tools/bench-march.sh $(BUILD)
+	sh tools/bench-map.sh $(BUILD)
 
 # The 10-minute command soak (make test runs a 10 s one per config): 5 min per config
 # (default.conf, nchv.conf) against a realtime daemon, then each whole log in lockstep

@@ -424,6 +424,26 @@ static void print_started(const twind *d, double fs_hz, long long block, long lo
         fprintf(stderr, "afmtwind: warning: free amplitude A0 not computed: %s\n", a0_err);
 }
 
+/* The sample streams of AFMTWIN_SAMPLES: rate, decimation and the low-pass every channel
+ * (the force too) went through, as each samples_t message also says (issue 30: a trace at
+ * 2.6 samples per period with its force filtered must not pass for a waveform). */
+static void print_streams(const afm_config *cfg) {
+    const afm_cfg_output *o = &cfg->output;
+    fprintf(stderr, "afmtwind: sample streams (%d):", o->n_outputs);
+    for (int i = 0; i < o->n_outputs; i++) {
+        double rate = cfg->sim.sample_rate_hz / o->decimation[i], pass, stop;
+        afm_chain_band(rate, o->decimation[i], o->passband_fraction, &pass, &stop);
+        if (pass > 0)
+            fprintf(stderr,
+                    "%s %d: %.6g kHz (decimation %d), every channel low-pass %.6g kHz (-80 dB "
+                    "from %.6g kHz)",
+                    i ? ";" : "", i, rate * 1e-3, o->decimation[i], pass * 1e-3, stop * 1e-3);
+        else
+            fprintf(stderr, "%s %d: %.6g kHz, not filtered", i ? ";" : "", i, rate * 1e-3);
+    }
+    fputc('\n', stderr);
+}
+
 /* What the once-a-second report remembers from the last one. */
 typedef struct {
     twind_rtf_state rs;  /* real-time factor over the last second */
@@ -572,6 +592,7 @@ int main(int argc, char **argv) {
         exit(1); /* threads may be running: no orderly way back */
     }
     print_started(&d, cfg.sim.sample_rate_hz, block, ring, &a0, a0_err);
+    print_streams(&cfg);
     twind_notify_ready();
 
     twind_watch w = {.last_beat = -1};

@@ -31,7 +31,7 @@ CROSS_SONAMES := sundials_cvodes:libsundials_cvodes.so.6 sundials_arkode:libsund
   gthread-2.0:libgthread-2.0.so.0
 CROSS_RPATH := $(CROSS_LIBDIR):$(CROSS_ROOT)/lib/aarch64-linux-gnu:$(CROSS_LIBDIR)/blas:$(CROSS_LIBDIR)/lapack
 CROSS_MAKE  := $(MAKE) --no-print-directory BUILD=$(CROSS_BUILD) CC=$(CROSS_CC) AR=$(CROSS_AR) \
-  AFMTWIN_MARCH=portable EXTRA_CFLAGS="-idirafter /usr/include" \
+  AFMTWIN_MARCH=portable AFMTWIN_MPI=0 EXTRA_CFLAGS="-idirafter /usr/include" \
   LDFLAGS="-L$(abspath $(CROSS_LINK)) -Wl,-rpath-link,$(abspath $(CROSS_RPATH))"
 # The unit tests run (default all; CROSS_TESTS="test_rt test_cmd" for some: under qemu-user
 # test_continue and test_thesis_sweeps take ~20-40x their native 30-45 s)

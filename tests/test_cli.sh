@@ -86,7 +86,8 @@ T=$(mktemp -d /tmp/afmtwin-cli.XXXXXX)
 trap 'rm -rf "$T"' EXIT
 send_log() { # FILE ARGS...: one message into the log FILE, fixed seq and times
   local f=$1; shift
-  "$A" send "$@" --config config/default.conf --seq 1 --utime 1 --log-time 0 --log "$f" --quiet
+  # not --quiet, which silences the SI echoes too (test_examples.sh): stdout dropped instead
+  "$A" send "$@" --config config/default.conf --seq 1 --utime 1 --log-time 0 --log "$f" >/dev/null
 }
 send_log "$T/z_si.log" setpoint --z 30nm 2>"$T/z_si.err" && send_log "$T/z.log" setpoint --z 30e-9 2>"$T/z.err" &&
   cmp -s "$T/z_si.log" "$T/z.log" && ok "send setpoint --z 30nm: the message of --z 30e-9" ||

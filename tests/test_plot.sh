@@ -190,4 +190,45 @@ if [ $rc -eq 0 ] && [ "$segs" = "solid:80,81,81.5 dashed:81.5,82,83,83.5 solid:8
   && grep -q "^set style line 2 .* dt 2" "$T/cont.gp" && ! grep -q "^set style line 1 .* dt " "$T/cont.gp"; then
   ok "continue: cut at the PD (81.5 kHz) and where |mu| crosses 1 (83.5 kHz), both segments sharing the point"
 else bad "continue segments: exit $rc, '$segs' $(cat "$T/cont.err")"; fi
+# ---- issue 30: traces that say what the stream can show ----
+# the trace of tools/doc-plots.sh (stream 0 of default.conf: 878.75 kHz, 2.6 samples per
+# drive period): the rate and the low-pass on the picture and in the data, points only
+t=$(title_of "$T/trace.gp")
+case "$t" in
+  *"stream 0: 878.75 kHz (decimation 16), 2.6 samples per drive period: points"*"low-pass 351.5 kHz, -80 dB from 527.25 kHz"*)
+    ok "trace title: the stream's rate, samples per period and low-pass" ;;
+  *) bad "trace title: $t" ;;
+esac
+if grep -q '^plot \$T.* with \(lines\|linespoints\)' "$T/trace.gp"; then
+  bad "trace: samples 2.6 per period joined by lines: $(grep -m1 '^plot \$T' "$T/trace.gp")"
+elif grep -q '^plot \$T using 1:4 with points' "$T/trace.gp" \
+  && grep -q "keyentry with points ls 4 title 'tip-sample force, low-pass 351.5 kHz'" "$T/trace.gp"; then
+  ok "trace: 2.6 samples per period drawn as points, the force's legend names its low-pass"
+else bad "trace plot commands: $(grep '^plot \$T' "$T/trace.gp" | head -1)"; fi
+if grep -q '^# stream 0: 878.75 kHz' "$T/trace.dat" \
+  && grep -q '^# every channel (force too) low-pass 351.5 kHz' "$T/trace.dat" \
+  && head -1 "$T/trace.csv" | grep -q ',rate (Hz),passband (Hz)$' \
+  && [ "$(sed -n 2p "$T/trace.csv" | awk -F, '{print $(NF-1), $NF}')" = "878750 351500" ]; then
+  ok "trace --data and --csv: the stream's rate and passband (878750 Hz, 351500 Hz)"
+else bad "trace data: $(head -3 "$T/trace.dat" | tr '\n' '|') csv $(head -2 "$T/trace.csv" | tr '\n' '|')"; fi
+"$A" listen --log "$T/out.log" --count 200 2>/dev/null | grep -m1 '^samples .* stream 0 ' >"$T/ls.txt"
+grep -q 'rate 878750 Hz, low-pass 351500 Hz, -80 dB from 527250 Hz' "$T/ls.txt" \
+  && ok "listen: a samples message states its low-pass" || bad "listen samples line: $(cat "$T/ls.txt")"
+# lost messages: the log without its samples messages 60..99 (perl: Debian's perl-base)
+perl -e '($f, $t) = @ARGV; binmode STDIN; binmode STDOUT; $k = 0;
+  while (read(STDIN, $h, 28) == 28) { ($cl, $dl) = unpack("x20 N N", $h);
+    read(STDIN, $c, $cl); read(STDIN, $d, $dl);
+    if ($c =~ /SAMPLES$/) { $i = $k++; next if $i >= $f && $i < $t } print $h, $c, $d }' \
+  60 100 <"$T/out.log" >"$T/gap.log"
+"$A" plot trace "$T/gap.log" --from 0.003 --to 0.00302 -o "$T/g1.png" 2>"$T/g1.err"; rc=$?
+if [ $rc -eq 2 ] && grep -q 'the window 3.000000..3.020000 ms falls in a gap of lost messages: 40 samples messages (msg_seq 60 to 99)' "$T/g1.err"; then
+  ok "trace: a window in lost messages is named a gap, with its msg_seq"
+else bad "trace in a gap: exit $rc, $(cat "$T/g1.err")"; fi
+"$A" plot trace "$T/gap.log" --from 0.002 --to 0.0038 -o "$T/g2.png" --script "$T/g2.gp" \
+  --data "$T/g2.dat" 2>"$T/g2.err"; rc=$?
+runs=$(awk '/^# T:/ { f = 1; next } f && NF { r[$7] = 1 } END { print length(r) }' "$T/g2.dat" 2>/dev/null)
+if [ $rc -eq 0 ] && grep -q '^set object .* rect from 2.166' "$T/g2.gp" \
+  && grep -q "title 'lost messages (msg_seq 60 to 99)'" "$T/g2.gp" && [ "$runs" = 2 ]; then
+  ok "trace across lost messages: the gap shaded and named, the samples in 2 runs"
+else bad "trace across a gap: exit $rc, runs $runs, $(grep -c '^set object' "$T/g2.gp" 2>/dev/null) objects, $(cat "$T/g2.err")"; fi
 check_done

@@ -25,5 +25,8 @@ int afm_cmd_soak(int argc, char **argv);
 int afm_cmd_can_send(int argc, char **argv);
 int afm_cmd_flood(int argc, char **argv);
 int afm_cmd_continue(int argc, char **argv);
+int afm_cmd_map(int argc, char **argv);
+int afm_cmd_plot_map(int argc, char **argv);
+int afm_cmd_plan(int argc, char **argv);
 
 #endif

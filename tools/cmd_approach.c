@@ -25,6 +25,7 @@
 #include "integrators/afm_sim.h"
 #include "runner/afm_twin.h"
 #include "runner/afm_a0.h"
+#include "runner/afm_fm.h"
 #include "json_out.h"
 #include "lcm_tool.h"
 
@@ -50,7 +51,10 @@ typedef struct {
     bool retract, json;
     int max_periods, analyse, k_max, integrator, scheme;
     double tol;
-    double rate_m_s; /* > 0: Z ramped continuously at this speed instead of stepped */
+    double rate_m_s;  /* > 0: Z ramped continuously at this speed instead of stepped */
+    const char *mode; /* "am" (default) or "fm" */
+    bool fm;
+    double fm_tol_hz; /* fm: settled when the mean frequency moves less than this per window */
 } approach_opts;
 
 static void approach_usage(FILE *f) {
@@ -59,7 +63,8 @@ static void approach_usage(FILE *f) {
             "                        [--periods N] [--analyse N] [--harmonics K] [--fe HZ]\n"
             "                        [--ae M] [--integrator rt|reference|arkode-erk]\n"
             "                        [--scheme accurate|fast]\n"
-            "                        [--tol X] [--rate M_S] [--json]\n\n"
+            "                        [--tol X] [--rate M_S] [--mode am|fm] [--fm-tol HZ]\n"
+            "                        [--json]\n\n"
             "Approach curve: the tip-sample separation Z (m) goes from --from to --to in steps\n"
             "of --step (towards the sample when --to < --from), and with --retract back again.\n"
             "One simulation runs the whole curve, so the state carries over from step to step\n"
@@ -74,7 +79,10 @@ static void approach_usage(FILE *f) {
             "  forces            peak repulsive (max) and attractive (min) tip-sample force,\n"
             "                    the mean force, indentation, contact time, the energy the\n"
             "                    tip-sample forces dissipate per period (-int F v dt) and the\n"
-            "                    virial (1/T) int F x dt\n"
+            "                    virial (1/T) int F x dt; tip-sample: vdW/DMT, viscoelastic,\n"
+            "                    capillary, electrostatic, not the squeeze film (air between\n"
+            "                    the beam and the sample), whose own dissipation per period\n"
+            "                    is reported beside it (Esq_eV, squeeze_dissipated_energy_j)\n"
             "  periodicity       of the settled orbit (0: not settled within --periods)\n"
             "The regime of a step is attractive when the mean tip-sample force is below zero,\n"
             "repulsive when above; a change of regime between two steps is reported as a jump.\n\n"
@@ -97,13 +105,34 @@ static void approach_usage(FILE *f) {
             "                     dwelling: a record each --step of Z, the means over the last\n"
             "                     N periods of the ramp (settled false, periodicity 0); the\n"
             "                     first point is dwelt to steady state\n"
+            "  --mode am|fm       am (default): tone 0 fixed, as above. fm: frequency\n"
+            "                     modulation (runner/afm_fm.h, config group fm): a PLL on the\n"
+            "                     lock-in phase moves tone 0's frequency (phase-continuous, once\n"
+            "                     per fm.update_samples) to hold the lag at\n"
+            "                     fm.phase_setpoint_deg (90: resonance), a PI moves its drive to\n"
+            "                     hold the amplitude at fm.amplitude_setpoint_m (0: the amplitude\n"
+            "                     tone 0's drive gives at the free resonance). The loops first\n"
+            "                     lock at Z 1 um starting from --fe (default: mode 1's resonance)\n"
+            "                     and the frequency found there is the free resonance f_free;\n"
+            "                     at each Z they run in windows of the lock time until locked,\n"
+            "                     the mean frequency moves less than --fm-tol and the amplitude\n"
+            "                     is within 1e-4 of its set-point (at most --periods drive\n"
+            "                     periods or 10 windows, the more). Per step:\n"
+            "                     frequency_shift_hz = f - f_free (the mean over the last\n"
+            "                     window), frequency_hz, drive_amplitude_m (the\n"
+            "                     dissipation channel), amplitude_m and phase_error_deg (lock-in\n"
+            "                     lag less the set-point), lag_deg, locked, lock_state\n"
+            "                     (acquiring, locked, lost), settled, and the per-period forces\n"
+            "                     as in am mode (means over the last --analyse periods)\n"
+            "  --fm-tol HZ        fm: frequency settling tolerance per window (default 1e-3)\n"
             "  --json             one JSON object per step and line: z_m, direction\n"
             "                     (\"approach\" or \"retract\"), amplitude_m, phase_lag_deg,\n"
             "                     lockin {amplitude_m, phase_lag_deg}, harmonics [{k,\n"
             "                     amplitude_m, phase_lag_deg}], mean_deflection_m,\n"
             "                     peak_force_n, attractive_force_n, mean_force_n,\n"
             "                     indentation_m, contact_time_s, dissipated_energy_j,\n"
-            "                     virial_j, periodicity, settled, settle_periods, regime,\n"
+            "                     squeeze_dissipated_energy_j, virial_j, periodicity,\n"
+            "                     settled, settle_periods, regime,\n"
             "                     free_amplitude_m, free_phase_lag_deg (A0: harmonic 1 at\n"
             "                     Z 1 um with the gap-dependent tip forces off and the\n"
             "                     squeeze film on, the same A0 as scan and the daemon);\n"
@@ -129,7 +158,9 @@ static int parse_args(int argc, char **argv, approach_opts *o) {
                          .k_max = DEFAULT_K,
                          .integrator = -1,
                          .scheme = -1,
-                         .tol = DEFAULT_TOL};
+                         .tol = DEFAULT_TOL,
+                         .mode = "am",
+                         .fm_tol_hz = 1e-3};
     const afmt_opt opts[] = {
         AFMT_FLAG("--json", &o->json),
         AFMT_FLAG("--retract", &o->retract),
@@ -141,6 +172,8 @@ static int parse_args(int argc, char **argv, approach_opts *o) {
         AFMT_LENGTH("--ae", &o->ae_m, 0, 0, NULL),
         AFMT_DOUBLE("--tol", &o->tol, 0, 0, NULL),
         AFMT_DOUBLE_ABOVE("--rate", &o->rate_m_s, 0, 1.0, "(0, 1] m/s"),
+        AFMT_STRING("--mode", &o->mode),
+        AFMT_DOUBLE_ABOVE("--fm-tol", &o->fm_tol_hz, 0, 1e6, "(0, 1e6] Hz"),
         AFMT_INT("--periods", &o->max_periods, 2, 100000000, NULL),
         AFMT_INT("--analyse", &o->analyse, 1, MAX_ANALYSE, NULL),
         AFMT_INT("--harmonics", &o->k_max, 1, AFM_MAX_HARMONICS, NULL),
@@ -172,6 +205,15 @@ static int parse_args(int argc, char **argv, approach_opts *o) {
         fprintf(stderr, "afmtwin approach: --fe must be > 0 Hz (got %g)\n", o->fe_hz);
         return -1;
     }
+    if (strcmp(o->mode, "am") != 0 && strcmp(o->mode, "fm") != 0) {
+        fprintf(stderr, "afmtwin approach: --mode must be am or fm (got %s)\n", o->mode);
+        return -1;
+    }
+    o->fm = strcmp(o->mode, "fm") == 0;
+    if (o->fm && o->rate_m_s > 0) {
+        fprintf(stderr, "afmtwin approach: --rate is for --mode am only\n");
+        return -1;
+    }
     if (!(o->tol > 0 && o->tol < 1)) {
         fprintf(stderr, "afmtwin approach: --tol must be in (0, 1) (got %g)\n", o->tol);
         return -1;
@@ -179,8 +221,10 @@ static int parse_args(int argc, char **argv, approach_opts *o) {
     return 0;
 }
 
-/* Per period: mean force, min force and the virial, trapezoid over the samples with the
- * step across a period boundary (theta = 2 pi m) split at it (linear interpolant). */
+/* Per period: mean force, min force and the virial of the tip-sample force (the sample's
+ * total less the squeeze film's, afm_force_parts_at: as afm_cycle splits it),
+ * trapezoid over the samples with the step across a period boundary (theta = 2 pi m)
+ * split at it (linear interpolant). */
 typedef struct {
     bool have, active;
     afm_sample prev;
@@ -236,6 +280,7 @@ typedef struct {
     afm_harm harm;
     approach_extra extra;
     double lockin_tau_s;
+    bool lockin_fed; /* fm: the FM loop feeds the lock-in (afm_fm_run), not on_samples */
     long n_cyc, n_harm, n_extra; /* completed periods so far */
     afm_cycle_metrics cyc[MAX_ANALYSE];
     afm_harm_result harm_r[MAX_ANALYSE];
@@ -247,13 +292,17 @@ static void on_samples(void *ctx, const afm_sim *s, const afm_sample *smp, int n
     const afm_drive *d = afm_sim_drive(s);
     for (int i = 0; i < n; i++) {
         double th = afm_drive_phase(d, 0, smp[i].t_s);
-        afm_lockin_push(&e->lockin, smp[i].x_m, th);
+        if (!e->lockin_fed) afm_lockin_push(&e->lockin, smp[i].x_m, th);
         if (afm_cycle_push(&e->cycle, &smp[i], th) == 1)
             e->cyc[e->n_cyc++ % MAX_ANALYSE] = e->cycle.out;
         if (afm_harm_push(&e->harm, smp[i].x_m, smp[i].f_n, th) == 1)
             e->harm_r[e->n_harm++ % MAX_ANALYSE] = e->harm.out;
         extra_period ep;
-        if (extra_push(&e->extra, &smp[i], th, &ep)) e->ext[e->n_extra++ % MAX_ANALYSE] = ep;
+        afm_sample ts = smp[i];
+        afm_force_parts fp;
+        afm_force_parts_at(afm_sim_forces(s), afm_sim_separation(s), ts.x_m, ts.v_m_s, &fp);
+        ts.f_n -= fp.squeeze_n;
+        if (extra_push(&e->extra, &ts, th, &ep)) e->ext[e->n_extra++ % MAX_ANALYSE] = ep;
     }
 }
 
@@ -289,6 +338,7 @@ static void approach_means(const approach_est *e, int n, int nk, approach_point 
         pt->cyc.indentation_m += c->indentation_m / n;
         pt->cyc.contact_time_s += c->contact_time_s / n;
         pt->cyc.dissipated_energy_j += c->dissipated_energy_j / n;
+        pt->cyc.squeeze_dissipated_energy_j += c->squeeze_dissipated_energy_j / n;
         pt->cyc.mean_deflection_m += c->mean_deflection_m / n;
         const extra_period *x = &e->ext[(e->n_extra - 1 - j) % MAX_ANALYSE];
         pt->ext.mean_force_n += x->mean_force_n / n;
@@ -337,6 +387,7 @@ static int print_json(const approach_point *p, int nk) {
     cJSON_AddNumberToObject(o, "indentation_m", p->cyc.indentation_m);
     cJSON_AddNumberToObject(o, "contact_time_s", p->cyc.contact_time_s);
     cJSON_AddNumberToObject(o, "dissipated_energy_j", p->cyc.dissipated_energy_j);
+    cJSON_AddNumberToObject(o, "squeeze_dissipated_energy_j", p->cyc.squeeze_dissipated_energy_j);
     cJSON_AddNumberToObject(o, "virial_j", p->ext.virial_j);
     cJSON_AddNumberToObject(o, "periodicity", p->periodicity);
     cJSON_AddBoolToObject(o, "settled", p->settled);
@@ -364,11 +415,13 @@ static void print_jump(const approach_point *a, const approach_point *b, bool js
 }
 
 static void print_text(const approach_point *p) {
-    printf("%-8s %10.4f %10.5f %9.4f %10.5f %9.4f %10.4f %10.4f %9.4f %11.4e %9.4f %3d%s\n",
+    printf("%-8s %10.4f %10.5f %9.4f %10.5f %9.4f %10.4f %10.4f %9.4f %11.4e %9.4f %9.3f %3d%s\n",
            p->retract ? "retract" : "approach", p->z_m * 1e9, p->amp_m[0] * 1e9, p->lag_deg[0],
            p->lockin_amp_m * 1e9, p->lockin_lag_deg, p->cyc.peak_force_n * 1e9,
            p->ext.attractive_force_n * 1e9, p->cyc.indentation_m * 1e9, p->cyc.contact_time_s,
-           p->cyc.dissipated_energy_j / 1.602176634e-19, p->periodicity, p->settled ? "" : " *");
+           p->cyc.dissipated_energy_j / 1.602176634e-19,
+           p->cyc.squeeze_dissipated_energy_j / 1.602176634e-19, p->periodicity,
+           p->settled ? "" : " *");
 }
 
 /* Z of step i of n from a to b (exact multiples of the step). */
@@ -440,6 +493,145 @@ static int approach_ramp(afm_sim *sim, approach_est *e, const approach_opts *o, 
     return 0;
 }
 
+/* ------------------------------------------------------------------ --mode fm */
+
+/* What one FM step reports: the loops' window means and the per-period forces. */
+typedef struct {
+    approach_point pt; /* z, direction, per-period forces and harmonics (as am) */
+    afm_fm_means fm;
+    double f_free_hz, a_set_m;
+} approach_fm_point;
+
+static int print_fm_json(const approach_fm_point *p) {
+    cJSON *o = cJSON_CreateObject();
+    cJSON_AddNumberToObject(o, "z_m", p->pt.z_m);
+    cJSON_AddStringToObject(o, "mode", "fm");
+    cJSON_AddStringToObject(o, "integrator", json_integrator);
+    cJSON_AddStringToObject(o, "scheme", json_scheme);
+    cJSON_AddStringToObject(o, "direction", p->pt.retract ? "retract" : "approach");
+    cJSON_AddNumberToObject(o, "frequency_shift_hz", p->fm.freq_hz - p->f_free_hz);
+    cJSON_AddNumberToObject(o, "frequency_hz", p->fm.freq_hz);
+    cJSON_AddNumberToObject(o, "free_frequency_hz", p->f_free_hz);
+    cJSON_AddNumberToObject(o, "drive_amplitude_m", p->fm.drive_m);
+    cJSON_AddNumberToObject(o, "amplitude_m", p->fm.amplitude_m);
+    cJSON_AddNumberToObject(o, "amplitude_setpoint_m", p->a_set_m);
+    cJSON_AddNumberToObject(o, "phase_error_deg", p->fm.phase_error_deg);
+    cJSON_AddNumberToObject(o, "lag_deg", p->fm.lag_deg);
+    cJSON_AddBoolToObject(o, "locked", p->fm.lock == AFM_FM_LOCKED);
+    cJSON_AddStringToObject(o, "lock_state", afm_fm_lock_name(p->fm.lock));
+    cJSON_AddBoolToObject(o, "settled", p->fm.settled);
+    cJSON_AddNumberToObject(o, "windows", p->fm.windows);
+    cJSON_AddNumberToObject(o, "harmonic1_amplitude_m", p->pt.amp_m[0]);
+    cJSON_AddNumberToObject(o, "mean_deflection_m", p->pt.cyc.mean_deflection_m);
+    cJSON_AddNumberToObject(o, "peak_force_n", p->pt.cyc.peak_force_n);
+    cJSON_AddNumberToObject(o, "attractive_force_n", p->pt.ext.attractive_force_n);
+    cJSON_AddNumberToObject(o, "mean_force_n", p->pt.ext.mean_force_n);
+    cJSON_AddNumberToObject(o, "dissipated_energy_j", p->pt.cyc.dissipated_energy_j);
+    cJSON_AddStringToObject(o, "regime", regime(p->pt.attractive));
+    return afmt_json_emit(o);
+}
+
+static void print_fm_text(const approach_fm_point *p) {
+    printf("%-8s %10.4f %12.5f %14.6f %11.5g %10.5f %10.4f %-9s %10.4f %9.4f%s\n",
+           p->pt.retract ? "retract" : "approach", p->pt.z_m * 1e9, p->fm.freq_hz - p->f_free_hz,
+           p->fm.freq_hz, p->fm.drive_m * 1e12, p->fm.amplitude_m * 1e9, p->fm.phase_error_deg,
+           afm_fm_lock_name(p->fm.lock), p->pt.cyc.peak_force_n * 1e9,
+           p->pt.cyc.dissipated_energy_j / 1.602176634e-19, p->fm.settled ? "" : " *");
+}
+
+/* The FM curve: lock at Z = 1 um (f_free, the amplitude set-point), then every Z. */
+static int approach_fm(afm_sim *sim, const afm_modal *m, afm_config *cfg, approach_est *est,
+                       const approach_opts *o, const afm_cfg_lockin *lk, int n_steps) {
+    char err[AFM_ERR_LEN];
+    static afm_sample buf[4096];
+    afm_fm_plant p;
+    afm_fm_plant_of(m, &p);
+    const double f_start = isnan(o->fe_hz) ? p.f0_hz : o->fe_hz;
+    static afm_fm f;
+    if (afm_fm_init(&f, &cfg->fm, lk, &p, cfg->sim.sample_rate_hz, f_start, f_start,
+                    fmin(cfg->drive.tones[0].amplitude_m, cfg->fm.drive_max_m), err, sizeof err) ||
+        afm_sim_set_tone(sim, 0, f.drive_m, f.freq_hz) != AFM_SIM_OK) {
+        fprintf(stderr, "afmtwin approach: %s\n", err);
+        return 2;
+    }
+    est->lockin_fed = true;
+    const double t_upd = cfg->fm.update_samples / cfg->sim.sample_rate_hz;
+    const long win = (long)ceil(f.lock_time_s / t_upd);
+    int max_win = (int)ceil(o->max_periods / (f_start * win * t_upd));
+    if (max_win < 10) max_win = 10;
+    /* the free resonance and, unless configured, the amplitude set-point */
+    afm_fm_means mn;
+    if (afm_sim_set_separation(sim, AFM_A0_Z_M) != AFM_SIM_OK ||
+        afm_fm_settle(&f, sim, &est->lockin, buf, 4096, win, max_win, o->fm_tol_hz, 1e-4,
+                      on_samples, est, &mn, err, sizeof err)) {
+        fprintf(stderr, "afmtwin approach: fm at Z 1 um: %s\n", err[0] ? err : "refused");
+        return 1;
+    }
+    if (!(cfg->fm.amplitude_setpoint_m > 0)) {
+        afm_fm_hold_amplitude(&f, mn.amplitude_m);
+        if (afm_fm_settle(&f, sim, &est->lockin, buf, 4096, win, max_win, o->fm_tol_hz, 1e-4,
+                          on_samples, est, &mn, err, sizeof err)) {
+            fprintf(stderr, "afmtwin approach: fm at Z 1 um: %s\n", err);
+            return 1;
+        }
+    }
+    if (mn.lock != AFM_FM_LOCKED)
+        fprintf(stderr, "afmtwin approach: warning: the PLL did not lock at Z 1 um (%s)\n",
+                afm_fm_lock_name(mn.lock));
+    const double f_free = mn.freq_hz;
+    afm_fm_recenter(&f);
+    if (!o->json) {
+        printf("# afmtwin approach %s --mode fm: integrator %s (scheme %s); PLL bandwidth %g Hz "
+               "(kp %.4g Hz/deg, ki %.4g Hz/(deg s)), amplitude bandwidth %g Hz (kp %.4g, ki "
+               "%.4g 1/s), lock-in tau %g s order %d, update every %d samples\n",
+               o->config, afm_sim_integrator_name(sim), afm_sim_scheme_name(sim),
+               cfg->fm.pll_bandwidth_hz, f.kp, f.ki, cfg->fm.amplitude_bandwidth_hz, f.akp, f.aki,
+               lk->time_constant_s, lk->order, cfg->fm.update_samples);
+        printf("# free resonance f_free %.6f Hz (locked at Z 1 um, lag %.3f deg held; model mode "
+               "1: %.6f Hz, Q %.5g); amplitude set-point %.6g nm, free drive %.6g pm\n",
+               f_free, cfg->fm.phase_setpoint_deg, p.f0_hz, p.q, f.a_set_m * 1e9,
+               mn.drive_m * 1e12);
+        printf("# df = f - f_free; phase error = lock-in lag - set-point; drive = tone 0's "
+               "amplitude; * = not settled\n");
+        printf("%-8s %10s %12s %14s %11s %10s %10s %-9s %10s %9s\n", "# dir", "Z_nm", "df_Hz",
+               "f_Hz", "drive_pm", "A_nm", "perr_deg", "lock", "Fpeak_nN", "Ediss_eV");
+    }
+    const bool tty = isatty(STDERR_FILENO) != 0;
+    const int passes = o->retract ? 2 : 1;
+    for (int pass = 0; pass < passes; pass++) {
+        for (int i = pass; i < n_steps; i++) {
+            approach_fm_point q;
+            memset(&q, 0, sizeof q);
+            q.pt.retract = pass == 1;
+            q.f_free_hz = f_free;
+            q.a_set_m = f.a_set_m;
+            double z = step_z(o->from_m, o->to_m, o->step_m, pass ? n_steps - 1 - i : i, n_steps);
+            if (tty)
+                fprintf(stderr, "\rapproach --mode fm: %s step %d/%d, Z %.4f nm   ",
+                        pass ? "retract" : "approach", i + 1, n_steps, z * 1e9);
+            if (afm_sim_set_separation(sim, z) != AFM_SIM_OK) {
+                fprintf(stderr, "%safmtwin approach: cannot set Z = %g m\n", tty ? "\n" : "", z);
+                return 1;
+            }
+            afm_cycle_set_forces(&est->cycle, afm_sim_forces(sim), z);
+            if (afm_fm_settle(&f, sim, &est->lockin, buf, 4096, win, max_win, o->fm_tol_hz, 1e-4,
+                              on_samples, est, &q.fm, err, sizeof err)) {
+                fprintf(stderr, "%safmtwin approach: %s\n", tty ? "\n" : "", err);
+                return 1;
+            }
+            q.pt.z_m = z;
+            approach_means(est, o->analyse, o->k_max, &q.pt);
+            if (o->json ? print_fm_json(&q) != 0 : (print_fm_text(&q), 0)) {
+                fprintf(stderr, "afmtwin approach: out of memory writing JSON\n");
+                return 1;
+            }
+            fflush(stdout);
+        }
+    }
+    if (tty) fprintf(stderr, "\r%60s\r", "");
+    return 0;
+}
+
 int afm_cmd_approach(int argc, char **argv) {
     approach_opts o;
     int rc = afmt_opts_done("approach", parse_args(argc, argv, &o), approach_usage);
@@ -473,7 +665,8 @@ int afm_cmd_approach(int argc, char **argv) {
         }
         n_steps = (int)n;
     }
-    afm_sim *sim = afm_twin_create(&cfg, NULL, NULL, err, sizeof err);
+    static afm_modal model;
+    afm_sim *sim = afm_twin_create(&cfg, &model, NULL, err, sizeof err);
     if (!sim) {
         fprintf(stderr, "afmtwin approach: %s\n", err);
         return 1;
@@ -501,15 +694,27 @@ int afm_cmd_approach(int argc, char **argv) {
     sw.on_samples_ctx = &est;
     json_integrator = afm_sim_integrator_name(sim);
     json_scheme = afm_sim_scheme_name(sim);
+    if (o.fm) {
+        int st = approach_fm(sim, &model, &cfg, &est, &o, &lk, n_steps);
+        afm_sweep_destroy(&sw);
+        afm_sim_destroy(&sim);
+        return st;
+    }
     if (!o.json) {
         printf("# afmtwin approach %s: integrator %s (scheme %s), fe %.6g Hz, Ae %.4g m, %d "
                "periods analysed per step; phase: lag of the deflection behind the drive (90 deg "
                "free at resonance)\n",
                o.config, afm_sim_integrator_name(sim), afm_sim_scheme_name(sim), fe,
                cfg.drive.tones[0].amplitude_m, o.analyse);
-        printf("%-8s %10s %10s %9s %10s %9s %10s %10s %9s %11s %9s %3s\n", "# dir", "Z_nm", "A1_nm",
-               "lag_deg", "lockin_nm", "li_lag", "Fpeak_nN", "Fattr_nN", "indent_nm", "contact_s",
-               "Ediss_eV", "p");
+        printf("%-8s %10s %10s %9s %10s %9s %10s %10s %9s %11s %9s %9s %3s\n", "# dir", "Z_nm",
+               "A1_nm", "lag_deg", "lockin_nm", "li_lag", "Fpeak_nN", "Fattr_nN", "indent_nm",
+               "contact_s", "Ediss_eV", "Esq_eV", "p");
+        printf(
+            "# p: the periodicity of the orbit the step settled on (1: repeats every drive "
+            "period, 2: every second, ...); 'p 0 *': the orbit did not repeat within --tol "
+            "in --periods periods (%d here; in hard viscoelastic contact the rt schemes may never "
+            "settle to it): the row is the mean of the last --analyse periods run\n",
+            o.max_periods);
     }
     /* the free amplitude A0 (afm_a0.h: harmonic 1 at Z 1 um, gap forces off, squeeze on) */
     afm_a0 a0;

@@ -92,8 +92,9 @@ static void cont_usage(FILE *f) {
         "                     \"min_deflection_m\", \"max_deflection_m\", \"max_force_n\",\n"
         "                     \"min_force_n\", \"amplitude_m\", \"phase_lag_deg\",\n"
         "                     \"mean_deflection_m\", \"indentation_m\", \"contact_time_s\",\n"
-        "                     \"dissipated_energy_j\", \"virial_j\", \"contacts\": "
-        "[{\"min_deflection_m\",\n"
+        "                     \"dissipated_energy_j\", \"virial_j\" (of the tip-sample\n"
+        "                     force), \"squeeze_dissipated_energy_j\" (the squeeze film's),\n"
+        "                     \"contacts\": [{\"min_deflection_m\",\n"
         "                     \"pre_contact_velocity_m_s\", \"max_force_n\", \"t_in_s\",\n"
         "                     \"duration_s\"}], \"residual\", \"iterations\"}; per bifurcation\n"
         "                     {\"type\": \"LPC\"|\"PD\"|\"NS\", \"branch\", \"param\", "
@@ -257,6 +258,7 @@ static void json_metrics(cJSON *o, const afm_cont_metrics *m) {
     cJSON_AddNumberToObject(o, "contact_time_s", m->contact_time_s);
     cJSON_AddNumberToObject(o, "dissipated_energy_j", m->dissipated_energy_j);
     cJSON_AddNumberToObject(o, "virial_j", m->virial_j);
+    cJSON_AddNumberToObject(o, "squeeze_dissipated_energy_j", m->squeeze_dissipated_energy_j);
     cJSON *cs = cJSON_AddArrayToObject(o, "contacts");
     for (int i = 0; i < m->n_contacts; i++) {
         const afm_cont_contact *c = &m->contacts[i];

@@ -44,7 +44,7 @@ typedef struct {
     int k[CURVE_MAX_K];
     double re[CURVE_MAX_K], im[CURVE_MAX_K]; /* A e^{i phi} */
     double lockin_amp_m, lockin_lag_deg, peak_force_n, min_defl_m, indentation_m, contact_s,
-        ediss_j, mean_defl_m;
+        ediss_j, mean_defl_m, esq_j;
     char tones_key[160]; /* the tone set, for the run's identity */
 } curve_rec;
 
@@ -110,6 +110,7 @@ static void rec_of(const afmtwin_harmonics_t *m, curve_rec *r) {
     r->indentation_m = m->indentation_m;
     r->contact_s = m->contact_time_s;
     r->ediss_j = m->dissipated_energy_j;
+    r->esq_j = m->squeeze_dissipated_energy_j;
     r->mean_defl_m = m->mean_deflection_m;
     size_t off = 0;
     for (int j = 0; j < m->n_tones && off < sizeof r->tones_key - 40; j++)
@@ -130,7 +131,7 @@ static void flush_run(curve_state *c, const curve_opts *o) {
     int n = (int)(c->n < o->analyse ? c->n : o->analyse);
     const curve_rec *last = &c->ring[(c->n - 1) % CURVE_MAX_N];
     double re[CURVE_MAX_K] = {0}, im[CURVE_MAX_K] = {0}, pk = 0, mind = 0, ind = 0, ct = 0, ed = 0,
-           md = 0;
+           md = 0, eq = 0;
     for (int j = 0; j < n; j++) {
         const curve_rec *r = &c->ring[(c->n - 1 - j) % CURVE_MAX_N];
         for (int i = 0; i < last->n; i++) {
@@ -142,6 +143,7 @@ static void flush_run(curve_state *c, const curve_opts *o) {
         ind += r->indentation_m / n;
         ct += r->contact_s / n;
         ed += r->ediss_j / n;
+        eq += r->esq_j / n;
         md += r->mean_defl_m / n;
     }
     if (!isnan(c->z_prev) && last->z_m != c->z_prev) c->retract = last->z_m > c->z_prev;
@@ -178,6 +180,7 @@ static void flush_run(curve_state *c, const curve_opts *o) {
         cJSON_AddNumberToObject(j, "indentation_m", ind);
         cJSON_AddNumberToObject(j, "contact_time_s", ct);
         cJSON_AddNumberToObject(j, "dissipated_energy_j", ed);
+        cJSON_AddNumberToObject(j, "squeeze_dissipated_energy_j", eq);
         cJSON_AddNumberToObject(j, "analysed_periods", n);
         cJSON_AddNumberToObject(j, "records", (double)c->n);
         afmt_json_emit(j);

@@ -219,6 +219,9 @@ static void print_samples(const listen_ctx *c, const char *channel, const afmtwi
         cJSON_AddNumberToObject(o, "stream", m->stream);
         json_num(o, "t0_s", m->t0_s);
         json_num(o, "rate_hz", m->rate_hz);
+        cJSON_AddNumberToObject(o, "decimation", m->decimation);
+        json_num(o, "passband_hz", m->passband_hz);
+        json_num(o, "stopband_hz", m->stopband_hz);
         cJSON_AddNumberToObject(o, "n", m->n);
         json_stats(o, "deflection_m", sx);
         json_stats(o, "obd_m", so);
@@ -236,11 +239,15 @@ static void print_samples(const listen_ctx *c, const char *channel, const afmtwi
         afmt_json_emit(o);
         return;
     }
-    printf("samples   seq %lld stream %d t0 %.9f s rate %.6g Hz n %d Z %.4g nm: deflection "
+    char lp[64] = "unfiltered";
+    if (m->passband_hz > 0)
+        snprintf(lp, sizeof lp, "low-pass %.6g Hz, -80 dB from %.6g Hz", m->passband_hz,
+                 m->stopband_hz);
+    printf("samples   seq %lld stream %d t0 %.9f s rate %.6g Hz, %s, n %d Z %.4g nm: deflection "
            "%.4g..%.4g nm (rms %.4g), obd %.4g..%.4g nm, force %.4g..%.4g nN\n",
-           (long long)m->seq_applied, m->stream, m->t0_s, m->rate_hz, m->n, m->separation_m * 1e9,
-           sx.min * 1e9, sx.max * 1e9, sx.rms * 1e9, so.min * 1e9, so.max * 1e9, sf.min * 1e9,
-           sf.max * 1e9);
+           (long long)m->seq_applied, m->stream, m->t0_s, m->rate_hz, lp, m->n,
+           m->separation_m * 1e9, sx.min * 1e9, sx.max * 1e9, sx.rms * 1e9, so.min * 1e9,
+           so.max * 1e9, sf.min * 1e9, sf.max * 1e9);
     if (c->full)
         for (int i = 0; i < m->n; i++)
             printf("  %d %.9g %.9g %d %.9g\n", i, m->deflection_m[i], m->obd_m[i], m->obd_counts[i],
@@ -271,6 +278,7 @@ static void print_harmonics(const listen_ctx *c, const char *channel,
         json_num(o, "pre_contact_velocity_m_s", m->pre_contact_velocity_m_s);
         json_num(o, "dissipated_energy_j", m->dissipated_energy_j);
         json_num(o, "mean_deflection_m", m->mean_deflection_m);
+        json_num(o, "squeeze_dissipated_energy_j", m->squeeze_dissipated_energy_j);
         json_oppoint(o, m->separation_m, m->n_tones, m->tone_frequency_hz, m->tone_amplitude_m);
         afmt_json_emit(o);
         return;

@@ -74,7 +74,8 @@ typedef struct {
 typedef struct {
     plot_set set[PLOT_MAX_SETS];
     int nset;
-    char title[512], sub[512]; /* the title's two lines (sub may be empty) */
+    char title[512], sub[512];  /* the title's two lines (sub may be empty) */
+    char note[256], note2[256]; /* more lines under them (may be empty; no quotes) */
     plot_info info;
     double W, H; /* the picture, pixels */
 } plot_data;
@@ -110,7 +111,12 @@ static void plot_usage(FILE *f) {
             "  trace     INPUT: an LCM log of the daemon's outputs (lcm-logger, afmtwin\n"
             "            listen): deflection, OBD signal and force of one sample stream\n"
             "            (--stream N, default 0) over --from S --to S of model time (default\n"
-            "            the first 2 ms); --z M also draws the gap d = xr + Z (cos alpha 1)\n"
+            "            the first 2 ms); --z M also draws the gap d = xr + Z (cos alpha 1).\n"
+            "            The title states the stream's rate, samples per drive period and\n"
+            "            low-pass filter (every channel, the force too: its peaks are in the\n"
+            "            harmonics records); under 10 samples per period the samples are\n"
+            "            drawn as points, never joined; lost messages (jumps in msg_seq)\n"
+            "            are shaded and named, and a window inside them says so\n"
             "  spectrum  INPUT: sweep or approach --json output; --index N: the record (step)\n"
             "            to draw, 0 the first (default), -1 the last: harmonic amplitudes\n"
             "  scan      INPUT: afmtwin scan --json output: images (trace) of the height,\n"
@@ -398,8 +404,10 @@ static void area(FILE *gp, double l, double r, double b, double t) {
 static double figure(FILE *gp, plot_data *d, const plot_key *k, double l, double r) {
     plot_info_line(&d->info, d->sub, sizeof d->sub);
     clean(d->sub);
-    fprintf(gp, "set multiplot title \"%s%s%s\"\n", d->title, d->sub[0] ? "\\n" : "", d->sub);
-    double y = 1 - ((d->sub[0] ? 2 : 1) * PX_LINE + 12) / d->H; /* under the title */
+    fprintf(gp, "set multiplot title \"%s%s%s%s%s%s%s\"\n", d->title, d->sub[0] ? "\\n" : "",
+            d->sub, d->note[0] ? "\\n" : "", d->note, d->note2[0] ? "\\n" : "", d->note2);
+    int lines = 1 + !!d->sub[0] + !!d->note[0] + !!d->note2[0];
+    double y = 1 - (lines * PX_LINE + 12) / d->H; /* under the title */
     if (k->n > 0) {
         int len = 0;
         for (int i = 0; i < k->n; i++)
@@ -1093,54 +1101,182 @@ static int load_thermal(const plot_opts *o, plot_data *d, FILE *gp) {
 
 /* ---- trace ---- */
 
+/* Samples-channel messages that never arrived (a jump in msg_seq, msg_seq lo..hi) while the
+ * stream had no samples from t_lo to t_hi (model time, s; t_hi NAN: the log ended first). */
+typedef struct {
+    long long lo, hi;
+    double t_lo, t_hi;
+} trace_gap;
+#define TRACE_MAX_GAPS 256
+
+typedef struct {
+    int blocks, decimation;
+    double rate_hz, pass_hz, stop_hz, fe_hz; /* the last block's (fe: tone 0, NAN: none) */
+    double t_first, t_end;                   /* the stream's first and last sample + 1 */
+    long long lost;                          /* messages lost in the whole log */
+    int n_gaps;
+    trace_gap gap[TRACE_MAX_GAPS];
+} trace_ctx;
+
+/* The stream's rate and filter as two lines of the title (and of the data files); sparse:
+ * drawn as points. */
+static void trace_note(const trace_ctx *c, int stream, bool sparse, char *l1, char *l2, size_t n) {
+    int k = snprintf(l1, n, "stream %d: %.6g kHz (decimation %d)", stream, c->rate_hz / 1e3,
+                     c->decimation);
+    if (c->fe_hz > 0 && k > 0 && (size_t)k < n)
+        k += snprintf(l1 + k, n - (size_t)k, ", %.3g samples per drive period",
+                      c->rate_hz / c->fe_hz);
+    if (sparse && k > 0 && (size_t)k < n)
+        snprintf(l1 + k, n - (size_t)k, ": points, too few for the waveform");
+    if (c->pass_hz > 0)
+        snprintf(l2, n,
+                 "every channel (force too) low-pass %.6g kHz, -80 dB from %.6g kHz: force "
+                 "peaks are in the harmonics",
+                 c->pass_hz / 1e3, c->stop_hz / 1e3);
+    else
+        snprintf(l2, n, "not filtered (decimation %d)", c->decimation);
+}
+
 static int load_trace(const plot_opts *o, plot_data *d, FILE *gp) {
     char err[256];
     afm_lcm_log *lg = afm_lcm_log_open(o->in[0], 0, err, sizeof err);
     if (!lg) return plot_err("cannot read the log: %s", err);
-    plot_set *s = curve_new(d, "T", "", "t[ms] deflection[nm] obd[nm] force[nN] gap[nm]", 5);
+    plot_set *s = curve_new(d, "T", "",
+                            "t[ms] deflection[nm] obd[nm] force[nN] gap[nm] msg_seq[index] "
+                            "run[index] rate[Hz] passband[Hz]",
+                            9);
+    if (!s) return -1;
+    s->seg_col = 6; /* a run of samples with no lost message inside: never joined across */
+    static trace_ctx c;
+    memset(&c, 0, sizeof c);
+    c.t_first = c.t_end = c.fe_hz = NAN;
     double t0 = isnan(o->t_from_s) ? -HUGE_VAL : o->t_from_s;
-    double t1 = isnan(o->t_to_s) ? HUGE_VAL : o->t_to_s, first = NAN;
+    double t1 = isnan(o->t_to_s) ? HUGE_VAL : o->t_to_s;
     afm_lcm_log_event ev;
-    int rr, blocks = 0;
-    while (s && (rr = afm_lcm_log_next(lg, &ev, err, sizeof err)) > 0) {
+    long long prev_seq = -1, lost_lo = -1, lost_hi = -1; /* lost since the stream's last block */
+    int rr, run = 0;
+    while ((rr = afm_lcm_log_next(lg, &ev, err, sizeof err)) > 0) {
         size_t cl = strlen(ev.channel);
         if (cl < 7 || strcmp(ev.channel + cl - 7, "SAMPLES")) continue;
         afmtwin_samples_t m;
         if (afm_wire_decode(&afm_wire_samples_t, ev.data, (int)ev.datalen, &m, err, sizeof err))
             continue; /* not a samples_t: skipped, as listen does */
-        if (m.stream == o->stream) {
-            if (isnan(first)) first = m.t0_s;
-            double a = isnan(o->t_from_s) ? first : t0;
+        if (prev_seq >= 0 && m.msg_seq > prev_seq + 1) {
+            c.lost += m.msg_seq - prev_seq - 1;
+            if (lost_lo < 0) lost_lo = prev_seq + 1;
+            lost_hi = m.msg_seq - 1;
+        }
+        if (m.msg_seq > prev_seq) prev_seq = m.msg_seq;
+        if (m.stream == o->stream && m.n > 0 && m.rate_hz > 0) {
+            if (lost_lo >= 0 && isfinite(c.t_end) && m.t0_s > c.t_end + 0.5 / m.rate_hz) {
+                if (c.n_gaps < TRACE_MAX_GAPS)
+                    c.gap[c.n_gaps++] = (trace_gap){lost_lo, lost_hi, c.t_end, m.t0_s};
+                run++;
+            }
+            lost_lo = lost_hi = -1;
+            if (isnan(c.t_first)) c.t_first = m.t0_s;
+            c.t_end = m.t0_s + m.n / m.rate_hz;
+            c.rate_hz = m.rate_hz;
+            c.decimation = m.decimation;
+            c.pass_hz = m.passband_hz;
+            c.stop_hz = m.stopband_hz;
+            double a = isnan(o->t_from_s) ? c.t_first : t0;
             double b = isnan(o->t_to_s) ? a + 2e-3 : t1;
             for (int i = 0; i < m.n; i++) {
                 double t = m.t0_s + i / m.rate_hz;
                 if (t < a || t > b) continue;
-                double row[5] = {t * 1e3, m.deflection_m[i] * 1e9, m.obd_m[i] * 1e9,
+                if (m.n_tones > 0) c.fe_hz = m.tone_frequency_hz[0];
+                double row[9] = {t * 1e3,
+                                 m.deflection_m[i] * 1e9,
+                                 m.obd_m[i] * 1e9,
                                  m.force_n[i] * 1e9,
-                                 isnan(o->z_m) ? NAN : (m.deflection_m[i] + o->z_m) * 1e9};
+                                 isnan(o->z_m) ? NAN : (m.deflection_m[i] + o->z_m) * 1e9,
+                                 (double)m.msg_seq,
+                                 run,
+                                 m.rate_hz,
+                                 m.passband_hz};
                 if (set_row(s, row)) break;
             }
-            blocks++;
+            c.blocks++;
         }
         afm_wire_free(&afm_wire_samples_t, &m);
     }
     afm_lcm_log_close(&lg);
-    if (!s || s->n == 0) {
-        fprintf(stderr, "afmtwin plot: %s: no samples of stream %d in the window (%d blocks)\n",
-                o->in[0], o->stream, blocks);
+    if (lost_lo >= 0 && c.n_gaps < TRACE_MAX_GAPS) /* lost after the stream's last block */
+        c.gap[c.n_gaps++] = (trace_gap){lost_lo, lost_hi, c.t_end, NAN};
+    const double a = isnan(o->t_from_s) ? c.t_first : t0;
+    const double b = isnan(o->t_to_s) ? a + 2e-3 : t1;
+    if (s->n == 0) {
+        for (int g = 0; g < c.n_gaps; g++) {
+            const trace_gap *q = &c.gap[g];
+            if (q->t_lo <= b && (isnan(q->t_hi) || q->t_hi >= a)) {
+                fprintf(stderr,
+                        "afmtwin plot: %s: the window %.6f..%.6f ms falls in a gap of lost "
+                        "messages: %lld samples messages (msg_seq %lld to %lld) never reached "
+                        "the log, and stream %d has no samples from %.6f ms to ",
+                        o->in[0], a * 1e3, b * 1e3, q->hi - q->lo + 1, q->lo, q->hi, o->stream,
+                        q->t_lo * 1e3);
+                if (isnan(q->t_hi))
+                    fprintf(stderr, "the end of the log\n");
+                else
+                    fprintf(stderr, "%.6f ms\n", q->t_hi * 1e3);
+                return -1;
+            }
+        }
+        if (c.blocks == 0)
+            fprintf(stderr, "afmtwin plot: %s: no samples of stream %d in the log\n", o->in[0],
+                    o->stream);
+        else
+            fprintf(stderr,
+                    "afmtwin plot: %s: no samples of stream %d in the window %.6f..%.6f ms (%d "
+                    "blocks from %.6f to %.6f ms, %lld messages lost)\n",
+                    o->in[0], o->stream, a * 1e3, b * 1e3, c.blocks, c.t_first * 1e3, c.t_end * 1e3,
+                    c.lost);
         return -1;
     }
     /* the daemon's drive is what it was sent, not the config's: only --fe and --ae */
     d->info.cfg_fe_hz = d->info.cfg_ae_m = NAN;
-    fprintf(gp, "set style line 1 lc rgb '#0072b2' lw 1.5 pt 7 ps 0.5\nset style line 2 lc rgb "
-                "'#e69f00' lw 1.5 dt 2 pt 6 ps 0.7\nset style line 3 lc rgb '#009e73' lw 1.5 pt 7 "
-                "ps 0.5\nset style line 4 lc rgb '#d55e00' lw 1.5 pt 7 ps 0.5\n");
+    if (isnan(c.fe_hz) && o->fe_hz > 0) c.fe_hz = o->fe_hz;
+    /* a waveform only where the stream resolves the drive's period; else its points */
+    const bool sparse = !(c.fe_hz > 0) || c.rate_hz / c.fe_hz < 10;
+    trace_note(&c, o->stream, sparse, d->note, d->note2, sizeof d->note);
+    const char *with = sparse ? "with points" : "with linespoints";
+    fprintf(gp, "set style line 1 lc rgb '#0072b2' lw 1.5 pt 7 ps 0.8\nset style line 2 lc rgb "
+                "'#e69f00' lw 1.5 dt 2 pt 6 ps 1.0\nset style line 3 lc rgb '#009e73' lw 1.5 pt 7 "
+                "ps 0.8\nset style line 4 lc rgb '#d55e00' lw 1.5 pt 7 ps 0.8\n");
     const bool gap = !isnan(o->z_m);
     plot_key k = {0};
-    key_add(&k, "with linespoints ls 1", "tip deflection xr");
-    key_add(&k, "with linespoints ls 2", "OBD signal");
-    if (gap) key_add(&k, "with linespoints ls 3", "gap xr + Z");
-    key_add(&k, "with linespoints ls 4", "tip-sample force");
+    char w[128], lab[96];
+    snprintf(w, sizeof w, "%s ls 1", with);
+    key_add(&k, w, "tip deflection xr");
+    snprintf(w, sizeof w, "%s ls 2", with);
+    key_add(&k, w, "OBD signal");
+    if (gap) {
+        snprintf(w, sizeof w, "%s ls 3", with);
+        key_add(&k, w, "gap xr + Z");
+    }
+    snprintf(w, sizeof w, "%s ls 4", with);
+    if (c.pass_hz > 0)
+        snprintf(lab, sizeof lab, "tip-sample force, low-pass %.4g kHz", c.pass_hz / 1e3);
+    else
+        snprintf(lab, sizeof lab, "tip-sample force");
+    key_add(&k, w, lab);
+    /* lost messages inside the window: shaded, named in the legend */
+    int shown = 0;
+    for (int g = 0; g < c.n_gaps; g++) {
+        const trace_gap *q = &c.gap[g];
+        double hi = isnan(q->t_hi) ? b : q->t_hi;
+        if (q->t_lo > b || hi < a) continue;
+        fprintf(gp,
+                "set object %d rect from %.9g, graph 0 to %.9g, graph 1 fc rgb '#cccccc' fs "
+                "solid 0.5 noborder behind\n",
+                100 + g, fmax(q->t_lo, a) * 1e3, fmin(hi, b) * 1e3);
+        if (shown++ == 0) {
+            snprintf(lab, sizeof lab, "lost messages (msg_seq %lld to %lld%s)", q->lo, q->hi,
+                     c.n_gaps > g + 1 ? ", ..." : "");
+            key_add(&k, "with boxes fc rgb '#cccccc' fs solid 0.5 noborder", lab);
+        }
+    }
     const double l = PX_LEFT / d->W, r = 1 - PX_RIGHT / d->W, b0 = PX_BOTTOM / d->H,
                  g = PX_GAP / d->H;
     double top = figure(gp, d, &k, l, r);
@@ -1148,17 +1284,19 @@ static int load_trace(const plot_opts *o, plot_data *d, FILE *gp) {
     int i = 0;
     stack(gp, i, n, l, r, b0, top, g);
     shared_x(gp, i++, n, "model time (ms)");
-    fprintf(gp, "set ylabel 'deflection (nm)'\nplot $T using 1:2 with linespoints ls 1 notitle, $T "
-                "using 1:3 with linespoints ls 2 notitle\n");
+    fprintf(gp,
+            "set ylabel 'deflection (nm)'\nplot $T using 1:2 %s ls 1 notitle, $T using 1:3 %s "
+            "ls 2 notitle\n",
+            with, with);
     if (gap) {
         stack(gp, i, n, l, r, b0, top, g);
         shared_x(gp, i++, n, "model time (ms)");
-        fprintf(gp, "set ylabel 'gap (nm)'\nplot $T using 1:5 with linespoints ls 3 notitle\n");
+        fprintf(gp, "set ylabel 'gap (nm)'\nplot $T using 1:5 %s ls 3 notitle\n", with);
     }
     stack(gp, i, n, l, r, b0, top, g);
     shared_x(gp, i, n, "model time (ms)");
-    fprintf(gp, "set ylabel 'force (nN)'\nplot $T using 1:4 with linespoints ls 4 notitle\nunset "
-                "multiplot\n");
+    fprintf(gp, "set ylabel 'force (nN)'\nplot $T using 1:4 %s ls 4 notitle\nunset multiplot\n",
+            with);
     return 0;
 }
 
@@ -1427,6 +1565,8 @@ static int write_data(const plot_opts *o, const plot_data *d) {
             if (csv_write(df, d) != 0) fprintf(stderr, "afmtwin plot: no curve for the CSV\n");
         } else {
             fprintf(df, "# %s%s%s\n", d->title, d->sub[0] ? ": " : "", d->sub);
+            if (d->note[0]) fprintf(df, "# %s\n", d->note);
+            if (d->note2[0]) fprintf(df, "# %s\n", d->note2);
             for (int s = 0; s < d->nset; s++) {
                 fprintf(df, "%s# %s%s%s%s: %s\n", s ? "\n\n" : "", d->set[s].name,
                         d->set[s].label[0] ? " (" : "", d->set[s].label,
@@ -1443,6 +1583,8 @@ static int write_data(const plot_opts *o, const plot_data *d) {
 }
 
 int afm_cmd_plot(int argc, char **argv) {
+    if (argc > 1 && !strcmp(argv[1], "map")) /* the map file's heat maps: cmd_map_plot.c */
+        return afm_cmd_plot_map(argc - 1, argv + 1);
     plot_opts o;
     int rc = afmt_opts_done("plot", parse_args(argc, argv, &o), plot_usage);
     if (rc >= 0) return rc;

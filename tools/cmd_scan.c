@@ -75,7 +75,9 @@ static void scan_usage(FILE *f) {
                "  --json           one JSON object per pixel and line: line, pixel, retrace, x_m,\n"
                "                   y_m, true_height_m, material, height_m, z_m, amplitude_m,\n"
                "                   error_m, phase_lag_deg, peak_force_n, dissipated_energy_j,\n"
-               "                   periods, free_amplitude_m\n"
+               "                   squeeze_dissipated_energy_j, periods, free_amplitude_m;\n"
+               "                   peak force and dissipation are the tip-sample force's, the\n"
+               "                   squeeze film's dissipation (air on the beam) apart\n"
                "  --gsf PREFIX     also write each image as a Gwyddion Simple Field file, as AFM\n"
                "                   software opens it: PREFIX-NAME-trace.gsf and\n"
                "                   PREFIX-NAME-retrace.gsf for NAME height, true-height, z,\n"
@@ -328,19 +330,24 @@ static void print_pixel_row(const scan_opts *o, const afm_scan_pixel *p) {
         if (isfinite(p->peak_force_n)) {
             cJSON_AddNumberToObject(j, "peak_force_n", p->peak_force_n);
             cJSON_AddNumberToObject(j, "dissipated_energy_j", p->dissipated_energy_j);
+            cJSON_AddNumberToObject(j, "squeeze_dissipated_energy_j",
+                                    p->squeeze_dissipated_energy_j);
         } else {
             cJSON_AddNullToObject(j, "peak_force_n");
             cJSON_AddNullToObject(j, "dissipated_energy_j");
+            cJSON_AddNullToObject(j, "squeeze_dissipated_energy_j");
         }
         cJSON_AddNumberToObject(j, "periods", p->periods);
         cJSON_AddNumberToObject(j, "free_amplitude_m", p->free_amplitude_m);
         afmt_json_emit(j);
         return;
     }
-    printf("%5d %6d %2s %10.3f %10.3f %9.4f %3d %9.4f %9.4f %9.4f %9.3f %10.4f %10.4f\n", p->line,
-           p->pixel, p->retrace ? "R" : "T", p->x_m * 1e9, p->y_m * 1e9, p->true_height_m * 1e9,
-           p->material, p->height_m * 1e9, p->amplitude_m * 1e9, p->error_m * 1e9, p->phase_lag_deg,
-           p->peak_force_n * 1e9, p->dissipated_energy_j / 1.602176634e-19);
+    printf("%5d %6d %2s %10.3f %10.3f %9.4f %3d %9.4f %9.4f %9.4f %9.3f %10.4f %10.4f %10.3f\n",
+           p->line, p->pixel, p->retrace ? "R" : "T", p->x_m * 1e9, p->y_m * 1e9,
+           p->true_height_m * 1e9, p->material, p->height_m * 1e9, p->amplitude_m * 1e9,
+           p->error_m * 1e9, p->phase_lag_deg, p->peak_force_n * 1e9,
+           p->dissipated_energy_j / 1.602176634e-19,
+           p->squeeze_dissipated_energy_j / 1.602176634e-19);
 }
 
 int afm_cmd_scan(int argc, char **argv) {
@@ -374,7 +381,7 @@ int afm_cmd_scan(int argc, char **argv) {
                "set-point %g, ki %g 1/s, kp %g; phase: lag of the deflection behind the drive "
                "(90 deg free at resonance)\n"
                "# line pixel T/R  x_nm  y_nm  true_nm  material  height_nm  A_nm  error_nm  "
-               "lag_deg  peak_force_nN  E_diss_eV\n",
+               "lag_deg  peak_force_nN  E_diss_eV  E_sq_eV\n",
                o.config, afm_sim_integrator_name(sim), afm_sim_scheme_name(sim), o.sc.pixels,
                o.sc.lines, o.sc.size_x_m * 1e9, o.sc.size_y_m * 1e9, o.sc.line_rate_hz,
                o.pc.setpoint_ratio, o.pc.ki_hz, o.pc.kp);

@@ -116,8 +116,11 @@ static void sweep_usage(FILE *f) {
         "                      free resonance, below 90 when repulsive);\n"
         "                      cycle {peak_force_n, min_deflection_m, indentation_m,\n"
         "                      contact_time_s, pre_contact_velocity_m_s (null without\n"
-        "                      contact), dissipated_energy_j (-int F v dt), mean_deflection_m}\n"
-        "                      over the last whole drive period of the dwell"
+        "                      contact), dissipated_energy_j (-int F v dt), mean_deflection_m,\n"
+        "                      squeeze_dissipated_energy_j} over the last whole drive period\n"
+        "                      of the dwell; forces and energies are the tip-sample force's\n"
+        "                      (vdW/DMT, viscoelastic, capillary, electrostatic), the squeeze\n"
+        "                      film's dissipation apart (squeeze_dissipated_energy_j)\n"
         "  --help              this text\n\n" AFMT_OPT_SI_HELP
         "Without --json a readable table. A progress line goes to stderr (terminals only)\n"
         "when the sweep takes more than a second. Exit status 0 ok, 1 simulation failure,\n"
@@ -276,6 +279,7 @@ static void add_estimators_json(cJSON *o, const estimators *e) {
         cJSON_AddNullToObject(c, "pre_contact_velocity_m_s");
     cJSON_AddNumberToObject(c, "dissipated_energy_j", m->dissipated_energy_j);
     cJSON_AddNumberToObject(c, "mean_deflection_m", m->mean_deflection_m);
+    cJSON_AddNumberToObject(c, "squeeze_dissipated_energy_j", m->squeeze_dissipated_energy_j);
 }
 
 /* What made the records: the integrator and its scheme (set once the twin exists). */
@@ -337,10 +341,10 @@ static void print_text_estimators(const estimators *e) {
            afm_lockin_phase_deg(&e->lockin));
     if (e->cycle.periods > 0) {
         const afm_cycle_metrics *m = &e->cycle.out;
-        printf("   last period: indentation %.4f nm, contact %.4e s, dissipated %.4e J, "
-               "mean xr %.5f nm",
+        printf("   last period: indentation %.4f nm, contact %.4e s, dissipated %.4e J "
+               "(squeeze film %.4e J), mean xr %.5f nm",
                m->indentation_m * 1e9, m->contact_time_s, m->dissipated_energy_j,
-               m->mean_deflection_m * 1e9);
+               m->squeeze_dissipated_energy_j, m->mean_deflection_m * 1e9);
     }
     printf("\n");
     fflush(stdout);

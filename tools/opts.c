@@ -307,7 +307,10 @@ int afmt_opts_parse(const char *tool, const afmt_opt *opts, int argc, char **arg
         }
         if (si_rc == 1) si_echo(&echoes, tool, a, v, o->unit, si, n_si);
     }
-    fputs(echoes.text, stderr);
+    bool quiet = false; /* --quiet (send, replay: nothing on success) silences the echoes */
+    for (int i = first; i < argc; i++)
+        quiet = quiet || !strcmp(argv[i], "--quiet");
+    if (!quiet) fputs(echoes.text, stderr);
     return AFMT_OPTS_OK;
 }
 

@@ -34,7 +34,7 @@ typedef enum {
 } afmt_opt_kind;
 
 /* The unit of a length or frequency option: its value may carry an SI suffix (opts.c,
- * afmt_parse_si), echoed in SI on stderr when one was given. */
+ * afmt_parse_si), echoed in SI on stderr when one was given (not with --quiet). */
 typedef enum {
     AFMT_UNIT_NONE = 0,
     AFMT_UNIT_M,  /* m, mm, um (µm), nm, pm, fm */

@@ -28,7 +28,9 @@ typedef struct {
     int stream;  /* output stream index */
     double t0_s; /* model time of the first sample */
     double rate_hz;
-    int n; /* 1..AFM_IO_MAX_BLOCK */
+    int decimation;                  /* R: rate_hz = the sample rate / R */
+    double passband_hz, stopband_hz; /* the stream's low-pass (afm_chain_block) */
+    int n;                           /* 1..AFM_IO_MAX_BLOCK */
     float deflection_m[AFM_IO_MAX_BLOCK];
     float obd_m[AFM_IO_MAX_BLOCK];
     int32_t obd_counts[AFM_IO_MAX_BLOCK]; /* 0 without ADC */

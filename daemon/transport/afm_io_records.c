@@ -13,6 +13,9 @@ void afm_io_samples_from_block(afm_io_samples *o, const afm_chain_block *b, int6
     o->stream = b->stream;
     o->t0_s = b->t_s[0];
     o->rate_hz = b->rate_hz;
+    o->decimation = b->decimation;
+    o->passband_hz = b->passband_hz;
+    o->stopband_hz = b->stopband_hz;
     o->n = n;
     for (int i = 0; i < n; i++) {
         o->deflection_m[i] = (float)b->x_m[i];

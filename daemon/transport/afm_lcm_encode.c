@@ -21,6 +21,9 @@ void afm_lcm_samples_msg(const afm_io_samples *s, afmtwin_samples_t *m) {
         .n_tones = (int8_t)s->op.n_tones,
         .tone_frequency_hz = (double *)s->op.freq_hz,
         .tone_amplitude_m = (double *)s->op.amp_m,
+        .decimation = s->decimation,
+        .passband_hz = s->passband_hz,
+        .stopband_hz = s->stopband_hz,
     };
 }
 
@@ -61,6 +64,7 @@ void afm_lcm_harmonics_msg(const afm_io_harmonics *h, afm_lcm_harm_buf *b, afmtw
         .pre_contact_velocity_m_s = c->pre_contact_velocity_m_s,
         .dissipated_energy_j = c->dissipated_energy_j,
         .mean_deflection_m = c->mean_deflection_m,
+        .squeeze_dissipated_energy_j = c->squeeze_dissipated_energy_j,
         .separation_m = h->op.z_m,
         .n_tones = (int8_t)h->op.n_tones,
         .tone_frequency_hz = (double *)h->op.freq_hz,
@@ -185,9 +189,10 @@ void afm_lcm_digest_harmonics(afm_lcm_digest *d, const afmtwin_harmonics_t *m) {
         h = mix(h, bits_d(m->phase_diff_deg[i]));
     }
     const double rest[] = {
-        m->lockin_amplitude_m,       m->lockin_phase_deg,    m->peak_force_n,
-        m->min_deflection_m,         m->indentation_m,       m->contact_time_s,
-        m->pre_contact_velocity_m_s, m->dissipated_energy_j, m->mean_deflection_m};
+        m->lockin_amplitude_m,         m->lockin_phase_deg,    m->peak_force_n,
+        m->min_deflection_m,           m->indentation_m,       m->contact_time_s,
+        m->pre_contact_velocity_m_s,   m->dissipated_energy_j, m->mean_deflection_m,
+        m->squeeze_dissipated_energy_j};
     for (size_t i = 0; i < sizeof rest / sizeof rest[0]; i++)
         h = mix(h, bits_d(rest[i]));
     d->harmonics = h;

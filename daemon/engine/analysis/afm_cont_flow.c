@@ -148,12 +148,16 @@ static int flow_g_kinks(double tau, N_Vector y, double *g, void *user) {
     return 0;
 }
 
-/* The kinks, then the tip velocity (x extrema) and dF/dtau (force extrema). */
+/* The kinks, then the tip velocity (x extrema) and dF_ts/dtau (extrema of the tip-sample
+ * force: the total less the squeeze film). */
 static int flow_g_metric(double tau, N_Vector y, double *g, void *user) {
     const afm_cont_flow *f = user;
     const double *yv = N_VGetArrayPointer(y);
-    double dy[AFM_CONT_MAX_N], kx, kv, x, v;
+    double dy[AFM_CONT_MAX_N], kx, kv, x, v, sx, sv;
     flow_vf(&f->at, tau, yv, dy, &kx, &kv, &x, &v);
+    flow_squeeze(&f->at, x, v, &sx, &sv);
+    kx -= sx;
+    kv -= sv;
     double dv = 0.0;
     for (int i = 0; i < f->n; i++)
         dv += f->at.m.tip[i] * dy[f->n + i];
@@ -164,17 +168,21 @@ static int flow_g_metric(double tau, N_Vector y, double *g, void *user) {
     return 0;
 }
 
-/* int x dtau, x sin(2 pi tau), x cos(2 pi tau); int F v dt, F x dt (dt = dtau / fe). */
+/* int x dtau, x sin(2 pi tau), x cos(2 pi tau); int F_ts v dt, F_ts x dt, F_sq v dt
+ * (dt = dtau / fe; F_ts the tip-sample force, F_sq the squeeze film's). */
 static int flow_quad(double tau, N_Vector y, N_Vector yQdot, void *user) {
     const afm_cont_flow *f = user;
-    double dy[AFM_CONT_MAX_N], x, v;
+    double dy[AFM_CONT_MAX_N], x, v, sx, sv;
     double F = flow_vf(&f->at, tau, N_VGetArrayPointer(y), dy, NULL, NULL, &x, &v);
+    double Fs = flow_squeeze(&f->at, x, v, &sx, &sv);
+    F -= Fs;
     double *q = N_VGetArrayPointer(yQdot), th = 6.283185307179586476925286766559 * tau;
     q[0] = x;
     q[1] = x * sin(th);
     q[2] = x * cos(th);
     q[3] = F * v / f->at.fe_hz;
     q[4] = F * x / f->at.fe_hz;
+    q[5] = Fs * v / f->at.fe_hz;
     return isfinite(F) ? 0 : -1;
 }
 

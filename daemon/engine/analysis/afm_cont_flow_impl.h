@@ -6,6 +6,7 @@
 #define AFM_CONT_FLOW_IMPL_H
 
 #include "analysis/afm_cont_flow.h"
+#include "forces/afm_force_inline.h"
 
 #include <math.h>
 #include <nvector/nvector_serial.h>
@@ -15,7 +16,7 @@
 
 #define FLOW_MAX_KINKS 3    /* contact line, electrostatic cut-off, linear squeeze zero */
 #define FLOW_METRIC_ROOTS 2 /* tip velocity (x extrema), dF/dtau (force extrema) */
-#define FLOW_METRIC_QUADS 5 /* int x, x sin, x cos dtau; int F v, F x dt */
+#define FLOW_METRIC_QUADS 6 /* int x, x sin, x cos dtau; int F_ts v, F_ts x, F_sq v dt */
 #define FLOW_MAX_ENGINES 8
 #define FLOW_MAX_SENS (AFM_CONT_MAX_N + AFM_CONT_MAX_PAR)
 
@@ -50,6 +51,13 @@ struct afm_cont_flow {
     afm_cont_flow_stats st;
     char msg[256]; /* last CVODES error message */
 };
+
+/* The squeeze film's part of the tip force at (x, v) (N; afm_force_squeeze_term), *sx, *sv
+ * its partials: the metrics report the tip-sample force, the total less this (issue 30). */
+static inline double flow_squeeze(const afm_cont_inst *I, double x, double v, double *sx,
+                                  double *sv) {
+    return afm_force_squeeze_term(&I->f, I->z_m, x, v, sx, sv);
+}
 
 /* The vector field of instance I at phase time tau: dy (2n). Returns the tip force; *fx, *fv
  * (may be NULL) its partials, *x, *v (may be NULL) the tip displacement and velocity. */

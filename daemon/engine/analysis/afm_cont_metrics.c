@@ -33,8 +33,9 @@ static void on_root(void *ctx, double tau, const double *y, const int *info) {
     mctx *c = ctx;
     afm_cont_metrics *m = c->m;
     const afm_cont_inst *I = &c->f->at;
-    double dy[AFM_CONT_MAX_N], x, v;
+    double dy[AFM_CONT_MAX_N], x, v, sx, sv;
     double F = flow_vf(I, tau, y, dy, NULL, NULL, &x, &v);
+    F -= flow_squeeze(I, x, v, &sx, &sv); /* the tip-sample force */
     if (x < m->min_deflection_m) m->min_deflection_m = x;
     if (x > m->max_deflection_m) m->max_deflection_m = x;
     if (F > m->max_force_n) m->max_force_n = F;
@@ -115,6 +116,7 @@ int afm_cont_metrics_of(afm_cont_flow *f, const double *y0, int p, afm_cont_metr
     out->mean_deflection_m = q[0] / p;
     out->dissipated_energy_j = -q[3] / p;
     out->virial_j = q[4] * fe / p;
+    out->squeeze_dissipated_energy_j = -q[5] / p;
     out->contact_time_s = c.contact_tau / fe / p;
     if (isfinite(xc) && out->min_deflection_m < xc)
         out->indentation_m = f->at.f.cos_alpha * (xc - out->min_deflection_m);

@@ -16,7 +16,10 @@
  * the tip velocity as the gap closes to a0 (thesis Table 4.1's pre-contact velocity), max force;
  * per orbit, in the order of entry after drive phase 0 contact_time_s, dissipated_energy_j   per
  * drive period (the orbit's total / p): time in contact, -int F v dt (> 0: the tip forces take
- * energy out) virial_j               (1 / T_orbit) int F x dt */
+ * energy out) virial_j               (1 / T_orbit) int F x dt
+ * F in the forces, the energy and the virial is the tip-sample force (vdW/DMT, viscoelastic,
+ * capillary, electrostatic): the total less the squeeze film's, whose own -int F_sq v dt per
+ * drive period is squeeze_dissipated_energy_j (issue 30; afm_cycle splits them the same way). */
 #ifndef AFM_CONT_METRICS_H
 #define AFM_CONT_METRICS_H
 
@@ -39,9 +42,10 @@ typedef struct {
     double amplitude_m, phase_lag_deg;
     double mean_deflection_m;
     double indentation_m;
-    double contact_time_s;      /* per drive period */
-    double dissipated_energy_j; /* per drive period */
-    double virial_j;
+    double contact_time_s;              /* per drive period */
+    double dissipated_energy_j;         /* per drive period, by the tip-sample force */
+    double virial_j;                    /* of the tip-sample force */
+    double squeeze_dissipated_energy_j; /* per drive period, by the squeeze film (beside it) */
     int n_contacts;
     bool contacts_truncated; /* more than AFM_CONT_MAX_CONTACTS */
     afm_cont_contact contacts[AFM_CONT_MAX_CONTACTS];

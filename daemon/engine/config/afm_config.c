@@ -86,6 +86,17 @@ void afm_config_defaults(afm_config *cfg) {
     c->heartbeat_timeout_s = 0.5;
     c->reconnect_min_s = 0.1;
     c->reconnect_max_s = 5.0;
+
+    /* FM control (issue 32): used offline by approach --mode fm with or without a group */
+    afm_cfg_fm *fm = &cfg->fm;
+    fm->enabled = false;
+    fm->phase_setpoint_deg = 90.0;
+    fm->pll_bandwidth_hz = 100.0;
+    fm->max_shift_hz = 5000.0;
+    fm->lock_threshold_deg = 2.0;
+    fm->amplitude_bandwidth_hz = 50.0;
+    fm->drive_max_m = 1e-6;
+    fm->update_samples = 1024; /* the daemon's ring item: 73 us at 14.06 MHz */
 }
 
 /* ------------------------------------------------------------------ loader */
@@ -822,6 +833,45 @@ static int load_can(const loader *L, const config_setting_t *root, afm_cfg_can *
     return 0;
 }
 
+/* fm: optional group (issue 32); enabled defaults to true when the group is present. Ranges
+ * are checked in afm_config_check.c. */
+static int load_fm(const loader *L, const config_setting_t *root, afm_cfg_fm *c) {
+    static const char *const keys[] = {"enabled",
+                                       "phase_setpoint_deg",
+                                       "pll_bandwidth_hz",
+                                       "pll_kp_hz_per_deg",
+                                       "pll_ki_hz_per_deg_s",
+                                       "max_shift_hz",
+                                       "lock_threshold_deg",
+                                       "lock_time_s",
+                                       "amplitude_setpoint_m",
+                                       "amplitude_bandwidth_hz",
+                                       "amplitude_kp",
+                                       "amplitude_ki_hz",
+                                       "drive_max_m",
+                                       "update_samples",
+                                       NULL};
+    config_setting_t *g;
+    if (get_feature(L, root, "fm", &g, &c->enabled)) return -1;
+    if (!g) return 0;
+    if (only_keys(L, g, keys) ||
+        get_num(L, g, "phase_setpoint_deg", false, &c->phase_setpoint_deg, NULL) ||
+        get_num(L, g, "pll_bandwidth_hz", false, &c->pll_bandwidth_hz, NULL) ||
+        get_num(L, g, "pll_kp_hz_per_deg", false, &c->pll_kp_hz_per_deg, NULL) ||
+        get_num(L, g, "pll_ki_hz_per_deg_s", false, &c->pll_ki_hz_per_deg_s, NULL) ||
+        get_num(L, g, "max_shift_hz", false, &c->max_shift_hz, NULL) ||
+        get_num(L, g, "lock_threshold_deg", false, &c->lock_threshold_deg, NULL) ||
+        get_num(L, g, "lock_time_s", false, &c->lock_time_s, NULL) ||
+        get_num(L, g, "amplitude_setpoint_m", false, &c->amplitude_setpoint_m, NULL) ||
+        get_num(L, g, "amplitude_bandwidth_hz", false, &c->amplitude_bandwidth_hz, NULL) ||
+        get_num(L, g, "amplitude_kp", false, &c->amplitude_kp, NULL) ||
+        get_num(L, g, "amplitude_ki_hz", false, &c->amplitude_ki_hz, NULL) ||
+        get_num(L, g, "drive_max_m", false, &c->drive_max_m, NULL) ||
+        get_int(L, g, "update_samples", false, &c->update_samples))
+        return -1;
+    return 0;
+}
+
 /* Setting for a path written by afm_config_check_all ("drive.tones[1].frequency_hz"); the deepest
  * existing ancestor when the key itself is absent (a default value). */
 static const config_setting_t *resolve(const config_setting_t *root, const char *path) {
@@ -930,11 +980,11 @@ static int load_parsed(config_t *lc, loader *L, afm_config *tmp, afm_config *cfg
     size_t errlen = L->errlen;
     const config_setting_t *root = config_root_setting(lc);
     static const char *const keys[] = {"model",  "forces", "drive", "sim",    "obd", "thermal",
-                                       "lockin", "output", "can",   "sample", NULL};
+                                       "lockin", "output", "can",   "sample", "fm",  NULL};
     if (only_keys(L, root, keys) || load_model(L, root, &tmp->model) ||
         load_forces(L, root, tmp->model.kind, &tmp->forces) || load_drive(L, root, &tmp->drive) ||
         load_sim(L, root, &tmp->sim) || load_chain(L, root, tmp) || load_can(L, root, &tmp->can) ||
-        load_sample(L, root, &tmp->sample))
+        load_sample(L, root, &tmp->sample) || load_fm(L, root, &tmp->fm))
         goto out;
 
     char key[KEY_LEN], why[AFM_ERR_LEN];

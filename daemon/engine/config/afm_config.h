@@ -239,6 +239,29 @@ typedef struct {
     double image_x0_m, image_y0_m;   /* position of the image's first pixel (top left) */
 } afm_cfg_sample;
 
+/* Frequency-modulation control (issue 32; runner/afm_fm.h): a PLL on the lock-in's phase
+ * that moves tone 0's frequency, and a PI on the lock-in amplitude that moves tone 0's
+ * drive amplitude. Off (fm.enabled false) unless the config has an `fm` group; the offline
+ * tools (`afmtwin approach --mode fm`) use these values, or the defaults, either way.
+ * 0 for a gain or a time means "derived" (see config/README.md). */
+typedef struct {
+    bool enabled;
+    double phase_setpoint_deg;     /* lock-in lag the PLL holds, (0, 180); 90: resonance */
+    double pll_bandwidth_hz;       /* closed-loop bandwidth the derived PLL gains give, > 0 */
+    double pll_kp_hz_per_deg;      /* proportional gain (Hz per deg of error), >= 0; 0: derived */
+    double pll_ki_hz_per_deg_s;    /* integral gain (Hz/s per deg), >= 0; 0: derived */
+    double max_shift_hz;           /* |f - f_center| limit of the NCO, > 0 */
+    double lock_threshold_deg;     /* |phase error| inside which the PLL counts as locked */
+    double lock_time_s;            /* inside (outside) that long: locked (lost); 0: derived */
+    double amplitude_setpoint_m;   /* tip amplitude held, >= 0; 0: what tone 0's drive gives at
+                                      the free resonance (taken when the PLL first locks) */
+    double amplitude_bandwidth_hz; /* closed-loop bandwidth of the derived amplitude gains */
+    double amplitude_kp;           /* drive m per m of amplitude error, >= 0; 0: derived */
+    double amplitude_ki_hz;        /* drive m/s per m of error, >= 0; 0: derived */
+    double drive_max_m;            /* the drive amplitude's limit, (0, 1e-6] */
+    int update_samples;            /* controller update period (samples), 1..4096 */
+} afm_cfg_fm;
+
 typedef struct {
     char path[256]; /* file it came from */
     afm_cfg_model model;
@@ -251,6 +274,7 @@ typedef struct {
     afm_cfg_output output;
     afm_cfg_can can;       /* CAN input (issue 6); can.enabled false without a can group */
     afm_cfg_sample sample; /* the sample under the tip (issue 18); off without a sample group */
+    afm_cfg_fm fm;         /* FM control (issue 32); fm.enabled false without an fm group */
 } afm_config;
 
 /* Fill every field with its default (documented in config/README.md). */

@@ -374,10 +374,59 @@ static int check_sample(const afm_config *c, char *key, char *why, size_t why_le
     return 0;
 }
 
+/* fm (issue 32): ranges whether or not the group is enabled (the offline tools use the values
+ * either way); the loops' fit to the lock-in only when it is (afm_fm_init checks it always). */
+static int check_fm(const afm_config *c, char *key, char *why, size_t why_len) {
+    const afm_cfg_fm *f = &c->fm;
+    NEED(isfinite(f->phase_setpoint_deg) && f->phase_setpoint_deg > 0 &&
+             f->phase_setpoint_deg < 180,
+         "fm.phase_setpoint_deg", "must be in (0, 180) deg (got %g)", f->phase_setpoint_deg);
+    NEED(isfinite(f->pll_bandwidth_hz) && f->pll_bandwidth_hz > 0 && f->pll_bandwidth_hz <= 1e5,
+         "fm.pll_bandwidth_hz", "must be in (0, 1e+05] Hz (got %g)", f->pll_bandwidth_hz);
+    RANGE(f->pll_kp_hz_per_deg, 0.0, 1e6, "fm.pll_kp_hz_per_deg", "Hz/deg (0: derived)");
+    RANGE(f->pll_ki_hz_per_deg_s, 0.0, 1e9, "fm.pll_ki_hz_per_deg_s", "Hz/(deg s) (0: derived)");
+    NEED(isfinite(f->max_shift_hz) && f->max_shift_hz > 0 && f->max_shift_hz <= 1e6,
+         "fm.max_shift_hz", "must be in (0, 1e+06] Hz (got %g)", f->max_shift_hz);
+    NEED(isfinite(f->lock_threshold_deg) && f->lock_threshold_deg > 0 && f->lock_threshold_deg < 90,
+         "fm.lock_threshold_deg", "must be in (0, 90) deg (got %g)", f->lock_threshold_deg);
+    RANGE(f->lock_time_s, 0.0, 10.0, "fm.lock_time_s", "s (0: derived)");
+    RANGE(f->amplitude_setpoint_m, 0.0, 1e-6, "fm.amplitude_setpoint_m",
+          "m (0: the free amplitude at tone 0's drive)");
+    NEED(isfinite(f->amplitude_bandwidth_hz) && f->amplitude_bandwidth_hz > 0 &&
+             f->amplitude_bandwidth_hz <= 1e5,
+         "fm.amplitude_bandwidth_hz", "must be in (0, 1e+05] Hz (got %g)",
+         f->amplitude_bandwidth_hz);
+    RANGE(f->amplitude_kp, 0.0, 1e6, "fm.amplitude_kp", "(0: derived)");
+    RANGE(f->amplitude_ki_hz, 0.0, 1e12, "fm.amplitude_ki_hz", "1/s (0: derived)");
+    NEED(isfinite(f->drive_max_m) && f->drive_max_m > 0 &&
+             f->drive_max_m <= AFM_LIM_DRIVE_AMPLITUDE_MAX_M,
+         "fm.drive_max_m", "must be in (0, %g] m (got %g)", AFM_LIM_DRIVE_AMPLITUDE_MAX_M,
+         f->drive_max_m);
+    NEED(f->update_samples >= 1 && f->update_samples <= 4096, "fm.update_samples",
+         "must be in [1, 4096] (got %d)", f->update_samples);
+    if (f->enabled) {
+        /* the lock-in's filter must leave the loops 45 deg of phase margin at crossover */
+        double lag = c->lockin.order * atan(2.0 * 3.14159265358979323846 *
+                                            c->lockin.time_constant_s * f->pll_bandwidth_hz);
+        NEED(lag <= 0.25 * 3.14159265358979323846, "fm.pll_bandwidth_hz",
+             "%g Hz is too fast for the lock-in (order %d, time constant %g s: %.0f deg of lag "
+             "at crossover, at most 45)",
+             f->pll_bandwidth_hz, c->lockin.order, c->lockin.time_constant_s, lag / deg);
+        lag = c->lockin.order * atan(2.0 * 3.14159265358979323846 * c->lockin.time_constant_s *
+                                     f->amplitude_bandwidth_hz);
+        NEED(lag <= 0.25 * 3.14159265358979323846, "fm.amplitude_bandwidth_hz",
+             "%g Hz is too fast for the lock-in (order %d, time constant %g s: %.0f deg of lag "
+             "at crossover, at most 45)",
+             f->amplitude_bandwidth_hz, c->lockin.order, c->lockin.time_constant_s, lag / deg);
+    }
+    return 0;
+}
+
 int afm_config_check_all(const afm_config *c, char *key, char *why, size_t why_len) {
     if (check_model(c, key, why, why_len) || check_forces(c, key, why, why_len) ||
         check_drive_sim(c, key, why, why_len) || check_chain(c, key, why, why_len) ||
-        check_can(c, key, why, why_len) || check_sample(c, key, why, why_len))
+        check_can(c, key, why, why_len) || check_sample(c, key, why, why_len) ||
+        check_fm(c, key, why, why_len))
         return -1;
     return 0;
 }

@@ -37,6 +37,7 @@ typedef struct {
     int factor; /* R from the input */
     int src;    /* stream it is decimated from, -1 = the input */
     int src_factor;
+    double passband; /* the decimators' passband fraction (afm_chain_band) */
     afm_decim *dec;
     double delay_s; /* this decimator's group delay in seconds */
     double dt_src;  /* sample interval of its source */
@@ -143,6 +144,7 @@ afm_chain *afm_chain_create(const afm_config *cfg, const afm_modal *m, char *err
             }
         }
         s->dt_src = s->src_factor / c->fs;
+        s->passband = o->passband_fraction;
         s->dec = afm_decim_create(s->factor / s->src_factor, o->passband_fraction, err, errlen);
         if (!s->dec) goto fail;
         s->delay_s = afm_decim_delay(s->dec) * s->dt_src;
@@ -473,6 +475,7 @@ int afm_chain_take_block(afm_chain *c, int i, afm_chain_block *b, int max_n) {
     b->stream = i;
     b->decimation = s->factor;
     b->rate_hz = c->fs / s->factor;
+    afm_chain_band(b->rate_hz, s->factor, s->passband, &b->passband_hz, &b->stopband_hz);
     b->n = n;
     b->t_s = s->rt + tail;
     b->x_m = s->rx + tail;
@@ -482,6 +485,12 @@ int afm_chain_take_block(afm_chain *c, int i, afm_chain_block *b, int max_n) {
     b->base_m = s->rbase + tail;
     s->count -= n;
     return n;
+}
+
+void afm_chain_band(double rate_hz, int factor, double passband_fraction, double *pass_hz,
+                    double *stop_hz) {
+    *pass_hz = factor > 1 ? 0.5 * passband_fraction * rate_hz : 0;
+    *stop_hz = factor > 1 ? rate_hz - *pass_hz : 0;
 }
 
 int afm_chain_available(const afm_chain *c, int i) {

@@ -48,6 +48,8 @@ typedef struct {
     int stream;               /* index into cfg.output.decimation */
     int decimation;           /* R */
     double rate_hz;           /* sample_rate_hz / R */
+    double passband_hz;       /* every channel low-pass filtered: flat (0.01 dB) to here, */
+    double stopband_hz;       /* >= 80 dB down from here (afm_decim.h); both 0 with R = 1 */
     int n;                    /* samples in this block (0: nothing waiting) */
     const double *t_s;        /* model time each sample represents; t_s[i] = t_s[0] + i / rate_hz */
     const double *x_m;        /* tip displacement (deflection), m */
@@ -100,6 +102,13 @@ int afm_chain_push(afm_chain *c, const afm_sample *s, int n);
 /* The oldest waiting samples of stream i, at most max_n (<= 0: all that are contiguous).
  * Returns b->n; 0 when nothing waits, -1 for a bad stream index. */
 int afm_chain_take_block(afm_chain *c, int stream, afm_chain_block *b, int max_n);
+
+/* The low-pass of a stream of output rate rate_hz decimated by factor with the config's
+ * passband_fraction (afm_decim.h): flat to *pass_hz, >= 80 dB down from *stop_hz; both 0
+ * for factor 1 (no filter). A cascade keeps each stage's own output band, so the last
+ * stage's is the stream's. */
+void afm_chain_band(double rate_hz, int factor, double passband_fraction, double *pass_hz,
+                    double *stop_hz);
 /* Samples waiting in stream i. */
 int afm_chain_available(const afm_chain *c, int stream);
 /* Copy up to max completed-period records (oldest first) into out, finished; returns the

@@ -53,24 +53,102 @@ int afm_cycle_set_contact(afm_cycle *c, double x_contact_m) {
     return 0;
 }
 
+static CYCLE_INLINE double squeeze_force(const afm_cycle *c, double x, double v);
+
 int afm_cycle_set_forces(afm_cycle *c, const afm_force_params *f, double z_m) {
     if (!f || !isfinite(z_m) || afm_cycle_set_contact(c, afm_force_contact_x(f, z_m)) != 0)
         return -1;
+    bool was_split = c->split;
     c->forces = f;
     c->z_m = z_m;
+    c->split = f->squeeze != AFM_SQUEEZE_NONE;
+    if (f->squeeze == AFM_SQUEEZE_STARR) { /* as rt_changed_z: rebuilt when it no longer fits */
+        double key[5] = {f->sq_coef, f->sq_lambda_m, f->sq_offset_m, f->a0_m, f->cos_alpha};
+        if (memcmp(key, c->starr_key, sizeof key) != 0 || !c->starr.on ||
+            !(fabs(afm_force_starr_h(f, z_m, 0.0) - c->starr.h0) <=
+              AFM_RT_STARR_KEEP * c->starr.hw)) {
+            afm_rt_starr_build(&c->starr, f, z_m);
+            memcpy(c->starr_key, key, sizeof key);
+        }
+    } else {
+        c->starr.on = false;
+    }
+    if (c->split && !was_split) { /* the kept samples (the old law had no film, so their f is
+                                     the tip-sample force): their squeeze power, for the sums */
+        c->prev.theta_rad = squeeze_force(c, c->prev.x_m, c->prev.v_m_s) * c->prev.v_m_s;
+        c->prev2.theta_rad = squeeze_force(c, c->prev2.x_m, c->prev2.v_m_s) * c->prev2.v_m_s;
+    }
     return 0;
 }
 
 void afm_cycle_reset(afm_cycle *c) {
-    double xc = c->x_contact_m, ca = c->cos_alpha, z = c->z_m;
+    double xc = c->x_contact_m, ca = c->cos_alpha, z = c->z_m, key[5];
     const afm_force_params *f = c->forces;
+    bool split = c->split;
+    afm_rt_starr st = c->starr;
+    memcpy(key, c->starr_key, sizeof key);
     memset(c, 0, sizeof *c);
     c->x_contact_m = xc;
     c->cos_alpha = ca;
     c->x_near_m = xc + AFM_CYCLE_NEAR_GAP_M / ca;
     c->forces = f;
     c->z_m = z;
+    c->split = split;
+    c->starr = st;
+    memcpy(c->starr_key, key, sizeof key);
     afm_track_init(&c->trk, true);
+}
+
+/* ---- forces by origin ----
+ *
+ * With split (the force law has a squeeze film), every sample is split on entry: its f_n
+ * becomes the tip-sample force f - F_sq(x, v), and its theta_rad (the tip rotation, which
+ * no metric here uses) carries the squeeze film's power F_sq v (W). Everything below then
+ * works on the tip-sample force; the sums of w F_sq v give squeeze_dissipated_energy_j.
+ * Both push paths split each sample with the same function, so they stay bit for bit equal. */
+
+/* The squeeze film's force on the tip at (x, v) (N): afm_force_squeeze_term's expressions
+ * (the linear film's verbatim, without the partials), Starr's coefficient from the
+ * interpolant on its window (as the rt integrator, rt_squeeze). */
+static CYCLE_INLINE double squeeze_force(const afm_cycle *c, double x, double v) {
+    const afm_force_params *f = c->forces;
+    if (f->squeeze == AFM_SQUEEZE_LINEAR) {
+        double cq = f->p1 * (c->z_m + x) + f->p2;
+        return cq > 0.0 ? -cq * v : 0.0;
+    }
+    double kx, kv;
+    if (c->starr.on) {
+        double dcdh, cq = afm_rt_starr_eval(&c->starr, afm_force_starr_h(f, c->z_m, x), &dcdh);
+        if (cq >= 0.0) return -cq * v;
+    }
+    return afm_force_squeeze_term(f, c->z_m, x, v, &kx, &kv);
+}
+
+/* *d = s split (with split): f_n the tip-sample force, theta_rad the squeeze film's power. */
+static CYCLE_INLINE void split_sample(const afm_cycle *c, const afm_sample *s, afm_sample *d) {
+    double fs = squeeze_force(c, s->x_m, s->v_m_s);
+    copy_sample(d, s);
+    d->f_n = s->f_n - fs;
+    d->theta_rad = fs * s->v_m_s;
+}
+
+/* split_sample of s[0 .. m-1] into d (a run's samples). */
+static void split_run(const afm_cycle *c, const afm_sample *restrict s, afm_sample *restrict d,
+                      int m) {
+    const afm_force_params *f = c->forces;
+    if (f->squeeze == AFM_SQUEEZE_LINEAR) { /* squeeze_force's, the constants hoisted */
+        const double p1 = f->p1, p2 = f->p2, z = c->z_m;
+        for (int j = 0; j < m; j++) {
+            double cq = p1 * (z + s[j].x_m) + p2, v = s[j].v_m_s;
+            double fs = cq > 0.0 ? -cq * v : 0.0;
+            copy_sample(d + j, s + j);
+            d[j].f_n = s[j].f_n - fs;
+            d[j].theta_rad = fs * v;
+        }
+        return;
+    }
+    for (int j = 0; j < m; j++)
+        split_sample(c, s + j, d + j);
 }
 
 /* Length of [a, b] inside [lo, hi]. */
@@ -203,6 +281,14 @@ static inline void hermite_at(const afm_sample *p, const afm_sample *q, double s
     *v = fma(fma(3.0 * a, s, 2.0 * b), s, hv0) / h;
 }
 
+/* The tip-sample force (every term but the squeeze film) at (x, v): afm_force_tip less
+ * afm_force_squeeze_term (the same bits as afm_force_tip without a squeeze film). */
+static inline double ts_force(const afm_cycle *c, double x, double v) {
+    const afm_force_params *f = c->forces;
+    double fc, fv, jx, jv;
+    return afm_force_near_terms(f, fma(x, f->cos_alpha, c->z_m), v, &fc, &fv, &jx, &jv);
+}
+
 /* The peak of f around a local maximum of the samples' f at p (steps m -> p -> q): the
  * parabola through the three forces; with the force law and p in contact, the largest of
  * f(x, v) on both steps' Hermite cubics at quarter steps (9 values, 6 evaluated), refined by
@@ -219,9 +305,9 @@ static AFM_CLONES_NOINLINE double local_peak(const afm_cycle *c, const afm_sampl
     g[8] = q->f_n;
     for (int i = 1; i < 4; i++) {
         hermite_at(m, p, 0.25 * i, &x, &v);
-        g[i] = afm_force_tip(c->forces, c->z_m, x, v, NULL, NULL);
+        g[i] = ts_force(c, x, v);
         hermite_at(p, q, 0.25 * i, &x, &v);
-        g[4 + i] = afm_force_tip(c->forces, c->z_m, x, v, NULL, NULL);
+        g[4 + i] = ts_force(c, x, v);
     }
     int k = 0;
     for (int i = 1; i < 9; i++)
@@ -229,15 +315,15 @@ static AFM_CLONES_NOINLINE double local_peak(const afm_cycle *c, const afm_sampl
     return k > 0 && k < 8 ? afm_parabola_peak(g[k - 1], g[k], g[k + 1]) : g[k];
 }
 
-/* The velocity terms' power (viscoelastic, squeeze film) on the step's Hermite cubic at u
- * (W). */
+/* The tip-sample velocity term's power (viscoelastic; the squeeze film is split off) on the
+ * step's Hermite cubic at u (W). */
 static CYCLE_INLINE double vel_power(const afm_cycle *c, const afm_sample *p, const afm_sample *q,
                                      double u) {
     const afm_force_params *f = c->forces;
     double x, v, fc, fv, jx, jv;
     hermite_at(p, q, u, &x, &v);
     afm_force_near_terms(f, fma(x, f->cos_alpha, c->z_m), v, &fc, &fv, &jx, &jv);
-    return (fv + afm_force_squeeze_term(f, c->z_m, x, v, &jx, &jv)) * v;
+    return fv * v;
 }
 
 /* Work (J) of the tip-sample force over [lo, hi] of the step p -> q on the continuous path:
@@ -260,7 +346,7 @@ static CYCLE_INLINE double path_work(const afm_cycle *c, const afm_sample *p, co
     if (lo > 0.0) hermite_at(p, q, lo, &xa, &v);
     if (hi < 1.0) hermite_at(p, q, hi, &xb, &v);
     double w = afm_force_cons_work(f, c->z_m, xa, xb);
-    if (!f->viscoelastic && f->squeeze == AFM_SQUEEZE_NONE) return w;
+    if (!f->viscoelastic) return w;
     bool cut = fr > lo && fr < hi;
     double edge[3] = {lo, cut ? fr : hi, hi};
     for (int k = 0; k < 1 + cut; k++) {
@@ -294,10 +380,8 @@ static CYCLE_INLINE double path_work(const afm_cycle *c, const afm_sample *p, co
 static AFM_CLONES_NOINLINE double contact_work_corr(const afm_cycle *c, const afm_sample *p,
                                                     const afm_sample *q) {
     double h = q->t_s - p->t_s, fr = -1.0, v, xc = c->x_contact_m;
-    bool vel = c->forces->viscoelastic || c->forces->squeeze != AFM_SQUEEZE_NONE;
-    if (vel && !(p->x_m < xc) && !(q->x_m < xc)) { /* above the contact: the conservative
-                                                     part's trapezoid only (the squeeze
-                                                     film is smooth) */
+    if (c->forces->viscoelastic && !(p->x_m < xc) && !(q->x_m < xc)) { /* above the contact:
+                                                     the conservative part's trapezoid */
         double fp = afm_force_cons(c->forces, c->z_m, p->x_m);
         double fq = afm_force_cons(c->forces, c->z_m, q->x_m);
         return afm_force_cons_work(c->forces, c->z_m, p->x_m, q->x_m) -
@@ -341,6 +425,7 @@ static void step_plain(afm_cycle *c, const afm_sample *s) {
     int l = (int)(c->k & 3);
     c->sum_fv[l] = fma(w, p->f_n * p->v_m_s, c->sum_fv[l]);
     c->sum_x[l] = fma(w, p->x_m, c->sum_x[l]);
+    c->sum_sq[l] = fma(w, p->theta_rad, c->sum_sq[l]);
     if (s->x_m < c->smin) c->smin = s->x_m;
     double b1 = fma(h3, p->v_m_s, p->x_m), b2 = fma(-h3, s->v_m_s, s->x_m);
     if ((b1 < b2 ? b1 : b2) < (p->x_m < s->x_m ? p->x_m : s->x_m))
@@ -395,6 +480,8 @@ static int step_boundary(afm_cycle *c, const afm_sample *s, double frac, bool ha
     double wb0 = frac - 0.5 * frac * frac, wb1 = 0.5 * frac * frac;
     double wa0 = 0.5 * (1.0 - frac) * (1.0 - frac), wa1 = 0.5 * (1.0 - frac * frac);
     double e0 = -p->f_n * p->v_m_s, e1 = -s->f_n * s->v_m_s;
+    double q0 = -p->theta_rad, q1 = -s->theta_rad; /* the squeeze film's (with split) */
+    double qb = h * (wb0 * q0 + wb1 * q1), qa = h * (wa0 * q0 + wa1 * q1);
     /* the energy of the step's parts: the linear interpolant's, or for a contact step with
      * the force law the continuous path's (path_work) */
     double eb = h * (wb0 * e0 + wb1 * e1), ea = h * (wa0 * e0 + wa1 * e1);
@@ -409,7 +496,9 @@ static int step_boundary(afm_cycle *c, const afm_sample *s, double frac, bool ha
         double w = p->t_s - c->t_before;
         c->sum_fv[l] = fma(w, p->f_n * p->v_m_s, c->sum_fv[l]);
         c->sum_x[l] = fma(w, p->x_m, c->sum_x[l]);
+        c->sum_sq[l] = fma(w, p->theta_rad, c->sum_sq[l]);
         double rfv = (c->sum_fv[0] + c->sum_fv[1]) + (c->sum_fv[2] + c->sum_fv[3]);
+        double rsq = (c->sum_sq[0] + c->sum_sq[1]) + (c->sum_sq[2] + c->sum_sq[3]);
         double rx = (c->sum_x[0] + c->sum_x[1]) + (c->sum_x[2] + c->sum_x[3]);
         double peak = m->peak_force_n;
         if (c->n_prev >= 2) {
@@ -448,6 +537,8 @@ static int step_boundary(afm_cycle *c, const afm_sample *s, double frac, bool ha
         o->pre_contact_velocity_m_s = vpre;
         o->dissipated_energy_j = ((m->dissipated_energy_j + -0.5 * rfv) + eb) - c->e_corr;
         o->mean_deflection_m = dur > 0 ? xint / dur : xmin;
+        o->squeeze_dissipated_energy_j =
+            c->split ? (m->squeeze_dissipated_energy_j + -0.5 * rsq) + qb : 0.0;
         c->periods++;
     }
     /* the new period: the rest of the step */
@@ -466,11 +557,12 @@ static int step_boundary(afm_cycle *c, const afm_sample *s, double frac, bool ha
         m->n_contacts = 1;
     }
     m->dissipated_energy_j = ea;
+    m->squeeze_dissipated_energy_j = qa;
     c->e_corr = 0.0;
     m->mean_deflection_m = 0.0;
     c->x_int = h * (wa0 * p->x_m + wa1 * s->x_m);
     for (int i = 0; i < 4; i++)
-        c->sum_fv[i] = c->sum_x[i] = 0.0;
+        c->sum_fv[i] = c->sum_x[i] = c->sum_sq[i] = 0.0;
     c->smin = s->x_m;
     c->k = 0;
     c->t_before = c->t_first = c->t_in = s->t_s;
@@ -514,6 +606,11 @@ int afm_cycle_push(afm_cycle *c, const afm_sample *s, double theta_rad) {
     if (!s || !isfinite(s->t_s) || !isfinite(s->x_m) || !isfinite(s->v_m_s) || !isfinite(s->f_n) ||
         (c->n_prev > 0 && !(s->t_s > c->prev.t_s)))
         return -1;
+    afm_sample sp;
+    if (c->split) {
+        split_sample(c, s, &sp);
+        s = &sp;
+    }
     if (!afm_track_fast(&c->trk, theta_rad)) return push_slow(c, s, theta_rad);
     step_inside(c, s, c->active); /* no boundary in the step */
     return 0;
@@ -532,8 +629,9 @@ int afm_cycle_push(afm_cycle *c, const afm_sample *s, double theta_rad) {
  * sums are not) is undone and pushed sample by sample (afm_cycle_push rejects it). */
 
 enum {
-    RUN_MAX = 512, /* samples per run (the event records below are on the stack) */
-    RUN_MIN = 4    /* shorter stretches go through afm_cycle_push */
+    RUN_MAX = 512,  /* samples per run (the event records below are on the stack) */
+    RUN_MIN = 4,    /* shorter stretches go through afm_cycle_push */
+    SPLIT_MAX = 256 /* with split: samples per run (split into a buffer on the stack) */
 };
 
 /* Index of the lowest set bit of m != 0. */
@@ -616,9 +714,10 @@ static CYCLE_NOINLINE void run_events(run_state *r, const run_flags *fl) {
 #define MIN4(a, b) SEL4((afm_v4i)((a) < (b)), (a), (b))
 
 typedef struct {
-    afm_v4 t, x, v, f; /* the previous block (t, x, v, f) */
-    afm_v4 n;          /* tracker steps of the block's lanes */
-    afm_v4 fv, xs, xm; /* sums of w f v, w x of the previous samples, minima of x */
+    afm_v4 t, x, v, f, q;  /* the previous block (t, x, v, f, theta: F_sq v with split) */
+    afm_v4 n;              /* tracker steps of the block's lanes */
+    afm_v4 fv, xs, xm, sq; /* sums of w f v, w x of the previous samples, minima of x, sums
+                              of w F_sq v */
 } run_vec;
 
 /* min over the lanes, in vminpd's order (lanes 0, 2 and 1, 3, then the two) */
@@ -645,11 +744,14 @@ static CYCLE_INLINE int run_block(run_vec *w, unsigned *ev, int *n_ev, const run
     afm_v4 u1 = __builtin_shufflevector(TX(1, t_s), TX(3, t_s), 0, 1, 2, 3);
     afm_v4 u2 = __builtin_shufflevector(TX(0, v_m_s), TX(2, v_m_s), 0, 1, 2, 3);
     afm_v4 u3 = __builtin_shufflevector(TX(1, v_m_s), TX(3, v_m_s), 0, 1, 2, 3);
+    afm_v4 u4 = __builtin_shufflevector(TX(0, theta_rad), TX(2, theta_rad), 0, 1, 2, 3);
+    afm_v4 u5 = __builtin_shufflevector(TX(1, theta_rad), TX(3, theta_rad), 0, 1, 2, 3);
 #undef TX
     afm_v4 T = __builtin_shufflevector(u0, u1, 0, 4, 2, 6),
            X = __builtin_shufflevector(u0, u1, 1, 5, 3, 7);
     afm_v4 V = __builtin_shufflevector(u2, u3, 0, 4, 2, 6),
            F = __builtin_shufflevector(u2, u3, 1, 5, 3, 7);
+    afm_v4 Q = __builtin_shufflevector(u4, u5, 0, 4, 2, 6);
     /* the fast path: theta on the tracker's line, a positive step */
     afm_v4 Tpp = LAG2(w->t, T), H = T - LAG1(Tpp, T);
     afm_v4 err = AFM_V4_FNMA(w->n, k->dphi, AFM_V4_LD(th4) - k->ref);
@@ -682,11 +784,13 @@ static CYCLE_INLINE int run_block(run_vec *w, unsigned *ev, int *n_ev, const run
     }
     w->fv = AFM_V4_FMA(W, Fp * Vp, w->fv);
     w->xs = AFM_V4_FMA(W, Xp, w->xs);
+    w->sq = AFM_V4_FMA(W, LAG1(LAG2(w->q, Q), Q), w->sq);
     w->xm = XM;
     w->t = T;
     w->x = X;
     w->v = V;
     w->f = F;
+    w->q = Q;
     w->n = w->n + 4.0;
     return 4;
 }
@@ -721,9 +825,11 @@ static CYCLE_INLINE int run_sums_of(const run_state *r, const afm_cycle *c, cons
     w.x = AFM_V4_SET1(p0->x_m);
     w.v = AFM_V4_SET1(p0->v_m_s);
     w.f = (afm_v4){0.0, 0.0, r->f_m2, p0->f_n};
+    w.q = AFM_V4_SET1(p0->theta_rad);
     w.n = (afm_v4){n0 + 1.0, n0 + 2.0, n0 + 3.0, n0 + 4.0};
     lanes_from(c->sum_fv, c->k, &w.fv); /* lane l: the sample k + l (p0 is lane 0) */
     lanes_from(c->sum_x, c->k, &w.xs);
+    lanes_from(c->sum_sq, c->k, &w.sq);
     w.xm = AFM_V4_SET1(c->smin); /* lane l: the samples k + 1 + l mod 4 and before */
     int n_ev = 0, j = 0, l = 4;
     for (; j + 8 <= m; j += 8) { /* two blocks a step (no register moves) */
@@ -750,6 +856,7 @@ static CYCLE_INLINE int run_sums_of(const run_state *r, const afm_cycle *c, cons
         w.x = AFM_V4_SET1(q1->x_m);
         w.v = AFM_V4_SET1(q1->v_m_s);
         w.f = (afm_v4){0.0, 0.0, j > 1 ? s[j - 2].f_n : j > 0 ? p0->f_n : r->f_m2, q1->f_n};
+        w.q = AFM_V4_SET1(q1->theta_rad);
         w.n = (afm_v4){n0 + j + 1.0, n0 + j + 2.0, n0 + j + 3.0, n0 + j + 4.0};
     }
     while (j < m) { /* the last 1-3 samples, the last one repeated */
@@ -796,6 +903,7 @@ AFM_CLONES static int run(afm_cycle *c, const afm_sample *s, const double *th, i
     if (fl.n_ev) run_events(&r, &fl);
     lanes_to(c->sum_fv, c->k, &w.fv);
     lanes_to(c->sum_x, c->k, &w.xs);
+    lanes_to(c->sum_sq, c->k, &w.sq);
     c->smin = hmin4(&w.xm);
     const afm_sample *q = s + m - 1;
     cm->contact_time_s = r.ct;
@@ -821,7 +929,13 @@ AFM_CLONES static int run(afm_cycle *c, const afm_sample *s, const double *th, i
 static CYCLE_INLINE int push_exact(afm_cycle *c, const afm_sample *q, double th) {
     /* all finite: the products with 0 are all +-0 (NaN otherwise) */
     double z = (q->t_s * 0.0 + q->x_m * 0.0) + (q->v_m_s * 0.0 + q->f_n * 0.0);
-    return z == 0.0 && !(c->n_prev > 0 && !(q->t_s > c->prev.t_s)) ? push_slow(c, q, th) : -1;
+    if (!(z == 0.0 && !(c->n_prev > 0 && !(q->t_s > c->prev.t_s)))) return -1;
+    afm_sample sp;
+    if (c->split) {
+        split_sample(c, q, &sp);
+        q = &sp;
+    }
+    return push_slow(c, q, th);
 }
 
 int afm_cycle_push_n(afm_cycle *c, const afm_sample *s, const double *th, int n, int *done,
@@ -834,9 +948,16 @@ int afm_cycle_push_n(afm_cycle *c, const afm_sample *s, const double *th, int n,
             double room = c->trk.n_end - c->trk.n;
             off = !(room >= 1.0);
             int m = n - i < RUN_MAX ? n - i : RUN_MAX;
+            if (c->split && m > SPLIT_MAX) m = SPLIT_MAX;
             if (room < m) m = room > 0 ? (int)room : 0;
             if (m >= RUN_MIN) {
-                int k = run(c, s + i, th + i, m);
+                const afm_sample *rs = s + i;
+                afm_sample sp[SPLIT_MAX];
+                if (c->split) { /* the run on the split samples */
+                    split_run(c, s + i, sp, m);
+                    rs = sp;
+                }
+                int k = run(c, rs, th + i, m);
                 if (k > 0) {
                     i += k;
                     /* a run that took the whole room: the next sample is off the fast path */

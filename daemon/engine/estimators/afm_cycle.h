@@ -39,6 +39,21 @@
  *                     several eV from period to period; with the contact steps alone,
  *                     the steep vdW just above it still left 0.13 eV)
  *  mean_deflection_m  (1 / T) int x dt
+ *  squeeze_dissipated_energy_j  E_sq = -int F_sq v dt: what the squeeze film on the beam
+ *                     (afm_force_squeeze_term, air between the lever and the sample) takes
+ *                     out over the period; trapezoid, as the others. 0 without the force
+ *                     law or without a squeeze film.
+ * Forces by origin: with the force law (afm_cycle_set_forces) and a squeeze film, the
+ * squeeze film's force F_sq(x, v) at Z is taken out of each sample's f (the integrators'
+ * f_n is the total, squeeze film included) before anything else: peak_force_n,
+ * dissipated_energy_j and the contact-step refinements are then the tip-sample part alone
+ * (vdW/DMT, viscoelastic, capillary, electrostatic), and the squeeze film's share goes to
+ * squeeze_dissipated_energy_j. Without the force law f is taken as it is (all tip-sample).
+ * F_sq is evaluated as the rt integrator does: Starr's coefficient from the quartic
+ * interpolant of afm_rt_starr (relative error < 1e-8 on its window; the exact formula, one
+ * pow, outside it or when the window reaches the a0 floor), the linear film exactly. At
+ * Z = 1 um on default.conf this moves the ~590 eV per period of air damping out of the
+ * tip-sample dissipation (which is then ~0) into E_sq.
  * Integrals: trapezoid with fractional ends (the step containing a boundary is split there,
  * linear interpolant of the integrand), as afm_harm.
  *
@@ -52,6 +67,7 @@
 
 #include "estimators/afm_est_internal.h"
 #include "forces/afm_force.h"
+#include "integrators/afm_rt_coef.h"
 
 /* Gap above a0 (m) within which a step's tip-sample work is taken on the continuous path
  * (dissipated_energy_j; with the force law). */
@@ -67,14 +83,15 @@ typedef struct {
     double contact_time_s;
     int n_contacts;
     double pre_contact_velocity_m_s;
-    double dissipated_energy_j;
+    double dissipated_energy_j; /* tip-sample only (squeeze film apart) */
     double mean_deflection_m;
+    double squeeze_dissipated_energy_j; /* the squeeze film's own, beside it */
 } afm_cycle_metrics;
 
 /* The integrals are accumulated in an order fixed by the sample stream alone (not by how it
  * is cut into calls), so that afm_cycle_push and afm_cycle_push_n give the same bits: each
- * sample of the period adds w f v and w x, w = t_next - t_before (twice its trapezoid
- * weight), to the sums of its index mod 4; the last sample before a boundary and the
+ * sample of the period adds w f v, w x and w F_sq v, w = t_next - t_before (twice its
+ * trapezoid weight), to the sums of its index mod 4; the last sample before a boundary and the
  * boundary step's parts are added when the period ends. */
 typedef struct {
     double x_contact_m, cos_alpha;
@@ -92,6 +109,10 @@ typedef struct {
     double t_in;           /* while prev is in contact: the contact's whole steps start here */
     double sum_fv[4];      /* sums of w f v by sample index mod 4 */
     double sum_x[4];       /* sums of w x by sample index mod 4 */
+    double sum_sq[4];      /* sums of w F_sq v by sample index mod 4 (with split) */
+    bool split;            /* forces with a squeeze film: samples are split (afm_cycle.c) */
+    afm_rt_starr starr;    /* Starr's c(h) interpolant at z_m (with split, Starr film) */
+    double starr_key[5];   /* the force parameters starr was built from */
     double smin;           /* minimum of x over the period's samples so far */
     afm_cycle_metrics cur; /* accumulating: duration, energy: the start step's part; peak,
                             * minimum (first sample, Hermite minima), contacts so far */
@@ -112,7 +133,9 @@ int afm_cycle_set_contact(afm_cycle *c, double x_contact_m);
 
 /* The tip-sample force law at separation z_m (f is kept, not copied): the contact line
  * afm_force_contact_x(f, z_m), as afm_cycle_set_contact, and the force at the period's
- * minimum for peak_force_n. -1 if f is NULL or z_m not finite (nothing changed). */
+ * minimum for peak_force_n, and the squeeze film to split off (Starr's interpolant is
+ * rebuilt, 5 pow, when the forces change or the rest gap leaves AFM_RT_STARR_KEEP of its
+ * window, as the rt integrator does). -1 if f is NULL or z_m not finite (nothing changed). */
 int afm_cycle_set_forces(afm_cycle *c, const afm_force_params *f, double z_m);
 
 /* Forget the partial period and the history (keeps the contact line and the force law). */

@@ -184,6 +184,11 @@ static void flush(afm_lockin *l) {
     }
 }
 
+void afm_lockin_retune(afm_lockin *l) {
+    if (l->m > 0) flush(l); /* the base onto the last sample, on the old rate's tables */
+    afm_track_init(&l->trk, false);
+}
+
 /* One sample by the recursion (after moving the base to the previous sample): theta on
  * the tracker's prediction rotates the phasor by e^{i dphi}, else sin and cos come from
  * theta itself and the tracker resynchronises. -1 (nothing changed) if rejected. */

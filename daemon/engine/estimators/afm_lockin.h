@@ -74,6 +74,13 @@ int afm_lockin_init(afm_lockin *l, const afm_cfg_lockin *cfg, double dt_s, char 
 /* Zero the filter state (keeps tau, order, dt). */
 void afm_lockin_reset(afm_lockin *l);
 
+/* The reference's rate changes from the next sample on (an NCO step of tone 0's frequency,
+ * runner/afm_fm.h): the phase tracker restarts, so that the next samples take the exact
+ * recursion until it has the new rate (one table rebuild) instead of reading a small rate
+ * change as noise in theta and drifting off the prediction sample after sample (a table
+ * rebuild per sample: 5 us each). The filter state is kept; the outputs continue. */
+void afm_lockin_retune(afm_lockin *l);
+
 /* One sample of the deflection u (m) at drive phase theta. 0, or -1 (nothing changed) if
  * either is not finite. */
 int afm_lockin_push(afm_lockin *l, double u_m, double theta_rad);

@@ -18,7 +18,9 @@
  * velocity and acceleration. The solve takes D1 = D0 (the force's slope carried over);
  * then D1 is computed at the end and the state takes Gd1 (D1 - D0). A sample runs as one
  * such piece while its path stays clear of the contact line (as the fast scheme's free
- * step); a sample that touches it is redone in m substeps, each first taken whole, and a
+ * step); a sample that comes near it is redone in RT_ACC_NEAR_PIECES whole pieces, and
+ * those at the contact line in their share of the m substeps (rt_graded_acc; with thermal
+ * noise, the whole sample in the m substeps: rt_contact_acc), each first taken whole; a
  * substep whose path crosses the contact line (or starts and ends beside it) is redone with
  * the force linear in time (the fast scheme's piece), split at the located crossing: no
  * polynomial in time follows a kink, and a slope from one side does not hold on the other. */
@@ -194,22 +196,34 @@ static AFM_CLONES_NOINLINE rt_snap *rt_contact_acc(const afm_sim *s, const rt_st
     return a;
 }
 
-/* A sample near the contact line in RT_ACC_NEAR_PIECES Hermite pieces from a into b; false (b
- * undefined) when a piece's path crosses the contact line. */
-static inline __attribute__((always_inline)) bool rt_near_acc(const afm_sim *s, const rt_state *r,
-                                                              const rt_snap *a, rt_snap *b,
-                                                              const int np, const int nt) {
-    const int k = r->ncell / RT_ACC_NEAR_PIECES;
-    const double tau = s->dt_s / RT_ACC_NEAR_PIECES;
-    rt_snap t[2];
+/* A sample near or in contact, without thermal noise, from a into b: RT_ACC_NEAR_PIECES whole
+ * Hermite pieces, a piece whose path crosses the contact line or has an end in contact close
+ * to it (RT_ACC_CLOSE_TRAVELS) redone in its share of the m contact substeps (rt_substep_acc:
+ * split at the located crossing). The indentation's square root (DMT, viscoelastic) is no
+ * polynomial in time near the line; away from it the pieces are fourth order. */
+static inline __attribute__((always_inline)) void rt_graded_acc(const afm_sim *s, const rt_state *r,
+                                                                const rt_snap *a, rt_snap *b,
+                                                                const int np, const int nt) {
+    const int K = RT_ACC_NEAR_PIECES, k = r->ncell / K, sub = r->m / K;
+    const double tau = s->dt_s / K, taus = s->dt_s / r->m, xc = r->xc;
+    const double close = RT_ACC_CLOSE_TRAVELS * tau;
+    rt_snap t[2], w[2];
     const rt_snap *in = a;
-    for (int p = 0; p < RT_ACC_NEAR_PIECES; p++) {
-        rt_snap *o = p == RT_ACC_NEAR_PIECES - 1 ? b : &t[p & 1];
+    for (int p = 0; p < K; p++) {
+        rt_snap *o = p == K - 1 ? b : &t[p & 1];
         rt_piece_acc_t(s, r, in, o, k, true, np, nt, false);
-        if (in->tip.x_m < r->xc || rt_crossing_cell(r, in, o, tau, false) >= 0) return false;
+        const bool near = (in->tip.x_m < xc && xc - in->tip.x_m < close * fabs(in->tip.v_m_s)) ||
+                          (o->tip.x_m < xc && xc - o->tip.x_m < close * fabs(o->tip.v_m_s));
+        if (near || rt_crossing_cell(r, in, o, tau, false) >= 0) {
+            const rt_snap *x = in;
+            for (int j = 0; j < sub; j++) {
+                rt_snap *y = j == sub - 1 ? o : &w[j & 1];
+                rt_substep_acc(s, r, x, y, taus);
+                x = y;
+            }
+        }
         in = o;
     }
-    return true;
 }
 
 /* n output steps of the accurate scheme (afm_sim_backend.run when r->acc). */
@@ -241,11 +255,12 @@ static inline __attribute__((always_inline)) int rt_run_acc_t(afm_sim *s, rt_sta
                 contact = low < r->xc + RT_ACC_NEAR_TRAVELS * sp * dt;
             }
         }
-        if (contact && !at_once && !noise && rt_crossing_cell(r, a, b, dt, false) < 0)
-            /* near the contact line without crossing it: a few whole Hermite pieces follow
-             * the van der Waals pulse; the substeps only if one of them crosses */
-            contact = !rt_near_acc(s, r, a, b, np, nt);
-        if (contact) b = rt_contact_acc(s, r, a, b, noise && !at_once);
+        if (contact && !noise && r->m % RT_ACC_NEAR_PIECES == 0)
+            /* near or in contact: whole Hermite pieces follow the van der Waals pulse and
+             * the indentation; substeps only for the pieces at the contact line */
+            rt_graded_acc(s, r, a, b, np, nt);
+        else if (contact)
+            b = rt_contact_acc(s, r, a, b, noise && !at_once);
         a = b;
         step++;
         if (!(fabs(a->tip.x_m) < 1e-3) ||

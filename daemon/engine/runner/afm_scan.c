@@ -27,7 +27,7 @@ typedef struct {
     /* the pixel being accumulated */
     int px_line, px_pixel, px_n, px_periods;
     bool px_retrace, px_open;
-    double s_z, s_a, s_e, s_ph, s_fmax, s_ed;
+    double s_z, s_a, s_e, s_ph, s_fmax, s_ed, s_esq;
 } scan_state;
 
 void afm_scan_position(const afm_scan_cfg *sc, double t_s, double *x_m, double *y_m, int *line,
@@ -120,6 +120,7 @@ static int advance(afm_sim *s, scan_state *st, int n, char *err, size_t errlen) 
             st->px_periods++;
             st->s_fmax += st->cycle.out.peak_force_n;
             st->s_ed += st->cycle.out.dissipated_energy_j;
+            st->s_esq += st->cycle.out.squeeze_dissipated_energy_j;
         }
     }
     return 0;
@@ -145,6 +146,7 @@ static void pixel_emit(const afm_scan_cfg *sc, const afm_surface *surf, scan_sta
     px.periods = st->px_periods;
     px.peak_force_n = st->px_periods ? st->s_fmax / st->px_periods : NAN;
     px.dissipated_energy_j = st->px_periods ? st->s_ed / st->px_periods : NAN;
+    px.squeeze_dissipated_energy_j = st->px_periods ? st->s_esq / st->px_periods : NAN;
     px.free_amplitude_m = st->a_free_m;
     on_pixel(ctx, &px);
 }
@@ -155,7 +157,7 @@ static void pixel_open(scan_state *st, int line, int pixel, bool retrace) {
     st->px_retrace = retrace;
     st->px_open = true;
     st->px_n = st->px_periods = 0;
-    st->s_z = st->s_a = st->s_e = st->s_ph = st->s_fmax = st->s_ed = 0.0;
+    st->s_z = st->s_a = st->s_e = st->s_ph = st->s_fmax = st->s_ed = st->s_esq = 0.0;
 }
 
 /* Retract to Z = 1 um and ring up there (the lock-in settles too) before the engage; the

@@ -52,18 +52,19 @@ typedef struct {
 typedef struct {
     int line, pixel; /* pixel index along the scan direction (0 = left end) */
     bool retrace;
-    double x_m, y_m;            /* the tip's position at the pixel's middle */
-    double true_height_m;       /* z_s there */
-    int material;               /* region there (0 = the forces group's sample) */
-    double height_m;            /* the controller's image (see above) */
-    double z_m;                 /* the controller's Z, mean over the pixel */
-    double amplitude_m;         /* lock-in amplitude, mean over the pixel */
-    double error_m;             /* set-point less amplitude, mean over the pixel */
-    double phase_lag_deg;       /* lock-in lag, mean over the pixel */
-    double peak_force_n;        /* mean over the periods that ended in the pixel */
-    double dissipated_energy_j; /* per period, mean over those periods */
-    double free_amplitude_m;    /* A0 (runner/afm_a0.h; the set-point is its setpoint_ratio) */
-    int periods;                /* drive periods that ended in the pixel */
+    double x_m, y_m;                    /* the tip's position at the pixel's middle */
+    double true_height_m;               /* z_s there */
+    int material;                       /* region there (0 = the forces group's sample) */
+    double height_m;                    /* the controller's image (see above) */
+    double z_m;                         /* the controller's Z, mean over the pixel */
+    double amplitude_m;                 /* lock-in amplitude, mean over the pixel */
+    double error_m;                     /* set-point less amplitude, mean over the pixel */
+    double phase_lag_deg;               /* lock-in lag, mean over the pixel */
+    double peak_force_n;                /* mean over the periods that ended in the pixel */
+    double dissipated_energy_j;         /* per period, mean over those periods (tip-sample) */
+    double squeeze_dissipated_energy_j; /* the squeeze film's, the same way (afm_cycle.h) */
+    double free_amplitude_m; /* A0 (runner/afm_a0.h; the set-point is its setpoint_ratio) */
+    int periods;             /* drive periods that ended in the pixel */
 } afm_scan_pixel;
 
 typedef void (*afm_scan_on_pixel)(void *ctx, const afm_scan_pixel *px);

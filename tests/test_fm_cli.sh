@@ -1,0 +1,65 @@
+#!/usr/bin/env bash
+# test_fm_cli.sh BUILD -- `afmtwin approach --mode fm` (issue 32): a short FM approach of a
+# lumped vdW probe (JSON: every step locked and settled, the shift negative and growing
+# towards the sample, the drive and amplitude held), the text table's header, and bad usage
+# (an unknown mode, --rate with fm, a bad fm group) refused with exit 2.
+. "$(dirname "$0")/lib_check.sh"
+check_init fm-cli "${1:-build}"
+
+cat > "$T/fm.conf" <<'CONF'
+model = { kind = "lumped"; lumped = { stiffness_n_m = 40.0; resonance_hz = 300e3; };
+          quality_factor = [300.0]; };
+forces = { inclination_deg = 0.0; radius_m = 1e-8;
+  vdw_contact = { hamaker_j = 1.29e-19; a0_m = 2.4e-10; reduced_modulus_pa = 7e10; }; };
+drive = { separation_m = 5e-9; tones = ( { amplitude_m = 3.3e-14; frequency_hz = 300e3; } ); };
+sim = { sample_rate_hz = 14.06e6; integrator = "rt"; };
+fm = { pll_bandwidth_hz = 200.0; amplitude_bandwidth_hz = 100.0; };
+CONF
+
+if "$A" approach --config "$T/fm.conf" --mode fm --from 5e-9 --to 3e-9 --step 1e-9 --json \
+    > "$T/fm.json" 2> "$T/fm.err"; then
+  ok "approach --mode fm runs"
+else
+  bad "approach --mode fm runs: $(cat "$T/fm.err")"
+fi
+if python3 - "$T/fm.json" <<'PY'
+import json, sys
+r = [json.loads(l) for l in open(sys.argv[1])]
+assert len(r) == 3, len(r)
+for x in r:
+    for k in ("z_m", "frequency_shift_hz", "frequency_hz", "free_frequency_hz",
+              "drive_amplitude_m", "amplitude_m", "phase_error_deg", "locked", "lock_state",
+              "settled", "amplitude_setpoint_m", "dissipated_energy_j"):
+        assert k in x, k
+    assert x["mode"] == "fm" and x["locked"] and x["lock_state"] == "locked" and x["settled"]
+    assert abs(x["amplitude_m"] / x["amplitude_setpoint_m"] - 1) < 1e-3
+    assert abs(x["phase_error_deg"]) < 0.01
+    assert abs(x["free_frequency_hz"] - 300e3) < 0.05
+    assert abs(x["frequency_hz"] - x["free_frequency_hz"] - x["frequency_shift_hz"]) < 1e-6
+s = [x["frequency_shift_hz"] for x in r]
+assert s[0] < 0 and s[1] < s[0] and s[2] < s[1], s
+PY
+then ok "fm JSON: 3 steps locked and settled, shift < 0 growing towards the sample"
+else bad "fm JSON: $(head -c 600 "$T/fm.json")"; fi
+
+"$A" approach --config "$T/fm.conf" --mode fm --from 4e-9 --to 4e-9 > "$T/fm.txt" 2>&1
+if grep -q "free resonance f_free" "$T/fm.txt" && grep -q "^approach.*locked" "$T/fm.txt"; then
+  ok "fm text table: the header names f_free, the step is locked"
+else bad "fm text table: $(cat "$T/fm.txt")"; fi
+
+"$A" approach --config "$T/fm.conf" --mode pm --from 4e-9 --to 4e-9 > /dev/null 2> "$T/e1"
+rc=$?
+[ $rc -eq 2 ] && grep -q "am or fm" "$T/e1" && ok "an unknown --mode: exit 2, said" \
+  || bad "an unknown --mode: exit $rc, $(cat "$T/e1")"
+"$A" approach --config "$T/fm.conf" --mode fm --rate 1e-6 --from 5e-9 --to 4e-9 --step 1e-9 \
+  > /dev/null 2> "$T/e2"
+rc=$?
+[ $rc -eq 2 ] && grep -q "am only" "$T/e2" && ok "--rate with --mode fm: exit 2, said" \
+  || bad "--rate with --mode fm: exit $rc, $(cat "$T/e2")"
+sed 's/pll_bandwidth_hz = 200.0/pll_bandwidth_hz = 5000.0/' "$T/fm.conf" > "$T/bad.conf"
+"$A" approach --config "$T/bad.conf" --mode fm --from 4e-9 --to 4e-9 > /dev/null 2> "$T/e3"
+rc=$?
+[ $rc -eq 2 ] && grep -q "fm.pll_bandwidth_hz.*too fast for the lock-in" "$T/e3" \
+  && ok "an fm bandwidth too fast for the lock-in: exit 2 with the key and why" \
+  || bad "a too fast fm bandwidth: exit $rc, $(cat "$T/e3")"
+check_done

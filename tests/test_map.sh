@@ -1,0 +1,202 @@
+#!/bin/bash
+# test_map.sh -- `afmtwin map` (issue 31): a small fe x Z map of thesis-fig-4-2 is the same
+# file, byte for byte, without mpirun and under mpirun with 1, 2 and 3 ranks (oversubscribed
+# on two cores); a map stopped after one line (--stop-after), one cut in the middle of a
+# line and one killed midway resume to the same file; a corrupt, a mismatched and a foreign
+# resume file and bad arguments get clear errors (exit 2) and leave the file as it was; the
+# up line equals `afmtwin sweep` (to the 15 digits its JSON prints); `afmtwin plot map` draws it, and its .gsf
+# files are read by Gwyddion's own reader with the map's size and values.
+# MPI runs in a private network namespace (loopback only); as root Open MPI wants the
+# OMPI_ALLOW_RUN_AS_ROOT pair. Prints "N passed, N failed".
+. "$(dirname "$0")/lib_check.sh"
+check_init map "${1:-build}"
+export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 OMPI_MCA_btl=self,vader \
+  OMPI_MCA_oob_tcp_if_include=lo OMPI_MCA_rmaps_base_oversubscribe=1
+netns() { unshare -n sh -c 'ip link set lo up; exec "$@"' sh "$@"; }
+CONF=config/thesis-fig-4-2.conf
+MAP=(map --config $CONF --x fe 80000 88000 6 --y z 2e-8 3e-8 3 --max-periods 1500)
+
+"$A" map --help > "$T/help.txt"; rc=$?
+[ $rc -eq 0 ] && grep -q "lag behind the" "$T/help.txt" && grep -q -- "--resume" "$T/help.txt" \
+  && ok "map --help: exit 0, states the phase convention and --resume" || bad "map --help (exit $rc)"
+
+# ---- the same bytes whatever the number of ranks ----
+netns "$A" "${MAP[@]}" --out "$T/single.map" 2> "$T/single.err"; rc=$?
+n_e=$(grep -c '^E ' "$T/single.map" 2>/dev/null)
+n_p=$(grep -c '^P ' "$T/single.map" 2>/dev/null)
+[ $rc -eq 0 ] && [ "$n_e" = 3 ] && [ "$n_p" = 36 ] \
+  && ok "map without mpirun (singleton): 3 lines, 36 points (6 x 3, up and down)" \
+  || bad "map without mpirun: exit $rc, $n_e lines, $n_p points: $(tail -2 "$T/single.err")"
+if command -v mpirun > /dev/null; then
+  for n in 1 2 3; do
+    netns mpirun -np $n "$A" "${MAP[@]}" --out "$T/np$n.map" > "$T/np$n.out" 2>&1; rc=$?
+    [ $rc -eq 0 ] && cmp -s "$T/single.map" "$T/np$n.map" \
+      && ok "mpirun -np $n: the same file, byte for byte" \
+      || bad "mpirun -np $n: exit $rc or a different file: $(tail -3 "$T/np$n.out")"
+  done
+else
+  bad "mpirun not found (package openmpi-bin: make deps)"
+fi
+
+# ---- resume ----
+netns "$A" "${MAP[@]}" --out "$T/r1.map" --stop-after 1 2> "$T/r1.err"; rc=$?
+[ $rc -eq 0 ] && [ "$(grep -c '^E ' "$T/r1.map")" = 1 ] && grep -q "stopped after line 1" "$T/r1.err" \
+  && ok "--stop-after 1: one whole line written: $(tail -1 "$T/r1.err")" \
+  || bad "--stop-after 1: exit $rc, $(grep -c '^E ' "$T/r1.map") lines"
+cp "$T/r1.map" "$T/r1.keep"
+netns "$A" "${MAP[@]}" --out "$T/r1.map" --resume 2> "$T/r1b.err"; rc=$?
+[ $rc -eq 0 ] && cmp -s "$T/single.map" "$T/r1.map" && grep -q "1 of 3 lines done" "$T/r1b.err" \
+  && ok "--resume after one line: the same file as the uninterrupted run" \
+  || bad "--resume after one line: exit $rc or a different file"
+# a write cut in the middle of line 1 (an interruption while writing): dropped and redone
+e1=$(grep -b '^E 0 ' "$T/single.map" | cut -d: -f1)
+cut_at=$((e1 + 200 + $(grep -m1 '^E 0 ' "$T/single.map" | wc -c)))
+head -c $cut_at "$T/single.map" > "$T/cut.map"
+netns mpirun -np 2 "$A" "${MAP[@]}" --out "$T/cut.map" --resume > "$T/cut.err" 2>&1; rc=$?
+[ $rc -eq 0 ] && cmp -s "$T/single.map" "$T/cut.map" \
+  && ok "--resume (2 ranks) of a file cut inside line 1: the partial line redone, same file" \
+  || bad "--resume of a cut file: exit $rc: $(tail -2 "$T/cut.err")"
+# killed while running: as soon as line 0 is on disk
+# (not through the netns function: in the background it would be a subshell, and $! not the
+# map's pid; unshare and sh exec, so $! is the map itself)
+unshare -n sh -c 'ip link set lo up; exec "$@"' sh "$A" "${MAP[@]}" --out "$T/kill.map" 2> /dev/null &
+pid=$!
+for i in $(seq 1 300); do
+  grep -q '^E 0 ' "$T/kill.map" 2> /dev/null && break
+  sleep 0.05
+done
+kill -KILL $pid 2> /dev/null; wait $pid 2> /dev/null
+lines_at_kill=$(grep -c '^E ' "$T/kill.map")
+netns "$A" "${MAP[@]}" --out "$T/kill.map" --resume 2> "$T/kill.err"; rc=$?
+[ $rc -eq 0 ] && cmp -s "$T/single.map" "$T/kill.map" && [ "$lines_at_kill" -lt 3 ] \
+  && ok "killed (SIGKILL) with $lines_at_kill of 3 lines written, resumed: the same file" \
+  || bad "kill and resume: exit $rc, $lines_at_kill lines at the kill, or a different file"
+
+# ---- bad resume files: exit 2, file unchanged ----
+resume_refused() { # NAME FILE WHAT EXTRA-ARGS...: --resume on FILE must fail and change nothing
+  local name=$1 f=$2 want=$3; shift 3
+  cp "$f" "$T/before"
+  netns "$A" "${MAP[@]}" "$@" --out "$f" --resume > /dev/null 2> "$T/e.txt"; local rc=$?
+  [ $rc -eq 2 ] && cmp -s "$T/before" "$f" && grep -q "$want" "$T/e.txt" \
+    && ok "$name: exit 2, file unchanged: $(grep -v -E "= [-0-9.e+]+ (Hz|m)$" "$T/e.txt" | head -c 200)" \
+    || bad "$name: exit $rc, $(cmp -s "$T/before" "$f" && echo unchanged || echo CHANGED): $(head -2 "$T/e.txt")"
+}
+cp "$T/r1.keep" "$T/corrupt.map"
+sed -i '0,/^P 0 u 2 /s/^\(P 0 u 2 [^ ]* [^ ]* \)\([0-9]\)/\19/' "$T/corrupt.map"
+cmp -s "$T/corrupt.map" "$T/r1.keep" && bad "the corruption did not change the file"
+resume_refused "a corrupt resume file (a digit changed)" "$T/corrupt.map" "checksum"
+cp "$T/r1.keep" "$T/other.map"
+resume_refused "a resume file of other arguments (--x ... 7 points)" "$T/other.map" "other arguments" \
+  --x fe 80000 88000 7
+resume_refused "a resume file of another --direction" "$T/other.map" "other arguments" --direction up
+printf 'hello\n' > "$T/foreign.map"
+resume_refused "a resume file that is no map" "$T/foreign.map" "not an afmtwin map"
+cp "$T/r1.keep" "$T/junk.map"; printf 'X garbage\n' >> "$T/junk.map"
+resume_refused "a resume file with a foreign record after line 0" "$T/junk.map" "corrupt"
+
+# ---- bad arguments: exit 2, nothing written ----
+cp "$T/r1.keep" "$T/args.map"
+badarg() { # NAME WHAT ARGS...
+  local name=$1 want=$2; shift 2
+  "$A" map "$@" > /dev/null 2> "$T/e.txt"; local rc=$?
+  [ $rc -eq 2 ] && cmp -s "$T/r1.keep" "$T/args.map" && grep -q -- "$want" "$T/e.txt" \
+    && ok "$name: exit 2: $(grep -v -E "= [-0-9.e+]+ (Hz|m)$" "$T/e.txt" | head -1)" \
+    || bad "$name: exit $rc: $(grep -v -E "= [-0-9.e+]+ (Hz|m)$" "$T/e.txt" | head -2)"
+}
+O=(--out "$T/args.map")
+badarg "unknown parameter" "unknown parameter 'q'" --config $CONF --x q 1 2 3 --y z 20nm 30nm 2 "${O[@]}"
+badarg "FROM above TO" "FROM must be below TO" --config $CONF --x fe 88kHz 80kHz 5 --y z 20nm 30nm 2 "${O[@]}"
+badarg "the same parameter twice" "different parameters" --config $CONF --x fe 80kHz 88kHz 5 --y fe 80kHz 88kHz 2 "${O[@]}"
+badarg "N 0" "integer in 1" --config $CONF --x fe 80kHz 88kHz 0 --y z 20nm 30nm 2 "${O[@]}"
+badarg "a length for fe" "wants" --config $CONF --x fe 80nm 88nm 3 --y z 20nm 30nm 2 "${O[@]}"
+badarg "--x with too few words" "wants NAME FROM TO N" --config $CONF --y z 20nm 30nm 2 "${O[@]}" --x fe 80kHz
+badarg "no --out" "required" --config $CONF --x fe 80kHz 88kHz 5 --y z 20nm 30nm 2
+badarg "--direction sideways" "up, down or both" --config $CONF --x fe 80kHz 88kHz 5 --y z 20nm 30nm 2 --direction sideways "${O[@]}"
+badarg "Z above 1 mm" "values must be in" --config $CONF --x fe 80kHz 88kHz 5 --y z 20nm 2mm 2 "${O[@]}"
+badarg "fe above half the sample rate" "half the sample rate" --config $CONF --x fe 80kHz 5MHz 5 --y z 20nm 30nm 2 "${O[@]}"
+badarg "a missing config" "cannot" --config /no/such.conf --x fe 80kHz 88kHz 5 --y z 20nm 30nm 2 "${O[@]}"
+
+# ---- a map line is `afmtwin sweep` ----
+"$A" sweep --config $CONF --z 2e-8 --from 80000 --to 88000 --step 1600 --max-periods 1500 --json \
+  > "$T/sweep.json" 2> /dev/null
+sw_ok=$(python3 - "$T/sweep.json" "$T/single.map" <<'EOF'
+import json, sys
+rows = [json.loads(l) for l in open(sys.argv[1])]
+pts = {}
+for l in open(sys.argv[2]):
+    f = l.split()
+    if f[:3] == ["P", "0", "u"]:
+        pts[int(f[3])] = [float(v) for v in f[4:14]] + [int(v) for v in f[14:]]
+bad = n1 = 0
+for i, o in enumerate(rows):
+    h = [x for x in o["harmonics"] if x["k"] == 1][0]
+    p = pts[i]
+    want = [o["fe_hz"], h["deflection_amplitude_m"], h["phase_lag_deg"], o["periodicity"],
+            o["settle_periods"]]
+    got = [p[0], p[2], p[3], p[10], p[12]]
+    if o["periodicity"] == 1:  # the map's per-period metrics span the p-period orbit
+        want += [o["cycle"]["peak_force_n"], o["cycle"]["indentation_m"],
+                 o["cycle"]["contact_time_s"], o["cycle"]["dissipated_energy_j"]]
+        got += [p[4], p[7], p[8], p[9]]
+        n1 += 1
+    # cJSON prints 15 digits when they read back within its epsilon: compare to 1e-14
+    if any(abs(a - b) > 1e-14 * abs(a) for a, b in zip(want, got)):
+        bad += 1
+        print("point", i, want, got, file=sys.stderr)
+print("ok" if bad == 0 and len(rows) == 6 and n1 >= 2 else "bad")
+EOF
+)
+[ "$sw_ok" = ok ] \
+  && ok "the up line at Z 20 nm equals afmtwin sweep (to the 1e-14 of its JSON: fe, A1, lag, p, periods; at p 1 also peak force, indentation, contact time, energy)" \
+  || bad "map line vs afmtwin sweep differ"
+
+# ---- plot and Gwyddion files ----
+"$A" plot map "$T/single.map" --out "$T/map.png" --gsf "$T/g" 2> "$T/p.err"; rc=$?
+[ $rc -eq 0 ] && [ "$(head -c 4 "$T/map.png" | tail -c 3)" = PNG ] \
+  && ok "plot map: a PNG of the heat maps" || bad "plot map: exit $rc: $(head -2 "$T/p.err")"
+ng=$(ls "$T"/g-*.gsf 2> /dev/null | wc -l)
+[ "$ng" = 21 ] && ok "plot map --gsf: 21 files (10 quantities x 2 directions, bistable)" \
+  || bad "plot map --gsf: $ng files"
+h="$T/g-up-amplitude.gsf"
+grep -aq '^XRes = 6$' "$h" && grep -aq '^YRes = 3$' "$h" && grep -aq '^XYUnits = Hz$' "$h" \
+  && grep -aq '^ZUnits = m$' "$h" && grep -aq '^XReal = 9600$' "$h" && grep -aq '^XOffset = 79200$' "$h" \
+  && ok "amplitude .gsf header: 6 x 3, x 79.2..88.8 kHz (pixels centred on the grid), Hz, m" \
+  || bad "amplitude .gsf header: $(head -c 200 "$h" | tr '\n\0' ' .')"
+off=$(($(stat -c %s "$h") - 4 * 18))
+px_ok=1
+for k in 0 7 17; do # pixel k = (iy, ix) = (k / 6, k % 6)
+  got=$(od -An -t f4 -j $((off + 4 * k)) -N 4 "$h" | tr -d ' ')
+  want=$(awk -v iy=$((k / 6)) -v ix=$((k % 6)) '$1=="P" && $2==iy && $3=="u" && $4==ix {print $7}' "$T/single.map")
+  awk -v a="$got" -v b="$want" 'BEGIN { d = a - b; if (d < 0) d = -d; exit !(d <= 1e-6 * b) }' || px_ok=0
+done
+[ $px_ok -eq 1 ] && ok "amplitude .gsf pixels equal the map's values (float precision)" \
+  || bad "amplitude .gsf pixels differ from the map"
+if command -v gwyddion-thumbnailer > /dev/null; then
+  th_ok=1
+  for f in "$T"/g-*.gsf; do
+    gwyddion-thumbnailer gnome2 64 "$f" "${f%.gsf}.png" 2> "$T/th.err" \
+      && [ "$(head -c 4 "${f%.gsf}.png" | tail -c 3)" = PNG ] \
+      || { th_ok=0; echo "     $f: $(head -c 200 "$T/th.err")"; }
+  done
+  [ $th_ok -eq 1 ] && ok "gwyddion-thumbnailer reads all 21 map .gsf files" \
+    || bad "gwyddion-thumbnailer refused a map .gsf file"
+else
+  bad "gwyddion-thumbnailer not found (package gwyddion: make deps)"
+fi
+"$A" plot map "$T/foreign.map" --out "$T/x.png" > /dev/null 2> "$T/e.txt"; rc=$?
+[ $rc -eq 2 ] && grep -q "not an afmtwin map" "$T/e.txt" \
+  && ok "plot map of a file that is no map: exit 2: $(head -1 "$T/e.txt")" \
+  || bad "plot map of a foreign file: exit $rc"
+
+# ---- plan ----
+"$A" plan --map "$T/single.map" --peak-force 60e-9 --imaging-force 40e-9 --top 3 > "$T/plan.txt" 2> "$T/e.txt"; rc=$?
+[ $rc -eq 0 ] && [ "$(grep -c '^[0-9]*\. z ' "$T/plan.txt")" = 3 ] && grep -q "crosses: jump" "$T/plan.txt" \
+  && ok "plan: 3 imaging / patterning pairs with their path and the jumps crossed: $(sed -n 2p "$T/plan.txt" | head -c 150)" \
+  || bad "plan: exit $rc: $(head -3 "$T/plan.txt" "$T/e.txt")"
+"$A" plan --map "$T/single.map" > /dev/null 2> "$T/e.txt"; rc=$?
+[ $rc -eq 2 ] && grep -q "required" "$T/e.txt" && ok "plan without --peak-force: exit 2" \
+  || bad "plan without --peak-force: exit $rc"
+"$A" plan --map "$T/single.map" --peak-force 1e-8 --imaging-force 2e-8 > /dev/null 2> "$T/e.txt"; rc=$?
+[ $rc -eq 2 ] && grep -q "must be below" "$T/e.txt" && ok "plan with the imaging force above the peak force: exit 2" \
+  || bad "plan imaging > peak: exit $rc"
+check_done
