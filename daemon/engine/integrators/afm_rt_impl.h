@@ -21,10 +21,11 @@
 #define RT_GRID 8                  /* table cells per contact substep: crossing resolution */
 #define RT_DEFAULT_SUBSTEPS 4      /* substeps per sample in contact (measured, numerics.md) */
 #define RT_ACC_DEFAULT_SUBSTEPS 32 /* the accurate scheme's (docs/numerics.md, issue 28) */
-/* The accurate scheme redoes a sample in substeps when its path comes within this many
+/* The accurate scheme redoes a sample in pieces when its path comes within this many
  * travels ((|v0| + |v1|) dt) of the contact line (docs/numerics.md: 0 leaves 0.013 deg and
- * 1.3e-4 of amplitude on probe-q300, 0.5 and more 0.001 deg and 2e-5) */
-#define RT_ACC_NEAR_TRAVELS 1.0
+ * 1.3e-4 of amplitude on probe-q300, 0.5 and more 0.001 deg and 2e-5; with the graded
+ * pieces, 0.25 leaves 0.011 deg at 12 MHz, 0.5 0.005 deg as 1.0 does) */
+#define RT_ACC_NEAR_TRAVELS 0.5
 /* Without thermal noise, a sample near or in contact is taken in this many whole Hermite
  * pieces, and only a piece that crosses the contact line, or has an end in contact within
  * RT_ACC_CLOSE_TRAVELS of its travel (|v| tau) from the line, is redone in its share of the m
