@@ -5,6 +5,7 @@
  * afm_lcm_digest), and the status at 10 Hz (and once more at shutdown). */
 #include "twind.h"
 
+#include "runner/afm_fm.h"
 #include "transport/afm_lcm_encode.h"
 
 #include <errno.h>
@@ -71,6 +72,16 @@ void twind_status_fill(twind *d, afm_io_status *o, twind_rtf_state *rs) {
     o->scheme_handovers = s.scheme_handovers;
     o->model_s_accurate = s.model_s_accurate;
     o->model_s_fast = s.model_s_fast;
+    o->fm_control = s.st.fm_on ? "internal" : "none"; /* issue 32 */
+    o->fm_lock_state = s.st.fm_on ? afm_fm_lock_name((afm_fm_lock)s.st.fm_lock) : "";
+    o->fm_frequency_hz = s.st.fm_frequency_hz;
+    o->fm_reference_hz = s.st.fm_reference_hz;
+    o->fm_frequency_shift_hz = s.st.fm_frequency_hz - s.st.fm_reference_hz;
+    o->fm_phase_error_deg = s.st.fm_phase_error_deg;
+    o->fm_drive_amplitude_m = s.st.fm_drive_m;
+    o->fm_amplitude_m = s.st.fm_amplitude_m;
+    o->fm_amplitude_setpoint_m = s.st.fm_amplitude_setpoint_m;
+    o->fm_tone_changes = s.st.fm_tone_changes;
     pthread_mutex_lock(&d->lock);
     o->last_reject_age_s = d->last_reject[0] ? wall - d->last_reject_mono : -1.0;
     o->last_reject_old = d->last_reject[0] && s.last_applied_order > d->last_reject_order;

@@ -134,11 +134,11 @@ msg=$("$A" sweep --config $C --from 3e5 --to 3e5 --z 30kHz 2>&1 >/dev/null)
 echo "$msg" | grep -q " = " && bad "a refused value was echoed: $msg" || ok "a refused command line echoes nothing"
 
 # progress: a line on stderr ("\r...") when it is a terminal (script(1) gives a pty), none
-# when it is not; the progress waits 1 s, so the run takes about 2 s
-SCAN="$A scan --config config/scan-grating.conf --pixels 8 --line-rate 100 --engage 0.002 --lines 16 --size-y 100nm"
+# when it is not; the progress waits 1 s, so the run is made to take about 3 s (64 lines)
+SCAN="$A scan --config config/scan-grating.conf --pixels 8 --line-rate 100 --engage 0.002 --lines 64 --size-y 100nm"
 if command -v script >/dev/null 2>&1; then
   script -qc "$SCAN >/dev/null" /dev/null >"$T/tty.txt" 2>&1
-  tr '\r' '\n' <"$T/tty.txt" | grep -aq "^scan: line [0-9]*/16 " && ok "scan: progress on a terminal" ||
+  tr '\r' '\n' <"$T/tty.txt" | grep -aq "^scan: line [0-9]*/64 " && ok "scan: progress on a terminal" ||
     bad "scan: no progress on a terminal: $(od -c "$T/tty.txt" | head -5)"
 else
   ok "scan progress on a terminal: skipped (no script(1))"

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # test_examples.sh BUILD -- the examples a user copies show what they claim (issue 30):
 # README's probe-q300 approach, run as README writes it, shows hysteresis (a jump each way,
-# at different Z, the amplitude branch changing between different steps); approach's
+# at different Z, the amplitude branch changing between different steps, each jump line
+# where the amplitude branch changes); approach's
 # output explains its 'p 0 *'; probe-q300.conf's comments say what the program shows;
 # examples/README names the Debian packages debian/control builds and the LD_LIBRARY_PATH a
 # staged install needs; `send --quiet` prints nothing; and `make run`'s hint
@@ -32,6 +33,12 @@ else
     && [ "$(norm "$ba")" != "$(norm "$br")" ]; then
     ok "README's approach: the amplitude changes branch between different steps each way (approach $ba, retract $br nm)"
   else bad "README's approach: amplitude branch changes approach '$ba' retract '$br'"; fi
+  # the jumps sit where the amplitude branch changes (issue 30), not where the mean force
+  # changes sign (on the retract two steps earlier, 18.2/18.3 nm against 18.4/18.5 nm)
+  if [ -n "$ja" ] && [ -n "$jr" ] && [ "$(norm "$ja")" = "$(norm "$ba")" ] \
+    && [ "$(norm "$jr")" = "$(norm "$br")" ]; then
+    ok "README's approach: each '# jump' line is where the amplitude branch changes (approach $ja, retract $jr nm)"
+  else bad "README's approach: jumps approach '$ja' retract '$jr', amplitude branch changes approach '$ba' retract '$br'"; fi
   # what README says the run shows
   if grep -q "between Z 18.2 and 18.1 nm" README.md && grep -q "between 18.4 and 18.5 nm" README.md \
     && [ "$(norm "$ba")" = "18.1000 18.2000" ] && [ "$(norm "$br")" = "18.4000 18.5000" ]; then

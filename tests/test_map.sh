@@ -5,7 +5,10 @@
 # line and one killed midway resume to the same file; a corrupt, a mismatched and a foreign
 # resume file and bad arguments get clear errors (exit 2) and leave the file as it was; the
 # up line equals `afmtwin sweep` (to the 15 digits its JSON prints); `afmtwin plot map` draws it, and its .gsf
-# files are read by Gwyddion's own reader with the map's size and values.
+# files are read by Gwyddion's own reader with the map's size and values; `plot map --curves
+# --contour-force` puts the LPC / PD curves and the peak-force contour in its script; plan's
+# top pair is checked by a sweep from its imaging to its patterning point. A build without
+# MPI (AFMTWIN_MPI=0) runs as one process and refuses mpirun.
 # MPI runs in a private network namespace (loopback only); as root Open MPI wants the
 # OMPI_ALLOW_RUN_AS_ROOT pair. Prints "N passed, N failed".
 . "$(dirname "$0")/lib_check.sh"
@@ -27,7 +30,14 @@ n_p=$(grep -c '^P ' "$T/single.map" 2>/dev/null)
 [ $rc -eq 0 ] && [ "$n_e" = 3 ] && [ "$n_p" = 36 ] \
   && ok "map without mpirun (singleton): 3 lines, 36 points (6 x 3, up and down)" \
   || bad "map without mpirun: exit $rc, $n_e lines, $n_p points: $(tail -2 "$T/single.err")"
-if command -v mpirun > /dev/null; then
+NOMPI=0; grep -q "built without MPI" "$T/help.txt" && NOMPI=1
+if [ $NOMPI -eq 1 ]; then # AFMTWIN_MPI=0 (the arm64 cross build): one process, mpirun refused
+  cp "$T/single.map" "$T/np2.map"
+  netns mpirun -np 2 "$A" "${MAP[@]}" --out "$T/np2.map" > "$T/np2.out" 2>&1; rc=$?
+  [ $rc -ne 0 ] && cmp -s "$T/single.map" "$T/np2.map" && grep -q "built without MPI" "$T/np2.out" \
+    && ok "a build without MPI under mpirun -np 2: refused (exit $rc), the file unchanged" \
+    || bad "a build without MPI under mpirun -np 2: exit $rc: $(tail -2 "$T/np2.out")"
+elif command -v mpirun > /dev/null; then
   for n in 1 2 3; do
     netns mpirun -np $n "$A" "${MAP[@]}" --out "$T/np$n.map" > "$T/np$n.out" 2>&1; rc=$?
     [ $rc -eq 0 ] && cmp -s "$T/single.map" "$T/np$n.map" \
@@ -52,9 +62,10 @@ netns "$A" "${MAP[@]}" --out "$T/r1.map" --resume 2> "$T/r1b.err"; rc=$?
 e1=$(grep -b '^E 0 ' "$T/single.map" | cut -d: -f1)
 cut_at=$((e1 + 200 + $(grep -m1 '^E 0 ' "$T/single.map" | wc -c)))
 head -c $cut_at "$T/single.map" > "$T/cut.map"
-netns mpirun -np 2 "$A" "${MAP[@]}" --out "$T/cut.map" --resume > "$T/cut.err" 2>&1; rc=$?
+RANKS=(mpirun -np 2); [ $NOMPI -eq 1 ] && RANKS=()
+netns "${RANKS[@]}" "$A" "${MAP[@]}" --out "$T/cut.map" --resume > "$T/cut.err" 2>&1; rc=$?
 [ $rc -eq 0 ] && cmp -s "$T/single.map" "$T/cut.map" \
-  && ok "--resume (2 ranks) of a file cut inside line 1: the partial line redone, same file" \
+  && ok "--resume (${RANKS[*]:-one process}) of a file cut inside line 1: the partial line redone, same file" \
   || bad "--resume of a cut file: exit $rc: $(tail -2 "$T/cut.err")"
 # killed while running: as soon as line 0 is on disk
 # (not through the netns function: in the background it would be a subshell, and $! not the
@@ -188,6 +199,103 @@ fi
   && ok "plot map of a file that is no map: exit 2: $(head -1 "$T/e.txt")" \
   || bad "plot map of a foreign file: exit $rc"
 
+# ---- plot map overlays: the LPC / PD curves of continue --param2, a peak-force contour ----
+cat > "$T/curves.json" <<'JSON'
+{"type": "LPC", "branch": 0, "param_name": "fe", "param": 82000}
+{"type": "curve_point", "curve": 0, "kind": "LPC", "side": 0, "param_name": "fe", "param": 82000, "param2_name": "z", "param2": 2.5e-8}
+{"type": "curve_point", "curve": 0, "kind": "LPC", "side": 0, "param_name": "fe", "param": 81800, "param2_name": "z", "param2": 2.7e-8}
+{"type": "curve_end", "curve": 0, "kind": "LPC", "side": 0, "param_name": "fe", "param": 81800, "param2_name": "z", "param2": 2.7e-8}
+{"type": "curve_point", "curve": 0, "kind": "LPC", "side": 1, "param_name": "fe", "param": 82200, "param2_name": "z", "param2": 2.3e-8}
+{"type": "curve_point", "curve": 1, "kind": "PD", "side": 0, "param_name": "fe", "param": 84000, "param2_name": "z", "param2": 2.5e-8}
+{"type": "curve_point", "curve": 1, "kind": "PD", "side": 0, "param_name": "fe", "param": 84500, "param2_name": "z", "param2": 2.2e-8}
+{"type": "summary", "points": 5}
+JSON
+F_C=40e-9
+"$A" plot map "$T/single.map" --out "$T/over.png" --curves "$T/curves.json" --contour-force $F_C \
+  --script "$T/over.gp" 2> "$T/p.err"; rc=$?
+block() { awk -v b="\$$1 << EOD" '$0 == b {on = 1; next} on && $0 == "EOD" {exit} on' "$2"; }
+# side 1 starts again at the curve's start point (82 kHz, 25 nm): the two sides one line
+want_lpc=$(printf '\n82 25\n81.8 27\n\n82 25\n82.2 23')
+want_pd=$(printf '\n84 25\n84.5 22')
+[ $rc -eq 0 ] && [ "$(head -c 4 "$T/over.png" | tail -c 3)" = PNG ] \
+  && [ "$(block lpc "$T/over.gp")" = "$want_lpc" ] && [ "$(block pd "$T/over.gp")" = "$want_pd" ] \
+  && grep -q "\$lpc using 1:2 with lines" "$T/over.gp" && grep -q "\$pd using 1:2 with lines" "$T/over.gp" \
+  && ok "plot map --curves: the LPC and PD curves in kHz x nm, the two sides joined at the start point, drawn" \
+  || bad "plot map --curves: exit $rc: $(head -2 "$T/p.err"); lpc [$(block lpc "$T/over.gp" | tr '\n' '|')]"
+# the same curves with the two parameters the other way round
+sed -e 's/"param_name": "fe", "param": \([0-9]*\), "param2_name": "z", "param2": \([0-9.e-]*\)/"param_name": "z", "param": \2, "param2_name": "fe", "param2": \1/' \
+  "$T/curves.json" > "$T/curves-swap.json"
+"$A" plot map "$T/single.map" --out "$T/swap.png" --curves "$T/curves-swap.json" --script "$T/swap.gp" 2> /dev/null; rc=$?
+[ $rc -eq 0 ] && grep -q '"param_name": "z"' "$T/curves-swap.json" && [ "$(block lpc "$T/swap.gp")" = "$want_lpc" ] \
+  && ok "plot map --curves in (z, fe) on an (fe, z) map: the same curves" \
+  || bad "plot map --curves swapped: exit $rc [$(block lpc "$T/swap.gp" | tr '\n' '|')]"
+sed 's/"param2_name": "z"/"param2_name": "ae"/' "$T/curves.json" > "$T/curves-ae.json"
+"$A" plot map "$T/single.map" --out "$T/x.png" --curves "$T/curves-ae.json" > /dev/null 2> "$T/e.txt"; rc=$?
+[ $rc -eq 2 ] && grep -q "the map is in (fe, z)" "$T/e.txt" && [ ! -e "$T/x.png" ] \
+  && ok "plot map --curves in (fe, ae) on an (fe, z) map: exit 2: $(head -1 "$T/e.txt")" \
+  || bad "plot map --curves of other parameters: exit $rc: $(head -1 "$T/e.txt")"
+"$A" plot map "$T/single.map" --out "$T/x.png" --curves "$T/single.map" > /dev/null 2> "$T/e.txt"; rc=$?
+[ $rc -eq 2 ] && grep -q "not a record of" "$T/e.txt" \
+  && ok "plot map --curves of a file that is no continue output: exit 2" \
+  || bad "plot map --curves of a foreign file: exit $rc: $(head -1 "$T/e.txt")"
+# the contour: every segment end lies on a grid edge where the peak force, interpolated
+# linearly between the edge's two points, is F; every cell whose corners straddle F has a
+# segment
+cont_ok=$(python3 - "$T/over.gp" "$F_C" <<'PY'
+import sys, math
+lines = open(sys.argv[1]).read().split("\n")
+F = float(sys.argv[2]) * 1e9
+def block(name):
+    i = lines.index("$%s << EOD" % name)
+    return lines[i + 1:lines.index("EOD", i)]
+grid = {}
+for l in block("map"):
+    f = l.split()
+    if f:
+        grid[(float(f[0]), float(f[1]))] = float(f[2]) if f[2] != "NaN" else math.nan
+xs, ys = sorted({k[0] for k in grid}), sorted({k[1] for k in grid})
+segs, cur = [], []
+for l in block("cont"):
+    if l.strip():
+        cur.append(tuple(map(float, l.split())))
+    elif cur:
+        segs.append(cur)
+        cur = []
+if cur:
+    segs.append(cur)
+def crossing(a, b, t):
+    return (a >= F) != (b >= F) and abs(a + t * (b - a) - F) < 1e-6 * F
+def on_edge(x, y):
+    for i in range(len(xs) - 1):
+        for yy in ys:  # an edge along x at a grid y
+            if abs(y - yy) < 1e-9 and xs[i] - 1e-9 <= x <= xs[i + 1] + 1e-9 and \
+               crossing(grid[(xs[i], yy)], grid[(xs[i + 1], yy)], (x - xs[i]) / (xs[i + 1] - xs[i])):
+                return True
+    for j in range(len(ys) - 1):
+        for xx in xs:  # an edge along y at a grid x
+            if abs(x - xx) < 1e-9 and ys[j] - 1e-9 <= y <= ys[j + 1] + 1e-9 and \
+               crossing(grid[(xx, ys[j])], grid[(xx, ys[j + 1])], (y - ys[j]) / (ys[j + 1] - ys[j])):
+                return True
+    return False
+good = all(len(s) == 2 and all(on_edge(*p) for p in s) for s in segs)
+cells = 0
+for i in range(len(xs) - 1):
+    for j in range(len(ys) - 1):
+        c = [grid[(xs[i], ys[j])], grid[(xs[i + 1], ys[j])], grid[(xs[i + 1], ys[j + 1])],
+             grid[(xs[i], ys[j + 1])]]
+        if all(not math.isnan(v) for v in c) and len({v >= F for v in c}) == 2:
+            cells += 1
+            box = (xs[i] - 1e-9, xs[i + 1] + 1e-9, ys[j] - 1e-9, ys[j + 1] + 1e-9)
+            if not any(all(box[0] <= p[0] <= box[1] and box[2] <= p[1] <= box[3] for p in s)
+                       for s in segs):
+                good = False
+print("%s %d %d" % ("ok" if good and segs and cells else "bad", len(segs), cells))
+PY
+)
+[ "${cont_ok%% *}" = ok ] && grep -q "\$cont using 1:2 with lines" "$T/over.gp" \
+  && ok "plot map --contour-force 40 nN: $(echo "$cont_ok" | cut -d' ' -f2) segments, each end where the interpolated peak force is 40 nN, all $(echo "$cont_ok" | cut -d' ' -f3) straddling cells crossed" \
+  || bad "plot map --contour-force: $cont_ok"
+
 # ---- plan ----
 "$A" plan --map "$T/single.map" --peak-force 60e-9 --imaging-force 40e-9 --top 3 > "$T/plan.txt" 2> "$T/e.txt"; rc=$?
 [ $rc -eq 0 ] && [ "$(grep -c '^[0-9]*\. z ' "$T/plan.txt")" = 3 ] && grep -q "crosses: jump" "$T/plan.txt" \
@@ -199,4 +307,54 @@ fi
 "$A" plan --map "$T/single.map" --peak-force 1e-8 --imaging-force 2e-8 > /dev/null 2> "$T/e.txt"; rc=$?
 [ $rc -eq 2 ] && grep -q "must be below" "$T/e.txt" && ok "plan with the imaging force above the peak force: exit 2" \
   || bad "plan imaging > peak: exit $rc"
+# ---- plan's top pair, checked by a separate sweep from the imaging to the patterning point ----
+# `afmtwin sweep` from rest at the imaging point, stepping with the map's fe step to the
+# patterning point (same config, Z, --max-periods): its first point must be the imaging
+# orbit (peak force within the imaging limit), its last reach the patterning force and the
+# map's peak force within 1 %, and the jumps between its steps (the map's criteria, read
+# from the map's header) must be exactly the ones the plan names. Why 1 %: a settled orbit
+# is the exact one to ~Q/pi tol of the deflection (Q 200, tol 1e-6: 6e-5 of ~21 nm, 1.4
+# pm), and the peak force goes as indentation^1.5 (0.39 nm): 0.5 %; a period-2 orbit's last
+# period (sweep's cycle) may also peak lower than the map's largest of its p periods.
+"$A" plan --map "$T/single.map" --peak-force 60e-9 --imaging-force 40e-9 --top 1 > "$T/plan1.txt" 2> /dev/null
+read -r pz pfi pfp pdir < <(sed -n 's/^1\. z \([0-9.]*\) nm: image at fe \([0-9.]*\) Hz.*pattern at fe \([0-9.]*\) Hz.*path: \([a-z]*\) pass.*/\1 \2 \3 \4/p' "$T/plan1.txt")
+step=$(awk '$1 == "x" {print ($4 - $3) / ($5 - 1)}' "$T/single.map")
+if [ -n "$pfp" ]; then
+  "$A" sweep --config $CONF --z "${pz}e-9" --from "$pfi" --to "$pfp" --step "$step" --max-periods 1500 --json \
+    > "$T/plan-sweep.json" 2> "$T/e.txt"
+fi
+plan_sw=$(python3 - "$T/plan1.txt" "$T/plan-sweep.json" "$T/single.map" 40e-9 60e-9 <<'PY'
+import json, re, sys
+plan = open(sys.argv[1]).read().split("\n")[1]
+rows = [json.loads(l) for l in open(sys.argv[2]) if l.strip()]
+imaging, patterning = float(sys.argv[4]), float(sys.argv[5])
+hdr = {}
+for l in open(sys.argv[3]):
+    if l.startswith("tol "):
+        f = l.split()
+        hdr = dict(zip(f[0::2], map(float, f[1::2])))
+m = re.search(r"pattern at fe \S+ Hz \(peak (\S+) N", plan)
+want_peak = float(m.group(1))
+named = {(float(a), float(b)) for a, b in re.findall(r"jump fe (\S+) -> (\S+) Hz", plan)}
+def a1(o):
+    h = [x for x in o["harmonics"] if x["k"] == 1][0]
+    return h["deflection_amplitude_m"], h["phase_lag_deg"]
+jumps = set()
+for p, q in zip(rows, rows[1:]):
+    (ap, lp), (aq, lq) = a1(p), a1(q)
+    dl = abs(lp - lq) % 360
+    if abs(ap - aq) > hdr["jump_tol"] * max(ap, aq) or min(dl, 360 - dl) > hdr["jump_deg"]:
+        jumps.add((p["fe_hz"], q["fe_hz"]))
+first, last = rows[0]["cycle"]["peak_force_n"], rows[-1]["cycle"]["peak_force_n"]
+dev = abs(last - want_peak) / want_peak
+good = (rows[0]["settled"] and rows[-1]["settled"] and first <= imaging and last >= patterning
+        and dev <= 0.01 and jumps == named and len(named) > 0)
+print("%s %d steps, imaging peak %.3g N, patterning peak %.5g N (plan %.5g N, %.2g %%), jumps %s (plan: %s)"
+      % ("ok" if good else "bad", len(rows), first, last, want_peak, 100 * dev,
+         sorted(jumps), sorted(named)))
+PY
+)
+[ "${plan_sw%% *}" = ok ] \
+  && ok "plan's top pair (z $pz nm, fe $pfi -> $pfp Hz, $pdir) by a sweep from the imaging point: ${plan_sw#ok }" \
+  || bad "plan's top pair by sweep: $plan_sw $(head -2 "$T/e.txt")"
 check_done

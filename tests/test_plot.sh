@@ -8,7 +8,7 @@
 # titles that name the config and the drive and not the input file, a CSV of each curve
 # with units in its header; and on small hand-written inputs: the approach's force peaks
 # clipped (repulsive >= 0, attractive <= 0) and its unsettled steps marked, its jump arrow
-# from z_before to z_after, a continuation's branches cut at each change of stability
+# from z_before to z_after (none for a crossover), E_sq beside E_ts, a continuation's branches cut at each change of stability
 # (solid stable, dashed unstable). Needs no network. Prints "N passed, N failed".
 BUILD=${1:-build}
 . "$(dirname "$0")/lib_check.sh"
@@ -165,10 +165,33 @@ if [ "$um" = "19 " ] && [ "$(grep -c '^plot .*\$UM using 1:[0-9]* with points ls
 else bad "approach unsettled marks: '$um', $(grep -c '\$UM' "$T/ap.gp" 2>/dev/null) uses"; fi
 # 5. the jump arrow from (z_before, A before) to (z_after, A after), not at the midpoint
 jr=$(awk '/^\$J << EOD/ { f = 1; next } /^EOD/ { f = 0 } f' "$T/ap.gp" 2>/dev/null)
-if [ "$jr" = "19 18 19.1 19.9 107 84 0" ] \
-  && grep -q '\$J using 1:(\$7 == 0 ? \$3 : 1/0):(\$2 - \$1):(\$4 - \$3) with vectors' "$T/ap.gp"; then
+if [ "$jr" = "19 18 19.1 19.9 107 84 0 1" ] \
+  && grep -q '\$J using 1:(\$7 == 0 && \$8 == 1 ? \$3 : 1/0):(\$2 - \$1):(\$4 - \$3) with vectors' "$T/ap.gp"; then
   ok "approach jump arrow: from Z 19 nm (A 19.1) to Z 18 nm (A 19.9), where the branch changes"
 else bad "approach jump: '$jr'"; fi
+# 6. a change of regime without a jump of the branch (sharp false): no arrow, no legend entry
+sed 's/"phase_after_deg":84}/"phase_after_deg":84,"sharp":false}/' "$T/ap.json" >"$T/ap2.json"
+"$A" plot approach "$T/ap2.json" -o "$T/ap2.png" --script "$T/ap2.gp" 2>/dev/null; rc=$?
+if [ $rc -eq 0 ] && ! grep -q "keyentry with vectors" "$T/ap2.gp" \
+  && [ "$(awk '/^\$J << EOD/ { f = 1; next } /^EOD/ { f = 0 } f' "$T/ap2.gp")" = "19 18 19.1 19.9 107 84 0 0" ]; then
+  ok "approach: a crossover (sharp false) is in the data but drawn as no jump"
+else bad "approach crossover: exit $rc, $(grep -c 'keyentry with vectors' "$T/ap2.gp") jump keys"; fi
+# 7. the squeeze film's dissipation E_sq beside E_ts (issue 30): its own panel under E_ts
+# where a record has it, named in the title's note, a column in the data; none without it
+sed 's/"dissipated_energy_j":\([0-9e.-]*\),/"dissipated_energy_j":\1,"squeeze_dissipated_energy_j":9.613059804e-17,/' \
+  "$T/ap.json" >"$T/ap3.json"
+"$A" plot approach "$T/ap3.json" -o "$T/ap3.png" --script "$T/ap3.gp" --data "$T/ap3.dat" 2>/dev/null; rc=$?
+if [ $rc -eq 0 ] && grep -q "^set ylabel 'E_sq (eV)'" "$T/ap3.gp" && grep -q "^set ylabel 'E_ts (eV)'" "$T/ap3.gp" \
+  && grep -q '^plot \$A using 1:13 ' "$T/ap3.gp" && grep -q 'E_sq by the squeeze film' "$T/ap3.gp" \
+  && grep -q '^# A (approach): .* squeeze_dissipated\[eV\]' "$T/ap3.dat" \
+  && [ "$(awk '/^\$A << EOD/ { f = 1; next } /^EOD/ { f = 0 } f { print $13; exit }' "$T/ap3.gp")" = 600 ] \
+  && ! grep -q "E_sq" "$T/ap.gp"; then
+  ok "approach: E_sq (squeeze film, 600 eV) in a panel of its own under E_ts, explained; absent without it"
+else bad "approach E_sq: exit $rc, $(grep -c "E_sq" "$T/ap3.gp" 2>/dev/null) E_sq lines"; fi
+if grep -q "^set ylabel 'E_ts tip-sample (eV)'" "$T/sweep.gp" && grep -q '^# S0 .*: .*dissipated\[eV\] squeeze_dissipated\[eV\]' "$T/sweep.dat" \
+  && ! grep -q "E_sq" "$T/sweep.gp"; then
+  ok "sweep: an E_ts panel (tip-sample energy per period), no E_sq panel on a config without a squeeze film"
+else bad "sweep energies: $(grep -c 'E_ts' "$T/sweep.gp" 2>/dev/null) E_ts lines, $(sed -n 3p "$T/sweep.dat" | cut -c1-120)"; fi
 
 # 4. a continuation: stable up to a PD at 81.5 kHz, unstable, stable again after 83 kHz
 # with no event between (the largest multiplier 1.5 -> 0.5: crosses 1 half way, 83.5 kHz)

@@ -85,7 +85,13 @@ static void approach_usage(FILE *f) {
             "                    is reported beside it (Esq_eV, squeeze_dissipated_energy_j)\n"
             "  periodicity       of the settled orbit (0: not settled within --periods)\n"
             "The regime of a step is attractive when the mean tip-sample force is below zero,\n"
-            "repulsive when above; a change of regime between two steps is reported as a jump.\n\n"
+            "repulsive when above. Each change of regime is reported as a jump, placed where\n"
+            "the amplitude branch changes: between the two steps of the largest step change\n"
+            "of the harmonic-1 phasor (A, lag) from the previous change of regime to the next,\n"
+            "if it is over twice the changes of the steps beside it (sharp), else at the\n"
+            "change of regime itself (a smooth crossover). On a retract the lever may stay on\n"
+            "the high-amplitude branch a few steps after its mean force turned attractive.\n"
+            "The records of a pass (approach, retract) are written when the pass ends.\n\n"
             "Phase convention: the lag of the deflection behind the drive (x_dit = Ae sin(we t)),\n"
             "90 deg for a free cantilever at resonance, below 90 in the repulsive regime.\n\n"
             "options:\n"
@@ -138,7 +144,12 @@ static void approach_usage(FILE *f) {
             "                     squeeze film on, the same A0 as scan and the daemon);\n"
             "                     and one {\"jump\": {direction, from, to, z_before_m,\n"
             "                     z_after_m, amplitude_before_m, amplitude_after_m,\n"
-            "                     phase_before_deg, phase_after_deg}} per change of regime\n"
+            "                     phase_before_deg, phase_after_deg, sharp,\n"
+            "                     phasor_change_m, neighbour_change_m (the step change of\n"
+            "                     A e^{-i lag} there and the larger beside it),\n"
+            "                     regime_z_before_m, regime_z_after_m (where the mean force\n"
+            "                     changes sign)}} per change of regime, before the record\n"
+            "                     at z_after_m\n"
             "  --help             this text\n\n" AFMT_OPT_SI_HELP
             "Without --json a table (nm, deg, nN, eV). Progress on stderr (terminals only).\n"
             "Exit status 0 ok, 1 simulation failure, 2 bad usage or bad input.\n",
@@ -398,20 +409,107 @@ static int print_json(const approach_point *p, int nk) {
     return afmt_json_emit(o);
 }
 
-static void print_jump(const approach_point *a, const approach_point *b, bool json) {
+/* A jump: the amplitude branch changes between points after - 1 and after of the curve,
+ * at the change of regime (the sign of the mean tip-sample force) between points
+ * regime - 1 and regime, which may lie a few steps away (on a retract the lever stays on
+ * the high-amplitude branch after its mean force has turned attractive). */
+typedef struct {
+    int after, regime;
+    double change_m, neighbour_m; /* |step change of the harmonic-1 phasor| here, beside */
+    bool sharp;                   /* change_m > JUMP_CONTRAST x neighbour_m */
+} approach_jump;
+
+/* A branch switch is a step-to-step change of the harmonic-1 phasor this many times the
+ * larger of the changes of the steps beside it (1.5-4 on the smooth parts of README's
+ * probe-q300 curve near its folds, 3.8 at its retract jump with 0.1 nm steps, more with
+ * finer steps: the jump is fixed, the smooth changes shrink with the step). */
+#define JUMP_CONTRAST 2.0
+
+/* |A_a e^{-i lag_a} - A_b e^{-i lag_b}|, harmonic 1 (m). */
+static double phasor_change(const approach_point *a, const approach_point *b) {
+    double d = (a->lag_deg[0] - b->lag_deg[0]) * (TWO_PI / 360.0);
+    double s = a->amp_m[0] * a->amp_m[0] + b->amp_m[0] * b->amp_m[0] -
+               2.0 * a->amp_m[0] * b->amp_m[0] * cos(d);
+    return s > 0.0 ? sqrt(s) : 0.0;
+}
+
+/* The jumps of the pass p[s..e) (pair j: points j - 1 and j, j >= 1; the retract's first
+ * pair joins it to the approach's last point). For each change of regime at pair c, the
+ * search runs over the pairs after the previous change and before the next one (the
+ * pass's ends else): the pair of the largest phasor change is the jump if it stands out
+ * (JUMP_CONTRAST over its neighbours) and no earlier change took it; otherwise the jump
+ * is put at c itself (a smooth crossover, sharp false). Returns the number found. */
+static int find_jumps(const approach_point *p, int s, int e, approach_jump *out, int max) {
+    const int first = s > 1 ? s : 1;
+    int c[64], nc = 0, n = 0;
+    for (int j = first; j < e && nc < 64; j++)
+        if (p[j].attractive != p[j - 1].attractive) c[nc++] = j;
+    for (int k = 0; k < nc && n < max; k++) {
+        int lo = k > 0 ? c[k - 1] + 1 : first, hi = k + 1 < nc ? c[k + 1] - 1 : e - 1;
+        if (lo > c[k]) lo = c[k];
+        if (hi < c[k]) hi = c[k];
+        int best = c[k];
+        for (int j = lo; j <= hi; j++)
+            if (phasor_change(&p[j - 1], &p[j]) > phasor_change(&p[best - 1], &p[best])) best = j;
+        for (int m = 0; m < n; m++)
+            if (out[m].after == best) best = c[k];
+        double nb = 0.0;
+        if (best - 1 >= first) nb = fmax(nb, phasor_change(&p[best - 2], &p[best - 1]));
+        if (best + 1 < e) nb = fmax(nb, phasor_change(&p[best], &p[best + 1]));
+        double ch = phasor_change(&p[best - 1], &p[best]);
+        bool sharp = ch > JUMP_CONTRAST * nb;
+        if (!sharp && best != c[k]) { /* nothing stands out: at the change of regime */
+            best = c[k];
+            ch = phasor_change(&p[best - 1], &p[best]);
+            nb = 0.0;
+            if (best - 1 >= first) nb = fmax(nb, phasor_change(&p[best - 2], &p[best - 1]));
+            if (best + 1 < e) nb = fmax(nb, phasor_change(&p[best], &p[best + 1]));
+            sharp = ch > JUMP_CONTRAST * nb;
+        }
+        out[n++] = (approach_jump){best, c[k], ch, nb, sharp};
+    }
+    return n;
+}
+
+static void print_jump(const approach_point *p, const approach_jump *jp, bool json) {
+    const approach_point *a = &p[jp->after - 1], *b = &p[jp->after];
+    const approach_point *ra = &p[jp->regime - 1], *rb = &p[jp->regime];
     if (!json) {
         printf("# jump (%s): %s -> %s between Z %.4f and %.4f nm: A %.4f -> %.4f nm, lag "
-               "%.3f -> %.3f deg\n",
-               b->retract ? "retract" : "approach", regime(a->attractive), regime(b->attractive),
+               "%.3f -> %.3f deg; %s; the mean tip-sample force changes sign from Z %.4f to "
+               "%.4f nm\n",
+               b->retract ? "retract" : "approach", regime(ra->attractive), regime(rb->attractive),
                a->z_m * 1e9, b->z_m * 1e9, a->amp_m[0] * 1e9, b->amp_m[0] * 1e9, a->lag_deg[0],
-               b->lag_deg[0]);
+               b->lag_deg[0],
+               jp->sharp ? "the amplitude branch changes" : "no sharp branch change (a crossover)",
+               ra->z_m * 1e9, rb->z_m * 1e9);
         return;
     }
     printf("{\"jump\":{\"direction\":\"%s\",\"from\":\"%s\",\"to\":\"%s\",\"z_before_m\":%.17g,"
            "\"z_after_m\":%.17g,\"amplitude_before_m\":%.17g,\"amplitude_after_m\":%.17g,"
-           "\"phase_before_deg\":%.17g,\"phase_after_deg\":%.17g}}\n",
-           b->retract ? "retract" : "approach", regime(a->attractive), regime(b->attractive),
-           a->z_m, b->z_m, a->amp_m[0], b->amp_m[0], a->lag_deg[0], b->lag_deg[0]);
+           "\"phase_before_deg\":%.17g,\"phase_after_deg\":%.17g,\"sharp\":%s,"
+           "\"phasor_change_m\":%.17g,\"neighbour_change_m\":%.17g,"
+           "\"regime_z_before_m\":%.17g,\"regime_z_after_m\":%.17g}}\n",
+           b->retract ? "retract" : "approach", regime(ra->attractive), regime(rb->attractive),
+           a->z_m, b->z_m, a->amp_m[0], b->amp_m[0], a->lag_deg[0], b->lag_deg[0],
+           jp->sharp ? "true" : "false", jp->change_m, jp->neighbour_m, ra->z_m, rb->z_m);
+}
+
+static void print_text(const approach_point *p);
+static int print_json(const approach_point *p, int k_max);
+
+/* Writes the records p[s..e) with their jumps before the records they jump to. 0 ok, -1
+ * out of memory. */
+static int print_pass(const approach_point *p, int s, int e, const approach_opts *o) {
+    static approach_jump jumps[64];
+    int nj = find_jumps(p, s, e, jumps, 64);
+    for (int i = s; i < e; i++) {
+        for (int m = 0; m < nj; m++)
+            if (jumps[m].after == i) print_jump(p, &jumps[m], o->json);
+        if (o->json ? print_json(&p[i], o->k_max) != 0 : (print_text(&p[i]), 0)) return -1;
+    }
+    fflush(stdout);
+    return 0;
 }
 
 static void print_text(const approach_point *p) {
@@ -731,36 +829,43 @@ int afm_cmd_approach(int argc, char **argv) {
                a0.z_m * 1e9, free_amp * 1e9, free_lag);
     const bool tty = isatty(STDERR_FILENO) != 0;
     int status = 0;
-    approach_point prev = {0}, pt;
+    /* the records of a pass are written when it ends: its jumps need the whole pass */
     const int passes = o.retract ? 2 : 1;
+    approach_point *pts = calloc((size_t)n_steps * (size_t)passes, sizeof *pts);
+    if (!pts) {
+        fprintf(stderr, "afmtwin approach: out of memory\n");
+        afm_sweep_destroy(&sw);
+        afm_sim_destroy(&sim);
+        return 1;
+    }
+    int np = 0;
     for (int pass = 0; pass < passes && status == 0; pass++) {
+        const int start = np;
         for (int i = pass; i < n_steps && status == 0; i++) { /* the retract skips --to */
-            memset(&pt, 0, sizeof pt);
-            pt.retract = pass == 1;
-            pt.free_amp_m = free_amp;
-            pt.free_lag_deg = free_lag;
+            approach_point *pt = &pts[np];
+            pt->retract = pass == 1;
+            pt->free_amp_m = free_amp;
+            pt->free_lag_deg = free_lag;
             /* the retract visits the approach's points in reverse */
             double z = step_z(o.from_m, o.to_m, o.step_m, pass ? n_steps - 1 - i : i, n_steps);
             if (tty)
                 fprintf(stderr, "\rapproach: %s step %d/%d, Z %.4f nm   ",
                         pass ? "retract" : "approach", i + 1, n_steps, z * 1e9);
-            const bool ramp = o.rate_m_s > 0 && (pass > 0 || i > 0);
-            if (ramp ? approach_ramp(sim, &est, &o, prev.z_m, z, &pt, err, sizeof err) != 0
-                     : approach_step(&sw, sim, &est, &o, z, &pt, err, sizeof err) != 0) {
+            const bool ramp = o.rate_m_s > 0 && np > 0;
+            if (ramp ? approach_ramp(sim, &est, &o, pts[np - 1].z_m, z, pt, err, sizeof err) != 0
+                     : approach_step(&sw, sim, &est, &o, z, pt, err, sizeof err) != 0) {
                 fprintf(stderr, "%safmtwin approach: %s\n", tty ? "\n" : "", err);
                 status = 1;
                 break;
             }
-            if ((pass > 0 || i > 0) && pt.attractive != prev.attractive)
-                print_jump(&prev, &pt, o.json);
-            if (o.json ? print_json(&pt, o.k_max) != 0 : (print_text(&pt), 0)) {
-                fprintf(stderr, "afmtwin approach: out of memory writing JSON\n");
-                status = 1;
-            }
-            fflush(stdout);
-            prev = pt;
+            np++;
+        }
+        if (print_pass(pts, start, np, &o) != 0) { /* on a failure too: what was computed */
+            fprintf(stderr, "afmtwin approach: out of memory writing JSON\n");
+            status = 1;
         }
     }
+    free(pts);
     if (tty) fprintf(stderr, "\r%60s\r", "");
     afm_sweep_destroy(&sw);
     afm_sim_destroy(&sim);

@@ -338,6 +338,16 @@ static void print_status(const listen_ctx *c, const char *channel, const afmtwin
         json_int(o, "scheme_handovers", m->scheme_handovers);
         json_num(o, "model_s_accurate", m->model_s_accurate);
         json_num(o, "model_s_fast", m->model_s_fast);
+        json_str(o, "fm_control", m->fm_control); /* issue 32 */
+        json_str(o, "fm_lock_state", m->fm_lock_state);
+        json_num(o, "fm_frequency_hz", m->fm_frequency_hz);
+        json_num(o, "fm_reference_hz", m->fm_reference_hz);
+        json_num(o, "fm_frequency_shift_hz", m->fm_frequency_shift_hz);
+        json_num(o, "fm_phase_error_deg", m->fm_phase_error_deg);
+        json_num(o, "fm_drive_amplitude_m", m->fm_drive_amplitude_m);
+        json_num(o, "fm_amplitude_m", m->fm_amplitude_m);
+        json_num(o, "fm_amplitude_setpoint_m", m->fm_amplitude_setpoint_m);
+        json_int(o, "fm_tone_changes", m->fm_tone_changes);
         afmt_json_emit(o);
         return;
     }
@@ -369,6 +379,14 @@ static void print_status(const listen_ctx *c, const char *channel, const afmtwin
                m->last_reject_old ? ", old: later commands applied" : "", lr);
     if (m->rt_scheme && m->rt_scheme[0]) /* one line per message: the reason is in --json */
         printf(" | rt scheme %s, %lld handovers", m->rt_scheme, (long long)m->scheme_handovers);
+    if (m->fm_control && strcmp(m->fm_control, "internal") == 0) {
+        char fl[SHOW_LEN];
+        show(fl, m->fm_lock_state);
+        printf(" | FM %s: shift %.4f Hz (f %.6f Hz, ref %.6f Hz) phase error %.3f deg drive %.4g "
+               "pm A %.4g nm",
+               fl, m->fm_frequency_shift_hz, m->fm_frequency_hz, m->fm_reference_hz,
+               m->fm_phase_error_deg, m->fm_drive_amplitude_m * 1e12, m->fm_amplitude_m * 1e9);
+    }
     printf("\n");
     if (m->auto_paused) printf("          %s\n", pr);
     if (cs[0] && strcmp(cs, "off") != 0)

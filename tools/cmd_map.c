@@ -123,6 +123,10 @@ static void map_usage(FILE *f) {
         "Exit status 0 ok, 1 simulation failure, 2 bad usage or bad input (nothing written).\n",
         DEFAULT_MAX_PERIODS, DEFAULT_TOL, DEFAULT_JUMP_TOL, DEFAULT_JUMP_DEG, DEFAULT_BISTABLE_TOL,
         DEFAULT_BISTABLE_DEG);
+#if AFMT_NO_MPI
+    fprintf(f, "This afmtwin is built without MPI (AFMTWIN_MPI=0): one process; under mpirun "
+               "it refuses to run.\n");
+#endif
 }
 
 /* --x / --y NAME FROM TO N at argv[i..i+4]. 0, or -1 (said). */
@@ -593,6 +597,21 @@ int afm_cmd_map(int argc, char **argv) {
         return 1;
     }
 
+#if AFMT_NO_MPI
+    /* Under mpirun (Open MPI: OMPI_COMM_WORLD_SIZE) every copy would be rank 0 of 1 and
+     * write the whole file at once. */
+    const char *world = getenv("OMPI_COMM_WORLD_SIZE");
+    if (!world) world = getenv("PMI_SIZE"); /* MPICH, Slurm */
+    if (world && atoi(world) > 1) {
+        if (rank0_by_env())
+            fprintf(stderr,
+                    "afmtwin map: this afmtwin is built without MPI (AFMTWIN_MPI=0): it cannot "
+                    "share a map among %s ranks; run it without mpirun, or use a build with MPI\n",
+                    world);
+        free(header);
+        return 2;
+    }
+#endif
     MPI_Init(&argc, &argv);
     int rank, size;
     MPI_Comm_rank(MPI_COMM_WORLD, &rank);

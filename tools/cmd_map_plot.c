@@ -1,6 +1,7 @@
 /* SPDX-License-Identifier: MIT */
 /* cmd_map_plot.c -- `afmtwin plot map` (issue 31): heat maps of a map file (map_file.h) with
- * gnuplot, and every map quantity as a Gwyddion Simple Field file (gsf_write.h). Apart from
+ * gnuplot, the LPC / PD curves of `continue --param2` and a peak-force contour over them, and
+ * every map quantity as a Gwyddion Simple Field file (gsf_write.h). Apart from
  * cmd_plot.c, which hands the kind "map" over to it, because its input is the map file and
  * its picture a grid of images, not the curves the other kinds draw. */
 #include "afmtwin_cmds.h"
@@ -8,20 +9,23 @@
 #include "map_file.h"
 #include "opts.h"
 
+#include <cjson/cJSON.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 typedef struct {
-    const char *in, *out, *gsf, *script, *dir_word;
+    const char *in, *out, *gsf, *script, *dir_word, *curves;
+    double contour_n; /* --contour-force, N; NaN: none */
     int width, height;
 } mplot_opts;
 
 static void mplot_usage(FILE *f) {
     fprintf(f,
             "usage: afmtwin plot map MAPFILE [--out FILE.png|.svg] [--gsf PREFIX]\n"
-            "                        [--direction up|down] [--size WxH] [--script FILE]\n\n"
+            "                        [--direction up|down] [--size WxH] [--script FILE]\n"
+            "                        [--curves CONT.json] [--contour-force F]\n\n"
             "Heat maps of an `afmtwin map` file over its plane: peak force, amplitude, phase lag\n"
             "(of the deflection behind the drive, 90 deg free at resonance) and dissipated\n"
             "energy of one sweep direction (default up, else the one the map has), the bistable\n"
@@ -39,7 +43,16 @@ static void mplot_usage(FILE *f) {
             "                   computed yet and values that do not exist are 0\n"
             "  --direction D    which sweep direction the heat maps show\n"
             "  --size WxH       picture size in pixels (default 1200x900)\n"
-            "  --script FILE    the gnuplot script as run\n"
+            "  --script FILE    the gnuplot script as run (its data blocks: $map, $bist, $lpc,\n"
+            "                   $pd, $cont)\n"
+            "  --curves FILE    overlay the LPC curves (solid black: the edges of the bistable\n"
+            "                   windows) and PD curves (dashed magenta: of the period-doubled\n"
+            "                   regions) of `afmtwin continue --param2 ... --json` on every\n"
+            "                   panel; its two parameters must be the map's x and y (either\n"
+            "                   order)\n"
+            "  --contour-force F  draw the contour where the shown direction's peak force is F\n"
+            "                   (N) on every panel (white; linear interpolation in each grid\n"
+            "                   cell, cells with a missing value left out)\n"
             "Exit status 0 ok, 1 gnuplot or a file failed, 2 bad usage or bad input.\n");
 }
 
@@ -171,7 +184,153 @@ static const char *axis_label(afmt_map_param p) {
                              : "drive amplitude Ae (nm)";
 }
 
-static int write_script(FILE *sf, const mplot_opts *o, const afmt_map_data *m, int d) {
+/* The LPC and PD curves of a `continue --param2 --json` file as gnuplot data (x y, in the
+ * map's plotting units), one block per curve side separated by blank lines; side 1 starts
+ * again at the curve's start point so that the two sides draw as one line. *lpc and *pd are
+ * malloc'd text (the caller frees them), *np the curve points read. 0, or -1 with err (cannot
+ * read the file, a bad record, curves in other parameters than the map's). */
+static int read_curves(const char *path, const afmt_map_data *m, char **lpc, char **pd, int *np,
+                       char *err, size_t errlen) {
+    *lpc = *pd = NULL;
+    *np = 0;
+    FILE *f = fopen(path, "r");
+    if (!f) {
+        snprintf(err, errlen, "cannot read %s", path);
+        return -1;
+    }
+    size_t ll = 0, pl = 0;
+    FILE *out[2] = {open_memstream(lpc, &ll), open_memstream(pd, &pl)};
+    char *line = NULL;
+    size_t cap = 0;
+    int rc = 0, lineno = 0, cur = -1, side = -1;
+    double start[2] = {NAN, NAN};
+    const double sx = axis_scale(m->x.param), sy = axis_scale(m->y.param);
+    if (!out[0] || !out[1]) rc = -1;
+    while (!rc && getline(&line, &cap, f) > 0) {
+        lineno++;
+        if (strspn(line, " \t\r\n") == strlen(line)) continue;
+        cJSON *o = cJSON_Parse(line);
+        const cJSON *t = o ? cJSON_GetObjectItemCaseSensitive(o, "type") : NULL;
+        if (!cJSON_IsString(t)) {
+            snprintf(err, errlen, "%s:%d: not a record of `afmtwin continue --json`", path, lineno);
+            rc = -1;
+        } else if (!strcmp(t->valuestring, "curve_point")) {
+            const cJSON *n1 = cJSON_GetObjectItemCaseSensitive(o, "param_name"),
+                        *n2 = cJSON_GetObjectItemCaseSensitive(o, "param2_name"),
+                        *v1 = cJSON_GetObjectItemCaseSensitive(o, "param"),
+                        *v2 = cJSON_GetObjectItemCaseSensitive(o, "param2"),
+                        *kd = cJSON_GetObjectItemCaseSensitive(o, "kind"),
+                        *cv = cJSON_GetObjectItemCaseSensitive(o, "curve"),
+                        *sd = cJSON_GetObjectItemCaseSensitive(o, "side");
+            int p1 = cJSON_IsString(n1) ? afmt_map_param_parse(n1->valuestring) : -1;
+            int p2 = cJSON_IsString(n2) ? afmt_map_param_parse(n2->valuestring) : -1;
+            if (p1 < 0 || p2 < 0 || !cJSON_IsNumber(v1) || !cJSON_IsNumber(v2) ||
+                !cJSON_IsString(kd) || !cJSON_IsNumber(cv) || !cJSON_IsNumber(sd)) {
+                snprintf(err, errlen,
+                         "%s:%d: a curve_point without param_name/param2_name (fe, z or ae), "
+                         "param, param2, kind, curve or side",
+                         path, lineno);
+                rc = -1;
+            } else if (!((p1 == (int)m->x.param && p2 == (int)m->y.param) ||
+                         (p1 == (int)m->y.param && p2 == (int)m->x.param))) {
+                snprintf(err, errlen, "%s:%d: curves in (%s, %s), the map is in (%s, %s)", path,
+                         lineno, n1->valuestring, n2->valuestring, afmt_map_param_name(m->x.param),
+                         afmt_map_param_name(m->y.param));
+                rc = -1;
+            } else {
+                bool swap = p1 != (int)m->x.param;
+                double x = (swap ? v2 : v1)->valuedouble * sx,
+                       y = (swap ? v1 : v2)->valuedouble * sy;
+                FILE *g = out[!strcmp(kd->valuestring, "PD")];
+                if (cv->valueint != cur) {
+                    fprintf(g, "\n");
+                    start[0] = x;
+                    start[1] = y;
+                } else if (sd->valueint != side) {
+                    fprintf(g, "\n%.10g %.10g\n", start[0], start[1]);
+                }
+                cur = cv->valueint;
+                side = sd->valueint;
+                fprintf(g, "%.10g %.10g\n", x, y);
+                (*np)++;
+            }
+        }
+        cJSON_Delete(o);
+    }
+    free(line);
+    fclose(f);
+    for (int k = 0; k < 2; k++)
+        if (out[k] && fclose(out[k])) rc = -1;
+    if (!rc && *np == 0) {
+        snprintf(err, errlen, "%s has no curve_point record (afmtwin continue --param2 --json)",
+                 path);
+        rc = -1;
+    }
+    if (rc) {
+        if (!err[0]) snprintf(err, errlen, "out of memory reading %s", path);
+        free(*lpc);
+        free(*pd);
+        *lpc = *pd = NULL;
+    }
+    return rc;
+}
+
+/* The contour v = level of the grid v[iy * nx + ix] (ny rows) by marching squares: per cell
+ * the crossings of its edges, linearly interpolated, joined in pairs (a saddle resolved by the
+ * cell's mean); a cell with a NaN corner is left out. Segments "x y\nx y\n\n" in the axes'
+ * plotting units. Returns the number of segments. */
+static int write_contour(FILE *sf, const afmt_map_data *m, const double *v, int ny, double level) {
+    const int nx = m->x.n;
+    const double sx = axis_scale(m->x.param), sy = axis_scale(m->y.param);
+    int nseg = 0;
+    for (int iy = 0; iy + 1 < ny; iy++)
+        for (int ix = 0; ix + 1 < nx; ix++) {
+            /* corners counter-clockwise from (ix, iy); edge e joins corner e and e + 1 */
+            const int cx[4] = {ix, ix + 1, ix + 1, ix}, cy[4] = {iy, iy, iy + 1, iy + 1};
+            double c[4], px[4], py[4];
+            bool ok = true;
+            for (int k = 0; k < 4; k++) {
+                c[k] = v[(size_t)cy[k] * nx + cx[k]];
+                ok = ok && isfinite(c[k]);
+            }
+            if (!ok) continue;
+            int edge[4], ne = 0;
+            for (int e = 0; e < 4; e++) {
+                int a = e, b = (e + 1) % 4;
+                if ((c[a] >= level) == (c[b] >= level)) continue;
+                double t = (level - c[a]) / (c[b] - c[a]);
+                px[e] =
+                    afmt_map_axis_value(&m->x, cx[a]) * sx +
+                    t * (afmt_map_axis_value(&m->x, cx[b]) - afmt_map_axis_value(&m->x, cx[a])) *
+                        sx;
+                py[e] =
+                    afmt_map_axis_value(&m->y, cy[a]) * sy +
+                    t * (afmt_map_axis_value(&m->y, cy[b]) - afmt_map_axis_value(&m->y, cy[a])) *
+                        sy;
+                edge[ne++] = e;
+            }
+            int pairs[2][2] = {{edge[0], edge[1]}, {-1, -1}};
+            if (ne == 4) { /* a saddle: corners 0 and 2 on one side, 1 and 3 on the other */
+                bool centre = 0.25 * (c[0] + c[1] + c[2] + c[3]) >= level;
+                if (centre == (c[0] >= level)) { /* corners 1 and 3 cut off */
+                    pairs[0][0] = 0, pairs[0][1] = 1, pairs[1][0] = 2, pairs[1][1] = 3;
+                } else { /* corners 0 and 2 cut off */
+                    pairs[0][0] = 3, pairs[0][1] = 0, pairs[1][0] = 1, pairs[1][1] = 2;
+                }
+            } else if (ne != 2) {
+                continue;
+            }
+            for (int k = 0; k < 2 && pairs[k][0] >= 0; k++) {
+                fprintf(sf, "%.10g %.10g\n%.10g %.10g\n\n", px[pairs[k][0]], py[pairs[k][0]],
+                        px[pairs[k][1]], py[pairs[k][1]]);
+                nseg++;
+            }
+        }
+    return nseg;
+}
+
+static int write_script(FILE *sf, const mplot_opts *o, const afmt_map_data *m, int d,
+                        const char *lpc, const char *pd) {
     const double sx = axis_scale(m->x.param), sy = axis_scale(m->y.param);
     bool svg = o->out && strlen(o->out) > 4 && !strcmp(o->out + strlen(o->out) - 4, ".svg");
     fprintf(sf, "set terminal %s size %d,%d noenhanced\nset output '%s'\n",
@@ -202,31 +361,69 @@ static int write_script(FILE *sf, const mplot_opts *o, const afmt_map_data *m, i
             }
     if (!nb) fprintf(sf, "NaN NaN\n");
     fprintf(sf, "EOD\n");
+    /* the overlays: LPC and PD curves (--curves), the peak-force contour (--contour-force) */
+    char over[1024] = "";
+    size_t ol = 0;
+    if (lpc) {
+        fprintf(sf, "$lpc << EOD\n%s%sEOD\n$pd << EOD\n%s%sEOD\n", lpc, *lpc ? "" : "NaN NaN\n", pd,
+                *pd ? "" : "NaN NaN\n");
+        ol += snprintf(over + ol, sizeof over - ol,
+                       ", $lpc using 1:2 with lines lw 2.5 lc rgb 'black' notitle, $pd using 1:2 "
+                       "with lines lw 2 dt 2 lc rgb '#ff00ff' notitle");
+    }
+    if (!isnan(o->contour_n)) {
+        size_t np = (size_t)m->x.n * m->lines;
+        double *v = malloc((np ? np : 1) * sizeof *v);
+        if (!v) return -1;
+        for (size_t i = 0; i < np; i++)
+            v[i] = m->pts[d][i].peak_force_n * 1e9;
+        fprintf(sf, "$cont << EOD\n");
+        int nseg = write_contour(sf, m, v, m->lines, o->contour_n * 1e9);
+        if (!nseg) fprintf(sf, "NaN NaN\n");
+        fprintf(sf, "EOD\n");
+        free(v);
+        ol += snprintf(over + ol, sizeof over - ol,
+                       ", $cont using 1:2 with lines lw 2.5 lc rgb 'white' notitle");
+    }
+    /* two title lines: what the map is, then what the marks and lines are (no key: it would
+     * hide part of a panel) */
     fprintf(sf,
-            "set multiplot layout 2,2 title 'afmtwin map %s (%s sweep, %d x %d%s): x marks "
-            "bistable points, dots unsettled'\n",
+            "set multiplot layout 2,2 title 'afmtwin map %s (%s sweep, %d x %d%s)'.\"\\n\"."
+            "'white x: bistable points, black dots: unsettled",
             m->config, d ? "down" : "up", m->x.n, m->y.n, m->lines < m->y.n ? ", partial" : "");
+    if (lpc && *lpc) fprintf(sf, "; black lines: LPC curves");
+    if (pd && *pd) fprintf(sf, "; dashed magenta: PD curves");
+    if (!isnan(o->contour_n)) fprintf(sf, "; white line: peak force %.4g nN", o->contour_n * 1e9);
+    fprintf(sf, "'\n");
     fprintf(sf, "set xlabel '%s'\nset ylabel '%s'\nset palette rgb 33,13,10\n",
             axis_label(m->x.param), axis_label(m->y.param));
+    /* the picture's extent: the map's pixels (curves outside it are clipped) */
+    double ex[2], ey[2];
+    gsf_axis(&m->x, &ex[1], &ex[0]);
+    gsf_axis(&m->y, &ey[1], &ey[0]);
+    fprintf(sf, "set xrange [%.10g:%.10g]\nset yrange [%.10g:%.10g]\n", ex[0] * sx,
+            (ex[0] + ex[1]) * sx, ey[0] * sy, (ey[0] + ey[1]) * sy);
     const int show[4] = {2, 0, 1, 7};
     for (int k = 0; k < 4; k++) {
         fprintf(sf,
                 "set title '%s'\nplot $map using 1:2:%d with image notitle, "
                 "$bist using 1:2 with points pt 2 ps 1.2 lc rgb 'white' notitle, "
                 "$map using 1:($7 > 0.5 ? NaN : $2) with points pt 7 ps 0.4 lc rgb 'black' "
-                "notitle\n",
-                quantities[show[k]].label, 3 + k);
+                "notitle%s\n",
+                quantities[show[k]].label, 3 + k, over);
     }
     fprintf(sf, "unset multiplot\nset output\n");
     return 0;
 }
 
 int afm_cmd_plot_map(int argc, char **argv) {
-    mplot_opts o = {.width = 1200, .height = 900};
+    mplot_opts o = {.width = 1200, .height = 900, .contour_n = NAN};
     const afmt_opt opts[] = {
         AFMT_STRING("--out", &o.out),
         AFMT_STRING("--gsf", &o.gsf),
         AFMT_STRING("--script", &o.script),
+        AFMT_STRING("--curves", &o.curves),
+        AFMT_DOUBLE_ABOVE("--contour-force", &o.contour_n, 0, 1, "a force in N, 0 < F <= 1"),
         AFMT_FN("--direction", parse_dir, &o.dir_word, "up or down"),
         AFMT_FN("--size", parse_size, &o, "WxH, 200..10000 pixels each"),
         AFMT_ARG("MAPFILE", &o.in),
@@ -259,10 +456,19 @@ int afm_cmd_plot_map(int argc, char **argv) {
             afmt_map_data_destroy(&m);
             return 2;
         }
-        char *script = NULL;
+        char *script = NULL, *lpc = NULL, *pd = NULL;
         size_t len = 0;
+        if (o.curves) {
+            int np;
+            err[0] = 0;
+            if (read_curves(o.curves, &m, &lpc, &pd, &np, err, sizeof err)) {
+                fprintf(stderr, "afmtwin plot map: %s\n", err);
+                afmt_map_data_destroy(&m);
+                return 2;
+            }
+        }
         FILE *sf = open_memstream(&script, &len);
-        if (!sf || write_script(sf, &o, &m, d) || fclose(sf)) status = 1;
+        if (!sf || write_script(sf, &o, &m, d, lpc, pd) || fclose(sf)) status = 1;
         if (!status && o.script) {
             FILE *f = fopen(o.script, "w");
             if (!f || fwrite(script, 1, len, f) != len || fclose(f)) {
@@ -283,6 +489,8 @@ int afm_cmd_plot_map(int argc, char **argv) {
             status = 1;
         }
         free(script);
+        free(lpc);
+        free(pd);
     }
     afmt_map_data_destroy(&m);
     return status;

@@ -98,13 +98,23 @@ static void plot_usage(FILE *f) {
             "            sweep: amplitude (half peak-to-peak of xr), lock-in phase lag and the\n"
             "            largest tip-sample force against fe; steps with periodicity p > 1\n"
             "            marked o and labelled with p, steps that did not settle (settled\n"
-            "            false or periodicity 0) marked x\n"
+            "            false or periodicity 0) marked x; the energy dissipated in the last\n"
+            "            period by the tip-sample forces (E_ts) and, where a record has it, by\n"
+            "            the squeeze film (E_sq, its own panel under E_ts). Columns: fe[kHz]\n"
+            "            amplitude[nm] lag[deg] max_force[nN] periodicity settled[0/1]\n"
+            "            dissipated[eV] (E_ts) squeeze_dissipated[eV] (E_sq)\n"
             "  approach  INPUT: afmtwin approach --json output: amplitude, phase lag, the\n"
             "            repulsive peak max(F, 0) and the attractive peak min(F, 0) of the\n"
-            "            tip-sample force, and the dissipated energy against Z, approach and\n"
+            "            tip-sample force, and the energy dissipated per period by the\n"
+            "            tip-sample forces (E_ts) and, where a record has it, by the squeeze\n"
+            "            film (E_sq, its own panel under E_ts) against Z, approach and\n"
             "            retract; each jump an arrow from its last point on the old branch to\n"
-            "            its first on the new one (z_before_m to z_after_m); p > 1 and\n"
-            "            unsettled steps marked as in sweep\n"
+            "            its first on the new one (z_before_m to z_after_m; none for a change\n"
+            "            of regime with no jump, sharp false); p > 1 and unsettled steps\n"
+            "            marked as in sweep. Columns: Z[nm] amplitude[nm] lag[deg]\n"
+            "            repulsive_peak[nN] attractive_peak[nN] dissipated[eV] (E_ts)\n"
+            "            indentation[nm] max_force[nN] min_force[nN] virial[eV] periodicity\n"
+            "            settled[0/1] squeeze_dissipated[eV] (E_sq); set J the jumps\n"
             "  thermal   INPUT: a PSD from afmtwin thermal --psd; --fit FILE: its --json\n"
             "            output, whose eq. 5.1 fit per mode is drawn over the PSD (its config\n"
             "            names the model in the title unless --config does)\n"
@@ -140,9 +150,12 @@ static void plot_usage(FILE *f) {
             "                     approach's Z and A0, the continuation parameter)\n"
             "  --fe HZ, --ae M, --z M  the run's own --fe, --ae or --z where it overrode the\n"
             "                     config's (trace: --z is the Z of the gap, and the title's)\n"
-            "  --data FILE        the plotted columns: blank-line separated data sets, each\n"
-            "                     with a '# NAME: COLUMN[UNIT]...' header (a FILE ending in\n"
-            "                     .csv is written as --csv)\n"
+            "  --data FILE        the plotted columns: the title and its notes as '# ' lines,\n"
+            "                     then the data sets, two blank lines apart, each under a\n"
+            "                     '# NAME (CURVE): COLUMN[UNIT] ...' line (CURVE for the\n"
+            "                     curves the CSV holds, e.g. approach, retract), its rows\n"
+            "                     space separated, NaN for no value (a FILE ending in .csv\n"
+            "                     is written as --csv)\n"
             "  --csv FILE         the plotted curve(s) as CSV: one header line of column\n"
             "                     names with their units, e.g. 'fe (kHz),amplitude (nm)', then\n"
             "                     one line per point; a first column 'curve (name)' names the\n"
@@ -448,6 +461,49 @@ static void shared_x(FILE *gp, int i, int n, const char *xlabel) {
         fprintf(gp, "set format x\nset xlabel '%s'\n", xlabel);
 }
 
+/* y tics for a short panel of column col of the sets: 2 to 5 labels over px pixels (the
+ * default would crowd them); the default where the column has no span. */
+static void short_ytics(FILE *gp, plot_set *const *sets, int n, int col, double px) {
+    double lo = INFINITY, hi = -INFINITY;
+    for (int i = 0; i < n; i++)
+        for (size_t r = 0; sets[i] && r < sets[i]->n; r++) {
+            double v = cell(sets[i], r, col);
+            if (isfinite(v)) lo = fmin(lo, v), hi = fmax(hi, v);
+        }
+    if (!(hi > lo)) return;
+    int most = (int)(px / 28.0); /* intervals over the span */
+    most = most < 2 ? 2 : most > 5 ? 5 : most;
+    double step = pow(10, floor(log10((hi - lo) / most)));
+    static const double m[4] = {1, 2, 5, 10};
+    for (int i = 0; i < 4; i++)
+        if ((hi - lo) / (step * m[i]) <= most + 1e-9) {
+            step *= m[i];
+            break;
+        }
+    fprintf(gp, "set ytics %.6g\n", step);
+}
+
+/* Panel p of a 2 x 2 grid (0 top left, 1 top right, 2, 3 below), or with split the last
+ * cell cut into two panels sharing x, p 3 over p 4 (the energies, E_ts over E_sq). Sets
+ * the x tic labels and xlabel as shared_x; returns the panel's height in pixels. */
+static double grid_cell(FILE *gp, const plot_data *d, int p, bool split, double l, double r,
+                        double top, const char *xlabel) {
+    /* rows apart by more than shared x needs: each has its x tics' marks */
+    const double bottom = PX_BOTTOM / d->H, gap = (PX_GAP + 12) / d->H;
+    const double cell_h = (top - bottom - gap) / 2, half = (cell_h - PX_GAP / d->H) / 2;
+    const int cx = p < 4 ? p % 2 : 1;
+    double pl = cx ? 0.5 + (PX_LEFT + 15) / d->W : l, pr = cx ? r : 0.5 - 30 / d->W;
+    if (split && p >= 3) {
+        area(gp, pl, pr, p == 3 ? bottom + cell_h - half : bottom,
+             p == 3 ? bottom + cell_h : bottom + half);
+        shared_x(gp, p - 3, 2, xlabel);
+        return half * d->H;
+    }
+    stack(gp, p / 2, 2, pl, pr, bottom, top, gap);
+    shared_x(gp, p / 2, 2, xlabel);
+    return cell_h * d->H;
+}
+
 /* ---- sweep ---- */
 
 static const char *const plot_colour[PLOT_MAX_INPUTS] = {
@@ -458,10 +514,13 @@ typedef struct {
     plot_info *pi;
     double first, last;
     int n;
+    bool *squeeze; /* a record with squeeze film dissipation (its panel is drawn) */
 } sweep_ctx;
 
+#define SWEEP_COLS 8
 #define SWEEP_HEADER                                                                               \
-    "fe[kHz] amplitude[nm] lag[deg] max_force[nN] periodicity[periods] settled[0/1]"
+    "fe[kHz] amplitude[nm] lag[deg] max_force[nN] periodicity[periods] settled[0/1] "              \
+    "dissipated[eV] squeeze_dissipated[eV]"
 
 static int sweep_row(const cJSON *o, void *vctx) {
     sweep_ctx *c = vctx;
@@ -471,7 +530,13 @@ static int sweep_row(const cJSON *o, void *vctx) {
     double lag = num(lk, "phase_deg"), p = num(o, "periodicity");
     if (isnan(fe)) return plot_err("%s", "a sweep record without fe_hz (is it sweep --json?)");
     bool settled = is_true(o, "settled");
-    double row[6] = {fe * 1e-3, amp * 1e9, lag, num(o, "max_force_n") * 1e9, p, settled ? 1 : 0};
+    /* the last period's energies (cycle is null before a whole period was seen) */
+    const cJSON *cy = cJSON_GetObjectItemCaseSensitive(o, "cycle");
+    double ets = num(cy, "dissipated_energy_j") / PLOT_EV,
+           esq = num(cy, "squeeze_dissipated_energy_j") / PLOT_EV;
+    if (isfinite(esq) && esq != 0.0) *c->squeeze = true;
+    double row[SWEEP_COLS] = {fe * 1e-3, amp * 1e9,       lag, num(o, "max_force_n") * 1e9,
+                              p,         settled ? 1 : 0, ets, esq};
     if (set_row(c->all, row)) return -1;
     if (c->n++ == 0) c->first = fe;
     c->last = fe;
@@ -482,14 +547,22 @@ static int sweep_row(const cJSON *o, void *vctx) {
 }
 
 static int load_sweep(const plot_opts *o, plot_data *d, FILE *gp) {
-    plot_set *pm = set_new(d, "PM", SWEEP_HEADER, 6), *um = set_new(d, "UM", SWEEP_HEADER, 6);
+    plot_set *pm = set_new(d, "PM", SWEEP_HEADER, SWEEP_COLS),
+             *um = set_new(d, "UM", SWEEP_HEADER, SWEEP_COLS);
     plot_set *s[PLOT_MAX_INPUTS];
+    bool squeeze = false;
     if (!pm || !um) return -1;
     for (int i = 0; i < o->n_in; i++) {
         char name[16];
         snprintf(name, sizeof name, "S%d", i);
-        sweep_ctx c = {
-            s[i] = curve_new(d, name, "", SWEEP_HEADER, 6), pm, um, &d->info, NAN, NAN, 0};
+        sweep_ctx c = {s[i] = curve_new(d, name, "", SWEEP_HEADER, SWEEP_COLS),
+                       pm,
+                       um,
+                       &d->info,
+                       NAN,
+                       NAN,
+                       0,
+                       &squeeze};
         if (!c.all || each_json(o->in[i], sweep_row, &c)) return -1;
         snprintf(s[i]->label, sizeof s[i]->label, "%s",
                  c.n < 2            ? "one step"
@@ -515,28 +588,42 @@ static int load_sweep(const plot_opts *o, plot_data *d, FILE *gp) {
                 "set style line 12 lc rgb 'black' lw 1.5 pt 2 ps 1.6\n");
     if (pm->n) key_add(&k, "with points ls 11", "period p > 1 (p labelled)");
     if (um->n) key_add(&k, "with points ls 12", "not settled (or periodicity 0)");
+    snprintf(d->note, sizeof d->note, "%s",
+             squeeze ? "energy dissipated per period in the last period: E_ts by the tip-sample "
+                       "forces, E_sq by the squeeze film (air under the beam)"
+                     : "E_ts: the energy the tip-sample forces dissipate in the last period");
     const double l = PX_LEFT / d->W, r = 1 - PX_RIGHT / d->W;
     double top = figure(gp, d, &k, l, r);
-    static const char *const ylab[3] = {"amplitude (nm)", "phase lag (deg)",
-                                        "max tip-sample force (nN)"};
-    for (int p = 0; p < 3; p++) {
-        stack(gp, p, 3, l, r, PX_BOTTOM / d->H, top, PX_GAP / d->H);
-        shared_x(gp, p, 3, "drive frequency fe (kHz)");
+    /* the energies per period in panels of their own: E_ts (tip-sample) and, where a
+     * record has it, E_sq (the squeeze film on the beam), often 10^3 times larger */
+    static const struct {
+        const char *ylab;
+        int col;
+    } panel[5] = {{"amplitude (nm)", 2},
+                  {"phase lag (deg)", 3},
+                  {"max tip-sample force (nN)", 4},
+                  {"E_ts tip-sample (eV)", 7},
+                  {"E_sq (eV)", 8}};
+    for (int p = 0; p < (squeeze ? 5 : 4); p++) {
+        const int col = panel[p].col;
+        double px = grid_cell(gp, d, p, squeeze, l, r, top, "drive frequency fe (kHz)");
+        fprintf(gp, "set ytics autofreq\n");
+        if (squeeze && p >= 3) short_ytics(gp, s, o->n_in, col - 1, px);
         /* room over the top points for their p labels */
         fprintf(gp, "set offsets 0, 0, graph %g, 0\nset ylabel '%s'\nplot ",
-                p == 0 && pm->n ? 0.12 : 0.0, ylab[p]);
+                p == 0 && pm->n ? 0.12 : 0.0, squeeze && p == 3 ? "E_ts (eV)" : panel[p].ylab);
         for (int i = 0; i < o->n_in; i++)
-            fprintf(gp, "%s$S%d using 1:%d with linespoints ls %d notitle", i ? ", " : "", i, p + 2,
+            fprintf(gp, "%s$S%d using 1:%d with linespoints ls %d notitle", i ? ", " : "", i, col,
                     i + 1);
         if (pm->n) {
-            fprintf(gp, ", $PM using 1:%d with points ls 11 notitle", p + 2);
+            fprintf(gp, ", $PM using 1:%d with points ls 11 notitle", col);
             if (p == 0)
                 fprintf(gp,
                         ", $PM using 1:%d:(sprintf('p %%d', $5)) with labels offset 0,1.3 "
                         "tc rgb 'red' notitle",
-                        p + 2);
+                        col);
         }
-        if (um->n) fprintf(gp, ", $UM using 1:%d with points ls 12 notitle", p + 2);
+        if (um->n) fprintf(gp, ", $UM using 1:%d with points ls 12 notitle", col);
         fprintf(gp, "\n");
     }
     fprintf(gp, "unset multiplot\n");
@@ -545,16 +632,17 @@ static int load_sweep(const plot_opts *o, plot_data *d, FILE *gp) {
 
 /* ---- approach ---- */
 
-#define APPROACH_COLS 12
+#define APPROACH_COLS 13
 #define APPROACH_HEADER                                                                            \
     "Z[nm] amplitude[nm] lag[deg] repulsive_peak[nN] attractive_peak[nN] "                         \
     "dissipated[eV] indentation[nm] max_force[nN] min_force[nN] virial[eV] "                       \
-    "periodicity[periods] settled[0/1]"
+    "periodicity[periods] settled[0/1] squeeze_dissipated[eV]"
 
 typedef struct {
     plot_set *app, *ret, *jump, *pm, *um;
     plot_info *pi;
     int jumps[2]; /* approach, retract */
+    bool squeeze; /* a record with squeeze film dissipation (E_sq is drawn) */
 } approach_ctx;
 
 static int approach_row(const cJSON *o, void *vctx) {
@@ -562,14 +650,18 @@ static int approach_row(const cJSON *o, void *vctx) {
     const cJSON *j = cJSON_GetObjectItemCaseSensitive(o, "jump");
     if (j) {
         bool ret = str_is(j, "direction", "retract");
-        double row[7] = {num(j, "z_before_m") * 1e9,
+        /* a change of regime with no jump of the branch (a crossover) gets no arrow; files
+         * from before the key existed had only jumps */
+        bool sharp = !cJSON_GetObjectItemCaseSensitive(j, "sharp") || is_true(j, "sharp");
+        double row[8] = {num(j, "z_before_m") * 1e9,
                          num(j, "z_after_m") * 1e9,
                          num(j, "amplitude_before_m") * 1e9,
                          num(j, "amplitude_after_m") * 1e9,
                          num(j, "phase_before_deg"),
                          num(j, "phase_after_deg"),
-                         ret ? 1 : 0};
-        c->jumps[ret]++;
+                         ret ? 1 : 0,
+                         sharp ? 1 : 0};
+        c->jumps[ret] += sharp;
         return set_row(c->jump, row);
     }
     double z = num(o, "z_m");
@@ -581,7 +673,8 @@ static int approach_row(const cJSON *o, void *vctx) {
     }
     bool ret = str_is(o, "direction", "retract"), settled = is_true(o, "settled");
     double fmax = num(o, "peak_force_n") * 1e9, fmin = num(o, "attractive_force_n") * 1e9,
-           p = num(o, "periodicity");
+           p = num(o, "periodicity"), esq = num(o, "squeeze_dissipated_energy_j") / PLOT_EV;
+    if (isfinite(esq) && esq != 0.0) c->squeeze = true;
     double row[APPROACH_COLS] = {z * 1e9,
                                  num(o, "amplitude_m") * 1e9,
                                  num(o, "phase_lag_deg"),
@@ -593,7 +686,8 @@ static int approach_row(const cJSON *o, void *vctx) {
                                  fmin,
                                  num(o, "virial_j") / PLOT_EV,
                                  p,
-                                 settled ? 1 : 0};
+                                 settled ? 1 : 0,
+                                 esq};
     if (settled && p > 1 && set_row(c->pm, row)) return -1;
     if ((!settled || p == 0) && set_row(c->um, row)) return -1;
     return set_row(ret ? c->ret : c->app, row);
@@ -604,12 +698,13 @@ static int load_approach(const plot_opts *o, plot_data *d, FILE *gp) {
                       curve_new(d, "R", "retract", APPROACH_HEADER, APPROACH_COLS),
                       set_new(d, "J",
                               "Z_before[nm] Z_after[nm] amplitude_before[nm] amplitude_after[nm] "
-                              "lag_before[deg] lag_after[deg] retract[0/1]",
-                              7),
+                              "lag_before[deg] lag_after[deg] retract[0/1] sharp[0/1]",
+                              8),
                       set_new(d, "PM", APPROACH_HEADER, APPROACH_COLS),
                       set_new(d, "UM", APPROACH_HEADER, APPROACH_COLS),
                       &d->info,
-                      {0, 0}};
+                      {0, 0},
+                      false};
     if (!c.app || !c.ret || !c.jump || !c.pm || !c.um || each_json(o->in[0], approach_row, &c))
         return -1;
     if (c.app->n + c.ret->n == 0) return plot_err("%s: no approach records", o->in[0]);
@@ -632,20 +727,34 @@ static int load_approach(const plot_opts *o, plot_data *d, FILE *gp) {
     if (c.um->n) key_add(&k, "with points ls 12", "not settled (or periodicity 0)");
     key_add(&k, "with lines lw 1.5 lc rgb 'black'", "force: repulsive peak max(F, 0)");
     key_add(&k, "with lines lw 1.5 dt 2 lc rgb 'black'", "force: attractive peak min(F, 0)");
+    snprintf(d->note, sizeof d->note, "%s",
+             c.squeeze ? "energy dissipated per period: E_ts by the tip-sample forces (0 if "
+                         "conservative), E_sq by the squeeze film (air under the beam)"
+                       : "E_ts: the energy the tip-sample forces dissipate per period (0 for "
+                         "conservative forces, but for the integration's noise)");
     const double l = PX_LEFT / d->W, r = 1 - PX_RIGHT / d->W;
     double top = figure(gp, d, &k, l, r);
+    /* 2 x 2 panels; with a squeeze film the last cell holds E_ts over E_sq */
     static const struct {
         const char *ylab;
         int col, col2; /* a second column, drawn dashed (0: none) */
-    } panel[4] = {{"amplitude (nm)", 2, 0},
+    } panel[5] = {{"amplitude (nm)", 2, 0},
                   {"phase lag (deg)", 3, 0},
                   {"tip-sample force peaks (nN)", 4, 5},
-                  {"dissipated energy per period (eV)", 6, 0}};
-    for (int p = 0; p < 4; p++) {
-        double pl = p % 2 ? 0.5 + (PX_LEFT + 15) / d->W : l, pr = p % 2 ? r : 0.5 - 30 / d->W;
-        stack(gp, p / 2, 2, pl, pr, PX_BOTTOM / d->H, top, PX_GAP / d->H);
-        shared_x(gp, p / 2, 2, "separation Z (nm)");
-        fprintf(gp, "set ylabel '%s'\n%s", panel[p].ylab,
+                  {"E_ts tip-sample (eV)", 6, 0},
+                  {"E_sq (eV)", 13, 0}};
+    for (int p = 0; p < (c.squeeze ? 5 : 4); p++) {
+        double px = grid_cell(gp, d, p, c.squeeze, l, r, top, "separation Z (nm)");
+        const char *ylab = c.squeeze && p == 3 ? "E_ts (eV)" : panel[p].ylab;
+        fprintf(gp, "set ytics autofreq\n");
+        if (c.squeeze && p >= 3) {
+            plot_set *const all[2] = {c.app, c.ret};
+            short_ytics(gp, all, 2, panel[p].col - 1, px);
+        }
+        /* room for the jump arrows' heads over and under the curves */
+        fprintf(gp, "set offsets 0, 0, graph %g, graph %g\n", p < 2 ? 0.06 : 0.0,
+                p < 2 ? 0.06 : 0.0);
+        fprintf(gp, "set ylabel '%s'\n%s", ylab,
                 p >= 2 ? "set xzeroaxis lt -1 lw 0.5\n" : "unset xzeroaxis\n");
         const char *sep = "plot ";
         for (int pass = 0; pass < (panel[p].col2 ? 2 : 1); pass++) {
@@ -667,7 +776,8 @@ static int load_approach(const plot_opts *o, plot_data *d, FILE *gp) {
         for (int dir = 0; dir < 2 && p < 2; dir++)
             if (c.jumps[dir])
                 fprintf(gp,
-                        ", $J using 1:($7 == %d ? $%d : 1/0):($2 - $1):($%d - $%d) with vectors "
+                        ", $J using 1:($7 == %d && $8 == 1 ? $%d : 1/0):($2 - $1):($%d - $%d) "
+                        "with vectors "
                         "arrowstyle %d notitle",
                         dir, 3 + 2 * p, 4 + 2 * p, 3 + 2 * p, dir + 1);
         fprintf(gp, "\n");
@@ -984,9 +1094,10 @@ static int load_continue(const plot_opts *o, plot_data *d, FILE *gp) {
             s2 = 1e12;
         }
         char yl[128];
-        const char *n2 = !strcmp(c.name2, "fe")   ? "drive frequency fe"
-                         : !strcmp(c.name2, "z")  ? "separation Z"
-                         : !strcmp(c.name2, "ae") ? "drive amplitude Ae"
+        /* short: the panel is low, a long label would run past its ends */
+        const char *n2 = !strcmp(c.name2, "fe")   ? "fe"
+                         : !strcmp(c.name2, "z")  ? "Z"
+                         : !strcmp(c.name2, "ae") ? "drive Ae"
                          : c.name2[0]             ? c.name2
                                                   : "param2";
         snprintf(yl, sizeof yl, "%s (%s)", n2, scale_unit(s2));

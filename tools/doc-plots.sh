@@ -23,13 +23,15 @@ plot() {
   --max-periods 3000 >"$O/sweep-bwd.json"
 plot sweep "$O/sweep-fwd.json" "$O/sweep-bwd.json" --config config/thesis-1dof.conf \
   --title "a 1-DOF probe through its resonance, forward and backward"
-# approach: the lumped Q 300 probe at A0 20 nm, approach and retract through the jump
+# approach: the lumped Q 300 probe at A0 20 nm, approach and retract through the jump, in
+# 0.25 nm steps (its bistable window is ~0.3 nm wide: 1 nm steps jump between the same two
+# steps both ways and show no hysteresis)
 "$A" approach --config config/probe-q300.conf --ae 6.6667e-11 --from 22e-9 --to 4e-9 \
-  --step 1e-9 --retract --periods 3000 --json >"$O/approach.json"
+  --step 0.25e-9 --retract --periods 3000 --json >"$O/approach.json"
 plot approach "$O/approach.json" --config config/probe-q300.conf --ae 6.6667e-11 \
   --title "approach and retract at A0 20 nm"
-# spectrum: the harmonics of the approach's step at Z 10 nm
-plot spectrum "$O/approach.json" --index 12 --config config/probe-q300.conf --ae 6.6667e-11 \
+# spectrum: the harmonics of the approach's step at Z 10 nm (step record 48 from 0)
+plot spectrum "$O/approach.json" --index 48 --config config/probe-q300.conf --ae 6.6667e-11 \
   --title "the harmonics of one approach step"
 # thermal: a thermal tune of the 1-DOF probe and its eq. 5.1 fit
 "$A" thermal --config config/thesis-1dof.conf --seconds 0.5 --modes 1 --psd "$O/thermal.psd" \

@@ -118,6 +118,16 @@ void afm_lcm_status_msg(const afm_io_status *s, afmtwin_status_t *m) {
         .scheme_handovers = s->scheme_handovers,
         .model_s_accurate = s->model_s_accurate,
         .model_s_fast = s->model_s_fast,
+        .fm_control = (char *)(s->fm_control ? s->fm_control : "none"), /* issue 32 */
+        .fm_lock_state = (char *)(s->fm_lock_state ? s->fm_lock_state : ""),
+        .fm_frequency_hz = s->fm_frequency_hz,
+        .fm_reference_hz = s->fm_reference_hz,
+        .fm_frequency_shift_hz = s->fm_frequency_shift_hz,
+        .fm_phase_error_deg = s->fm_phase_error_deg,
+        .fm_drive_amplitude_m = s->fm_drive_amplitude_m,
+        .fm_amplitude_m = s->fm_amplitude_m,
+        .fm_amplitude_setpoint_m = s->fm_amplitude_setpoint_m,
+        .fm_tone_changes = s->fm_tone_changes,
     };
 }
 

@@ -850,7 +850,10 @@ static int load_fm(const loader *L, const config_setting_t *root, afm_cfg_fm *c)
                                        "amplitude_ki_hz",
                                        "drive_max_m",
                                        "update_samples",
+                                       "control",
                                        NULL};
+    static const char *const controls[] = {"none", "internal", NULL};
+    int control = (int)c->control;
     config_setting_t *g;
     if (get_feature(L, root, "fm", &g, &c->enabled)) return -1;
     if (!g) return 0;
@@ -867,8 +870,10 @@ static int load_fm(const loader *L, const config_setting_t *root, afm_cfg_fm *c)
         get_num(L, g, "amplitude_kp", false, &c->amplitude_kp, NULL) ||
         get_num(L, g, "amplitude_ki_hz", false, &c->amplitude_ki_hz, NULL) ||
         get_num(L, g, "drive_max_m", false, &c->drive_max_m, NULL) ||
-        get_int(L, g, "update_samples", false, &c->update_samples))
+        get_int(L, g, "update_samples", false, &c->update_samples) ||
+        get_choice(L, g, "control", false, controls, &control))
         return -1;
+    c->control = (afm_fm_control)control;
     return 0;
 }
 

@@ -244,6 +244,11 @@ typedef struct {
  * drive amplitude. Off (fm.enabled false) unless the config has an `fm` group; the offline
  * tools (`afmtwin approach --mode fm`) use these values, or the defaults, either way.
  * 0 for a gain or a time means "derived" (see config/README.md). */
+/* fm.control: AFM_FM_CONTROL_NONE, the daemon's tone 0 is what commands set (an outside FM
+ * controller streams dither commands); AFM_FM_CONTROL_INTERNAL, the daemon's runner runs the
+ * PLL and amplitude loops on tone 0 (runner/afm_runner.h) and refuses dither commands. */
+typedef enum { AFM_FM_CONTROL_NONE = 0, AFM_FM_CONTROL_INTERNAL = 1 } afm_fm_control;
+
 typedef struct {
     bool enabled;
     double phase_setpoint_deg;     /* lock-in lag the PLL holds, (0, 180); 90: resonance */
@@ -260,6 +265,7 @@ typedef struct {
     double amplitude_ki_hz;        /* drive m/s per m of error, >= 0; 0: derived */
     double drive_max_m;            /* the drive amplitude's limit, (0, 1e-6] */
     int update_samples;            /* controller update period (samples), 1..4096 */
+    afm_fm_control control;        /* the daemon: who moves tone 0 (default none) */
 } afm_cfg_fm;
 
 typedef struct {

@@ -404,6 +404,10 @@ static int check_fm(const afm_config *c, char *key, char *why, size_t why_len) {
          f->drive_max_m);
     NEED(f->update_samples >= 1 && f->update_samples <= 4096, "fm.update_samples",
          "must be in [1, 4096] (got %d)", f->update_samples);
+    NEED(f->control == AFM_FM_CONTROL_NONE || f->control == AFM_FM_CONTROL_INTERNAL, "fm.control",
+         "must be \"none\" or \"internal\" (got %d)", (int)f->control);
+    NEED(f->control == AFM_FM_CONTROL_NONE || f->enabled, "fm.control",
+         "\"internal\" needs the fm group enabled (fm.enabled = true)");
     if (f->enabled) {
         /* the lock-in's filter must leave the loops 45 deg of phase margin at crossover */
         double lag = c->lockin.order * atan(2.0 * 3.14159265358979323846 *

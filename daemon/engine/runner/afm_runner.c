@@ -19,6 +19,7 @@
 
 #include "forces/afm_force.h"
 #include "integrators/afm_sim_live.h"
+#include "runner/afm_fm.h"
 #include "runner/afm_spsc.h"
 #include "runner/afm_twin.h"
 
@@ -101,6 +102,17 @@ struct afm_runner {
     int64_t tick_seq, step_seq; /* the last tick and step commands applied (IT_DONE names
                                  * the one whose budget was used up) */
     ring_item *open;            /* reserved, being filled; committed at the end of every run */
+    /* internal FM control (fm.control = "internal", issue 32): the PLL and amplitude loops on
+     * tone 0, fed by a lock-in of their own on the front's samples (the chain's is on the
+     * other thread) */
+    bool fm_on;
+    bool fm_hold_pending; /* amplitude set-point 0: hold the amplitude of the first lock */
+    afm_fm fm;
+    afm_lockin fm_lk;
+    long long fm_tone_changes, fm_tone_refused;
+    double fm_u[SLOT], fm_th[SLOT]; /* one slice's deflection and reference phase */
+    double fm_th_next;              /* reference phase of the next sample (unwrapped) */
+    bool fm_th_ok;                  /* fm_th_next valid; else re-anchored from the drive */
     pending_item pending[PENDING_MAX];
     int n_pending;
     /* between */
@@ -369,6 +381,92 @@ static ring_item *open_item(afm_runner *r) {
     return it;
 }
 
+/* ---- internal FM control ----------------------------------------------------------- */
+
+/* Start (or, after a reload, restart) the FM loops of r->cfg on r->sim, or turn them off
+ * when the config does not ask for them. No allocation. 0, or -1 with err (nothing changed
+ * then but fm_on cleared). */
+static int fm_setup(afm_runner *r, char *err, size_t errlen) {
+    r->fm_on = false;
+    const afm_config *c = &r->cfg;
+    if (c->fm.control != AFM_FM_CONTROL_INTERNAL) return 0;
+    const afm_drive *d = afm_sim_drive(r->sim);
+    if (d->n < 1) {
+        afm_err_set(err, errlen, "fm.control = \"internal\": the drive has no tone 0 to control");
+        return -1;
+    }
+    afm_fm_plant p;
+    afm_fm_plant_of(afm_sim_model(r->sim), &p);
+    if (afm_lockin_init(&r->fm_lk, &c->lockin, afm_sim_dt(r->sim), err, errlen) ||
+        afm_fm_init(&r->fm, &c->fm, &c->lockin, &p, c->sim.sample_rate_hz, p.f0_hz, p.f0_hz,
+                    fmin(d->amp_m[0], c->fm.drive_max_m), err, errlen))
+        return -1;
+    if (afm_sim_set_tone(r->sim, 0, r->fm.drive_m, r->fm.freq_hz) != AFM_SIM_OK) {
+        afm_err_set(err, errlen, "fm: tone 0 (%g m, %g Hz) refused by the simulator", r->fm.drive_m,
+                    r->fm.freq_hz);
+        return -1;
+    }
+    r->fm_hold_pending = !(c->fm.amplitude_setpoint_m > 0);
+    r->fm_th_ok = false;
+    r->fm_on = true;
+    return 0;
+}
+
+/* After the k samples s[0..k) just run: feed the FM lock-in; at an update boundary (every
+ * update_samples samples counted from create) update the loops and set tone 0, phase
+ * continuous. The open item is committed first: an item carries one drive. */
+static void fm_after(afm_runner *r, const afm_sample *s, int k) {
+    /* The reference phase as the chain computes it: exact at the slice's first sample (the
+     * drive's fixed-point grid phase), then the rate times the sample count, so that it
+     * carries no rounding of t (afm_drive_phase's phi + w (t - t0) re-anchored at every
+     * tone change made the lock-in's tracker rebuild its tables sample after sample:
+     * docs/realtime.md, the collapse). */
+    const afm_drive *d = afm_sim_drive(r->sim);
+    if (k <= 0) return;
+    /* (Continuing one unwrapped phase across slices instead was slower: 0.36x real time
+     * against 0.62x on lumped-vdw-fold.conf, the tracker's tolerance growing with |theta|.) */
+    const double th0 = afm_drive_phase_mod(d, 0, s[0].t_s);
+    const double wdt = d->omega_rad_s[0] * afm_sim_dt(r->sim);
+    r->fm_th_next = th0 + wdt * k;
+    r->fm_th_ok = true;
+    for (int i = 0; i < k; i++) {
+        r->fm_u[i] = s[i].x_m;
+        r->fm_th[i] = th0 + wdt * i;
+    }
+    afm_lockin_push_n(&r->fm_lk, r->fm_u, r->fm_th, k);
+    const int u = r->fm.c.update_samples;
+    if (r->samples % u != 0) return;
+    double a, lag;
+    afm_lockin_polar(&r->fm_lk, &a, &lag);
+    double f_old = r->fm.freq_hz, d_old = r->fm.drive_m;
+    afm_fm_update(&r->fm, a, lag, u * afm_sim_dt(r->sim));
+    if (r->fm_hold_pending && r->fm.lock == AFM_FM_LOCKED) {
+        afm_fm_hold_amplitude(&r->fm, a);
+        r->fm_hold_pending = false;
+    }
+    (void)f_old;
+    (void)d_old;
+    /* The NCO's resolution: tone 0 moves only when the loop's frequency leaves the quantum
+     * it is in. A locked PLL moves by far less than that per update; each step costs the
+     * integrator a resync and every tone-0 estimator (here and in the chain) a table rebuild,
+     * which at every update took ~40 % of the per-sample budget on this VM. */
+    const double q = AFM_RUNNER_FM_NCO_HZ;
+    const double f_set = nearbyint(r->fm.freq_hz / q) * q;
+    const afm_drive *dn = afm_sim_drive(r->sim);
+    const double f_now = dn->omega_rad_s[0] / two_pi;
+    const bool f_move = fabs(f_set - f_now) >= 0.5 * q;
+    const bool d_move = fabs(r->fm.drive_m - dn->amp_m[0]) > AFM_RUNNER_FM_DRIVE_REL * dn->amp_m[0];
+    if (!f_move && !d_move) return;
+    commit_open(r);
+    if (afm_sim_set_tone(r->sim, 0, d_move ? r->fm.drive_m : dn->amp_m[0],
+                         f_move ? f_set : f_now) != AFM_SIM_OK) {
+        r->fm_tone_refused++; /* kept at the last tone 0 the simulator took */
+        return;
+    }
+    if (f_move) afm_lockin_retune(&r->fm_lk);
+    r->fm_tone_changes++;
+}
+
 /* ---- create / destroy --------------------------------------------------------------- */
 
 afm_runner *afm_runner_create_pipelined(const afm_config *cfg, int block_max, bool lockstep,
@@ -416,6 +514,12 @@ afm_runner *afm_runner_create_pipelined(const afm_config *cfg, int block_max, bo
         back_oppoint(r, d);
     }
     r->last_blowup_t_s = NAN;
+    if (fm_setup(r, err, errlen)) goto fail;
+    {
+        const afm_drive *d = afm_sim_drive(r->sim);
+        r->b_fe_hz = d->n > 0 ? d->omega_rad_s[0] / two_pi : 0.0;
+        back_oppoint(r, d);
+    }
     return r;
 fail:
     afm_runner_model_destroy(&m);
@@ -617,6 +721,12 @@ int afm_runner_apply(afm_runner *r, const afm_cmd *c, afm_runner_model **model, 
                     afm_cmd_kind_name(c->kind), r->n_pending);
         return AFM_RUNNER_EBUSY;
     }
+    if (c->kind == AFM_CMD_DITHER && r->fm_on) {
+        afm_err_set(err, errlen,
+                    "tone 0 is under the daemon's FM control (fm.control = \"internal\"); "
+                    "set fm.control = \"none\" to command the drive");
+        return -1;
+    }
     switch (c->kind) {
     case AFM_CMD_DITHER:
         if (apply_dither(r, &c->u.dither, err, errlen)) return -1;
@@ -638,6 +748,10 @@ int afm_runner_apply(afm_runner *r, const afm_cmd *c, afm_runner_model **model, 
             break;
         case AFM_CTL_RESET:
             afm_sim_reset(r->sim);
+            if (r->fm_on) {
+                afm_lockin_reset(&r->fm_lk);
+                r->fm_th_ok = false;
+            }
             emit(r, IT_RESET, NULL);
             r->ramping = false;
             break;
@@ -672,6 +786,9 @@ int afm_runner_apply(afm_runner *r, const afm_cmd *c, afm_runner_model **model, 
             if (swap_in(r, *model, 0, err, errlen)) return -1;
             *model = NULL;
             r->cfg = next;
+            /* the new config's FM (or none); a refusal leaves the drive of the file */
+            char ferr[AFM_ERR_LEN];
+            if (fm_setup(r, ferr, sizeof ferr)) r->fm_tone_refused++;
         }
         r->ramping = false;
         break;
@@ -742,12 +859,20 @@ long long afm_runner_run(afm_runner *r, long long n) {
             long long to_edge = AFM_RUNNER_RAMP_SAMPLES - r->samples % AFM_RUNNER_RAMP_SAMPLES;
             if (k > to_edge) k = to_edge;
         }
+        if (r->fm_on) {
+            long long to_upd = r->fm.c.update_samples - r->samples % r->fm.c.update_samples;
+            if (k > to_upd) k = to_upd;
+        }
         double t0 = afm_sim_time(r->sim);
         int rc = afm_sim_run(r->sim, (int)k, it->s + it->n);
         long long adv = k;
         if (rc == AFM_SIM_OK) {
             it->n += (int)k;
         } else {
+            if (r->fm_on) {
+                afm_lockin_reset(&r->fm_lk);
+                r->fm_th_ok = false;
+            }
             /* The simulator reset itself to rest; its clock counts the steps it took. The
              * samples of this slice are dropped; the chain starts over. */
             adv = llround((afm_sim_time(r->sim) - t0) / afm_sim_dt(r->sim));
@@ -765,6 +890,7 @@ long long afm_runner_run(afm_runner *r, long long n) {
         }
         r->samples += adv;
         done += adv;
+        if (r->fm_on && rc == AFM_SIM_OK) fm_after(r, it->s + it->n - k, (int)k);
         if (r->blowup_streak >= AFM_RUNNER_BLOWUP_PAUSE && r->running) {
             /* A blow-up that recurs: pause instead of spinning through resets. */
             r->running = false;
@@ -827,6 +953,22 @@ void afm_runner_status_get(const afm_runner *r, afm_runner_status *st) {
     st->swaps = r->swaps;
     st->stalls = r->stalls;
     st->pending = (long long)afm_spsc_count((afm_spsc *)&r->ring) + r->n_pending;
+    st->fm_on = r->fm_on;
+    if (r->fm_on) {
+        st->fm_lock = (int)r->fm.lock;
+        st->fm_frequency_hz = r->fm.freq_hz;
+        st->fm_reference_hz = r->fm.f_center_hz;
+        st->fm_phase_error_deg = r->fm.phase_error_deg;
+        st->fm_drive_m = r->fm.drive_m;
+        st->fm_amplitude_m = r->fm.amplitude_m;
+        st->fm_amplitude_setpoint_m = r->fm.a_set_m;
+    } else {
+        st->fm_lock = 0;
+        st->fm_frequency_hz = st->fm_reference_hz = st->fm_phase_error_deg = NAN;
+        st->fm_drive_m = st->fm_amplitude_m = st->fm_amplitude_setpoint_m = NAN;
+    }
+    st->fm_tone_changes = r->fm_tone_changes;
+    st->fm_tone_refused = r->fm_tone_refused;
     if (r->pipelined)
         memset(&st->chain, 0, sizeof st->chain); /* the chain thread's: chain_status_get */
     else

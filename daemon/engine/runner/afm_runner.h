@@ -43,7 +43,20 @@
  *    STEP n (pauses; the next n samples run although paused).
  *  - tick: adds n samples to the lockstep budget (see afm_runner_run).
  *  - reload: swaps in *model (built from a whole new config): new simulator and chain,
- *    model time continues, state at rest, drive and Z from the new config.
+ *    model time continues, state at rest, drive and Z from the new config (and its FM
+ *    control, restarted).
+ *
+ * Internal FM control (the config's fm.control = "internal", issue 32; runner/afm_fm.h): the
+ * front runs the PLL and the amplitude PI on tone 0 itself, with a lock-in of its own fed
+ * the tip deflection of every sample (the chain's lock-in is on the other thread and its
+ * outputs come later). Every fm.update_samples samples counted from create the loops update
+ * and set tone 0 phase-continuously (afm_sim_set_tone); the open ring item is committed
+ * first, so that every item still carries the one drive its samples ran with. The NCO
+ * starts at mode 1's f0 of the model, which is also the frequency shift's reference, and the
+ * drive at tone 0's amplitude of the config (at most fm.drive_max_m); with
+ * fm.amplitude_setpoint_m 0 the amplitude first locked at is held. Dither commands are
+ * rejected while it runs (nothing changed). No allocation: a few tens of flops per update
+ * plus the lock-in per sample and, per NCO step, the integrator's tone change.
  * Every applied command but a reload sets seq_applied = its seq (a reload keeps it); the
  * outputs carry the seq_applied of the samples they come from (chain_status_get).
  *
@@ -69,6 +82,8 @@
 #define AFM_RUNNER_SLOT_SAMPLES 1024   /* samples per ring item (73 us at 14.06 MHz) */
 #define AFM_RUNNER_BLOWUP_PAUSE 3      /* recurring blow-ups before the twin pauses itself */
 #define AFM_RUNNER_BLOWUP_WINDOW_S 1.0 /* ... each within this model time of the last */
+#define AFM_RUNNER_FM_NCO_HZ 1e-3      /* internal FM: the NCO's frequency resolution (Hz) */
+#define AFM_RUNNER_FM_DRIVE_REL 1e-6   /* ... and the drive's, relative to the drive in force */
 
 typedef struct afm_runner afm_runner;
 /* A simulator (and, for geometry changes and reloads, a chain) built for a config, ready
@@ -205,6 +220,17 @@ typedef struct {
     long long pending;          /* ring items the chain has not taken yet (a snapshot) */
     afm_chain_stats chain;      /* OBD saturation, ring drops, periods, estimator rejects
                                    (inline only; pipelined: afm_runner_chain_status_get) */
+    /* internal FM control (fm.control = "internal"; NAN and 0 without it) */
+    bool fm_on;
+    int fm_lock;                    /* afm_fm_lock: 0 acquiring, 1 locked, 2 lost */
+    double fm_frequency_hz;         /* tone 0's frequency, the NCO */
+    double fm_reference_hz;         /* the shift's reference: mode 1's f0 of the model */
+    double fm_phase_error_deg;      /* lock-in lag - fm.phase_setpoint_deg, last update */
+    double fm_drive_m;              /* tone 0's drive amplitude (the dissipation channel) */
+    double fm_amplitude_m;          /* the FM lock-in's amplitude, last update */
+    double fm_amplitude_setpoint_m; /* 0: not held yet (held from the first lock) */
+    long long fm_tone_changes;      /* tone 0 changes the loops made */
+    long long fm_tone_refused;      /* ... the simulator refused (should stay 0) */
 } afm_runner_status;
 
 void afm_runner_status_get(const afm_runner *r, afm_runner_status *st);
