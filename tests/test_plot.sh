@@ -127,8 +127,8 @@ cat >"$T/zz-input-name.json" <<'END'
 END
 "$A" plot sweep "$T/zz-input-name.json" --config config/thesis-1dof.conf -o "$T/h1.png" \
   --csv "$T/h1.csv" --data "$T/h1d.csv" --script "$T/h1.gp" 2>"$T/h1.err"; rc=$?
-if [ $rc -eq 0 ] && [ "$(head -1 "$T/h1.csv")" = "fe (kHz),amplitude (nm),lag (deg),max_force (nN),periodicity (periods),settled (0/1)" ] \
-  && [ "$(sed -n 2p "$T/h1.csv")" = "299,5,40,-0.0001,1,1" ] && [ "$(wc -l <"$T/h1.csv")" -eq 4 ] \
+if [ $rc -eq 0 ] && [ "$(head -1 "$T/h1.csv")" = "fe (kHz),amplitude (nm),lag (deg),max_force (nN),periodicity (periods),settled (0/1),dissipated (eV),squeeze_dissipated (eV)" ] \
+  && [ "$(sed -n 2p "$T/h1.csv")" = "299,5,40,-0.0001,1,1,nan,nan" ] && [ "$(wc -l <"$T/h1.csv")" -eq 4 ] \
   && cmp -s "$T/h1.csv" "$T/h1d.csv"; then
   ok "plot sweep --csv (and --data FILE.csv): a header of names with units, one line per step"
 else bad "plot sweep --csv: exit $rc, $(head -2 "$T/h1.csv" 2>/dev/null | tr '\n' '|') $(cat "$T/h1.err")"; fi

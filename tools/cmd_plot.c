@@ -522,6 +522,9 @@ typedef struct {
     "fe[kHz] amplitude[nm] lag[deg] max_force[nN] periodicity[periods] settled[0/1] "              \
     "dissipated[eV] squeeze_dissipated[eV]"
 
+/* A record with the tip-sample energy (sweep --json's cycle): else its panel says so. */
+static bool sweep_have_ets;
+
 static int sweep_row(const cJSON *o, void *vctx) {
     sweep_ctx *c = vctx;
     double fe = num(o, "fe_hz"),
@@ -535,6 +538,7 @@ static int sweep_row(const cJSON *o, void *vctx) {
     double ets = num(cy, "dissipated_energy_j") / PLOT_EV,
            esq = num(cy, "squeeze_dissipated_energy_j") / PLOT_EV;
     if (isfinite(esq) && esq != 0.0) *c->squeeze = true;
+    if (isfinite(ets)) sweep_have_ets = true;
     double row[SWEEP_COLS] = {fe * 1e-3, amp * 1e9,       lag, num(o, "max_force_n") * 1e9,
                               p,         settled ? 1 : 0, ets, esq};
     if (set_row(c->all, row)) return -1;
@@ -547,6 +551,7 @@ static int sweep_row(const cJSON *o, void *vctx) {
 }
 
 static int load_sweep(const plot_opts *o, plot_data *d, FILE *gp) {
+    sweep_have_ets = false;
     plot_set *pm = set_new(d, "PM", SWEEP_HEADER, SWEEP_COLS),
              *um = set_new(d, "UM", SWEEP_HEADER, SWEEP_COLS);
     plot_set *s[PLOT_MAX_INPUTS];
@@ -610,8 +615,15 @@ static int load_sweep(const plot_opts *o, plot_data *d, FILE *gp) {
         fprintf(gp, "set ytics autofreq\n");
         if (squeeze && p >= 3) short_ytics(gp, s, o->n_in, col - 1, px);
         /* room over the top points for their p labels */
-        fprintf(gp, "set offsets 0, 0, graph %g, 0\nset ylabel '%s'\nplot ",
+        fprintf(gp, "set offsets 0, 0, graph %g, 0\nset ylabel '%s'\n",
                 p == 0 && pm->n ? 0.12 : 0.0, squeeze && p == 3 ? "E_ts (eV)" : panel[p].ylab);
+        if (p == 3 && !sweep_have_ets) { /* no energies in the input (no whole period) */
+            fprintf(gp, "set yrange [-1:1]\nset label 1 'no energy per period in the input' at "
+                        "graph 0.5, 0.5 center\nplot $S0 using 1:(0) with lines lc rgb 'white' "
+                        "notitle\nunset label 1\nset autoscale y\n");
+            continue;
+        }
+        fprintf(gp, "plot ");
         for (int i = 0; i < o->n_in; i++)
             fprintf(gp, "%s$S%d using 1:%d with linespoints ls %d notitle", i ? ", " : "", i, col,
                     i + 1);
