@@ -203,6 +203,23 @@ static double rest_x(const afm_force_params *fp, double k, double z) {
     return x;
 }
 
+/* The twin of cfg with the file's lock-in reset and FM loops started at f0 (the tests of the
+ * frequency shift against the force law); NULL after a failed check. */
+static afm_sim *open_fm_twin(double f0, afm_force_params *fp, afm_fm *f) {
+    char err[AFM_ERR_LEN];
+    afm_modal m;
+    afm_sim *s = afm_twin_create(&cfg, &m, fp, err, sizeof err);
+    if (!s || afm_lockin_init(&lockin, &cfg.lockin, afm_sim_dt(s), err, sizeof err)) {
+        check_true(false, err);
+        return NULL;
+    }
+    afm_fm_plant p;
+    afm_fm_plant_of(&m, &p);
+    afm_fm_init(f, &cfg.fm, &cfg.lockin, &p, cfg.sim.sample_rate_hz, f0, f0,
+                cfg.drive.tones[0].amplitude_m, err, sizeof err);
+    return s;
+}
+
 static void test_gradient(void) {
     char err[AFM_ERR_LEN];
     const double f0 = 300e3, k = 200.0, a_set = 10e-12;
@@ -214,18 +231,10 @@ static void test_gradient(void) {
         check_true(false, "gradient: config loads");
         return;
     }
-    afm_modal m;
     afm_force_params fp;
-    afm_sim *s = afm_twin_create(&cfg, &m, &fp, err, sizeof err);
-    if (!s || afm_lockin_init(&lockin, &cfg.lockin, afm_sim_dt(s), err, sizeof err)) {
-        check_true(false, err);
-        return;
-    }
-    afm_fm_plant p;
-    afm_fm_plant_of(&m, &p);
     afm_fm f;
-    afm_fm_init(&f, &cfg.fm, &cfg.lockin, &p, cfg.sim.sample_rate_hz, f0, f0,
-                cfg.drive.tones[0].amplitude_m, err, sizeof err);
+    afm_sim *s = open_fm_twin(f0, &fp, &f);
+    if (!s) return;
     const double t_upd = cfg.fm.update_samples / cfg.sim.sample_rate_hz;
     double worst = 0.0, worst_x = 0.0;
     int n_ok = 0;
@@ -327,18 +336,10 @@ static void test_sader_twin(void) {
         check_true(false, "sader twin: config loads");
         return;
     }
-    afm_modal m;
     afm_force_params fp;
-    afm_sim *s = afm_twin_create(&cfg, &m, &fp, err, sizeof err);
-    if (!s || afm_lockin_init(&lockin, &cfg.lockin, afm_sim_dt(s), err, sizeof err)) {
-        check_true(false, err);
-        return;
-    }
-    afm_fm_plant p;
-    afm_fm_plant_of(&m, &p);
     afm_fm f;
-    afm_fm_init(&f, &cfg.fm, &cfg.lockin, &p, cfg.sim.sample_rate_hz, f0, f0,
-                cfg.drive.tones[0].amplitude_m, err, sizeof err);
+    afm_sim *s = open_fm_twin(f0, &fp, &f);
+    if (!s) return;
     const double t_upd = cfg.fm.update_samples / cfg.sim.sample_rate_hz;
     const long win = (long)(0.004 / t_upd);
     int ok = 0;

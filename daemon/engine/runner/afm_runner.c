@@ -111,8 +111,6 @@ struct afm_runner {
     afm_lockin fm_lk;
     long long fm_tone_changes, fm_tone_refused;
     double fm_u[SLOT], fm_th[SLOT]; /* one slice's deflection and reference phase */
-    double fm_th_next;              /* reference phase of the next sample (unwrapped) */
-    bool fm_th_ok;                  /* fm_th_next valid; else re-anchored from the drive */
     pending_item pending[PENDING_MAX];
     int n_pending;
     /* between */
@@ -407,7 +405,6 @@ static int fm_setup(afm_runner *r, char *err, size_t errlen) {
         return -1;
     }
     r->fm_hold_pending = !(c->fm.amplitude_setpoint_m > 0);
-    r->fm_th_ok = false;
     r->fm_on = true;
     return 0;
 }
@@ -427,8 +424,6 @@ static void fm_after(afm_runner *r, const afm_sample *s, int k) {
      * against 0.62x on lumped-vdw-fold.conf, the tracker's tolerance growing with |theta|.) */
     const double th0 = afm_drive_phase_mod(d, 0, s[0].t_s);
     const double wdt = d->omega_rad_s[0] * afm_sim_dt(r->sim);
-    r->fm_th_next = th0 + wdt * k;
-    r->fm_th_ok = true;
     for (int i = 0; i < k; i++) {
         r->fm_u[i] = s[i].x_m;
         r->fm_th[i] = th0 + wdt * i;
@@ -438,28 +433,24 @@ static void fm_after(afm_runner *r, const afm_sample *s, int k) {
     if (r->samples % u != 0) return;
     double a, lag;
     afm_lockin_polar(&r->fm_lk, &a, &lag);
-    double f_old = r->fm.freq_hz, d_old = r->fm.drive_m;
     afm_fm_update(&r->fm, a, lag, u * afm_sim_dt(r->sim));
     if (r->fm_hold_pending && r->fm.lock == AFM_FM_LOCKED) {
         afm_fm_hold_amplitude(&r->fm, a);
         r->fm_hold_pending = false;
     }
-    (void)f_old;
-    (void)d_old;
     /* The NCO's resolution: tone 0 moves only when the loop's frequency leaves the quantum
      * it is in. A locked PLL moves by far less than that per update; each step costs the
      * integrator a resync and every tone-0 estimator (here and in the chain) a table rebuild,
      * which at every update took ~40 % of the per-sample budget on this VM. */
     const double q = AFM_RUNNER_FM_NCO_HZ;
     const double f_set = nearbyint(r->fm.freq_hz / q) * q;
-    const afm_drive *dn = afm_sim_drive(r->sim);
-    const double f_now = dn->omega_rad_s[0] / two_pi;
+    const double f_now = d->omega_rad_s[0] / two_pi;
     const bool f_move = fabs(f_set - f_now) >= 0.5 * q;
-    const bool d_move = fabs(r->fm.drive_m - dn->amp_m[0]) > AFM_RUNNER_FM_DRIVE_REL * dn->amp_m[0];
+    const bool d_move = fabs(r->fm.drive_m - d->amp_m[0]) > AFM_RUNNER_FM_DRIVE_REL * d->amp_m[0];
     if (!f_move && !d_move) return;
     commit_open(r);
-    if (afm_sim_set_tone(r->sim, 0, d_move ? r->fm.drive_m : dn->amp_m[0],
-                         f_move ? f_set : f_now) != AFM_SIM_OK) {
+    if (afm_sim_set_tone(r->sim, 0, d_move ? r->fm.drive_m : d->amp_m[0], f_move ? f_set : f_now) !=
+        AFM_SIM_OK) {
         r->fm_tone_refused++; /* kept at the last tone 0 the simulator took */
         return;
     }
@@ -508,13 +499,8 @@ afm_runner *afm_runner_create_pipelined(const afm_config *cfg, int block_max, bo
     r->seq_applied = -1;
     r->b_seq = -1;
     r->b_t_s = afm_sim_time(r->sim);
-    {
-        const afm_drive *d = afm_sim_drive(r->sim);
-        r->b_fe_hz = d->n > 0 ? d->omega_rad_s[0] / two_pi : 0.0;
-        back_oppoint(r, d);
-    }
     r->last_blowup_t_s = NAN;
-    if (fm_setup(r, err, errlen)) goto fail;
+    if (fm_setup(r, err, errlen)) goto fail; /* may set tone 0: before the back's view */
     {
         const afm_drive *d = afm_sim_drive(r->sim);
         r->b_fe_hz = d->n > 0 ? d->omega_rad_s[0] / two_pi : 0.0;
@@ -750,7 +736,6 @@ int afm_runner_apply(afm_runner *r, const afm_cmd *c, afm_runner_model **model, 
             afm_sim_reset(r->sim);
             if (r->fm_on) {
                 afm_lockin_reset(&r->fm_lk);
-                r->fm_th_ok = false;
             }
             emit(r, IT_RESET, NULL);
             r->ramping = false;
@@ -871,7 +856,6 @@ long long afm_runner_run(afm_runner *r, long long n) {
         } else {
             if (r->fm_on) {
                 afm_lockin_reset(&r->fm_lk);
-                r->fm_th_ok = false;
             }
             /* The simulator reset itself to rest; its clock counts the steps it took. The
              * samples of this slice are dropped; the chain starts over. */
