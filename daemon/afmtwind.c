@@ -555,10 +555,9 @@ int main(int argc, char **argv) {
     d.shadow = cfg;
     if (cfg.sample.enabled)
         fprintf(stderr,
-                "afmtwind: %s: the sample group is imaged by afmtwin scan only; the "
-                "daemon runs over a flat, uniform sample (its scanning is not built "
-                "yet)\n",
-                d.opt.config_path);
+                "afmtwind: %s: a sample under the tip (issue 18): the tip starts at (0, 0); "
+                "scan_t commands on %sSCAN move it\n",
+                d.opt.config_path, d.opt.prefix ? d.opt.prefix : "AFMTWIN_");
 
     /* Signals go to main only (sigtimedwait); threads inherit the mask. */
     sigset_t sigs;

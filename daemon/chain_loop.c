@@ -89,6 +89,7 @@ static void push_outputs(chain_ctx *c) {
         c->snap.lockin_amplitude_m = p[newest].lockin_amplitude_m;
         c->snap.lockin_phase_deg = p[newest].lockin_phase_deg;
         c->snap.peak_force_n = p[newest].cycle.peak_force_n;
+        c->snap.squeeze_dissipated_energy_j = p[newest].cycle.squeeze_dissipated_energy_j;
     }
     c->snap.st = st;
     c->pushed_seq = st.seq_applied;

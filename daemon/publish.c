@@ -61,6 +61,7 @@ void twind_status_fill(twind *d, afm_io_status *o, twind_rtf_state *rs) {
     o->lockin_amplitude_m = cs.have_period ? cs.lockin_amplitude_m : NAN;
     o->lockin_phase_deg = cs.have_period ? cs.lockin_phase_deg : NAN;
     o->peak_force_n = cs.have_period ? cs.peak_force_n : NAN;
+    o->squeeze_dissipated_energy_j = cs.have_period ? cs.squeeze_dissipated_energy_j : NAN;
     if (d->scheme.rt) {
         snprintf(o->rt_scheme, sizeof o->rt_scheme, "%s", s.scheme_accurate ? "accurate" : "fast");
         snprintf(o->rt_scheme_reason, sizeof o->rt_scheme_reason, "%s",
@@ -82,6 +83,15 @@ void twind_status_fill(twind *d, afm_io_status *o, twind_rtf_state *rs) {
     o->fm_amplitude_m = s.st.fm_amplitude_m;
     o->fm_amplitude_setpoint_m = s.st.fm_amplitude_setpoint_m;
     o->fm_tone_changes = s.st.fm_tone_changes;
+    o->sample_on = s.st.sample_on; /* issue 18 */
+    o->tip_x_m = s.st.tip_x_m;
+    o->tip_y_m = s.st.tip_y_m;
+    o->true_height_m = s.st.true_height_m;
+    o->material = s.st.material;
+    o->scan_mode = afm_scan_mode_name(s.st.scan_mode);
+    o->scan_line = s.st.scan_line;
+    o->scan_pixel = s.st.scan_pixel;
+    o->scan_retrace = s.st.scan_retrace;
     pthread_mutex_lock(&d->lock);
     o->last_reject_age_s = d->last_reject[0] ? wall - d->last_reject_mono : -1.0;
     o->last_reject_old = d->last_reject[0] && s.last_applied_order > d->last_reject_order;

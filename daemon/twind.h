@@ -150,6 +150,7 @@ typedef struct {
     double busy_fraction;
     bool have_period; /* the last period record seen (finished), for the status line */
     double lockin_amplitude_m, lockin_phase_deg, peak_force_n;
+    double squeeze_dissipated_energy_j; /* the squeeze film's, beside the tip-sample force */
 } twind_chain_snapshot;
 
 typedef struct {

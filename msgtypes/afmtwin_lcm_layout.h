@@ -25,12 +25,13 @@
 #define AFMTWIN_SAMPLES_PORT_OFFSET 2 /* sample stream: command port + 2 */
 
 #define AFMTWIN_DEFAULT_PREFIX "AFMTWIN_" /* afmtwind --prefix */
-/* Commands (dither_t, setpoint_t, param_t, control_t, tick_t) */
+/* Commands (dither_t, setpoint_t, param_t, control_t, tick_t, scan_t) */
 #define AFMTWIN_CHAN_DITHER "DITHER"
 #define AFMTWIN_CHAN_SETPOINT "SETPOINT"
 #define AFMTWIN_CHAN_PARAM "PARAM"
 #define AFMTWIN_CHAN_CONTROL "CONTROL"
 #define AFMTWIN_CHAN_TICK "TICK"
+#define AFMTWIN_CHAN_SCAN "SCAN" /* scan_t: the tip's lateral position (issue 18) */
 /* Outputs (harmonics_t, status_t, tick_done_t; samples_t on the sample URL) */
 #define AFMTWIN_CHAN_HARMONICS "HARMONICS"
 #define AFMTWIN_CHAN_STATUS "STATUS"

@@ -54,10 +54,10 @@ fi
 # lcm-spy finds types by scanning the class path for LCM_FINGERPRINT (lcm.util.ClassDiscoverer)
 classes=$(java -cp /usr/share/java/lcm.jar:"$R/usr/share/java/afmtwin-lcmtypes.jar" \
   lcm.util.ClassDiscoverer 2>/dev/null)
-n=0; for t in control_t dither_t harmonics_t param_t samples_t setpoint_t status_t tick_done_t tick_t; do
+n=0; for t in control_t dither_t harmonics_t param_t samples_t scan_t setpoint_t status_t tick_done_t tick_t; do
   echo "$classes" | grep -q "afmtwin\.$t\b" && n=$((n+1)); done
-[ "$n" -eq 9 ] && ok "the jar's 9 LCM types are found by lcm.util.ClassDiscoverer (lcm-spy's lookup)" \
-  || bad "ClassDiscoverer found $n of 9 types: $(echo "$classes" | head -3)"
+[ "$n" -eq 10 ] && ok "the jar's 10 LCM types are found by lcm.util.ClassDiscoverer (lcm-spy's lookup)" \
+  || bad "ClassDiscoverer found $n of 10 types: $(echo "$classes" | head -3)"
 
 # --- the example, built from the staged tree by pkg-config alone ------------------------
 export PKG_CONFIG_PATH="$L/pkgconfig" PKG_CONFIG_SYSROOT_DIR="$R"

@@ -213,6 +213,27 @@ if [ $rc -eq 0 ] && [ "$segs" = "solid:80,81,81.5 dashed:81.5,82,83,83.5 solid:8
   && grep -q "^set style line 2 .* dt 2" "$T/cont.gp" && ! grep -q "^set style line 1 .* dt " "$T/cont.gp"; then
   ok "continue: cut at the PD (81.5 kHz) and where |mu| crosses 1 (83.5 kHz), both segments sharing the point"
 else bad "continue segments: exit $rc, '$segs' $(cat "$T/cont.err")"; fi
+# 5. bifurcation labels that do not overlap (issue 30: fig 4.2's "P2P6" ran together, and
+# L3/L5/L7 stood in a column over a cluster): two PDs 130 Hz apart and four events within
+# 100 Hz, as in fig 4.2 (6 kHz wide, ~2.7 characters of a label per 130 Hz). Each label is
+# drawn one character right of its point on row label_row ($E's column 6); two labels of
+# points closer than a label's width (3 characters: 200 Hz) at about the same height must
+# take different rows, and a label above the first row has a leader down to its point.
+{ pt point 80000 true -3.1e-8 3.1e-8 0.5; pt point 82000 true -3.12e-8 3.2e-8 0.6
+  pt PD 83100 true -3.13e-8 3.27e-8 -1.0; pt PD 83230 true -3.13e-8 3.22e-8 -1.0
+  pt point 84000 true -3.14e-8 3.3e-8 0.8; pt LPC 84400 true -3.16e-8 3.3e-8 1.0
+  pt PD 84410 true -3.14e-8 3.3e-8 -1.0; pt LPC 84420 true -3.17e-8 3.31e-8 1.0
+  pt LPC 84450 true -3.18e-8 3.32e-8 1.0; pt point 86000 true -0.85e-8 0.85e-8 0.5
+  echo '{"type":"end","param_name":"fe","branch":0,"parent":-1,"param":86000,"period":1,"points":5,"reason":"end"}'
+} >"$T/lab.json"
+"$A" plot continue "$T/lab.json" -o "$T/lab.png" --script "$T/lab.gp" 2>"$T/lab.err"; rc=$?
+lab=$(awk 'BEGIN { n = 0 } /^\$E << EOD/ { f = 1; next } f && /^EOD/ { f = 0 } f && NF >= 6 { x[n] = $1; r[n] = $6; n++ }
+  END { for (i = 0; i < n; i++) for (j = 0; j < i; j++) { d = x[i] - x[j]; if (d < 0) d = -d
+          if (d < 0.2 && r[i] == r[j]) { printf "clash:%s/%s ", x[j], x[i]; bad = 1 } }
+        for (i = 0; i < n; i++) printf "%s:%s ", x[i], r[i]; exit bad }' "$T/lab.gp"); lrc=$?
+if [ $rc -eq 0 ] && [ $lrc -eq 0 ] && grep -q 'with vectors nohead' "$T/lab.gp"; then
+  ok "continue: labels of near points on rows of their own, with leaders (fe kHz:row $lab)"
+else bad "continue labels: exit $rc, $lab $(cat "$T/lab.err")"; fi
 # ---- issue 30: traces that say what the stream can show ----
 # the trace of tools/doc-plots.sh (stream 0 of default.conf: 878.75 kHz, 2.6 samples per
 # drive period): the rate and the low-pass on the picture and in the data, points only

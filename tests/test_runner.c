@@ -623,6 +623,90 @@ static void test_phase_origin(const afm_config *cfg) {
                      "slices of 1024 and 700 samples");
 }
 
+/* Issue 18: a raster over scan-grating.conf's grating, sliced 1024 and 700 samples at a time:
+ * the tip's position is updated on a grid counted from create, so the samples and period
+ * records are bit-identical; the status follows the raster to its end; a scan command to a
+ * twin without a sample group is refused, nothing changed. */
+static void test_scan_slices(const afm_config *flat) {
+    char err[AFM_ERR_LEN];
+    afm_config cfg;
+    if (afm_config_load("config/scan-grating.conf", &cfg, err, sizeof err)) {
+        check_true(false, err);
+        return;
+    }
+    /* 2 lines of 400 nm (two grating periods) at 1000 lines/s: 2 ms, 28120 samples */
+    afm_cmd c = {.kind = AFM_CMD_SCAN,
+                 .seq = 5,
+                 .u.scan = {.mode = AFM_SCAN_RASTER,
+                            .x_m = 0.0,
+                            .y_m = 0.0,
+                            .size_x_m = 4e-7,
+                            .size_y_m = 1e-8,
+                            .lines = 2,
+                            .pixels = 16,
+                            .line_rate_hz = 1000.0}};
+    static afm_chain_period rec[2][2048];
+    static float xs[2][8192];
+    long nrec[2] = {0, 0}, nx[2] = {0, 0};
+    afm_runner_status st[2];
+    int applied = 0;
+    double xmax = 0.0;
+    for (int run = 0; run < 2; run++) {
+        afm_runner *r = afm_runner_create(&cfg, 4096, false, err, sizeof err);
+        if (!r) {
+            check_true(false, err);
+            return;
+        }
+        const long long slice = run ? 700 : 1024, total_s = 40000, at_s = 2000;
+        for (long long done = 0; done < total_s;) {
+            if (done == at_s) {
+                applied += afm_runner_apply(r, &c, NULL, err, sizeof err) == 0;
+            }
+            long long n = slice;
+            if (done < at_s && done + n > at_s) n = at_s - done;
+            if (done + n > total_s) n = total_s - done;
+            done += afm_runner_run(r, n);
+            afm_runner_status sm;
+            afm_runner_status_get(r, &sm);
+            if (run == 0 && sm.tip_x_m > xmax) xmax = sm.tip_x_m;
+            afm_chain_block b;
+            for (int k = 0; k < afm_runner_n_streams(r); k++)
+                while (afm_runner_take_block(r, k, &b, 0) > 0)
+                    for (int i = 0; i < b.n && k == 0 && nx[run] < 8192; i++)
+                        xs[run][nx[run]++] = (float)b.x_m[i];
+            afm_chain_period p[64];
+            int np;
+            while ((np = afm_runner_take_periods(r, p, 64)) > 0)
+                for (int i = 0; i < np && nrec[run] < 2048; i++)
+                    rec[run][nrec[run]++] = p[i];
+        }
+        afm_runner_status_get(r, &st[run]);
+        afm_runner_destroy(&r);
+    }
+    bool same = nrec[0] == nrec[1] && nrec[0] > 100 && nx[0] == nx[1] && nx[0] > 1000 &&
+                memcmp(xs[0], xs[1], sizeof(float) * (size_t)nx[0]) == 0;
+    for (long i = 0; same && i < nrec[0]; i++)
+        same = memcmp(&rec[0][i], &rec[1][i], sizeof rec[0][i]) == 0;
+    printf("  raster over the grating: %ld period records, %ld samples of stream 0, x up to %.1f "
+           "nm, at the end (%.4g, %.4g) nm, mode %d\n",
+           nrec[0], nx[0], xmax * 1e9, st[0].tip_x_m * 1e9, st[0].tip_y_m * 1e9, st[0].scan_mode);
+    check_true(applied == 2 && same,
+               "scan: a raster's outputs are bit-identical for slices of 1024 and 700 samples");
+    check_true(st[0].sample_on && st[0].scan_mode == AFM_SCAN_HOLD && st[0].scan_line == -1 &&
+                   xmax > 3.9e-7 && fabs(st[0].tip_x_m) < 1e-9 && st[0].tip_y_m > 0.9e-8 &&
+                   st[0].seq_applied == 5 && st[0].separation_m == cfg.drive.separation_m,
+               "scan: the raster runs to its end and holds; the status's Z is the stage's");
+    /* no sample group: refused, nothing changed */
+    afm_runner *r = afm_runner_create(flat, 4096, false, err, sizeof err);
+    int rc = afm_runner_apply(r, &c, NULL, err, sizeof err);
+    afm_runner_status sf;
+    afm_runner_status_get(r, &sf);
+    check_true(rc == -1 && strstr(err, "no sample group") && !sf.sample_on && sf.tip_x_m == 0 &&
+                   sf.seq_applied == -1,
+               "scan: refused without a sample group, nothing changed");
+    afm_runner_destroy(&r);
+}
+
 int main(void) {
     afm_config cfg;
     char err[AFM_ERR_LEN];
@@ -639,5 +723,6 @@ int main(void) {
     test_blowup();
     test_uptime(&cfg);
     test_phase_origin(&cfg);
+    test_scan_slices(&cfg);
     return check_done();
 }

@@ -45,12 +45,13 @@ done
 "$A" scan --config config/scan-grating.conf --pixels 4 --lines 2 --size-y 1e-7 --x0 1e-8 \
   --y0 2e-8 --line-rate 200 --engage 0.002 --json --gsf "$T/img" > "$T/g.txt" 2> "$T/g.err"
 rc=$?
-chans="height true-height z amplitude error phase peak-force dissipation material"
+chans="height true-height z amplitude error phase peak-force dissipation squeeze-dissipation
+  material"
 nf=0
 for c in $chans; do for d in trace retrace; do [ -s "$T/img-$c-$d.gsf" ] && nf=$((nf+1)); done; done
-[ $rc -eq 0 ] && [ $nf -eq 18 ] && [ "$(wc -l < "$T/g.txt")" -eq 16 ] \
-  && ok "scan --gsf: 18 files (9 images, trace and retrace) beside the 16 JSON pixels" \
-  || bad "scan --gsf: exit $rc, $nf of 18 files: $(head -c 300 "$T/g.err")"
+[ $rc -eq 0 ] && [ $nf -eq 20 ] && [ "$(wc -l < "$T/g.txt")" -eq 16 ] \
+  && ok "scan --gsf: 20 files (10 images, trace and retrace) beside the 16 JSON pixels" \
+  || bad "scan --gsf: exit $rc, $nf of 20 files: $(head -c 300 "$T/g.err")"
 # gsf_hdr FILE: the text header (up to the first NUL); gsf_key FILE KEY: a value in it
 gsf_hdr() { tr '\0' '\n' < "$1" | sed '/^$/q'; }
 gsf_key() { gsf_hdr "$1" | sed -n "s/^$2 = //p"; }
@@ -65,6 +66,7 @@ done
   && [ "$(gsf_key "$T/img-phase-retrace.gsf" ZUnits)" = deg ] \
   && [ "$(gsf_key "$T/img-peak-force-trace.gsf" ZUnits)" = N ] \
   && [ "$(gsf_key "$T/img-dissipation-trace.gsf" ZUnits)" = J ] \
+  && [ "$(gsf_key "$T/img-squeeze-dissipation-retrace.gsf" ZUnits)" = J ] \
   && [ -z "$(gsf_key "$T/img-material-trace.gsf" ZUnits)" ] \
   && ok "scan --gsf: magic line, XRes YRes XReal YReal XOffset YOffset in m, ZUnits m deg N J" \
   || bad "scan --gsf: header: $(gsf_hdr "$h" | tr '\n' '|')"
@@ -116,7 +118,7 @@ if command -v gwyddion-thumbnailer > /dev/null; then
       && [ "$(head -c 4 "${f%.gsf}.png" | tail -c 3)" = PNG ] \
       || { th_ok=0; echo "     $f: $(head -c 200 "$T/th.err")"; }
   done
-  [ $th_ok -eq 1 ] && ok "gwyddion-thumbnailer reads all 18 .gsf files (a PNG of each)" \
+  [ $th_ok -eq 1 ] && ok "gwyddion-thumbnailer reads all 20 .gsf files (a PNG of each)" \
     || bad "gwyddion-thumbnailer refused a .gsf file"
   head -c $(($(stat -c %s "$h") - 4)) "$h" > "$T/cut.gsf"
   gwyddion-thumbnailer gnome2 64 "$T/cut.gsf" "$T/cut.png" 2> "$T/th.err"; rc=$?
@@ -126,6 +128,25 @@ if command -v gwyddion-thumbnailer > /dev/null; then
 else
   bad "gwyddion-thumbnailer not found (package gwyddion: make deps)"
 fi
+# E_sq, the squeeze film's energy per period (issue 30), as an image of its own: on
+# default.conf (squeeze film on, a flat sample) its pixels are the JSON's and ~500 eV
+# (air damping of the beam at A ~ 40 nm), apart from the tip-sample dissipation (~22 eV).
+"$A" scan --config config/default.conf --pixels 2 --line-rate 200 --engage 0.002 --json \
+  --gsf "$T/sq" > "$T/sq.txt" 2> /dev/null; rc=$?
+f="$T/sq-squeeze-dissipation-trace.gsf"
+g=$(gsf_px "$f" 0 1)
+j=$(grep '"line":0,"pixel":1,"retrace":false,' "$T/sq.txt" |
+  sed -n 's/.*"squeeze_dissipated_energy_j":\([^,}]*\).*/\1/p')
+e=$(grep '"line":0,"pixel":1,"retrace":false,' "$T/sq.txt" |
+  sed -n 's/.*"dissipated_energy_j":\([^,}]*\).*/\1/p')
+th=ok
+command -v gwyddion-thumbnailer > /dev/null &&
+  { gwyddion-thumbnailer gnome2 64 "$f" "$T/sq.png" 2> /dev/null || th=refused; }
+[ $rc -eq 0 ] && close "$g" "$j" && [ "$th" = ok ] &&
+  awk -v x="$j" -v e="$e" 'BEGIN { x /= 1.602176634e-19; e /= 1.602176634e-19
+    exit !(x > 300 && x < 700 && e > 5 && e < 60) }' &&
+  ok "scan --gsf on default.conf: E_sq image ($(gsf_key "$f" Title)), pixel $g J = JSON $j J, beside E_ts $e J; gwyddion-thumbnailer reads it" ||
+  bad "scan --gsf E_sq: exit $rc, gsf '$g' J, JSON '$j' J, E_ts '$e' J, thumbnailer $th"
 "$A" scan --config config/scan-grating.conf --pixels 4 --gsf "$T/no/such/dir/img" \
   > /dev/null 2> "$T/e.txt"; rc=$?
 [ $rc -eq 2 ] && grep -q "cannot write" "$T/e.txt" \

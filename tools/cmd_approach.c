@@ -304,7 +304,7 @@ static void on_samples(void *ctx, const afm_sim *s, const afm_sample *smp, int n
     for (int i = 0; i < n; i++) {
         double th = afm_drive_phase(d, 0, smp[i].t_s);
         if (!e->lockin_fed) afm_lockin_push(&e->lockin, smp[i].x_m, th);
-        if (afm_cycle_push(&e->cycle, &smp[i], th) == 1)
+        if (afm_cycle_push_ev(&e->cycle, &smp[i], th, afm_sim_events_at(s, smp[i].t_s)) == 1)
             e->cyc[e->n_cyc++ % MAX_ANALYSE] = e->cycle.out;
         if (afm_harm_push(&e->harm, smp[i].x_m, smp[i].f_n, th) == 1)
             e->harm_r[e->n_harm++ % MAX_ANALYSE] = e->harm.out;
@@ -771,6 +771,14 @@ int afm_cmd_approach(int argc, char **argv) {
     }
     static afm_sweep sw;
     static approach_est est;
+    /* AFMTWIN_STEP_EVENTS=1: the per-period metrics take what the rt accurate scheme knows of
+     * each step (afm_cycle_push_ev: its crossings, min of x, tip-sample work; the others
+     * record nothing). Off by default: CVODE's metrics still come from its samples' Hermite
+     * path, and rt against CVODE agrees best when both do (docs/numerics.md, issue 28). */
+    static afm_step_events ev_ring[1 << 14];
+    const char *ev_env = getenv("AFMTWIN_STEP_EVENTS");
+    if (ev_env && strcmp(ev_env, "1") == 0)
+        afm_sim_set_events(sim, ev_ring, (int)(sizeof ev_ring / sizeof ev_ring[0]));
     int ks[AFM_MAX_HARMONICS];
     for (int k = 0; k < o.k_max; k++)
         ks[k] = k + 1;

@@ -60,6 +60,8 @@ typedef enum {
     ST_RESET,
     ST_GEOMETRY,
     ST_DAMPING,
+    ST_FM_1024,
+    ST_FM_64,
     N_STATES
 } state_id;
 
@@ -85,6 +87,8 @@ static const struct {
     [ST_RESET] = {"after a reset (from rest), first 5 ms", 0.005},
     [ST_GEOMETRY] = {"after a geometry rebuild (length +1 %), first 5 ms", 0.005},
     [ST_DAMPING] = {"after a damping change (model swap), first 5 ms", 0.005},
+    [ST_FM_1024] = {"FM: internal PLL + amplitude, update every 1024", 0.01},
+    [ST_FM_64] = {"FM: internal PLL + amplitude, update every 64", 0.01},
 };
 
 typedef struct {
@@ -217,7 +221,12 @@ static afm_cmd param1(const char *name, double v) {
 static int run_state(const afm_config *cfg, double uptime_s, state_id id, state_result *out) {
     char err[AFM_ERR_LEN];
     bench_twin t = {.cfg = cfg, .shadow = *cfg};
-    t.r = afm_runner_create_pipelined(cfg, ITEM, false, true, 8, err, sizeof err);
+    if (id == ST_FM_1024 || id == ST_FM_64) { /* the runner's FM loops move tone 0 (issue 32) */
+        t.shadow.fm.enabled = true;
+        t.shadow.fm.control = AFM_FM_CONTROL_INTERNAL;
+        t.shadow.fm.update_samples = id == ST_FM_64 ? 64 : 1024;
+    }
+    t.r = afm_runner_create_pipelined(&t.shadow, ITEM, false, true, 8, err, sizeof err);
     if (!t.r || afm_runner_set_time(t.r, uptime_s, err, sizeof err)) {
         fprintf(stderr, "afmtwin bench-states: %s\n", err);
         afm_runner_destroy(&t.r);
@@ -416,8 +425,10 @@ static void usage(FILE *f) {
             "estimators) in every state a controller can put the twin in: steady tapping,\n"
             "free far from resonance, just retracted, a frequency step every ring item, a Z\n"
             "ramp, hard contact, four tones, paused and resumed, after a reset, after a\n"
-            "geometry rebuild and a damping change; and the cost of one Z change (a ramp makes\n"
-            "one every 64 samples). The daemon's code path (afm_runner, both stages timed\n"
+            "geometry rebuild and a damping change, the internal FM loops (fm.control =\n"
+            "internal) moving tone 0 every 1024 and every 64 samples; and the cost of one Z\n"
+            "change (a ramp makes one every 64 samples). The daemon's code path (afm_runner, both "
+            "stages timed\n"
             "apart on this thread, 1024 samples at a time), started at model time --uptime.\n"
             "Per state: mean ns/sample and the worst 1024-sample item of each stage (median\n"
             "over --runs repeats), and the estimators' table rebuilds.\n\n"

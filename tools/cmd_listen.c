@@ -35,6 +35,7 @@ enum { N_OUT = AFMT_N_OUT };
  * flood the terminal too): the ones left out are counted in quiet and said in a line of
  * their own when the next second starts. */
 #define BAD_LINES_PER_S 5
+#define LISTEN_EV_J 1.602176634e-19 /* J per eV (the energies on the text lines) */
 typedef struct {
     double t0;     /* start of the current second */
     int in_second; /* reports in it */
@@ -280,17 +281,26 @@ static void print_harmonics(const listen_ctx *c, const char *channel,
         json_num(o, "mean_deflection_m", m->mean_deflection_m);
         json_num(o, "squeeze_dissipated_energy_j", m->squeeze_dissipated_energy_j);
         json_oppoint(o, m->separation_m, m->n_tones, m->tone_frequency_hz, m->tone_amplitude_m);
+        json_num(o, "tip_x_m", m->tip_x_m); /* issue 18: the sample under the tip */
+        json_num(o, "tip_y_m", m->tip_y_m);
+        json_num(o, "true_height_m", m->true_height_m);
+        json_int(o, "material", m->material);
         afmt_json_emit(o);
         return;
     }
     printf("harmonics seq %lld t %.9f s Z %.4g nm fe %.6g Hz lock-in %.5g nm %.3f deg (lag), "
-           "peak force %.4g nN, min deflection %.4g nm, contact %.4g ns",
+           "peak force %.4g nN, min deflection %.4g nm, contact %.4g ns, E_ts %.4g eV, E_sq %.4g "
+           "eV",
            (long long)m->seq_applied, m->t_s, m->separation_m * 1e9, m->fe_hz,
            m->lockin_amplitude_m * 1e9, m->lockin_phase_deg, m->peak_force_n * 1e9,
-           m->min_deflection_m * 1e9, m->contact_time_s * 1e9);
+           m->min_deflection_m * 1e9, m->contact_time_s * 1e9, m->dissipated_energy_j / LISTEN_EV_J,
+           m->squeeze_dissipated_energy_j / LISTEN_EV_J);
     for (int i = 0; i < m->n; i++)
         printf("%s k%d %.4g nm %.2f deg (lag)", i ? "," : ";", m->k[i],
                m->deflection_amplitude_m[i] * 1e9, m->deflection_lag_deg[i]);
+    if (m->tip_x_m != 0 || m->tip_y_m != 0 || m->true_height_m != 0 || m->material != 0)
+        printf("; tip (%.6g, %.6g) nm over z_s %.5g nm, material %d", m->tip_x_m * 1e9,
+               m->tip_y_m * 1e9, m->true_height_m * 1e9, m->material); /* issue 18 */
     printf("\n");
 }
 
@@ -348,6 +358,16 @@ static void print_status(const listen_ctx *c, const char *channel, const afmtwin
         json_num(o, "fm_amplitude_m", m->fm_amplitude_m);
         json_num(o, "fm_amplitude_setpoint_m", m->fm_amplitude_setpoint_m);
         json_int(o, "fm_tone_changes", m->fm_tone_changes);
+        json_num(o, "squeeze_dissipated_energy_j", m->squeeze_dissipated_energy_j); /* issue 30 */
+        json_int(o, "sample_on", m->sample_on); /* issue 18: the sample under the tip */
+        json_num(o, "tip_x_m", m->tip_x_m);
+        json_num(o, "tip_y_m", m->tip_y_m);
+        json_num(o, "true_height_m", m->true_height_m);
+        json_int(o, "material", m->material);
+        json_str(o, "scan_mode", m->scan_mode);
+        json_int(o, "scan_line", m->scan_line);
+        json_int(o, "scan_pixel", m->scan_pixel);
+        json_int(o, "scan_retrace", m->scan_retrace);
         afmt_json_emit(o);
         return;
     }
@@ -362,18 +382,19 @@ static void print_status(const listen_ctx *c, const char *channel, const afmtwin
     show(pr, m->pause_reason);
     printf("status    seq %lld t %.6f s %s %s rtf(1 s) %.4g lag %.3g s resyncs %lld (%.4g s "
            "skipped) chain lag %.3g s overruns %lld | lock-in %.4g nm, phase lag %.2f deg, peak "
-           "force %.4g nN | Z %.4g nm fe %.6g Hz Ae %.4g nm | received %lld applied %lld rejected "
-           "%lld refused %lld%s%s%s dropped %lld%s%s%s blowups %lld",
+           "force %.4g nN, E_sq %.4g eV | Z %.4g nm fe %.6g Hz Ae %.4g nm | received %lld applied "
+           "%lld rejected %lld refused %lld%s%s%s dropped %lld%s%s%s blowups %lld",
            (long long)m->seq_applied, m->model_time_s, mode[0] ? mode : "?",
            m->auto_paused ? "PAUSED ITSELF"
            : m->running   ? "running"
                           : "paused",
            m->realtime_factor_1s, m->lag_s, (long long)m->resyncs, m->resync_skipped_s,
            m->chain_lag_s, (long long)m->overruns, m->lockin_amplitude_m * 1e9, m->lockin_phase_deg,
-           m->peak_force_n * 1e9, m->separation_m * 1e9, m->fe_hz, m->amplitude_m * 1e9,
-           (long long)m->received, (long long)m->applied, (long long)m->rejected,
-           (long long)m->refused, lf[0] ? " (last: " : "", lf, lf[0] ? ")" : "",
-           (long long)m->dropped, ld[0] ? " (" : "", ld, ld[0] ? ")" : "", (long long)m->blowups);
+           m->peak_force_n * 1e9, m->squeeze_dissipated_energy_j / LISTEN_EV_J,
+           m->separation_m * 1e9, m->fe_hz, m->amplitude_m * 1e9, (long long)m->received,
+           (long long)m->applied, (long long)m->rejected, (long long)m->refused,
+           lf[0] ? " (last: " : "", lf, lf[0] ? ")" : "", (long long)m->dropped, ld[0] ? " (" : "",
+           ld, ld[0] ? ")" : "", (long long)m->blowups);
     if (lr[0])
         printf(" (last rejected %.1f s ago%s: %s)", m->last_reject_age_s,
                m->last_reject_old ? ", old: later commands applied" : "", lr);
@@ -386,6 +407,15 @@ static void print_status(const listen_ctx *c, const char *channel, const afmtwin
                "pm A %.4g nm",
                fl, m->fm_frequency_shift_hz, m->fm_frequency_hz, m->fm_reference_hz,
                m->fm_phase_error_deg, m->fm_drive_amplitude_m * 1e12, m->fm_amplitude_m * 1e9);
+    }
+    if (m->sample_on) { /* issue 18 */
+        char sm[SHOW_LEN];
+        show(sm, m->scan_mode);
+        printf(" | tip (%.6g, %.6g) nm over z_s %.5g nm, material %d, scan %s", m->tip_x_m * 1e9,
+               m->tip_y_m * 1e9, m->true_height_m * 1e9, m->material, sm);
+        if (m->scan_line >= 0)
+            printf(" line %d pixel %d %s", m->scan_line, m->scan_pixel,
+                   m->scan_retrace ? "retrace" : "trace");
     }
     printf("\n");
     if (m->auto_paused) printf("          %s\n", pr);

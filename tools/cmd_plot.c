@@ -140,7 +140,9 @@ static void plot_usage(FILE *f) {
             "            NS point found there, else where the largest Floquet multiplier\n"
             "            crosses 1 between the two points), branches of period 2 and more in\n"
             "            their own colour; LPC, PD and NS points labelled L1.., P1.., N1.. in\n"
-            "            the order found; with --param2, the curves in the parameter plane\n\n"
+            "            the order found (a label that would overlap another goes up a row,\n"
+            "            a thin leader down to its point); with --param2, the curves in the\n"
+            "            parameter plane\n\n"
             "options:\n"
             "  -o, --output FILE  the picture (.png, or .svg)\n"
             "  --title TEXT       the title's first line (default: what the kind draws)\n"
@@ -981,6 +983,45 @@ static int continue_segments(const cont_ctx *c, plot_set *b) {
     return 0;
 }
 
+/* The rows of the bifurcation labels (ev's column 6): each label ("L7": type letter and
+ * count, drawn 1 character right of and 1 line over its point, row steps of 0.09 of the
+ * panel's y span higher) takes the lowest row where, in both panels, it overlaps no label
+ * placed before it and no event's marker; boxes estimated from PX_CHAR and PX_LINE on a
+ * panel w_px wide, with half a character to spare (issue 30: "P2P6" ran together, and a
+ * column of labels stood over a cluster of points at no distance one could read). */
+static void continue_label_rows(plot_set *ev, double xlo, double xhi, const double ylo[2],
+                                const double yhi[2], double w_px) {
+    double cw = w_px > 0 && xhi > xlo ? PX_CHAR / w_px * (xhi - xlo) : 0.0;
+    for (size_t i = 0; i < ev->n; i++) {
+        double xi = cell(ev, i, 0), wi = (cell(ev, i, 4) >= 10 ? 3.0 : 2.0) * cw;
+        int row = 0;
+        for (; row < 40; row++) {
+            bool clash = false;
+            for (int p = 0; p < 2 && !clash; p++) {
+                double step = yhi[p] > ylo[p] ? 0.09 * (yhi[p] - ylo[p]) : 1.0;
+                double yi = cell(ev, i, 1 + p) / step + row + 0.5; /* the box: [yi, yi + 1] */
+                for (size_t j = 0; j < ev->n && !clash; j++) {
+                    double xj = cell(ev, j, 0), yj = cell(ev, j, 1 + p) / step;
+                    /* j's marker, a character square about its point */
+                    if (j != i && xi + cw - 0.5 * cw < xj + 0.6 * cw &&
+                        xj - 0.6 * cw < xi + cw + wi + 0.5 * cw && yi < yj + 0.5 &&
+                        yj - 0.5 < yi + 1)
+                        clash = true;
+                    if (j >= i) continue;
+                    /* j's label, placed */
+                    double wj = (cell(ev, j, 4) >= 10 ? 3.0 : 2.0) * cw,
+                           yl = yj + cell(ev, j, 5) + 0.5;
+                    if (xi + cw < xj + cw + wj + 0.5 * cw && xj + cw < xi + cw + wi + 0.5 * cw &&
+                        yi < yl + 1 && yl < yi + 1)
+                        clash = true;
+                }
+            }
+            if (!clash) break;
+        }
+        ev->v[i * 6 + 5] = row;
+    }
+}
+
 static int load_continue(const plot_opts *o, plot_data *d, FILE *gp) {
     cont_ctx c = {.ev = set_new(d, "E", "", 6),
                   .cv = set_new(d, "C", "", 4),
@@ -1010,8 +1051,8 @@ static int load_continue(const plot_opts *o, plot_data *d, FILE *gp) {
              "%s[%s] min_x[nm] amplitude[nm] type[1_LPC_2_PD_3_NS] index[count] "
              "label_row[count]",
              pname, u);
-    /* labels of events close in the parameter one over the other: the row of each, the
-     * events before it within 1.5 % of the parameter's span */
+    /* labels that would overlap one over the other: the row of each (continue_label_rows),
+     * a thin leader from the point up to a label above the first row */
     double xlo = INFINITY, xhi = -INFINITY, ylo[2] = {INFINITY, INFINITY},
            yhi[2] = {-INFINITY, -INFINITY};
     for (size_t i = 0; i < b->n; i++) {
@@ -1022,10 +1063,7 @@ static int load_continue(const plot_opts *o, plot_data *d, FILE *gp) {
             yhi[p] = fmax(yhi[p], cell(b, i, 1 + p));
         }
     }
-    for (size_t i = 0; i < c.ev->n; i++)
-        for (size_t j = 0; j < i; j++)
-            if (fabs(cell(c.ev, i, 0) - cell(c.ev, j, 0)) < 0.015 * (xhi - xlo))
-                c.ev->v[i * 6 + 5]++;
+    continue_label_rows(c.ev, xlo, xhi, ylo, yhi, d->W - PX_LEFT - PX_RIGHT);
     const char *xl = !strcmp(c.name, "fe")   ? "drive frequency fe (kHz)"
                      : !strcmp(c.name, "z")  ? "separation Z (nm)"
                      : !strcmp(c.name, "ae") ? "drive amplitude Ae (nm)"
@@ -1075,7 +1113,7 @@ static int load_continue(const plot_opts *o, plot_data *d, FILE *gp) {
         /* y: the branches, and over them room for the stacked labels */
         double span = yhi[p] - ylo[p], ytop = yhi[p];
         for (size_t i = 0; i < c.ev->n; i++)
-            ytop = fmax(ytop, cell(c.ev, i, 1 + p) + (cell(c.ev, i, 5) + 1.5) * 0.09 * span);
+            ytop = fmax(ytop, cell(c.ev, i, 1 + p) + (cell(c.ev, i, 5) + 2.2) * 0.09 * span);
         if (span > 0) fprintf(gp, "set yrange [%g:%g]\n", ylo[p] - 0.04 * span, ytop + 0.02 * span);
         fprintf(gp, "set ylabel '%s'\nplot ", ylab[p]);
         const char *sep = "";
@@ -1086,6 +1124,11 @@ static int load_continue(const plot_opts *o, plot_data *d, FILE *gp) {
                         sep, s, q < 2 ? "==" : ">=", q + 1, 2 + p, 1 + 2 * q + (1 - s));
                 sep = ", ";
             }
+        if (c.ev->n > 0) /* leaders: from each point up to its label's row */
+            fprintf(gp,
+                    ", $E using 1:%d:(0):($6 * %g) with vectors nohead lw 0.6 lc rgb 'gray50' "
+                    "notitle",
+                    2 + p, 0.09 * (yhi[p] - ylo[p]));
         for (int e = 0; e < 3; e++) /* gnuplot's sprintf fails on an empty set's NaN */
             if (c.count[e + 1] > 0)
                 fprintf(gp,

@@ -72,6 +72,7 @@ typedef struct {
     afm_lcm_digest dg;      /* of the messages since the last tick_done */
     bool have_period;
     double lockin_amplitude_m, lockin_phase_deg, peak_force_n; /* the last period's */
+    double squeeze_dissipated_energy_j;                        /* ... and its E_sq */
     int write_failed;
     uint8_t *buf;
     int cap;
@@ -184,6 +185,7 @@ static void emit_harmonics(replay_ctx *x, const afm_runner_status *st) {
         x->lockin_amplitude_m = last->lockin_amplitude_m;
         x->lockin_phase_deg = last->lockin_phase_deg;
         x->peak_force_n = last->cycle.peak_force_n;
+        x->squeeze_dissipated_energy_j = last->cycle.squeeze_dissipated_energy_j;
         int every = afm_io_harmonics_every(x->o.harmonics_every, st->fe_hz, x->o.harmonics_max_hz);
         for (int p = 0; p < np; p++) {
             if (x->period_count++ % every != 0) continue;
@@ -224,6 +226,7 @@ static void emit_status(replay_ctx *x, const afm_runner_status *st) {
     s.lockin_amplitude_m = x->have_period ? x->lockin_amplitude_m : NAN;
     s.lockin_phase_deg = x->have_period ? x->lockin_phase_deg : NAN;
     s.peak_force_n = x->have_period ? x->peak_force_n : NAN;
+    s.squeeze_dissipated_energy_j = x->have_period ? x->squeeze_dissipated_energy_j : NAN;
     s.last_reject_age_s = -1.0; /* no wall clock in replay */
     snprintf(s.rt_scheme, sizeof s.rt_scheme, "%s", afm_sim_scheme_name(afm_runner_sim(x->r)));
     snprintf(s.rt_scheme_reason, sizeof s.rt_scheme_reason,

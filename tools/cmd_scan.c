@@ -82,7 +82,9 @@ static void scan_usage(FILE *f) {
                "                   software opens it: PREFIX-NAME-trace.gsf and\n"
                "                   PREFIX-NAME-retrace.gsf for NAME height, true-height, z,\n"
                "                   amplitude, error (m), phase (lag, deg), peak-force (N),\n"
-               "                   dissipation (J per period) and material (region index); a\n"
+               "                   dissipation (the tip-sample force's, J per period),\n"
+               "                   squeeze-dissipation (the squeeze film's, J per period) and\n"
+               "                   material (region index); a\n"
                "                   row per line, x0 and y0 its offsets, size-x wide and lines x\n"
                "                   line pitch high (square pixels without a slow axis); NaN\n"
                "                   where a pixel has no value\n"
@@ -159,6 +161,8 @@ static const struct {
     {"phase", "Phase lag", "deg", offsetof(afm_scan_pixel, phase_lag_deg), false},
     {"peak-force", "Peak force", "N", offsetof(afm_scan_pixel, peak_force_n), false},
     {"dissipation", "Dissipated energy", "J", offsetof(afm_scan_pixel, dissipated_energy_j), false},
+    {"squeeze-dissipation", "Squeeze-film dissipated energy", "J",
+     offsetof(afm_scan_pixel, squeeze_dissipated_energy_j), false},
     {"material", "Material", "", offsetof(afm_scan_pixel, material), true},
 };
 #define GSF_NCHAN ((int)(sizeof gsf_chan / sizeof gsf_chan[0]))

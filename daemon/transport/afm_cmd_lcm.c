@@ -9,6 +9,7 @@
 #include "afmtwin_control_t.h"
 #include "afmtwin_dither_t.h"
 #include "afmtwin_param_t.h"
+#include "afmtwin_scan_t.h"
 #include "afmtwin_setpoint_t.h"
 #include "afmtwin_tick_t.h"
 
@@ -20,6 +21,10 @@ _Static_assert(AFMTWIN_CONTROL_T_RUN == AFM_CTL_RUN && AFMTWIN_CONTROL_T_PAUSE =
                    AFMTWIN_CONTROL_T_RESET == AFM_CTL_RESET &&
                    AFMTWIN_CONTROL_T_STEP == AFM_CTL_STEP,
                "control_t actions and afm_cmd_action must agree");
+_Static_assert(AFMTWIN_SCAN_T_HOLD == AFM_SCAN_HOLD && AFMTWIN_SCAN_T_MOVE == AFM_SCAN_MOVE &&
+                   AFMTWIN_SCAN_T_VELOCITY == AFM_SCAN_VELOCITY &&
+                   AFMTWIN_SCAN_T_RASTER == AFM_SCAN_RASTER,
+               "scan_t modes and afm_scan_mode must agree");
 
 static int from_dither(const afmtwin_dither_t *m, afm_cmd *c, char *err, size_t errlen) {
     if (m->n_tones < 1 || m->n_tones > AFM_MAX_TONES) {
@@ -99,6 +104,23 @@ int afm_cmd_from_msg(afm_cmd_kind kind, const void *msg, const afm_cmd_limits *l
         c->u.tick.n_samples = m->n_samples;
         break;
     }
+    case AFM_CMD_SCAN: {
+        const afmtwin_scan_t *m = msg;
+        c->seq = m->seq;
+        c->utime = m->utime;
+        c->u.scan = (afm_cmd_lateral){.mode = m->mode,
+                                      .x_m = m->x_m,
+                                      .y_m = m->y_m,
+                                      .speed_m_s = m->speed_m_s,
+                                      .vx_m_s = m->vx_m_s,
+                                      .vy_m_s = m->vy_m_s,
+                                      .size_x_m = m->size_x_m,
+                                      .size_y_m = m->size_y_m,
+                                      .lines = m->lines,
+                                      .pixels = m->pixels,
+                                      .line_rate_hz = m->line_rate_hz};
+        break;
+    }
     default:
         afm_err_set(err, errlen, "%s commands do not come from messages", afm_cmd_kind_name(kind));
         return -1;
@@ -119,6 +141,8 @@ static const afm_wire_type *wire_type(afm_cmd_kind kind) {
         return &afm_wire_control_t;
     case AFM_CMD_TICK:
         return &afm_wire_tick_t;
+    case AFM_CMD_SCAN:
+        return &afm_wire_scan_t;
     default:
         return NULL;
     }
@@ -140,6 +164,7 @@ int afm_cmd_decode(afm_cmd_kind kind, const void *data, size_t len, const afm_cm
         afmtwin_param_t param;
         afmtwin_control_t control;
         afmtwin_tick_t tick;
+        afmtwin_scan_t scan;
     } m;
     char why[AFM_ERR_LEN];
     if (afm_wire_decode(t, data, len, &m, why, sizeof why)) {

@@ -105,6 +105,15 @@ typedef struct {
     double fm_frequency_hz, fm_reference_hz, fm_frequency_shift_hz, fm_phase_error_deg;
     double fm_drive_amplitude_m, fm_amplitude_m, fm_amplitude_setpoint_m;
     int64_t fm_tone_changes;
+    /* Issue 30: the last period's energy taken by the squeeze film on the beam (J; NaN
+     * before the first period), beside peak_force_n, which is the tip-sample force's. */
+    double squeeze_dissipated_energy_j;
+    /* Issue 18: the sample under the tip (runner's status; 0, "hold", -1 without one). */
+    int sample_on;
+    double tip_x_m, tip_y_m, true_height_m;
+    int material;
+    const char *scan_mode; /* "hold", "move", "velocity", "raster" */
+    int scan_line, scan_pixel, scan_retrace;
 } afm_io_status;
 
 /* Lockstep (and STEP) completion: the tick or step command seq's samples are all run and
@@ -166,7 +175,7 @@ struct afm_io {
  * (with udpm every member of a group and port receives everything sent to it, the
  * daemon's own output flood included). Commands on url (NULL: LCM's default, i.e.
  * $LCM_DEFAULT_URL or udpm://239.255.76.67:7667?ttl=0), channels prefix + DITHER,
- * SETPOINT, PARAM, CONTROL, TICK, every one subscribed raw so that any bytes on it are
+ * SETPOINT, PARAM, CONTROL, TICK, SCAN, every one subscribed raw so that any bytes on it are
  * decoded and judged here; outputs HARMONICS, STATUS, TICK_DONE on out_url (NULL: derived
  * from url by afm_lcm_out_url), SAMPLES on samples_url (NULL: afm_lcm_samples_url), each
  * message numbered per channel (msg_seq). NULL with err. */

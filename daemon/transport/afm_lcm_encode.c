@@ -69,6 +69,10 @@ void afm_lcm_harmonics_msg(const afm_io_harmonics *h, afm_lcm_harm_buf *b, afmtw
         .n_tones = (int8_t)h->op.n_tones,
         .tone_frequency_hz = (double *)h->op.freq_hz,
         .tone_amplitude_m = (double *)h->op.amp_m,
+        .tip_x_m = h->op.tip_x_m, /* issue 18 */
+        .tip_y_m = h->op.tip_y_m,
+        .true_height_m = h->op.true_height_m,
+        .material = (int8_t)h->op.material,
     };
 }
 
@@ -128,6 +132,16 @@ void afm_lcm_status_msg(const afm_io_status *s, afmtwin_status_t *m) {
         .fm_amplitude_m = s->fm_amplitude_m,
         .fm_amplitude_setpoint_m = s->fm_amplitude_setpoint_m,
         .fm_tone_changes = s->fm_tone_changes,
+        .squeeze_dissipated_energy_j = s->squeeze_dissipated_energy_j, /* issue 30 */
+        .sample_on = (int8_t)s->sample_on,                             /* issue 18 */
+        .tip_x_m = s->tip_x_m,
+        .tip_y_m = s->tip_y_m,
+        .true_height_m = s->true_height_m,
+        .material = (int8_t)s->material,
+        .scan_mode = (char *)(s->scan_mode ? s->scan_mode : "hold"),
+        .scan_line = s->scan_line,
+        .scan_pixel = s->scan_pixel,
+        .scan_retrace = (int8_t)s->scan_retrace,
     };
 }
 

@@ -37,11 +37,11 @@ struct lcm_io {
     lcm_t *out;         /* outputs (publish only: LCM opens no receive socket for it) */
     lcm_t *samples;     /* the sample stream (publish only); == out when the URLs are equal */
     int64_t msg_seq[4]; /* next msg_seq of samples, harmonics, status, tick_done */
-    in_channel in[5];
+    in_channel in[6];
     char ch_samples[CH_LEN], ch_harmonics[CH_LEN], ch_status[CH_LEN], ch_done[CH_LEN];
     /* Drops before the handler (afm_lcm_drops.h): LCM's queues, the kernel's socket. */
     int watch;              /* -1: none */
-    const char *watched[5]; /* the in[] channel names */
+    const char *watched[6]; /* the in[] channel names */
     int port;               /* udpm command port; 0: not udpm */
     unsigned long sock[AFM_LCM_DROPS_SOCKETS];
     int n_sock;
@@ -117,7 +117,7 @@ static void lio_annotate(afm_io *io, afm_io_status *s) {
     lcm_io *l = io->impl;
     long long q = 0, worst = 0;
     int wi = 0;
-    for (int i = 0; i < 5; i++) {
+    for (int i = 0; i < 6; i++) {
         long long d = afm_lcm_drops_queue(l->watch, i);
         q += d;
         if (d > worst) {
@@ -169,11 +169,9 @@ afm_io *afm_lcm_io_create(const char *url, const char *out_url, const char *samp
     static const struct {
         afm_cmd_kind kind;
         const char *name;
-    } ins[5] = {{AFM_CMD_DITHER, "DITHER"},
-                {AFM_CMD_SETPOINT, "SETPOINT"},
-                {AFM_CMD_PARAM, "PARAM"},
-                {AFM_CMD_CONTROL, "CONTROL"},
-                {AFM_CMD_TICK, "TICK"}};
+    } ins[6] = {{AFM_CMD_DITHER, "DITHER"}, {AFM_CMD_SETPOINT, "SETPOINT"},
+                {AFM_CMD_PARAM, "PARAM"},   {AFM_CMD_CONTROL, "CONTROL"},
+                {AFM_CMD_TICK, "TICK"},     {AFM_CMD_SCAN, "SCAN"}};
     if (!prefix) prefix = "AFMTWIN_";
     if (strlen(prefix) > 64 || strpbrk(prefix, " \t\n.*?[]()") != NULL) {
         snprintf(err, errlen,
@@ -212,7 +210,7 @@ afm_io *afm_lcm_io_create(const char *url, const char *out_url, const char *samp
         lio_destroy(&l->io);
         return NULL;
     }
-    for (int i = 0; i < 5; i++) {
+    for (int i = 0; i < 6; i++) {
         in_channel *ic = &l->in[i];
         ic->owner = l;
         ic->kind = ins[i].kind;
@@ -226,7 +224,7 @@ afm_io *afm_lcm_io_create(const char *url, const char *out_url, const char *samp
         lcm_subscription_set_queue_capacity(sub, QUEUE_CAPACITY);
         l->watched[i] = ic->channel;
     }
-    l->watch = afm_lcm_drops_watch(l->lcm, l->watched, 5);
+    l->watch = afm_lcm_drops_watch(l->lcm, l->watched, 6);
     afm_lcm_drops_visible(); /* the self-test, now rather than on the first status */
     /* The sockets LCM opened (udpm binds its receive socket to the command port). */
     if (!strncmp(cmd_u, "udpm://", 7)) {

@@ -7,7 +7,7 @@
 #include <stdio.h>
 #include <string.h>
 
-#define MAX_FIELDS 64
+#define MAX_FIELDS 128 /* fields per type (status_t has 65 since issue 18) */
 
 static int fail(char *err, size_t errlen, const char *fmt, ...)
     __attribute__((format(printf, 3, 4)));

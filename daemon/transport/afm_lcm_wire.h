@@ -59,7 +59,7 @@ typedef struct {
 /* One per struct of msgtypes/ (generated), and all of them, NULL-terminated. */
 extern const afm_wire_type afm_wire_control_t, afm_wire_dither_t, afm_wire_harmonics_t,
     afm_wire_param_t, afm_wire_samples_t, afm_wire_setpoint_t, afm_wire_status_t, afm_wire_tick_t,
-    afm_wire_tick_done_t;
+    afm_wire_tick_done_t, afm_wire_scan_t;
 extern const afm_wire_type *const afm_wire_all[];
 
 /* 0 when data[0..len) is exactly one well-formed message of type t; else -1 with the

@@ -70,6 +70,8 @@ typedef struct {
     double wdt;       /* phase step per sample */
     double k_org;     /* origin: a sample index (from t0), multiple of PHASE_REBASE */
     double p_org;     /* theta at k_org, mod 2 pi */
+    bool moved;       /* the drive's tone 0 changed since the last push (see retune) */
+    double t_last;    /* time of the last sample the estimators were given (NAN: none) */
 } phase_gen;
 
 struct afm_chain {
@@ -231,6 +233,7 @@ int afm_chain_attach(afm_chain *c, const afm_sim *sim, char *err, size_t errlen)
     c->cos_alpha = f->cos_alpha;
     c->drive = afm_sim_drive(sim);
     c->phase.set = false;
+    c->phase.t_last = NAN;
     keep_rebuilds(c);
     afm_harm_reset(&c->harm);
     afm_lockin_reset(&c->lockin);
@@ -292,9 +295,11 @@ static void stamp_cascade(stream *s, const double *t_src, int ph) {
 }
 
 /* Frames (x, obd, f, base) of n samples into dst (AFM_DECIM_CH doubles each, 32-byte
- * aligned). Returns 1 when every channel of every frame is finite (x 0 is 0 for finite x and
- * NaN for inf and NaN: the sum of those over the frames is 0 exactly when all are finite). */
-AFM_CLONES static int pack_frames(double *dst, const afm_sample *p, const double *obd, int n) {
+ * aligned), f the tip-sample force fts[i] (afm_cycle_tip_forces). Returns 1 when every
+ * channel of every frame is finite (x 0 is 0 for finite x and NaN for inf and NaN: the sum
+ * of those over the frames is 0 exactly when all are finite). */
+AFM_CLONES static int pack_frames(double *dst, const afm_sample *p, const double *obd,
+                                  const double *fts, int n) {
     enum { S = sizeof(afm_sample) / sizeof(double) };
     const double *x = (const double *)p + offsetof(afm_sample, x_m) / sizeof(double);
     afm_v4 z0 = AFM_V4_SET1(0.0), z1 = z0;
@@ -304,6 +309,7 @@ AFM_CLONES static int pack_frames(double *dst, const afm_sample *p, const double
         afm_v4 f_ =                                                                                \
             __builtin_shufflevector(AFM_V4_LD(x + (i)*S), AFM_V4_LD(x + (i)*S + 1), 0, 1, 2, 7);   \
         f_[1] = obd[i];                                                                            \
+        f_[2] = fts[i];                                                                            \
         AFM_V4_ST(dst + (size_t)(i)*AFM_DECIM_CH, f_);                                             \
         z = z + f_ * 0.0;                                                                          \
     } while (0)
@@ -323,10 +329,11 @@ AFM_CLONES static int pack_frames(double *dst, const afm_sample *p, const double
  * into the primary stream's decimator; the other input-fed streams filter them from there
  * before the primary's commit (which moves its buffer), then the cascaded ones run in
  * ascending factor order (their sources come first). */
-static void run_streams(afm_chain *c, const afm_sample *p, const double *obd, int n) {
+static void run_streams(afm_chain *c, const afm_sample *p, const double *obd, const double *fts,
+                        int n) {
     stream *pr = &c->st[c->primary];
     double *in = afm_decim_in(pr->dec, NULL);
-    int finite = pack_frames(in, p, obd, n);
+    int finite = pack_frames(in, p, obd, fts, n);
     for (int q = 1; q < c->n_streams; q++) {
         stream *st = &c->st[c->order[q]];
         if (st->src >= 0) continue;
@@ -385,20 +392,19 @@ AFM_CLONES static void phase_run(double *th, int m, double wdt, double k, double
         th[j] = fma(wdt, k + (double)j, p);
 }
 
-/* theta[i] of samples s[0..n) by phase_gen (see there), and their forces f[i]; samples off
- * the time grid of the drive's t0 (not made by a simulator at this chain's rate) by
- * afm_drive_phase's own expression. */
-static void drive_phase(afm_chain *c, const afm_sample *s, int n, double *th, double *f) {
+/* theta[i] of samples s[0..n) by phase_gen (see there); samples off the time grid of the
+ * drive's t0 (not made by a simulator at this chain's rate) by afm_drive_phase's own
+ * expression. */
+static void drive_phase(afm_chain *c, const afm_sample *s, int n, double *th) {
     const afm_drive *d = c->drive;
     phase_gen *g = &c->phase;
-    for (int i = 0; i < n; i++)
-        f[i] = s[i].f_n;
     if (!g->set || g->ph != d->phase_rad[0] || g->w != d->omega_rad_s[0] || g->t0 != d->t0_s[0]) {
         g->ph = d->phase_rad[0];
         g->w = d->omega_rad_s[0];
         g->t0 = d->t0_s[0];
         g->wdt = g->w * (1.0 / c->fs);
-        g->set = false; /* origin from the first sample below */
+        g->moved = g->set; /* a change, not the first frame: retune the estimators */
+        g->set = false;    /* origin from the first sample below */
     }
     double kd = (s[0].t_s - g->t0) * c->fs, k = nearbyint(kd);
     if (!(fabs(kd - k) < 0.25 && k >= 0 && k < 0x1p52)) {
@@ -427,13 +433,35 @@ static void drive_phase(afm_chain *c, const afm_sample *s, int n, double *th, do
     }
 }
 
-/* The estimators over n samples, with tone 0's phase from drive_phase. harm and cycle share
- * the period clock: each run ends at a sample where harm completed a period, and cycle and
- * lockin are brought to the same sample before the record is written. estimator_rejects
+/* Tone 0 changed (an NCO step of the FM loops, a dither command) right before s[0]: when the
+ * new frame's theta continues the last sample's (a phase-continuous change on the grid:
+ * afm_drive_set_tone at that sample's time, s[0] the next sample), the estimators take the
+ * new rate at once, each O(1) (afm_track_rebase, afm_harm_rebase, afm_lockin_rebase: no
+ * rebuild per sample, no learning of the rate from increments that a small change of
+ * frequency could not tell from noise). Otherwise (a jump, a reset, a gap in the samples, a
+ * drive off the grid) they meet the new theta on their slow paths, as before. The cycle
+ * estimator keeps nothing that depends on the rate but its tracker. */
+static void retune(afm_chain *c, const afm_sample *s, const double *th) {
+    phase_gen *g = &c->phase;
+    g->moved = false;
+    if (!g->set || !(fabs((s[0].t_s - g->t_last) * c->fs - 1.0) < 0.25)) return;
+    const double th_prev = th[0] - g->wdt; /* the last sample in the new frame */
+    afm_harm_rebase(&c->harm, th_prev, g->wdt);
+    afm_lockin_rebase(&c->lockin, th_prev, g->wdt);
+    if (c->cycle.trk.locked) afm_track_rebase(&c->cycle.trk, th_prev, g->wdt);
+}
+
+/* The estimators over n samples (f their tip-sample forces), with tone 0's phase from
+ * drive_phase. harm and cycle share the period clock: each run ends at a sample where harm
+ * completed a period, and cycle and lockin are brought to the same sample before the record
+ * is written. estimator_rejects
  * counts, per run, the most samples any one estimator refused. */
-static void estimators(afm_chain *c, const afm_sample *s, const double *obd, int n) {
-    double th[CHUNK], f[CHUNK];
-    drive_phase(c, s, n, th, f);
+static void estimators(afm_chain *c, const afm_sample *s, const double *obd, const double *f,
+                       int n) {
+    double th[CHUNK];
+    drive_phase(c, s, n, th);
+    if (c->phase.moved) retune(c, s, th);
+    c->phase.t_last = s[n - 1].t_s;
     for (int i = 0; i < n;) {
         long long rh = 0, rc = 0, rl;
         int done, dc;
@@ -450,7 +478,7 @@ static void estimators(afm_chain *c, const afm_sample *s, const double *obd, int
 }
 
 int afm_chain_push(afm_chain *c, const afm_sample *s, int n) {
-    double obd_buf[CHUNK];
+    double obd_buf[CHUNK], f_buf[CHUNK];
     for (int done = 0; done < n;) {
         int k = n - done < CHUNK ? n - done : CHUNK;
         const afm_sample *p = s + done;
@@ -458,8 +486,17 @@ int afm_chain_push(afm_chain *c, const afm_sample *s, int n) {
         afm_obd_read_block(&c->obd, p, k, obd_buf);
         c->stats.obd_saturated += c->obd.n_saturated - sat0;
         c->obd.n_saturated = sat0;
-        if (c->attached) estimators(c, p, obd_buf, k);
-        run_streams(c, p, obd_buf, k);
+        /* Forces by origin: the squeeze film on the beam is not the tip-sample force (its
+           share is the cycle metrics' squeeze_dissipated_energy_j). Detached, the cycle's
+           force law may be gone: the samples' force as it is. */
+        if (c->attached) {
+            afm_cycle_tip_forces(&c->cycle, p, k, f_buf);
+        } else {
+            for (int i = 0; i < k; i++)
+                f_buf[i] = p[i].f_n;
+        }
+        if (c->attached) estimators(c, p, obd_buf, f_buf, k);
+        run_streams(c, p, obd_buf, f_buf, k);
         c->stats.pushed += k;
         done += k;
     }

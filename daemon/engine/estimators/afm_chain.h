@@ -6,7 +6,9 @@
  * Layer estimators/ (4, output chain) (after afm_sim, uses afm_obd, afm_decim, afm_harm,
  * afm_lockin, afm_cycle). Per full-rate sample s (afm_sample, sample rate cfg.sim.sample_rate_hz):
  *   obd_m = afm_obd_read(s)    (calibrated slope + noise + ADC; x when obd is disabled)
- *   frame = (x_m, obd_m, f_n, base_m) -> decimator of each stream -> ring of the stream
+ *   f_ts  = the tip-sample force: f_n less the squeeze film on the beam (attached, with a
+ *           squeeze film in the force law: afm_cycle_tip_forces; f_n as it is otherwise)
+ *   frame = (x_m, obd_m, f_ts, base_m) -> decimator of each stream -> ring of the stream
  * computed a block at a time (afm_obd_read_block; the frames go straight into the first
  * decimator's input), with the same results however the samples are split into pushes.
  * Streams are cfg.output.decimation[i] (i = stream index). A stream whose factor is a
@@ -17,10 +19,11 @@
  *
  * Estimators (after afm_chain_attach): on every full-rate sample, with the drive phase of
  * tone 0 (computed from the sample count since the drive last changed, so that it does not
- * carry the rounding of large sample times: afm_chain.c), afm_harm (harmonics of the OBD signal and
- * of the force: cfg.sim. harmonics, or afm_harm_default_list when n_harmonics is 0), afm_cycle
- * (tapping metrics on the true tip motion x, v, f) and afm_lockin (on the OBD signal). One
- * afm_chain_period record per completed drive period goes to a ring the caller drains. The records
+ * carry the rounding of large sample times: afm_chain.c), afm_harm (harmonics of the OBD
+ * signal and of the tip-sample force f_ts: cfg.sim. harmonics, or afm_harm_default_list
+ * when n_harmonics is 0), afm_cycle (tapping metrics on the true tip motion x, v, f, the
+ * squeeze film split off there) and afm_lockin (on the OBD signal). One afm_chain_period
+ * record per completed drive period goes to a ring the caller drains. The records
  * are kept in Cartesian form (the harmonics' sums, the lock-in's X and Y); the amplitudes and
  * phases are computed when a record is taken with afm_chain_take_periods, or only for the
  * records a caller publishes (afm_chain_take_periods_raw, then afm_chain_period_finish):
@@ -56,7 +59,7 @@ typedef struct {
     const double *obd_m;      /* OBD signal, calibrated m */
     const double *obd_counts; /* OBD signal in ADC counts (fractional once decimated);
                                  NULL without ADC */
-    const double *f_n;        /* tip-sample force, N */
+    const double *f_n;        /* tip-sample force f_ts (the squeeze film not counted), N */
     const double *base_m;     /* base (dither) displacement, m */
 } afm_chain_block;
 

@@ -151,6 +151,26 @@ static void split_run(const afm_cycle *c, const afm_sample *restrict s, afm_samp
         split_sample(c, s + j, d + j);
 }
 
+AFM_CLONES void afm_cycle_tip_forces(const afm_cycle *c, const afm_sample *restrict s, int n,
+                                     double *restrict f_ts) {
+    if (!c->split) {
+        for (int j = 0; j < n; j++)
+            f_ts[j] = s[j].f_n;
+        return;
+    }
+    const afm_force_params *f = c->forces;
+    if (f->squeeze == AFM_SQUEEZE_LINEAR) { /* split_run's, the same bits */
+        const double p1 = f->p1, p2 = f->p2, z = c->z_m;
+        for (int j = 0; j < n; j++) {
+            double cq = p1 * (z + s[j].x_m) + p2;
+            f_ts[j] = s[j].f_n - (cq > 0.0 ? -cq * s[j].v_m_s : 0.0);
+        }
+        return;
+    }
+    for (int j = 0; j < n; j++)
+        f_ts[j] = s[j].f_n - squeeze_force(c, s[j].x_m, s[j].v_m_s);
+}
+
 /* Length of [a, b] inside [lo, hi]. */
 static double overlap(double a, double b, double lo, double hi) {
     double l = a > lo ? a : lo, r = b < hi ? b : hi;
@@ -418,6 +438,40 @@ static CYCLE_INLINE void cross_step(const afm_sample *p, const afm_sample *q, do
     }
 }
 
+/* ---- the integrator's record of a step (afm_cycle_push_ev) ---- */
+
+/* ev's crossings agree with the samples' sides of the contact line (in0 -> in1). */
+static inline bool ev_sides_agree(const afm_step_events *ev, bool in0, bool in1) {
+    return ev->n_in - ev->n_out == (int)in1 - (int)in0;
+}
+
+/* cross_step from the integrator's crossings: the step's time in contact (with the whole
+ * steps since *t_in, as cross_step counts them), its inward crossings and the velocity at the
+ * first. Also a contact that starts and ends inside the step (both samples out), or a break
+ * inside it (both in). */
+static void ev_contact(const afm_step_events *ev, const afm_sample *p, const afm_sample *q,
+                       double h, double xc, double *ct, double *t_in, int *nc, double *v_in) {
+    bool in0 = p->x_m < xc, in1 = q->x_m < xc;
+    if (in0 && in1) { /* counted whole when the contact ends: less the break */
+        *ct -= h * (1.0 - ev->contact_frac);
+    } else if (in0) {
+        *ct += (p->t_s - *t_in) + h * ev->contact_frac;
+    } else {
+        *ct += h * ev->contact_frac;
+        if (in1) *t_in = q->t_s;
+    }
+    if (ev->n_in > 0) {
+        if (*nc == 0) *v_in = ev->v_in_m_s;
+        *nc += ev->n_in;
+    }
+}
+
+/* contact_work_corr with the integrator's work of the step. */
+static inline double ev_work_corr(const afm_cycle *c, const afm_sample *p, const afm_sample *q) {
+    if (!(c->ev && isfinite(c->ev->work_ts_j))) return contact_work_corr(c, p, q);
+    return c->ev->work_ts_j - 0.5 * (q->t_s - p->t_s) * (p->f_n * p->v_m_s + q->f_n * q->v_m_s);
+}
+
 static void step_plain(afm_cycle *c, const afm_sample *s) {
     afm_cycle_metrics *m = &c->cur;
     const afm_sample *p = &c->prev;
@@ -428,19 +482,27 @@ static void step_plain(afm_cycle *c, const afm_sample *s) {
     c->sum_sq[l] = fma(w, p->theta_rad, c->sum_sq[l]);
     if (s->x_m < c->smin) c->smin = s->x_m;
     double b1 = fma(h3, p->v_m_s, p->x_m), b2 = fma(-h3, s->v_m_s, s->x_m);
-    if ((b1 < b2 ? b1 : b2) < (p->x_m < s->x_m ? p->x_m : s->x_m))
+    const afm_step_events *ev = c->ev;
+    if (ev && !isnan(ev->x_min_m)) { /* the integrator's pieces */
+        if (ev->x_min_m < m->min_deflection_m) m->min_deflection_m = ev->x_min_m;
+    } else if ((b1 < b2 ? b1 : b2) < (p->x_m < s->x_m ? p->x_m : s->x_m)) {
         m->min_deflection_m = step_min(p, s, m->min_deflection_m);
+    }
     if (c->n_prev >= 2 && p->f_n >= c->prev2.f_n && p->f_n >= s->f_n) {
         double pk = local_peak(c, &c->prev2, p, s);
         if (pk > m->peak_force_n) m->peak_force_n = pk;
     }
     if (s->f_n > m->peak_force_n) m->peak_force_n = s->f_n;
     double xc = c->x_contact_m;
-    if ((p->x_m < xc) != (s->x_m < xc))
+    bool in0 = p->x_m < xc, in1 = s->x_m < xc;
+    if (ev && ev->n_in + ev->n_out > 0 && ev_sides_agree(ev, in0, in1))
+        ev_contact(ev, p, s, h, xc, &m->contact_time_s, &c->t_in, &m->n_contacts,
+                   &m->pre_contact_velocity_m_s);
+    else if (in0 != in1)
         cross_step(p, s, h, xc, &m->contact_time_s, &c->t_in, &m->n_contacts,
                    &m->pre_contact_velocity_m_s);
     if (c->forces && (p->x_m < c->x_near_m || s->x_m < c->x_near_m))
-        c->e_corr += contact_work_corr(c, p, s);
+        c->e_corr += ev_work_corr(c, p, s);
     copy_sample(&c->prev2, p);
     c->t_before = p->t_s;
     c->k++;
@@ -467,10 +529,20 @@ static int step_boundary(afm_cycle *c, const afm_sample *s, double frac, bool ha
     double xc = c->x_contact_m, ca = 0.0, cb = 0.0, r_in = -1.0, v_in = 0.0;
     bool in0 = has_step && p->x_m < xc, in1 = s->x_m < xc;
     if (has_step && in1) cb = 1.0;
+    /* the integrator's crossing where it saw just the one the samples show */
+    const afm_step_events *ev = has_step ? c->ev : NULL;
+    bool evc = ev && ev->n_in + ev->n_out == (in0 != in1) && ev_sides_agree(ev, in0, in1);
     if (has_step && in0 != in1) {
         if (in1) {
-            crossing(p, s, h, xc, &r_in, &v_in);
+            if (evc) {
+                r_in = ev->in_frac;
+                v_in = ev->v_in_m_s;
+            } else {
+                crossing(p, s, h, xc, &r_in, &v_in);
+            }
             ca = r_in;
+        } else if (evc) {
+            cb = ev->out_frac;
         } else {
             double v_out;
             crossing(p, s, h, xc, &cb, &v_out);
@@ -489,6 +561,11 @@ static int step_boundary(afm_cycle *c, const afm_sample *s, double frac, bool ha
         double fr = r_in >= 0.0 ? r_in : (in0 != in1 ? cb : -1.0);
         eb = -path_work(c, p, s, 0.0, frac, fr);
         ea = -path_work(c, p, s, frac, 1.0, fr);
+        if (ev && isfinite(ev->work_ts_j)) { /* the integrator's total, split as the path's */
+            double dw = ev->work_ts_j + (eb + ea);
+            eb -= frac * dw;
+            ea -= (1.0 - frac) * dw;
+        }
     }
     if (finishing) {
         /* the last sample's own (backward) weight, then the sums in a fixed order */
@@ -614,6 +691,14 @@ int afm_cycle_push(afm_cycle *c, const afm_sample *s, double theta_rad) {
     if (!afm_track_fast(&c->trk, theta_rad)) return push_slow(c, s, theta_rad);
     step_inside(c, s, c->active); /* no boundary in the step */
     return 0;
+}
+
+int afm_cycle_push_ev(afm_cycle *c, const afm_sample *s, double theta_rad,
+                      const afm_step_events *ev) {
+    c->ev = ev;
+    int rc = afm_cycle_push(c, s, theta_rad);
+    c->ev = NULL;
+    return rc;
 }
 
 /* ---- runs: afm_cycle_push_n's fast path ----

@@ -68,6 +68,7 @@
 #include "estimators/afm_est_internal.h"
 #include "forces/afm_force.h"
 #include "integrators/afm_rt_coef.h"
+#include "integrators/afm_rt_events.h"
 
 /* Gap above a0 (m) within which a step's tip-sample work is taken on the continuous path
  * (dissipated_energy_j; with the force law). */
@@ -121,6 +122,10 @@ typedef struct {
                               continuous path less their trapezoids (J) */
     long periods;          /* completed periods since init/reset */
     afm_cycle_metrics out; /* last completed period (valid if periods > 0) */
+
+    /* during afm_cycle_push_ev: the integrator's record of the step to the sample being
+     * pushed (else NULL) */
+    const afm_step_events *ev;
 } afm_cycle;
 
 /* x_contact_m: afm_force_contact_x (or -HUGE_VAL), cos_alpha in (0, 1]. 0, or -1 with err
@@ -138,12 +143,32 @@ int afm_cycle_set_contact(afm_cycle *c, double x_contact_m);
  * window, as the rt integrator does). -1 if f is NULL or z_m not finite (nothing changed). */
 int afm_cycle_set_forces(afm_cycle *c, const afm_force_params *f, double z_m);
 
+/* f_ts[i] = the tip-sample force of s[i], i < n: s[i].f_n less the squeeze film's force at
+ * (x, v) under the law of the last afm_cycle_set_forces, the same bits as the split samples'
+ * (so the output chain's force harmonics and sample stream carry the force the metrics use);
+ * s[i].f_n as it is without a squeeze film or before any afm_cycle_set_forces. */
+void afm_cycle_tip_forces(const afm_cycle *c, const afm_sample *restrict s, int n,
+                          double *restrict f_ts);
+
 /* Forget the partial period and the history (keeps the contact line and the force law). */
 void afm_cycle_reset(afm_cycle *c);
 
 /* One sample. 1 when it completed a period (c->out), 0 otherwise, -1 (nothing changed) if a
  * value is not finite, time did not increase, or theta did not increase by less than pi. */
 int afm_cycle_push(afm_cycle *c, const afm_sample *s, double theta_rad);
+
+/* afm_cycle_push with what the integrator knows of the step that ends at s (ev: its record,
+ * afm_sim_events_at; NULL: afm_cycle_push). Taken from it instead of re-derived on the
+ * samples' Hermite cubic (issue 28): contact time, n_contacts and pre_contact_velocity_m_s
+ * from its located crossings (a contact that starts and ends between two samples is then
+ * counted), the step's min of x (min_deflection_m, indentation_m) where it took the step in
+ * pieces, and, for the steps within AFM_CYCLE_NEAR_GAP_M of contact (with the force law), the
+ * tip-sample work of its pieces in place of the Hermite path's (dissipated_energy_j). At a
+ * period boundary inside the step the work is split as the Hermite path splits it (the rest
+ * by time share), and the min and a step with more than one crossing stay on the Hermite
+ * path. A record whose crossings do not match the samples' sides is not used for contact. */
+int afm_cycle_push_ev(afm_cycle *c, const afm_sample *s, double theta_rad,
+                      const afm_step_events *ev);
 
 /* Samples s[i], theta[i], i = 0..n-1, as n calls of afm_cycle_push, stopping after the
  * sample that completes a period. Returns the samples consumed; *done is 1 if the last

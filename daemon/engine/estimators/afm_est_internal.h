@@ -203,6 +203,21 @@ int afm_track_check(const afm_phase_track *t, double th, double *p);
  * recomputed from it; only meaningful while t->locked). */
 int afm_track_advance(afm_phase_track *t, double th, double p, double *frac, bool *rate_changed);
 
+/* Phase-continuous retune (issue 32: an NCO or a command moving tone 0's frequency, as often
+ * as every sample): the caller knows that the rate changes to dphi after the last accepted
+ * sample and that th is that sample's theta in the frame of the samples to come (the same
+ * phase up to whole turns and rounding: |th - th_prev - 2 pi m| <= 1e-9 rad). The tracker
+ * then takes dphi as its rate at once, locked, resynchronised at th (n = 0; a clock's p_ref
+ * and n_end from th mod 2 pi), so that the next samples take the fast path instead of
+ * reading the step as a jump (unlock, the exact clock, a new rate learnt from the next
+ * increments) or, for a small change, as noise followed by a drift and a rate refined sample
+ * after sample (one table rebuild each: the FM collapse). O(1). Counted in rate_changes
+ * (the caller's per-step rotation must follow dphi). Returns false and changes nothing when
+ * the tracker has no accepted sample, th or dphi is not finite, th is not th_prev's phase,
+ * or (clock) dphi is not a valid step (in (4 tol, pi - 4 tol)): the caller then leaves the
+ * change to the slow path, as before. */
+bool afm_track_rebase(afm_phase_track *t, double th, double dphi);
+
 /* afm_track_check then afm_track_advance for a clock tracker, in one: the same checks, result and
  * tracker state, with theta_prev reduced mod 2 pi once. AFM_CLOCK_BAD (nothing changed), else as
  * afm_track_advance (*frac for a boundary). */

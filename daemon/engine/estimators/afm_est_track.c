@@ -36,6 +36,22 @@ int afm_track_check(const afm_phase_track *t, double th, double *p) {
     return AFM_CLOCK_NONE;
 }
 
+/* n_end of a tracker just resynchronised at p (theta mod 2 pi for a clock) with tolerance
+ * tol: the fast path's room (0 while unlocked). */
+static void track_window(afm_phase_track *t, double p, double tol) {
+    t->n_end = 0.0;
+    if (t->locked && !t->clock) {
+        t->n_end = AFM_TRACK_WINDOW_FREE;
+    } else if (t->locked) {
+        double lim = AFM_EST_TWO_PI - (2.0 * tol + 1e-12);
+        double m = afm_floor((lim - p) / t->dphi);
+        if (m > AFM_TRACK_WINDOW_CLOCK) m = AFM_TRACK_WINDOW_CLOCK;
+        while (m > 0 && !(p + m * t->dphi < lim))
+            m -= 1.0; /* rounding of the division */
+        t->n_end = m > 0 ? m : 0.0;
+    }
+}
+
 /* The common end of afm_track_advance and afm_track_step: the rate estimate, the lock and
  * the resynchronisation at theta (p = theta mod 2 pi for a clock, else 0); *rate_changed as
  * for afm_track_advance. */
@@ -91,17 +107,25 @@ static void afm_track_resync(afm_phase_track *t, double th, double p, bool *rate
     t->p_ref = p;
     t->n = 0.0;
     t->tol = t->locked ? tol : -1.0;
-    t->n_end = 0.0;
-    if (t->locked && !t->clock) {
-        t->n_end = AFM_TRACK_WINDOW_FREE;
-    } else if (t->locked) {
-        double lim = AFM_EST_TWO_PI - (2.0 * tol + 1e-12);
-        double m = afm_floor((lim - p) / t->dphi);
-        if (m > AFM_TRACK_WINDOW_CLOCK) m = AFM_TRACK_WINDOW_CLOCK;
-        while (m > 0 && !(p + m * t->dphi < lim))
-            m -= 1.0; /* rounding of the division */
-        t->n_end = m > 0 ? m : 0.0;
-    }
+    track_window(t, p, tol);
+}
+
+bool afm_track_rebase(afm_phase_track *t, double th, double dphi) {
+    if (!t->started || !isfinite(th) || !isfinite(dphi)) return false;
+    if (!(fabs(afm_track_off_turns(th - t->th_prev)) <= 1e-9)) return false;
+    double tol = 2e-11 + 1.8e-15 * fabs(th) + t->noise;
+    if (t->clock && !(dphi > 4.0 * tol + 1e-12 && dphi < AFM_EST_PI - 4.0 * tol)) return false;
+    t->locked = true;
+    t->dphi = dphi;
+    t->nb = AFM_TRACK_MAX_BASELINE;  /* exact: the running average must not move it */
+    t->age = AFM_TRACK_WINDOW_CLOCK; /* a later step off this rate is a new rate, not noise */
+    t->rate_changes++;
+    t->th_prev = t->th_ref = th;
+    t->p_ref = t->clock ? afm_clock_wrap(th) : 0.0;
+    t->n = 0.0;
+    t->tol = tol;
+    track_window(t, t->p_ref, tol);
+    return true;
 }
 
 /* Slow path, part 2: advance to theta (checked, p from afm_track_check) and resynchronise.

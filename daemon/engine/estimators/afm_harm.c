@@ -101,8 +101,10 @@ AFM_EST_COLD static void phasors_exact(const afm_harm *h, double phi, double *p)
         rot_pow(c1, s1, h->ks[j], &p[RE(j)], &p[IM(j)]);
 }
 
-/* The table for the tracker's (new) dphi: T[0] = 1, T[m] = T[m - 1] e^{-ik dphi}. */
-AFM_EST_COLD static void build_table(afm_harm *h) {
+/* The table for the tracker's (new) dphi: T[0] = 1, T[m] = T[m - 1] e^{-ik dphi}.
+ * Multiversioned (one vfmadd per AFM_V4_FMA lane in the x86-64-v3 copy, not a libm call: the
+ * same bits at a fraction of the cost; under FM it runs once per NCO step). */
+AFM_CLONES_NOINLINE static void build_table(afm_harm *h) {
     const int st = 2 * h->nl;
     double r[2 * AFM_HARM_LANES];
     double cd = cos(h->trk.dphi), sd = -sin(h->trk.dphi);
@@ -424,6 +426,32 @@ AFM_CLONES static int harm_push_slow(afm_harm *h, double x, double f, double the
     h->x_prev = x;
     h->f_prev = f;
     return s.cross ? 1 : 0;
+}
+
+AFM_CLONES bool afm_harm_rebase(afm_harm *h, double theta_rad, double dphi) {
+    afm_phase_track t = h->trk;
+    if (!t.locked || !afm_track_rebase(&t, theta_rad, dphi)) return false;
+    const int st = 2 * h->nl;
+    const double *tm = h->tab + (size_t)(int)(h->trk.n - h->nbase) * st; /* the last sample */
+    /* what the phasors stand for, less the theta supplied, carried into the new frame */
+    const double resid = h->trk.th_prev - (h->imp_ref + h->trk.n * h->trk.dphi);
+    cmadd(h->sx, h->b, h->cx, st);
+    cmadd(h->sf, h->b, h->cf, st);
+    for (int g = 0; g < st; g += 8) {
+        afm_v4 re, im;
+        AFM_V4_CMUL(AFM_V4_LD(h->b + g), AFM_V4_LD(h->b + g + 4), AFM_V4_LD(tm + g),
+                    AFM_V4_LD(tm + g + 4), re, im);
+        AFM_V4_ST(h->b + g, re);
+        AFM_V4_ST(h->b + g + 4, im);
+    }
+    memset(h->cx, 0, (size_t)st * sizeof h->cx[0]);
+    memset(h->cf, 0, (size_t)st * sizeof h->cf[0]);
+    h->n_sync += h->trk.n;
+    h->nbase = 0.0;
+    h->imp_ref = theta_rad - resid;
+    h->trk = t;
+    build_table(h);
+    return true;
 }
 
 _Static_assert(AFM_HARM_LANES <= 20, "chunk_sig keeps at most 5 groups of lanes in registers");

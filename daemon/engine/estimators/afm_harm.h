@@ -118,6 +118,15 @@ int afm_harm_push(afm_harm *h, double x, double f, double theta_rad);
 int afm_harm_push_n(afm_harm *h, const double *x, const double *f, const double *theta_rad, int n,
                     int *done, long long *rejects);
 
+/* Tone 0's rate changes to dphi (rad per sample) after the last sample, phase continuously,
+ * and theta_rad is that sample's phase in the frame of the samples to come
+ * (afm_track_rebase): the open chunk goes into the period sums, the base phasor moves onto
+ * the last sample and the table follows the new dphi (one sincos and AFM_HARM_TAB complex
+ * products per 4 harmonics, by rotation); the period, its sums and the phasors continue, the
+ * next samples on the fast path. false (nothing changed) when the period clock is not locked
+ * or the phase does not continue (the samples then take the slow path, as a jump). */
+bool afm_harm_rebase(afm_harm *h, double theta_rad, double dphi);
+
 /* deferred: completed periods carry their sums (out.raw) only, and out.h[] is left as it
  * was until the caller asks for it with afm_harm_polar (a chain that publishes one period in
  * many skips the arctangents of the others). Off after init. */

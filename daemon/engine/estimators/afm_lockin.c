@@ -50,6 +50,19 @@ int afm_lockin_init(afm_lockin *l, const afm_cfg_lockin *cfg, double dt_s, char 
     /* |A^m| |A^-m| ~ ((1 + alpha) / (1 - alpha))^m <= 2 */
     double lim = log(2.0) / (2.0 * l->alpha);
     l->m_max = lim >= AFM_LOCKIN_TAB ? AFM_LOCKIN_TAB : lim >= 4.0 ? (int)lim : 0;
+    /* g_j = A^{-(j+1)} b (b: the stages' response to a unit input; A^{-1} g = (g_i - alpha
+     * g_{i-1}) / (1 - alpha) stage by stage, from the last one down): independent of dphi */
+    double gg[AFM_LOCKIN_MAX_ORDER] = {0.0}, gin = 1.0, a = l->alpha;
+    for (int i = 0; i < l->order; i++) {
+        gg[i] = fma(a, gin - gg[i], gg[i]);
+        gin = gg[i];
+    }
+    for (int j = 0; j < l->m_max; j++) {
+        for (int i = l->order - 1; i >= 0; i--)
+            gg[i] = (gg[i] - (i > 0 ? a * gg[i - 1] : 0.0)) / (1.0 - a);
+        for (int i = 0; i < AFM_LOCKIN_MAX_ORDER; i++)
+            l->g[j][i] = i < l->order ? gg[i] : 0.0;
+    }
     afm_lockin_reset(l);
     return 0;
 }
@@ -64,27 +77,31 @@ void afm_lockin_reset(afm_lockin *l) {
     l->s = l->rs = 0.0;
 }
 
-/* The block tables for the tracker's (new) dphi: e^{i L dphi} and V_j = A^{-(j+1)} b
- * e^{i (j+1) dphi} (b: the stages' response to a unit input; A^{-1} g = (g_i - alpha
- * g_{i-1}) / (1 - alpha) stage by stage, from the last one down). */
-AFM_EST_COLD static void build_tables(afm_lockin *l) {
-    for (int L = 0; L <= AFM_LOCKIN_TAB; L++) {
-        l->pr[L][0] = cos((double)L * l->trk.dphi);
-        l->pr[L][1] = sin((double)L * l->trk.dphi);
-    }
-    double g[AFM_LOCKIN_MAX_ORDER] = {0.0}, in = 1.0, a = l->alpha;
-    for (int i = 0; i < l->order; i++) {
-        g[i] = fma(a, in - g[i], g[i]);
-        in = g[i];
-    }
-    for (int j = 0; j < l->m_max; j++) {
-        for (int i = l->order - 1; i >= 0; i--)
-            g[i] = (g[i] - (i > 0 ? a * g[i - 1] : 0.0)) / (1.0 - a);
-        for (int i = 0; i < AFM_LOCKIN_MAX_ORDER; i++) {
-            l->v[j][2 * i] = i < l->order ? g[i] * l->pr[j + 1][0] : 0.0;
-            l->v[j][2 * i + 1] = i < l->order ? g[i] * l->pr[j + 1][1] : 0.0;
+/* The block tables for the tracker's (new) dphi, (rc, rs) = e^{i dphi} already set, built
+ * as the samples need them (extend_tables): a rate change costs O(1) here, and each entry
+ * one complex product and 2 order products when first used (under FM, an NCO step every 64
+ * samples uses 64 of the AFM_LOCKIN_TAB). */
+static void build_tables(afm_lockin *l) {
+    l->pr[0][0] = 1.0;
+    l->pr[0][1] = 0.0;
+    l->built = 0;
+}
+
+/* Entries up to L = upto (<= m_max) of the block tables: e^{i L dphi} by rotation (no sin
+ * and cos per entry, within ~L ulp) and V_{L-1} = g_{L-1} e^{i L dphi} (the stages past
+ * order stay 0). Multiversioned: one vfmadd per fma in the x86-64-v3 copy, the same bits. */
+AFM_CLONES_NOINLINE static void extend_tables(afm_lockin *l, int upto) {
+    const double rc = l->rc, rs = l->rs;
+    for (int L = l->built + 1; L <= upto; L++) {
+        double c = l->pr[L - 1][0], s = l->pr[L - 1][1];
+        l->pr[L][0] = fma(c, rc, -(s * rs));
+        l->pr[L][1] = fma(s, rc, c * rs);
+        for (int i = 0; i < l->order; i++) {
+            l->v[L - 1][2 * i] = l->g[L - 1][i] * l->pr[L][0];
+            l->v[L - 1][2 * i + 1] = l->g[L - 1][i] * l->pr[L][1];
         }
     }
+    if (upto > l->built) l->built = upto;
 }
 
 /* w = z_b + 2 e^{i theta_b} S over the stages (S = the four sums), NV vectors of 2 stages
@@ -187,6 +204,17 @@ static void flush(afm_lockin *l) {
 void afm_lockin_retune(afm_lockin *l) {
     if (l->m > 0) flush(l); /* the base onto the last sample, on the old rate's tables */
     afm_track_init(&l->trk, false);
+}
+
+bool afm_lockin_rebase(afm_lockin *l, double theta_rad, double dphi) {
+    afm_phase_track t = l->trk;
+    if (!t.locked || !afm_track_rebase(&t, theta_rad, dphi)) return false;
+    if (l->m > 0) flush(l); /* the base onto the last sample, on the old rate's tables */
+    l->trk = t;
+    l->rc = cos(dphi);
+    l->rs = sin(dphi);
+    build_tables(l);
+    return true;
 }
 
 /* One sample by the recursion (after moving the base to the previous sample): theta on
@@ -293,6 +321,7 @@ static inline ALWAYS_INLINE int push_n(afm_lockin *l, const double *u, const dou
         l->n += k;
         for (int e = i + k; i < e;) { /* in blocks of at most m_max */
             int b = l->m_max - l->m < e - i ? l->m_max - l->m : e - i;
+            if (l->m + b > l->built) extend_tables(l, l->m + b);
             block_add(l, u + i, b, NV);
             i += b;
             l->trk.th_prev = th[i - 1];

@@ -26,7 +26,8 @@
  * the same numbers as m steps of the recursion up to rounding (V_j and the first column of
  * A^m are tabulated per dphi; m is kept below AFM_LOCKIN_TAB and below ln 2 / (2 alpha), so
  * that |A^m| |A^-m| ~ ((1 + alpha) / (1 - alpha))^m, the most rounding can grow by, stays
- * below 2). Per sample that is `order` complex multiply-adds into sums kept by sample index
+ * below 2; e^{i L dphi} by repeated rotation from one sincos of dphi, within ~L ulp). Per
+ * sample that is `order` complex multiply-adds into sums kept by sample index
  * mod 4. The base moves to the current sample (z_b = z) when m reaches that limit and before
  * a sample off the prediction (a jump or drift of theta, every 1024 samples), which takes
  * one step of the recursion with sin and cos of theta computed exactly. Everything depends
@@ -55,6 +56,7 @@ typedef struct {
     double rc, rs; /* cos, sin dphi: one step */
     int m;         /* samples since the base */
     int m_max;     /* the block limit for this alpha (0: the recursion for every sample) */
+    int built;     /* entries of pr (1..built) and v (0..built-1) valid for this dphi */
     /* sum_j u_j V_j over the samples since the base with j = 0, 4, 8.. in acc[0], j = 1, 5..
      * in acc[1], ...; stage i's real part at [2 i], imaginary part at [2 i + 1] (stages
      * padded to an even count) */
@@ -63,7 +65,8 @@ typedef struct {
     /* the same reversed, for the last stage: [L][2 i], [L][2 i + 1] = ap[L][order - 1 - i] */
     double apl[AFM_LOCKIN_TAB + 1][2 * AFM_LOCKIN_MAX_ORDER];
     double v[AFM_LOCKIN_TAB][2 * AFM_LOCKIN_MAX_ORDER]; /* V_j for the tracker's dphi */
-    double pr[AFM_LOCKIN_TAB + 1][2];                   /* cos, sin (L dphi) */
+    double pr[AFM_LOCKIN_TAB + 1][2]; /* cos, sin (L dphi): e^{i dphi} to the power L */
+    double g[AFM_LOCKIN_TAB][AFM_LOCKIN_MAX_ORDER]; /* A^{-(j+1)} b: V_j without its phase */
 } afm_lockin;
 
 /* tau > 0, order 1..AFM_LOCKIN_MAX_ORDER, dt_s > 0 (the sample interval). Filter state
@@ -80,6 +83,14 @@ void afm_lockin_reset(afm_lockin *l);
  * change as noise in theta and drifting off the prediction sample after sample (a table
  * rebuild per sample: 5 us each). The filter state is kept; the outputs continue. */
 void afm_lockin_retune(afm_lockin *l);
+
+/* The reference's rate changes to dphi (rad per sample) after the last sample, phase
+ * continuously, and theta_rad is that sample's phase in the frame of the samples to come
+ * (afm_track_rebase): the lock-in follows at once, O(1) (one sincos, the block tables'
+ * phases by rotation from it: no per-entry sin and cos, no refit of the filter's powers), the
+ * next samples on the fast path. false (nothing changed) when its tracker is not locked or
+ * the phase does not continue: the samples then take the slow path as for any jump. */
+bool afm_lockin_rebase(afm_lockin *l, double theta_rad, double dphi);
 
 /* One sample of the deflection u (m) at drive phase theta. 0, or -1 (nothing changed) if
  * either is not finite. */

@@ -7,7 +7,8 @@
  * Hermite in time: afm_rt_acc.h) and fast (linear in time: afm_rt_fast.h, described below).
  * The backend by job: afm_rt_impl.h (state, vectors, tones, sync and publish),
  * afm_rt_force.h (forces and the implicit solve), afm_rt_noise.h (thermal increments and
- * their bridge), afm_rt_cross.h (crossing location), the two schemes, and the coefficients
+ * their bridge), afm_rt_cross.h (crossing location), afm_rt_evrec.h (the accurate scheme's
+ * per-step record for afm_sim_set_events), the two schemes, and the coefficients
  * (afm_rt_coef.c). Each table set (rt_tables) is built for both at init.
  *
  * The fast scheme (docs/numerics.md has the reasons and the measurements):
@@ -85,15 +86,26 @@
 
 /* ---- backend: life cycle, scheme selection, dispatch ---- */
 
+/* The accurate scheme with each step's record into s->ev_ring (afm_sim_set_events; without
+ * noise): its own copies, so that the loop without a ring is the scheme's code alone. */
+static AFM_CLONES_NOINLINE int rt_run_acc_ev(afm_sim *s, rt_state *r, int n, afm_sample *out) {
+    if (r->ntones == 1 && r->np == 4) return rt_run_acc_t(s, r, n, out, 4, 1, false, true);
+    if (r->ntones == 1 && r->np == 8) return rt_run_acc_t(s, r, n, out, 8, 1, false, true);
+    return rt_run_acc_t(s, r, n, out, r->np, rt_tones_kind(r), false, true);
+}
+
 AFM_CLONES static int rt_run(afm_sim *s, int n, afm_sample *out) {
     rt_state *r = s->be_state;
     if (r->acc) {
-        if (r->noise) return rt_run_acc_t(s, r, n, out, r->np, rt_tones_kind(r), true);
-        if (r->ntones == 1 && r->np == 4) return rt_run_acc_t(s, r, n, out, 4, 1, false);
-        if (r->ntones == 1 && r->np == 8) return rt_run_acc_t(s, r, n, out, 8, 1, false);
-        if (r->ntones > 1 && r->np == 4) return rt_run_acc_t(s, r, n, out, 4, RT_TONES_V4, false);
-        if (r->ntones > 1 && r->np == 8) return rt_run_acc_t(s, r, n, out, 8, RT_TONES_V4, false);
-        return rt_run_acc_t(s, r, n, out, r->np, rt_tones_kind(r), false);
+        if (r->noise) return rt_run_acc_t(s, r, n, out, r->np, rt_tones_kind(r), true, false);
+        if (s->ev_ring) return rt_run_acc_ev(s, r, n, out);
+        if (r->ntones == 1 && r->np == 4) return rt_run_acc_t(s, r, n, out, 4, 1, false, false);
+        if (r->ntones == 1 && r->np == 8) return rt_run_acc_t(s, r, n, out, 8, 1, false, false);
+        if (r->ntones > 1 && r->np == 4)
+            return rt_run_acc_t(s, r, n, out, 4, RT_TONES_V4, false, false);
+        if (r->ntones > 1 && r->np == 8)
+            return rt_run_acc_t(s, r, n, out, 8, RT_TONES_V4, false, false);
+        return rt_run_acc_t(s, r, n, out, r->np, rt_tones_kind(r), false, false);
     }
     if (r->noise) return rt_run_t(s, r, n, out, r->np, rt_tones_kind(r), true);
     if (r->ntones == 1 && r->np == 4) return rt_run_t(s, r, n, out, 4, 1, false);

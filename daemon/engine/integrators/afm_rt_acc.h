@@ -7,6 +7,7 @@
 #define AFM_RT_ACC_H
 
 #include "integrators/afm_rt_cross.h"
+#include "integrators/afm_rt_evrec.h"
 #include "integrators/afm_rt_force.h"
 #include "integrators/afm_rt_noise.h"
 
@@ -151,12 +152,17 @@ static AFM_CLONES_NOINLINE void rt_piece_acc(const afm_sim *s, const rt_state *r
 }
 
 /* One contact substep of RT_GRID cells from a into b: Hermite, or, where its path crosses
- * the contact line, linear and split at the crossing (rt_substep's thermal bookkeeping). */
+ * the contact line, linear and split at the crossing (rt_substep's thermal bookkeeping).
+ * ea (NULL: none) gathers the pieces kept, the substep being the j0-th of the sample. */
 static void rt_substep_acc(const afm_sim *s, const rt_state *r, const rt_snap *a, rt_snap *b,
-                           double tau) {
+                           double tau, rt_evacc *ea, int j0) {
     rt_piece_acc(s, r, a, b, RT_GRID, true);
     int kc = rt_crossing_cell(r, a, b, tau, true);
-    if (kc < 0) return;
+    const double f0 = ea ? (double)j0 / r->m : 0.0;
+    if (kc < 0) {
+        if (ea) rt_ev_piece(ea, s, r, b, f0 + 1.0 / r->m, true);
+        return;
+    }
     rt_noise *z = r->nz;
     if (kc == 0 || kc >= RT_GRID) { /* at an end: the whole substep linear */
         if (r->noise) {
@@ -165,6 +171,7 @@ static void rt_substep_acc(const afm_sim *s, const rt_state *r, const rt_snap *a
             z->given_cells = RT_GRID;
         }
         rt_piece_acc(s, r, a, b, RT_GRID, false);
+        if (ea) rt_ev_piece(ea, s, r, b, f0 + 1.0 / r->m, false);
         return;
     }
     if (r->noise) {
@@ -173,22 +180,24 @@ static void rt_substep_acc(const afm_sim *s, const rt_state *r, const rt_snap *a
         rt_bridge_draw(r, kc, RT_GRID, z->sq, z->sv);
     }
     rt_piece_acc(s, r, a, b, kc, false);
+    if (ea) rt_ev_piece(ea, s, r, b, f0 + (double)kc / (double)r->ncell, false);
     if (r->noise) {
         memcpy(z->gq, z->sq, sizeof z->gq);
         memcpy(z->gv, z->sv, sizeof z->gv);
         z->given_cells = RT_GRID - kc;
     }
     rt_piece_acc(s, r, b, b, RT_GRID - kc, false);
+    if (ea) rt_ev_piece(ea, s, r, b, f0 + 1.0 / r->m, false);
 }
 
 /* rt_contact for the accurate scheme. */
 static AFM_CLONES_NOINLINE rt_snap *rt_contact_acc(const afm_sim *s, const rt_state *r, rt_snap *a,
-                                                   rt_snap *b, bool redo) {
+                                                   rt_snap *b, bool redo, rt_evacc *ea) {
     double tau = s->dt_s / r->m;
     if (r->noise) rt_noise_sample_begin(r, redo);
     for (int k = 0; k < r->m; k++) {
         if (r->noise) rt_noise_substep(r);
-        rt_substep_acc(s, r, a, b, tau);
+        rt_substep_acc(s, r, a, b, tau, ea, k);
         rt_snap *t = a;
         a = b;
         b = t;
@@ -200,10 +209,12 @@ static AFM_CLONES_NOINLINE rt_snap *rt_contact_acc(const afm_sim *s, const rt_st
  * Hermite pieces, a piece whose path crosses the contact line or has an end in contact close
  * to it (RT_ACC_CLOSE_TRAVELS) redone in its share of the m contact substeps (rt_substep_acc:
  * split at the located crossing). The indentation's square root (DMT, viscoelastic) is no
- * polynomial in time near the line; away from it the pieces are fourth order. */
+ * polynomial in time near the line; away from it the pieces are fourth order. ea (NULL: none)
+ * gathers the pieces kept. */
 static inline __attribute__((always_inline)) void rt_graded_acc(const afm_sim *s, const rt_state *r,
                                                                 const rt_snap *a, rt_snap *b,
-                                                                const int np, const int nt) {
+                                                                const int np, const int nt,
+                                                                rt_evacc *ea) {
     const int K = RT_ACC_NEAR_PIECES, k = r->ncell / K, sub = r->m / K;
     const double tau = s->dt_s / K, taus = s->dt_s / r->m, xc = r->xc;
     const double close = RT_ACC_CLOSE_TRAVELS * tau;
@@ -218,29 +229,38 @@ static inline __attribute__((always_inline)) void rt_graded_acc(const afm_sim *s
             const rt_snap *x = in;
             for (int j = 0; j < sub; j++) {
                 rt_snap *y = j == sub - 1 ? o : &w[j & 1];
-                rt_substep_acc(s, r, x, y, taus);
+                rt_substep_acc(s, r, x, y, taus, ea, p * sub + j);
                 x = y;
             }
+        } else if (ea) {
+            rt_ev_piece(ea, s, r, o, (double)(p + 1) / K, true);
         }
         in = o;
     }
 }
 
-/* n output steps of the accurate scheme (afm_sim_backend.run when r->acc). */
+/* n output steps of the accurate scheme (afm_sim_backend.run when r->acc). evs: each step's
+ * record (afm_rt_evrec.h) into s->ev_ring (without noise only; a constant: the loop without it
+ * is the scheme's own). */
 static inline __attribute__((always_inline)) int rt_run_acc_t(afm_sim *s, rt_state *r, int n,
                                                               afm_sample *out, const int np,
-                                                              const int nt, const bool noise) {
+                                                              const int nt, const bool noise,
+                                                              const bool evs) {
     int rc = AFM_SIM_OK;
     long step = s->step;
     const double t0 = s->t_start_s, dt = s->dt_s;
     rt_snap *a = &r->buf[r->cur];
+    rt_evacc eacc, *ea = evs ? &eacc : NULL;
+    if (evs) rt_ev_start(ea, s, r, a, np, nt);
     for (int k = 0; k < n; k++) {
         if (__builtin_expect(++r->since_sync >= RT_RESYNC, 0)) {
             s->step = step;
             s->t_s = t0 + (double)step * dt;
             rt_sync_phasors(s, r, a);
             a->fdot_n_s = rt_fdot(r, a, np, nt);
+            if (evs) rt_ev_start(ea, s, r, a, np, nt);
         }
+        if (evs) rt_ev_step_begin(ea);
         rt_snap *b = a == &r->buf[0] ? &r->buf[1] : &r->buf[0];
         const bool at_once = r->kinked && a->tip.x_m < r->xc;
         bool contact = at_once;
@@ -258,11 +278,14 @@ static inline __attribute__((always_inline)) int rt_run_acc_t(afm_sim *s, rt_sta
         if (contact && !noise && r->m % RT_ACC_NEAR_PIECES == 0)
             /* near or in contact: whole Hermite pieces follow the van der Waals pulse and
              * the indentation; substeps only for the pieces at the contact line */
-            rt_graded_acc(s, r, a, b, np, nt);
+            rt_graded_acc(s, r, a, b, np, nt, ea);
         else if (contact)
-            b = rt_contact_acc(s, r, a, b, noise && !at_once);
+            b = rt_contact_acc(s, r, a, b, noise && !at_once, ea);
+        else if (evs)
+            rt_ev_piece(ea, s, r, b, 1.0, true);
         a = b;
         step++;
+        if (evs) rt_ev_step_end(ea, s, step, contact);
         if (!(fabs(a->tip.x_m) < 1e-3) ||
             !(fabs(a->tip.v_m_s) < HUGE_VAL && fabs(a->tip.f_n) < HUGE_VAL)) {
             rc = AFM_SIM_EBLOWUP;

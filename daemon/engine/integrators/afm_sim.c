@@ -247,3 +247,24 @@ int afm_sim_set_state(afm_sim *s, const double *q, const double *qd) {
     s->be->changed(s);
     return AFM_SIM_OK;
 }
+
+void afm_sim_set_events(afm_sim *s, afm_step_events *ring, int cap) {
+    if (!ring || cap < 1) {
+        s->ev_ring = NULL;
+        s->ev_cap = 0;
+        return;
+    }
+    for (int i = 0; i < cap; i++)
+        ring[i].step = -1;
+    s->ev_ring = ring;
+    s->ev_cap = cap;
+}
+
+const afm_step_events *afm_sim_events_at(const afm_sim *s, double t_s) {
+    if (!s->ev_ring) return NULL;
+    double k = nearbyint((t_s - s->t_start_s) / s->dt_s);
+    if (!(k >= 0.0 && k < 9e18)) return NULL;
+    long step = (long)k;
+    const afm_step_events *e = &s->ev_ring[step % s->ev_cap];
+    return e->step == step ? e : NULL;
+}

@@ -14,6 +14,7 @@
 #include "forces/afm_drive.h"
 #include "forces/afm_force.h"
 #include "beam/afm_model.h"
+#include "integrators/afm_rt_events.h"
 
 typedef struct {
     double t_s;       /* model time of this sample */
@@ -70,6 +71,17 @@ int afm_sim_set_scheme(afm_sim *s, bool accurate);
  * real-time path (it precomputes; may allocate). Each call restarts the noise sequence
  * from the seed: the same seed gives the same run. */
 int afm_sim_set_thermal(afm_sim *s, const afm_cfg_thermal *t, char *err, size_t errlen);
+
+/* What the integrator knows of each output step beyond its sample (afm_rt_events.h: contact
+ * crossings, min of x, tip-sample work from its own pieces): from now on the step ending at
+ * step count k is recorded in ring[k % cap] (the caller's; kept, not copied; NULL or cap < 1:
+ * none, the state at create). Only the rt backend's accurate scheme without thermal noise
+ * records, in its own copy of the sample loop: ~50 % more instructions per sample on a tapping
+ * orbit (docs/numerics.md), nothing without a ring. Offline tools; not for the real-time path. */
+void afm_sim_set_events(afm_sim *s, afm_step_events *ring, int cap);
+/* The record of the step whose sample is at t_s (a sample's t_s as afm_sim_run wrote it), or
+ * NULL when it was not recorded (another backend or scheme, thermal noise, overwritten). */
+const afm_step_events *afm_sim_events_at(const afm_sim *s, double t_s);
 
 /* Modal state (n entries each) for inspection and tests. */
 void afm_sim_get_state(const afm_sim *s, double *q, double *qd);

@@ -59,6 +59,10 @@ struct afm_sim {
     double base_last_m;        /* base displacement x_dit at t_s */
     const afm_sim_backend *be;
     void *be_state;
+    /* afm_sim_set_events: the caller's ring of step records (NULL: none), ev_cap entries;
+     * step k's at ev_ring[k % ev_cap] (the rt accurate scheme fills it, afm_rt_evrec.h) */
+    afm_step_events *ev_ring;
+    int ev_cap;
 };
 
 extern const afm_sim_backend afm_rt_backend;

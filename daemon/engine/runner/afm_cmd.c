@@ -6,6 +6,7 @@
 #include "runner/afm_cmd.h"
 #include "config/afm_err.h"
 #include "config/afm_limits.h"
+#include "runner/afm_scan.h"
 
 #include <math.h>
 #include <stdarg.h>
@@ -130,6 +131,8 @@ const char *afm_cmd_kind_name(afm_cmd_kind k) {
         return "tick";
     case AFM_CMD_RELOAD:
         return "reload";
+    case AFM_CMD_SCAN:
+        return "scan";
     }
     return "?";
 }
@@ -322,6 +325,90 @@ static int check_dither(const afm_cmd_dither *d, const afm_cmd_limits *lim, char
     return 0;
 }
 
+_Static_assert(AFM_CMD_SCAN_POS_MAX_M == AFM_SCAN_ORIGIN_MAX_M,
+               "a scan command's positions and afmtwin scan's origin share one range");
+
+const char *afm_scan_mode_name(int mode) {
+    switch (mode) {
+    case AFM_SCAN_HOLD:
+        return "hold";
+    case AFM_SCAN_MOVE:
+        return "move";
+    case AFM_SCAN_VELOCITY:
+        return "velocity";
+    case AFM_SCAN_RASTER:
+        return "raster";
+    }
+    return "?";
+}
+
+/* A scan command (issue 18): the ranges of afm_cmd.h. */
+static int check_scan(const afm_cmd_lateral *s, char *err, size_t errlen) {
+    const double v[] = {s->x_m,    s->y_m,      s->speed_m_s, s->vx_m_s,
+                        s->vy_m_s, s->size_x_m, s->size_y_m,  s->line_rate_hz};
+    static const char *const nm[] = {"x_m",    "y_m",      "speed_m_s", "vx_m_s",
+                                     "vy_m_s", "size_x_m", "size_y_m",  "line_rate_hz"};
+    for (int i = 0; i < (int)(sizeof v / sizeof v[0]); i++)
+        if (!isfinite(v[i])) {
+            afm_err_set(err, errlen, "scan: %s is not finite (%g)", nm[i], v[i]);
+            return -1;
+        }
+    const double P = AFM_CMD_SCAN_POS_MAX_M, V = AFM_CMD_SCAN_SPEED_MAX_M_S;
+    switch (s->mode) {
+    case AFM_SCAN_HOLD:
+        return 0;
+    case AFM_SCAN_MOVE:
+        if (!(fabs(s->x_m) <= P && fabs(s->y_m) <= P)) {
+            afm_err_set(err, errlen, "scan: move to (%g, %g) m: |x|, |y| must be <= %g m", s->x_m,
+                        s->y_m, P);
+            return -1;
+        }
+        if (!(s->speed_m_s >= 0 && s->speed_m_s <= V)) {
+            afm_err_set(err, errlen, "scan: move speed_m_s %g not in 0..%g m/s", s->speed_m_s, V);
+            return -1;
+        }
+        return 0;
+    case AFM_SCAN_VELOCITY:
+        if (!(hypot(s->vx_m_s, s->vy_m_s) <= V)) {
+            afm_err_set(err, errlen, "scan: velocity (%g, %g) m/s: its size must be <= %g m/s",
+                        s->vx_m_s, s->vy_m_s, V);
+            return -1;
+        }
+        return 0;
+    case AFM_SCAN_RASTER:
+        if (!(s->size_x_m > 0 && s->size_x_m <= AFM_SCAN_SIZE_MAX_M) ||
+            !(s->size_y_m >= 0 && s->size_y_m <= AFM_SCAN_SIZE_MAX_M)) {
+            afm_err_set(err, errlen,
+                        "scan: raster size %g x %g m: x must be in (0, %g], y in [0, %g] m",
+                        s->size_x_m, s->size_y_m, AFM_SCAN_SIZE_MAX_M, AFM_SCAN_SIZE_MAX_M);
+            return -1;
+        }
+        if (!(s->lines >= 1 && s->lines <= AFM_SCAN_LINES_MAX) ||
+            !(s->pixels >= 2 && s->pixels <= AFM_SCAN_PIXELS_MAX)) {
+            afm_err_set(err, errlen,
+                        "scan: raster of %d lines of %d pixels: lines 1..%d, pixels 2..%d",
+                        s->lines, s->pixels, AFM_SCAN_LINES_MAX, AFM_SCAN_PIXELS_MAX);
+            return -1;
+        }
+        if (!(s->line_rate_hz > 0 && s->line_rate_hz <= AFM_SCAN_LINE_RATE_MAX_HZ)) {
+            afm_err_set(err, errlen, "scan: line_rate_hz %g not in (0, %g]", s->line_rate_hz,
+                        AFM_SCAN_LINE_RATE_MAX_HZ);
+            return -1;
+        }
+        if (!(fabs(s->x_m) <= P && fabs(s->y_m) <= P && fabs(s->x_m + s->size_x_m) <= P &&
+              fabs(s->y_m + s->size_y_m) <= P)) {
+            afm_err_set(err, errlen,
+                        "scan: raster from (%g, %g) m of %g x %g m leaves |x|, |y| <= %g m", s->x_m,
+                        s->y_m, s->size_x_m, s->size_y_m, P);
+            return -1;
+        }
+        return 0;
+    }
+    afm_err_set(err, errlen, "scan: unknown mode %d (0 hold, 1 move, 2 velocity, 3 raster)",
+                s->mode);
+    return -1;
+}
+
 int afm_cmd_validate(const afm_cmd *c, const afm_cmd_limits *lim, char *err, size_t errlen) {
     if (!c) {
         afm_err_set(err, errlen, "no command");
@@ -401,6 +488,8 @@ int afm_cmd_validate(const afm_cmd *c, const afm_cmd_limits *lim, char *err, siz
         return 0;
     case AFM_CMD_RELOAD:
         return 0;
+    case AFM_CMD_SCAN:
+        return check_scan(&c->u.scan, err, errlen);
     }
     afm_err_set(err, errlen, "unknown command kind %d", (int)c->kind);
     return -1;

@@ -26,7 +26,10 @@
  *  - param: n 1..AFM_CMD_MAX_PARAMS, every name in the table (afm_param_lookup), every
  *    value within the entry's range; the same name twice is rejected;
  *  - control: action RUN/PAUSE/RESET/STEP, STEP's n_samples 1..AFM_CMD_MAX_STEP;
- *  - tick: n_samples 1..AFM_CMD_MAX_STEP.
+ *  - tick: n_samples 1..AFM_CMD_MAX_STEP;
+ *  - scan (issue 18): mode HOLD/MOVE/VELOCITY/RASTER; positions within
+ *    AFM_CMD_SCAN_POS_MAX_M of 0 (a raster's far corner too), speeds 0..AFM_CMD_SCAN_SPEED_MAX_M_S,
+ *    a raster's size, lines, pixels and line rate within afm_scan.h's AFM_SCAN_* ranges.
  * Whether a param change fits the running config (e.g. a beam parameter on a lumped model,
  * a capillary parameter while capillary forces are off) needs the config:
  * afm_param_apply says so. */
@@ -51,7 +54,8 @@ typedef enum {
     AFM_CMD_PARAM = 3,
     AFM_CMD_CONTROL = 4,
     AFM_CMD_TICK = 5,
-    AFM_CMD_RELOAD = 6 /* internal (SIGHUP): never decoded from a message */
+    AFM_CMD_RELOAD = 6, /* internal (SIGHUP): never decoded from a message */
+    AFM_CMD_SCAN = 7    /* the tip's lateral motion (issue 18; scan_t) */
 } afm_cmd_kind;
 
 /* Values of afmtwin_control_t.action (checked against the generated constants). */
@@ -100,6 +104,30 @@ typedef struct {
     long long n_samples; /* lockstep: samples to advance */
 } afm_cmd_tick;
 
+/* Values of afmtwin_scan_t.mode (checked against the generated constants). */
+typedef enum {
+    AFM_SCAN_HOLD = 0,     /* stop where the tip is */
+    AFM_SCAN_MOVE = 1,     /* to (x, y) at speed (0: at once) */
+    AFM_SCAN_VELOCITY = 2, /* at (vx, vy) from where the tip is */
+    AFM_SCAN_RASTER = 3    /* lines of trace + retrace (runner/afm_scan.h's raster) */
+} afm_scan_mode;
+
+/* "hold", "move", "velocity", "raster" ("?" for another value). */
+const char *afm_scan_mode_name(int mode);
+
+#define AFM_CMD_SCAN_POS_MAX_M 1.0     /* |x|, |y| of any position (= AFM_SCAN_ORIGIN_MAX_M) */
+#define AFM_CMD_SCAN_SPEED_MAX_M_S 0.1 /* MOVE speed, |VELOCITY| (m/s; a piezo scanner: mm/s) */
+
+typedef struct {
+    int mode;                  /* afm_scan_mode */
+    double x_m, y_m;           /* MOVE: target; RASTER: the first line's start (m) */
+    double speed_m_s;          /* MOVE: 0 (jump) .. AFM_CMD_SCAN_SPEED_MAX_M_S */
+    double vx_m_s, vy_m_s;     /* VELOCITY (m/s) */
+    double size_x_m, size_y_m; /* RASTER (m) */
+    int lines, pixels;         /* RASTER */
+    double line_rate_hz;       /* RASTER: trace + retrace per second */
+} afm_cmd_lateral;
+
 typedef struct {
     afm_cmd_kind kind;
     int64_t seq;   /* sender's sequence number; outputs echo the last one applied */
@@ -110,6 +138,7 @@ typedef struct {
         afm_cmd_param param;
         afm_cmd_control control;
         afm_cmd_tick tick;
+        afm_cmd_lateral scan;
     } u;
 } afm_cmd;
 

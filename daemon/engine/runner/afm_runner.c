@@ -18,8 +18,10 @@
 #include "config/afm_err.h"
 
 #include "forces/afm_force.h"
+#include "forces/afm_surface.h"
 #include "integrators/afm_sim_live.h"
 #include "runner/afm_fm.h"
+#include "runner/afm_scan.h"
 #include "runner/afm_spsc.h"
 #include "runner/afm_twin.h"
 
@@ -36,6 +38,7 @@
 #define EVENTS_PER_CMD 2 /* most change items one command makes */
 #define TRASH_CAP 1024
 #define TRASH_HELD 16
+#define LAT AFM_RUNNER_SCAN_SAMPLES
 
 enum { IT_SAMPLES, IT_RESET, IT_FORCES, IT_ATTACH, IT_DONE };
 
@@ -61,6 +64,10 @@ typedef struct {
     afm_runner_model *model;
     long long done_samples;
     double done_t_s;
+    /* the sample under the tip at the last of the samples (lat_on: the config has one) */
+    bool lat_on;
+    double lat_z_m, lat_x_m, lat_y_m, lat_h_m; /* stage Z, tip x, y, true height z_s */
+    int lat_mat;
     afm_sample s[SLOT];
 } ring_item;
 
@@ -79,7 +86,8 @@ typedef struct {
 struct afm_runner_model {
     afm_config cfg;
     afm_sim *sim;
-    afm_chain *chain; /* NULL: keep the running chain */
+    afm_chain *chain;  /* NULL: keep the running chain */
+    afm_surface *surf; /* cfg's sample (NULL without a sample group); taken by a reload */
 };
 
 struct afm_runner {
@@ -107,10 +115,28 @@ struct afm_runner {
      * other thread) */
     bool fm_on;
     bool fm_hold_pending; /* amplitude set-point 0: hold the amplitude of the first lock */
+    bool fm_retune;       /* the NCO stepped after the last slice: fm_lk follows (O(1)) */
     afm_fm fm;
     afm_lockin fm_lk;
     long long fm_tone_changes, fm_tone_refused;
     double fm_u[SLOT], fm_th[SLOT]; /* one slice's deflection and reference phase */
+    /* the sample under the tip (issue 18; the config's sample group, else surf NULL and none
+     * of this runs): the integrator's separation is the stage Z (cfg.drive.separation_m)
+     * less z_s(x, y), its forces those of the material there. The tip moves by scan
+     * commands; its position is updated every LAT samples counted from create. */
+    afm_surface *surf;
+    afm_force_params mat[AFM_MAX_MATERIALS + 1], mat_tmp[AFM_MAX_MATERIALS + 1];
+    int lat_mode;                               /* afm_scan_mode */
+    double lat_x, lat_y, lat_h;                 /* where the tip is, z_s there */
+    int lat_mat;                                /* the material there (the simulator's forces) */
+    long long lat_s0;                           /* the sample count the motion started at */
+    double lat_x0, lat_y0;                      /* ... and where */
+    double lat_tx, lat_ty, lat_dist, lat_speed; /* MOVE */
+    double lat_vx, lat_vy;                      /* VELOCITY */
+    afm_scan_cfg lat_sc;                        /* RASTER */
+    int lat_line, lat_pixel;                    /* RASTER: where it is (-1: none) */
+    bool lat_retrace;
+    long long lat_clamps; /* updates where the surface rose past the stage Z (gap held at 0) */
     pending_item pending[PENDING_MAX];
     int n_pending;
     /* between */
@@ -139,6 +165,7 @@ const afm_modal *afm_runner_model_modal(const afm_runner_model *m) {
 void afm_runner_model_destroy(afm_runner_model **mp) {
     if (!mp || !*mp) return;
     afm_runner_model *m = *mp;
+    afm_surface_destroy(&m->surf);
     afm_sim_destroy(&m->sim);
     afm_chain_destroy(&m->chain);
     free(m);
@@ -154,11 +181,27 @@ afm_runner_model *afm_runner_model_build(const afm_config *cfg, bool new_chain, 
     }
     m->cfg = *cfg;
     if (afm_config_validate(cfg, err, errlen)) goto fail;
-    m->sim = afm_twin_create(cfg, NULL, NULL, err, errlen);
+    /* With a sample: the simulator starts with material 0's forces, every material's terms
+     * on (afm_surface_material_forces), as afm_scan_twin_create does. */
+    afm_config tc = *cfg;
+    if (cfg->sample.enabled) {
+        if (afm_surface_create(&m->surf, &cfg->sample, cfg->forces.radius_m, err, errlen))
+            goto fail;
+        afm_surface_material_forces(&cfg->sample, &cfg->forces, 0, &tc.forces);
+    }
+    m->sim = afm_twin_create(&tc, NULL, NULL, err, errlen);
     if (!m->sim) goto fail;
+    for (int k = 1; m->surf && k <= cfg->sample.n_materials; k++) { /* every material's forces */
+        double len, wid;
+        afm_cfg_forces f;
+        afm_force_params fp;
+        afm_twin_plate(cfg, afm_sim_model(m->sim), &len, &wid);
+        afm_surface_material_forces(&cfg->sample, &cfg->forces, k, &f);
+        if (afm_force_init(&fp, &f, len, wid, err, errlen)) goto fail;
+    }
     if (cfg->thermal.enabled && afm_sim_set_thermal(m->sim, &cfg->thermal, err, errlen)) goto fail;
     if (new_chain) {
-        m->chain = afm_chain_create(cfg, afm_sim_model(m->sim), err, errlen);
+        m->chain = afm_chain_create(&tc, afm_sim_model(m->sim), err, errlen);
         if (!m->chain) goto fail;
     }
     return m;
@@ -210,6 +253,16 @@ static void back_item(afm_runner *r, ring_item *it) {
         r->b_seq = it->seq;
         r->b_fe_hz = it->drive.n > 0 ? it->drive.omega_rad_s[0] / two_pi : 0.0;
         back_oppoint(r, &it->drive);
+        if (it->lat_on) { /* the stage Z, not the gap, and what is under the tip */
+            r->b_op.z_m = it->lat_z_m;
+            r->b_op.tip_x_m = it->lat_x_m;
+            r->b_op.tip_y_m = it->lat_y_m;
+            r->b_op.true_height_m = it->lat_h_m;
+            r->b_op.material = it->lat_mat;
+        } else {
+            r->b_op.tip_x_m = r->b_op.tip_y_m = r->b_op.true_height_m = 0.0;
+            r->b_op.material = 0;
+        }
         if (it->n > 0) r->b_t_s = it->s[it->n - 1].t_s;
         r->b_samples += it->n;
         break;
@@ -354,6 +407,17 @@ static bool front_room(const afm_runner *r) {
     return r->n_pending + EVENTS_PER_CMD <= PENDING_MAX;
 }
 
+/* What is under the tip now, into the item (the values its last sample ran with). */
+static void item_lat(const afm_runner *r, ring_item *it) {
+    it->lat_on = r->surf != NULL;
+    if (!it->lat_on) return;
+    it->lat_z_m = r->cfg.drive.separation_m;
+    it->lat_x_m = r->lat_x;
+    it->lat_y_m = r->lat_y;
+    it->lat_h_m = r->lat_h;
+    it->lat_mat = r->lat_mat;
+}
+
 /* The item to write samples into (reserving one), or NULL when the ring is full. */
 static ring_item *open_item(afm_runner *r) {
     ring_item *it = r->open;
@@ -375,6 +439,7 @@ static ring_item *open_item(afm_runner *r) {
     it->z0_m = afm_sim_separation(r->sim);
     it->drive = *afm_sim_drive(r->sim);
     it->model = NULL;
+    item_lat(r, it);
     r->open = it;
     return it;
 }
@@ -428,6 +493,10 @@ static void fm_after(afm_runner *r, const afm_sample *s, int k) {
         r->fm_u[i] = s[i].x_m;
         r->fm_th[i] = th0 + wdt * i;
     }
+    if (r->fm_retune) { /* the new rate from the last sample on, th0 - wdt there (O(1)) */
+        r->fm_retune = false;
+        if (!afm_lockin_rebase(&r->fm_lk, th0 - wdt, wdt)) afm_lockin_retune(&r->fm_lk);
+    }
     afm_lockin_push_n(&r->fm_lk, r->fm_u, r->fm_th, k);
     const int u = r->fm.c.update_samples;
     if (r->samples % u != 0) return;
@@ -454,11 +523,15 @@ static void fm_after(afm_runner *r, const afm_sample *s, int k) {
         r->fm_tone_refused++; /* kept at the last tone 0 the simulator took */
         return;
     }
-    if (f_move) afm_lockin_retune(&r->fm_lk);
+    r->fm_retune |= f_move;
     r->fm_tone_changes++;
 }
 
 /* ---- create / destroy --------------------------------------------------------------- */
+
+static int lat_materials(const afm_runner *r, const afm_config *c, afm_force_params *out, char *err,
+                         size_t errlen);
+static void lat_place(afm_runner *r, double x, double y, bool emit_forces, bool force);
 
 afm_runner *afm_runner_create_pipelined(const afm_config *cfg, int block_max, bool lockstep,
                                         bool pipelined, int ring_items, char *err, size_t errlen) {
@@ -485,9 +558,18 @@ afm_runner *afm_runner_create_pipelined(const afm_config *cfg, int block_max, bo
     r->cfg = *cfg;
     r->sim = m->sim;
     r->chain = m->chain;
+    r->surf = m->surf;
     m->sim = NULL;
     m->chain = NULL;
+    m->surf = NULL;
     afm_runner_model_destroy(&m);
+    /* the tip over (0, 0) of the sample, if any: before the back's mirror copies the sim */
+    if (r->surf) {
+        if (lat_materials(r, &r->cfg, r->mat, err, errlen)) goto fail;
+        r->lat_mat = -1;
+        lat_place(r, 0.0, 0.0, false, true);
+        r->lat_line = r->lat_pixel = -1;
+    }
     r->mirror = afm_sim_mirror_create(r->sim, err, errlen);
     if (!r->mirror) goto fail;
     r->b_z = afm_sim_separation(r->sim);
@@ -539,6 +621,7 @@ void afm_runner_destroy(afm_runner **rp) {
             afm_runner_model_destroy(&m);
     }
     afm_chain_destroy(&r->chain);
+    afm_surface_destroy(&r->surf);
     afm_sim_destroy(&r->mirror);
     afm_sim_destroy(&r->sim);
     afm_spsc_destroy(&r->ring);
@@ -576,11 +659,159 @@ int afm_runner_cmd_needs_model(const afm_config *cfg, const afm_cmd *c, bool *ne
     return need;
 }
 
+/* ---- the sample under the tip (issue 18) ------------------------------------------- */
+
+/* The integrator's separation for the stage Z z: the gap's Z - z_s under the tip, held at 0
+ * where the surface rises past the stage (the simulator takes no negative Z). */
+static double lat_gap(afm_runner *r, double z) {
+    if (!r->surf) return z;
+    double g = z - r->lat_h;
+    if (g >= 0) return g;
+    r->lat_clamps++;
+    return 0.0;
+}
+
+/* Every material's force constants for config c on the running model, into out[]. No
+ * allocation. 0, or -1 with err. */
+static int lat_materials(const afm_runner *r, const afm_config *c, afm_force_params *out, char *err,
+                         size_t errlen) {
+    double len, wid;
+    afm_twin_plate(c, afm_sim_model(r->sim), &len, &wid);
+    for (int k = 0; k <= c->sample.n_materials && k <= AFM_MAX_MATERIALS; k++) {
+        afm_cfg_forces f;
+        afm_surface_material_forces(&c->sample, &c->forces, k, &f);
+        if (afm_force_init(&out[k], &f, len, wid, err, errlen)) return -1;
+    }
+    return 0;
+}
+
+/* The tip to (x, y): the simulator gets the material there (its forces; the chain follows,
+ * IT_FORCES, when emit_forces) and the gap for the stage Z; the next samples' item carries
+ * the gap. force: set the forces even when the material is the same (after a swap or a
+ * force change). The caller keeps room for one change item. */
+static void lat_place(afm_runner *r, double x, double y, bool emit_forces, bool force) {
+    r->lat_x = x;
+    r->lat_y = y;
+    r->lat_h = afm_surface_height(r->surf, x, y);
+    int m = afm_surface_material(r->surf, x, y);
+    if (m < 0 || m > r->cfg.sample.n_materials) m = 0; /* not reached: the config is checked */
+    if (m != r->lat_mat || force) {
+        r->lat_mat = m;
+        if (afm_sim_set_forces(r->sim, &r->mat[m]) == AFM_SIM_OK && emit_forces)
+            emit(r, IT_FORCES, NULL);
+    }
+    double g = lat_gap(r, r->cfg.drive.separation_m);
+    if (g != afm_sim_separation(r->sim) || force) afm_sim_set_separation(r->sim, g);
+}
+
+/* At an update boundary: where the motion in force puts the tip, at the middle of the LAT
+ * samples that follow (afm_scan's convention), and there. */
+static void lat_update(afm_runner *r) {
+    double t = ((double)(r->samples - r->lat_s0) + 0.5 * LAT) * afm_sim_dt(r->sim);
+    double x = r->lat_x, y = r->lat_y;
+    const double P = AFM_CMD_SCAN_POS_MAX_M;
+    switch (r->lat_mode) {
+    case AFM_SCAN_MOVE: {
+        double d = r->lat_speed * t;
+        if (d >= r->lat_dist) {
+            x = r->lat_tx;
+            y = r->lat_ty;
+            r->lat_mode = AFM_SCAN_HOLD;
+        } else {
+            x = r->lat_x0 + (r->lat_tx - r->lat_x0) * (d / r->lat_dist);
+            y = r->lat_y0 + (r->lat_ty - r->lat_y0) * (d / r->lat_dist);
+        }
+        break;
+    }
+    case AFM_SCAN_VELOCITY:
+        x = r->lat_x0 + r->lat_vx * t;
+        y = r->lat_y0 + r->lat_vy * t;
+        if (fabs(x) > P || fabs(y) > P) { /* the range's end: hold there */
+            x = fmin(fmax(x, -P), P);
+            y = fmin(fmax(y, -P), P);
+            r->lat_mode = AFM_SCAN_HOLD;
+        }
+        break;
+    case AFM_SCAN_RASTER: {
+        int line, pixel;
+        bool back;
+        afm_scan_position(&r->lat_sc, t, &x, &y, &line, &pixel, &back);
+        if (line >= r->lat_sc.lines) { /* done: hold where the last retrace ended */
+            r->lat_mode = AFM_SCAN_HOLD;
+            return;
+        }
+        r->lat_line = line;
+        r->lat_pixel = pixel;
+        r->lat_retrace = back;
+        break;
+    }
+    default:
+        return;
+    }
+    lat_place(r, x, y, true, false);
+}
+
+/* The sample's materials and the tip's place on r->sim again: after a model swap or a
+ * force change (mat[] already holds the new constants). */
+static void lat_refresh(afm_runner *r) {
+    if (r->surf) lat_place(r, r->lat_x, r->lat_y, true, true);
+}
+
+static int apply_scan(afm_runner *r, const afm_cmd_lateral *c, char *err, size_t errlen) {
+    if (!r->surf) {
+        afm_err_set(err, errlen,
+                    "the config has no sample group: nothing under the tip to scan "
+                    "(config/README.md, sample)");
+        return -1;
+    }
+    r->lat_s0 = r->samples;
+    r->lat_x0 = r->lat_x;
+    r->lat_y0 = r->lat_y;
+    r->lat_line = r->lat_pixel = -1;
+    r->lat_retrace = false;
+    r->lat_mode = AFM_SCAN_HOLD;
+    switch (c->mode) {
+    case AFM_SCAN_MOVE:
+        r->lat_tx = c->x_m;
+        r->lat_ty = c->y_m;
+        r->lat_speed = c->speed_m_s;
+        r->lat_dist = hypot(c->x_m - r->lat_x, c->y_m - r->lat_y);
+        if (c->speed_m_s > 0 && r->lat_dist > 0)
+            r->lat_mode = AFM_SCAN_MOVE;
+        else
+            lat_place(r, c->x_m, c->y_m, true, false); /* at once */
+        break;
+    case AFM_SCAN_VELOCITY:
+        r->lat_vx = c->vx_m_s;
+        r->lat_vy = c->vy_m_s;
+        if (c->vx_m_s != 0 || c->vy_m_s != 0) r->lat_mode = AFM_SCAN_VELOCITY;
+        break;
+    case AFM_SCAN_RASTER:
+        r->lat_sc = (afm_scan_cfg){.x0_m = c->x_m,
+                                   .y0_m = c->y_m,
+                                   .size_x_m = c->size_x_m,
+                                   .size_y_m = c->size_y_m,
+                                   .pixels = c->pixels,
+                                   .lines = c->lines,
+                                   .line_rate_hz = c->line_rate_hz,
+                                   .engage_s = 0.0,
+                                   .update_samples = LAT};
+        lat_place(r, c->x_m, c->y_m, true, false); /* to the first line's start */
+        r->lat_mode = AFM_SCAN_RASTER;
+        r->lat_line = r->lat_pixel = 0;
+        break;
+    default: /* HOLD */
+        break;
+    }
+    return 0;
+}
+
 /* ---- commands ----------------------------------------------------------------------- */
 
-/* Z now; the chain follows with the next samples (their item carries Z). */
+/* Z now; the chain follows with the next samples (their item carries Z). With a sample the
+ * integrator gets the gap Z - z_s under the tip; cfg.drive.separation_m is the stage Z. */
 static void set_z(afm_runner *r, double z) {
-    afm_sim_set_separation(r->sim, z); /* z is validated */
+    afm_sim_set_separation(r->sim, lat_gap(r, z)); /* z is validated */
     r->cfg.drive.separation_m = z;
 }
 
@@ -605,7 +836,7 @@ static int apply_dither(afm_runner *r, const afm_cmd_dither *d, char *err, size_
 }
 
 static void apply_setpoint(afm_runner *r, const afm_cmd_setpoint *p) {
-    double z = afm_sim_separation(r->sim);
+    double z = r->surf ? r->cfg.drive.separation_m : afm_sim_separation(r->sim); /* stage Z */
     if (p->ramp_rate_m_s == 0 || z == p->separation_m) {
         r->ramping = false;
         set_z(r, p->separation_m);
@@ -628,8 +859,9 @@ static int attach_ok(const afm_sim *s, char *err, size_t errlen) {
 
 /* Swap model m in: time always continues; `what` as afm_sim_continue. m travels to the
  * back (ATTACH), which swaps its chain in (if any) and hands m back as trash holding the
- * objects swapped out. */
-static int swap_in(afm_runner *r, afm_runner_model *m, unsigned what, char *err, size_t errlen) {
+ * objects swapped out (with take_surf, a reload's, the sample too: m's goes in). */
+static int swap_in(afm_runner *r, afm_runner_model *m, unsigned what, bool take_surf, char *err,
+                   size_t errlen) {
     if (afm_sim_continue(m->sim, r->sim, what) != AFM_SIM_OK) {
         afm_err_set(err, errlen,
                     "the new model has %d modes, the running one %d: cannot carry "
@@ -641,6 +873,11 @@ static int swap_in(afm_runner *r, afm_runner_model *m, unsigned what, char *err,
     afm_sim *old_sim = r->sim;
     r->sim = m->sim;
     m->sim = old_sim;
+    if (take_surf) {
+        afm_surface *old_surf = r->surf;
+        r->surf = m->surf;
+        m->surf = old_surf;
+    }
     emit(r, IT_ATTACH, m);
     r->swaps++;
     return 0;
@@ -671,8 +908,12 @@ static int apply_param(afm_runner *r, const afm_cmd_param *p, afm_runner_model *
             return -1;
         }
         unsigned what = AFM_SIM_KEEP_DRIVE | (e == AFM_PARAM_DAMPING ? AFM_SIM_KEEP_STATE : 0);
-        if (swap_in(r, *model, what, err, errlen)) return -1;
+        if (swap_in(r, *model, what, false, err, errlen)) return -1;
         *model = NULL; /* travelling to the back */
+    } else if (e == AFM_PARAM_FORCE && r->surf) {
+        /* every material follows the base sample's forces (afm_surface_material_forces) */
+        if (lat_materials(r, &t, r->mat_tmp, err, errlen)) return -1;
+        memcpy(r->mat, r->mat_tmp, sizeof r->mat);
     } else if (e == AFM_PARAM_FORCE) {
         const afm_modal *m = afm_sim_model(r->sim);
         double len = m->beam_length_m > 0 ? m->beam_length_m : t.forces.plate_length_m;
@@ -686,10 +927,16 @@ static int apply_param(afm_runner *r, const afm_cmd_param *p, afm_runner_model *
         emit(r, IT_FORCES, NULL);
     }
     r->cfg = t;
+    if (r->surf && e >= AFM_PARAM_DAMPING) { /* the new model's plate: the materials again */
+        char why[AFM_ERR_LEN];
+        if (lat_materials(r, &r->cfg, r->mat_tmp, why, sizeof why) == 0)
+            memcpy(r->mat, r->mat_tmp, sizeof r->mat);
+    }
+    if (r->surf && e >= AFM_PARAM_FORCE) lat_refresh(r); /* the material's forces, the gap */
     if (has_z) {
         r->ramping = false;
         set_z(r, t.drive.separation_m);
-    } else {
+    } else if (!r->surf) {
         r->cfg.drive.separation_m = afm_sim_separation(r->sim);
     }
     return 0;
@@ -750,6 +997,9 @@ int afm_runner_apply(afm_runner *r, const afm_cmd *c, afm_runner_model **model, 
             break;
         }
         break;
+    case AFM_CMD_SCAN:
+        if (apply_scan(r, &c->u.scan, err, errlen)) return -1;
+        break;
     case AFM_CMD_TICK:
         if (!r->lockstep) {
             afm_err_set(err, errlen, "tick: the twin is not in lockstep mode");
@@ -768,9 +1018,21 @@ int afm_runner_apply(afm_runner *r, const afm_cmd *c, afm_runner_model **model, 
         }
         {
             afm_config next = (*model)->cfg;
-            if (swap_in(r, *model, 0, err, errlen)) return -1;
+            if (swap_in(r, *model, 0, true, err, errlen)) return -1;
             *model = NULL;
             r->cfg = next;
+            /* the new file's sample (or none): the tip stays where it is, holding */
+            r->lat_mode = AFM_SCAN_HOLD;
+            r->lat_line = r->lat_pixel = -1;
+            if (r->surf) {
+                char why[AFM_ERR_LEN];
+                (void)lat_materials(r, &r->cfg, r->mat, why, sizeof why); /* checked by the build */
+                r->lat_mat = -1;
+                lat_place(r, r->lat_x, r->lat_y, true, true);
+            } else {
+                r->lat_x = r->lat_y = r->lat_h = 0.0;
+                r->lat_mat = 0;
+            }
             /* the new config's FM (or none); a refusal leaves the drive of the file */
             char ferr[AFM_ERR_LEN];
             if (fm_setup(r, ferr, sizeof ferr)) r->fm_tone_refused++;
@@ -821,6 +1083,14 @@ long long afm_runner_run(afm_runner *r, long long n) {
     }
     while (done < want) {
         if (r->ramping && r->samples % AFM_RUNNER_RAMP_SAMPLES == 0) ramp_update(r);
+        if (r->lat_mode != AFM_SCAN_HOLD && r->samples % LAT == 0) {
+            /* the tip moves: a material change needs room for its change item */
+            if (r->n_pending > 0 && !flush_pending(r)) {
+                r->stalls++;
+                break;
+            }
+            lat_update(r);
+        }
         ring_item *it = open_item(r);
         if (!it) {
             r->stalls++; /* the chain stage is behind: the caller tries again later */
@@ -848,11 +1118,16 @@ long long afm_runner_run(afm_runner *r, long long n) {
             long long to_upd = r->fm.c.update_samples - r->samples % r->fm.c.update_samples;
             if (k > to_upd) k = to_upd;
         }
+        if (r->lat_mode != AFM_SCAN_HOLD) {
+            long long to_edge = LAT - r->samples % LAT;
+            if (k > to_edge) k = to_edge;
+        }
         double t0 = afm_sim_time(r->sim);
         int rc = afm_sim_run(r->sim, (int)k, it->s + it->n);
         long long adv = k;
         if (rc == AFM_SIM_OK) {
             it->n += (int)k;
+            item_lat(r, it);
         } else {
             if (r->fm_on) {
                 afm_lockin_reset(&r->fm_lk);
@@ -925,7 +1200,7 @@ void afm_runner_status_get(const afm_runner *r, afm_runner_status *st) {
     st->lockstep = r->lockstep;
     st->step_budget = r->step_budget;
     st->tick_budget = r->tick_budget;
-    st->separation_m = afm_sim_separation(r->sim);
+    st->separation_m = r->surf ? r->cfg.drive.separation_m : afm_sim_separation(r->sim);
     st->separation_target_m = r->ramping ? r->z_target : st->separation_m;
     st->fe_hz = d->n > 0 ? d->omega_rad_s[0] / two_pi : 0.0;
     st->amplitude_m = d->n > 0 ? d->amp_m[0] : 0.0;
@@ -953,6 +1228,16 @@ void afm_runner_status_get(const afm_runner *r, afm_runner_status *st) {
     }
     st->fm_tone_changes = r->fm_tone_changes;
     st->fm_tone_refused = r->fm_tone_refused;
+    st->sample_on = r->surf != NULL;
+    st->tip_x_m = r->lat_x;
+    st->tip_y_m = r->lat_y;
+    st->true_height_m = r->lat_h;
+    st->material = r->lat_mat;
+    st->scan_mode = r->lat_mode;
+    st->scan_line = r->lat_mode == AFM_SCAN_RASTER ? r->lat_line : -1;
+    st->scan_pixel = r->lat_mode == AFM_SCAN_RASTER ? r->lat_pixel : -1;
+    st->scan_retrace = r->lat_mode == AFM_SCAN_RASTER && r->lat_retrace;
+    st->gap_clamps = r->lat_clamps;
     if (r->pipelined)
         memset(&st->chain, 0, sizeof st->chain); /* the chain thread's: chain_status_get */
     else

@@ -44,7 +44,22 @@
  *  - tick: adds n samples to the lockstep budget (see afm_runner_run).
  *  - reload: swaps in *model (built from a whole new config): new simulator and chain,
  *    model time continues, state at rest, drive and Z from the new config (and its FM
- *    control, restarted).
+ *    control, restarted; its sample, the tip holding where it was).
+ *  - scan (issue 18): moves the tip laterally (hold, move to, velocity, raster); refused
+ *    without a sample group (below).
+ *
+ * The sample under the tip (the config's `sample` group; forces/afm_surface.h): without one
+ * nothing below runs and the twin is what it was before (bit for bit). With one, the
+ * simulator's separation is the gap Z - z_s(x, y) (held at 0 where the surface rises past
+ * the stage Z) and its forces those of the material under the tip (every material's terms
+ * on, afm_surface_material_forces; a force param change moves every material with the base
+ * sample); Z (setpoint, ramp, status, outputs) stays the stage's. The tip starts at (0, 0);
+ * while it moves its position is recomputed every AFM_RUNNER_SCAN_SAMPLES samples counted
+ * from create, at the middle of the samples that follow (afm_scan's convention: a raster is
+ * afm_scan_position of the time since the command), so the gap moves on that grid within a
+ * block and never steps at a block boundary. A material change commits the open ring item
+ * and is an IT_FORCES change for the chain. No allocation: the surface's queries are
+ * bounded (afm_surface.h).
  *
  * Internal FM control (the config's fm.control = "internal", issue 32; runner/afm_fm.h): the
  * front runs the PLL and the amplitude PI on tone 0 itself, with a lock-in of its own fed
@@ -79,6 +94,7 @@
 #include <stdint.h>
 
 #define AFM_RUNNER_RAMP_SAMPLES 64     /* Z ramp update interval (samples; 4.6 us at 14.06 MHz) */
+#define AFM_RUNNER_SCAN_SAMPLES 64     /* the moving tip's update interval (samples) */
 #define AFM_RUNNER_SLOT_SAMPLES 1024   /* samples per ring item (73 us at 14.06 MHz) */
 #define AFM_RUNNER_BLOWUP_PAUSE 3      /* recurring blow-ups before the twin pauses itself */
 #define AFM_RUNNER_BLOWUP_WINDOW_S 1.0 /* ... each within this model time of the last */
@@ -175,6 +191,10 @@ typedef struct {
     double z_m; /* separation Z at the last of them (a ramp moves it within a block) */
     int n_tones;
     double freq_hz[AFM_MAX_TONES], amp_m[AFM_MAX_TONES]; /* the drive's tones */
+    /* the sample under the tip at the last of them (0 without a sample group; issue 18) */
+    double tip_x_m, tip_y_m; /* the tip's lateral position */
+    double true_height_m;    /* z_s there (the gap is z_m - true_height_m) */
+    int material;            /* the region there: 0 the forces group's sample, i materials[i-1] */
 } afm_runner_oppoint;
 
 typedef struct {
@@ -231,6 +251,15 @@ typedef struct {
     double fm_amplitude_setpoint_m; /* 0: not held yet (held from the first lock) */
     long long fm_tone_changes;      /* tone 0 changes the loops made */
     long long fm_tone_refused;      /* ... the simulator refused (should stay 0) */
+    /* the sample under the tip (issue 18; all 0 and scan_line -1 without a sample group) */
+    bool sample_on;            /* the config has a sample group */
+    double tip_x_m, tip_y_m;   /* the tip's lateral position now */
+    double true_height_m;      /* z_s there */
+    int material;              /* the region there */
+    int scan_mode;             /* afm_scan_mode of the motion in force (HOLD when done) */
+    int scan_line, scan_pixel; /* a raster's line and pixel (-1 without a raster running) */
+    bool scan_retrace;         /* ... going back along the line */
+    long long gap_clamps;      /* updates where z_s rose past Z (gap held at 0) */
 } afm_runner_status;
 
 void afm_runner_status_get(const afm_runner *r, afm_runner_status *st);
