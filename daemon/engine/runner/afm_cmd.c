@@ -325,8 +325,9 @@ static int check_dither(const afm_cmd_dither *d, const afm_cmd_limits *lim, char
     return 0;
 }
 
-_Static_assert(AFM_CMD_SCAN_POS_MAX_M == AFM_SCAN_ORIGIN_MAX_M,
-               "a scan command's positions and afmtwin scan's origin share one range");
+/* A scan command's positions and afmtwin scan's origin share one range:
+ * AFM_CMD_SCAN_POS_MAX_M == AFM_SCAN_ORIGIN_MAX_M (floating constants: clang refuses them in
+ * a _Static_assert, so keep the two equal by hand). */
 
 const char *afm_scan_mode_name(int mode) {
     switch (mode) {
