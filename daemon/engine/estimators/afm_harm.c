@@ -136,6 +136,23 @@ static inline void cmadd(double *s, const double *p, const double *c, int st) {
     }
 }
 
+/* The chunk into the period sums (s += b c for x and f), the base phasor b moved on by the
+ * table row `row` (the chunk's end), the chunk sums cleared: a full chunk of the fast path,
+ * or the part chunk a rebase closes. */
+static inline void fold_chunk(afm_harm *h, const double *row, int st) {
+    cmadd(h->sx, h->b, h->cx, st);
+    cmadd(h->sf, h->b, h->cf, st);
+    for (int g = 0; g < st; g += 8) {
+        afm_v4 re, im;
+        AFM_V4_CMUL(AFM_V4_LD(h->b + g), AFM_V4_LD(h->b + g + 4), AFM_V4_LD(row + g),
+                    AFM_V4_LD(row + g + 4), re, im);
+        AFM_V4_ST(h->b + g, re);
+        AFM_V4_ST(h->b + g + 4, im);
+    }
+    memset(h->cx, 0, (size_t)st * sizeof h->cx[0]);
+    memset(h->cf, 0, (size_t)st * sizeof h->cf[0]);
+}
+
 /* Lane selection (SEL4: m ? x : y per lane, m a lane mask), the sign bit. */
 #define SEL4(m, x, y) ((afm_v4)(((m) & (afm_v4i)(x)) | (~(m) & (afm_v4i)(y))))
 #define SIGN4 ((afm_v4i)AFM_V4_SET1(-0.0))
@@ -435,17 +452,7 @@ AFM_CLONES bool afm_harm_rebase(afm_harm *h, double theta_rad, double dphi) {
     const double *tm = h->tab + (size_t)(int)(h->trk.n - h->nbase) * st; /* the last sample */
     /* what the phasors stand for, less the theta supplied, carried into the new frame */
     const double resid = h->trk.th_prev - (h->imp_ref + h->trk.n * h->trk.dphi);
-    cmadd(h->sx, h->b, h->cx, st);
-    cmadd(h->sf, h->b, h->cf, st);
-    for (int g = 0; g < st; g += 8) {
-        afm_v4 re, im;
-        AFM_V4_CMUL(AFM_V4_LD(h->b + g), AFM_V4_LD(h->b + g + 4), AFM_V4_LD(tm + g),
-                    AFM_V4_LD(tm + g + 4), re, im);
-        AFM_V4_ST(h->b + g, re);
-        AFM_V4_ST(h->b + g + 4, im);
-    }
-    memset(h->cx, 0, (size_t)st * sizeof h->cx[0]);
-    memset(h->cf, 0, (size_t)st * sizeof h->cf[0]);
+    fold_chunk(h, tm, st);
     h->n_sync += h->trk.n;
     h->nbase = 0.0;
     h->imp_ref = theta_rad - resid;
@@ -548,18 +555,7 @@ AFM_CLONES static void fast_block(afm_harm *h, const double *x, const double *f,
         n -= k;
         m += k;
         if (m > AFM_HARM_TAB) {
-            const double *tt = h->tab + (size_t)AFM_HARM_TAB * st;
-            cmadd(h->sx, h->b, h->cx, st);
-            cmadd(h->sf, h->b, h->cf, st);
-            for (int g = 0; g < st; g += 8) {
-                afm_v4 re, im;
-                AFM_V4_CMUL(AFM_V4_LD(h->b + g), AFM_V4_LD(h->b + g + 4), AFM_V4_LD(tt + g),
-                            AFM_V4_LD(tt + g + 4), re, im);
-                AFM_V4_ST(h->b + g, re);
-                AFM_V4_ST(h->b + g + 4, im);
-            }
-            memset(h->cx, 0, (size_t)st * sizeof h->cx[0]);
-            memset(h->cf, 0, (size_t)st * sizeof h->cf[0]);
+            fold_chunk(h, h->tab + (size_t)AFM_HARM_TAB * st, st);
             h->nbase += AFM_HARM_TAB;
             m = 1;
         }
