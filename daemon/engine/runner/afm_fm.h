@@ -35,11 +35,13 @@
  * frequency in force (`afmtwin approach --mode fm`: the locked free resonance at Z = 1 um).
  *
  * Layer runner/ (5) (uses afm_sim, afm_lockin, the model). No allocation; the controllers
- * are a few tens of flops an update. What an NCO step costs is elsewhere: the integrator's
- * tone change and the lock-in's table rebuild (afm_lockin_retune restarts its phase tracker
- * at each step, so that it rebuilds once or a few times per step instead of every sample),
- * ~15-60 us an update measured offline on this shared VM: 15-60 ns a sample at the default
- * 1024 samples per update. */
+ * are a few tens of flops an update. What an NCO step costs is elsewhere: the estimators
+ * follow a phase-continuous tone-0 step in O(1) (afm_lockin_rebase, afm_harm_rebase,
+ * afm_track_rebase: the tracker carried into the new rate, the tables built by rotation), so
+ * the chain costs ~590 instructions a sample under updates every 64 samples against ~380
+ * without FM (callgrind, `afmtwin bench-states`); the integrator's tone change recomputes
+ * its drive tables (~256 sincos a change, ~1100 instructions a sample at 64-sample updates),
+ * the part left to cut (issue 32). */
 #ifndef AFM_FM_H
 #define AFM_FM_H
 

@@ -509,8 +509,9 @@ static void fm_after(afm_runner *r, const afm_sample *s, int k) {
     }
     /* The NCO's resolution: tone 0 moves only when the loop's frequency leaves the quantum
      * it is in. A locked PLL moves by far less than that per update; each step costs the
-     * integrator a resync and every tone-0 estimator (here and in the chain) a table rebuild,
-     * which at every update took ~40 % of the per-sample budget on this VM. */
+     * integrator a drive-table recompute and every tone-0 estimator (here and in the chain)
+     * an O(1) rebase (afm_lockin_rebase above; before the rebase a table rebuild, which at
+     * every update took ~40 % of the per-sample budget on this VM). */
     const double q = AFM_RUNNER_FM_NCO_HZ;
     const double f_set = nearbyint(r->fm.freq_hz / q) * q;
     const double f_now = d->omega_rad_s[0] / two_pi;
