@@ -624,6 +624,45 @@ static void thermal_coef_case(void) {
     check_abs(worst, 0.0, 1e-10, "thermal increment: Sigma(2h) = Phi Sigma(h) Phi^T + Sigma(h)");
 }
 
+/* afm_rt_coef_drive_cells builds the cells' drive rotations from sincos anchors and powers
+ * of the first cell's (issue 32: a tone change at every FM update): every cell's e^{i wd tau}
+ * and dx = cx e^{i wd tau} within 4e-15 of sincos (the recurrence adds ~1 ulp a product, at
+ * most AFM_RT_DRIVE_ANCHOR - 1 of them), for 256 and 24 cells, 2 to 4 tones up to 7 MHz
+ * (half a turn a sample), and the full step exact. */
+static void drive_cells_case(void) {
+    enum { NC = 256 };
+    static afm_rt_prop p[NC];
+    const double wd[4] = {two_pi * 338e3, two_pi * 1.7e6, two_pi * 7e6, two_pi * 61e3};
+    const double cx_re[4] = {1.0, -0.3, 0.25, 2.0}, cx_im[4] = {0.5, 0.7, -1.0, 0.0};
+    /* cells, tones, tones held before: a new table, more tones, fewer tones */
+    const int run[3][3] = {{NC, 3, 0}, {24, 4, 3}, {NC, 2, 4}};
+    double worst = 0, worst_dx = 0;
+    bool full_exact = true, zeros = true;
+    for (int t = 0; t < 3; t++) {
+        const int nc = run[t][0], nt = run[t][1];
+        for (int k = 0; k < nc; k++)
+            p[k].tau_s = (double)(k + 1) / (rate_hz * nc);
+        afm_rt_coef_drive_cells(p, nc, nt, run[t][2], wd, cx_re, cx_im);
+        for (int k = 0; k < nc; k++)
+            for (int j = 0; j < nt; j++) {
+                double c = cos(wd[j] * p[k].tau_s), sn = sin(wd[j] * p[k].tau_s);
+                worst = fmax(worst, hypot(p[k].rot_re[j] - c, p[k].rot_im[j] - sn));
+                double xr = cx_re[j] * c - cx_im[j] * sn, xi_ = cx_re[j] * sn + cx_im[j] * c;
+                worst_dx = fmax(worst_dx, hypot(p[k].dx_re[j] - xr, p[k].dx_im[j] - xi_) /
+                                              hypot(cx_re[j], cx_im[j]));
+                if (k == nc - 1 && (p[k].rot_re[j] != c || p[k].rot_im[j] != sn))
+                    full_exact = false;
+            }
+        for (int k = 0; k < nc; k++)
+            for (int j = nt; j < AFM_MAX_TONES; j++)
+                if (p[k].rot_re[j] != 0 || p[k].dx_im[j] != 0 || p[k].dv_re[j] != 0) zeros = false;
+    }
+    check_abs(worst, 0.0, 4e-15, "drive cells: rotations e^{i wd tau_k} from anchors and powers");
+    check_abs(worst_dx, 0.0, 4e-15, "drive cells: dx = cx e^{i wd tau_k}");
+    check_true(full_exact, "drive cells: the full step's rotation is sincos's");
+    check_true(zeros, "drive cells: zeros past ntones after 3 -> 4 -> 2 tones");
+}
+
 /* Equipartition: forces off, no drive, T = 300 K. Each mode's <q^2> must be kB T / w^2,
  * <q'^2> kB T and <q q'> 0; the tip <x^2> = kB T / k_static.
  * Damping is raised (xi 0.1, 0.02, 0.2, 0.3) so that a short run averages many correlation
@@ -1031,6 +1070,7 @@ int main(void) {
     z_ramp_case(-12e-9);
     bad_input_case();
     thermal_coef_case();
+    drive_cells_case();
     thermal_equipartition_case();
     thermal_surface_case();
     thermal_seed_case();

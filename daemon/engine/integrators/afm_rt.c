@@ -132,6 +132,14 @@ static void rt_tables_use(rt_state *r, bool acc) {
     r->guess_gap_per_n = r->guess_x_per_n * r->cos_alpha;
 }
 
+/* t's drive rows for the tones in force (r->wd, cx: rt_changed), zeroing only the rows of
+ * tones it held past them. */
+static void rt_tables_drive(rt_tables *t, const rt_state *r) {
+    afm_rt_coef_drive_cells(t->prop, t->ncell, r->ntones, t->drive_tones, r->wd, r->cx_re,
+                            r->cx_im);
+    t->drive_tones = r->ntones;
+}
+
 /* Recompute the drive tables and reload the state from s->q, s->qd at s->t_s. */
 static void rt_changed(afm_sim *s) {
     rt_state *r = s->be_state;
@@ -161,8 +169,7 @@ static void rt_changed(afm_sim *s) {
     }
     /* the tables in force now; the other set when a hand-over needs it (rt_set_scheme):
      * a drive change then costs one set's sincos, not both (bench-states' frequency steps) */
-    for (int k = 0; k < r->tab[r->acc].ncell; k++)
-        afm_rt_coef_drive(&r->tab[r->acc].prop[k], r->ntones, r->wd, cx_re, cx_im);
+    rt_tables_drive(&r->tab[r->acc], r);
     r->drive_stale[r->acc] = false;
     r->drive_stale[!r->acc] = true;
     for (int j = 0; j < AFM_MAX_TONES; j++) { /* x_p'' = -wd^2 x_p */
@@ -265,8 +272,7 @@ static void rt_set_scheme(afm_sim *s, bool accurate) {
     rt_state *r = s->be_state;
     if (r->acc == accurate) return;
     if (r->drive_stale[accurate]) { /* bounded: one table set's drive rows */
-        for (int k = 0; k < r->tab[accurate].ncell; k++)
-            afm_rt_coef_drive(&r->tab[accurate].prop[k], r->ntones, r->wd, r->cx_re, r->cx_im);
+        rt_tables_drive(&r->tab[accurate], r);
         r->drive_stale[accurate] = false;
     }
     rt_tables_use(r, accurate);

@@ -152,19 +152,48 @@ void afm_rt_coef_chain(afm_rt_prop *p, const afm_rt_prop *pf, int np) {
     p->hv = hv;
 }
 
-void afm_rt_coef_drive(afm_rt_prop *p, int ntones, const double *wd, const double *cx_re,
-                       const double *cx_im) {
+/* Cell p's drive rows for tone j from its rotation e^{i wd tau} = (rr, ri). */
+static inline void drive_row(afm_rt_prop *p, int j, double rr, double ri, double wd, double cx_re,
+                             double cx_im) {
+    p->rot_re[j] = rr;
+    p->rot_im[j] = ri;
+    p->dx_re[j] = cx_re * rr - cx_im * ri;
+    p->dx_im[j] = cx_re * ri + cx_im * rr;
+    p->dv_re[j] = -wd * p->dx_im[j]; /* i wd dx */
+    p->dv_im[j] = wd * p->dx_re[j];
+}
+
+void afm_rt_coef_drive_cells(afm_rt_prop *prop, int ncell, int ntones, int nheld, const double *wd,
+                             const double *cx_re, const double *cx_im) {
+    enum { A = AFM_RT_DRIVE_ANCHOR };
     for (int j = 0; j < ntones; j++) {
-        double rr = cos(wd[j] * p->tau_s), ri = sin(wd[j] * p->tau_s);
-        p->rot_re[j] = rr;
-        p->rot_im[j] = ri;
-        p->dx_re[j] = cx_re[j] * rr - cx_im[j] * ri;
-        p->dx_im[j] = cx_re[j] * ri + cx_im[j] * rr;
-        p->dv_re[j] = -wd[j] * p->dx_im[j]; /* i wd dx */
-        p->dv_im[j] = wd[j] * p->dx_re[j];
+        double pw_re[A], pw_im[A]; /* e^{i wd r tau_0}, r = 0..A-1 */
+        pw_re[0] = 1.0;
+        pw_im[0] = 0.0;
+        pw_re[1] = cos(wd[j] * prop[0].tau_s);
+        pw_im[1] = sin(wd[j] * prop[0].tau_s);
+        for (int r = 2; r < A; r++) {
+            pw_re[r] = pw_re[r - 1] * pw_re[1] - pw_im[r - 1] * pw_im[1];
+            pw_im[r] = pw_re[r - 1] * pw_im[1] + pw_im[r - 1] * pw_re[1];
+        }
+        double an_re = 1.0, an_im = 0.0; /* the anchor: cell k0 - 1's rotation (1 before 0) */
+        for (int k0 = 0; k0 < ncell; k0 += A) {
+            /* cells k0 .. k0 + A - 2 from the anchor, the block's last (and the full step,
+             * the table's last) by sincos */
+            const int last = k0 + A - 1 < ncell - 1 ? k0 + A - 1 : ncell - 1;
+            for (int k = k0; k < last; k++) {
+                const int r = k - k0 + 1;
+                drive_row(&prop[k], j, an_re * pw_re[r] - an_im * pw_im[r],
+                          an_re * pw_im[r] + an_im * pw_re[r], wd[j], cx_re[j], cx_im[j]);
+            }
+            an_re = cos(wd[j] * prop[last].tau_s);
+            an_im = sin(wd[j] * prop[last].tau_s);
+            drive_row(&prop[last], j, an_re, an_im, wd[j], cx_re[j], cx_im[j]);
+        }
     }
-    for (int j = ntones; j < AFM_MAX_TONES; j++) /* zeros past ntones: afm_rt.c's tone vector */
-        p->rot_re[j] = p->rot_im[j] = p->dx_re[j] = p->dx_im[j] = p->dv_re[j] = p->dv_im[j] = 0.0;
+    for (int k = 0; k < ncell; k++) /* zeros past ntones: afm_rt.c's tone vector */
+        for (int j = ntones; j < nheld; j++)
+            drive_row(&prop[k], j, 0.0, 0.0, 0.0, 0.0, 0.0);
 }
 
 void afm_rt_coef_thermal(const afm_rt_prop *p, int n, int np, const double *w, const double *xi,

@@ -68,10 +68,18 @@ void afm_rt_coef_hermite(afm_rt_prop *p, int n, int np, const double *w, const d
  * afm_rt_coef_modes on both. */
 void afm_rt_coef_chain(afm_rt_prop *p, const afm_rt_prop *pf, int np);
 
-/* Drive part of p (rot, dx, dv) for tones wd[j] (rad/s), j < ntones, whose steady-state tip
- * response is x_p = Im(cx_j e^{i theta_j}). Needs tau_s (afm_rt_coef_modes) first. */
-void afm_rt_coef_drive(afm_rt_prop *p, int ntones, const double *wd, const double *cx_re,
-                       const double *cx_im);
+/* Drive part (rot, dx, dv) of every cell of a table, prop[k].tau_s = (k + 1) prop[0].tau_s,
+ * k < ncell (afm_rt_impl.h's grid), for tones wd[j] (rad/s), j < ntones, whose steady-state
+ * tip response is x_p = Im(cx_j e^{i theta_j}); the rows of tones ntones..nheld - 1 (those
+ * the cells held before, past ntones) zeroed, those past nheld left zero. Needs tau_s
+ * (afm_rt_coef_modes) first. Runs at every drive change. The rotations e^{i wd tau_k} by sincos
+ * only at every AFM_RT_DRIVE_ANCHOR-th cell and at the last (the full step), the cells between as
+ * the anchor before them times the powers of the first cell's rotation: ncell / AFM_RT_DRIVE_ANCHOR
+ * + AFM_RT_DRIVE_ANCHOR sincos a tone instead of ncell (a tone change at every FM update was ~256
+ * sincos), within ~2 AFM_RT_DRIVE_ANCHOR ulp of sincos. */
+#define AFM_RT_DRIVE_ANCHOR 8
+void afm_rt_coef_drive_cells(afm_rt_prop *prop, int ncell, int ntones, int nheld, const double *wd,
+                             const double *cx_re, const double *cx_im);
 
 /* Thermal (Langevin) increment over p's step (tau_s) for n modes w, xi at kB T = kt_j (J),
  * stride np (zeros past n and for modes without damping). With mass-normalised modes and

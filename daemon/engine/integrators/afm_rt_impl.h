@@ -71,6 +71,8 @@ typedef struct {
  * set, its Cholesky factors and bridge gains (rt_state.lth, .bridge). */
 typedef struct {
     int m, ncell;
+    int drive_tones; /* tones whose drive rows prop holds (zeros past: calloc, then the
+                        afm_rt_coef_drive_cells calls) */
     afm_rt_prop *prop;
     double *block, *lth, *bridge;
 } rt_tables;
@@ -192,7 +194,7 @@ static inline double rt_gap(const rt_state *r, double x) {
 /* The drive's tones. nt is a constant in every hot copy: 1 (scalar), or RT_TONES_V4 when
  * several tones run: then all AFM_MAX_TONES phasors are rotated and summed as one vector,
  * whatever their number (every per-tone array is zero past ntones: rt_changed,
- * afm_rt_coef_drive, rt_sync_phasors), so four tones cost what one does (a scalar loop over
+ * afm_rt_coef_drive_cells, rt_sync_phasors), so four tones cost what one does (a scalar loop over
  * four tones cost +14 ns/sample, the soak's worst state, issue 12). */
 #define RT_TONES_V4 AFM_MAX_TONES
 _Static_assert(AFM_MAX_TONES == 4, "the tone vector is one rt_v4");
