@@ -310,13 +310,8 @@ int afm_cmd_flood(int argc, char **argv) {
         double el = afmt_mono_s() - t0;
         if (el >= o.seconds) break;
         long long due = (long long)(el * o.rate), vdue = (long long)(el * o.valid_rate);
-        while (total < due && ((total & 63) || afmt_mono_s() - t0 < o.seconds)) {
-            int k = kinds[rnd() % (unsigned)nk], t = 0;
-            int n = junk(k, &t, b, (int)sizeof b);
-            if (lcm_publish(lcm, o.ch.cmd[AFM_CMD_DITHER + t], b, (unsigned)n) < 0) failed++;
-            sent[k]++;
-            total++;
-        }
+        /* the valid ones first: a sender kept off the CPU spends its slice on the junk
+         * burst, and would otherwise reach the end of the run with none sent */
         while (valid < vdue && afmt_mono_s() - t0 < o.seconds) {
             int n, ch = 1;
             if (o.valid_param) {
@@ -338,6 +333,13 @@ int afm_cmd_flood(int argc, char **argv) {
             if (first_seq < 0) first_seq = seq;
             last_seq = seq++;
             valid++;
+        }
+        while (total < due && ((total & 63) || afmt_mono_s() - t0 < o.seconds)) {
+            int k = kinds[rnd() % (unsigned)nk], t = 0;
+            int n = junk(k, &t, b, (int)sizeof b);
+            if (lcm_publish(lcm, o.ch.cmd[AFM_CMD_DITHER + t], b, (unsigned)n) < 0) failed++;
+            sent[k]++;
+            total++;
         }
         sleep_until(t0 + (double)s * slice);
     }
