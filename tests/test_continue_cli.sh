@@ -20,6 +20,15 @@ rc=$?
 [ $rc -eq 0 ] && ok "a linear run: exit 0" || bad "a linear run: exit $rc, $(cat "$T/lin.err")"
 np=$(grep -c '"type":"point"' "$T/lin.json")
 [ "$np" -ge 3 ] && ok "a linear run: $np point records" || bad "a linear run: $np point records"
+# --curve-kinds pd: the same run has LPCs only, so no curve (and a line that says so)
+"$A" continue --config config/lumped-vdw-fold.conf --param fe --from 298700 --to 298300 \
+  --no-switch --param2 ae --from2 3e-13 --to2 6e-13 --curves 1 --curve-points 3 --json \
+  --curve-kinds pd >"$T/cvpd.json" 2>"$T/cvpd.err"
+rc=$?
+[ $rc -eq 0 ] && ! grep -q '"type":"curve_point"' "$T/cvpd.json" &&
+  tail -1 "$T/cvpd.json" | grep -q '"curves":0' && grep -q "no PD point in the range" "$T/cvpd.err" &&
+  ok "--curve-kinds pd: no curve from a run with LPCs only, and it says so" ||
+  bad "--curve-kinds pd: exit $rc, $(grep -c curve_point "$T/cvpd.json") curve points, $(cat "$T/cvpd.err")"
 miss=""
 for k in branch param period stable multipliers min_deflection_m max_deflection_m max_force_n \
   amplitude_m phase_lag_deg; do
@@ -87,5 +96,7 @@ refuse "--from2 without --param2" "needs --from2 and --to2" --config $C --param 
 refuse "--param2 = --param" "must differ from --param" --config $C --param fe --from 80000 --to 81000 --param2 fe --from2 1 --to2 2
 refuse "an unknown --param2" "unknown parameter" --config $C --param fe --from 80000 --to 81000 --param2 bogus --from2 1 --to2 2
 refuse "--param2's config value outside its range" "outside \[--from2, --to2\]" --config $C --param fe --from 80000 --to 81000 --param2 z --from2 1e-9 --to2 2e-9
+refuse "--curve-kinds bogus" "must be lpc, pd or all" --config $C --param fe --from 80000 --to 81000 --param2 z --from2 29e-9 --to2 31e-9 --curve-kinds bogus
+refuse "--curve-kinds without --param2" "is for --param2" --config $C --param fe --from 80000 --to 81000 --curve-kinds lpc
 refuse "--curves 0" "--curves wants an integer in 1..32" --config $C --param fe --from 80000 --to 81000 --param2 z --from2 29e-9 --to2 31e-9 --curves 0
 check_done

@@ -25,7 +25,7 @@
 #include <string.h>
 
 typedef struct {
-    const char *config, *param, *start, *param2;
+    const char *config, *param, *start, *param2, *curve_kinds;
     double from, to, from2, to2;
     const char *from_s, *to_s, *from2_s, *to2_s; /* in the unit of --param / --param2 */
     int max_points, period, settle, max_branches, curves, curve_points;
@@ -41,7 +41,7 @@ static void cont_usage(FILE *f) {
         "                        [--settle N] [--no-switch] [--max-branches N]\n"
         "                        [--step H] [--max-step H] [--json]\n"
         "                        [--param2 NAME --from2 X --to2 X [--curves N]\n"
-        "                         [--curve-points N]]\n\n"
+        "                         [--curve-points N] [--curve-kinds lpc|pd|all]]\n\n"
         "Numerical continuation of the periodic orbits of the modal model with its tip\n"
         "forces (the config's drive must be one tone): starting from the orbit at --from\n"
         "(found by time integration from rest, or from --start), the branch is followed by\n"
@@ -86,6 +86,9 @@ static void cont_usage(FILE *f) {
         "  --from2 X, --to2 X the second parameter's range\n"
         "  --curves N         most curves, 1..32 (default 8: the first N LPC / PD points)\n"
         "  --curve-points N   most points per side of a curve (default 400)\n"
+        "  --curve-kinds K    which points get a curve: lpc, pd or all (default all); e.g.\n"
+        "                     lpc for the edges of the bistable windows alone, those of\n"
+        "                     the period-doubled branches' folds included\n"
         "  --json             one JSON object per line: {\"type\": \"point\", \"branch\", "
         "\"param\",\n"
         "                     \"period\", \"stable\", \"multipliers\": [[re, im], ...],\n"
@@ -154,6 +157,7 @@ static int cont_parse(int argc, char **argv, cont_cli *o) {
         AFMT_STRING("--to2", &o->to2_s),
         AFMT_INT("--curves", &o->curves, 1, CONT_MAX_CURVES, NULL),
         AFMT_INT("--curve-points", &o->curve_points, 1, 100000, NULL),
+        AFMT_STRING("--curve-kinds", &o->curve_kinds),
         AFMT_STRING("--from", &o->from_s),
         AFMT_STRING("--to", &o->to_s),
         AFMT_DOUBLE("--step", &o->h0, 0, 0, NULL),
@@ -189,6 +193,16 @@ static int cont_parse(int argc, char **argv, cont_cli *o) {
     bool r2 = !isnan(o->from2) || !isnan(o->to2);
     if ((o->param2 || r2) && (!o->param2 || isnan(o->from2) || isnan(o->to2))) {
         fprintf(stderr, "afmtwin continue: --param2 needs --from2 and --to2 (and they need it)\n");
+        return -1;
+    }
+    if (o->curve_kinds && strcmp(o->curve_kinds, "lpc") && strcmp(o->curve_kinds, "pd") &&
+        strcmp(o->curve_kinds, "all")) {
+        fprintf(stderr, "afmtwin continue: --curve-kinds must be lpc, pd or all (got %s)\n",
+                o->curve_kinds);
+        return -1;
+    }
+    if (o->curve_kinds && !o->param2) {
+        fprintf(stderr, "afmtwin continue: --curve-kinds is for --param2\n");
         return -1;
     }
     if (o->param2 && (!strcmp(o->param2, o->param) || o->from2 == o->to2)) {
@@ -237,8 +251,9 @@ typedef struct {
     double scale; /* of the table's parameter column */
     cont_event ev[CONT_MAX_CURVES];
     int n_ev, max_ev;
-    int points;       /* records so far, for the progress */
-    afmt_progress pg; /* on stderr, terminals only */
+    bool want_lpc, want_pd; /* --curve-kinds */
+    int points;             /* records so far, for the progress */
+    afmt_progress pg;       /* on stderr, terminals only */
 } cont_sink;
 
 static const char *kind_name(afm_cont_kind k) {
@@ -299,7 +314,9 @@ static void json_orbit(cJSON *o, const afm_cont_metrics *met, int n, const doubl
 
 static int cont_emit_record(void *ctx, const afm_cont_record *r) {
     cont_sink *s = ctx;
-    if ((r->kind == AFM_CONT_LPC || r->kind == AFM_CONT_PD) && r->refined && s->n_ev < s->max_ev) {
+    const bool wanted =
+        (r->kind == AFM_CONT_LPC && s->want_lpc) || (r->kind == AFM_CONT_PD && s->want_pd);
+    if (wanted && r->refined && s->n_ev < s->max_ev) {
         cont_event *e = &s->ev[s->n_ev++];
         e->kind = r->kind;
         e->p = r->p;
@@ -414,7 +431,10 @@ static int run_curves(const afm_config *cfg, const cont_cli *o, cont_sink *sink,
     *maps = 0;
     *secs = 0.0;
     if (sink->n_ev == 0)
-        fprintf(stderr, "afmtwin continue: no LPC or PD point in the range: no curve in %s\n",
+        fprintf(stderr, "afmtwin continue: no %s point in the range: no curve in %s\n",
+                !o->curve_kinds || !strcmp(o->curve_kinds, "all") ? "LPC or PD"
+                : !strcmp(o->curve_kinds, "lpc")                  ? "LPC"
+                                                                  : "PD",
                 o->param2);
     else if (!o->json)
         printf("# %-3s %3s %4s %14s %14s %-8s %12s %12s %10s %12s\n", "kind", "cv", "side",
@@ -513,7 +533,9 @@ int afm_cmd_continue(int argc, char **argv) {
                        .name2 = o.param2,
                        .unit = unit,
                        .scale = is_fe ? 1e-3 : 1.0,
-                       .max_ev = o.param2 ? o.curves : 0};
+                       .max_ev = o.param2 ? o.curves : 0,
+                       .want_lpc = !o.curve_kinds || strcmp(o.curve_kinds, "pd"),
+                       .want_pd = !o.curve_kinds || strcmp(o.curve_kinds, "lpc")};
     if (!o.json)
         printf("# %-3s %3s %2s %14s %-8s %12s %12s %10s %12s %8s\n", "kind", "br", "p", unit, "",
                "min x (nm)", "max x (nm)", "max F (nN)", "ampl (nm)", "lag (deg)");
