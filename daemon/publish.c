@@ -92,6 +92,11 @@ void twind_status_fill(twind *d, afm_io_status *o, twind_rtf_state *rs) {
     o->scan_line = s.st.scan_line;
     o->scan_pixel = s.st.scan_pixel;
     o->scan_retrace = s.st.scan_retrace;
+    o->am_control = s.st.am_on ? "internal" : "none";
+    o->am_z_m = s.st.am_z_m;
+    o->am_error_m = s.st.am_error_m;
+    o->am_setpoint_m = s.st.am_setpoint_m;
+    o->am_amplitude_m = s.st.am_amplitude_m;
     pthread_mutex_lock(&d->lock);
     o->last_reject_age_s = d->last_reject[0] ? wall - d->last_reject_mono : -1.0;
     o->last_reject_old = d->last_reject[0] && s.last_applied_order > d->last_reject_order;

@@ -50,6 +50,7 @@ int ex_status(uint8_t *b, int cap, const char *last_reject) {
     st.fm_control = "none";
     st.fm_lock_state = "";
     st.scan_mode = "hold"; /* issue 18 */
+    st.am_control = "none";
     return afmtwin_status_t_encode(b, 0, cap, &st);
 }
 

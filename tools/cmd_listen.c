@@ -368,6 +368,11 @@ static void print_status(const listen_ctx *c, const char *channel, const afmtwin
         json_int(o, "scan_line", m->scan_line);
         json_int(o, "scan_pixel", m->scan_pixel);
         json_int(o, "scan_retrace", m->scan_retrace);
+        json_str(o, "am_control", m->am_control);
+        json_num(o, "am_z_m", m->am_z_m);
+        json_num(o, "am_error_m", m->am_error_m);
+        json_num(o, "am_setpoint_m", m->am_setpoint_m);
+        json_num(o, "am_amplitude_m", m->am_amplitude_m);
         afmt_json_emit(o);
         return;
     }
@@ -408,6 +413,10 @@ static void print_status(const listen_ctx *c, const char *channel, const afmtwin
                fl, m->fm_frequency_shift_hz, m->fm_frequency_hz, m->fm_reference_hz,
                m->fm_phase_error_deg, m->fm_drive_amplitude_m * 1e12, m->fm_amplitude_m * 1e9);
     }
+    if (m->am_control && strcmp(m->am_control, "internal") == 0) /* issue 18 */
+        printf(" | AM Z loop: Z %.5g nm error %.4g nm (set-point %.4g nm, A %.4g nm)",
+               m->am_z_m * 1e9, m->am_error_m * 1e9, m->am_setpoint_m * 1e9,
+               m->am_amplitude_m * 1e9);
     if (m->sample_on) { /* issue 18 */
         char sm[SHOW_LEN];
         show(sm, m->scan_mode);

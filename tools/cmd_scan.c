@@ -65,10 +65,11 @@ static void scan_usage(FILE *f) {
                "  --line-rate HZ   lines (trace + retrace) per second (default 10)\n"
                "  --engage S       dwell at the origin before the first line (default 0.02 s)\n"
                "  --setpoint R     amplitude set-point as a fraction of A0 (the free amplitude),\n"
-               "                   0 < R < 1 (default 0.8)\n"
-               "  --kp K           proportional gain, m of Z per m of error (default 0)\n"
-               "  --ki HZ          integral gain, 1/s (default 2000)\n"
-               "  --z-rate M_S     slew limit of Z, the piezo's (default 1e-3 m/s)\n"
+               "                   0 < R < 1 (default the config's am.setpoint_ratio, 0.8)\n"
+               "  --kp K           proportional gain, m of Z per m of error (default am.kp, 0)\n"
+               "  --ki HZ          integral gain, 1/s (default am.ki_hz, 2000)\n"
+               "  --z-rate M_S     slew limit of Z, the piezo's (default am.z_rate_max_m_s,\n"
+               "                   1e-3 m/s); Z stays in am.z_min_m .. am.z_max_m (0 .. 10 um)\n"
                "  --update N       samples per controller update (default 64: 4.6 us at\n"
                "                   14.06 MHz, the daemon's ramp grid)\n"
                "  --integrator NAME  rt (the daemon's) or reference (CVODE); default the config's\n"
@@ -111,12 +112,13 @@ static int parse_args(int argc, char **argv, scan_opts *o) {
                             .line_rate_hz = 10,
                             .engage_s = 0.02,
                             .update_samples = 64},
-                     .pc = {.kp = 0,
-                            .ki_hz = 2000,
-                            .setpoint_ratio = 0.8,
-                            .z_rate_max_m_s = 1e-3,
-                            .z_min_m = 0,
-                            .z_max_m = 1e-5},
+                     /* NAN: the config's am group's (or its defaults), below */
+                     .pc = {.kp = NAN,
+                            .ki_hz = NAN,
+                            .setpoint_ratio = NAN,
+                            .z_rate_max_m_s = NAN,
+                            .z_min_m = NAN,
+                            .z_max_m = NAN},
                      .integrator = -1};
     const afmt_opt opts[] = {
         AFMT_FLAG("--json", &o->json),
@@ -366,6 +368,14 @@ int afm_cmd_scan(int argc, char **argv) {
         return 2;
     }
     if (o.integrator >= 0) cfg.sim.integrator = (afm_integrator_kind)o.integrator;
+    /* the controller: the options given, else the config's am group (the daemon's with
+     * am.control = "internal"), else its defaults */
+    if (isnan(o.pc.kp)) o.pc.kp = cfg.am.kp;
+    if (isnan(o.pc.ki_hz)) o.pc.ki_hz = cfg.am.ki_hz;
+    if (isnan(o.pc.setpoint_ratio)) o.pc.setpoint_ratio = cfg.am.setpoint_ratio;
+    if (isnan(o.pc.z_rate_max_m_s)) o.pc.z_rate_max_m_s = cfg.am.z_rate_max_m_s;
+    o.pc.z_min_m = cfg.am.z_min_m;
+    o.pc.z_max_m = cfg.am.z_max_m;
     if (!cfg.sample.enabled)
         fprintf(stderr, "afmtwin scan: %s has no sample group: a flat, uniform sample\n", o.config);
     afm_surface *surf = NULL;

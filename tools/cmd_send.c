@@ -1,6 +1,6 @@
 /* SPDX-License-Identifier: MIT */
 /* cmd_send.c -- `afmtwin send`: builds one command message (dither, setpoint, param,
- * control, tick), checks it with the daemon's own validation and publishes it on LCM or
+ * control, tick, scan), checks it with the daemon's own validation and publishes it on LCM or
  * appends it to an LCM log; `send raw` publishes arbitrary bytes (for bad-input tests). */
 #include "afmtwin_cmds.h"
 #include "opts.h"
@@ -13,6 +13,7 @@
 #include "afmtwin_control_t.h"
 #include "afmtwin_dither_t.h"
 #include "afmtwin_param_t.h"
+#include "afmtwin_scan_t.h"
 #include "afmtwin_setpoint_t.h"
 #include "afmtwin_tick_t.h"
 
@@ -69,6 +70,19 @@ static void send_usage(FILE *f) {
         "        run, pause, reset to rest, or advance N samples (step, 1 <= N <= 1e9)\n"
         "  tick --n N\n"
         "        lockstep mode: advance N samples (1 <= N <= 1e9); e.g. send tick --n 14060\n"
+        "  scan hold|move|velocity|raster [--x M] [--y M] [--speed M_S] [--vx M_S]\n"
+        "       [--vy M_S] [--size-x M] [--size-y M] [--lines N] [--pixels N]\n"
+        "       [--line-rate HZ]\n"
+        "        move the tip over the config's sample (scan_t; refused without a sample\n"
+        "        group): hold stops it; move goes to --x, --y (|x|, |y| <= 1 m, both\n"
+        "        required) at --speed (0 .. 0.1 m/s; 0, the default, jumps); velocity\n"
+        "        moves at --vx, --vy (m/s, |v| <= 0.1) from where the tip is; raster jumps\n"
+        "        to --x, --y (default 0, 0) and runs --lines lines (1..1e5, default 1) of\n"
+        "        --size-x (default 400nm) along x, trace then retrace, at --line-rate\n"
+        "        (lines per second, <= 10kHz, default 10), the slow axis moving --size-y\n"
+        "        (default 0) over the lines, --pixels per line (2..1e5, default 64) for\n"
+        "        the status; afmtwin scan's raster (README, 'Scanning');\n"
+        "        e.g. send scan raster --x 100nm --size-x 300nm --lines 4 --line-rate 5\n"
         "  raw --channel NAME --hex HEX\n"
         "        publish the bytes HEX as they are (no validation; for bad-input tests)\n\n"
         "common options:\n"
@@ -139,6 +153,11 @@ typedef struct {
     char name_buf[SEND_MAX_PARAMS][AFM_CMD_NAME_LEN * 2];
     int n_params;
     const char *hex;
+    /* scan: its mode word, positions and sizes (m), speeds (m/s), counts, line rate */
+    const char *mode;
+    double x, y, speed, vx, vy, size_x, size_y, line_rate;
+    int64_t lines, pixels;
+    bool have_x, have_y, have_size_x, have_lines, have_pixels, have_line_rate;
 } send_args;
 
 static int parse_seq(const char *v, void *dest) {
@@ -157,6 +176,43 @@ static int parse_n(const char *v, void *dest) {
     send_args *a = dest;
     a->have_n = true;
     return parse_i64(v, INT64_MIN, INT64_MAX, &a->n);
+}
+
+static int parse_x(const char *v, void *dest) {
+    send_args *a = dest;
+    a->have_x = true;
+    return afmt_opt_any_length(v, &a->x);
+}
+
+static int parse_y(const char *v, void *dest) {
+    send_args *a = dest;
+    a->have_y = true;
+    return afmt_opt_any_length(v, &a->y);
+}
+
+static int parse_size_x(const char *v, void *dest) {
+    send_args *a = dest;
+    a->have_size_x = true;
+    return afmt_opt_any_length(v, &a->size_x);
+}
+
+/* --lines, --pixels: an integer (the daemon checks the range; int32 on the wire). */
+static int parse_lines(const char *v, void *dest) {
+    send_args *a = dest;
+    a->have_lines = true;
+    return parse_i64(v, INT32_MIN, INT32_MAX, &a->lines);
+}
+
+static int parse_pixels(const char *v, void *dest) {
+    send_args *a = dest;
+    a->have_pixels = true;
+    return parse_i64(v, INT32_MIN, INT32_MAX, &a->pixels);
+}
+
+static int parse_line_rate(const char *v, void *dest) {
+    send_args *a = dest;
+    a->have_line_rate = true;
+    return afmt_opt_any_freq(v, &a->line_rate);
 }
 
 static int parse_z(const char *v, void *dest) {
@@ -229,6 +285,21 @@ static int parse_args(int argc, char **argv, const char *kind, send_common *o, s
                      AFMT_UNIT_M),
         AFMT_FN("--ramp", afmt_opt_any_number, &a->ramp, "a number (m/s)"),
         AFMT_FN("--n", parse_n, a, "an integer"),
+        AFMT_FN_UNIT("--x", parse_x, a, "a number (m, or with a suffix: mm, um, nm, pm, fm)",
+                     AFMT_UNIT_M),
+        AFMT_FN_UNIT("--y", parse_y, a, "a number (m, or with a suffix: mm, um, nm, pm, fm)",
+                     AFMT_UNIT_M),
+        AFMT_FN("--speed", afmt_opt_any_number, &a->speed, "a number (m/s)"),
+        AFMT_FN("--vx", afmt_opt_any_number, &a->vx, "a number (m/s)"),
+        AFMT_FN("--vy", afmt_opt_any_number, &a->vy, "a number (m/s)"),
+        AFMT_FN_UNIT("--size-x", parse_size_x, a,
+                     "a number (m, or with a suffix: mm, um, nm, pm, fm)", AFMT_UNIT_M),
+        AFMT_FN_UNIT("--size-y", afmt_opt_any_length, &a->size_y,
+                     "a number (m, or with a suffix: mm, um, nm, pm, fm)", AFMT_UNIT_M),
+        AFMT_FN("--lines", parse_lines, a, "an integer"),
+        AFMT_FN("--pixels", parse_pixels, a, "an integer"),
+        AFMT_FN_UNIT("--line-rate", parse_line_rate, a,
+                     "a number (Hz, or with a suffix: kHz, MHz, GHz)", AFMT_UNIT_HZ),
         AFMT_STRING("--hex", &a->hex),
         AFMT_FLAG("--no-check", &o->no_check),
         AFMT_FLAG("--check", &o->check_only),
@@ -243,6 +314,8 @@ static int parse_args(int argc, char **argv, const char *kind, send_common *o, s
         *words = (afmt_opt)AFMT_ARG("ACTION", &a->action);
     else if (!strcmp(kind, "param"))
         *words = (afmt_opt)AFMT_ARG_FN("NAME=VALUE", add_param, a, NULL);
+    else if (!strcmp(kind, "scan"))
+        *words = (afmt_opt)AFMT_ARG("MODE", &a->mode);
     char tool[64];
     snprintf(tool, sizeof tool, "send %s", kind);
     int rc = afmt_opts_parse(tool, opts, argc, argv, 2);
@@ -329,6 +402,40 @@ static int build(const char *kind, const send_common *o, send_args *a, uint8_t *
         *ck = AFM_CMD_TICK;
         return AFMT_ENCODE(afmtwin_tick_t, &m, buf, cap);
     }
+    if (!strcmp(kind, "scan")) {
+        static const char *const names[] = {"hold", "move", "velocity", "raster"};
+        static const int8_t codes[] = {AFMTWIN_SCAN_T_HOLD, AFMTWIN_SCAN_T_MOVE,
+                                       AFMTWIN_SCAN_T_VELOCITY, AFMTWIN_SCAN_T_RASTER};
+        int k = -1;
+        for (int i = 0; i < 4 && a->mode; i++)
+            if (!strcmp(a->mode, names[i])) k = i;
+        if (k < 0) {
+            fprintf(stderr, "afmtwin send scan: want hold, move, velocity or raster, got '%s'\n",
+                    a->mode ? a->mode : "");
+            return -2;
+        }
+        if (codes[k] == AFMTWIN_SCAN_T_MOVE && !(a->have_x && a->have_y)) {
+            fprintf(stderr, "afmtwin send scan move: --x and --y are required\n");
+            return -2;
+        }
+        bool raster = codes[k] == AFMTWIN_SCAN_T_RASTER;
+        afmtwin_scan_t m = {.utime = utime,
+                            .seq = seq,
+                            .mode = codes[k],
+                            .x_m = a->x,
+                            .y_m = a->y,
+                            .speed_m_s = a->speed,
+                            .vx_m_s = a->vx,
+                            .vy_m_s = a->vy,
+                            /* a raster's defaults: afmtwin scan's */
+                            .size_x_m = raster && !a->have_size_x ? 4e-7 : a->size_x,
+                            .size_y_m = a->size_y,
+                            .lines = (int32_t)(raster && !a->have_lines ? 1 : a->lines),
+                            .pixels = (int32_t)(raster && !a->have_pixels ? 64 : a->pixels),
+                            .line_rate_hz = raster && !a->have_line_rate ? 10.0 : a->line_rate};
+        *ck = AFM_CMD_SCAN;
+        return AFMT_ENCODE(afmtwin_scan_t, &m, buf, cap);
+    }
     if (!strcmp(kind, "raw")) {
         if (!a->hex || !o->channel) {
             fprintf(stderr, "afmtwin send raw: --channel and --hex are required\n");
@@ -344,7 +451,8 @@ static int build(const char *kind, const send_common *o, send_args *a, uint8_t *
         return n;
     }
     fprintf(stderr,
-            "afmtwin send: unknown kind '%s' (dither, setpoint, param, control, tick, raw)\n",
+            "afmtwin send: unknown kind '%s' (dither, setpoint, param, control, tick, scan, "
+            "raw)\n",
             kind);
     return -2;
 }

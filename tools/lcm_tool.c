@@ -31,24 +31,25 @@ int afmt_channel(const char *prefix, const char *suffix, char *out, char *err, s
 const char *const afmt_out_names[AFMT_N_OUT] = {"samples", "harmonics", "status", "tick_done"};
 
 int afmt_channels_init(afmt_channels *c, const char *prefix, char *err, size_t errlen) {
-    static const char *const cmd_sfx[AFM_CMD_TICK + 1] = {[AFM_CMD_DITHER] = AFMT_CHAN_DITHER,
-                                                          [AFM_CMD_SETPOINT] = AFMT_CHAN_SETPOINT,
-                                                          [AFM_CMD_PARAM] = AFMT_CHAN_PARAM,
-                                                          [AFM_CMD_CONTROL] = AFMT_CHAN_CONTROL,
-                                                          [AFM_CMD_TICK] = AFMT_CHAN_TICK};
+    static const char *const cmd_sfx[AFM_CMD_SCAN + 1] = {
+        [AFM_CMD_DITHER] = AFMT_CHAN_DITHER, [AFM_CMD_SETPOINT] = AFMT_CHAN_SETPOINT,
+        [AFM_CMD_PARAM] = AFMT_CHAN_PARAM,   [AFM_CMD_CONTROL] = AFMT_CHAN_CONTROL,
+        [AFM_CMD_TICK] = AFMT_CHAN_TICK,     [AFM_CMD_SCAN] = AFMT_CHAN_SCAN};
     static const char *const out_sfx[AFMT_N_OUT] = {AFMT_CHAN_SAMPLES, AFMT_CHAN_HARMONICS,
                                                     AFMT_CHAN_STATUS, AFMT_CHAN_TICK_DONE};
     if (afmt_channel(prefix, "", c->cmd[0], err, errlen)) return -1;
-    for (int k = AFM_CMD_DITHER; k <= AFM_CMD_TICK; k++)
-        if (afmt_channel(prefix, cmd_sfx[k], c->cmd[k], err, errlen)) return -1;
+    c->cmd[AFM_CMD_RELOAD][0] = '\0'; /* SIGHUP's: no channel */
+    for (int k = AFM_CMD_DITHER; k <= AFM_CMD_SCAN; k++)
+        if (k != AFM_CMD_RELOAD && afmt_channel(prefix, cmd_sfx[k], c->cmd[k], err, errlen))
+            return -1;
     for (int i = 0; i < AFMT_N_OUT; i++)
         if (afmt_channel(prefix, out_sfx[i], c->out[i], err, errlen)) return -1;
     return 0;
 }
 
 afm_cmd_kind afmt_channels_kind(const afmt_channels *c, const char *name) {
-    for (int k = AFM_CMD_DITHER; k <= AFM_CMD_TICK; k++)
-        if (!strcmp(name, c->cmd[k])) return (afm_cmd_kind)k;
+    for (int k = AFM_CMD_DITHER; k <= AFM_CMD_SCAN; k++)
+        if (k != AFM_CMD_RELOAD && !strcmp(name, c->cmd[k])) return (afm_cmd_kind)k;
     return 0;
 }
 

@@ -27,6 +27,7 @@
 #define AFMT_CHAN_PARAM AFMTWIN_CHAN_PARAM
 #define AFMT_CHAN_CONTROL AFMTWIN_CHAN_CONTROL
 #define AFMT_CHAN_TICK AFMTWIN_CHAN_TICK
+#define AFMT_CHAN_SCAN AFMTWIN_CHAN_SCAN
 #define AFMT_CHAN_SAMPLES AFMTWIN_CHAN_SAMPLES
 #define AFMT_CHAN_HARMONICS AFMTWIN_CHAN_HARMONICS
 #define AFMT_CHAN_STATUS AFMTWIN_CHAN_STATUS
@@ -43,9 +44,10 @@ enum { AFMT_OUT_SAMPLES, AFMT_OUT_HARMONICS, AFMT_OUT_STATUS, AFMT_OUT_TICK_DONE
 extern const char *const afmt_out_names[AFMT_N_OUT];
 
 /* Every channel of a twin with one prefix: cmd[k] for command kind k (AFM_CMD_DITHER ..
- * AFM_CMD_TICK; cmd[0] is the bare prefix), out[AFMT_OUT_*] for the outputs. */
+ * AFM_CMD_TICK and AFM_CMD_SCAN; cmd[0] is the bare prefix, cmd[AFM_CMD_RELOAD] "": no
+ * message), out[AFMT_OUT_*] for the outputs. */
 typedef struct {
-    char cmd[AFM_CMD_TICK + 1][AFMT_CHAN_LEN];
+    char cmd[AFM_CMD_SCAN + 1][AFMT_CHAN_LEN];
     char out[AFMT_N_OUT][AFMT_CHAN_LEN];
 } afmt_channels;
 /* All names for prefix (afmt_channel's rules). 0, or -1 with err. */

@@ -114,6 +114,9 @@ typedef struct {
     int material;
     const char *scan_mode; /* "hold", "move", "velocity", "raster" */
     int scan_line, scan_pixel, scan_retrace;
+    /* Issue 18: internal AM Z control (am_control "none", NaN without it). */
+    const char *am_control;
+    double am_z_m, am_error_m, am_setpoint_m, am_amplitude_m;
 } afm_io_status;
 
 /* Lockstep (and STEP) completion: the tick or step command seq's samples are all run and

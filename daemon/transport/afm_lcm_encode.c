@@ -142,6 +142,11 @@ void afm_lcm_status_msg(const afm_io_status *s, afmtwin_status_t *m) {
         .scan_line = s->scan_line,
         .scan_pixel = s->scan_pixel,
         .scan_retrace = (int8_t)s->scan_retrace,
+        .am_control = (char *)(s->am_control ? s->am_control : "none"),
+        .am_z_m = s->am_z_m,
+        .am_error_m = s->am_error_m,
+        .am_setpoint_m = s->am_setpoint_m,
+        .am_amplitude_m = s->am_amplitude_m,
     };
 }
 

@@ -97,6 +97,17 @@ void afm_config_defaults(afm_config *cfg) {
     fm->amplitude_bandwidth_hz = 50.0;
     fm->drive_max_m = 1e-6;
     fm->update_samples = 1024; /* the daemon's ring item: 73 us at 14.06 MHz */
+
+    /* AM Z control (issue 18): afmtwin scan's controller with or without a group */
+    afm_cfg_am *am = &cfg->am;
+    am->enabled = false;
+    am->setpoint_ratio = 0.8;
+    am->kp = 0.0;
+    am->ki_hz = 2000.0;
+    am->z_rate_max_m_s = 1e-3;
+    am->z_min_m = 0.0;
+    am->z_max_m = 1e-5;
+    am->control = AFM_AM_CONTROL_NONE;
 }
 
 /* ------------------------------------------------------------------ loader */
@@ -877,6 +888,28 @@ static int load_fm(const loader *L, const config_setting_t *root, afm_cfg_fm *c)
     return 0;
 }
 
+/* am: optional group (issue 18); enabled defaults to true when the group is present. Ranges
+ * are checked in afm_config_check.c. */
+static int load_am(const loader *L, const config_setting_t *root, afm_cfg_am *c) {
+    static const char *const keys[] = {"enabled",        "control", "setpoint_ratio", "kp", "ki_hz",
+                                       "z_rate_max_m_s", "z_min_m", "z_max_m",        NULL};
+    static const char *const controls[] = {"none", "internal", NULL};
+    int control = (int)c->control;
+    config_setting_t *g;
+    if (get_feature(L, root, "am", &g, &c->enabled)) return -1;
+    if (!g) return 0;
+    if (only_keys(L, g, keys) || get_num(L, g, "setpoint_ratio", false, &c->setpoint_ratio, NULL) ||
+        get_num(L, g, "kp", false, &c->kp, NULL) ||
+        get_num(L, g, "ki_hz", false, &c->ki_hz, NULL) ||
+        get_num(L, g, "z_rate_max_m_s", false, &c->z_rate_max_m_s, NULL) ||
+        get_num(L, g, "z_min_m", false, &c->z_min_m, NULL) ||
+        get_num(L, g, "z_max_m", false, &c->z_max_m, NULL) ||
+        get_choice(L, g, "control", false, controls, &control))
+        return -1;
+    c->control = (afm_am_control)control;
+    return 0;
+}
+
 /* Setting for a path written by afm_config_check_all ("drive.tones[1].frequency_hz"); the deepest
  * existing ancestor when the key itself is absent (a default value). */
 static const config_setting_t *resolve(const config_setting_t *root, const char *path) {
@@ -984,12 +1017,14 @@ static int load_parsed(config_t *lc, loader *L, afm_config *tmp, afm_config *cfg
     char *err = L->err;
     size_t errlen = L->errlen;
     const config_setting_t *root = config_root_setting(lc);
-    static const char *const keys[] = {"model",  "forces", "drive", "sim",    "obd", "thermal",
-                                       "lockin", "output", "can",   "sample", "fm",  NULL};
+    static const char *const keys[] = {"model",   "forces", "drive",  "sim", "obd",
+                                       "thermal", "lockin", "output", "can", "sample",
+                                       "fm",      "am",     NULL};
     if (only_keys(L, root, keys) || load_model(L, root, &tmp->model) ||
         load_forces(L, root, tmp->model.kind, &tmp->forces) || load_drive(L, root, &tmp->drive) ||
         load_sim(L, root, &tmp->sim) || load_chain(L, root, tmp) || load_can(L, root, &tmp->can) ||
-        load_sample(L, root, &tmp->sample) || load_fm(L, root, &tmp->fm))
+        load_sample(L, root, &tmp->sample) || load_fm(L, root, &tmp->fm) ||
+        load_am(L, root, &tmp->am))
         goto out;
 
     char key[KEY_LEN], why[AFM_ERR_LEN];

@@ -268,6 +268,23 @@ typedef struct {
     afm_fm_control control;        /* the daemon: who moves tone 0 (default none) */
 } afm_cfg_fm;
 
+/* Amplitude-modulation Z control (issue 18; runner/afm_pi.h): the reference PI on the lock-in
+ * amplitude at tone 0 that moves Z so that A = setpoint_ratio x A0 (A0: runner/afm_a0.h).
+ * `afmtwin scan` takes these values (or the defaults) as its controller's unless its options
+ * say otherwise, with or without an `am` group; am.control = "internal" runs it in the daemon
+ * (runner/afm_runner.h), which then refuses commands that set Z. */
+typedef enum { AFM_AM_CONTROL_NONE = 0, AFM_AM_CONTROL_INTERNAL = 1 } afm_am_control;
+
+typedef struct {
+    bool enabled;
+    double setpoint_ratio;   /* A_set / A0, in (0, 1) */
+    double kp;               /* m of Z per m of amplitude error, [0, 1e3] */
+    double ki_hz;            /* 1/s, (0, 1e8] */
+    double z_rate_max_m_s;   /* the Z piezo's slew limit, (0, 10] m/s */
+    double z_min_m, z_max_m; /* the range of Z (m), z_min < z_max */
+    afm_am_control control;  /* the daemon: who moves Z (default none: commands) */
+} afm_cfg_am;
+
 typedef struct {
     char path[256]; /* file it came from */
     afm_cfg_model model;
@@ -281,6 +298,7 @@ typedef struct {
     afm_cfg_can can;       /* CAN input (issue 6); can.enabled false without a can group */
     afm_cfg_sample sample; /* the sample under the tip (issue 18); off without a sample group */
     afm_cfg_fm fm;         /* FM control (issue 32); fm.enabled false without an fm group */
+    afm_cfg_am am;         /* AM Z control (issue 18); am.enabled false without an am group */
 } afm_config;
 
 /* Fill every field with its default (documented in config/README.md). */

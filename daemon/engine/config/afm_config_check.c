@@ -426,11 +426,37 @@ static int check_fm(const afm_config *c, char *key, char *why, size_t why_len) {
     return 0;
 }
 
+/* am (issue 18): ranges whether or not the group is enabled (afmtwin scan uses the values
+ * either way); the same as afm_scan_run's (AFM_PI_KP_MAX, AFM_PI_KI_MAX_HZ,
+ * AFM_PI_Z_RATE_MAX_M_S in runner/afm_pi.h, a layer above). */
+static int check_am(const afm_config *c, char *key, char *why, size_t why_len) {
+    const afm_cfg_am *a = &c->am;
+    NEED(isfinite(a->setpoint_ratio) && a->setpoint_ratio > 0 && a->setpoint_ratio < 1,
+         "am.setpoint_ratio", "must be in (0, 1) (got %g)", a->setpoint_ratio);
+    RANGE(a->kp, 0.0, 1e3, "am.kp", "m/m");
+    NEED(isfinite(a->ki_hz) && a->ki_hz > 0 && a->ki_hz <= 1e8, "am.ki_hz",
+         "must be in (0, 1e+08] 1/s (got %g)", a->ki_hz);
+    NEED(isfinite(a->z_rate_max_m_s) && a->z_rate_max_m_s > 0 && a->z_rate_max_m_s <= 10.0,
+         "am.z_rate_max_m_s", "must be in (0, 10] m/s (got %g)", a->z_rate_max_m_s);
+    RANGE(a->z_min_m, 0.0, AFM_LIM_SEPARATION_MAX_M, "am.z_min_m", "m");
+    RANGE(a->z_max_m, 0.0, AFM_LIM_SEPARATION_MAX_M, "am.z_max_m", "m");
+    NEED(a->z_min_m < a->z_max_m, "am.z_max_m", "must be above am.z_min_m (%g m; got %g m)",
+         a->z_min_m, a->z_max_m);
+    NEED(a->control == AFM_AM_CONTROL_NONE || a->control == AFM_AM_CONTROL_INTERNAL, "am.control",
+         "must be \"none\" or \"internal\" (got %d)", (int)a->control);
+    NEED(a->control == AFM_AM_CONTROL_NONE || a->enabled, "am.control",
+         "\"internal\" needs the am group enabled (am.enabled = true)");
+    NEED(a->control == AFM_AM_CONTROL_NONE || c->fm.control == AFM_FM_CONTROL_NONE, "am.control",
+         "\"internal\" and fm.control = \"internal\" both at once: one Z loop on the amplitude "
+         "and an FM loop on it too; choose one");
+    return 0;
+}
+
 int afm_config_check_all(const afm_config *c, char *key, char *why, size_t why_len) {
     if (check_model(c, key, why, why_len) || check_forces(c, key, why, why_len) ||
         check_drive_sim(c, key, why, why_len) || check_chain(c, key, why, why_len) ||
         check_can(c, key, why, why_len) || check_sample(c, key, why, why_len) ||
-        check_fm(c, key, why, why_len))
+        check_fm(c, key, why, why_len) || check_am(c, key, why, why_len))
         return -1;
     return 0;
 }

@@ -20,7 +20,9 @@
 #include "forces/afm_force.h"
 #include "forces/afm_surface.h"
 #include "integrators/afm_sim_live.h"
+#include "runner/afm_a0.h"
 #include "runner/afm_fm.h"
+#include "runner/afm_pi.h"
 #include "runner/afm_scan.h"
 #include "runner/afm_spsc.h"
 #include "runner/afm_twin.h"
@@ -88,6 +90,7 @@ struct afm_runner_model {
     afm_sim *sim;
     afm_chain *chain;  /* NULL: keep the running chain */
     afm_surface *surf; /* cfg's sample (NULL without a sample group); taken by a reload */
+    double a0_m;       /* A0 of cfg (runner/afm_a0.h) with am.control = "internal", else 0 */
 };
 
 struct afm_runner {
@@ -120,6 +123,15 @@ struct afm_runner {
     afm_lockin fm_lk;
     long long fm_tone_changes, fm_tone_refused;
     double fm_u[SLOT], fm_th[SLOT]; /* one slice's deflection and reference phase */
+    /* internal AM Z control (am.control = "internal", issue 18): the reference PI (afm_pi)
+     * on the amplitude of fm_lk (FM and AM control exclude each other: the config says so),
+     * updated every LAT samples counted from create; it waits for the lock-in to settle
+     * (zc_hold_until) after create, a reset and a reload. */
+    bool zc_on;
+    afm_pi zc;
+    double zc_a_m;           /* the lock-in amplitude of the last update (NAN before) */
+    long long zc_hold_until; /* sample count before which the PI does not move Z */
+    long long zc_updates;    /* updates that moved Z */
     /* the sample under the tip (issue 18; the config's sample group, else surf NULL and none
      * of this runs): the integrator's separation is the stage Z (cfg.drive.separation_m)
      * less z_s(x, y), its forces those of the material there. The tip moves by scan
@@ -200,6 +212,11 @@ afm_runner_model *afm_runner_model_build(const afm_config *cfg, bool new_chain, 
         if (afm_force_init(&fp, &f, len, wid, err, errlen)) goto fail;
     }
     if (cfg->thermal.enabled && afm_sim_set_thermal(m->sim, &cfg->thermal, err, errlen)) goto fail;
+    if (cfg->am.control == AFM_AM_CONTROL_INTERNAL) { /* the set-point's reference, off-thread */
+        afm_a0 a0;
+        if (afm_a0_compute(&tc, &a0, err, errlen)) goto fail;
+        m->a0_m = a0.amplitude_m;
+    }
     if (new_chain) {
         m->chain = afm_chain_create(&tc, afm_sim_model(m->sim), err, errlen);
         if (!m->chain) goto fail;
@@ -474,10 +491,8 @@ static int fm_setup(afm_runner *r, char *err, size_t errlen) {
     return 0;
 }
 
-/* After the k samples s[0..k) just run: feed the FM lock-in; at an update boundary (every
- * update_samples samples counted from create) update the loops and set tone 0, phase
- * continuous. The open item is committed first: an item carries one drive. */
-static void fm_after(afm_runner *r, const afm_sample *s, int k) {
+/* Feed the k samples s[0..k) just run to the controllers' lock-in (fm_lk) at tone 0. */
+static void ctl_lockin_feed(afm_runner *r, const afm_sample *s, int k) {
     /* The reference phase as the chain computes it: exact at the slice's first sample (the
      * drive's fixed-point grid phase), then the rate times the sample count, so that it
      * carries no rounding of t (afm_drive_phase's phi + w (t - t0) re-anchored at every
@@ -498,6 +513,15 @@ static void fm_after(afm_runner *r, const afm_sample *s, int k) {
         if (!afm_lockin_rebase(&r->fm_lk, th0 - wdt, wdt)) afm_lockin_retune(&r->fm_lk);
     }
     afm_lockin_push_n(&r->fm_lk, r->fm_u, r->fm_th, k);
+}
+
+/* After the k samples s[0..k) just run: feed the FM lock-in; at an update boundary (every
+ * update_samples samples counted from create) update the loops and set tone 0, phase
+ * continuous. The open item is committed first: an item carries one drive. */
+static void fm_after(afm_runner *r, const afm_sample *s, int k) {
+    const afm_drive *d = afm_sim_drive(r->sim);
+    if (k <= 0) return;
+    ctl_lockin_feed(r, s, k);
     const int u = r->fm.c.update_samples;
     if (r->samples % u != 0) return;
     double a, lag;
@@ -526,6 +550,69 @@ static void fm_after(afm_runner *r, const afm_sample *s, int k) {
     }
     r->fm_retune |= f_move;
     r->fm_tone_changes++;
+}
+
+/* ---- internal AM Z control (issue 18) ---------------------------------------------- */
+
+static void set_z(afm_runner *r, double z);
+
+/* The stage Z: the config's with a sample (the simulator has the gap), else the simulator's. */
+static double stage_z(const afm_runner *r) {
+    return r->surf ? r->cfg.drive.separation_m : afm_sim_separation(r->sim);
+}
+
+/* The lock-in's settling, in samples from now: 12 time constants per filter order, as
+ * afm_scan_run rings up before its engage, plus 5 envelope times of mode 1 (Q / (pi f0))
+ * for the lever to ring up from rest. */
+static long long zc_settle_samples(const afm_runner *r) {
+    const afm_config *c = &r->cfg;
+    afm_fm_plant p;
+    afm_fm_plant_of(afm_sim_model(r->sim), &p);
+    double t = 12.0 * c->lockin.time_constant_s * c->lockin.order +
+               (p.f0_hz > 0 ? 5.0 * p.q / (3.14159265358979323846 * p.f0_hz) : 0.0);
+    return (long long)ceil(t / afm_sim_dt(r->sim));
+}
+
+/* Start (or, after a reload, restart) the AM Z loop of r->cfg with free amplitude a0_m (the
+ * model's, afm_runner_model_build), from the stage Z now, or turn it off when the config does
+ * not ask for it. No allocation. 0, or -1 with err (zc_on cleared). */
+static int zc_setup(afm_runner *r, double a0_m, char *err, size_t errlen) {
+    r->zc_on = false;
+    const afm_config *c = &r->cfg;
+    if (c->am.control != AFM_AM_CONTROL_INTERNAL) return 0;
+    if (afm_sim_drive(r->sim)->n < 1 || !(a0_m > 0)) {
+        afm_err_set(err, errlen,
+                    "am.control = \"internal\": no free amplitude A0 (the drive has no tone 0)");
+        return -1;
+    }
+    if (afm_lockin_init(&r->fm_lk, &c->lockin, afm_sim_dt(r->sim), err, errlen)) return -1;
+    afm_pi_cfg pc = {.kp = c->am.kp,
+                     .ki_hz = c->am.ki_hz,
+                     .setpoint_ratio = c->am.setpoint_ratio,
+                     .z_rate_max_m_s = c->am.z_rate_max_m_s,
+                     .z_min_m = c->am.z_min_m,
+                     .z_max_m = c->am.z_max_m};
+    afm_pi_init(&r->zc, &pc, a0_m, stage_z(r));
+    r->zc_a_m = NAN;
+    r->zc_hold_until = r->samples + zc_settle_samples(r);
+    r->fm_retune = false;
+    r->zc_on = true;
+    return 0;
+}
+
+/* After the k samples s[0..k) just run: feed the lock-in; at an update boundary (every LAT
+ * samples counted from create, the moving tip's grid) once the lock-in has settled, one PI
+ * update on its amplitude, and Z (the gap follows: Z - z_s under the tip). */
+static void zc_after(afm_runner *r, const afm_sample *s, int k) {
+    if (k <= 0 || afm_sim_drive(r->sim)->n < 1) return; /* no tone 0: the loop holds */
+    ctl_lockin_feed(r, s, k);
+    if (r->samples % LAT != 0 || r->samples < r->zc_hold_until) return;
+    r->zc_a_m = afm_lockin_amplitude(&r->fm_lk);
+    double z = afm_pi_update(&r->zc, r->zc_a_m, LAT * afm_sim_dt(r->sim));
+    if (z != stage_z(r)) {
+        set_z(r, z);
+        r->zc_updates++;
+    }
 }
 
 /* ---- create / destroy --------------------------------------------------------------- */
@@ -560,6 +647,7 @@ afm_runner *afm_runner_create_pipelined(const afm_config *cfg, int block_max, bo
     r->sim = m->sim;
     r->chain = m->chain;
     r->surf = m->surf;
+    double a0_m = m->a0_m;
     m->sim = NULL;
     m->chain = NULL;
     m->surf = NULL;
@@ -584,6 +672,7 @@ afm_runner *afm_runner_create_pipelined(const afm_config *cfg, int block_max, bo
     r->b_t_s = afm_sim_time(r->sim);
     r->last_blowup_t_s = NAN;
     if (fm_setup(r, err, errlen)) goto fail; /* may set tone 0: before the back's view */
+    if (zc_setup(r, a0_m, err, errlen)) goto fail;
     {
         const afm_drive *d = afm_sim_drive(r->sim);
         r->b_fe_hz = d->n > 0 ? d->omega_rad_s[0] / two_pi : 0.0;
@@ -874,6 +963,8 @@ static int swap_in(afm_runner *r, afm_runner_model *m, unsigned what, bool take_
     afm_sim *old_sim = r->sim;
     r->sim = m->sim;
     m->sim = old_sim;
+    if (r->zc_on && m->a0_m > 0) /* a new model: its free amplitude is the reference */
+        r->zc.a_set_m = r->zc.c.setpoint_ratio * m->a0_m;
     if (take_surf) {
         afm_surface *old_surf = r->surf;
         r->surf = m->surf;
@@ -955,6 +1046,17 @@ int afm_runner_apply(afm_runner *r, const afm_cmd *c, afm_runner_model **model, 
                     afm_cmd_kind_name(c->kind), r->n_pending);
         return AFM_RUNNER_EBUSY;
     }
+    bool sets_z = c->kind == AFM_CMD_SETPOINT;
+    for (int i = 0; c->kind == AFM_CMD_PARAM && i < c->u.param.n; i++)
+        if (afm_param_table(NULL)[c->u.param.entry[i]].effect == AFM_PARAM_SEPARATION)
+            sets_z = true;
+    if (sets_z && r->zc_on) {
+        afm_err_set(err, errlen,
+                    "%s: Z is under the daemon's AM control (am.control = \"internal\"); set "
+                    "am.control = \"none\" to command Z",
+                    afm_cmd_kind_name(c->kind));
+        return -1;
+    }
     if (c->kind == AFM_CMD_DITHER && r->fm_on) {
         afm_err_set(err, errlen,
                     "tone 0 is under the daemon's FM control (fm.control = \"internal\"); "
@@ -964,6 +1066,7 @@ int afm_runner_apply(afm_runner *r, const afm_cmd *c, afm_runner_model **model, 
     switch (c->kind) {
     case AFM_CMD_DITHER:
         if (apply_dither(r, &c->u.dither, err, errlen)) return -1;
+        if (r->zc_on) r->fm_retune = true; /* tone 0 may have moved: the lock-in follows */
         break;
     case AFM_CMD_SETPOINT:
         apply_setpoint(r, &c->u.setpoint);
@@ -982,9 +1085,8 @@ int afm_runner_apply(afm_runner *r, const afm_cmd *c, afm_runner_model **model, 
             break;
         case AFM_CTL_RESET:
             afm_sim_reset(r->sim);
-            if (r->fm_on) {
-                afm_lockin_reset(&r->fm_lk);
-            }
+            if (r->fm_on || r->zc_on) afm_lockin_reset(&r->fm_lk);
+            if (r->zc_on) r->zc_hold_until = r->samples + zc_settle_samples(r);
             emit(r, IT_RESET, NULL);
             r->ramping = false;
             break;
@@ -1019,6 +1121,7 @@ int afm_runner_apply(afm_runner *r, const afm_cmd *c, afm_runner_model **model, 
         }
         {
             afm_config next = (*model)->cfg;
+            double a0_m = (*model)->a0_m;
             if (swap_in(r, *model, 0, true, err, errlen)) return -1;
             *model = NULL;
             r->cfg = next;
@@ -1037,6 +1140,7 @@ int afm_runner_apply(afm_runner *r, const afm_cmd *c, afm_runner_model **model, 
             /* the new config's FM (or none); a refusal leaves the drive of the file */
             char ferr[AFM_ERR_LEN];
             if (fm_setup(r, ferr, sizeof ferr)) r->fm_tone_refused++;
+            (void)zc_setup(r, a0_m, ferr, sizeof ferr); /* the new config's AM Z loop (or none) */
         }
         r->ramping = false;
         break;
@@ -1119,7 +1223,7 @@ long long afm_runner_run(afm_runner *r, long long n) {
             long long to_upd = r->fm.c.update_samples - r->samples % r->fm.c.update_samples;
             if (k > to_upd) k = to_upd;
         }
-        if (r->lat_mode != AFM_SCAN_HOLD) {
+        if (r->lat_mode != AFM_SCAN_HOLD || r->zc_on) {
             long long to_edge = LAT - r->samples % LAT;
             if (k > to_edge) k = to_edge;
         }
@@ -1130,9 +1234,8 @@ long long afm_runner_run(afm_runner *r, long long n) {
             it->n += (int)k;
             item_lat(r, it);
         } else {
-            if (r->fm_on) {
-                afm_lockin_reset(&r->fm_lk);
-            }
+            if (r->fm_on || r->zc_on) afm_lockin_reset(&r->fm_lk);
+            if (r->zc_on) r->zc_hold_until = r->samples + zc_settle_samples(r);
             /* The simulator reset itself to rest; its clock counts the steps it took. The
              * samples of this slice are dropped; the chain starts over. */
             adv = llround((afm_sim_time(r->sim) - t0) / afm_sim_dt(r->sim));
@@ -1151,6 +1254,7 @@ long long afm_runner_run(afm_runner *r, long long n) {
         r->samples += adv;
         done += adv;
         if (r->fm_on && rc == AFM_SIM_OK) fm_after(r, it->s + it->n - k, (int)k);
+        if (r->zc_on && rc == AFM_SIM_OK) zc_after(r, it->s + it->n - k, (int)k);
         if (r->blowup_streak >= AFM_RUNNER_BLOWUP_PAUSE && r->running) {
             /* A blow-up that recurs: pause instead of spinning through resets. */
             r->running = false;
@@ -1229,6 +1333,12 @@ void afm_runner_status_get(const afm_runner *r, afm_runner_status *st) {
     }
     st->fm_tone_changes = r->fm_tone_changes;
     st->fm_tone_refused = r->fm_tone_refused;
+    st->am_on = r->zc_on;
+    st->am_z_m = r->zc_on ? r->zc.z_m : NAN;
+    st->am_error_m = r->zc_on ? r->zc.e_m : NAN;
+    st->am_setpoint_m = r->zc_on ? r->zc.a_set_m : NAN;
+    st->am_amplitude_m = r->zc_on ? r->zc_a_m : NAN;
+    st->am_updates = r->zc_updates;
     st->sample_on = r->surf != NULL;
     st->tip_x_m = r->lat_x;
     st->tip_y_m = r->lat_y;

@@ -72,6 +72,19 @@
  * fm.amplitude_setpoint_m 0 the amplitude first locked at is held. Dither commands are
  * rejected while it runs (nothing changed). No allocation: a few tens of flops per update
  * plus the lock-in per sample and, per NCO step, the integrator's tone change.
+ *
+ * Internal AM Z control (the config's am.control = "internal", issue 18; runner/afm_pi.h):
+ * the front runs the reference PI of `afmtwin scan` (afm_scan.h) on Z itself, fed the
+ * amplitude of a lock-in of its own at tone 0 (the FM loops' lock-in: the two controls
+ * exclude each other), with am's gains, slew limit, range and set-point am.setpoint_ratio x
+ * A0 (runner/afm_a0.h, computed by afm_runner_model_build off the real-time thread). It
+ * updates every AFM_RUNNER_SCAN_SAMPLES samples counted from create, on the moving tip's
+ * grid: the tip is placed at the middle of the next samples, they run, the PI takes the
+ * amplitude and sets the stage Z (the gap is Z - z_s under the tip) -- afm_scan_run's order,
+ * so a raster through the daemon images as the offline scan does. After create, a reset, a
+ * blow-up and a reload it waits for the lock-in to settle (12 time constants per order plus
+ * 5 Q / (pi f0)) before moving Z. Setpoint commands and params that set Z are rejected while
+ * it runs (nothing changed); a new model (damping, geometry) brings its own A0.
  * Every applied command but a reload sets seq_applied = its seq (a reload keeps it); the
  * outputs carry the seq_applied of the samples they come from (chain_status_get).
  *
@@ -251,6 +264,13 @@ typedef struct {
     double fm_amplitude_setpoint_m; /* 0: not held yet (held from the first lock) */
     long long fm_tone_changes;      /* tone 0 changes the loops made */
     long long fm_tone_refused;      /* ... the simulator refused (should stay 0) */
+    /* internal AM Z control (am.control = "internal", issue 18; NAN without it) */
+    bool am_on;
+    double am_z_m;         /* the PI's Z (= separation_m), last update */
+    double am_error_m;     /* its error: set-point less amplitude, last update */
+    double am_setpoint_m;  /* amplitude held: am.setpoint_ratio x A0 */
+    double am_amplitude_m; /* the loop's lock-in amplitude, last update (NAN while settling) */
+    long long am_updates;  /* updates that moved Z */
     /* the sample under the tip (issue 18; all 0 and scan_line -1 without a sample group) */
     bool sample_on;            /* the config has a sample group */
     double tip_x_m, tip_y_m;   /* the tip's lateral position now */
