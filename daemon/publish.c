@@ -92,6 +92,9 @@ void twind_status_fill(twind *d, afm_io_status *o, twind_rtf_state *rs) {
     o->scan_line = s.st.scan_line;
     o->scan_pixel = s.st.scan_pixel;
     o->scan_retrace = s.st.scan_retrace;
+    o->free_amplitude_m = twind_a0_now(d); /* issue 30: NaN while being recomputed */
+    o->amplitude_ratio =
+        o->free_amplitude_m > 0 ? o->lockin_amplitude_m / o->free_amplitude_m : NAN;
     pthread_mutex_lock(&d->lock);
     o->last_reject_age_s = d->last_reject[0] ? wall - d->last_reject_mono : -1.0;
     o->last_reject_old = d->last_reject[0] && s.last_applied_order > d->last_reject_order;

@@ -114,6 +114,8 @@ typedef struct {
     int material;
     const char *scan_mode; /* "hold", "move", "velocity", "raster" */
     int scan_line, scan_pixel, scan_retrace;
+    /* Issue 30: A0 at the drive in force and A/A0 (NaN while A0 is not known). */
+    double free_amplitude_m, amplitude_ratio;
 } afm_io_status;
 
 /* Lockstep (and STEP) completion: the tick or step command seq's samples are all run and

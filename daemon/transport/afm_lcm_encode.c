@@ -142,6 +142,8 @@ void afm_lcm_status_msg(const afm_io_status *s, afmtwin_status_t *m) {
         .scan_line = s->scan_line,
         .scan_pixel = s->scan_pixel,
         .scan_retrace = (int8_t)s->scan_retrace,
+        .free_amplitude_m = s->free_amplitude_m, /* issue 30 */
+        .amplitude_ratio = s->amplitude_ratio,
     };
 }
 
