@@ -242,8 +242,8 @@ static int parse_args(int argc, char **argv, twind_opts *o) {
 
 /* The stderr status line: whether the twin keeps up (the real-time factor of the last second
  * of running, resyncs and the model time they skipped, the chain's lag), what the cantilever
- * does (lock-in amplitude and phase lag of the last period, its peak force) and the command
- * bookkeeping, with the last rejection marked old once a later command was applied. */
+ * does (lock-in amplitude and phase lag of the last period, its peak force, A0 and A/A0) and the
+ * command bookkeeping, with the last rejection marked old once a later command was applied. */
 static void status_line(twind *d, twind_rtf_state *rs, char *buf, size_t len) {
     static afm_io_status s; /* main thread only; large (reason strings) */
     twind_status_fill(d, &s, rs);
@@ -251,26 +251,27 @@ static void status_line(twind *d, twind_rtf_state *rs, char *buf, size_t len) {
     twind_chain_snapshot cs;
     twind_snap_read(d, &snap);
     twind_csnap_read(d, &cs);
-    snprintf(buf, len,
-             "t %.6f s  rtf(1 s) %.3f  busy %.0f%%/%.0f%%  lag %.4f s  overruns %lld  resyncs %lld "
-             "(%.4f s skipped)  chain stalls %lld lag %.4f s  lock-in %.4g nm, phase lag %.1f deg  "
-             "peak force %.4g nN  rx %lld  applied %lld  rej %lld  ref %lld  drop %lld  blowups "
-             "%lld  seq %lld  Z %.3f nm  fe %.1f Hz  A %.4g nm  scheme %s (%lld handovers; "
-             "%.0f%% of model time accurate)  %s",
-             s.model_time_s, s.realtime_factor_1s, 100.0 * snap.busy_fraction,
-             100.0 * cs.busy_fraction, s.lag_s, (long long)s.overruns, (long long)s.resyncs,
-             s.resync_skipped_s, (long long)s.chain_stalls, s.chain_lag_s,
-             s.lockin_amplitude_m * 1e9, s.lockin_phase_deg, s.peak_force_n * 1e9,
-             (long long)s.received, (long long)s.applied, (long long)s.rejected,
-             (long long)s.refused, (long long)s.dropped, (long long)s.blowups,
-             (long long)s.seq_applied, s.separation_m * 1e9, s.fe_hz, s.amplitude_m * 1e9,
-             s.rt_scheme, (long long)s.scheme_handovers,
-             s.model_s_accurate + s.model_s_fast > 0
-                 ? 100.0 * s.model_s_accurate / (s.model_s_accurate + s.model_s_fast)
-                 : 0.0,
-             s.auto_paused ? "PAUSED ITSELF (blow-ups)"
-             : s.running   ? "running"
-                           : "paused");
+    snprintf(
+        buf, len,
+        "t %.6f s  rtf(1 s) %.3f  busy %.0f%%/%.0f%%  lag %.4f s  overruns %lld  resyncs %lld "
+        "(%.4f s skipped)  chain stalls %lld lag %.4f s  lock-in %.4g nm, phase lag %.1f deg  "
+        "peak force %.4g nN  A0 %.6g nm A/A0 %.4f  rx %lld  applied %lld  rej %lld  ref %lld  drop "
+        "%lld  blowups "
+        "%lld  seq %lld  Z %.3f nm  fe %.1f Hz  A %.4g nm  scheme %s (%lld handovers; "
+        "%.0f%% of model time accurate)  %s",
+        s.model_time_s, s.realtime_factor_1s, 100.0 * snap.busy_fraction, 100.0 * cs.busy_fraction,
+        s.lag_s, (long long)s.overruns, (long long)s.resyncs, s.resync_skipped_s,
+        (long long)s.chain_stalls, s.chain_lag_s, s.lockin_amplitude_m * 1e9, s.lockin_phase_deg,
+        s.peak_force_n * 1e9, s.free_amplitude_m * 1e9, s.amplitude_ratio, (long long)s.received,
+        (long long)s.applied, (long long)s.rejected, (long long)s.refused, (long long)s.dropped,
+        (long long)s.blowups, (long long)s.seq_applied, s.separation_m * 1e9, s.fe_hz,
+        s.amplitude_m * 1e9, s.rt_scheme, (long long)s.scheme_handovers,
+        s.model_s_accurate + s.model_s_fast > 0
+            ? 100.0 * s.model_s_accurate / (s.model_s_accurate + s.model_s_fast)
+            : 0.0,
+        s.auto_paused ? "PAUSED ITSELF (blow-ups)"
+        : s.running   ? "running"
+                      : "paused");
     if (s.last_reject[0]) {
         size_t n = strlen(buf);
         snprintf(buf + n, len - n, "  last rejected %.1f s ago%s: %.160s", s.last_reject_age_s,
@@ -374,9 +375,17 @@ static void stop_threads(twind *d, twind_threads *t) {
         afm_runner_model_destroy(&it.model);
 }
 
+/* The scheme A0 is computed on: the one the rt thread starts with (the config's without the
+ * rt integrator). */
+static afm_rt_scheme_kind a0_scheme(const twind *d, const afm_config *cfg) {
+    if (!d->scheme.rt) return cfg->sim.rt_scheme;
+    return d->scheme.accurate ? AFM_RT_SCHEME_ACCURATE : AFM_RT_SCHEME_FAST;
+}
+
 /* A0, the free amplitude (runner/afm_a0.h), of cfg on the scheme the rt thread starts with:
- * what the lock-in reads at Z = 1 um (the status type has no A/A0: clients divide by this).
- * Computed before real time starts (a short simulation); NAN with err on failure. */
+ * what the lock-in reads at Z = 1 um. Computed before real time starts (a short
+ * simulation); the status's free_amplitude_m then follows the drive (a0_track.c). NAN with
+ * err on failure. */
 static afm_a0 started_a0(const twind *d, const afm_config *cfg, char *err, size_t errlen) {
     afm_config *c = malloc(sizeof *c);
     afm_a0 a0 = {.amplitude_m = NAN, .lag_deg = NAN};
@@ -385,9 +394,8 @@ static afm_a0 started_a0(const twind *d, const afm_config *cfg, char *err, size_
         return a0;
     }
     *c = *cfg;
-    if (d->scheme.rt)
-        c->sim.rt_scheme = d->scheme.accurate ? AFM_RT_SCHEME_ACCURATE : AFM_RT_SCHEME_FAST;
-    if (afm_a0_compute(c, &a0, err, errlen)) a0.amplitude_m = a0.lag_deg = NAN;
+    c->sim.rt_scheme = a0_scheme(d, cfg);
+    if (twind_a0_compute(c, &a0, err, errlen)) a0.amplitude_m = a0.lag_deg = NAN;
     free(c);
     return a0;
 }
@@ -417,7 +425,8 @@ static void print_started(const twind *d, double fs_hz, long long block, long lo
         fprintf(stderr,
                 "afmtwind: free amplitude A0 %.6f nm, lag %.4f deg (harmonic 1 at Z %.0f nm, "
                 "gap-dependent tip forces off, squeeze film on, scheme %s): the status's "
-                "lock-in amplitude / A0 is A/A0\n",
+                "free_amplitude_m, and amplitude_ratio = lock-in amplitude / A0, follow the "
+                "drive\n",
                 a0->amplitude_m * 1e9, a0->lag_deg, a0->z_m * 1e9,
                 afm_sim_scheme_name(afm_runner_sim(d->runner)));
     else
@@ -527,6 +536,7 @@ static void run_until_stopped(twind *d, const sigset_t *sigs, twind_watch *w) {
 
 /* Everything start-up made, in reverse order (each destroy accepts what was never made). */
 static void release(twind *d) {
+    twind_a0_stop(d);
     afm_io_destroy(&d->io);
     afm_spsc_destroy(&d->done_q);
     afm_spsc_destroy(&d->harm_q);
@@ -582,6 +592,11 @@ int main(int argc, char **argv) {
     afm_io_sink sink = twind_sink(&d);
     if (start_queues(&d, err, sizeof err) || start_transports(&d, &cfg, &sink, err, sizeof err)) {
         fprintf(stderr, "afmtwind: %s\n", err);
+        release(&d);
+        return 1;
+    }
+    if (twind_a0_start(&d, &cfg, a0_scheme(&d, &cfg), &a0)) {
+        fprintf(stderr, "afmtwind: cannot start the A0 thread\n");
         release(&d);
         return 1;
     }

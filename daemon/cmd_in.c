@@ -2,7 +2,8 @@
 /* cmd_in.c -- the receive thread: commands from the transport are checked against the
  * daemon's copy of the config, models for damping/geometry changes and SIGHUP reloads are
  * built here (off the real-time thread), and everything goes to the RT thread in order
- * through cmd_q. Also destroys what the RT thread swapped out, and counts every message
+ * through cmd_q; each change of the config or of tone 0 of the drive asks for A0 anew
+ * (a0_track.c). Also destroys what the RT thread swapped out, and counts every message
  * once (twind.h, "Accounting"). */
 #include "twind.h"
 
@@ -109,6 +110,7 @@ static bool model_changes_settled(twind *d, int wait_ms) {
         if (!atomic_load_explicit(&d->mc_last_ok, memory_order_acquire)) {
             d->shadow = d->shadow_before;
             d->shadow_model = d->shadow_model_before;
+            twind_a0_request(d, &d->shadow, &d->drive_now, true);
         }
         d->mc_unchecked = false;
     }
@@ -182,7 +184,10 @@ static int on_cmd(void *ctx, const afm_cmd *c) {
     }
     if (c->kind != AFM_CMD_PARAM) {
         if (enqueue(d, c, NULL, kind)) return -1;
-        if (c->kind == AFM_CMD_DITHER) follow_dither(d, &c->u.dither);
+        if (c->kind == AFM_CMD_DITHER) {
+            follow_dither(d, &c->u.dither);
+            twind_a0_request(d, &d->shadow, &d->drive_now, false); /* if tone 0 changed */
+        }
         return 0;
     }
     if (!model_changes_settled(d, MODEL_WAIT_MS)) {
@@ -206,7 +211,10 @@ static int on_cmd(void *ctx, const afm_cmd *c) {
             return -1;
         }
     }
-    return enqueue_model_change(d, c, m, &next, kind);
+    if (enqueue_model_change(d, c, m, &next, kind)) return -1;
+    if (eff != AFM_PARAM_SEPARATION) /* A0 is at Z = 1 um whatever the set-point */
+        twind_a0_request(d, &d->shadow, &d->drive_now, true);
+    return 0;
 }
 
 static void on_reject(void *ctx, const char *channel, const char *reason) {
@@ -265,6 +273,7 @@ static void do_reload(twind *d) {
     afm_cmd c = {.kind = AFM_CMD_RELOAD, .seq = -1}; /* a reload keeps seq_applied */
     if (enqueue_model_change(d, &c, m, &next, "reload")) return;
     drive_from_config(d, &next.drive);
+    twind_a0_request(d, &d->shadow, &d->drive_now, true);
     if (!d->opt.quiet) fprintf(stderr, "afmtwind: reloaded %s\n", d->opt.config_path);
 }
 

@@ -97,6 +97,9 @@ void twind_status_fill(twind *d, afm_io_status *o, twind_rtf_state *rs) {
     o->am_error_m = s.st.am_error_m;
     o->am_setpoint_m = s.st.am_setpoint_m;
     o->am_amplitude_m = s.st.am_amplitude_m;
+    o->free_amplitude_m = twind_a0_now(d); /* issue 30: NaN while being recomputed */
+    o->amplitude_ratio =
+        o->free_amplitude_m > 0 ? o->lockin_amplitude_m / o->free_amplitude_m : NAN;
     pthread_mutex_lock(&d->lock);
     o->last_reject_age_s = d->last_reject[0] ? wall - d->last_reject_mono : -1.0;
     o->last_reject_old = d->last_reject[0] && s.last_applied_order > d->last_reject_order;

@@ -16,6 +16,8 @@
  *    ring's sample blocks through OBD, decimators and estimators, pushes samples
  *    (samples_q) and harmonics (harm_q), updates its own snapshot. Never blocks, locks or
  *    allocates (it sleeps on chain_sem when the ring is empty).
+ *  - a0 (a0_track.c): the free amplitude A0 at the drive in force, recomputed on a worker
+ *    at normal priority when the receive thread asks (config or tone 0 changed).
  *  - publish (publish.c): pops samples_q and harm_q, publishes them, and the status at
  *    10 Hz; the completions of ticks and steps (done_q) once the outputs before them are
  *    out; the final status at shutdown.
@@ -39,6 +41,7 @@
 
 #include "transport/afm_io.h"
 #include "transport/afm_io_records.h"
+#include "runner/afm_a0.h"
 #include "runner/afm_runner.h"
 #include "runner/afm_spsc.h"
 
@@ -153,6 +156,23 @@ typedef struct {
     double squeeze_dissipated_energy_j; /* the squeeze film's, beside the tip-sample force */
 } twind_chain_snapshot;
 
+/* a0_track.c's state: the request (receive thread, under mu), the result (worker, under
+ * mu), read by the publish thread. done_gen == req_gen: amplitude_m is the A0 of the
+ * newest request. */
+typedef struct {
+    pthread_t th;
+    pthread_mutex_t mu;
+    pthread_cond_t cv;
+    bool started, stop;
+    afm_config *req, *work;    /* the newest request; the worker's copy of it */
+    afm_rt_scheme_kind scheme; /* A0 on the scheme the rt thread started with */
+    unsigned req_gen, done_gen;
+    long long computed; /* A0s computed since start (the start-up one not counted) */
+    double fe_hz, ae_m; /* receive thread: tone 0 of the newest request */
+    double amplitude_m; /* A0 (m); NaN when it could not be computed */
+    double lag_deg;
+} twind_a0;
+
 typedef struct {
     twind_opts opt;
     afm_runner *runner; /* the RT thread's after start */
@@ -190,6 +210,7 @@ typedef struct {
     atomic_ullong mc_sent, mc_done; /* model changes queued / taken or refused by rt */
     atomic_int mc_last_ok;          /* rt: 1 if the last one was applied */
     twind_scheme_state scheme;      /* main thread, then the rt thread only */
+    twind_a0 a0;                    /* a0_track.c */
     /* RT scheduling result, for the start-up report */
     char rt_warn[512];
 } twind;
@@ -245,6 +266,19 @@ typedef struct {
 } twind_rtf_state;
 void *twind_pub_main(void *arg);
 void twind_status_fill(twind *d, afm_io_status *st, twind_rtf_state *rs);
+
+/* a0_track.c. twind_a0_compute: A0 of cfg (afm_a0_compute; 0 for a silent tone 0), any
+ * non-rt thread. twind_a0_start (main, before the threads): the worker, with first the A0
+ * of cfg already computed; -1 if it cannot start. twind_a0_request (receive thread): A0 of
+ * cfg with tone 0 of drive (NULL: cfg's own), recomputed if cfg_changed or tone 0 differs
+ * from the last request. twind_a0_now (any thread): the newest request's A0 (m), NaN
+ * while it is being computed or could not be. twind_a0_stop (main, at the end). */
+int twind_a0_compute(const afm_config *cfg, afm_a0 *out, char *err, size_t errlen);
+int twind_a0_start(twind *d, const afm_config *cfg, afm_rt_scheme_kind scheme, const afm_a0 *first);
+void twind_a0_request(twind *d, const afm_config *cfg, const afm_cmd_dither *drive,
+                      bool cfg_changed);
+double twind_a0_now(twind *d);
+void twind_a0_stop(twind *d);
 
 /* notify.c: sd_notify wrappers (no-ops outside systemd). */
 void twind_notify_ready(void);

@@ -6,6 +6,10 @@
 # scheme (the one the daemon runs on this VM); and a real-time afmtwind prints that A0 on
 # start-up and measures it at Z = 1 um within 1e-4. (Before issue 30 approach printed the
 # response without the squeeze film, 57.27 nm on default.conf, against 50.65 nm measured.)
+# The status carries A0 and A/A0 (free_amplitude_m, amplitude_ratio): replay's and the
+# daemon's equal approach's A0 within 1e-4 with A/A0 = 1 within 1e-4 at Z = 1 um, and after
+# dither commands change tone 0 (its amplitude, then its frequency) the daemon's A0 follows:
+# approach's A0 of the config with that tone 0, within 1e-4.
 # Prints "N passed, N failed".
 BUILD=${1:-build}
 cd "$(dirname "$0")/.." || exit 1
@@ -41,6 +45,9 @@ for conf in default nchv; do
     "$A" listen --log "$T/out.log" --channels status --json 2>/dev/null | tail -1 > "$T/st.json"
     a_d=$(json lockin_amplitude_m "$T/st.json")
     z_d=$(json separation_m "$T/st.json")
+    a0_r=$(json free_amplitude_m "$T/st.json")
+    rel_ok "$a0_r" "$a_ap" 1e-4 && ok "$conf $scheme: replay's status A0 = approach's ($(relstr "$a0_r" "$a_ap"))" ||
+      bad "$conf $scheme: replay's status free_amplitude_m ${a0_r:-?}, approach's A0 $a_ap"
     echo "     $conf ($scheme): A0 approach $a_ap, scan $a_sc; replay at Z $z_d: lock-in $a_d"
     rel_ok "$a_sc" "$a_ap" 1e-4 && ok "$conf $scheme: scan's A0 = approach's ($(relstr "$a_sc" "$a_ap"))" ||
       bad "$conf $scheme: scan's A0 $a_sc, approach's $a_ap"
@@ -50,29 +57,76 @@ for conf in default nchv; do
   done
 done
 
-# The real-time daemon: its start-up A0 and its status lock-in at Z = 1 um.
-"$D" --config config/default.conf --quiet 2> "$T/d.err" &
+# The real-time daemon: its start-up A0, its status lock-in, A0 and A/A0 at Z = 1 um; then
+# tone 0 changed by dither commands: half the amplitude (A0 halves, A/A0 stays 1), then
+# 337.5 kHz (A0 off resonance), then a SIGHUP reload of a file with another tone 0: the
+# status's A0 follows each, as approach computes it.
+AE2=0.0435e-9
+FE3=337.5e3
+cp config/default.conf "$T/run.conf"
+"$D" --config "$T/run.conf" --quiet 2> "$T/d.err" &
 DPID=$!
 sleep 1
 "$A" send setpoint --z 1e-6 --quiet || bad "send setpoint --z 1e-6"
 sleep 1.5
 listen --channels status --json --count 3 --timeout 5 > "$T/st.json" 2>/dev/null
+"$A" send dither --freq 338.112e3 --amp "$AE2" --quiet || bad "send dither --amp $AE2"
+sleep 1.5
+listen --channels status --json --count 3 --timeout 5 > "$T/st2.json" 2>/dev/null
+"$A" send dither --freq "$FE3" --amp "$AE2" --quiet || bad "send dither --freq $FE3"
+sleep 1.5
+listen --channels status --json --count 3 --timeout 5 > "$T/st3.json" 2>/dev/null
+# SIGHUP with tone 0 at 0.06 nm in the file: the drive and A0 become the file's
+sed -i "s/amplitude_m = 0.087e-9; frequency_hz = 338.112e3;/amplitude_m = 0.06e-9; frequency_hz = 338.112e3;/" \
+  "$T/run.conf"
+sed -i "s/separation_m = 40e-9;/separation_m = 1e-6;/" "$T/run.conf" # a reload sets Z too
+kill -HUP "$DPID"
+sleep 2
+listen --channels status --json --count 3 --timeout 5 > "$T/st4.json" 2>/dev/null
 kill -TERM "$DPID"; wait "$DPID"; drc=$?; DPID=""
 [ "$drc" -eq 0 ] && ok "daemon stopped cleanly" || bad "daemon exit $drc: $(tail -3 "$T/d.err")"
 a0=$(sed -n 's/^afmtwind: free amplitude A0 \([0-9.]*\) nm.*/\1/p' "$T/d.err")
 [ -n "$a0" ] && ok "start-up line: $(grep 'A0' "$T/d.err")" || bad "no A0 on start-up: $(cat "$T/d.err")"
 # the same function as approach's, on the scheme the daemon chose
 sch=$(sed -n 's/^afmtwind: free amplitude A0 .*scheme \([a-z]*\)).*/\1/p' "$T/d.err")
-"$A" approach --config config/default.conf --from 40e-9 --to 40e-9 --step 1e-9 \
-  --scheme "${sch:-accurate}" --json > "$T/ap.json"
-a_ap=$(awk -v a="$(json free_amplitude_m "$T/ap.json")" 'BEGIN{if (a != "") printf "%.6f", a * 1e9}')
+# ap_a0 AMP FREQ: approach's A0 (nm) of default.conf with tone 0 (AMP m, FREQ Hz)
+ap_a0() {
+  sed "s/amplitude_m = 0.087e-9; frequency_hz = 338.112e3;/amplitude_m = $1; frequency_hz = $2;/" \
+    config/default.conf > "$T/dx.conf"
+  grep -q "amplitude_m = $1; frequency_hz = $2;" "$T/dx.conf" || echo "cannot set tone 0" >&2
+  "$A" approach --config "$T/dx.conf" --from 40e-9 --to 40e-9 --step 1e-9 \
+    --scheme "${sch:-accurate}" --json > "$T/ap.json"
+  awk -v a="$(json free_amplitude_m "$T/ap.json")" 'BEGIN{if (a != "") printf "%.6f", a * 1e9}'
+}
+a_ap=$(ap_a0 0.087e-9 338.112e3)
 rel_ok "$a0" "$a_ap" 2e-8 && ok "the daemon's A0 = approach --scheme ${sch:-?}'s ($a_ap nm)" ||
   bad "the daemon's A0 ${a0:-?} nm, approach --scheme ${sch:-?}: ${a_ap:-?} nm"
-a_d=$(tail -1 "$T/st.json" | grep -o '"lockin_amplitude_m":[-0-9.e+]*' | cut -d: -f2)
-z_d=$(tail -1 "$T/st.json" | grep -o '"separation_m":[-0-9.e+]*' | cut -d: -f2)
-a_d_nm=$(awk -v a="$a_d" 'BEGIN{if (a != "") printf "%.6f", a * 1e9}')
+nm() { awk -v a="$1" 'BEGIN{if (a != "" && a != "null") printf "%.6f", a * 1e9}'; }
+field() { tail -1 "$2" | grep -o "\"$1\":[-0-9.e+]*" | cut -d: -f2; }
+a_d_nm=$(nm "$(field lockin_amplitude_m "$T/st.json")")
+z_d=$(field separation_m "$T/st.json")
 rel_ok "$a_d_nm" "$a0" 1e-4 &&
   ok "afmtwind measures its A0 at Z $z_d m: lock-in $a_d_nm nm, A0 $a0 nm ($(relstr "$a_d_nm" "$a0"))" ||
   bad "afmtwind at Z ${z_d:-?} m: lock-in ${a_d_nm:-?} nm, A0 ${a0:-?} nm"
+# check_status FILE WHAT APPROACH_A0_NM RATIO_TOL
+check_status() {
+  local s_a0 s_r s_fe s_ae
+  s_a0=$(nm "$(field free_amplitude_m "$1")")
+  s_r=$(field amplitude_ratio "$1")
+  s_fe=$(field fe_hz "$1")
+  s_ae=$(field amplitude_m "$1")
+  rel_ok "$s_a0" "$3" 1e-4 &&
+    ok "$2 (tone 0 $s_fe Hz, $s_ae m): status free_amplitude_m $s_a0 nm = approach's A0 of that drive ($(relstr "$s_a0" "$3"))" ||
+    bad "$2 (tone 0 ${s_fe:-?} Hz, ${s_ae:-?} m): status free_amplitude_m ${s_a0:-?} nm, approach's A0 of that drive ${3:-?} nm"
+  rel_ok "$s_r" 1 "$4" && ok "$2: status amplitude_ratio (A/A0) at Z 1 um $s_r (1 within $4)" ||
+    bad "$2: status amplitude_ratio at Z 1 um ${s_r:-?} (want 1 within $4)"
+}
+check_status "$T/st.json" "config's drive" "$a_ap" 1e-4
+check_status "$T/st2.json" "after dither --amp $AE2" "$(ap_a0 "$AE2" 338.112e3)" 1e-4
+# Off resonance (lag 37 deg) the OBD lock-in reads ~Ae cos(lag) / A0 = 2.3e-3 below the
+# tip's harmonic 1 that defines A0 (the base motion in the OBD's reading; at resonance it
+# is in quadrature and vanishes): A/A0 1 within 3e-3 there.
+check_status "$T/st3.json" "after dither --freq $FE3" "$(ap_a0 "$AE2" "$FE3")" 3e-3
+check_status "$T/st4.json" "after SIGHUP (tone 0 0.06 nm in the file)" "$(ap_a0 0.06e-9 338.112e3)" 1e-4
 echo "$pass passed, $fail failed"
 [ "$fail" -eq 0 ]

@@ -373,6 +373,8 @@ static void print_status(const listen_ctx *c, const char *channel, const afmtwin
         json_num(o, "am_error_m", m->am_error_m);
         json_num(o, "am_setpoint_m", m->am_setpoint_m);
         json_num(o, "am_amplitude_m", m->am_amplitude_m);
+        json_num(o, "free_amplitude_m", m->free_amplitude_m); /* issue 30: A0, A/A0 */
+        json_num(o, "amplitude_ratio", m->amplitude_ratio);
         afmt_json_emit(o);
         return;
     }
@@ -387,7 +389,8 @@ static void print_status(const listen_ctx *c, const char *channel, const afmtwin
     show(pr, m->pause_reason);
     printf("status    seq %lld t %.6f s %s %s rtf(1 s) %.4g lag %.3g s resyncs %lld (%.4g s "
            "skipped) chain lag %.3g s overruns %lld | lock-in %.4g nm, phase lag %.2f deg, peak "
-           "force %.4g nN, E_sq %.4g eV | Z %.4g nm fe %.6g Hz Ae %.4g nm | received %lld applied "
+           "force %.4g nN, E_sq %.4g eV, A0 %.6g nm, A/A0 %.4f | Z %.4g nm fe %.6g Hz Ae %.4g nm | "
+           "received %lld applied "
            "%lld rejected %lld refused %lld%s%s%s dropped %lld%s%s%s blowups %lld",
            (long long)m->seq_applied, m->model_time_s, mode[0] ? mode : "?",
            m->auto_paused ? "PAUSED ITSELF"
@@ -396,10 +399,11 @@ static void print_status(const listen_ctx *c, const char *channel, const afmtwin
            m->realtime_factor_1s, m->lag_s, (long long)m->resyncs, m->resync_skipped_s,
            m->chain_lag_s, (long long)m->overruns, m->lockin_amplitude_m * 1e9, m->lockin_phase_deg,
            m->peak_force_n * 1e9, m->squeeze_dissipated_energy_j / LISTEN_EV_J,
-           m->separation_m * 1e9, m->fe_hz, m->amplitude_m * 1e9, (long long)m->received,
-           (long long)m->applied, (long long)m->rejected, (long long)m->refused,
-           lf[0] ? " (last: " : "", lf, lf[0] ? ")" : "", (long long)m->dropped, ld[0] ? " (" : "",
-           ld, ld[0] ? ")" : "", (long long)m->blowups);
+           m->free_amplitude_m * 1e9, m->amplitude_ratio, m->separation_m * 1e9, m->fe_hz,
+           m->amplitude_m * 1e9, (long long)m->received, (long long)m->applied,
+           (long long)m->rejected, (long long)m->refused, lf[0] ? " (last: " : "", lf,
+           lf[0] ? ")" : "", (long long)m->dropped, ld[0] ? " (" : "", ld, ld[0] ? ")" : "",
+           (long long)m->blowups);
     if (lr[0])
         printf(" (last rejected %.1f s ago%s: %s)", m->last_reject_age_s,
                m->last_reject_old ? ", old: later commands applied" : "", lr);

@@ -20,6 +20,7 @@
 #include "transport/afm_cmd_lcm.h"
 #include "config/afm_config.h"
 #include "transport/afm_io.h"
+#include "runner/afm_a0.h"
 #include "runner/afm_runner.h"
 
 #include "transport/afm_io_records.h"
@@ -73,6 +74,9 @@ typedef struct {
     bool have_period;
     double lockin_amplitude_m, lockin_phase_deg, peak_force_n; /* the last period's */
     double squeeze_dissipated_energy_j;                        /* ... and its E_sq */
+    /* A0 at the drive in force (issue 30): recomputed when tone 0 or the config changed */
+    bool a0_dirty;
+    double a0_m, a0_fe_hz, a0_ae_m;
     int write_failed;
     uint8_t *buf;
     int cap;
@@ -206,6 +210,29 @@ static void emit_harmonics(replay_ctx *x, const afm_runner_status *st) {
     }
 }
 
+/* A0 (runner/afm_a0.h) of the running config at tone 0 of st's drive, as the daemon's
+ * status has it: recomputed (a short simulation, here in line: replay is offline) only when
+ * tone 0 or the config changed since the last one. Under internal FM the loops move tone 0
+ * every period: A0 stays that of the commanded drive, as in the daemon. NaN if it fails. */
+static double replay_a0(replay_ctx *x, const afm_runner_status *st) {
+    if (st->fm_on) return x->a0_m;
+    if (!x->a0_dirty && st->fe_hz == x->a0_fe_hz && st->amplitude_m == x->a0_ae_m) return x->a0_m;
+    static afm_config c; /* large */
+    c = *afm_runner_config(x->r);
+    c.drive.tones[0].frequency_hz = st->fe_hz;
+    c.drive.tones[0].amplitude_m = st->amplitude_m;
+    afm_a0 a;
+    char err[AFM_ERR_LEN];
+    if (st->amplitude_m == 0)
+        x->a0_m = 0; /* a silent tone 0: the lever rests */
+    else
+        x->a0_m = afm_a0_compute(&c, &a, err, sizeof err) ? NAN : a.amplitude_m;
+    x->a0_fe_hz = st->fe_hz;
+    x->a0_ae_m = st->amplitude_m;
+    x->a0_dirty = false;
+    return x->a0_m;
+}
+
 static void emit_status(replay_ctx *x, const afm_runner_status *st) {
     if (!x->o.want[OUT_STATUS]) return;
     static afm_io_status s; /* large (reason strings) */
@@ -227,6 +254,8 @@ static void emit_status(replay_ctx *x, const afm_runner_status *st) {
     s.lockin_phase_deg = x->have_period ? x->lockin_phase_deg : NAN;
     s.peak_force_n = x->have_period ? x->peak_force_n : NAN;
     s.squeeze_dissipated_energy_j = x->have_period ? x->squeeze_dissipated_energy_j : NAN;
+    s.free_amplitude_m = replay_a0(x, st); /* issue 30 */
+    s.amplitude_ratio = s.free_amplitude_m > 0 ? s.lockin_amplitude_m / s.free_amplitude_m : NAN;
     s.last_reject_age_s = -1.0; /* no wall clock in replay */
     snprintf(s.rt_scheme, sizeof s.rt_scheme, "%s", afm_sim_scheme_name(afm_runner_sim(x->r)));
     snprintf(s.rt_scheme_reason, sizeof s.rt_scheme_reason,
@@ -323,8 +352,10 @@ static void apply_event(replay_ctx *x, afm_cmd_kind kind, const afm_lcm_log_even
     emit_all(x, false);
     if (afm_runner_apply(x->r, &c, &model, err, sizeof err))
         reject(x, ev->channel, err);
-    else
+    else {
         x->applied++;
+        if (c.kind == AFM_CMD_PARAM || c.kind == AFM_CMD_RELOAD) x->a0_dirty = true;
+    }
     afm_runner_model_destroy(&model);
 }
 
@@ -378,6 +409,7 @@ int afm_cmd_replay(int argc, char **argv) {
                         .tail_s = 0.01,
                         .want = {true, true, true, true}};
     afm_lcm_digest_init(&x.dg);
+    x.a0_dirty = true;
     int rc = parse_opts(argc, argv, &x.o);
     if (rc) return rc == 1 ? 0 : rc;
     char err[AFM_ERR_LEN];

@@ -117,6 +117,8 @@ typedef struct {
     /* Issue 18: internal AM Z control (am_control "none", NaN without it). */
     const char *am_control;
     double am_z_m, am_error_m, am_setpoint_m, am_amplitude_m;
+    /* Issue 30: A0 at the drive in force and A/A0 (NaN while A0 is not known). */
+    double free_amplitude_m, amplitude_ratio;
 } afm_io_status;
 
 /* Lockstep (and STEP) completion: the tick or step command seq's samples are all run and

@@ -1,0 +1,139 @@
+/* SPDX-License-Identifier: MIT */
+/* a0_track.c -- the free amplitude A0 (runner/afm_a0.h) at the drive in force, kept current
+ * for the status (free_amplitude_m, amplitude_ratio) on a worker thread of its own: A0 is a
+ * short settled simulation (~0.1 s on config/default.conf), too long for the real-time
+ * threads and long enough to delay commands on the receive thread.
+ *
+ * The receive thread asks (twind_a0_request) after every change of the config (SIGHUP
+ * reload, param) or of tone 0 of the drive (dither); the worker computes the newest request
+ * and drops results that a later request made stale. Until the newest is done the status
+ * says NaN (not known), never the A0 of a drive no longer in force. The worker runs at
+ * normal priority (SCHED_OTHER): it takes only the time the real-time, chain, receive and
+ * publish threads (all SCHED_FIFO when permitted) leave. */
+#include "twind.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* cfg with tone 0 of drive (the tones the dither commands set), the rt scheme of the start. */
+static void request_config(afm_config *out, const afm_config *cfg, const afm_cmd_dither *drive,
+                           afm_rt_scheme_kind scheme) {
+    *out = *cfg;
+    out->sim.rt_scheme = scheme;
+    if (drive && drive->n_tones >= 1) {
+        out->drive.tones[0].frequency_hz = drive->frequency_hz[0];
+        out->drive.tones[0].amplitude_m = drive->amplitude_m[0];
+    }
+}
+
+int twind_a0_compute(const afm_config *cfg, afm_a0 *out, char *err, size_t errlen) {
+    if (cfg->drive.n_tones >= 1 && cfg->drive.tones[0].amplitude_m == 0) {
+        memset(out, 0, sizeof *out); /* a silent tone 0: the lever rests */
+        out->lag_deg = out->linear_lag_deg = NAN;
+        out->z_m = AFM_A0_Z_M;
+        out->settled = true;
+        return 0;
+    }
+    return afm_a0_compute(cfg, out, err, errlen);
+}
+
+static void *a0_main(void *arg) {
+    twind *d = arg;
+    twind_a0 *a = &d->a0;
+    char err[AFM_ERR_LEN];
+    pthread_mutex_lock(&a->mu);
+    for (;;) {
+        while (!a->stop && a->done_gen == a->req_gen)
+            pthread_cond_wait(&a->cv, &a->mu);
+        if (a->stop) break;
+        unsigned gen = a->req_gen;
+        *a->work = *a->req;
+        pthread_mutex_unlock(&a->mu);
+        afm_a0 r;
+        err[0] = '\0';
+        int rc = twind_a0_compute(a->work, &r, err, sizeof err);
+        pthread_mutex_lock(&a->mu);
+        if (gen != a->req_gen) continue; /* stale: a later request waits */
+        a->amplitude_m = rc ? NAN : r.amplitude_m;
+        a->lag_deg = rc ? NAN : r.lag_deg;
+        a->computed++;
+        a->done_gen = gen;
+        if (rc && !d->opt.quiet) fprintf(stderr, "afmtwind: warning: A0 not computed: %s\n", err);
+    }
+    pthread_mutex_unlock(&a->mu);
+    return NULL;
+}
+
+int twind_a0_start(twind *d, const afm_config *cfg, afm_rt_scheme_kind scheme,
+                   const afm_a0 *first) {
+    twind_a0 *a = &d->a0;
+    a->req = malloc(sizeof *a->req);
+    a->work = malloc(sizeof *a->work);
+    if (!a->req || !a->work) return -1;
+    a->scheme = scheme;
+    request_config(a->req, cfg, NULL, scheme);
+    a->fe_hz = cfg->drive.tones[0].frequency_hz;
+    a->ae_m = cfg->drive.tones[0].amplitude_m;
+    a->amplitude_m = first->amplitude_m;
+    a->lag_deg = first->lag_deg;
+    a->req_gen = a->done_gen = 0;
+    if (pthread_mutex_init(&a->mu, NULL)) return -1;
+    if (pthread_cond_init(&a->cv, NULL)) {
+        pthread_mutex_destroy(&a->mu);
+        return -1;
+    }
+    a->started = true; /* from here twind_a0_stop cleans up */
+    if (pthread_create(&a->th, NULL, a0_main, d)) {
+        a->started = false;
+        pthread_cond_destroy(&a->cv);
+        pthread_mutex_destroy(&a->mu);
+        return -1;
+    }
+    return 0;
+}
+
+void twind_a0_request(twind *d, const afm_config *cfg, const afm_cmd_dither *drive,
+                      bool cfg_changed) {
+    twind_a0 *a = &d->a0;
+    if (!a->started) return;
+    double fe =
+        drive && drive->n_tones >= 1 ? drive->frequency_hz[0] : cfg->drive.tones[0].frequency_hz;
+    double ae =
+        drive && drive->n_tones >= 1 ? drive->amplitude_m[0] : cfg->drive.tones[0].amplitude_m;
+    if (!cfg_changed && fe == a->fe_hz && ae == a->ae_m) return; /* tone 0 as before */
+    a->fe_hz = fe;
+    a->ae_m = ae;
+    pthread_mutex_lock(&a->mu);
+    request_config(a->req, cfg, drive, a->scheme);
+    a->req_gen++;
+    pthread_cond_signal(&a->cv);
+    pthread_mutex_unlock(&a->mu);
+}
+
+double twind_a0_now(twind *d) {
+    twind_a0 *a = &d->a0;
+    if (!a->started) return NAN;
+    pthread_mutex_lock(&a->mu);
+    double v = a->done_gen == a->req_gen ? a->amplitude_m : NAN;
+    pthread_mutex_unlock(&a->mu);
+    return v;
+}
+
+void twind_a0_stop(twind *d) {
+    twind_a0 *a = &d->a0;
+    if (a->started) {
+        pthread_mutex_lock(&a->mu);
+        a->stop = true;
+        pthread_cond_signal(&a->cv);
+        pthread_mutex_unlock(&a->mu);
+        pthread_join(a->th, NULL); /* waits for a computation in progress (~0.1 s) */
+        pthread_cond_destroy(&a->cv);
+        pthread_mutex_destroy(&a->mu);
+        a->started = false;
+    }
+    free(a->req);
+    free(a->work);
+    a->req = a->work = NULL;
+}
