@@ -245,6 +245,54 @@ static void load_edges(void) {
                "afm_config_parse of broken text: line and reason");
 }
 
+/* issue 18: the am group (the reference Z controller): defaults without it, its keys, its
+ * ranges, and control = "internal" not beside fm.control = "internal". */
+static void am_group(void) {
+    static const char base[] = "model = { kind = \"lumped\"; lumped = { stiffness_n_m = 40.0; "
+                               "resonance_hz = 300e3; }; quality_factor = [100.0]; };\n"
+                               "drive = { separation_m = 8e-9; tones = ( { amplitude_m = 1e-10; "
+                               "frequency_hz = 300e3; } ); };\n";
+    static char text[2048];
+    afm_config c;
+    char err[AFM_ERR_LEN];
+    check_true(afm_config_parse(base, "am", &c, err, sizeof err) == 0 && !c.am.enabled &&
+                   c.am.control == AFM_AM_CONTROL_NONE && c.am.setpoint_ratio == 0.8 &&
+                   c.am.ki_hz == 2000.0 && c.am.kp == 0.0 && c.am.z_rate_max_m_s == 1e-3 &&
+                   c.am.z_min_m == 0.0 && c.am.z_max_m == 1e-5,
+               "am: defaults without the group (afmtwin scan's former ones)");
+    snprintf(text, sizeof text,
+             "%sam = { control = \"internal\"; setpoint_ratio = 0.7; kp = 0.1; ki_hz = 500.0; "
+             "z_rate_max_m_s = 2e-3; z_min_m = 1e-9; z_max_m = 2e-6; };\n",
+             base);
+    check_true(afm_config_parse(text, "am", &c, err, sizeof err) == 0 && c.am.enabled &&
+                   c.am.control == AFM_AM_CONTROL_INTERNAL && c.am.setpoint_ratio == 0.7 &&
+                   c.am.kp == 0.1 && c.am.ki_hz == 500.0 && c.am.z_rate_max_m_s == 2e-3 &&
+                   c.am.z_min_m == 1e-9 && c.am.z_max_m == 2e-6,
+               "am: every key read");
+    static const struct {
+        const char *body, *key;
+    } bad[] = {{"setpoint_ratio = 1.0;", "am.setpoint_ratio"},
+               {"ki_hz = 0.0;", "am.ki_hz"},
+               {"kp = -1.0;", "am.kp"},
+               {"z_rate_max_m_s = 11.0;", "am.z_rate_max_m_s"},
+               {"z_min_m = 1e-6; z_max_m = 1e-6;", "am.z_max_m"},
+               {"control = \"outside\";", "am.control"},
+               {"enabled = false; control = \"internal\";", "am.control"},
+               {"kd = 1.0;", "kd"}};
+    for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
+        snprintf(text, sizeof text, "%sam = { %s };\n", base, bad[i].body);
+        int rc = afm_config_parse(text, "am", &c, err, sizeof err);
+        char what[160];
+        snprintf(what, sizeof what, "am: bad '%s' refused naming %s", bad[i].body, bad[i].key);
+        check_true(rc == -1 && strstr(err, bad[i].key) != NULL, what);
+    }
+    snprintf(text, sizeof text,
+             "%sam = { control = \"internal\"; };\nfm = { control = \"internal\"; };\n", base);
+    check_true(afm_config_parse(text, "am", &c, err, sizeof err) == -1 &&
+                   strstr(err, "choose one") != NULL,
+               "am: internal beside fm.control internal refused");
+}
+
 /* afm_config_validate on structs edited after loading (what CLI overrides do). */
 static void validate_struct(void) {
     afm_config c;
@@ -317,6 +365,7 @@ int main(void) {
     bad_configs();
     validate_struct();
     load_edges();
+    am_group();
 
     char err[AFM_ERR_LEN];
     afm_config c;

@@ -11,7 +11,8 @@
 #  (b) replay of a log of `send --log` commands (control run at 0 s, the raster at 50 ms):
 #      every harmonics record's tip x is the raster's position at its time (within the
 #      travel of one ring item: records carry the position at their item's last sample), its
-#      true height the step's analytic height there;
+#      true height the step's analytic height there; its last status holds the tip at the
+#      raster's end with the loop internal at its set-point;
 #  (c) replay, control internal: the Z image of the trace reproduces the 3 nm step within 2 %
 #      (the tolerance of test_scan_daemon.sh's outside PI) and equals `afmtwin scan`'s z_m
 #      of the same config at the same x within 0.02 nm (see the tolerance below);
@@ -71,9 +72,24 @@ done
 "$A" send control run "${C[@]}" --log "$T/cmd.lcm" --log-time 0 --seq 1 --quiet
 "$A" send scan raster --x 100nm --size-x 300nm --pixels 30 --line-rate 5 "${C[@]}" \
   --log "$T/cmd.lcm" --log-time 0.05 --seq 2 --quiet
-"$A" replay "${C[@]}" --in "$T/cmd.lcm" --out "$T/rep.lcm" --channels harmonics --tail 0.25 \
-  --quiet 2> "$T/rep.err" && "$A" listen --log "$T/rep.lcm" --json --channels harmonics \
-  > "$T/rep.jsonl" 2> /dev/null || bad "replay: $(head -3 "$T/rep.err")"
+"$A" replay "${C[@]}" --in "$T/cmd.lcm" --out "$T/rep.lcm" --channels harmonics,status \
+  --tail 0.25 --quiet 2> "$T/rep.err" && "$A" listen --log "$T/rep.lcm" --json \
+  --channels harmonics > "$T/rep.jsonl" 2> /dev/null &&
+  "$A" listen --log "$T/rep.lcm" --json --channels status > "$T/reps.jsonl" 2> /dev/null ||
+  bad "replay: $(head -3 "$T/rep.err")"
+# replay's last status: the raster done, the tip held where the retrace ended (x0, within the
+# 64-sample position grid's travel), the loop internal and at its set-point
+python3 - "$T/reps.jsonl" > "$T/rs.out" <<'PY'
+import json, sys
+d = json.loads([l for l in open(sys.argv[1]) if l.strip()][-1])
+x, a, s = d.get('tip_x_m'), d.get('am_amplitude_m'), d.get('am_setpoint_m')
+good = (d.get('scan_mode') == 'hold' and abs(x - 1e-7) <= 0.05e-9 and d.get('true_height_m') == 0
+        and d.get('am_control') == 'internal' and abs(a - s) <= 0.01 * s)
+print("ok" if good else "FAIL", "scan %s, tip x %.4f nm, z_s %s, am_control %s, A %.4g nm (set-point %.4g nm)"
+      % (d.get('scan_mode'), x * 1e9, d.get('true_height_m'), d.get('am_control'), a * 1e9, s * 1e9))
+PY
+read -r tag rest < "$T/rs.out"
+[ "$tag" = ok ] && ok "(b) replay's last status: $rest" || bad "(b) replay's last status: $rest"
 # the offline image of the same config: 1 nm pixels (see (c)'s tolerance), engage 50 ms
 "$A" scan "${C[@]}" --x0 1e-7 --size-x 3e-7 --pixels 300 --line-rate 5 --engage 0.05 --json \
   > "$T/off.jsonl" 2> "$T/off.err" || bad "afmtwin scan: $(head -3 "$T/off.err")"

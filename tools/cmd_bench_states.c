@@ -62,6 +62,9 @@ typedef enum {
     ST_DAMPING,
     ST_FM_1024,
     ST_FM_64,
+    ST_SAMPLE_HOLD,
+    ST_SAMPLE_RASTER,
+    ST_SAMPLE_RASTER_AM,
     N_STATES
 } state_id;
 
@@ -89,7 +92,32 @@ static const struct {
     [ST_DAMPING] = {"after a damping change (model swap), first 5 ms", 0.005},
     [ST_FM_1024] = {"FM: internal PLL + amplitude, update every 1024", 0.01},
     [ST_FM_64] = {"FM: internal PLL + amplitude, update every 64", 0.01},
+    [ST_SAMPLE_HOLD] = {"sample: a grating under the tip, holding (Z 40 nm)", 0.01},
+    [ST_SAMPLE_RASTER] = {"sample: rastering the grating, 10 lines/s (Z 40 nm)", 0.01},
+    [ST_SAMPLE_RASTER_AM] = {"sample: rastering it under am.control internal", 0.01},
 };
+
+/* The sample of the sample states (issue 18): a grating of 5 nm lines, pitch 100 nm, along
+ * x, 10 nm edges, its lines a second material (Er x 2), so that a raster crosses heights and
+ * materials; the tip starts over a line's middle. */
+static void bench_sample(afm_config *c) {
+    afm_cfg_sample *s = &c->sample;
+    memset(s, 0, sizeof *s);
+    s->enabled = true;
+    s->n_features = 1;
+    s->features[0] = (afm_cfg_feature){.kind = AFM_FEATURE_GRATING,
+                                       .height_m = 5e-9,
+                                       .position_m = -25e-9,
+                                       .pitch_m = 100e-9,
+                                       .duty = 0.5,
+                                       .edge_m = 10e-9,
+                                       .material = 1};
+    s->n_materials = 1;
+    s->materials[0] = (afm_cfg_material){.reduced_modulus_pa = 2.0 * c->forces.reduced_modulus_pa,
+                                         .hamaker_j = NAN,
+                                         .a0_m = NAN,
+                                         .eta_pa_s = NAN};
+}
 
 typedef struct {
     double int_ns, chain_ns;         /* mean per sample over the window */
@@ -226,6 +254,12 @@ static int run_state(const afm_config *cfg, double uptime_s, state_id id, state_
         t.shadow.fm.control = AFM_FM_CONTROL_INTERNAL;
         t.shadow.fm.update_samples = id == ST_FM_64 ? 64 : 1024;
     }
+    if (id == ST_SAMPLE_HOLD || id == ST_SAMPLE_RASTER || id == ST_SAMPLE_RASTER_AM)
+        bench_sample(&t.shadow);
+    if (id == ST_SAMPLE_RASTER_AM) { /* the runner's reference PI moves Z (issue 18) */
+        t.shadow.am.enabled = true;
+        t.shadow.am.control = AFM_AM_CONTROL_INTERNAL;
+    }
     t.r = afm_runner_create_pipelined(&t.shadow, ITEM, false, true, 8, err, sizeof err);
     if (!t.r || afm_runner_set_time(t.r, uptime_s, err, sizeof err)) {
         fprintf(stderr, "afmtwin bench-states: %s\n", err);
@@ -358,6 +392,18 @@ static int run_state(const afm_config *cfg, double uptime_s, state_id id, state_
         c = param1("model.damping_ratio[0]", cfg->model.damping_ratio[0] * 1.1);
         apply(&t, &c);
         break;
+    case ST_SAMPLE_RASTER:
+    case ST_SAMPLE_RASTER_AM: /* 400 nm lines from x -200 nm: four grating periods a line */
+        c = (afm_cmd){.kind = AFM_CMD_SCAN};
+        c.u.scan = (afm_cmd_lateral){.mode = AFM_SCAN_RASTER,
+                                     .x_m = -200e-9,
+                                     .size_x_m = 400e-9,
+                                     .size_y_m = 0,
+                                     .lines = 10,
+                                     .pixels = 64,
+                                     .line_rate_hz = 10};
+        apply(&t, &c);
+        break;
     default:
         break;
     }
@@ -426,7 +472,9 @@ static void usage(FILE *f) {
             "free far from resonance, just retracted, a frequency step every ring item, a Z\n"
             "ramp, hard contact, four tones, paused and resumed, after a reset, after a\n"
             "geometry rebuild and a damping change, the internal FM loops (fm.control =\n"
-            "internal) moving tone 0 every 1024 and every 64 samples; and the cost of one Z\n"
+            "internal) moving tone 0 every 1024 and every 64 samples, a sample under the tip\n"
+            "(a grating: holding, rastering, rastering under am.control internal); and the cost of "
+            "one Z\n"
             "change (a ramp makes one every 64 samples). The daemon's code path (afm_runner, both "
             "stages timed\n"
             "apart on this thread, 1024 samples at a time), started at model time --uptime.\n"

@@ -109,7 +109,7 @@ static void ls_usage(FILE *f) {
         "Ticks made here have seq 1e12, 1e12 + 1, ...\n\n"
         "options:\n"
         "  --in LOG          the commands (lcm-logger format; channels PREFIX + DITHER,\n"
-        "                    SETPOINT, PARAM, CONTROL, TICK)\n"
+        "                    SETPOINT, PARAM, CONTROL, TICK, SCAN)\n"
         "  --config FILE     the daemon's config, for its sample rate and for --check\n"
         "                    (default config/default.conf)\n"
         "  --tick-us US      model time per tick made here, 1..1e6 us (default 1000)\n"

@@ -103,7 +103,7 @@ static void replay_usage(FILE *f) {
             "options:\n"
             "  --config FILE    the twin's config (libconfig; see config/README.md)\n"
             "  --in LOG         input log: commands on PREFIX + DITHER, SETPOINT, PARAM,\n"
-            "                   CONTROL, TICK\n"
+            "                   CONTROL, TICK, SCAN\n"
             "  --out LOG        output log (overwritten): PREFIX + SAMPLES, HARMONICS, STATUS\n"
             "  --prefix NAME_   channel-name prefix (default %s)\n"
             "  --block N        samples per block, 1..1048576 (default %d): commands apply and\n"
@@ -260,6 +260,20 @@ static void emit_status(replay_ctx *x, const afm_runner_status *st) {
     snprintf(s.rt_scheme, sizeof s.rt_scheme, "%s", afm_sim_scheme_name(afm_runner_sim(x->r)));
     snprintf(s.rt_scheme_reason, sizeof s.rt_scheme_reason,
              "replay: the config's (offline: accurate)");
+    s.sample_on = st->sample_on; /* issue 18: the tip, the sample, the AM Z loop */
+    s.tip_x_m = st->tip_x_m;
+    s.tip_y_m = st->tip_y_m;
+    s.true_height_m = st->true_height_m;
+    s.material = st->material;
+    s.scan_mode = afm_scan_mode_name(st->scan_mode);
+    s.scan_line = st->scan_line;
+    s.scan_pixel = st->scan_pixel;
+    s.scan_retrace = st->scan_retrace;
+    s.am_control = st->am_on ? "internal" : "none";
+    s.am_z_m = st->am_z_m;
+    s.am_error_m = st->am_error_m;
+    s.am_setpoint_m = st->am_setpoint_m;
+    s.am_amplitude_m = st->am_amplitude_m;
     afmtwin_status_t m;
     afm_lcm_status_msg(&s, &m);
     WRITE_MSG(x, afmtwin_status_t, OUT_STATUS, &m);
