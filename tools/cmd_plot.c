@@ -1158,7 +1158,8 @@ static int load_continue(const plot_opts *o, plot_data *d, FILE *gp) {
         snprintf(yl, sizeof yl, "%s (%s)", n2, scale_unit(s2));
         area(gp, l, r, PX_BOTTOM / d->H, bottom - (PX_BOTTOM + 2.5 * PX_LINE) / d->H);
         fprintf(gp,
-                "set autoscale y\nset format x\nset xlabel '%s'\nset title 'the bifurcation curves "
+                "set autoscale y\nset offsets 0, 0, graph 0.08, graph 0.08\nset format x\nset "
+                "xlabel '%s'\nset title 'the bifurcation curves "
                 "in the plane "
                 "of the two parameters (own scales)'\nset ylabel '%s'\nplot ",
                 xl, yl);
@@ -1172,7 +1173,8 @@ static int load_continue(const plot_opts *o, plot_data *d, FILE *gp) {
                         sep, kind, kc[kind - 1]);
                 sep = ", ";
             }
-        fprintf(gp, "\nunset title\n");
+        /* the margin above and below: a cusp at the range's end is not drawn on the axis */
+        fprintf(gp, "\nunset title\nset offsets 0, 0, 0, 0\n");
     }
     snprintf(c.cv->header, sizeof c.cv->header, "%s[%s] %s[%s] kind[1_LPC_2_PD] curve[index]",
              pname, u, c.name2[0] ? c.name2 : "param2", scale_unit(s2));
