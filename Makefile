@@ -261,7 +261,7 @@ doc-plots: deps
 	$(MAKE) $(BUILD)/bin/afmtwin
 	sh tools/doc-plots.sh $(BUILD) /tmp/afmtwin-doc-plots
 	mkdir -p docs/img
-	for k in sweep approach spectrum thermal trace scan continue; do cp /tmp/afmtwin-doc-plots/$$k.png docs/img/; done
+	for k in sweep approach spectrum thermal trace scan continue force-curve; do cp /tmp/afmtwin-doc-plots/$$k.png docs/img/; done
 
 bench: deps
 	$(MAKE) $(BUILD)/bin/afmtwin $(BUILD)/bin/afmtwind

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # test_cli.sh BUILD -- the afmtwin command line: help texts, `modes --json` keys and shape,
-# exit codes for bad usage and bad configs. Prints "N passed, N failed".
+# exit codes for bad usage and bad configs, SI suffixes, and the progress line of every long
+# command on a terminal (none off one). Prints "N passed, N failed".
 BUILD=${1:-build}
 A="$BUILD/bin/afmtwin"
 pass=0; fail=0
@@ -134,17 +135,37 @@ msg=$("$A" sweep --config $C --from 3e5 --to 3e5 --z 30kHz 2>&1 >/dev/null)
 echo "$msg" | grep -q " = " && bad "a refused value was echoed: $msg" || ok "a refused command line echoes nothing"
 
 # progress: a line on stderr ("\r...") when it is a terminal (script(1) gives a pty), none
-# when it is not; the progress waits 1 s, so the run is made to take about 3 s (64 lines)
-SCAN="$A scan --config config/scan-grating.conf --pixels 8 --line-rate 100 --engage 0.002 --lines 64 --size-y 100nm"
-if command -v script >/dev/null 2>&1; then
-  script -qc "$SCAN >/dev/null" /dev/null >"$T/tty.txt" 2>&1
-  tr '\r' '\n' <"$T/tty.txt" | grep -aq "^scan: line [0-9]*/64 " && ok "scan: progress on a terminal" ||
-    bad "scan: no progress on a terminal: $(od -c "$T/tty.txt" | head -5)"
-else
-  ok "scan progress on a terminal: skipped (no script(1))"
-fi
-$SCAN >/dev/null 2>"$T/notty.txt"
-grep -q $'\r' "$T/notty.txt" && bad "scan: progress without a terminal: $(od -c "$T/notty.txt" | head -3)" ||
-  ok "scan: no progress without a terminal"
+# when it is not; the progress waits 1 s, so each run is made to take about 3 s. Every long
+# command draws it through the one afmt_progress (tools/opts.h).
+# progress_check NAME PATTERN CMD...: PATTERN (grep, at a line start) in the pty's output
+progress_check() {
+  local name=$1 pat=$2
+  shift 2
+  if command -v script >/dev/null 2>&1; then
+    script -qc "$* >/dev/null" /dev/null >"$T/tty.txt" 2>&1
+    tr '\r' '\n' <"$T/tty.txt" | grep -aq "^$pat" && ok "$name: progress on a terminal" ||
+      bad "$name: no progress on a terminal: $(od -c "$T/tty.txt" | head -5)"
+  else
+    ok "$name progress on a terminal: skipped (no script(1))"
+  fi
+  "$@" >/dev/null 2>"$T/notty.txt"
+  grep -q $'\r' "$T/notty.txt" && bad "$name: progress without a terminal: $(od -c "$T/notty.txt" | head -3)" ||
+    ok "$name: no progress without a terminal"
+}
+progress_check scan "scan: line [0-9]*/64 " "$A" scan --config config/scan-grating.conf --pixels 8 \
+  --line-rate 100 --engage 0.002 --lines 64 --size-y 100nm
+progress_check sweep "sweep: step [0-9]*/76 " "$A" sweep --config config/default.conf --from 330kHz --to 345kHz \
+  --step 200Hz --z 1um
+progress_check approach "approach: approach step [0-9]*/17, Z " "$A" approach --config config/default.conf \
+  --from 40nm --to 24nm --step 1nm
+sed -e '/vdw_contact/d' -e '/viscoelastic/d' -e '/squeeze/d' config/thesis-fig-4-2.conf >"$T/lin.conf"
+progress_check continue "continue: branch 0 (period 1), [0-9]* records, fe " "$A" continue \
+  --config "$T/lin.conf" --param fe --from 80000 --to 82000 --max-points 30
+progress_check force-curve "force-curve: approach  *[0-9]* %, Z " "$A" force-curve \
+  --config config/thesis-1dof.conf --from 30nm --to 0nm --speed 3e-8
+"$A" send setpoint --z 1um --seq 1 --log "$T/p.log" --log-time 0 --quiet --no-check ||
+  bad "send setpoint --log"
+progress_check replay "replay: model time [0-9.]* s, 1 commands" "$A" replay --config config/default.conf \
+  --in "$T/p.log" --out "$T/po.log" --tail 1.2
 echo "$pass passed, $fail failed"
 [ "$fail" -eq 0 ]

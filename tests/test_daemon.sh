@@ -247,11 +247,17 @@ grep -q "rejected: AFMTWIN_SETPOINT" "$T/daemon.err" && ok "rejections logged on
 "$D" --config config/default.conf --speed 10 --max-lag-ms 50 --quiet 2>"$T/resync.err" &
 DPID=$!
 sleep 2.5
-s=$(status)
+# The daemon's threads take both cores here (SCHED_FIFO, never idle at 10x); with other
+# real-time daemons on the host (parallel tests) a 3 s listen may see no status at all: ask
+# up to 4 times before judging. An empty answer still fails, and so do the values.
+for i in 1 2 3 4; do
+  s=$(status)
+  [ -n "$s" ] && break
+done
 rs=$(echo "$s" | jnum resyncs); lag=$(echo "$s" | jnum lag_s)
 gt "${rs:-0}" 2 && awk -v l="$lag" 'BEGIN{exit !(l < 0.2)}' \
   && ok "resync at --speed 10: $rs backlogs dropped, lag $lag s (bound 50 ms + one block)" \
-  || bad "resync: resyncs '$rs', lag '$lag': $s"
+  || bad "resync: resyncs '$rs', lag '$lag' (status: ${s:-none in 4 listens of 3 s})"
 grep -q "dropped the backlog" "$T/resync.err" && ok "resyncs reported on stderr (also --quiet)" \
   || bad "no resync warning on stderr: $(tail -2 "$T/resync.err")"
 kill -TERM "$DPID"; wait "$DPID"; DPID=""

@@ -165,6 +165,12 @@ EOF
 "$A" plot map "$T/single.map" --out "$T/map.png" --gsf "$T/g" 2> "$T/p.err"; rc=$?
 [ $rc -eq 0 ] && [ "$(head -c 4 "$T/map.png" | tail -c 3)" = PNG ] \
   && ok "plot map: a PNG of the heat maps" || bad "plot map: exit $rc: $(head -2 "$T/p.err")"
+# its title names the model and the drive as every plot's does (plot_info.h), and E_ts
+"$A" plot map "$T/single.map" --out "$T/map2.png" --script "$T/map.gp" 2> /dev/null
+grep -m1 '^set multiplot' "$T/map.gp" | grep -q 'thesis-fig-4-2.conf: f0 80.8205 kHz, Q 200, k 2.821 N/m; drive fe 80-88 kHz, Ae 700 pm; Z 20-30 nm' &&
+  grep -q "E_ts tip-sample dissipated (eV)" "$T/map.gp" &&
+  ok "plot map: the title names f0, Q, k and the drive; the energy panel is E_ts" ||
+  bad "plot map title: $(grep -m1 '^set multiplot' "$T/map.gp")"
 ng=$(ls "$T"/g-*.gsf 2> /dev/null | wc -l)
 [ "$ng" = 21 ] && ok "plot map --gsf: 21 files (10 quantities x 2 directions, bistable)" \
   || bad "plot map --gsf: $ng files"

@@ -21,7 +21,7 @@ else
 fi
 # PNG: 8-byte signature, then the IHDR chunk with width and height (big-endian) at 16, 20
 png_size() { od -An -tu1 -j16 -N8 "$1" | awk '{print $1*16777216+$2*65536+$3*256+$4 "x" $5*16777216+$6*65536+$7*256+$8}'; }
-for k in sweep approach spectrum thermal trace scan continue; do
+for k in sweep approach spectrum thermal trace scan continue force-curve; do
   f="$T/$k.png"
   sig=$(od -An -tx1 -N8 "$f" 2>/dev/null | tr -d ' \n')
   if [ "$sig" = "89504e470d0a1a0a" ] && [ "$(png_size "$f")" = "1000x750" ]; then
@@ -60,7 +60,7 @@ key_outside() {
        /^plot / { n++; if (st == "" || st == "in") bad++ }
        END { if (n == 0 || keys == 0 || bad > 0) { print n + 0, "plots,", bad + 0, "with a key on the data"; exit 1 } }' "$1"
 }
-for k in sweep approach spectrum thermal trace scan continue; do
+for k in sweep approach spectrum thermal trace scan continue force-curve; do
   if why=$(key_outside "$T/$k.gp" 2>&1); then ok "plot $k: every legend outside the data"
   else bad "plot $k: a legend on the data ($why)"; fi
 done
@@ -114,10 +114,16 @@ csv_ok() {
            NF != n { rows_bad++ } { rows++ }
            END { if (e != "" || rows_bad || rows < 3) { print "header" e ", rows " rows + 0 ", bad rows " rows_bad + 0; exit 1 } }' "$1"
 }
-for k in sweep approach spectrum thermal trace scan continue; do
+for k in sweep approach spectrum thermal trace scan continue force-curve; do
   if why=$(csv_ok "$T/$k.csv" 2>&1); then ok "plot $k --csv: $(head -1 "$T/$k.csv" | cut -c1-60)..."
   else bad "plot $k --csv: $why"; fi
 done
+
+# force-curve: snap-in and pull-off marked (set E: event 1 and 2), the adhesion in the title
+ev=$(awk '/^# E/ {e = 1; next} /^#/ {e = 0} e && NF == 3 {n[$3]++} END {print n[1] + 0, n[2] + 0}' "$T/force-curve.dat")
+[ "$ev" = "1 1" ] && grep -q 'adhesion (force at pull-off) -3.7[0-9]* nN' "$T/force-curve.gp" &&
+  ok "plot force-curve: snap-in and pull-off marked, the adhesion in the title" ||
+  bad "plot force-curve: events '$ev' (want '1 1'), title: $(grep -m1 'multiplot title' "$T/force-curve.gp")"
 
 # ---- hand-written inputs ----
 cat >"$T/zz-input-name.json" <<'END'

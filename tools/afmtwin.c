@@ -27,7 +27,7 @@ static const command commands[] = {
     {"force-curve", afm_cmd_force_curve,
      "quasi-static force-distance curve: snap-in, adhesion, pull-off, contact slope"},
     {"plot", afm_cmd_plot,
-     "pictures (gnuplot PNG): sweep, approach, thermal, trace, spectrum, scan, continue"},
+     "gnuplot PNGs: sweep, approach, scan, continue, force-curve, map, trace, ..."},
     {"curve", afm_cmd_curve, "approach-style curve from a log of the daemon outputs"},
     {"scan", afm_cmd_scan, "image a sample with the reference controller: height, phase, force"},
     {"bench", afm_cmd_bench, "integrator speed and accuracy side by side"},

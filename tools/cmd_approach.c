@@ -694,7 +694,8 @@ static int approach_fm(afm_sim *sim, const afm_modal *m, afm_config *cfg, approa
         printf("%-8s %10s %12s %14s %11s %10s %10s %-9s %10s %9s\n", "# dir", "Z_nm", "df_Hz",
                "f_Hz", "drive_pm", "A_nm", "perr_deg", "lock", "Fpeak_nN", "Ediss_eV");
     }
-    const bool tty = isatty(STDERR_FILENO) != 0;
+    afmt_progress pg; /* opts.h: stderr, terminals only, after the first second */
+    afmt_progress_init(&pg);
     const int passes = o->retract ? 2 : 1;
     for (int pass = 0; pass < passes; pass++) {
         for (int i = pass; i < n_steps; i++) {
@@ -704,29 +705,33 @@ static int approach_fm(afm_sim *sim, const afm_modal *m, afm_config *cfg, approa
             q.f_free_hz = f_free;
             q.a_set_m = f.a_set_m;
             double z = step_z(o->from_m, o->to_m, o->step_m, pass ? n_steps - 1 - i : i, n_steps);
-            if (tty)
-                fprintf(stderr, "\rapproach --mode fm: %s step %d/%d, Z %.4f nm   ",
-                        pass ? "retract" : "approach", i + 1, n_steps, z * 1e9);
+            afmt_progress_update(&pg, "approach --mode fm: %s step %d/%d, Z %.4f nm",
+                                 pass ? "retract" : "approach", i + 1, n_steps, z * 1e9);
             if (afm_sim_set_separation(sim, z) != AFM_SIM_OK) {
-                fprintf(stderr, "%safmtwin approach: cannot set Z = %g m\n", tty ? "\n" : "", z);
+                afmt_progress_end(&pg);
+                fprintf(stderr, "afmtwin approach: cannot set Z = %g m\n", z);
                 return 1;
             }
             afm_cycle_set_forces(&est->cycle, afm_sim_forces(sim), z);
             if (afm_fm_settle(&f, sim, &est->lockin, buf, 4096, win, max_win, o->fm_tol_hz, 1e-4,
                               on_samples, est, &q.fm, err, sizeof err)) {
-                fprintf(stderr, "%safmtwin approach: %s\n", tty ? "\n" : "", err);
+                afmt_progress_end(&pg);
+                fprintf(stderr, "afmtwin approach: %s\n", err);
                 return 1;
             }
             q.pt.z_m = z;
             approach_means(est, o->analyse, o->k_max, &q.pt);
+            afmt_progress_hide(&pg); /* stdout on the same terminal: the record, then the line */
             if (o->json ? print_fm_json(&q) != 0 : (print_fm_text(&q), 0)) {
+                afmt_progress_end(&pg);
                 fprintf(stderr, "afmtwin approach: out of memory writing JSON\n");
                 return 1;
             }
             fflush(stdout);
+            afmt_progress_redraw(&pg);
         }
     }
-    if (tty) fprintf(stderr, "\r%60s\r", "");
+    afmt_progress_end(&pg);
     return 0;
 }
 
@@ -835,7 +840,8 @@ int afm_cmd_approach(int argc, char **argv) {
         printf("# free amplitude A0 (harmonic 1 at Z %.0f nm, gap-dependent tip forces off, "
                "squeeze film on): %.6g nm, lag %.4f deg\n",
                a0.z_m * 1e9, free_amp * 1e9, free_lag);
-    const bool tty = isatty(STDERR_FILENO) != 0;
+    afmt_progress pg; /* opts.h: stderr, terminals only, after the first second */
+    afmt_progress_init(&pg);
     int status = 0;
     /* the records of a pass are written when it ends: its jumps need the whole pass */
     const int passes = o.retract ? 2 : 1;
@@ -856,25 +862,29 @@ int afm_cmd_approach(int argc, char **argv) {
             pt->free_lag_deg = free_lag;
             /* the retract visits the approach's points in reverse */
             double z = step_z(o.from_m, o.to_m, o.step_m, pass ? n_steps - 1 - i : i, n_steps);
-            if (tty)
-                fprintf(stderr, "\rapproach: %s step %d/%d, Z %.4f nm   ",
-                        pass ? "retract" : "approach", i + 1, n_steps, z * 1e9);
+            afmt_progress_update(&pg, "approach: %s step %d/%d, Z %.4f nm",
+                                 pass ? "retract" : "approach", i + 1, n_steps, z * 1e9);
             const bool ramp = o.rate_m_s > 0 && np > 0;
             if (ramp ? approach_ramp(sim, &est, &o, pts[np - 1].z_m, z, pt, err, sizeof err) != 0
                      : approach_step(&sw, sim, &est, &o, z, pt, err, sizeof err) != 0) {
-                fprintf(stderr, "%safmtwin approach: %s\n", tty ? "\n" : "", err);
+                afmt_progress_end(&pg);
+                fprintf(stderr, "afmtwin approach: %s\n", err);
                 status = 1;
                 break;
             }
             np++;
         }
+        afmt_progress_hide(&pg); /* stdout on the same terminal: the records, then the line */
         if (print_pass(pts, start, np, &o) != 0) { /* on a failure too: what was computed */
+            afmt_progress_end(&pg);
             fprintf(stderr, "afmtwin approach: out of memory writing JSON\n");
             status = 1;
         }
+        fflush(stdout);
+        afmt_progress_redraw(&pg);
     }
     free(pts);
-    if (tty) fprintf(stderr, "\r%60s\r", "");
+    afmt_progress_end(&pg);
     afm_sweep_destroy(&sw);
     afm_sim_destroy(&sim);
     return status;

@@ -479,7 +479,8 @@ int afm_cmd_force_curve(int argc, char **argv) {
         printf("%-8s %12s %12s %12s %12s %3s\n", "# dir", "Z_nm", "defl_nm", "force_nN", "gap_nm",
                "c");
     }
-    const bool tty = isatty(STDERR_FILENO) != 0;
+    afmt_progress pg; /* opts.h: stderr, terminals only, after the first second */
+    afmt_progress_init(&pg);
     int status = 0;
     if (start_state(sim, o.from_m, DWELL_PERIODS * t.period) != 0) {
         fprintf(stderr, "afmtwin force-curve: simulation failed at Z = %g m\n", o.from_m);
@@ -501,8 +502,8 @@ int afm_cmd_force_curve(int argc, char **argv) {
             } else {
                 if (afm_sim_set_separation(sim, z) != AFM_SIM_OK ||
                     afm_sim_run(sim, 1, &smp) != AFM_SIM_OK) {
-                    fprintf(stderr, "%safmtwin force-curve: simulation failed at Z = %g m\n",
-                            tty ? "\n" : "", z);
+                    afmt_progress_end(&pg);
+                    fprintf(stderr, "afmtwin force-curve: simulation failed at Z = %g m\n", z);
                     status = 1;
                     break;
                 }
@@ -519,26 +520,30 @@ int afm_cmd_force_curve(int argc, char **argv) {
                               .retract = retract};
                 p.contact = p.gap_m < t.a0;
                 if (!retract) app[next] = p;
+                afmt_progress_hide(&pg); /* stdout on the same terminal */
                 if (emit_point(&p, o.json) != 0) {
                     fprintf(stderr, "afmtwin force-curve: out of memory writing JSON\n");
                     status = 1;
                 }
+                afmt_progress_redraw(&pg);
                 next++;
             }
             if (!retract && t.snap.have && !snap_said) { /* said when found */
                 snap_said = true;
+                afmt_progress_hide(&pg);
                 if (emit_event("snap_in", &t.snap, o.json) != 0) status = 1;
+                afmt_progress_redraw(&pg);
             }
-            if (tty && j - prog >= n_leg / 100 + 1) {
+            if (pg.tty && j - prog >= n_leg / 100 + 1) {
                 prog = j;
-                fprintf(stderr, "\rforce-curve: %s %3.0f %%, Z %.4f nm   ",
-                        retract ? "retract" : "approach", 100.0 * (double)j / (double)n_leg,
-                        z * 1e9);
+                afmt_progress_update(&pg, "force-curve: %s %3.0f %%, Z %.4f nm",
+                                     retract ? "retract" : "approach",
+                                     100.0 * (double)j / (double)n_leg, z * 1e9);
             }
         }
         last = smp;
     }
-    if (tty) fprintf(stderr, "\r%60s\r", "");
+    afmt_progress_end(&pg);
     if (status == 0) {
         if (t.pull.have && !t.left) t.pull.have = false; /* still in contact at --from */
         if (t.pull.have) {

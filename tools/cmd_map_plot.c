@@ -8,6 +8,7 @@
 #include "gsf_write.h"
 #include "map_file.h"
 #include "opts.h"
+#include "plot_info.h"
 
 #include <cjson/cJSON.h>
 #include <math.h>
@@ -87,7 +88,7 @@ static const quantity quantities[] = {
     {"min_gap", "m", "minimum gap (nm)", 1e9},
     {"indentation", "m", "indentation (nm)", 1e9},
     {"contact_time", "s", "contact time (s)", 1.0},
-    {"dissipated_energy", "J", "dissipated energy (eV)", 1.0 / 1.602176634e-19},
+    {"dissipated_energy", "J", "E_ts tip-sample dissipated (eV)", 1.0 / 1.602176634e-19},
     {"periodicity", "", "periodicity", 1.0},
     {"settled", "", "settled", 1.0},
 };
@@ -329,6 +330,31 @@ static int write_contour(FILE *sf, const afmt_map_data *m, const double *v, int 
     return nseg;
 }
 
+/* The line under the title, as every `afmtwin plot` has it (plot_info.h): the config's model
+ * (f0, Q, k) and the drive, the map's two axes as ranges. "" when the config the map names
+ * cannot be read from here (its path is the one map was given). */
+static void map_info_line(const afmt_map_data *m, char *out, size_t n) {
+    out[0] = '\0';
+    plot_info pi;
+    plot_info_init(&pi);
+    if (plot_info_config(&pi, m->config)) return;
+    const afmt_map_axis *ax[2] = {&m->x, &m->y};
+    for (int i = 0; i < 2; i++) {
+        const double v[2] = {ax[i]->from, ax[i]->to};
+        for (int j = 0; j < 2; j++) {
+            if (ax[i]->param == AFMT_MAP_FE)
+                plot_info_fe(&pi, v[j]);
+            else if (ax[i]->param == AFMT_MAP_Z)
+                plot_info_z(&pi, v[j]);
+            else
+                plot_info_param(&pi, "ae", v[j]);
+        }
+    }
+    plot_info_line(&pi, out, n);
+    for (char *c = out; *c; c++)
+        if (*c == '\'') *c = ' '; /* inside a gnuplot '...' string */
+}
+
 static int write_script(FILE *sf, const mplot_opts *o, const afmt_map_data *m, int d,
                         const char *lpc, const char *pd) {
     const double sx = axis_scale(m->x.param), sy = axis_scale(m->y.param);
@@ -385,17 +411,22 @@ static int write_script(FILE *sf, const mplot_opts *o, const afmt_map_data *m, i
         ol += snprintf(over + ol, sizeof over - ol,
                        ", $cont using 1:2 with lines lw 2.5 lc rgb 'white' notitle");
     }
-    /* two title lines: what the map is, then what the marks and lines are (no key: it would
-     * hide part of a panel) */
+    /* three title lines: what the map is, the model and the drive (plot_info.h), then what
+     * the marks and lines are (no key: it would hide part of a panel) */
+    char info[256];
+    map_info_line(m, info, sizeof info);
     fprintf(sf,
             "set multiplot layout 2,2 title 'afmtwin map %s (%s sweep, %d x %d%s)'.\"\\n\"."
-            "'white x: bistable points, black dots: unsettled",
-            m->config, d ? "down" : "up", m->x.n, m->y.n, m->lines < m->y.n ? ", partial" : "");
+            "%s%s%s'white x: bistable points, black dots: unsettled",
+            m->config, d ? "down" : "up", m->x.n, m->y.n, m->lines < m->y.n ? ", partial" : "",
+            info[0] ? "'" : "", info, info[0] ? "'.\"\\n\"." : "");
     if (lpc && *lpc) fprintf(sf, "; black lines: LPC curves");
     if (pd && *pd) fprintf(sf, "; dashed magenta: PD curves");
     if (!isnan(o->contour_n)) fprintf(sf, "; white line: peak force %.4g nN", o->contour_n * 1e9);
     fprintf(sf, "'\n");
-    fprintf(sf, "set xlabel '%s'\nset ylabel '%s'\nset palette rgb 33,13,10\n",
+    fprintf(sf,
+            "set xlabel '%s'\nset ylabel '%s'\nset palette rgb 33,13,10\nset autoscale cbfix\nset "
+            "format cb '%%g'\n",
             axis_label(m->x.param), axis_label(m->y.param));
     /* the picture's extent: the map's pixels (curves outside it are clipped) */
     double ex[2], ey[2];

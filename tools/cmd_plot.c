@@ -142,7 +142,11 @@ static void plot_usage(FILE *f) {
             "            their own colour; LPC, PD and NS points labelled L1.., P1.., N1.. in\n"
             "            the order found (a label that would overlap another goes up a row,\n"
             "            a thin leader down to its point); with --param2, the curves in the\n"
-            "            parameter plane\n\n"
+            "            parameter plane\n"
+            "  force-curve  INPUT: afmtwin force-curve --json output: the force on the\n"
+            "            lever k x against the base Z, approach and retract, snap-in and\n"
+            "            pull-off marked, spring constant and adhesion in the title.\n"
+            "            Columns: Z[nm] force[nN] deflection[nm]; set E the events\n\n"
             "options:\n"
             "  -o, --output FILE  the picture (.png, or .svg)\n"
             "  --title TEXT       the title's first line (default: what the kind draws)\n"
@@ -239,7 +243,7 @@ static int parse_args(int argc, char **argv, plot_opts *o) {
     if (rc) return rc == AFMT_OPTS_HELP ? 1 : -1;
     if (!o->kind)
         return plot_err("%s", "KIND is required (sweep, approach, thermal, trace, spectrum, scan, "
-                              "continue)");
+                              "continue, force-curve)");
     if (o->n_in == 0) return plot_err("%s", "an INPUT file is required");
     for (int i = 0; i < o->n_in; i++)
         if (quotable("input", o->in[i])) return -1;
@@ -1158,7 +1162,8 @@ static int load_continue(const plot_opts *o, plot_data *d, FILE *gp) {
         snprintf(yl, sizeof yl, "%s (%s)", n2, scale_unit(s2));
         area(gp, l, r, PX_BOTTOM / d->H, bottom - (PX_BOTTOM + 2.5 * PX_LINE) / d->H);
         fprintf(gp,
-                "set autoscale y\nset format x\nset xlabel '%s'\nset title 'the bifurcation curves "
+                "set autoscale y\nset offsets 0, 0, graph 0.08, graph 0.08\nset format x\nset "
+                "xlabel '%s'\nset title 'the bifurcation curves "
                 "in the plane "
                 "of the two parameters (own scales)'\nset ylabel '%s'\nplot ",
                 xl, yl);
@@ -1172,7 +1177,8 @@ static int load_continue(const plot_opts *o, plot_data *d, FILE *gp) {
                         sep, kind, kc[kind - 1]);
                 sep = ", ";
             }
-        fprintf(gp, "\nunset title\n");
+        /* the margin above and below: a cusp at the range's end is not drawn on the axis */
+        fprintf(gp, "\nunset title\nset offsets 0, 0, 0, 0\n");
     }
     snprintf(c.cv->header, sizeof c.cv->header, "%s[%s] %s[%s] kind[1_LPC_2_PD] curve[index]",
              pname, u, c.name2[0] ? c.name2 : "param2", scale_unit(s2));
@@ -1519,6 +1525,85 @@ static int load_spectrum(const plot_opts *o, plot_data *d, FILE *gp) {
     return 0;
 }
 
+/* ---- force-curve ---- */
+
+typedef struct {
+    plot_set *ap, *re, *ev;
+    double k_n_m, adhesion_n, speed_m_s;
+} fc_ctx;
+
+/* One line of `afmtwin force-curve --json`: a point (approach or retract), an event
+ * (snap_in, pull_off) or the summary. */
+static int fc_row(const cJSON *o, void *vctx) {
+    fc_ctx *c = vctx;
+    const cJSON *sum = cJSON_GetObjectItemCaseSensitive(o, "summary");
+    if (cJSON_IsObject(sum)) {
+        c->k_n_m = num(sum, "spring_constant_n_m");
+        c->adhesion_n = num(sum, "adhesion_force_n");
+        c->speed_m_s = num(sum, "speed_m_s");
+        return 0;
+    }
+    const cJSON *ev = cJSON_GetObjectItemCaseSensitive(o, "event");
+    if (cJSON_IsString(ev)) {
+        double kind = !strcmp(ev->valuestring, "snap_in")    ? 1
+                      : !strcmp(ev->valuestring, "pull_off") ? 2
+                                                             : 0;
+        if (kind == 0) return 0;
+        double row[3] = {num(o, "z_m") * 1e9, num(o, "force_n") * 1e9, kind};
+        return set_row(c->ev, row);
+    }
+    const cJSON *dir = cJSON_GetObjectItemCaseSensitive(o, "direction");
+    double z = num(o, "z_m"), f = num(o, "force_n");
+    if (isnan(z) || isnan(f) || !cJSON_IsString(dir))
+        return plot_err("%s", "a record without z_m, force_n or direction (afmtwin force-curve "
+                              "--json?)");
+    double row[3] = {z * 1e9, f * 1e9, num(o, "deflection_m") * 1e9};
+    return set_row(strcmp(dir->valuestring, "retract") ? c->ap : c->re, row);
+}
+
+/* The quasi-static force-distance curve: the force k x on the lever against the base Z,
+ * approach and retract, snap-in and pull-off marked where the run found them, the adhesion
+ * (the force at pull-off) stated in the title; the drive is off (no A0). */
+static int load_force_curve(const plot_opts *o, plot_data *d, FILE *gp) {
+    fc_ctx c = {.ap = curve_new(d, "A", "approach", "Z[nm] force[nN] deflection[nm]", 3),
+                .re = curve_new(d, "R", "retract", "Z[nm] force[nN] deflection[nm]", 3),
+                .ev = set_new(d, "E", "Z[nm] force[nN] event[1_snap_in_2_pull_off]", 3),
+                .k_n_m = NAN,
+                .adhesion_n = NAN,
+                .speed_m_s = NAN};
+    if (!c.ap || !c.re || !c.ev || each_json(o->in[0], fc_row, &c)) return -1;
+    if (c.ap->n == 0) return plot_err("%s: no approach points", o->in[0]);
+    for (size_t i = 0; i < c.ap->n; i++)
+        plot_info_z(&d->info, cell(c.ap, i, 0) * 1e-9);
+    d->info.no_drive = true;
+    snprintf(d->note, sizeof d->note,
+             "drive off, Z ramped at %.3g m/s; spring k %.4g N/m; adhesion (force at pull-off) "
+             "%.4g nN",
+             c.speed_m_s, c.k_n_m, c.adhesion_n * 1e9);
+    if (isnan(c.adhesion_n)) snprintf(d->note, sizeof d->note, "drive off; no pull-off found");
+    bool snap = false, pull = false;
+    for (size_t i = 0; i < c.ev->n; i++) {
+        if (cell(c.ev, i, 2) == 1) snap = true;
+        if (cell(c.ev, i, 2) == 2) pull = true;
+    }
+    plot_key k = {0};
+    key_add(&k, "with lines lw 2 lc rgb '#0072b2'", "approach");
+    key_add(&k, "with lines lw 2 lc rgb '#d55e00'", "retract");
+    if (snap) key_add(&k, "with points pt 7 ps 1.5 lc rgb '#009e73'", "snap-in");
+    if (pull) key_add(&k, "with points pt 5 ps 1.5 lc rgb 'black'", "pull-off (adhesion)");
+    const double l = PX_LEFT / d->W, r = 1 - PX_RIGHT / d->W;
+    double top = figure(gp, d, &k, l, r);
+    area(gp, l, r, PX_BOTTOM / d->H, top);
+    fprintf(gp, "set xlabel 'base separation Z (nm)'\nset ylabel 'force on the lever k x (nN)'\n"
+                "set xzeroaxis lt -1 lw 0.5\nset offsets 0, 0, graph 0.05, graph 0.05\n"
+                "plot $A using 1:2 with lines lw 2 lc rgb '#0072b2' notitle, "
+                "$R using 1:2 with lines lw 2 lc rgb '#d55e00' notitle, "
+                "$E using 1:($3 == 1 ? $2 : 1/0) with points pt 7 ps 1.5 lc rgb '#009e73' notitle, "
+                "$E using 1:($3 == 2 ? $2 : 1/0) with points pt 5 ps 1.5 lc rgb 'black' notitle\n"
+                "unset multiplot\n");
+    return 0;
+}
+
 /* ---- scan ---- */
 
 #define SCAN_COLS 9
@@ -1706,10 +1791,10 @@ static int load_scan(const plot_opts *o, plot_data *d, FILE *gp) {
 static const char *kind_title(const char *kind) {
     static const struct {
         const char *kind, *title;
-    } t[] = {{"sweep", "frequency sweep"},       {"approach", "approach curve"},
-             {"thermal", "thermal tune"},        {"trace", "time trace of the daemon outputs"},
-             {"spectrum", "harmonic spectrum"},  {"scan", "scan"},
-             {"continue", "bifurcation diagram"}};
+    } t[] = {{"sweep", "frequency sweep"},        {"approach", "approach curve"},
+             {"thermal", "thermal tune"},         {"trace", "time trace of the daemon outputs"},
+             {"spectrum", "harmonic spectrum"},   {"scan", "scan"},
+             {"continue", "bifurcation diagram"}, {"force-curve", "force-distance curve"}};
     for (size_t i = 0; i < sizeof t / sizeof t[0]; i++)
         if (!strcmp(kind, t[i].kind)) return t[i].title;
     return kind;
@@ -1757,16 +1842,17 @@ int afm_cmd_plot(int argc, char **argv) {
     static const struct {
         const char *kind;
         int (*load)(const plot_opts *, plot_data *, FILE *);
-    } kinds[] = {{"sweep", load_sweep},      {"approach", load_approach}, {"thermal", load_thermal},
-                 {"trace", load_trace},      {"spectrum", load_spectrum}, {"scan", load_scan},
-                 {"continue", load_continue}};
+    } kinds[] = {{"sweep", load_sweep},       {"approach", load_approach},
+                 {"thermal", load_thermal},   {"trace", load_trace},
+                 {"spectrum", load_spectrum}, {"scan", load_scan},
+                 {"continue", load_continue}, {"force-curve", load_force_curve}};
     int k = -1;
     for (int i = 0; i < (int)(sizeof kinds / sizeof kinds[0]); i++)
         if (!strcmp(o.kind, kinds[i].kind)) k = i;
     if (k < 0) {
         fprintf(stderr,
                 "afmtwin plot: unknown kind '%s' (sweep, approach, thermal, trace, "
-                "spectrum, scan, continue)\n",
+                "spectrum, scan, continue, force-curve)\n",
                 o.kind);
         return 2;
     }

@@ -215,20 +215,25 @@ static void emit_harmonics(replay_ctx *x, const afm_runner_status *st) {
  * tone 0 or the config changed since the last one. Under internal FM the loops move tone 0
  * every period: A0 stays that of the commanded drive, as in the daemon. NaN if it fails. */
 static double replay_a0(replay_ctx *x, const afm_runner_status *st) {
-    if (st->fm_on) return x->a0_m;
-    if (!x->a0_dirty && st->fe_hz == x->a0_fe_hz && st->amplitude_m == x->a0_ae_m) return x->a0_m;
+    const afm_config *cfg = afm_runner_config(x->r);
+    double fe = st->fe_hz, ae = st->amplitude_m;
+    if (st->fm_on) { /* the commanded drive: the config's tone 0 */
+        fe = cfg->drive.tones[0].frequency_hz;
+        ae = cfg->drive.tones[0].amplitude_m;
+    }
+    if (!x->a0_dirty && fe == x->a0_fe_hz && ae == x->a0_ae_m) return x->a0_m;
     static afm_config c; /* large */
-    c = *afm_runner_config(x->r);
-    c.drive.tones[0].frequency_hz = st->fe_hz;
-    c.drive.tones[0].amplitude_m = st->amplitude_m;
+    c = *cfg;
+    c.drive.tones[0].frequency_hz = fe;
+    c.drive.tones[0].amplitude_m = ae;
     afm_a0 a;
     char err[AFM_ERR_LEN];
-    if (st->amplitude_m == 0)
+    if (ae == 0)
         x->a0_m = 0; /* a silent tone 0: the lever rests */
     else
         x->a0_m = afm_a0_compute(&c, &a, err, sizeof err) ? NAN : a.amplitude_m;
-    x->a0_fe_hz = st->fe_hz;
-    x->a0_ae_m = st->amplitude_m;
+    x->a0_fe_hz = fe;
+    x->a0_ae_m = ae;
     x->a0_dirty = false;
     return x->a0_m;
 }

@@ -26,7 +26,6 @@
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
-#include <unistd.h>
 
 #define DEFAULT_MAX_PERIODS 10000
 #define DEFAULT_TOL 1e-6
@@ -127,12 +126,6 @@ static void sweep_usage(FILE *f) {
         "2 bad usage or bad input.\n",
         AFM_ORBIT_MAX_P, AFM_MAX_HARMONICS, DEFAULT_MAX_PERIODS, DEFAULT_TOL,
         AFM_ORBIT_MAX_CONTACTS);
-}
-
-static double now_s(void) {
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
 /* --harmonics K[,K..] into o->ks, o->nk (its own messages: which part is wrong). */
@@ -375,32 +368,16 @@ static void print_text_step(const afm_orbit *ob, const afm_orbit_settler *st, bo
     fflush(stdout);
 }
 
+/* The progress line (opts.h afmt_progress: stderr, terminals only) and where the sweep is. */
 typedef struct {
-    bool tty, shown;
-    double t_start, t_last;
+    afmt_progress p;
     int step, n_steps;
-} progress;
-
-static void progress_update(progress *pg, int step, int n_steps, double fe, int periods,
-                            double change) {
-    if (!pg->tty) return;
-    double t = now_s();
-    if (t - pg->t_start < 1.0 || t - pg->t_last < 0.2) return;
-    pg->t_last = t;
-    pg->shown = true;
-    fprintf(stderr, "\rsweep: step %d/%d  fe %.3f Hz  period %d  change %.1e   ", step + 1, n_steps,
-            fe, periods, change);
-    fflush(stderr);
-}
+} sweep_progress;
 
 static void on_period(void *ctx, const afm_orbit_settler *st, double fe_hz) {
-    progress *pg = ctx;
-    progress_update(pg, pg->step, pg->n_steps, fe_hz, st->periods, st->change_rel);
-}
-
-static void progress_end(progress *pg) {
-    if (pg->shown) fprintf(stderr, "\r%78s\r", "");
-    pg->shown = false;
+    sweep_progress *pg = ctx;
+    afmt_progress_update(&pg->p, "sweep: step %d/%d  fe %.3f Hz  period %d  change %.1e",
+                         pg->step + 1, pg->n_steps, fe_hz, st->periods, st->change_rel);
 }
 
 int afm_cmd_sweep(int argc, char **argv) {
@@ -496,7 +473,8 @@ int afm_cmd_sweep(int argc, char **argv) {
                "min_xr_nm", "max_xr_nm", "max_F_N", "nc");
     }
 
-    progress pg = {.tty = isatty(STDERR_FILENO) != 0, .t_start = now_s(), .n_steps = n_steps};
+    sweep_progress pg = {.n_steps = n_steps};
+    afmt_progress_init(&pg.p);
     sw.on_period = on_period;
     sw.on_period_ctx = &pg;
     sw.on_samples = on_samples;
@@ -507,12 +485,13 @@ int afm_cmd_sweep(int argc, char **argv) {
         double fe = step_freq(&o, i);
         pg.step = i;
         int settled = afm_sweep_step(&sw, sim, fe, ae, &ob, err, sizeof err);
-        progress_end(&pg);
         if (settled < 0) {
+            afmt_progress_end(&pg.p);
             fprintf(stderr, "afmtwin sweep: %s\n", err);
             status = 1;
             break;
         }
+        afmt_progress_hide(&pg.p); /* stdout on the same terminal: the record, then the line */
         if (o.json) {
             if (print_json_line(&ob, &sw.st, settled == 1, &est) != 0) {
                 fprintf(stderr, "afmtwin sweep: out of memory writing JSON\n");
@@ -522,8 +501,9 @@ int afm_cmd_sweep(int argc, char **argv) {
             print_text_step(&ob, &sw.st, settled == 1);
             print_text_estimators(&est);
         }
+        afmt_progress_redraw(&pg.p);
     }
-    progress_end(&pg);
+    afmt_progress_end(&pg.p);
     afm_sweep_destroy(&sw);
     afm_sim_destroy(&sim);
     return status;

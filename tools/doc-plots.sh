@@ -57,3 +57,9 @@ plot scan "$O/scan.json" --config config/scan-grating.conf \
   --no-switch --param2 ae --from2 3e-13 --to2 6e-13 --curves 1 --json >"$O/continue.json"
 plot continue "$O/continue.json" --config config/lumped-vdw-fold.conf \
   --title "the folded peak and its fold curve in (fe, Ae)"
+# force-curve: the quasi-static force-distance curve of the soft vdW lever (drive off):
+# snap-in on approach, adhesion and pull-off on retract, the ringing after the jump
+"$A" force-curve --config config/lumped-vdw-fold.conf --from 2.5e-9 --to 0.85e-9 --speed 3e-8 \
+  --json >"$O/force-curve.json"
+plot force-curve "$O/force-curve.json" --config config/lumped-vdw-fold.conf \
+  --title "a force-distance curve: snap-in, adhesion and pull-off"

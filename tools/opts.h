@@ -183,8 +183,8 @@ int afmt_opt_scheme(const char *value, void *scheme);
     "  --scheme NAME      the rt integrator's scheme: accurate (the default offline: the tip\n"    \
     "                     force cubic Hermite in time, CVODE's steady state) or fast (the\n"       \
     "                     daemon's fallback, second order; docs/numerics.md)\n"
-/* A one-line progress report on stderr for the long offline runs (scan, continue, replay),
- * in the style of sweep's and approach's: only when stderr is a terminal, nothing in the
+/* The one progress line on stderr of every long offline run (scan, continue, replay, sweep,
+ * approach, force-curve, map): only when stderr is a terminal, nothing in the
  * first second (a quick run stays quiet), redrawn at most every 0.2 s with "\r", cleared at
  * the end. When stdout is the same terminal, the tool hides the line around its output. */
 typedef struct {
