@@ -66,23 +66,38 @@ FE3=337.5e3
 cp config/default.conf "$T/run.conf"
 "$D" --config "$T/run.conf" --quiet 2> "$T/d.err" &
 DPID=$!
-sleep 1
-"$A" send setpoint --z 1e-6 --quiet || bad "send setpoint --z 1e-6"
-sleep 1.5
-listen --channels status --json --count 3 --timeout 5 > "$T/st.json" 2>/dev/null
-"$A" send dither --freq 338.112e3 --amp "$AE2" --quiet || bad "send dither --amp $AE2"
-sleep 1.5
-listen --channels status --json --count 3 --timeout 5 > "$T/st2.json" 2>/dev/null
-"$A" send dither --freq "$FE3" --amp "$AE2" --quiet || bad "send dither --freq $FE3"
-sleep 1.5
-listen --channels status --json --count 3 --timeout 5 > "$T/st3.json" 2>/dev/null
+# settled_status OUT Z AMP: poll the status (up to ~30 s: the daemon may start, reload and
+# recompute A0 slowly on a loaded machine) until it shows stage Z, tone 0 amplitude AMP and
+# a known A0; then 3 statuses 1 s later into OUT (the lever rings down in < 1 ms of model
+# time). A command sent before the daemon subscribed would be lost: each is sent --wait.
+settled_status() {
+  local i v
+  for i in $(seq 60); do
+    listen --channels status --json --count 1 --timeout 5 > "$1" 2>/dev/null
+    v=$(tail -1 "$1" | tr ',' '\n' | awk -F: -v Z="$2" -v A="$3" '
+      $1 == "\"separation_m\"" {z = $2} $1 == "\"amplitude_m\"" {a = $2}
+      $1 == "\"free_amplitude_m\"" {f = $2}
+      END {print (z != "" && z + 0 == Z + 0 && (a - A) ^ 2 < (1e-6 * A) ^ 2 && f != "null" && f != "") ? 1 : 0}')
+    [ "$v" = 1 ] && break
+    sleep 0.5
+  done
+  sleep 1
+  listen --channels status --json --count 3 --timeout 5 > "$1" 2>/dev/null
+}
+"$A" send setpoint --z 1e-6 --quiet --wait --wait-timeout 30 || bad "send setpoint --z 1e-6"
+settled_status "$T/st.json" 1e-6 0.087e-9
+"$A" send dither --freq 338.112e3 --amp "$AE2" --quiet --wait --wait-timeout 30 ||
+  bad "send dither --amp $AE2"
+settled_status "$T/st2.json" 1e-6 "$AE2"
+"$A" send dither --freq "$FE3" --amp "$AE2" --quiet --wait --wait-timeout 30 ||
+  bad "send dither --freq $FE3"
+settled_status "$T/st3.json" 1e-6 "$AE2"
 # SIGHUP with tone 0 at 0.06 nm in the file: the drive and A0 become the file's
 sed -i "s/amplitude_m = 0.087e-9; frequency_hz = 338.112e3;/amplitude_m = 0.06e-9; frequency_hz = 338.112e3;/" \
   "$T/run.conf"
 sed -i "s/separation_m = 40e-9;/separation_m = 1e-6;/" "$T/run.conf" # a reload sets Z too
 kill -HUP "$DPID"
-sleep 2
-listen --channels status --json --count 3 --timeout 5 > "$T/st4.json" 2>/dev/null
+settled_status "$T/st4.json" 1e-6 0.06e-9
 kill -TERM "$DPID"; wait "$DPID"; drc=$?; DPID=""
 [ "$drc" -eq 0 ] && ok "daemon stopped cleanly" || bad "daemon exit $drc: $(tail -3 "$T/d.err")"
 a0=$(sed -n 's/^afmtwind: free amplitude A0 \([0-9.]*\) nm.*/\1/p' "$T/d.err")
