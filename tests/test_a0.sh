@@ -66,23 +66,38 @@ FE3=337.5e3
 cp config/default.conf "$T/run.conf"
 "$D" --config "$T/run.conf" --quiet 2> "$T/d.err" &
 DPID=$!
-sleep 1
+# the start-up line comes once the threads run (LCM subscribed before): no fixed sleep
+for i in $(seq 1 100); do grep -q "free amplitude A0" "$T/d.err" && break; sleep 0.2; done
+# settled FILE AWKCOND: 5 statuses into FILE, again (up to 10 times, ~1 s apart) until the
+# last one meets AWKCOND on z (separation_m), fe, ae (tone 0) and a0 ("" while NaN): under
+# load a command, a reload or A0 takes longer than a fixed sleep. Whether it ever met the
+# condition, the checks below judge FILE as it is.
+settled() {
+  local i l
+  for i in $(seq 1 10); do
+    sleep 1
+    listen --channels status --json --count 5 --timeout 5 > "$1" 2>/dev/null
+    l=$(tail -1 "$1")
+    awk -v z="$(echo "$l" | grep -o '"separation_m":[-0-9.e+]*' | cut -d: -f2)" \
+      -v fe="$(echo "$l" | grep -o '"fe_hz":[-0-9.e+]*' | cut -d: -f2)" \
+      -v ae="$(echo "$l" | grep -o '"amplitude_m":[-0-9.e+]*' | cut -d: -f2)" \
+      -v a0="$(echo "$l" | grep -o '"free_amplitude_m":[-0-9.e+]*' | cut -d: -f2)" \
+      "BEGIN{exit !($2)}" && return 0
+  done
+  return 1
+}
 "$A" send setpoint --z 1e-6 --quiet || bad "send setpoint --z 1e-6"
-sleep 1.5
-listen --channels status --json --count 5 --timeout 5 > "$T/st.json" 2>/dev/null
+settled "$T/st.json" 'z == 1e-6 && a0 != ""'
 "$A" send dither --freq 338.112e3 --amp "$AE2" --quiet || bad "send dither --amp $AE2"
-sleep 1.5
-listen --channels status --json --count 5 --timeout 5 > "$T/st2.json" 2>/dev/null
+settled "$T/st2.json" "ae == $AE2 && a0 != \"\""
 "$A" send dither --freq "$FE3" --amp "$AE2" --quiet || bad "send dither --freq $FE3"
-sleep 1.5
-listen --channels status --json --count 5 --timeout 5 > "$T/st3.json" 2>/dev/null
+settled "$T/st3.json" "fe == $FE3 && a0 != \"\""
 # SIGHUP with tone 0 at 0.06 nm in the file: the drive and A0 become the file's
 sed -i "s/amplitude_m = 0.087e-9; frequency_hz = 338.112e3;/amplitude_m = 0.06e-9; frequency_hz = 338.112e3;/" \
   "$T/run.conf"
 sed -i "s/separation_m = 40e-9;/separation_m = 1e-6;/" "$T/run.conf" # a reload sets Z too
 kill -HUP "$DPID"
-sleep 2
-listen --channels status --json --count 5 --timeout 5 > "$T/st4.json" 2>/dev/null
+settled "$T/st4.json" 'ae == 0.06e-9 && fe == 338112 && a0 != ""'
 kill -TERM "$DPID"; wait "$DPID"; drc=$?; DPID=""
 [ "$drc" -eq 0 ] && ok "daemon stopped cleanly" || bad "daemon exit $drc: $(tail -3 "$T/d.err")"
 a0=$(sed -n 's/^afmtwind: free amplitude A0 \([0-9.]*\) nm.*/\1/p' "$T/d.err")
