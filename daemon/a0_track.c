@@ -6,7 +6,9 @@
  *
  * The receive thread asks (twind_a0_request) after every change of the config (SIGHUP
  * reload, param) or of tone 0 of the drive (dither); the worker computes the newest request
- * and drops results that a later request made stale. Until the newest is done the status
+ * and drops results that a later request made stale. A hand-over between the rt schemes
+ * (scheme.c; their steady amplitudes differ by ~2e-4) asks again too (twind_a0_scheme, from
+ * the status). Until the newest is done the status
  * says NaN (not known), never the A0 of a drive no longer in force. The worker runs at
  * normal priority (SCHED_OTHER): it takes only the time the real-time, chain, receive and
  * publish threads (all SCHED_FIFO when permitted) leave. */
@@ -109,6 +111,20 @@ void twind_a0_request(twind *d, const afm_config *cfg, const afm_cmd_dither *dri
     request_config(a->req, cfg, drive, a->scheme);
     a->req_gen++;
     pthread_cond_signal(&a->cv);
+    pthread_mutex_unlock(&a->mu);
+}
+
+void twind_a0_scheme(twind *d, bool accurate) {
+    twind_a0 *a = &d->a0;
+    if (!a->started) return;
+    const afm_rt_scheme_kind k = accurate ? AFM_RT_SCHEME_ACCURATE : AFM_RT_SCHEME_FAST;
+    pthread_mutex_lock(&a->mu);
+    if (k != a->scheme) { /* a hand-over: the same request on the other scheme */
+        a->scheme = k;
+        a->req->sim.rt_scheme = k;
+        a->req_gen++;
+        pthread_cond_signal(&a->cv);
+    }
     pthread_mutex_unlock(&a->mu);
 }
 

@@ -97,6 +97,8 @@ void twind_status_fill(twind *d, afm_io_status *o, twind_rtf_state *rs) {
     o->am_error_m = s.st.am_error_m;
     o->am_setpoint_m = s.st.am_setpoint_m;
     o->am_amplitude_m = s.st.am_amplitude_m;
+    if (d->scheme.rt && s.blocks > 0) /* the rt thread has written its scheme: hand-overs */
+        twind_a0_scheme(d, s.scheme_accurate);
     o->free_amplitude_m = twind_a0_now(d); /* issue 30: NaN while being recomputed */
     o->amplitude_ratio =
         o->free_amplitude_m > 0 ? o->lockin_amplitude_m / o->free_amplitude_m : NAN;

@@ -165,7 +165,7 @@ typedef struct {
     pthread_cond_t cv;
     bool started, stop;
     afm_config *req, *work;    /* the newest request; the worker's copy of it */
-    afm_rt_scheme_kind scheme; /* A0 on the scheme the rt thread started with */
+    afm_rt_scheme_kind scheme; /* A0 on the rt scheme in force (the start's, then hand-overs) */
     unsigned req_gen, done_gen;
     long long computed; /* A0s computed since start (the start-up one not counted) */
     double fe_hz, ae_m; /* receive thread: tone 0 of the newest request */
@@ -278,6 +278,9 @@ int twind_a0_start(twind *d, const afm_config *cfg, afm_rt_scheme_kind scheme, c
 void twind_a0_request(twind *d, const afm_config *cfg, const afm_cmd_dither *drive,
                       bool cfg_changed);
 double twind_a0_now(twind *d);
+/* The rt scheme in force (any non-rt thread, from the status): A0 is recomputed on it after
+ * a hand-over. */
+void twind_a0_scheme(twind *d, bool accurate);
 void twind_a0_stop(twind *d);
 
 /* notify.c: sd_notify wrappers (no-ops outside systemd). */
