@@ -19,7 +19,7 @@
 #define RING_SECONDS 0.05 /* each stream's ring holds this much output... */
 #define RING_MIN 1024     /* ...but at least this many samples... */
 #define RING_MAX 131072   /* ...and at most this many */
-#define PERIOD_RING 1024  /* period records */
+#define PERIOD_RING AFM_CHAIN_PERIOD_RING
 
 enum { CH_X, CH_OBD, CH_F, CH_BASE };
 

@@ -63,6 +63,10 @@ typedef struct {
     const double *base_m;     /* base (dither) displacement, m */
 } afm_chain_block;
 
+/* Period records the chain holds until taken; when full, the oldest is dropped
+ * (stats.periods_dropped). */
+#define AFM_CHAIN_PERIOD_RING 1024
+
 /* One drive period's estimates. The polar fields (harm.h[], lockin_amplitude_m,
  * lockin_phase_deg) are valid once finished (afm_chain_period_finish; records from
  * afm_chain_take_periods are). */
