@@ -571,6 +571,9 @@ void afm_chain_reset(afm_chain *c) {
 int afm_chain_n_streams(const afm_chain *c) {
     return c->n_streams;
 }
+long long afm_chain_periods(const afm_chain *c) {
+    return c->stats.periods;
+}
 afm_chain_stats afm_chain_stats_get(const afm_chain *c) {
     afm_chain_stats s = c->stats;
     s.estimator_rebuilds += c->harm.trk.rate_changes + c->lockin.trk.rate_changes;

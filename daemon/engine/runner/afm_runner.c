@@ -328,9 +328,9 @@ static void back_item(afm_runner *r, ring_item *it) {
                 if (from >= it->n) break;
                 continue;
             }
-            long long p0 = afm_chain_stats_get(r->chain).periods;
+            long long p0 = afm_chain_periods(r->chain);
             afm_chain_push(r->chain, it->s + from, to - from);
-            for (long long k = afm_chain_stats_get(r->chain).periods - p0; k > 0; k--)
+            for (long long k = afm_chain_periods(r->chain) - p0; k > 0; k--)
                 back_pop_put(r);
             from = to;
         }
