@@ -64,9 +64,10 @@ static void push_outputs(chain_ctx *c) {
     /* Harmonics: every k-th period, k chosen so that at most harmonics_max_hz go out. */
     int every = afm_io_harmonics_every(d->opt.harmonics_every, st.fe_hz, d->opt.harmonics_max_hz);
     afm_chain_period p[PERIODS_PER_TAKE];
+    afm_runner_oppoint op[PERIODS_PER_TAKE]; /* each period's own (its item's) */
     int n, newest = -1; /* p[newest]: the newest record taken (a take of 0 leaves p alone) */
     bool finished = false;
-    while ((n = afm_runner_take_periods_raw(c->r, p, PERIODS_PER_TAKE)) > 0) {
+    while ((n = afm_runner_take_periods_raw_op(c->r, p, op, PERIODS_PER_TAKE)) > 0) {
         newest = n - 1;
         finished = false;
         for (int i = 0; i < n; i++) {
@@ -78,7 +79,7 @@ static void push_outputs(chain_ctx *c) {
                 c->snap.harm_dropped++;
                 continue;
             }
-            afm_io_harmonics_from_period(h, &p[i], st.fe_hz, now_us, st.seq_applied, &st.op);
+            afm_io_harmonics_from_period(h, &p[i], st.fe_hz, now_us, st.seq_applied, &op[i]);
             afm_spsc_commit(&d->harm_q);
             c->harm_recs++;
         }

@@ -5,7 +5,8 @@
 # a tick sent while paused, step, run, reset) and through a log without ticks (ticks made
 # from its times). Every completion (tick_done_t: seq, samples, model time, the digests of
 # the samples and harmonics messages) must match the outputs received and, bit for bit,
-# `afmtwin replay --lockstep` of the same sequence. Prints "N passed, N failed".
+# `afmtwin replay --lockstep` of the same sequence; also a log with scan commands over a
+# sample (issue 18). Prints "N passed, N failed".
 BUILD=${1:-build}
 cd "$(dirname "$0")/.." || exit 1
 . tests/lib_daemon.sh
@@ -61,6 +62,39 @@ n=$(grep -c '"seq":30' "$T/done.json")
 [ "$n" -eq 1 ] && ok "listen prints the completion of a tick sent by hand" || bad "no tick_done seq 30"
 kill -TERM "$DPID"; wait "$DPID"; rc=$?; DPID=""
 [ $rc -eq 0 ] && ok "lockstep daemon exited 0" || bad "daemon exit $rc"
+
+# Scan commands (issue 18) go through lockstep as the others do: a twin over a 3 nm step
+# (test_scan_internal.sh's) rasters a line across the edge and moves the tip between ticks;
+# every completion (the harmonics records carry the tip's x, y, true height and Z, each that
+# of the sample its period ended on) is bit-identical to replay --lockstep of the same log.
+# (With am.control = "internal" the records still differ from replay's in the last digits of
+# the estimates: not yet understood; the Z and tip fields agree.)
+cat > "$T/step.conf" <<'EOF2'
+model = { kind = "lumped"; lumped = { stiffness_n_m = 40.0; resonance_hz = 300e3; };
+          quality_factor = [100.0]; };
+forces = { inclination_deg = 0.0; radius_m = 1e-8;
+           vdw_contact = { hamaker_j = 1e-19; a0_m = 1.65e-10; reduced_modulus_pa = 1e9; }; };
+drive = { separation_m = 8e-9; tones = ( { amplitude_m = 1e-10; frequency_hz = 300e3; } ); };
+sim = { sample_rate_hz = 14.06e6; integrator = "rt"; rt_scheme = "fast"; };
+lockin = { time_constant_s = 2e-5; order = 2; };
+sample = { features = ( { type = "step"; height_m = 3e-9; position_m = 2e-7; edge_m = 2e-8; } ); };
+EOF2
+SC="$T/scan.log"
+S tick --n 28120 --seq 41 --log "$SC" --log-time 0 --config "$T/step.conf"
+S scan raster --x 150nm --size-x 100nm --pixels 16 --line-rate 50 --seq 42 --log "$SC" \
+  --log-time 0.1 --config "$T/step.conf"
+S tick --n 70300 --seq 43 --log "$SC" --log-time 0.2 --config "$T/step.conf"
+S scan move --x 180nm --y 5nm --speed 1e-5 --seq 44 --log "$SC" --log-time 0.3 --config "$T/step.conf"
+S tick --n 42180 --seq 45 --log "$SC" --log-time 0.4 --config "$T/step.conf"
+"$D" --config "$T/step.conf" --mode lockstep --harmonics-every 10 --quiet 2> "$T/d2.err" &
+DPID=$!
+out=$("$A" lockstep --in "$SC" --config "$T/step.conf" --check --harmonics-every 10 2>&1); rc=$?
+echo "$out" | sed 's/^/     /'
+[ $rc -eq 0 ] && echo "$out" | grep -q "3 of 3 completions identical" \
+  && ok "scan commands in a lockstep log: 3 completions identical to replay" \
+  || bad "scan log in lockstep (exit $rc)"
+kill -TERM "$DPID"; wait "$DPID"; rc=$?; DPID=""
+[ $rc -eq 0 ] && ok "lockstep daemon (sample) exited 0" || bad "daemon exit $rc"
 
 echo "$pass passed, $fail failed"
 [ "$fail" -eq 0 ]

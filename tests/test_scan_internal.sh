@@ -9,8 +9,9 @@
 #  (a) `afmtwin send scan`: the four modes build and check against the config (SI suffixes
 #      taken), bad ones are refused with the daemon's reason (exit 2), --help names scan;
 #  (b) replay of a log of `send --log` commands (control run at 0 s, the raster at 50 ms):
-#      every harmonics record's tip x is the raster's position at its time (within the
-#      travel of one ring item: records carry the position at their item's last sample), its
+#      every harmonics record's tip x is the raster's position at its time (within two
+#      64-sample position-grid steps' travel: a record carries the place of the sample its
+#      period ended on), its
 #      true height the step's analytic height there; its last status holds the tip at the
 #      raster's end with the loop internal at its set-point;
 #  (c) replay, control internal: the Z image of the trace reproduces the 3 nm step within 2 %
@@ -113,9 +114,11 @@ def x_at(t):  # afm_scan_position of one line
 recs = [d for d in recs if d.get('seq_applied') == seq]
 out = []
 if t_apply >= 0:
-    # a record's position is its ring item's last sample's: up to 1024 + 64 samples after
-    # its time stamp (and the position grid's 64 before), at 2 S lr = 3 um/s
-    slack = 2 * S * lr * (1024 + 2 * 64) / rate
+    # a record's position is that of the sample its period ended on (its time stamp), on
+    # the 64-sample position grid (taken at the middle of its 64 samples): within two grid
+    # steps' travel at 2 S lr = 3 um/s (0.027 nm; 0.0165 nm measured; with the position of
+    # the item last taken instead, as before, 0.22 nm)
+    slack = 2 * S * lr * 128 / rate
     ex = max((abs(d['tip_x_m'] - x_at(d['t_s'] - t_apply)) for d in recs), default=1)
     eh = max((abs(d['true_height_m'] - zs(d['tip_x_m'])) for d in recs), default=1)
     out.append(("x", len(recs) > 100 and ex <= slack and eh <= 1e-15,

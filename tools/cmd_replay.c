@@ -82,6 +82,7 @@ typedef struct {
     int cap;
     afm_io_samples rec; /* large: one per context */
     afm_chain_period periods[REPLAY_PERIODS_MAX];
+    afm_runner_oppoint period_ops[REPLAY_PERIODS_MAX]; /* each period's own (its item's) */
     afmt_progress pg; /* on stderr, terminals only (not with --quiet) */
 } replay_ctx;
 
@@ -183,7 +184,8 @@ static void emit_samples(replay_ctx *x, int64_t seq) {
 
 static void emit_harmonics(replay_ctx *x, const afm_runner_status *st) {
     int np;
-    while ((np = afm_runner_take_periods(x->r, x->periods, REPLAY_PERIODS_MAX)) > 0) {
+    while ((np = afm_runner_take_periods_op(x->r, x->periods, x->period_ops, REPLAY_PERIODS_MAX)) >
+           0) {
         const afm_chain_period *last = &x->periods[np - 1];
         x->have_period = true;
         x->lockin_amplitude_m = last->lockin_amplitude_m;
@@ -195,11 +197,9 @@ static void emit_harmonics(replay_ctx *x, const afm_runner_status *st) {
             if (x->period_count++ % every != 0) continue;
             const afm_cycle_metrics *c = &x->periods[p].cycle;
             afm_io_harmonics h;
-            afm_runner_chain_status cs;
-            afm_runner_chain_status_get(x->r, &cs);
             afm_io_harmonics_from_period(&h, &x->periods[p], st->fe_hz,
                                          model_us(c->t_start_s + c->duration_s), st->seq_applied,
-                                         &cs.op);
+                                         &x->period_ops[p]);
             afm_lcm_harm_buf buf;
             afmtwin_harmonics_t m;
             afm_lcm_harmonics_msg(&h, &buf, &m);

@@ -19,7 +19,7 @@
 #define RING_SECONDS 0.05 /* each stream's ring holds this much output... */
 #define RING_MIN 1024     /* ...but at least this many samples... */
 #define RING_MAX 131072   /* ...and at most this many */
-#define PERIOD_RING 1024  /* period records */
+#define PERIOD_RING AFM_CHAIN_PERIOD_RING
 
 enum { CH_X, CH_OBD, CH_F, CH_BASE };
 
@@ -570,6 +570,9 @@ void afm_chain_reset(afm_chain *c) {
 
 int afm_chain_n_streams(const afm_chain *c) {
     return c->n_streams;
+}
+long long afm_chain_periods(const afm_chain *c) {
+    return c->stats.periods;
 }
 afm_chain_stats afm_chain_stats_get(const afm_chain *c) {
     afm_chain_stats s = c->stats;

@@ -63,6 +63,10 @@ typedef struct {
     const double *base_m;     /* base (dither) displacement, m */
 } afm_chain_block;
 
+/* Period records the chain holds until taken; when full, the oldest is dropped
+ * (stats.periods_dropped). */
+#define AFM_CHAIN_PERIOD_RING 1024
+
 /* One drive period's estimates. The polar fields (harm.h[], lockin_amplitude_m,
  * lockin_phase_deg) are valid once finished (afm_chain_period_finish; records from
  * afm_chain_take_periods are). */
@@ -127,6 +131,8 @@ void afm_chain_period_finish(const afm_chain *c, afm_chain_period *p);
 void afm_chain_reset(afm_chain *c);
 
 int afm_chain_n_streams(const afm_chain *c);
+/* stats.periods alone (no copy): what the runner counts period records by. */
+long long afm_chain_periods(const afm_chain *c);
 afm_chain_stats afm_chain_stats_get(const afm_chain *c);
 /* The sensor model (calibration, noise, ADC) the chain applies. */
 const afm_obd *afm_chain_obd(const afm_chain *c);

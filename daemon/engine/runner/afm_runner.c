@@ -49,6 +49,14 @@ typedef struct {
     double z_m;
 } z_change;
 
+/* With a sample (issue 18): from sample `at` on, the stage Z, the tip's place, z_s there and
+ * the material: the operating point the period records that end there carry. */
+typedef struct {
+    int at;
+    double z_m, x_m, y_m, h_m;
+    int mat;
+} lat_change;
+
 /* One ring item. SAMPLES: n samples s[0..n) run with drive `drive`, Z z0_m then the
  * changes zc, after the command seq. FORCES: new force constants f. ATTACH: the chain
  * follows a swapped-in simulator (drive, f, z_m); model: the objects to hand back (and,
@@ -61,6 +69,8 @@ typedef struct {
     double z0_m;
     int n_zc;
     z_change zc[ZC_MAX];
+    int n_lc; /* with a sample: the stage Z and what is under the tip, from sample lc[i].at */
+    lat_change lc[ZC_MAX];
     afm_drive drive;
     afm_force_params f;
     afm_runner_model *model;
@@ -161,6 +171,11 @@ struct afm_runner {
     int64_t b_seq;
     double b_fe_hz, b_t_s;
     afm_runner_oppoint b_op;
+    /* the operating point of every period record the chain holds, in its order: the op of
+     * the item its period ended in (the chain's ring and its drop-the-oldest rule, so that
+     * the two stay aligned; cleared with the chain's queue) */
+    afm_runner_oppoint b_pop[AFM_CHAIN_PERIOD_RING];
+    int b_pop_head, b_pop_n;
     long long b_samples, b_items, b_attach_errors, b_trash_lost;
     afm_runner_model *held[TRASH_HELD]; /* trash waiting for space */
     int n_held;
@@ -255,30 +270,76 @@ static void back_oppoint(afm_runner *r, const afm_drive *d) {
     }
 }
 
+/* One period record more in the chain: its op is b_op (the item's it ended in). */
+static void back_pop_put(afm_runner *r) {
+    const int N = AFM_CHAIN_PERIOD_RING;
+    if (r->b_pop_n == N) { /* the chain dropped its oldest: so do we */
+        r->b_pop_head = (r->b_pop_head + 1) % N;
+        r->b_pop_n--;
+    }
+    r->b_pop[(r->b_pop_head + r->b_pop_n) % N] = r->b_op;
+    r->b_pop_n++;
+}
+
+/* n records taken from the chain: their ops into ops[0..n) (if ops), in order. */
+static void back_pop_take(afm_runner *r, int n, afm_runner_oppoint *ops) {
+    const int N = AFM_CHAIN_PERIOD_RING;
+    for (int i = 0; i < n; i++) {
+        if (ops) ops[i] = r->b_pop_n > 0 ? r->b_pop[r->b_pop_head] : r->b_op;
+        if (r->b_pop_n > 0) {
+            r->b_pop_head = (r->b_pop_head + 1) % N;
+            r->b_pop_n--;
+        }
+    }
+}
+
 static void back_item(afm_runner *r, ring_item *it) {
     switch (it->kind) {
     case IT_SAMPLES: {
         afm_sim_mirror_set(r->mirror, &it->drive, NULL, r->b_z);
         if (it->z0_m != r->b_z) back_separation(r, it->z0_m);
-        int from = 0;
-        for (int i = 0; i <= it->n_zc; i++) {
-            int to = i < it->n_zc ? it->zc[i].at : it->n;
-            if (to > from) afm_chain_push(r->chain, it->s + from, to - from);
-            if (i < it->n_zc) back_separation(r, it->zc[i].z_m);
-            from = to;
-        }
         r->b_seq = it->seq;
         r->b_fe_hz = it->drive.n > 0 ? it->drive.omega_rad_s[0] / two_pi : 0.0;
         back_oppoint(r, &it->drive);
-        if (it->lat_on) { /* the stage Z, not the gap, and what is under the tip */
+        if (!it->lat_on) {
+            r->b_op.tip_x_m = r->b_op.tip_y_m = r->b_op.true_height_m = 0.0;
+            r->b_op.material = 0;
+        }
+        /* Sub-slices between the changes of Z (zc) and of the stage Z and tip (lc), so that
+         * every period record gets the operating point of the sample it ended on, however
+         * the samples were sliced into items (replay = daemon, bit for bit). */
+        int from = 0, iz = 0, il = 0;
+        while (from < it->n || iz < it->n_zc || il < it->n_lc) {
+            while (iz < it->n_zc && it->zc[iz].at <= from)
+                back_separation(r, it->zc[iz++].z_m);
+            while (il < it->n_lc && it->lc[il].at <= from) {
+                const lat_change *l = &it->lc[il++];
+                r->b_op.z_m = l->z_m; /* the stage Z, not the gap, and what is under the tip */
+                r->b_op.tip_x_m = l->x_m;
+                r->b_op.tip_y_m = l->y_m;
+                r->b_op.true_height_m = l->h_m;
+                r->b_op.material = l->mat;
+            }
+            if (!it->lat_on) r->b_op.z_m = r->b_z;
+            int to = it->n;
+            if (iz < it->n_zc && it->zc[iz].at < to) to = it->zc[iz].at;
+            if (il < it->n_lc && it->lc[il].at < to) to = it->lc[il].at;
+            if (to <= from) {
+                if (from >= it->n) break;
+                continue;
+            }
+            long long p0 = afm_chain_periods(r->chain);
+            afm_chain_push(r->chain, it->s + from, to - from);
+            for (long long k = afm_chain_periods(r->chain) - p0; k > 0; k--)
+                back_pop_put(r);
+            from = to;
+        }
+        if (it->lat_on) { /* after the item: its last sample's */
             r->b_op.z_m = it->lat_z_m;
             r->b_op.tip_x_m = it->lat_x_m;
             r->b_op.tip_y_m = it->lat_y_m;
             r->b_op.true_height_m = it->lat_h_m;
             r->b_op.material = it->lat_mat;
-        } else {
-            r->b_op.tip_x_m = r->b_op.tip_y_m = r->b_op.true_height_m = 0.0;
-            r->b_op.material = 0;
         }
         if (it->n > 0) r->b_t_s = it->s[it->n - 1].t_s;
         r->b_samples += it->n;
@@ -286,6 +347,7 @@ static void back_item(afm_runner *r, ring_item *it) {
     }
     case IT_RESET:
         afm_chain_reset(r->chain);
+        r->b_pop_n = 0; /* the chain's queue is empty */
         break;
     case IT_FORCES:
         afm_sim_mirror_set(r->mirror, NULL, &it->f, r->b_z);
@@ -304,6 +366,7 @@ static void back_item(afm_runner *r, ring_item *it) {
             r->chain = m->chain;
             m->chain = old;
             afm_chain_attach(m->chain, NULL, NULL, 0);
+            r->b_pop_n = 0; /* the old chain's records went with it */
         }
         if (afm_chain_attach(r->chain, r->mirror, NULL, 0)) r->b_attach_errors++;
         if (m) back_trash(r, m);
@@ -438,7 +501,7 @@ static void item_lat(const afm_runner *r, ring_item *it) {
 /* The item to write samples into (reserving one), or NULL when the ring is full. */
 static ring_item *open_item(afm_runner *r) {
     ring_item *it = r->open;
-    if (it && (it->n == SLOT || it->n_zc == ZC_MAX)) {
+    if (it && (it->n == SLOT || it->n_zc == ZC_MAX || it->n_lc == ZC_MAX)) {
         commit_open(r);
         it = NULL;
     }
@@ -452,6 +515,7 @@ static ring_item *open_item(afm_runner *r) {
     it->kind = IT_SAMPLES;
     it->n = 0;
     it->n_zc = 0;
+    it->n_lc = 0;
     it->seq = r->seq_applied;
     it->z0_m = afm_sim_separation(r->sim);
     it->drive = *afm_sim_drive(r->sim);
@@ -1212,6 +1276,18 @@ long long afm_runner_run(afm_runner *r, long long n) {
                 it->n_zc++;
             }
         }
+        if (r->surf) { /* the stage Z and the tip from this sample on, when they changed */
+            lat_change now = {it->n,     r->cfg.drive.separation_m, r->lat_x, r->lat_y, r->lat_h,
+                              r->lat_mat};
+            lat_change *l = it->n_lc > 0 ? &it->lc[it->n_lc - 1] : NULL;
+            if (!l || l->z_m != now.z_m || l->x_m != now.x_m || l->y_m != now.y_m ||
+                l->h_m != now.h_m || l->mat != now.mat) {
+                if (l && l->at == it->n)
+                    *l = now;
+                else
+                    it->lc[it->n_lc++] = now;
+            }
+        }
         long long k = want - done;
         if (k > r->block_max) k = r->block_max;
         if (k > SLOT - it->n) k = SLOT - it->n;
@@ -1283,12 +1359,26 @@ int afm_runner_take_block(afm_runner *r, int stream, afm_chain_block *b, int max
     return afm_chain_take_block(r->chain, stream, b, max_n);
 }
 
+int afm_runner_take_periods_op(afm_runner *r, afm_chain_period *out, afm_runner_oppoint *ops,
+                               int max) {
+    int n = afm_chain_take_periods(r->chain, out, max);
+    back_pop_take(r, n, ops);
+    return n;
+}
+
+int afm_runner_take_periods_raw_op(afm_runner *r, afm_chain_period *out, afm_runner_oppoint *ops,
+                                   int max) {
+    int n = afm_chain_take_periods_raw(r->chain, out, max);
+    back_pop_take(r, n, ops);
+    return n;
+}
+
 int afm_runner_take_periods(afm_runner *r, afm_chain_period *out, int max) {
-    return afm_chain_take_periods(r->chain, out, max);
+    return afm_runner_take_periods_op(r, out, NULL, max);
 }
 
 int afm_runner_take_periods_raw(afm_runner *r, afm_chain_period *out, int max) {
-    return afm_chain_take_periods_raw(r->chain, out, max);
+    return afm_runner_take_periods_raw_op(r, out, NULL, max);
 }
 
 void afm_runner_period_finish(const afm_runner *r, afm_chain_period *p) {

@@ -210,6 +210,15 @@ typedef struct {
     int material;            /* the region there: 0 the forces group's sample, i materials[i-1] */
 } afm_runner_oppoint;
 
+/* As afm_runner_take_periods(_raw), with ops[i] the operating point of out[i]: that of the
+ * ring item its period ended in (Z, drive, the tip's place), whenever the records are
+ * taken, so that the outputs do not depend on how often the caller takes them (the daemon
+ * every block, replay every --block; issue 18: a moving tip, a Z loop). ops may be NULL. */
+int afm_runner_take_periods_op(afm_runner *r, afm_chain_period *out, afm_runner_oppoint *ops,
+                               int max);
+int afm_runner_take_periods_raw_op(afm_runner *r, afm_chain_period *out, afm_runner_oppoint *ops,
+                                   int max);
+
 typedef struct {
     int64_t seq_applied;   /* seq of the command before the last samples the chain took */
     double fe_hz;          /* tone 0 frequency of those samples */
