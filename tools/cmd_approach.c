@@ -776,14 +776,11 @@ int afm_cmd_approach(int argc, char **argv) {
     }
     static afm_sweep sw;
     static approach_est est;
-    /* AFMTWIN_STEP_EVENTS=1: the per-period metrics take what the rt accurate scheme knows of
-     * each step (afm_cycle_push_ev: its crossings, min of x, tip-sample work; the others
-     * record nothing). Off by default: CVODE's metrics still come from its samples' Hermite
-     * path, and rt against CVODE agrees best when both do (docs/numerics.md, issue 28). */
-    static afm_step_events ev_ring[1 << 14];
-    const char *ev_env = getenv("AFMTWIN_STEP_EVENTS");
-    if (ev_env && strcmp(ev_env, "1") == 0)
-        afm_sim_set_events(sim, ev_ring, (int)(sizeof ev_ring / sizeof ev_ring[0]));
+    /* The per-period metrics take what the integrator knows of each step (afm_cycle_push_ev:
+     * the rt accurate scheme's crossings, min of x and tip-sample work from its pieces, CVODE's
+     * from its dense output; the fast scheme records nothing): on unless AFMTWIN_STEP_EVENTS=0
+     * (afmt_step_events; docs/numerics.md, issue 28). */
+    afm_step_events *ev_ring = NULL;
     int ks[AFM_MAX_HARMONICS];
     for (int k = 0; k < o.k_max; k++)
         ks[k] = k + 1;
@@ -800,6 +797,7 @@ int afm_cmd_approach(int argc, char **argv) {
         afm_sim_destroy(&sim);
         return 1;
     }
+    ev_ring = afmt_step_events_ring(sim, sw.cap > (1 << 13) ? sw.cap : 1 << 13);
     est.lockin_tau_s = lk.time_constant_s;
     sw.on_samples = on_samples;
     sw.on_samples_ctx = &est;
@@ -809,6 +807,7 @@ int afm_cmd_approach(int argc, char **argv) {
         int st = approach_fm(sim, &model, &cfg, &est, &o, &lk, n_steps);
         afm_sweep_destroy(&sw);
         afm_sim_destroy(&sim);
+        free(ev_ring);
         return st;
     }
     if (!o.json) {
@@ -833,6 +832,7 @@ int afm_cmd_approach(int argc, char **argv) {
         fprintf(stderr, "afmtwin approach: %s\n", err);
         afm_sweep_destroy(&sw);
         afm_sim_destroy(&sim);
+        free(ev_ring);
         return 1;
     }
     const double free_amp = a0.amplitude_m, free_lag = a0.lag_deg;
@@ -850,6 +850,7 @@ int afm_cmd_approach(int argc, char **argv) {
         fprintf(stderr, "afmtwin approach: out of memory\n");
         afm_sweep_destroy(&sw);
         afm_sim_destroy(&sim);
+        free(ev_ring);
         return 1;
     }
     int np = 0;
@@ -887,5 +888,6 @@ int afm_cmd_approach(int argc, char **argv) {
     afmt_progress_end(&pg);
     afm_sweep_destroy(&sw);
     afm_sim_destroy(&sim);
+    free(ev_ring);
     return status;
 }

@@ -294,7 +294,7 @@ static void on_samples(void *ctx, const afm_sim *s, const afm_sample *smp, int n
     const afm_drive *d = afm_sim_drive(s);
     for (int i = 0; i < n; i++) {
         double th = afm_drive_phase(d, 0, smp[i].t_s);
-        if (afm_cycle_push(&e->cycle, &smp[i], th) == 1)
+        if (afm_cycle_push_ev(&e->cycle, &smp[i], th, afm_sim_events_at(s, smp[i].t_s)) == 1)
             e->cyc[e->n_cyc++ % AFM_ORBIT_MAX_P] = e->cycle.out;
         if (e->have && floor(th / TWO_PI) > floor(e->th_prev / TWO_PI)) {
             if (e->active) e->fmin[e->n_fmin++ % AFM_ORBIT_MAX_P] = e->f_min;
@@ -368,6 +368,8 @@ static int run_line(const map_ctx *c, int iy, afmt_map_point *pts[2], char *err,
         afm_sim_destroy(&sim);
         return -1;
     }
+    /* the per-period metrics from the integrator's record (afmt_step_events) */
+    afm_step_events *ev_ring = afmt_step_events_ring(sim, sw.cap);
     int rc = -1;
     if (afm_cycle_init(&est.cycle, afm_force_contact_x(afm_sim_forces(sim), z), cos_a, err,
                        errlen) != 0 ||
@@ -412,6 +414,7 @@ static int run_line(const map_ctx *c, int iy, afmt_map_point *pts[2], char *err,
 out:
     afm_sweep_destroy(&sw);
     afm_sim_destroy(&sim);
+    free(ev_ring);
     return rc;
 }
 

@@ -405,10 +405,14 @@ int afm_cmd_scan(int argc, char **argv) {
         return 2;
     }
     afmt_progress_init(&o.pg);
+    /* the per-period metrics from the integrator's record (afmt_step_events; afm_scan runs at
+     * most AFM_SCAN_UPDATE_MAX samples before it reads them) */
+    afm_step_events *ev_ring = afmt_step_events_ring(sim, AFM_SCAN_UPDATE_MAX);
     rc = afm_scan_run(sim, &cfg, &m, surf, &o.sc, &o.pc, print_pixel, &o, err, sizeof err);
     afmt_progress_end(&o.pg);
     if (rc) fprintf(stderr, "afmtwin %s\n", err);
     afm_sim_destroy(&sim);
+    free(ev_ring);
     afm_surface_destroy(&surf);
     if (o.gsf) {
         if (rc)

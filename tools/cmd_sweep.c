@@ -248,7 +248,7 @@ static void on_samples(void *ctx, const afm_sim *s, const afm_sample *smp, int n
         double th = afm_drive_phase(d, 0, smp[i].t_s);
         /* both refuse only non-finite values, which the simulator never returns */
         afm_lockin_push(&e->lockin, smp[i].x_m, th);
-        afm_cycle_push(&e->cycle, &smp[i], th);
+        afm_cycle_push_ev(&e->cycle, &smp[i], th, afm_sim_events_at(s, smp[i].t_s));
     }
 }
 
@@ -444,6 +444,8 @@ int afm_cmd_sweep(int argc, char **argv) {
         afm_sim_destroy(&sim);
         return 1;
     }
+    /* the per-period metrics from the integrator's record (afmt_step_events) */
+    afm_step_events *ev_ring = afmt_step_events_ring(sim, sw.cap);
 
     double ae = cfg.drive.tones[0].amplitude_m;
     double xc = afm_force_contact_x(afm_sim_forces(sim), afm_sim_separation(sim));
@@ -459,6 +461,7 @@ int afm_cmd_sweep(int argc, char **argv) {
         fprintf(stderr, "afmtwin sweep: %s\n", err);
         afm_sweep_destroy(&sw);
         afm_sim_destroy(&sim);
+        free(ev_ring);
         return 2;
     }
     if (!o.json) {
@@ -506,5 +509,6 @@ int afm_cmd_sweep(int argc, char **argv) {
     afmt_progress_end(&pg.p);
     afm_sweep_destroy(&sw);
     afm_sim_destroy(&sim);
+    free(ev_ring);
     return status;
 }

@@ -425,3 +425,15 @@ int afmt_opts_done(const char *tool, int parse_rc, void (*usage)(FILE *)) {
     }
     return -1;
 }
+
+bool afmt_step_events(void) {
+    const char *e = getenv("AFMTWIN_STEP_EVENTS");
+    return !(e && strcmp(e, "0") == 0);
+}
+
+afm_step_events *afmt_step_events_ring(afm_sim *s, int cap) {
+    if (!afmt_step_events() || cap < 1 || cap > (1 << 28)) return NULL;
+    afm_step_events *ring = malloc(2 * (size_t)cap * sizeof *ring);
+    if (ring) afm_sim_set_events(s, ring, 2 * cap);
+    return ring;
+}

@@ -15,6 +15,7 @@
 #define AFMT_OPTS_H
 
 #include "config/afm_config.h"
+#include "integrators/afm_sim.h"
 
 #include <stdbool.h>
 #include <stdio.h>
@@ -201,6 +202,16 @@ void afmt_progress_hide(afmt_progress *p);
 void afmt_progress_redraw(afmt_progress *p);
 /* Clear the line for good. */
 void afmt_progress_end(afmt_progress *p);
+
+/* The integrator's per-step record for the per-period metrics (afm_sim_set_events, then
+ * afm_cycle_push_ev; issue 28): the offline tools take it unless the environment says
+ * AFMTWIN_STEP_EVENTS=0 (the samples' estimator alone, to compare). Only the rt accurate scheme
+ * and CVODE fill it; the fast scheme, ARKODE, thermal runs and the daemon's chain do not. */
+bool afmt_step_events(void);
+/* When afmt_step_events(): a ring of 2 cap records (cap: the most samples a tool runs before
+ * they reach its estimators) set on s (afm_sim_set_events); the ring, to free after s's last
+ * run (NULL: off, or out of memory, and the metrics come from the samples alone). */
+afm_step_events *afmt_step_events_ring(afm_sim *s, int cap);
 
 #define AFMT_OPT_CHANNELS_WANTS "a comma-separated subset of samples,harmonics,status,tick_done"
 

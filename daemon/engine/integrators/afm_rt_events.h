@@ -3,9 +3,11 @@
  * contact crossings, the minimum of x and the tip-sample work, from its own pieces (issue 28).
  *
  * Layer integrators/ (3), the type shared with estimators/afm_cycle (which takes these instead
- * of re-deriving them from the samples on their Hermite cubics). Filled by the accurate scheme
- * only, without thermal noise, when the caller handed a ring (afm_sim_set_events); the fast
- * scheme, CVODE and ARKODE leave it alone, and afm_sim_events_at then says "not known" (NULL).
+ * of re-deriving them from the samples on their Hermite cubics). Filled, when the caller handed
+ * a ring (afm_sim_set_events), by the accurate scheme without thermal noise (below) and by the
+ * CVODE reference from its dense output (afm_sundials_ev.c: its continuous solution's own
+ * crossings, minimum and work, the truth the accurate scheme's record is tested against); the
+ * fast scheme and ARKODE leave it alone, and afm_sim_events_at then says "not known" (NULL).
  *
  * Where the numbers come from: a step near or in contact is taken in pieces (graded Hermite
  * pieces of dt / 8, contact substeps of dt / 32, split pieces at a crossing; afm_rt_acc.h).

@@ -89,14 +89,19 @@ static AFM_CLONES_NOINLINE void rt_ev_piece(rt_evacc *ea, const afm_sim *s, cons
     double g0 = t0 * e0->v, g1 = t1 * e1.v;
     double d0 = (fd0 - e0->sqd) * e0->v + t0 * e0->a, d1 = (fd1 - e1.sqd) * e1.v + t1 * e1.a;
     ea->rec.work_ts_j += 0.5 * tau * (g0 + g1) + tau * tau * (1.0 / 12.0) * (d0 - d1);
+    const double xc = r->xc;
+    const bool in0 = e0->x < xc, in1 = e1.x < xc, turn = e0->v < 0.0 && e1.v > 0.0;
+    if (in0 && in1) ea->rec.contact_frac += df;
+    if (e1.x < ea->xmin) ea->xmin = e1.x;
+    if (in0 == in1 && !turn) { /* most pieces (every free step's): no crossing, no minimum */
+        ea->e0 = e1;
+        ea->frac0 = frac1;
+        return;
+    }
     /* the path's cubic Hermite in (x, v) */
     rt_cubic p = {2.0 * (e0->x - e1.x) + tau * (e0->v + e1.v),
                   3.0 * (e1.x - e0->x) - tau * (2.0 * e0->v + e1.v), tau * e0->v, e0->x};
-    const double xc = r->xc;
-    const bool in0 = e0->x < xc, in1 = e1.x < xc;
-    if (in0 && in1) {
-        ea->rec.contact_frac += df;
-    } else if (in0 != in1) {
+    if (in0 != in1) {
         double sg = rt_cubic_root(&p, xc, 0.0, 1.0), fr = ea->frac0 + sg * df;
         if (in1) {
             ea->rec.contact_frac += (1.0 - sg) * df;
@@ -109,8 +114,7 @@ static AFM_CLONES_NOINLINE void rt_ev_piece(rt_evacc *ea, const afm_sim *s, cons
             if (ea->rec.n_out++ == 0) ea->rec.out_frac = fr;
         }
     }
-    if (e1.x < ea->xmin) ea->xmin = e1.x;
-    if (e0->v < 0.0 && e1.v > 0.0) { /* a minimum inside: 3 a s^2 + 2 b s + c = 0, c < 0 */
+    if (turn) { /* a minimum inside: 3 a s^2 + 2 b s + c = 0, c < 0 */
         double A = 3.0 * p.a, B = 2.0 * p.b, disc = fma(B, B, -4.0 * A * p.c);
         if (disc >= 0.0) {
             double qq = -0.5 * (B + (B >= 0 ? sqrt(disc) : -sqrt(disc)));

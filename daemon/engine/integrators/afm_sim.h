@@ -75,9 +75,10 @@ int afm_sim_set_thermal(afm_sim *s, const afm_cfg_thermal *t, char *err, size_t 
 /* What the integrator knows of each output step beyond its sample (afm_rt_events.h: contact
  * crossings, min of x, tip-sample work from its own pieces): from now on the step ending at
  * step count k is recorded in ring[k % cap] (the caller's; kept, not copied; NULL or cap < 1:
- * none, the state at create). Only the rt backend's accurate scheme without thermal noise
- * records, in its own copy of the sample loop: ~50 % more instructions per sample on a tapping
- * orbit (docs/numerics.md), nothing without a ring. Offline tools; not for the real-time path. */
+ * none, the state at create). The rt backend's accurate scheme without thermal noise records,
+ * in its own copy of the sample loop (docs/numerics.md: its cost per sample; nothing without a
+ * ring), and CVODE from its dense output (its own steps, same samples). Offline tools; not for
+ * the real-time path. */
 void afm_sim_set_events(afm_sim *s, afm_step_events *ring, int cap);
 /* The record of the step whose sample is at t_s (a sample's t_s as afm_sim_run wrote it), or
  * NULL when it was not recorded (another backend or scheme, thermal noise, overwritten). */

@@ -7,6 +7,7 @@
  * against. Each instance owns its SUNContext. SUNDIALS' error messages are kept in the
  * backend state (never printed). */
 #include "integrators/afm_sim_impl.h"
+#include "integrators/afm_sundials_ev.h"
 
 #include <arkode/arkode_erkstep.h>
 #include <cvodes/cvodes.h>
@@ -34,8 +35,8 @@
 
 typedef struct {
     SUNContext ctx;
-    void *mem; /* CVODE or ARKODE memory */
-    N_Vector y, atol;
+    void *mem;             /* CVODE or ARKODE memory */
+    N_Vector y, atol, tmp; /* tmp: afm_cv_step_events' scratch */
     SUNMatrix A;
     SUNLinearSolver ls;
     int substeps;  /* ERK only */
@@ -99,6 +100,7 @@ static void sund_free(sund_state *b) {
     if (b->A) SUNMatDestroy(b->A);
     if (b->y) N_VDestroy(b->y);
     if (b->atol) N_VDestroy(b->atol);
+    if (b->tmp) N_VDestroy(b->tmp);
     if (b->ctx) SUNContext_Free(&b->ctx);
     free(b);
 }
@@ -116,7 +118,8 @@ static sund_state *sund_alloc(const afm_sim *s, char *err, size_t errlen) {
     }
     b->y = N_VNew_Serial(2 * s->m.n, b->ctx);
     b->atol = N_VNew_Serial(2 * s->m.n, b->ctx);
-    if (!b->y || !b->atol) {
+    b->tmp = N_VNew_Serial(2 * s->m.n, b->ctx);
+    if (!b->y || !b->atol || !b->tmp) {
         snprintf(err, errlen, "sundials: N_VNew_Serial failed");
         sund_free(b);
         return NULL;
@@ -225,6 +228,14 @@ static int cv_advance(afm_sim *s) {
     sund_state *b = s->be_state;
     double tout = step_end(s), tret = s->t_s;
     if (CVodeSetStopTime(b->mem, tout) != CV_SUCCESS) return AFM_SIM_ESOLVER;
+    if (s->ev_ring) { /* the step's record from the continuous solution (afm_sundials_ev.h) */
+        afm_step_events rec;
+        if (afm_cv_step_events(s, b->mem, b->y, b->tmp, tout, &rec) != 0) return AFM_SIM_ESOLVER;
+        rec.step = s->step + 1; /* afm_sim_run counts the step after advance */
+        s->ev_ring[rec.step % s->ev_cap] = rec;
+        y_to_state(s, b->y);
+        return AFM_SIM_OK;
+    }
     int flag = CVode(b->mem, tout, b->y, &tret, CV_NORMAL);
     if (flag < 0) return AFM_SIM_ESOLVER;
     y_to_state(s, b->y);

@@ -116,7 +116,10 @@ static int advance(afm_sim *s, scan_state *st, int n, char *err, size_t errlen) 
     for (int i = 0; i < n; i++) {
         double th = afm_drive_phase(d, 0, st->buf[i].t_s);
         afm_lockin_push(&st->lockin, st->buf[i].x_m, th);
-        if (afm_cycle_push(&st->cycle, &st->buf[i], th) == 1 && st->px_open) {
+        /* the integrator's record of the step when the caller set one (afm_sim_set_events:
+         * afmtwin scan does), else NULL and the samples alone */
+        const afm_step_events *ev = afm_sim_events_at(s, st->buf[i].t_s);
+        if (afm_cycle_push_ev(&st->cycle, &st->buf[i], th, ev) == 1 && st->px_open) {
             st->px_periods++;
             st->s_fmax += st->cycle.out.peak_force_n;
             st->s_ed += st->cycle.out.dissipated_energy_j;
