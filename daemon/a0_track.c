@@ -11,7 +11,11 @@
  * the status). Until the newest is done the status
  * says NaN (not known), never the A0 of a drive no longer in force. The worker runs at
  * normal priority (SCHED_OTHER): it takes only the time the real-time, chain, receive and
- * publish threads (all SCHED_FIFO when permitted) leave. */
+ * publish threads (all SCHED_FIFO when permitted) leave. Even so one computation costs the
+ * real-time threads ~5 % of real time in the second it runs on this 2-core VM (test_collapse:
+ * real-time factor min 0.92-0.95 against 0.999 without; once 0.88, below its 0.9), so the
+ * recomputation is opt-in (afmtwind --a0-track). Without it the worker never computes: the
+ * start-up (first) A0 stands until the drive or the model changes, then the status says NaN. */
 #include "twind.h"
 
 #include <errno.h>
@@ -58,7 +62,7 @@ static void *a0_main(void *arg) {
     char err[AFM_ERR_LEN];
     pthread_mutex_lock(&a->mu);
     for (;;) {
-        while (!a->stop && a->done_gen == a->req_gen)
+        while (!a->stop && (a->done_gen == a->req_gen || !d->opt.a0_track))
             pthread_cond_wait(&a->cv, &a->mu);
         if (a->stop) break;
         unsigned gen = a->req_gen;
@@ -135,6 +139,12 @@ void twind_a0_request(twind *d, const afm_config *cfg, const afm_cmd_dither *dri
     if (!cfg_changed && fe == a->fe_hz && ae == a->ae_m) return; /* tone 0 as before */
     a->fe_hz = fe;
     a->ae_m = ae;
+    if (!d->opt.a0_track) { /* not recomputed (--a0-track): unknown from now on */
+        pthread_mutex_lock(&a->mu);
+        a->req_gen++;
+        pthread_mutex_unlock(&a->mu);
+        return;
+    }
     pthread_mutex_lock(&a->mu);
     request_config(a->req, cfg, drive, a->scheme);
     a->req_gen++;

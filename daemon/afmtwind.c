@@ -75,6 +75,11 @@ static void usage(FILE *f) {
             "  --start-time S         model time starts at S s instead of 0 (tests of a twin\n"
             "                         that has been up that long)\n"
             "  --quiet                no status line\n"
+            "  --a0-track             recompute the status's A0 (free_amplitude_m) on a worker\n"
+            "                         thread after each change of tone 0 or of the model;\n"
+            "                         without it A0 is the start-up (or reloaded) config's and\n"
+            "                         reads NaN once the drive differs. Its computations take\n"
+            "                         ~5 %% of real time in the second they run\n"
             "  --help                 this text\n"
             "  --version              the version\n");
 }
@@ -150,6 +155,9 @@ static int parse_args(int argc, char **argv, twind_opts *o) {
             exit(0);
         } else if (!strcmp(a, "--quiet")) {
             o->quiet = 1;
+            continue;
+        } else if (!strcmp(a, "--a0-track")) {
+            o->a0_track = 1;
             continue;
         } else if (!v) {
             fprintf(stderr, "afmtwind: unknown option or missing value: %s\n", a);

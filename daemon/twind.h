@@ -82,7 +82,8 @@ typedef struct {
     double start_s;      /* model time at start (tests of a twin up that long; default 0) */
     int harmonics_every; /* publish every k-th period; 0: auto (at most harmonics_max_hz) */
     double harmonics_max_hz;
-    int quiet; /* no status line */
+    int quiet;    /* no status line */
+    int a0_track; /* --a0-track: recompute A0 after drive and model changes (a0_track.c) */
     twind_scheme scheme;
 } twind_opts;
 

@@ -64,7 +64,7 @@ done
 AE2=0.0435e-9
 FE3=337.5e3
 cp config/default.conf "$T/run.conf"
-"$D" --config "$T/run.conf" --quiet 2> "$T/d.err" &
+"$D" --config "$T/run.conf" --quiet --a0-track 2> "$T/d.err" &
 DPID=$!
 # the start-up line comes once the threads run (LCM subscribed before): no fixed sleep
 for i in $(seq 1 100); do grep -q "free amplitude A0" "$T/d.err" && break; sleep 0.2; done
