@@ -14,7 +14,7 @@
  * publish threads (all SCHED_FIFO when permitted) leave. Even so one computation costs the
  * real-time threads ~5 % of real time in the second it runs on this 2-core VM (test_collapse:
  * real-time factor min 0.92-0.95 against 0.999 without; once 0.88, below its 0.9), so the
- * recomputation is opt-in (afmtwind --a0-track). Without it the worker never computes: the
+ * recomputation is opt-in (afmtwind --a0-track). Without it no worker is started: the
  * start-up (first) A0 stands until the drive or the model changes, then the status says NaN. */
 #include "twind.h"
 
@@ -62,7 +62,7 @@ static void *a0_main(void *arg) {
     char err[AFM_ERR_LEN];
     pthread_mutex_lock(&a->mu);
     for (;;) {
-        while (!a->stop && (a->done_gen == a->req_gen || !d->opt.a0_track))
+        while (!a->stop && a->done_gen == a->req_gen)
             pthread_cond_wait(&a->cv, &a->mu);
         if (a->stop) break;
         unsigned gen = a->req_gen;
@@ -119,12 +119,14 @@ int twind_a0_start(twind *d, const afm_config *cfg, afm_rt_scheme_kind scheme,
         return -1;
     }
     a->started = true; /* from here twind_a0_stop cleans up */
+    if (!d->opt.a0_track) return 0; /* no worker: requests only mark A0 unknown */
     if (pthread_create(&a->th, NULL, a0_main, d)) {
         a->started = false;
         pthread_cond_destroy(&a->cv);
         pthread_mutex_destroy(&a->mu);
         return -1;
     }
+    a->worker = true;
     return 0;
 }
 
@@ -139,15 +141,9 @@ void twind_a0_request(twind *d, const afm_config *cfg, const afm_cmd_dither *dri
     if (!cfg_changed && fe == a->fe_hz && ae == a->ae_m) return; /* tone 0 as before */
     a->fe_hz = fe;
     a->ae_m = ae;
-    if (!d->opt.a0_track) { /* not recomputed (--a0-track): unknown from now on */
-        pthread_mutex_lock(&a->mu);
-        a->req_gen++;
-        pthread_mutex_unlock(&a->mu);
-        return;
-    }
     pthread_mutex_lock(&a->mu);
-    request_config(a->req, cfg, drive, a->scheme);
-    a->req_gen++;
+    if (a->worker) request_config(a->req, cfg, drive, a->scheme);
+    a->req_gen++; /* without a worker (no --a0-track): unknown from now on */
     pthread_cond_signal(&a->cv);
     pthread_mutex_unlock(&a->mu);
 }
@@ -178,11 +174,14 @@ double twind_a0_now(twind *d) {
 void twind_a0_stop(twind *d) {
     twind_a0 *a = &d->a0;
     if (a->started) {
-        pthread_mutex_lock(&a->mu);
-        a->stop = true;
-        pthread_cond_signal(&a->cv);
-        pthread_mutex_unlock(&a->mu);
-        pthread_join(a->th, NULL); /* waits for a computation in progress (~0.1 s) */
+        if (a->worker) {
+            pthread_mutex_lock(&a->mu);
+            a->stop = true;
+            pthread_cond_signal(&a->cv);
+            pthread_mutex_unlock(&a->mu);
+            pthread_join(a->th, NULL); /* waits for a computation in progress (~0.1 s) */
+            a->worker = false;
+        }
         pthread_cond_destroy(&a->cv);
         pthread_mutex_destroy(&a->mu);
         a->started = false;

@@ -165,6 +165,7 @@ typedef struct {
     pthread_mutex_t mu;
     pthread_cond_t cv;
     bool started, stop;
+    bool worker;               /* the thread runs (--a0-track) */
     afm_config *req, *work;    /* the newest request; the worker's copy of it */
     afm_rt_scheme_kind scheme; /* A0 on the rt scheme in force (the start's, then hand-overs) */
     unsigned req_gen, done_gen;

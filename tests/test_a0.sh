@@ -150,5 +150,25 @@ check_status "$T/st2.json" "after dither --amp $AE2" "$(ap_a0 "$AE2" 338.112e3)"
 # is in quadrature and vanishes): A/A0 1 within 3e-3 there.
 check_status "$T/st3.json" "after dither --freq $FE3" "$(ap_a0 "$AE2" "$FE3")" 3e-3
 check_status "$T/st4.json" "after SIGHUP (tone 0 0.06 nm in the file)" "$(ap_a0 0.06e-9 338.112e3)" 1e-4
+# Without --a0-track no A0 is recomputed (no worker runs): the status holds the start-up A0,
+# then, after a dither that changes tone 0, says NaN (listen --json: null), never
+# the A0 of a drive no longer in force.
+"$D" --config config/default.conf --quiet 2> "$T/d2.err" &
+DPID=$!
+for i in $(seq 1 100); do grep -q "free amplitude A0" "$T/d2.err" && break; sleep 0.2; done
+listen --channels status --json --count 3 --timeout 5 > "$T/n1.json" 2>/dev/null
+n1=$(nm "$(field free_amplitude_m "$T/n1.json")")
+rel_ok "$n1" "$a_ap" 1e-4 && ok "no --a0-track: status A0 $n1 nm at start (the start-up A0)" ||
+  bad "no --a0-track: status A0 at start ${n1:-?} nm, want $a_ap"
+"$A" send dither --freq 338.112e3 --amp "$AE2" --quiet || bad "send dither (no --a0-track)"
+sleep 1
+listen --channels status --json --count 3 --timeout 5 > "$T/n2.json" 2>/dev/null
+n2=$(tail -1 "$T/n2.json" | grep -o '"free_amplitude_m":[^,}]*' | cut -d: -f2)
+ae2=$(field amplitude_m "$T/n2.json")
+rel_ok "$ae2" "$AE2" 1e-9 && [ "$n2" = null ] &&
+  ok "no --a0-track: after dither --amp $AE2 the status A0 is not known ($n2)" ||
+  bad "no --a0-track: after dither: tone 0 ${ae2:-?} m, status A0 '${n2:-?}' (want NaN)"
+kill -TERM "$DPID"; wait "$DPID"; drc=$?; DPID=""
+[ "$drc" -eq 0 ] && ok "daemon without --a0-track stopped cleanly" || bad "exit $drc: $(tail -3 "$T/d2.err")"
 echo "$pass passed, $fail failed"
 [ "$fail" -eq 0 ]
