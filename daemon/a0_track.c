@@ -118,7 +118,7 @@ int twind_a0_start(twind *d, const afm_config *cfg, afm_rt_scheme_kind scheme,
         pthread_mutex_destroy(&a->mu);
         return -1;
     }
-    a->started = true; /* from here twind_a0_stop cleans up */
+    a->started = true;              /* from here twind_a0_stop cleans up */
     if (!d->opt.a0_track) return 0; /* no worker: requests only mark A0 unknown */
     if (pthread_create(&a->th, NULL, a0_main, d)) {
         a->started = false;
