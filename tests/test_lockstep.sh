@@ -64,21 +64,12 @@ kill -TERM "$DPID"; wait "$DPID"; rc=$?; DPID=""
 [ $rc -eq 0 ] && ok "lockstep daemon exited 0" || bad "daemon exit $rc"
 
 # Scan commands (issue 18) go through lockstep as the others do: a twin over a 3 nm step
-# (test_scan_internal.sh's) rasters a line across the edge and moves the tip between ticks;
+# (tests/step-3nm.conf, test_scan_internal.sh's) rasters a line across the edge and moves the tip between ticks;
 # every completion (the harmonics records carry the tip's x, y, true height and Z, each that
 # of the sample its period ended on) is bit-identical to replay --lockstep of the same log.
 # (With am.control = "internal" the records still differ from replay's in the last digits of
 # the estimates: not yet understood; the Z and tip fields agree.)
-cat > "$T/step.conf" <<'EOF2'
-model = { kind = "lumped"; lumped = { stiffness_n_m = 40.0; resonance_hz = 300e3; };
-          quality_factor = [100.0]; };
-forces = { inclination_deg = 0.0; radius_m = 1e-8;
-           vdw_contact = { hamaker_j = 1e-19; a0_m = 1.65e-10; reduced_modulus_pa = 1e9; }; };
-drive = { separation_m = 8e-9; tones = ( { amplitude_m = 1e-10; frequency_hz = 300e3; } ); };
-sim = { sample_rate_hz = 14.06e6; integrator = "rt"; rt_scheme = "fast"; };
-lockin = { time_constant_s = 2e-5; order = 2; };
-sample = { features = ( { type = "step"; height_m = 3e-9; position_m = 2e-7; edge_m = 2e-8; } ); };
-EOF2
+cp tests/step-3nm.conf "$T/step.conf"
 SC="$T/scan.log"
 S tick --n 28120 --seq 41 --log "$SC" --log-time 0 --config "$T/step.conf"
 S scan raster --x 150nm --size-x 100nm --pixels 16 --line-rate 50 --seq 42 --log "$SC" \

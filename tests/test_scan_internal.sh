@@ -33,22 +33,13 @@ DPID=""
 cleanup() { [ -n "$DPID" ] && kill -KILL "$DPID" 2>/dev/null; rm -rf "$T"; }
 trap cleanup EXIT
 url="$LCM_DEFAULT_URL"
-H=3e-9; POS=2e-7; EDGE=2e-8
+# the step's height, position and edge width, as tests/step-3nm.conf has them
+stepkey() { grep -o "$1 = [-0-9.e]*" tests/step-3nm.conf | head -1 | awk '{print $3}'; }
+H=$(stepkey height_m); POS=$(stepkey position_m); EDGE=$(stepkey edge_m)
 
-cat > "$T/step.conf" <<EOF
-model = { kind = "lumped"; lumped = { stiffness_n_m = 40.0; resonance_hz = 300e3; };
-          quality_factor = [100.0]; };
-forces = { inclination_deg = 0.0; radius_m = 1e-8;
-           vdw_contact = { hamaker_j = 1e-19; a0_m = 1.65e-10; reduced_modulus_pa = 1e9; }; };
-drive = { separation_m = 8e-9; tones = ( { amplitude_m = 1e-10; frequency_hz = 300e3; } ); };
-sim = { sample_rate_hz = 14.06e6; integrator = "rt"; rt_scheme = "fast"; };
-lockin = { time_constant_s = 2e-5; order = 2; };
-sample = {
-  features = ( { type = "step"; height_m = $H; position_m = $POS; edge_m = $EDGE; material = 1; } );
-  materials = ( { reduced_modulus_pa = 1e9; } );
-};
-am = { control = "internal"; setpoint_ratio = 0.8; ki_hz = 2000.0; };
-EOF
+# the 3 nm step of tests/step-3nm.conf (test_lockstep.sh's too), with the internal controller
+{ cat tests/step-3nm.conf
+  echo 'am = { control = "internal"; setpoint_ratio = 0.8; ki_hz = 2000.0; };'; } > "$T/step.conf"
 C=(--config "$T/step.conf")
 
 # ---- (a) afmtwin send scan ---------------------------------------------------------------
