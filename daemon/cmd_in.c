@@ -203,8 +203,9 @@ static int on_cmd(void *ctx, const afm_cmd *c) {
         return -1;
     }
     afm_runner_model *m = NULL;
-    if (eff >= AFM_PARAM_DAMPING) {
-        m = build(d, &next, eff == AFM_PARAM_GEOMETRY, err, sizeof err);
+    bool new_chain = false;
+    if (afm_runner_cmd_needs_model(&d->shadow, c, &new_chain)) {
+        m = build(d, &next, new_chain, err, sizeof err);
         if (!m) {
             snprintf(why, sizeof why, "param: cannot build the new model: %.200s", err);
             reject_cmd(d, c, why);

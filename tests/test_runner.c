@@ -13,6 +13,7 @@
  *    after AFM_RUNNER_BLOWUP_PAUSE of them pauses itself with the reason; drives past the
  *    plausibility limits are refused at create
  *    (samples advance as asked, outputs keep coming). */
+#include "runner/afm_a0.h"
 #include "runner/afm_runner.h"
 #include "check.h"
 
@@ -707,6 +708,52 @@ static void test_scan_slices(const afm_config *flat) {
     afm_runner_destroy(&r);
 }
 
+/* am.control = "internal" (issue 18): a FORCE param moves the free amplitude (the squeeze
+ * film's p2 here: A0 50.7 -> ~43 nm on default.conf), and the Z loop's set-point follows:
+ * the model built for the command carries the new config's A0 (afm_runner_cmd_needs_model
+ * asks for one), and the set-point becomes setpoint_ratio x that A0 exactly. Without the
+ * internal loop no model is asked for. */
+static void test_am_force_a0(const afm_config *cfg0) {
+    char err[AFM_ERR_LEN];
+    afm_config cfg = *cfg0;
+    int ent, idx;
+    afm_param_lookup("forces.squeeze.p2_n_s_m", &ent, &idx, err, sizeof err);
+    afm_cmd c = {.kind = AFM_CMD_PARAM,
+                 .seq = 3,
+                 .u.param = {.n = 1, .entry = {ent}, .index = {idx}, .value = {1.5e-8}}};
+    bool nc = true;
+    check_true(afm_runner_cmd_needs_model(&cfg, &c, &nc) == 0,
+               "am.control none: a force param needs no model");
+    cfg.am.enabled = true;
+    cfg.am.control = AFM_AM_CONTROL_INTERNAL;
+    check_true(afm_runner_cmd_needs_model(&cfg, &c, &nc) == 1 && !nc,
+               "am.control internal: a force param asks for a model (for its A0), no chain");
+    afm_runner *r = afm_runner_create(&cfg, 4096, false, err, sizeof err);
+    if (!r) {
+        check_true(false, err);
+        return;
+    }
+    afm_runner_status st0, st1;
+    afm_runner_status_get(r, &st0);
+    afm_config next = cfg;
+    afm_param_apply(&next, &c.u.param, NULL, err, sizeof err);
+    afm_a0 a0;
+    afm_runner_model *m = afm_runner_model_build(&next, false, err, sizeof err);
+    bool ok = m && afm_a0_compute(&next, &a0, err, sizeof err) == 0 &&
+              afm_runner_apply(r, &c, &m, err, sizeof err) == 0;
+    check_true(ok, "force param with its model applied");
+    afm_runner_status_get(r, &st1);
+    const double want = cfg.am.setpoint_ratio * a0.amplitude_m;
+    printf("  am set-point %.6f nm -> %.6f nm (ratio x A0 of the new forces %.6f nm)\n",
+           st0.am_setpoint_m * 1e9, st1.am_setpoint_m * 1e9, want * 1e9);
+    check_true(ok && st1.am_setpoint_m == want &&
+                   fabs(st1.am_setpoint_m / st0.am_setpoint_m - 1) > 1e-2,
+               "the set-point follows the new forces' A0 (ratio x A0, exactly)");
+    check_true(m != NULL, "the model is not swapped in: it comes back to the caller");
+    afm_runner_model_destroy(&m);
+    afm_runner_destroy(&r);
+}
+
 int main(void) {
     afm_config cfg;
     char err[AFM_ERR_LEN];
@@ -724,5 +771,6 @@ int main(void) {
     test_uptime(&cfg);
     test_phase_origin(&cfg);
     test_scan_slices(&cfg);
+    test_am_force_a0(&cfg);
     return check_done();
 }

@@ -807,6 +807,8 @@ int afm_runner_cmd_needs_model(const afm_config *cfg, const afm_cmd *c, bool *ne
         if (afm_param_apply(&t, &c->u.param, &e, NULL, 0) == 0 && e >= AFM_PARAM_DAMPING) {
             need = 1;
             nc = e == AFM_PARAM_GEOMETRY;
+        } else if (e == AFM_PARAM_FORCE && t.am.control == AFM_AM_CONTROL_INTERNAL) {
+            need = 1; /* only for its A0: the squeeze film's constants move A0 by ~10 % */
         }
     }
     if (new_chain) *new_chain = nc;
@@ -1082,6 +1084,10 @@ static int apply_param(afm_runner *r, const afm_cmd_param *p, afm_runner_model *
         }
         emit(r, IT_FORCES, NULL);
     }
+    /* The AM Z loop's reference follows the forces' A0 (the model, built for it off the
+     * real-time thread, is not swapped in: it goes back to the caller). */
+    if (e == AFM_PARAM_FORCE && r->zc_on && model && *model && (*model)->a0_m > 0)
+        r->zc.a_set_m = r->zc.c.setpoint_ratio * (*model)->a0_m;
     r->cfg = t;
     if (r->surf && e >= AFM_PARAM_DAMPING) { /* the new model's plate: the materials again */
         char why[AFM_ERR_LEN];

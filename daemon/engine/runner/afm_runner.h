@@ -148,7 +148,9 @@ const afm_modal *afm_runner_model_modal(const afm_runner_model *m);
 
 /* Does this (validated) command need a model from afm_runner_model_build? 1 for a reload
  * and for a param command whose strongest effect is DAMPING or GEOMETRY (then *new_chain
- * says whether the model needs a chain), else 0. cfg: the config before the command. */
+ * says whether the model needs a chain), and for a FORCE param while am.control is
+ * "internal" (only the model's A0 is used: the set-point's new reference; the model comes
+ * back to the caller), else 0. cfg: the config before the command. */
 int afm_runner_cmd_needs_model(const afm_config *cfg, const afm_cmd *c, bool *new_chain);
 
 /* Apply c now (between runs). model: NULL, or the address of a model handle for the
