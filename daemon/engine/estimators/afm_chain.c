@@ -7,6 +7,7 @@
 #include "forces/afm_force.h"
 #include "estimators/afm_est_internal.h"
 #include "estimators/afm_lockin.h"
+#include "estimators/afm_phase_gen.h"
 #include "config/afm_clones.h"
 
 #include <math.h>
@@ -50,29 +51,8 @@ typedef struct {
     double *rt, *rx, *robd, *rcnt, *rf, *rbase;
 } stream;
 
-/* Tone 0's phase for the estimators, from the sample count: theta = p_org + wdt (k - k_org)
- * at the sample k steps after the drive's t0 (theta = phase_rad + omega (t - t0) there), with
- * the origin k_org a multiple of PHASE_REBASE: theta stays below 2 pi + wdt PHASE_REBASE, and
- * crossing into the next segment wraps p_org mod 2 pi (a jump of whole turns, which the
- * trackers keep their lock through). The count is exact, so theta carries only roundings
- * relative to itself (~3 eps |theta|), not the rounding of the sample time t (omega ulp(t):
- * 4e-9 rad at 20 s, growing with uptime), which the estimators' trackers must not mistake
- * for a changing rate. Everything is a function of the sample index (the origin moves at
- * fixed indices), so how the samples are cut into pushes changes no bit. A new drive (or
- * chain) starts from its own origin: p_org of the segment it is in, from phase_rad. A tone on
- * a simulator's sample grid takes each origin from afm_drive_phase_mod (exact from the step
- * count), not from the sum of the segments before: over a week the sum's roundings would add
- * up to ~1e-4 rad of lock-in phase. */
-#define PHASE_REBASE 1048576.0
-typedef struct {
-    bool set;
-    double ph, w, t0; /* the drive's tone 0 it follows */
-    double wdt;       /* phase step per sample */
-    double k_org;     /* origin: a sample index (from t0), multiple of PHASE_REBASE */
-    double p_org;     /* theta at k_org, mod 2 pi */
-    bool moved;       /* the drive's tone 0 changed since the last push (see retune) */
-    double t_last;    /* time of the last sample the estimators were given (NAN: none) */
-} phase_gen;
+/* Tone 0's phase for the estimators: afm_phase_gen.h (from the sample index, so that how
+ * the samples are cut into pushes changes no bit). */
 
 struct afm_chain {
     afm_obd obd;
@@ -85,7 +65,7 @@ struct afm_chain {
     /* estimators */
     bool attached;
     const afm_drive *drive;
-    phase_gen phase;
+    afm_phase_gen phase;
     afm_harm harm;
     afm_cycle cycle;
     afm_lockin lockin;
@@ -232,8 +212,7 @@ int afm_chain_attach(afm_chain *c, const afm_sim *sim, char *err, size_t errlen)
     c->forces = f;
     c->cos_alpha = f->cos_alpha;
     c->drive = afm_sim_drive(sim);
-    c->phase.set = false;
-    c->phase.t_last = NAN;
+    afm_phase_gen_reset(&c->phase, c->fs);
     keep_rebuilds(c);
     afm_harm_reset(&c->harm);
     afm_lockin_reset(&c->lockin);
@@ -378,61 +357,6 @@ static void put_period(afm_chain *c) {
     c->stats.periods++;
 }
 
-/* th[j] = p + wdt (k + j) for j < m: four at a time (one rounding each, fma: the same bits
- * as the scalar loop). */
-AFM_CLONES static void phase_run(double *th, int m, double wdt, double k, double p) {
-    int j = 0;
-    const afm_v4 vp = AFM_V4_SET1(p), vw = AFM_V4_SET1(wdt);
-    afm_v4 vk = AFM_V4_SET1(k) + (afm_v4){0.0, 1.0, 2.0, 3.0};
-    for (; j + 4 <= m; j += 4) {
-        AFM_V4_ST(th + j, AFM_V4_FMA(vw, vk, vp));
-        vk = vk + 4.0;
-    }
-    for (; j < m; j++)
-        th[j] = fma(wdt, k + (double)j, p);
-}
-
-/* theta[i] of samples s[0..n) by phase_gen (see there); samples off the time grid of the
- * drive's t0 (not made by a simulator at this chain's rate) by afm_drive_phase's own
- * expression. */
-static void drive_phase(afm_chain *c, const afm_sample *s, int n, double *th) {
-    const afm_drive *d = c->drive;
-    phase_gen *g = &c->phase;
-    if (!g->set || g->ph != d->phase_rad[0] || g->w != d->omega_rad_s[0] || g->t0 != d->t0_s[0]) {
-        g->ph = d->phase_rad[0];
-        g->w = d->omega_rad_s[0];
-        g->t0 = d->t0_s[0];
-        g->wdt = g->w * (1.0 / c->fs);
-        g->moved = g->set; /* a change, not the first frame: retune the estimators */
-        g->set = false;    /* origin from the first sample below */
-    }
-    double kd = (s[0].t_s - g->t0) * c->fs, k = nearbyint(kd);
-    if (!(fabs(kd - k) < 0.25 && k >= 0 && k < 0x1p52)) {
-        for (int i = 0; i < n; i++)
-            th[i] = g->ph + g->w * (s[i].t_s - g->t0);
-        return;
-    }
-    if (!g->set || k < g->k_org) { /* the segment of the first sample */
-        g->k_org = afm_floor(k / PHASE_REBASE) * PHASE_REBASE;
-        g->p_org = g->k_org > 0 ? afm_clock_wrap(fma(g->wdt, g->k_org, g->ph)) : g->ph;
-        if (g->k_org > 0 && d->on_grid[0])
-            g->p_org = afm_drive_phase_mod(d, 0, g->t0 + g->k_org / c->fs);
-        g->set = true;
-    }
-    for (int i = 0; i < n;) {
-        while (k + i >= g->k_org + PHASE_REBASE) { /* into the next segment */
-            g->p_org = afm_clock_wrap(fma(g->wdt, PHASE_REBASE, g->p_org));
-            g->k_org += PHASE_REBASE;
-            if (d->on_grid[0]) /* no accumulated rounding (afm_drive.h) */
-                g->p_org = afm_drive_phase_mod(d, 0, g->t0 + g->k_org / c->fs);
-        }
-        double left = g->k_org + PHASE_REBASE - (k + i);
-        int m = left < (double)(n - i) ? (int)left : n - i;
-        phase_run(th + i, m, g->wdt, k + i - g->k_org, g->p_org);
-        i += m;
-    }
-}
-
 /* Tone 0 changed (an NCO step of the FM loops, a dither command) right before s[0]: when the
  * new frame's theta continues the last sample's (a phase-continuous change on the grid:
  * afm_drive_set_tone at that sample's time, s[0] the next sample), the estimators take the
@@ -441,27 +365,22 @@ static void drive_phase(afm_chain *c, const afm_sample *s, int n, double *th) {
  * frequency could not tell from noise). Otherwise (a jump, a reset, a gap in the samples, a
  * drive off the grid) they meet the new theta on their slow paths, as before. The cycle
  * estimator keeps nothing that depends on the rate but its tracker. */
-static void retune(afm_chain *c, const afm_sample *s, const double *th) {
-    phase_gen *g = &c->phase;
-    g->moved = false;
-    if (!g->set || !(fabs((s[0].t_s - g->t_last) * c->fs - 1.0) < 0.25)) return;
-    const double th_prev = th[0] - g->wdt; /* the last sample in the new frame */
-    afm_harm_rebase(&c->harm, th_prev, g->wdt);
-    afm_lockin_rebase(&c->lockin, th_prev, g->wdt);
-    if (c->cycle.trk.locked) afm_track_rebase(&c->cycle.trk, th_prev, g->wdt);
+static void retune(afm_chain *c, const double *th) {
+    const double th_prev = th[0] - c->phase.wdt; /* the last sample in the new frame */
+    afm_harm_rebase(&c->harm, th_prev, c->phase.wdt);
+    afm_lockin_rebase(&c->lockin, th_prev, c->phase.wdt);
+    if (c->cycle.trk.locked) afm_track_rebase(&c->cycle.trk, th_prev, c->phase.wdt);
 }
 
 /* The estimators over n samples (f their tip-sample forces), with tone 0's phase from
- * drive_phase. harm and cycle share the period clock: each run ends at a sample where harm
+ * afm_phase_gen. harm and cycle share the period clock: each run ends at a sample where harm
  * completed a period, and cycle and lockin are brought to the same sample before the record
  * is written. estimator_rejects
  * counts, per run, the most samples any one estimator refused. */
 static void estimators(afm_chain *c, const afm_sample *s, const double *obd, const double *f,
                        int n) {
     double th[CHUNK];
-    drive_phase(c, s, n, th);
-    if (c->phase.moved) retune(c, s, th);
-    c->phase.t_last = s[n - 1].t_s;
+    if (afm_phase_gen_run(&c->phase, c->drive, s, n, th) == AFM_PHASE_STEP) retune(c, th);
     for (int i = 0; i < n;) {
         long long rh = 0, rc = 0, rl;
         int done, dc;

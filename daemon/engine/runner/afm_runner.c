@@ -15,6 +15,8 @@
  * chain sees the same calls with the same data in the same order: the outputs are
  * bit-identical (test_runner checks it). */
 #include "runner/afm_runner.h"
+
+#include "estimators/afm_phase_gen.h"
 #include "config/afm_err.h"
 
 #include "forces/afm_force.h"
@@ -128,9 +130,9 @@ struct afm_runner {
      * other thread) */
     bool fm_on;
     bool fm_hold_pending; /* amplitude set-point 0: hold the amplitude of the first lock */
-    bool fm_retune;       /* the NCO stepped after the last slice: fm_lk follows (O(1)) */
     afm_fm fm;
     afm_lockin fm_lk;
+    afm_phase_gen fm_pg; /* fm_lk's reference phase, as the chain's (from the sample index) */
     long long fm_tone_changes, fm_tone_refused;
     double fm_u[SLOT], fm_th[SLOT]; /* one slice's deflection and reference phase */
     /* internal AM Z control (am.control = "internal", issue 18): the reference PI (afm_pi)
@@ -541,6 +543,7 @@ static int fm_setup(afm_runner *r, char *err, size_t errlen) {
     }
     afm_fm_plant p;
     afm_fm_plant_of(afm_sim_model(r->sim), &p);
+    afm_phase_gen_reset(&r->fm_pg, c->sim.sample_rate_hz);
     if (afm_lockin_init(&r->fm_lk, &c->lockin, afm_sim_dt(r->sim), err, errlen) ||
         afm_fm_init(&r->fm, &c->fm, &c->lockin, &p, c->sim.sample_rate_hz, p.f0_hz, p.f0_hz,
                     fmin(d->amp_m[0], c->fm.drive_max_m), err, errlen))
@@ -557,24 +560,19 @@ static int fm_setup(afm_runner *r, char *err, size_t errlen) {
 
 /* Feed the k samples s[0..k) just run to the controllers' lock-in (fm_lk) at tone 0. */
 static void ctl_lockin_feed(afm_runner *r, const afm_sample *s, int k) {
-    /* The reference phase as the chain computes it: exact at the slice's first sample (the
-     * drive's fixed-point grid phase), then the rate times the sample count, so that it
-     * carries no rounding of t (afm_drive_phase's phi + w (t - t0) re-anchored at every
-     * tone change made the lock-in's tracker rebuild its tables sample after sample:
-     * docs/realtime.md, the collapse). */
-    const afm_drive *d = afm_sim_drive(r->sim);
+    /* The reference phase as the chain computes it (afm_phase_gen: from the sample index, so
+     * that the slices the runner happens to cut change no bit: replay --block 700 and 1024,
+     * and lockstep, image a scan alike). A tone-0 change right before s[0] (an NCO step, a
+     * dither) is followed O(1) (afm_lockin_rebase), a jump by a retune. */
     if (k <= 0) return;
-    /* (Continuing one unwrapped phase across slices instead was slower: 0.36x real time
-     * against 0.62x on lumped-vdw-fold.conf, the tracker's tolerance growing with |theta|.) */
-    const double th0 = afm_drive_phase_mod(d, 0, s[0].t_s);
-    const double wdt = d->omega_rad_s[0] * afm_sim_dt(r->sim);
-    for (int i = 0; i < k; i++) {
+    afm_phase_change ch = afm_phase_gen_run(&r->fm_pg, afm_sim_drive(r->sim), s, k, r->fm_th);
+    for (int i = 0; i < k; i++)
         r->fm_u[i] = s[i].x_m;
-        r->fm_th[i] = th0 + wdt * i;
-    }
-    if (r->fm_retune) { /* the new rate from the last sample on, th0 - wdt there (O(1)) */
-        r->fm_retune = false;
-        if (!afm_lockin_rebase(&r->fm_lk, th0 - wdt, wdt)) afm_lockin_retune(&r->fm_lk);
+    if (ch == AFM_PHASE_STEP) {
+        const double wdt = r->fm_pg.wdt;
+        if (!afm_lockin_rebase(&r->fm_lk, r->fm_th[0] - wdt, wdt)) afm_lockin_retune(&r->fm_lk);
+    } else if (ch == AFM_PHASE_JUMP) {
+        afm_lockin_retune(&r->fm_lk);
     }
     afm_lockin_push_n(&r->fm_lk, r->fm_u, r->fm_th, k);
 }
@@ -612,7 +610,6 @@ static void fm_after(afm_runner *r, const afm_sample *s, int k) {
         r->fm_tone_refused++; /* kept at the last tone 0 the simulator took */
         return;
     }
-    r->fm_retune |= f_move;
     r->fm_tone_changes++;
 }
 
@@ -659,7 +656,7 @@ static int zc_setup(afm_runner *r, double a0_m, char *err, size_t errlen) {
     afm_pi_init(&r->zc, &pc, a0_m, stage_z(r));
     r->zc_a_m = NAN;
     r->zc_hold_until = r->samples + zc_settle_samples(r);
-    r->fm_retune = false;
+    afm_phase_gen_reset(&r->fm_pg, c->sim.sample_rate_hz);
     r->zc_on = true;
     return 0;
 }
@@ -1136,7 +1133,6 @@ int afm_runner_apply(afm_runner *r, const afm_cmd *c, afm_runner_model **model, 
     switch (c->kind) {
     case AFM_CMD_DITHER:
         if (apply_dither(r, &c->u.dither, err, errlen)) return -1;
-        if (r->zc_on) r->fm_retune = true; /* tone 0 may have moved: the lock-in follows */
         break;
     case AFM_CMD_SETPOINT:
         apply_setpoint(r, &c->u.setpoint);
@@ -1155,7 +1151,10 @@ int afm_runner_apply(afm_runner *r, const afm_cmd *c, afm_runner_model **model, 
             break;
         case AFM_CTL_RESET:
             afm_sim_reset(r->sim);
-            if (r->fm_on || r->zc_on) afm_lockin_reset(&r->fm_lk);
+            if (r->fm_on || r->zc_on) {
+                afm_lockin_reset(&r->fm_lk);
+                afm_phase_gen_reset(&r->fm_pg, r->cfg.sim.sample_rate_hz);
+            }
             if (r->zc_on) r->zc_hold_until = r->samples + zc_settle_samples(r);
             emit(r, IT_RESET, NULL);
             r->ramping = false;
@@ -1316,7 +1315,10 @@ long long afm_runner_run(afm_runner *r, long long n) {
             it->n += (int)k;
             item_lat(r, it);
         } else {
-            if (r->fm_on || r->zc_on) afm_lockin_reset(&r->fm_lk);
+            if (r->fm_on || r->zc_on) {
+                afm_lockin_reset(&r->fm_lk);
+                afm_phase_gen_reset(&r->fm_pg, r->cfg.sim.sample_rate_hz);
+            }
             if (r->zc_on) r->zc_hold_until = r->samples + zc_settle_samples(r);
             /* The simulator reset itself to rest; its clock counts the steps it took. The
              * samples of this slice are dropped; the chain starts over. */
