@@ -62,4 +62,19 @@ rc=$?
 [ $rc -eq 2 ] && grep -q "fm.pll_bandwidth_hz.*too fast for the lock-in" "$T/e3" \
   && ok "an fm bandwidth too fast for the lock-in: exit 2 with the key and why" \
   || bad "a too fast fm bandwidth: exit $rc, $(cat "$T/e3")"
+# afmtwin plot approach on an FM approach: its own panels (frequency shift, drive change,
+# amplitude against its set-point, E_ts), not the AM ones (which have no data in it)
+if "$A" plot approach "$T/fm.json" -o "$T/fm.png" --csv "$T/fm.csv" 2> "$T/pe" &&
+    [ -s "$T/fm.png" ] && head -1 "$T/fm.csv" | grep -q "frequency_shift (Hz)" &&
+    python3 - "$T/fm.json" "$T/fm.csv" <<'PY'
+import json, sys
+r = [json.loads(l) for l in open(sys.argv[1])]
+rows = [l.strip().split(",") for l in open(sys.argv[2])][1:]
+assert len(rows) == len(r), (len(rows), len(r))
+for x, c in zip(r, rows):
+    assert abs(float(c[1]) - x["z_m"] * 1e9) < 1e-6
+    assert abs(float(c[2]) - x["frequency_shift_hz"]) < 1e-6 * max(1, abs(x["frequency_shift_hz"]))
+PY
+then ok "plot approach of an fm run: png, and the CSV's shift per Z is the JSON's"
+else bad "plot approach of an fm run: $(cat "$T/pe") $(head -3 "$T/fm.csv" 2>/dev/null)"; fi
 check_done

@@ -114,7 +114,13 @@ static void plot_usage(FILE *f) {
             "            marked as in sweep. Columns: Z[nm] amplitude[nm] lag[deg]\n"
             "            repulsive_peak[nN] attractive_peak[nN] dissipated[eV] (E_ts)\n"
             "            indentation[nm] max_force[nN] min_force[nN] virial[eV] periodicity\n"
-            "            settled[0/1] squeeze_dissipated[eV] (E_sq); set J the jumps\n"
+            "            settled[0/1] squeeze_dissipated[eV] (E_sq); set J the jumps.\n"
+            "            An approach --mode fm output: the frequency shift, the drive's\n"
+            "            change (ppm of the drive at the largest Z: the dissipation channel),\n"
+            "            the amplitude against its set-point (ppm) and E_ts against Z; steps\n"
+            "            not locked or not settled marked x. Columns: Z[nm]\n"
+            "            frequency_shift[Hz] drive_amplitude[pm] amplitude[nm]\n"
+            "            amplitude_setpoint[nm] dissipated[eV] locked[0/1] settled[0/1]\n"
             "  thermal   INPUT: a PSD from afmtwin thermal --psd; --fit FILE: its --json\n"
             "            output, whose eq. 5.1 fit per mode is drawn over the PSD (its config\n"
             "            names the model in the title unless --config does)\n"
@@ -711,7 +717,122 @@ static int approach_row(const cJSON *o, void *vctx) {
     return set_row(ret ? c->ret : c->app, row);
 }
 
+/* ---- approach --mode fm ---- */
+
+#define FM_COLS 8
+#define FM_HEADER                                                                                  \
+    "Z[nm] frequency_shift[Hz] drive_amplitude[pm] amplitude[nm] amplitude_setpoint[nm] "          \
+    "dissipated[eV] locked[0/1] settled[0/1]"
+
+typedef struct {
+    plot_set *app, *ret, *un;
+    plot_info *pi;
+    double f_free_hz, a_set_m, drive_far_m, z_far_m; /* drive_far: at the largest Z */
+} fm_ctx;
+
+static int fm_row(const cJSON *o, void *vctx) {
+    fm_ctx *c = vctx;
+    if (cJSON_GetObjectItemCaseSensitive(o, "jump")) return 0; /* FM approach has none */
+    double z = num(o, "z_m");
+    if (isnan(z)) return plot_err("%s", "an approach record without z_m (approach --json?)");
+    if (!str_is(o, "mode", "fm"))
+        return plot_err("%s", "an am record among fm records: one approach --json output");
+    plot_info_z(c->pi, z);
+    bool locked = is_true(o, "locked"), settled = is_true(o, "settled");
+    double drive = num(o, "drive_amplitude_m");
+    if (isnan(c->z_far_m) || z > c->z_far_m) {
+        c->z_far_m = z;
+        c->drive_far_m = drive;
+    }
+    c->f_free_hz = num(o, "free_frequency_hz");
+    c->a_set_m = num(o, "amplitude_setpoint_m");
+    double row[FM_COLS] = {z * 1e9,          num(o, "frequency_shift_hz"),
+                           drive * 1e12,     num(o, "amplitude_m") * 1e9,
+                           c->a_set_m * 1e9, num(o, "dissipated_energy_j") / PLOT_EV,
+                           locked ? 1 : 0,   settled ? 1 : 0};
+    if ((!locked || !settled) && set_row(c->un, row)) return -1;
+    return set_row(str_is(o, "direction", "retract") ? c->ret : c->app, row);
+}
+
+/* An FM approach (afmtwin approach --mode fm): the PLL holds the lag at its set-point and the
+ * amplitude controller the amplitude, so what changes with Z is the frequency shift (the
+ * force gradient), the drive the amplitude needs (the dissipation channel) and E_ts; the held
+ * amplitude is drawn against its set-point as the check that the loops held. */
+static int load_approach_fm(const plot_opts *o, plot_data *d, FILE *gp) {
+    fm_ctx c = {curve_new(d, "A", "approach", FM_HEADER, FM_COLS),
+                curve_new(d, "R", "retract", FM_HEADER, FM_COLS),
+                set_new(d, "U", FM_HEADER, FM_COLS),
+                &d->info,
+                NAN,
+                NAN,
+                NAN,
+                NAN};
+    if (!c.app || !c.ret || !c.un || each_json(o->in[0], fm_row, &c)) return -1;
+    if (c.app->n + c.ret->n == 0) return plot_err("%s: no approach records", o->in[0]);
+    d->info.no_drive = true; /* tone 0 is the PLL's: the note says where it started */
+    snprintf(d->note, sizeof d->note,
+             "FM: lag held by the PLL, amplitude %.4g nm by the amplitude loop; f_free %.1f Hz; "
+             "drive %.4g pm at Z %.3g nm",
+             c.a_set_m * 1e9, c.f_free_hz, c.drive_far_m * 1e12, c.z_far_m * 1e9);
+    fprintf(gp, "set style line 1 lc rgb '#0072b2' lw 1.5 pt 7 ps 0.6\n"
+                "set style line 2 lc rgb '#009e73' lw 1.5 pt 6 ps 0.7\n"
+                "set style line 3 lc rgb 'black' lw 1 dt 2\n"
+                "set style line 12 lc rgb 'black' lw 1.5 pt 2 ps 1.6\n");
+    plot_key k = {0};
+    if (c.app->n) key_add(&k, "with linespoints ls 1", "approach");
+    if (c.ret->n) key_add(&k, "with linespoints ls 2", "retract");
+    if (c.un->n) key_add(&k, "with points ls 12", "not locked or not settled");
+    key_add(&k, "with lines ls 3", "amplitude set-point");
+    const double l = PX_LEFT / d->W, r = 1 - PX_RIGHT / d->W;
+    double top = figure(gp, d, &k, l, r);
+    /* the drive against the drive at the largest Z (its change is the dissipation channel),
+     * and the amplitude against its set-point (did the loop hold?), both in ppm: in pm and nm
+     * the changes are below the tick labels' digits */
+    char drive_rel[64];
+    snprintf(drive_rel, sizeof drive_rel, "(($3 / %.17g - 1) * 1e6)", c.drive_far_m * 1e12);
+    static const struct {
+        const char *ylab;
+        const char *using;
+    } panel[4] = {{"frequency shift f - f_free (Hz)", "2"},
+                  {"drive change (ppm)", NULL},
+                  {"amplitude / set-point - 1 (ppm)", "(($4 / $5 - 1) * 1e6)"},
+                  {"E_ts tip-sample (eV)", "6"}};
+    for (int p = 0; p < 4; p++) {
+        grid_cell(gp, d, p, false, l, r, top, "separation Z (nm)");
+        fprintf(gp, "set ytics autofreq\nset offsets 0, 0, graph 0.05, graph 0.05\n");
+        fprintf(gp, "set ylabel '%s'\n%s", panel[p].ylab,
+                p != 2 ? "set xzeroaxis lt -1 lw 0.5\n" : "unset xzeroaxis\n");
+        const char *sep = "plot ", *u = panel[p].using ? panel[p].using : drive_rel;
+        if (c.app->n) {
+            fprintf(gp, "%s$A using 1:%s with linespoints ls 1 notitle", sep, u);
+            sep = ", ";
+        }
+        if (c.ret->n) {
+            fprintf(gp, "%s$R using 1:%s with linespoints ls 2 notitle", sep, u);
+            sep = ", ";
+        }
+        if (p == 2) fprintf(gp, ", 0 with lines ls 3 notitle");
+        if (c.un->n) fprintf(gp, ", $U using 1:%s with points ls 12 notitle", u);
+        fprintf(gp, "\n");
+    }
+    fprintf(gp, "unset multiplot\n");
+    return 0;
+}
+
+/* The first record's mode: an FM approach is drawn by load_approach_fm. */
+static int first_mode(const cJSON *o, void *vctx) {
+    bool *fm = vctx;
+    if (cJSON_GetObjectItemCaseSensitive(o, "z_m")) {
+        *fm = str_is(o, "mode", "fm");
+        return 1; /* stop */
+    }
+    return 0;
+}
+
 static int load_approach(const plot_opts *o, plot_data *d, FILE *gp) {
+    bool fm = false;
+    if (each_json(o->in[0], first_mode, &fm) < 0) return -1;
+    if (fm) return load_approach_fm(o, d, gp);
     approach_ctx c = {curve_new(d, "A", "approach", APPROACH_HEADER, APPROACH_COLS),
                       curve_new(d, "R", "retract", APPROACH_HEADER, APPROACH_COLS),
                       set_new(d, "J",
