@@ -454,10 +454,12 @@ static void retune(afm_chain *c, const afm_sample *s, const double *th) {
 /* The estimators over n samples (f their tip-sample forces), with tone 0's phase from
  * drive_phase. harm and cycle share the period clock: each run ends at a sample where harm
  * completed a period, and cycle and lockin are brought to the same sample before the record
- * is written. estimator_rejects
+ * is written. ev (NULL: none) the integrator's records of the samples (afm_chain_push_ev):
+ * a sample with one goes through afm_cycle_push_ev, a run without through afm_cycle_push_n
+ * (the same bits as afm_cycle_push). estimator_rejects
  * counts, per run, the most samples any one estimator refused. */
 static void estimators(afm_chain *c, const afm_sample *s, const double *obd, const double *f,
-                       int n) {
+                       const afm_step_events *const *ev, int n) {
     double th[CHUNK];
     drive_phase(c, s, n, th);
     if (c->phase.moved) retune(c, s, th);
@@ -467,7 +469,17 @@ static void estimators(afm_chain *c, const afm_sample *s, const double *obd, con
         int done, dc;
         int k = afm_harm_push_n(&c->harm, obd + i, f + i, th + i, n - i, &done, &rh);
         for (int j = 0; j < k;) {
-            j += afm_cycle_push_n(&c->cycle, s + i + j, th + i + j, k - j, &dc, &rc);
+            const int a = i + j;
+            if (ev && ev[a]) {
+                if (afm_cycle_push_ev(&c->cycle, s + a, th[a], ev[a]) < 0) rc++;
+                j++;
+                continue;
+            }
+            int m = 1; /* the run of samples without a record */
+            while (ev && j + m < k && !ev[a + m])
+                m++;
+            if (!ev) m = k - j;
+            j += afm_cycle_push_n(&c->cycle, s + a, th + a, m, &dc, &rc);
         }
         rl = afm_lockin_push_n(&c->lockin, obd + i, th + i, k);
         long long r = rh > rc ? rh : rc;
@@ -477,7 +489,7 @@ static void estimators(afm_chain *c, const afm_sample *s, const double *obd, con
     }
 }
 
-int afm_chain_push(afm_chain *c, const afm_sample *s, int n) {
+int afm_chain_push_ev(afm_chain *c, const afm_sample *s, const afm_step_events *const *ev, int n) {
     double obd_buf[CHUNK], f_buf[CHUNK];
     for (int done = 0; done < n;) {
         int k = n - done < CHUNK ? n - done : CHUNK;
@@ -495,12 +507,16 @@ int afm_chain_push(afm_chain *c, const afm_sample *s, int n) {
             for (int i = 0; i < k; i++)
                 f_buf[i] = p[i].f_n;
         }
-        if (c->attached) estimators(c, p, obd_buf, f_buf, k);
+        if (c->attached) estimators(c, p, obd_buf, f_buf, ev ? ev + done : NULL, k);
         run_streams(c, p, obd_buf, f_buf, k);
         c->stats.pushed += k;
         done += k;
     }
     return 0;
+}
+
+int afm_chain_push(afm_chain *c, const afm_sample *s, int n) {
+    return afm_chain_push_ev(c, s, NULL, n);
 }
 
 int afm_chain_take_block(afm_chain *c, int i, afm_chain_block *b, int max_n) {
