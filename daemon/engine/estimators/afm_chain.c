@@ -451,6 +451,22 @@ static void retune(afm_chain *c, const afm_sample *s, const double *th) {
     if (c->cycle.trk.locked) afm_track_rebase(&c->cycle.trk, th_prev, g->wdt);
 }
 
+/* e (the record of s[a]'s step, or NULL) when afm_cycle_push_ev would use it, else NULL: a
+ * step with no crossing, no minimum of its own (one free piece) and both ends above the
+ * cycle's near-contact gap (with the force law) leaves afm_cycle's sample path as it is
+ * (afm_cycle.c: step_plain, step_boundary), so such samples go through afm_cycle_push_n's
+ * vector runs, with the same bits (afm_cycle_push_ev on every sample costs the chain thread
+ * ~2.5x on a lumped probe). The step's start is s[a - 1], or the cycle's last sample for
+ * a = 0; a non-finite end keeps the record (afm_cycle_push rejects the sample). */
+static inline const afm_step_events *ev_used(const afm_chain *c, const afm_sample *s, int a,
+                                             const afm_step_events *e) {
+    if (!e || !isnan(e->x_min_m) || e->n_in + e->n_out != 0) return e;
+    const afm_cycle *y = &c->cycle;
+    const double xp = a > 0 ? s[a - 1].x_m : y->n_prev > 0 ? y->prev.x_m : NAN;
+    if (y->forces && !(xp >= y->x_near_m && s[a].x_m >= y->x_near_m)) return e;
+    return NULL;
+}
+
 /* The estimators over n samples (f their tip-sample forces), with tone 0's phase from
  * drive_phase. harm and cycle share the period clock: each run ends at a sample where harm
  * completed a period, and cycle and lockin are brought to the same sample before the record
@@ -470,13 +486,14 @@ static void estimators(afm_chain *c, const afm_sample *s, const double *obd, con
         int k = afm_harm_push_n(&c->harm, obd + i, f + i, th + i, n - i, &done, &rh);
         for (int j = 0; j < k;) {
             const int a = i + j;
-            if (ev && ev[a]) {
-                if (afm_cycle_push_ev(&c->cycle, s + a, th[a], ev[a]) < 0) rc++;
+            const afm_step_events *e = ev ? ev_used(c, s, a, ev[a]) : NULL;
+            if (e) {
+                if (afm_cycle_push_ev(&c->cycle, s + a, th[a], e) < 0) rc++;
                 j++;
                 continue;
             }
-            int m = 1; /* the run of samples without a record */
-            while (ev && j + m < k && !ev[a + m])
+            int m = 1; /* the run of samples whose record is not used */
+            while (ev && j + m < k && !ev_used(c, s, a + m, ev[a + m]))
                 m++;
             if (!ev) m = k - j;
             j += afm_cycle_push_n(&c->cycle, s + a, th + a, m, &dc, &rc);
