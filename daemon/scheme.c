@@ -6,7 +6,12 @@
  *
  * Measurement (main thread, before the threads start): afm_scheme_cost_measure, both
  * schemes' worst state; the accurate scheme runs when its worst state fits
- * AFM_SCHEME_FIT_SHARE of the per-sample budget dt / speed.
+ * AFM_SCHEME_FIT_SHARE of the per-sample budget dt / speed. The accurate scheme is measured
+ * with the integrator's per-step record when the runner will hand it to the chain
+ * (sim.step_events; afm_runner_step_events): the record costs the integrator thread. With
+ * sim.step_events = "auto", when only the accurate scheme without the record fits, it runs
+ * without it (the per-period metrics from the samples, as before issue 28), which is
+ * measured then; "on" keeps the record and falls to the fast scheme instead.
  *
  * Hand-over (rt thread, realtime mode, auto and adaptive only): the accurate scheme hands
  * over to the fast one when the lag passes LAG_SHARE of --max-lag-ms (before any resync);
@@ -84,14 +89,32 @@ int twind_scheme_choose(twind *d, afm_config *cfg, char *err, size_t errlen) {
         if (afm_scheme_cost_measure(cfg, AFM_RT_SCHEME_ACCURATE, &ca, err, errlen) ||
             afm_scheme_cost_measure(cfg, AFM_RT_SCHEME_FAST, &cf, err, errlen))
             return -1;
+        const double fit_ns = AFM_SCHEME_FIT_SHARE * budget;
         sc->ns_accurate = ca.worst_ns;
         sc->ns_fast = cf.worst_ns;
-        sc->accurate = sc->ns_accurate <= AFM_SCHEME_FIT_SHARE * budget;
+        sc->accurate = sc->ns_accurate <= fit_ns;
+        double ns_rec = -1; /* the accurate scheme with the record, when it did not fit */
+        if (!sc->accurate && ca.step_events && cfg->sim.step_events == AFM_STEP_EVENTS_AUTO) {
+            static afm_config c; /* large; start-up only */
+            c = *cfg;
+            c.sim.step_events = AFM_STEP_EVENTS_OFF;
+            afm_scheme_cost cn;
+            if (afm_scheme_cost_measure(&c, AFM_RT_SCHEME_ACCURATE, &cn, err, errlen)) return -1;
+            ns_rec = sc->ns_accurate;
+            sc->ns_accurate = cn.worst_ns;
+            sc->accurate = sc->ns_accurate <= fit_ns;
+            if (sc->accurate) cfg->sim.step_events = AFM_STEP_EVENTS_OFF; /* the runner's */
+        }
         sc->handover = sc->accurate;
+        char rec[64] = "";
+        if (ns_rec >= 0)
+            snprintf(rec, sizeof rec, " without the step record (%.0f ns with it)", ns_rec);
+        else if (ca.step_events)
+            snprintf(rec, sizeof rec, " with the step record");
         snprintf(sc->reason, sizeof sc->reason,
-                 "auto: accurate %.0f ns/sample in its worst state %s %.0f ns (%.0f%% of %.1f "
-                 "ns); fast %.0f ns",
-                 sc->ns_accurate, sc->accurate ? "<=" : ">", AFM_SCHEME_FIT_SHARE * budget,
+                 "auto: accurate%s %.0f ns/sample in its worst state %s %.0f ns (%.0f%% of "
+                 "%.1f ns); fast %.0f ns",
+                 rec, sc->ns_accurate, sc->accurate ? "<=" : ">", fit_ns,
                  100.0 * AFM_SCHEME_FIT_SHARE, budget, sc->ns_fast);
     }
     }

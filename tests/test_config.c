@@ -128,6 +128,7 @@ static void shipped_values(void) {
         check_rel(c.model.beam.poisson_ratio, 0.28, 1e-15, "poisson 0.28");
         check_rel(c.sim.ref_rtol, 1e-10, 1e-15, "default ref_rtol");
         check_true(c.sim.integrator == AFM_INTEGRATOR_RT, "integrator rt");
+        check_true(c.sim.step_events == AFM_STEP_EVENTS_AUTO, "default sim.step_events auto");
     }
     /* Table 3.1: no tip mass (section 3.2.1), no tip forces. */
     if (load("config/thesis-table-3-1.conf", &c) == 0) {
@@ -166,6 +167,8 @@ static void bad_configs(void) {
     expect_bad("wrong-type-float", "model.beam.elements", "expected an integer");
     expect_bad("wrong-type-bool", "forces.viscoelastic.enabled", "expected true or false");
     expect_bad("bad-kind", "model.kind", "not one of");
+    expect_bad("bad-step-events", "sim.step_events",
+               "\"yes\" is not one of \"auto\", \"on\", \"off\"");
     expect_bad("lumped-with-beam", "model.beam", "not used");
     expect_bad("negative-length", "model.beam.length_m", "must be in [1e-06, 0.01] m");
     expect_bad("negative-width", "model.beam.width_m[1]", "must be in [1e-08, 0.001] m");

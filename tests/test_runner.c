@@ -12,10 +12,19 @@
  *    xi = 1e-9 grows without bound; the runner reports blow-ups, restarts from rest, and
  *    after AFM_RUNNER_BLOWUP_PAUSE of them pauses itself with the reason; drives past the
  *    plausibility limits are refused at create
- *    (samples advance as asked, outputs keep coming). */
+ *    (samples advance as asked, outputs keep coming);
+ *  - the integrator's per-step record (issue 28): on a tapping config with the accurate
+ *    scheme the chain's period metrics are those of afm_cycle_push_ev fed directly with the
+ *    simulator's records (and differ from the samples' path), through a Z ramp every sample
+ *    keeps its own record whatever the slicing; with the fast scheme or sim.step_events =
+ *    "off" the sample path as before;
+ *  - am.control internal: a force param's model carries the new A0, the set-point follows. */
 #include "runner/afm_a0.h"
 #include "runner/afm_runner.h"
 #include "check.h"
+#include "estimators/afm_cycle.h"
+#include "forces/afm_force.h"
+#include "runner/afm_twin.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -754,6 +763,223 @@ static void test_am_force_a0(const afm_config *cfg0) {
     afm_runner_destroy(&r);
 }
 
+/* The period metrics of cfg's twin run directly: a simulator (with the record ring when ev)
+ * and a chain of its own attached to it, fed each sample's record (afm_sim_events_at, as the
+ * offline tools feed afm_cycle_push_ev, tools/cmd_approach.c) by afm_chain_push_ev, or none
+ * (afm_chain_push: the samples' path). The chain gives afm_cycle_push_ev the drive phase
+ * the runner's chain gives it (a period boundary next to the minimum of x goes to the same
+ * period). n samples; up to max records into out. */
+static long direct_cycle(const afm_config *cfg, long long n, bool ev, afm_cycle_metrics *out,
+                         long max) {
+    char err[AFM_ERR_LEN];
+    afm_sim *s = afm_twin_create(cfg, NULL, NULL, err, sizeof err);
+    afm_chain *c = s ? afm_chain_create(cfg, afm_sim_model(s), err, sizeof err) : NULL;
+    if (!c || afm_chain_attach(c, s, err, sizeof err)) {
+        check_true(false, err);
+        afm_chain_destroy(&c);
+        afm_sim_destroy(&s);
+        return 0;
+    }
+    static afm_step_events ring[4096];
+    static afm_sample smp[1000];
+    static const afm_step_events *evp[1000];
+    if (ev) afm_sim_set_events(s, ring, 4096);
+    long np = 0;
+    for (long long done = 0; done < n; done += 1000) {
+        afm_sim_run(s, 1000, smp);
+        for (int i = 0; i < 1000; i++)
+            evp[i] = ev ? afm_sim_events_at(s, smp[i].t_s) : NULL;
+        afm_chain_push_ev(c, smp, ev ? evp : NULL, 1000);
+        afm_chain_block b;
+        for (int st = 0; st < afm_chain_n_streams(c); st++)
+            while (afm_chain_take_block(c, st, &b, 0) > 0) {
+            }
+        afm_chain_period p[64];
+        int m;
+        while ((m = afm_chain_take_periods(c, p, 64)) > 0)
+            for (int i = 0; i < m && np < max; i++)
+                out[np++] = p[i].cycle;
+    }
+    afm_chain_destroy(&c);
+    afm_sim_destroy(&s);
+    return np;
+}
+
+/* The period metrics of cfg's twin from afm_cycle_push_ev on every sample with its record
+ * (afm_sim_events_at) and tone 0's phase by afm_drive_phase, exactly as tools/cmd_approach.c
+ * feeds them: no chain (its choice of the samples whose record matters is not used). */
+static long direct_cycle_plain(const afm_config *cfg, long long n, afm_cycle_metrics *out,
+                               long max) {
+    char err[AFM_ERR_LEN];
+    afm_sim *s = afm_twin_create(cfg, NULL, NULL, err, sizeof err);
+    if (!s) {
+        check_true(false, err);
+        return 0;
+    }
+    static afm_step_events ring[4096];
+    static afm_sample smp[1000];
+    afm_sim_set_events(s, ring, 4096);
+    const afm_force_params *f = afm_sim_forces(s);
+    const double z = afm_sim_separation(s);
+    afm_cycle c;
+    afm_cycle_init(&c, afm_force_contact_x(f, z), f->cos_alpha, err, sizeof err);
+    afm_cycle_set_forces(&c, f, z);
+    long np = 0;
+    for (long long done = 0; done < n; done += 1000) {
+        afm_sim_run(s, 1000, smp);
+        for (int i = 0; i < 1000; i++) {
+            double th = afm_drive_phase(afm_sim_drive(s), 0, smp[i].t_s);
+            if (afm_cycle_push_ev(&c, &smp[i], th, afm_sim_events_at(s, smp[i].t_s)) == 1 &&
+                np < max)
+                out[np++] = c.out;
+        }
+    }
+    afm_sim_destroy(&s);
+    return np;
+}
+
+/* The runner's period metrics of cfg over n samples in slices of `slice`, after cmd (if any)
+ * at sample 0; the status's ev_samples and samples into *ev_n, *n_s. */
+static long runner_cycle(const afm_config *cfg, long long n, long long slice, const afm_cmd *cmd,
+                         afm_cycle_metrics *out, long max, long long *ev_n, long long *n_s) {
+    char err[AFM_ERR_LEN];
+    afm_runner *r = afm_runner_create(cfg, 4096, false, err, sizeof err);
+    if (!r) {
+        check_true(false, err);
+        return 0;
+    }
+    if (cmd) afm_runner_apply(r, cmd, NULL, err, sizeof err);
+    long np = 0;
+    for (long long done = 0; done < n;) {
+        long long k = n - done < slice ? n - done : slice;
+        done += afm_runner_run(r, k);
+        afm_chain_block b;
+        for (int st = 0; st < afm_runner_n_streams(r); st++)
+            while (afm_runner_take_block(r, st, &b, 0) > 0) {
+            }
+        afm_chain_period p[64];
+        int m;
+        while ((m = afm_runner_take_periods(r, p, 64)) > 0)
+            for (int i = 0; i < m && np < max; i++)
+                out[np++] = p[i].cycle;
+    }
+    afm_runner_chain_status cs;
+    afm_runner_chain_status_get(r, &cs);
+    *ev_n = cs.ev_samples;
+    *n_s = cs.samples;
+    afm_runner_destroy(&r);
+    return np;
+}
+
+/* Worst relative difference of energy, contact time and min deflection of a vs b (periods
+ * matched by number; scale: the largest |value| of each metric in a). */
+static double cycle_diff_e(const afm_cycle_metrics *a, const afm_cycle_metrics *b, long n,
+                           double *w_e) {
+    double se = 0, sc = 0, sm = 0, w = 0, we = 0;
+    for (long i = 0; i < n; i++) {
+        se = fmax(se, fabs(a[i].dissipated_energy_j));
+        sc = fmax(sc, fabs(a[i].contact_time_s));
+        sm = fmax(sm, fabs(a[i].min_deflection_m));
+    }
+    for (long i = 0; i < n; i++) {
+        if (a[i].period != b[i].period) return INFINITY;
+        we = fmax(we, fabs(a[i].dissipated_energy_j - b[i].dissipated_energy_j) / se);
+        w = fmax(w, fabs(a[i].contact_time_s - b[i].contact_time_s) / sc);
+        w = fmax(w, fabs(a[i].min_deflection_m - b[i].min_deflection_m) / sm);
+    }
+    if (w_e) {
+        *w_e = we;
+        return w;
+    }
+    return fmax(w, we);
+}
+
+static double cycle_diff(const afm_cycle_metrics *a, const afm_cycle_metrics *b, long n) {
+    return cycle_diff_e(a, b, n, NULL);
+}
+
+static void test_step_events(void) {
+    char err[AFM_ERR_LEN];
+    afm_config cfg;
+    if (afm_config_load("config/probe-q300.conf", &cfg, err, sizeof err)) {
+        check_true(false, err);
+        return;
+    }
+    /* A0 10 nm at Z 8 nm: repulsive tapping, viscoelastic contact; 60000 samples = 1280
+       periods (settled) */
+    cfg.sim.rt_scheme = AFM_RT_SCHEME_ACCURATE;
+    cfg.forces.viscoelastic = true; /* a dissipative contact: energy well above rounding */
+    cfg.forces.eta_pa_s = 800.0;
+    const long long n = 60000;
+    enum { MAXP = 1400 };
+    static afm_cycle_metrics run[MAXP], dev[MAXP], dsm[MAXP], run2[MAXP];
+    long long ev_n, n_s;
+    long nr = runner_cycle(&cfg, n, 1000, NULL, run, MAXP, &ev_n, &n_s);
+    long nd = direct_cycle(&cfg, n, true, dev, MAXP);
+    long ns = direct_cycle(&cfg, n, false, dsm, MAXP);
+    long nc = nr < nd ? nr : nd;
+    double d_ev = cycle_diff(dev, run, nc), d_sm = cycle_diff(dsm, run, nc < ns ? nc : ns);
+    printf("  step events, accurate scheme: %ld / %ld / %ld periods (runner / direct with records "
+           "/ direct on samples), %lld of %lld samples with a record; runner vs records %.3g, "
+           "vs samples %.3g (worst relative energy, contact time, min deflection)\n",
+           nr, nd, ns, ev_n, n_s, d_ev, d_sm);
+    check_true(
+        nr > 1200 && labs(nr - nd) <= 1 && ev_n == n_s && n_s == n,
+        "step events: every sample of the accurate scheme reaches the chain with its record");
+    check_true(d_ev <= 1e-12,
+               "step events: the runner's period metrics are afm_cycle_push_ev's on the sim's "
+               "records (energy, contact time, min deflection within 1e-12 relative)");
+    check_true(d_sm > 1e-9, "step events: ... and not the samples' estimate");
+    /* afm_cycle_push_ev on every sample, no chain: the settled periods (from 300 on; in the
+       transient a minimum next to a period boundary may fall on either side with the two
+       phase computations' last bits). Those bits move the boundary by ~1e-16 of a period; the
+       energy is a difference of work sums ~1e4 times larger than itself (F v over a period),
+       so it is compared within 1e-10 of its largest value, the rest within 1e-12. */
+    static afm_cycle_metrics pl[MAXP];
+    long npl = direct_cycle_plain(&cfg, n, pl, MAXP);
+    long nc2 = (npl < nr ? npl : nr) - 300;
+    double d_pe = INFINITY,
+           d_pl = nc2 > 0 ? cycle_diff_e(pl + 300, run + 300, nc2, &d_pe) : INFINITY;
+    printf("  afm_cycle_push_ev on every sample (no chain): %ld periods; runner vs it from period "
+           "300: contact time and min deflection %.3g, energy %.3g\n",
+           npl, d_pl, d_pe);
+    check_true(nc2 > 900 && d_pl <= 1e-12 && d_pe <= 1e-10,
+               "step events: the runner's settled period metrics are those of afm_cycle_push_ev "
+               "fed every sample's record directly (contact time, min deflection within 1e-12 "
+               "relative, energy 1e-10)");
+    /* off by the key: the sample path */
+    afm_config off = cfg;
+    off.sim.step_events = AFM_STEP_EVENTS_OFF;
+    nr = runner_cycle(&off, n, 1000, NULL, run2, MAXP, &ev_n, &n_s);
+    double d_off = cycle_diff(dsm, run2, nr < ns ? nr : ns);
+    printf("  sim.step_events = \"off\": %lld samples with a record, runner vs samples %.3g\n",
+           ev_n, d_off);
+    check_true(ev_n == 0 && d_off <= 1e-12, "step events off: the samples' path");
+    /* the fast scheme does not record: the sample path, as before */
+    afm_config fast = cfg;
+    fast.sim.rt_scheme = AFM_RT_SCHEME_FAST;
+    nr = runner_cycle(&fast, n, 1000, NULL, run2, MAXP, &ev_n, &n_s);
+    ns = direct_cycle(&fast, n, false, dsm, MAXP);
+    d_off = cycle_diff(dsm, run2, nr < ns ? nr : ns);
+    printf("  fast scheme: %lld samples with a record, runner vs samples %.3g\n", ev_n, d_off);
+    check_true(ev_n == 0 && d_off <= 1e-12 && nr > 1200,
+               "fast scheme: no record, the samples' path unchanged");
+    /* a Z ramp (Z changes every 64 samples, inside items: sub-slices): every sample keeps its own
+       record, the same records for slices of 1000 and 777 samples */
+    afm_cmd c = {.kind = AFM_CMD_SETPOINT, .seq = 3, .u.setpoint = {7e-9, 1e-6}}; /* 1 ms */
+    long long ev2, n2;
+    nr = runner_cycle(&cfg, n, 1000, &c, run, MAXP, &ev_n, &n_s);
+    long nr2 = runner_cycle(&cfg, n, 777, &c, run2, MAXP, &ev2, &n2);
+    bool same = nr == nr2 && nr > 1200;
+    for (long i = 0; same && i < nr; i++)
+        same = memcmp(&run[i], &run2[i], sizeof run[i]) == 0;
+    printf("  Z ramp 8 -> 7 nm: %lld / %lld samples with a record, %ld / %ld periods\n", ev_n, n_s,
+           nr, nr2);
+    check_true(same && ev_n == n_s && ev2 == n2,
+               "step events through a Z ramp: every sample with its record, bit-identical for "
+               "slices of 1000 and 777");
+}
+
 int main(void) {
     afm_config cfg;
     char err[AFM_ERR_LEN];
@@ -772,5 +998,6 @@ int main(void) {
     test_phase_origin(&cfg);
     test_scan_slices(&cfg);
     test_am_force_a0(&cfg);
+    test_step_events();
     return check_done();
 }

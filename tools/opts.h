@@ -206,7 +206,8 @@ void afmt_progress_end(afmt_progress *p);
 /* The integrator's per-step record for the per-period metrics (afm_sim_set_events, then
  * afm_cycle_push_ev; issue 28): the offline tools take it unless the environment says
  * AFMTWIN_STEP_EVENTS=0 (the samples' estimator alone, to compare). Only the rt accurate scheme
- * and CVODE fill it; the fast scheme, ARKODE, thermal runs and the daemon's chain do not. */
+ * and CVODE fill it; the fast scheme, ARKODE and thermal runs do not. The daemon, `replay`
+ * and `curve` take it through the runner (afm_runner_step_events, sim.step_events). */
 bool afmt_step_events(void);
 /* When afmt_step_events(): a ring of 2 cap records (cap: the most samples a tool runs before
  * they reach its estimators) set on s (afm_sim_set_events); the ring, to free after s's last

@@ -50,6 +50,7 @@ void afm_config_defaults(afm_config *cfg) {
     s->integrator = AFM_INTEGRATOR_RT;
     s->rt_substeps_contact = 0; /* 0: the engine chooses */
     s->rt_scheme = AFM_RT_SCHEME_AUTO;
+    s->step_events = AFM_STEP_EVENTS_AUTO;
     s->ref_rtol = 1e-10;
     s->n_harmonics = 0; /* the estimators choose (afm_harm_default_list) */
 
@@ -583,24 +584,27 @@ static int load_drive(const loader *L, const config_setting_t *root, afm_cfg_dri
 }
 
 static int load_sim(const loader *L, const config_setting_t *root, afm_cfg_sim *s) {
-    static const char *const keys[] = {
-        "sample_rate_hz", "integrator", "rt_substeps_contact", "rt_scheme", "ref_rtol",
-        "harmonics",      NULL};
+    static const char *const keys[] = {"sample_rate_hz", "integrator",  "rt_substeps_contact",
+                                       "rt_scheme",      "step_events", "ref_rtol",
+                                       "harmonics",      NULL};
     static const char *const integrators[] = {"rt", "reference", "arkode-erk", NULL};
     static const char *const schemes[] = {"auto", "accurate", "fast", NULL};
+    static const char *const step_events[] = {"auto", "on", "off", NULL};
     config_setting_t *g, *h;
-    int integ = (int)s->integrator, scheme = (int)s->rt_scheme;
+    int integ = (int)s->integrator, scheme = (int)s->rt_scheme, ev = (int)s->step_events;
     if (get_group(L, root, "sim", false, &g)) return -1;
     if (!g) return 0;
     if (only_keys(L, g, keys) || get_num(L, g, "sample_rate_hz", false, &s->sample_rate_hz, NULL) ||
         get_choice(L, g, "integrator", false, integrators, &integ) ||
         get_int(L, g, "rt_substeps_contact", false, &s->rt_substeps_contact) ||
         get_choice(L, g, "rt_scheme", false, schemes, &scheme) ||
+        get_choice(L, g, "step_events", false, step_events, &ev) ||
         get_num(L, g, "ref_rtol", false, &s->ref_rtol, NULL) ||
         member(L, g, "harmonics", false, &h))
         return -1;
     s->integrator = (afm_integrator_kind)integ;
     s->rt_scheme = (afm_rt_scheme_kind)scheme;
+    s->step_events = (afm_step_events_kind)ev;
     if (h) {
         int t = config_setting_type(h), n = config_setting_length(h);
         if (t != CONFIG_TYPE_ARRAY && t != CONFIG_TYPE_LIST)

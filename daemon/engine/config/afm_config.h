@@ -43,6 +43,18 @@ typedef enum {
     AFM_RT_SCHEME_FAST = 2
 } afm_rt_scheme_kind;
 
+/* The integrator's per-step record (integrators/afm_rt_events.h: crossings, min of x, work)
+ * for the per-period metrics (sim.step_events, issue 28). on: the runner hands it to the
+ * chain wherever the scheme in force records (rt accurate without thermal noise, CVODE);
+ * off: the metrics from the samples alone; auto: on, but the daemon's real-time `--scheme
+ * auto` drops it (rather than the accurate scheme) when only the scheme without it fits the
+ * budget (daemon/scheme.c). AFMTWIN_STEP_EVENTS=0 in the environment turns it off too. */
+typedef enum {
+    AFM_STEP_EVENTS_AUTO = 0,
+    AFM_STEP_EVENTS_ON = 1,
+    AFM_STEP_EVENTS_OFF = 2
+} afm_step_events_kind;
+
 /* Euler-Bernoulli beam (thesis ch. 3.2, Table E.1). Width and height vary linearly from
  * the clamp (index 0) to the free end (index 1); equal values give a uniform beam. */
 typedef struct {
@@ -124,6 +136,7 @@ typedef struct {
     afm_integrator_kind integrator;
     int rt_substeps_contact; /* substeps per sample while in contact (rt); default set by engine */
     afm_rt_scheme_kind rt_scheme;     /* sim.rt_scheme: auto (default), accurate, fast */
+    afm_step_events_kind step_events; /* sim.step_events: auto (default), on, off */
     double ref_rtol;                  /* CVODE relative tolerance; default 1e-10 */
     int n_harmonics;                  /* 0: the estimators choose 1, 2, 3 and the harmonics
                                          nearest f2/fe and f3/fe */

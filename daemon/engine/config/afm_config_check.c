@@ -199,6 +199,9 @@ static int check_drive_sim(const afm_config *c, char *key, char *why, size_t why
     NEED(s->rt_scheme == AFM_RT_SCHEME_AUTO || s->rt_scheme == AFM_RT_SCHEME_ACCURATE ||
              s->rt_scheme == AFM_RT_SCHEME_FAST,
          "sim.rt_scheme", "unknown scheme %d", (int)s->rt_scheme);
+    NEED(s->step_events == AFM_STEP_EVENTS_AUTO || s->step_events == AFM_STEP_EVENTS_ON ||
+             s->step_events == AFM_STEP_EVENTS_OFF,
+         "sim.step_events", "unknown value %d (auto, on or off)", (int)s->step_events);
     NEED(isfinite(s->ref_rtol) && s->ref_rtol > 0 && s->ref_rtol < 1e-2, "sim.ref_rtol",
          "must be in (0, 1e-2) (got %g)", s->ref_rtol);
     NEED(s->n_harmonics >= 0 && s->n_harmonics <= AFM_MAX_HARMONICS, "sim.harmonics",

@@ -372,13 +372,31 @@ static void retune(afm_chain *c, const double *th) {
     if (c->cycle.trk.locked) afm_track_rebase(&c->cycle.trk, th_prev, c->phase.wdt);
 }
 
+/* e (the record of s[a]'s step, or NULL) when afm_cycle_push_ev would use it, else NULL: a
+ * step with no crossing, no minimum of its own (one free piece) and both ends above the
+ * cycle's near-contact gap (with the force law) leaves afm_cycle's sample path as it is
+ * (afm_cycle.c: step_plain, step_boundary), so such samples go through afm_cycle_push_n's
+ * vector runs, with the same bits (afm_cycle_push_ev on every sample costs the chain thread
+ * ~2.5x on a lumped probe). The step's start is s[a - 1], or the cycle's last sample for
+ * a = 0; a non-finite end keeps the record (afm_cycle_push rejects the sample). */
+static inline const afm_step_events *ev_used(const afm_chain *c, const afm_sample *s, int a,
+                                             const afm_step_events *e) {
+    if (!e || !isnan(e->x_min_m) || e->n_in + e->n_out != 0) return e;
+    const afm_cycle *y = &c->cycle;
+    const double xp = a > 0 ? s[a - 1].x_m : y->n_prev > 0 ? y->prev.x_m : NAN;
+    if (y->forces && !(xp >= y->x_near_m && s[a].x_m >= y->x_near_m)) return e;
+    return NULL;
+}
+
 /* The estimators over n samples (f their tip-sample forces), with tone 0's phase from
  * afm_phase_gen. harm and cycle share the period clock: each run ends at a sample where harm
  * completed a period, and cycle and lockin are brought to the same sample before the record
- * is written. estimator_rejects
+ * is written. ev (NULL: none) the integrator's records of the samples (afm_chain_push_ev):
+ * a sample with one goes through afm_cycle_push_ev, a run without through afm_cycle_push_n
+ * (the same bits as afm_cycle_push). estimator_rejects
  * counts, per run, the most samples any one estimator refused. */
 static void estimators(afm_chain *c, const afm_sample *s, const double *obd, const double *f,
-                       int n) {
+                       const afm_step_events *const *ev, int n) {
     double th[CHUNK];
     if (afm_phase_gen_run(&c->phase, c->drive, s, n, th) == AFM_PHASE_STEP) retune(c, th);
     for (int i = 0; i < n;) {
@@ -386,7 +404,18 @@ static void estimators(afm_chain *c, const afm_sample *s, const double *obd, con
         int done, dc;
         int k = afm_harm_push_n(&c->harm, obd + i, f + i, th + i, n - i, &done, &rh);
         for (int j = 0; j < k;) {
-            j += afm_cycle_push_n(&c->cycle, s + i + j, th + i + j, k - j, &dc, &rc);
+            const int a = i + j;
+            const afm_step_events *e = ev ? ev_used(c, s, a, ev[a]) : NULL;
+            if (e) {
+                if (afm_cycle_push_ev(&c->cycle, s + a, th[a], e) < 0) rc++;
+                j++;
+                continue;
+            }
+            int m = 1; /* the run of samples whose record is not used */
+            while (ev && j + m < k && !ev_used(c, s, a + m, ev[a + m]))
+                m++;
+            if (!ev) m = k - j;
+            j += afm_cycle_push_n(&c->cycle, s + a, th + a, m, &dc, &rc);
         }
         rl = afm_lockin_push_n(&c->lockin, obd + i, th + i, k);
         long long r = rh > rc ? rh : rc;
@@ -396,7 +425,7 @@ static void estimators(afm_chain *c, const afm_sample *s, const double *obd, con
     }
 }
 
-int afm_chain_push(afm_chain *c, const afm_sample *s, int n) {
+int afm_chain_push_ev(afm_chain *c, const afm_sample *s, const afm_step_events *const *ev, int n) {
     double obd_buf[CHUNK], f_buf[CHUNK];
     for (int done = 0; done < n;) {
         int k = n - done < CHUNK ? n - done : CHUNK;
@@ -414,12 +443,16 @@ int afm_chain_push(afm_chain *c, const afm_sample *s, int n) {
             for (int i = 0; i < k; i++)
                 f_buf[i] = p[i].f_n;
         }
-        if (c->attached) estimators(c, p, obd_buf, f_buf, k);
+        if (c->attached) estimators(c, p, obd_buf, f_buf, ev ? ev + done : NULL, k);
         run_streams(c, p, obd_buf, f_buf, k);
         c->stats.pushed += k;
         done += k;
     }
     return 0;
+}
+
+int afm_chain_push(afm_chain *c, const afm_sample *s, int n) {
+    return afm_chain_push_ev(c, s, NULL, n);
 }
 
 int afm_chain_take_block(afm_chain *c, int i, afm_chain_block *b, int max_n) {

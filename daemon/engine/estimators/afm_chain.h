@@ -105,6 +105,13 @@ int afm_chain_set_separation(afm_chain *c, double z_m);
 
 /* Process n full-rate samples (time-ordered, uniformly spaced). Returns 0. */
 int afm_chain_push(afm_chain *c, const afm_sample *s, int n);
+/* afm_chain_push with the integrator's record of each sample's step (ev[i]: s[i]'s,
+ * afm_sim_events_at; NULL entries, or ev NULL: none): the cycle metrics of a sample with a
+ * record come from afm_cycle_push_ev (crossings, min of x, tip-sample work as the integrator
+ * knows them; issue 28), the others' as afm_chain_push computes them, bit for bit (the
+ * runner's daemon path, runner/afm_runner.c). Harmonics, lock-in and streams do not use the
+ * records. Returns 0. */
+int afm_chain_push_ev(afm_chain *c, const afm_sample *s, const afm_step_events *const *ev, int n);
 
 /* The oldest waiting samples of stream i, at most max_n (<= 0: all that are contiguous).
  * Returns b->n; 0 when nothing waits, -1 for a bad stream index. */

@@ -77,8 +77,9 @@ int afm_sim_set_thermal(afm_sim *s, const afm_cfg_thermal *t, char *err, size_t 
  * step count k is recorded in ring[k % cap] (the caller's; kept, not copied; NULL or cap < 1:
  * none, the state at create). The rt backend's accurate scheme without thermal noise records,
  * in its own copy of the sample loop (docs/numerics.md: its cost per sample; nothing without a
- * ring), and CVODE from its dense output (its own steps, same samples). Offline tools; not for
- * the real-time path. */
+ * ring), and CVODE from its dense output (its own steps, same samples). No allocation: it
+ * marks the cap entries empty (O(cap)) and keeps the pointer, so the runner points it at each
+ * ring item it opens on the real-time thread (runner/afm_runner.c). */
 void afm_sim_set_events(afm_sim *s, afm_step_events *ring, int cap);
 /* The record of the step whose sample is at t_s (a sample's t_s as afm_sim_run wrote it), or
  * NULL when it was not recorded (another backend or scheme, thermal noise, overwritten). */

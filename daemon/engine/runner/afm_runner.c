@@ -10,6 +10,9 @@
  *  - the back (chain side): the output chain, attached to a mirror of the simulator
  *    (afm_sim_mirror_create) that the items keep in step; it pushes the samples and
  *    applies the changes in ring order.
+ * With the integrator's per-step record on (afm_runner_step_events; issue 28), a SAMPLES item
+ * also carries the record of each of its samples (ev), which the back hands to the chain
+ * (afm_chain_push_ev) in place of re-deriving crossings, minimum and work from the samples.
  * Inline (afm_runner_create) the back runs on the caller's thread right after every item;
  * pipelined (afm_runner_create_pipelined) on a thread of the caller's. Either way the
  * chain sees the same calls with the same data in the same order: the outputs are
@@ -83,6 +86,18 @@ typedef struct {
     double lat_z_m, lat_x_m, lat_y_m, lat_h_m; /* stage Z, tip x, y, true height z_s */
     int lat_mat;
     afm_sample s[SLOT];
+    /* The integrator's records (afm_rt_events.h) of samples [ev_begin, ev_end): the
+     * simulator's ring is this array while the item is open (front_events_attach), so each
+     * record is written once, by the integrator, straight where the back reads it: no copy
+     * on the real-time thread, no allocation (the array is part of the ring's slot), and the
+     * simulator never holds a committed item (detached at commit). The step ending at sample
+     * i (ev_begin <= i < ev_end) is ev_step0 + i, its record at ev[(ev_step0 + i) % SLOT]
+     * when that entry's step says so (else none: the fast scheme, thermal noise, or steps
+     * overwritten after a blow-up). ev_end == ev_begin: no record in this item. */
+    int ev_begin, ev_end;
+    bool ev_broken; /* a blow-up in this item: no record after it */
+    long ev_step0;
+    afm_step_events ev[SLOT];
 } ring_item;
 
 /* A change item waiting for ring space (no samples). */
@@ -125,6 +140,7 @@ struct afm_runner {
     int64_t tick_seq, step_seq; /* the last tick and step commands applied (IT_DONE names
                                  * the one whose budget was used up) */
     ring_item *open;            /* reserved, being filled; committed at the end of every run */
+    bool ev_on; /* the integrator's per-step record into the items (afm_runner_step_events) */
     /* internal FM control (fm.control = "internal", issue 32): the PLL and amplitude loops on
      * tone 0, fed by a lock-in of their own on the front's samples (the chain's is on the
      * other thread) */
@@ -179,6 +195,8 @@ struct afm_runner {
     afm_runner_oppoint b_pop[AFM_CHAIN_PERIOD_RING];
     int b_pop_head, b_pop_n;
     long long b_samples, b_items, b_attach_errors, b_trash_lost;
+    const afm_step_events *b_ev[SLOT];  /* the item's samples' records (NULL: none) */
+    long long b_ev_samples;             /* samples whose metrics took a record */
     afm_runner_model *held[TRASH_HELD]; /* trash waiting for space */
     int n_held;
     bool b_done_waiting; /* a DONE item passed, not yet taken (afm_runner_take_done) */
@@ -295,6 +313,25 @@ static void back_pop_take(afm_runner *r, int n, afm_runner_oppoint *ops) {
     }
 }
 
+/* The records of the item's samples into r->b_ev (afm_runner_step_events): true when at least
+ * one sample has one. */
+static bool back_events(afm_runner *r, const ring_item *it) {
+    if (it->ev_end <= it->ev_begin) return false;
+    int n = 0;
+    for (int i = 0; i < it->n; i++) {
+        const afm_step_events *e = NULL;
+        if (i >= it->ev_begin && i < it->ev_end) {
+            long step = it->ev_step0 + i;
+            e = step >= 0 ? &it->ev[step % SLOT] : NULL;
+            if (e && e->step != step) e = NULL;
+        }
+        r->b_ev[i] = e;
+        n += e != NULL;
+    }
+    r->b_ev_samples += n;
+    return n > 0;
+}
+
 static void back_item(afm_runner *r, ring_item *it) {
     switch (it->kind) {
     case IT_SAMPLES: {
@@ -310,6 +347,7 @@ static void back_item(afm_runner *r, ring_item *it) {
         /* Sub-slices between the changes of Z (zc) and of the stage Z and tip (lc), so that
          * every period record gets the operating point of the sample it ended on, however
          * the samples were sliced into items (replay = daemon, bit for bit). */
+        const bool ev = back_events(r, it);
         int from = 0, iz = 0, il = 0;
         while (from < it->n || iz < it->n_zc || il < it->n_lc) {
             while (iz < it->n_zc && it->zc[iz].at <= from)
@@ -331,7 +369,10 @@ static void back_item(afm_runner *r, ring_item *it) {
                 continue;
             }
             long long p0 = afm_chain_periods(r->chain);
-            afm_chain_push(r->chain, it->s + from, to - from);
+            if (ev) /* each sample with its own record, however the item is sub-sliced */
+                afm_chain_push_ev(r->chain, it->s + from, r->b_ev + from, to - from);
+            else
+                afm_chain_push(r->chain, it->s + from, to - from);
             for (long long k = afm_chain_periods(r->chain) - p0; k > 0; k--)
                 back_pop_put(r);
             from = to;
@@ -418,6 +459,7 @@ void afm_runner_chain_status_get(const afm_runner *r, afm_runner_chain_status *s
     st->samples = r->b_samples;
     st->attach_errors = r->b_attach_errors;
     st->trash_lost = r->b_trash_lost;
+    st->ev_samples = r->b_ev_samples;
     st->chain = afm_chain_stats_get(r->chain);
 }
 
@@ -428,8 +470,15 @@ static void inline_back(afm_runner *r) {
     if (!r->pipelined) afm_runner_chain_run(r, 0);
 }
 
+/* The simulator records into the open item (front_events_attach) and nowhere else: detached
+ * before the item goes to the back, and before the simulator is swapped out. */
+static void front_events_detach(afm_runner *r) {
+    if (r->ev_on) afm_sim_set_events(r->sim, NULL, 0);
+}
+
 static void commit_open(afm_runner *r) {
     if (!r->open) return;
+    front_events_detach(r);
     afm_spsc_commit(&r->ring);
     r->open = NULL;
     inline_back(r);
@@ -522,9 +571,30 @@ static ring_item *open_item(afm_runner *r) {
     it->z0_m = afm_sim_separation(r->sim);
     it->drive = *afm_sim_drive(r->sim);
     it->model = NULL;
+    it->ev_begin = it->ev_end = 0;
+    it->ev_broken = false;
+    it->ev_step0 = 0;
+    if (r->ev_on) afm_sim_set_events(r->sim, it->ev, SLOT); /* clears SLOT steps: O(SLOT) */
     item_lat(r, it);
     r->open = it;
     return it;
+}
+
+/* After a run of k samples into it at it->n: where its samples' records are (ring_item.ev).
+ * The first run whose first sample has a record sets the base; later runs extend it while
+ * the steps stay consecutive (no blow-up). One look-up per run, none per sample. */
+static void front_events_note(afm_runner *r, ring_item *it, int k) {
+    const int n0 = it->n;
+    if (it->ev_broken) return;
+    if (it->ev_end > it->ev_begin) {
+        if (it->ev_end == n0) it->ev_end = n0 + k;
+        return;
+    }
+    const afm_step_events *e = afm_sim_events_at(r->sim, it->s[n0].t_s);
+    if (!e || e < it->ev || e >= it->ev + SLOT) return;
+    it->ev_step0 = e->step - n0;
+    it->ev_begin = n0;
+    it->ev_end = n0 + k;
 }
 
 /* ---- internal FM control ----------------------------------------------------------- */
@@ -682,6 +752,13 @@ static int lat_materials(const afm_runner *r, const afm_config *c, afm_force_par
                          size_t errlen);
 static void lat_place(afm_runner *r, double x, double y, bool emit_forces, bool force);
 
+bool afm_runner_step_events(const afm_config *cfg) {
+    const char *env = getenv("AFMTWIN_STEP_EVENTS");
+    if (cfg->sim.step_events == AFM_STEP_EVENTS_OFF || (env && strcmp(env, "0") == 0)) return false;
+    if (cfg->sim.integrator == AFM_INTEGRATOR_REFERENCE) return true;
+    return cfg->sim.integrator == AFM_INTEGRATOR_RT && !cfg->thermal.enabled;
+}
+
 afm_runner *afm_runner_create_pipelined(const afm_config *cfg, int block_max, bool lockstep,
                                         bool pipelined, int ring_items, char *err, size_t errlen) {
     if (!cfg || block_max < 1 || block_max > (1 << 24)) {
@@ -732,6 +809,7 @@ afm_runner *afm_runner_create_pipelined(const afm_config *cfg, int block_max, bo
     r->b_seq = -1;
     r->b_t_s = afm_sim_time(r->sim);
     r->last_blowup_t_s = NAN;
+    r->ev_on = afm_runner_step_events(cfg);
     if (fm_setup(r, err, errlen)) goto fail; /* may set tone 0: before the back's view */
     if (zc_setup(r, a0_m, err, errlen)) goto fail;
     {
@@ -1023,6 +1101,7 @@ static int swap_in(afm_runner *r, afm_runner_model *m, unsigned what, bool take_
         return -1;
     }
     if (attach_ok(m->sim, err, errlen)) return -1;
+    front_events_detach(r); /* the open item is committed (emit) before m->sim runs */
     afm_sim *old_sim = r->sim;
     r->sim = m->sim;
     m->sim = old_sim;
@@ -1312,6 +1391,7 @@ long long afm_runner_run(afm_runner *r, long long n) {
         int rc = afm_sim_run(r->sim, (int)k, it->s + it->n);
         long long adv = k;
         if (rc == AFM_SIM_OK) {
+            if (r->ev_on) front_events_note(r, it, (int)k);
             it->n += (int)k;
             item_lat(r, it);
         } else {
@@ -1331,9 +1411,13 @@ long long afm_runner_run(afm_runner *r, long long n) {
                     : 1;
             r->blowups++;
             r->last_blowup_t_s = t_b;
-            if (it->n == 0) r->open = NULL; /* nothing in it: the slot stays free */
-            emit(r, IT_RESET, NULL);        /* may stay pending; run flushes it first next time */
-            if (adv <= 0) break; /* the integrator cannot even start: report, go no further */
+            it->ev_broken = true; /* the blown-up steps' records may sit in its slots */
+            if (it->n == 0) {     /* nothing in it: the slot stays free */
+                front_events_detach(r);
+                r->open = NULL;
+            }
+            emit(r, IT_RESET, NULL); /* may stay pending; run flushes it first next time */
+            if (adv <= 0) break;     /* the integrator cannot even start: report, go no further */
         }
         r->samples += adv;
         done += adv;

@@ -119,6 +119,16 @@ typedef struct afm_runner afm_runner;
  * to be swapped in. After afm_runner_apply the same handle holds what was swapped out. */
 typedef struct afm_runner_model afm_runner_model;
 
+/* Whether a runner of cfg hands the integrator's per-step record (integrators/afm_rt_events.h:
+ * crossings, min of x, tip-sample work) to its chain's cycle metrics (afm_chain_push_ev;
+ * issue 28): sim.step_events not "off", AFMTWIN_STEP_EVENTS not "0" in the environment (as
+ * the offline tools, tools/opts.h), and an integrator that records: CVODE, or rt without
+ * thermal noise (whose accurate scheme records; the fast scheme does not, and its samples
+ * keep the sample path: a hand-over switches per sample). Read once, at create. The record
+ * costs the integrator thread (~+41 % per sample, docs/numerics.md); the daemon's `--scheme
+ * auto` measures the accurate scheme with it (runner/afm_scheme_cost.h). */
+bool afm_runner_step_events(const afm_config *cfg);
+
 /* Build the twin of cfg. block_max: the largest slice afm_runner_run processes in one
  * integrator call (sizes the sample buffer; larger n are split). lockstep: the twin
  * advances only by tick budget (see afm_runner_run). The config's drive must pass the
@@ -228,6 +238,7 @@ typedef struct {
     double t_s;            /* model time of the last sample the chain took */
     long long samples;     /* samples the chain took */
     long long attach_errors, trash_lost; /* should stay 0 */
+    long long ev_samples; /* samples whose cycle metrics took the integrator's record */
     afm_chain_stats chain;
 } afm_runner_chain_status;
 void afm_runner_chain_status_get(const afm_runner *r, afm_runner_chain_status *st);

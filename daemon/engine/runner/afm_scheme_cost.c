@@ -2,6 +2,7 @@
 /* afm_scheme_cost.c -- per-sample cost of each rt scheme on a model (see afm_scheme_cost.h). */
 #include "runner/afm_scheme_cost.h"
 
+#include "runner/afm_runner.h"
 #include "runner/afm_twin.h"
 
 #include <math.h>
@@ -14,15 +15,18 @@ static double mono_s(void) {
     return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
 }
 
-/* ns per sample of cfg's twin in scheme sc at separation z_m: the median window. */
-static double state_ns(const afm_config *cfg, afm_rt_scheme_kind sc, double z_m, char *err,
+/* ns per sample of cfg's twin in scheme sc at separation z_m: the median window. With ev, the
+ * integrator records every step (afm_sim_set_events), as in the runner with the record on. */
+static double state_ns(const afm_config *cfg, afm_rt_scheme_kind sc, double z_m, bool ev, char *err,
                        size_t errlen) {
     static afm_config c; /* large; one caller at a time (start-up, tools) */
+    static afm_step_events ring[AFM_RUNNER_SLOT_SAMPLES]; /* the runner's item holds as many */
     c = *cfg;
     c.sim.integrator = AFM_INTEGRATOR_RT;
     c.sim.rt_scheme = sc;
     afm_sim *s = afm_twin_create(&c, NULL, NULL, err, errlen);
     if (!s) return -1;
+    if (ev) afm_sim_set_events(s, ring, AFM_RUNNER_SLOT_SAMPLES);
     double dt = afm_sim_dt(s), t[AFM_SCHEME_REPEATS];
     if (afm_sim_set_separation(s, z_m) != AFM_SIM_OK) {
         afm_sim_destroy(&s);
@@ -50,9 +54,15 @@ static double state_ns(const afm_config *cfg, afm_rt_scheme_kind sc, double z_m,
 int afm_scheme_cost_measure(const afm_config *cfg, afm_rt_scheme_kind scheme, afm_scheme_cost *out,
                             char *err, size_t errlen) {
     const double z0 = cfg->drive.separation_m, zs[AFM_SCHEME_STATES] = {z0, 0.5 * z0, 1e-6};
+    static afm_config c;
+    c = *cfg;
+    c.sim.integrator = AFM_INTEGRATOR_RT;
+    c.sim.rt_scheme = scheme;
+    /* the record as a runner of cfg makes it: only the accurate scheme records */
+    out->step_events = scheme == AFM_RT_SCHEME_ACCURATE && afm_runner_step_events(&c);
     out->worst_ns = 0;
     for (int i = 0; i < AFM_SCHEME_STATES; i++) {
-        out->ns[i] = state_ns(cfg, scheme, zs[i], err, errlen);
+        out->ns[i] = state_ns(cfg, scheme, zs[i], out->step_events, err, errlen);
         if (out->ns[i] < 0) return -1;
         if (out->ns[i] > out->worst_ns) out->worst_ns = out->ns[i];
     }
