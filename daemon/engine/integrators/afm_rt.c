@@ -370,6 +370,7 @@ static int rt_init(afm_sim *s, char *err, size_t errlen) {
     rt_tables_use(r, acc);
     r->kinked = s->f.vdw_contact || s->f.capillary || s->f.electrostatic;
     r->clear_k = 4.0 / 27.0 * s->dt_s;
+    r->sure_k = RT_ACC_SURE * (r->clear_k + RT_ACC_NEAR_TRAVELS * s->dt_s);
     /* F tolerance on the estimated next Newton correction: 1e-3 of the force that bends the
      * cantilever by 1 nm (1 pm of deflection). Measured (tests/test_rt_accuracy.c): error_rel
      * against CVODE is the same as with 1e-5 on all four models, while contact pieces take

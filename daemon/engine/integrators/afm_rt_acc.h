@@ -43,7 +43,7 @@ static inline __attribute__((always_inline)) void
 rt_piece_acc_t(const afm_sim *s, const rt_state *r, const rt_snap *in, rt_snap *o, int k, bool herm,
                const int np, const int nt, const bool noise) {
     const afm_rt_prop *P = &r->prop[k - 1];
-    const double *c = P->c, *ch = P->c + AFM_RT_ROW_GC * np;
+    const double *c = P->c, *ch = P->c + AFM_RT_ROW_GC * np, *c01 = P->c + AFM_RT_ROW_GD01 * np;
     const double F0 = in->tip.f_n, tau = P->tau_s;
     const double D0 = herm ? tau * in->fdot_n_s : 0.0;
     double nq[AFM_MAX_MODES] __attribute__((aligned(32)));
@@ -56,12 +56,10 @@ rt_piece_acc_t(const afm_sim *s, const rt_state *r, const rt_snap *in, rt_snap *
         vs4 = rt_fma4(RT_V4(c + 10 * np + i), q, rt_fma4(RT_V4(c + 11 * np + i), v, vs4));
     }
     rt_hsum2(xs4, vs4, &xs, &vs);
-    double gxe = P->gx, gve = P->gv;
+    double gxe = herm ? P->hx1 : P->gx, gve = herm ? P->hv1 : P->gv;
     if (herm) { /* F0 (1 + c) + D0 (h10 + h11), and F1 (sigma - c) */
-        xs = fma(P->gx0 + P->gcx, F0, fma(P->gd0x + P->gd1x, D0, xs));
-        vs = fma(P->gv0 + P->gcv, F0, fma(P->gd0v + P->gd1v, D0, vs));
-        gxe -= P->gcx;
-        gve -= P->gcv;
+        xs = fma(P->hx0, F0, fma(P->hd0x, D0, xs));
+        vs = fma(P->hv0, F0, fma(P->hd0v, D0, vs));
     } else {
         xs = fma(P->gx0, F0, xs);
         vs = fma(P->gv0, F0, vs);
@@ -91,10 +89,8 @@ rt_piece_acc_t(const afm_sim *s, const rt_state *r, const rt_snap *in, rt_snap *
                           rt_fma4(RT_V4(c + 3 * np + i), v,
                                   rt_fma4(RT_V4(c + 5 * np + i), f0, RT_V4(c + 7 * np + i) * f1)));
         if (herm) { /* D1 = D0 for now: Gd0 + Gd1 */
-            a = rt_fma4(RT_V4(ch + i), fc,
-                        rt_fma4(RT_V4(ch + 2 * np + i) + RT_V4(ch + 4 * np + i), d0, a));
-            w = rt_fma4(RT_V4(ch + np + i), fc,
-                        rt_fma4(RT_V4(ch + 3 * np + i) + RT_V4(ch + 5 * np + i), d0, w));
+            a = rt_fma4(RT_V4(ch + i), fc, rt_fma4(RT_V4(c01 + i), d0, a));
+            w = rt_fma4(RT_V4(ch + np + i), fc, rt_fma4(RT_V4(c01 + np + i), d0, w));
         }
         if (noise) {
             a += RT_V4(nq + i);
@@ -222,9 +218,13 @@ static inline __attribute__((always_inline)) void rt_graded_acc(const afm_sim *s
     const rt_snap *in = a;
     for (int p = 0; p < K; p++) {
         rt_snap *o = p == K - 1 ? b : &t[p & 1];
-        rt_piece_acc_t(s, r, in, o, k, true, np, nt, false);
-        const bool near = (in->tip.x_m < xc && xc - in->tip.x_m < close * fabs(in->tip.v_m_s)) ||
-                          (o->tip.x_m < xc && xc - o->tip.x_m < close * fabs(o->tip.v_m_s));
+        /* a start in contact close to the line: the piece is redone whatever its end, so
+         * it is not taken whole first (its result would be discarded) */
+        bool near = in->tip.x_m < xc && xc - in->tip.x_m < close * fabs(in->tip.v_m_s);
+        if (!near) {
+            rt_piece_acc_t(s, r, in, o, k, true, np, nt, false);
+            near = o->tip.x_m < xc && xc - o->tip.x_m < close * fabs(o->tip.v_m_s);
+        }
         if (near || rt_crossing_cell(r, in, o, tau, false) >= 0) {
             const rt_snap *x = in;
             for (int j = 0; j < sub; j++) {
@@ -263,7 +263,13 @@ static inline __attribute__((always_inline)) int rt_run_acc_t(afm_sim *s, rt_sta
         if (evs) rt_ev_step_begin(ea);
         rt_snap *b = a == &r->buf[0] ? &r->buf[1] : &r->buf[0];
         const bool at_once = r->kinked && a->tip.x_m < r->xc;
-        bool contact = at_once;
+        /* Without noise, a start so close to the line that the free step's low bound (below)
+         * is certainly in the band: no trial step (its result would be discarded). The path's
+         * low bound is at most x0 - clear_k |v0| and the band at least NEAR_TRAVELS |v0| dt;
+         * the margin RT_ACC_SURE keeps a rounding at the edge from taking a sample the trial
+         * would have kept. */
+        bool contact =
+            at_once || (!noise && r->kinked && a->tip.x_m - r->xc < r->sure_k * fabs(a->tip.v_m_s));
         if (!contact) {
             rt_piece_acc_t(s, r, a, b, r->ncell, true, np, nt, noise);
             if (r->kinked) {
@@ -280,7 +286,7 @@ static inline __attribute__((always_inline)) int rt_run_acc_t(afm_sim *s, rt_sta
              * the indentation; substeps only for the pieces at the contact line */
             rt_graded_acc(s, r, a, b, np, nt, ea);
         else if (contact)
-            b = rt_contact_acc(s, r, a, b, noise && !at_once, ea);
+            b = rt_contact_acc(s, r, a, b, noise && !at_once, ea); /* noise: trial taken */
         else if (evs)
             rt_ev_piece(ea, s, r, b, 1.0, true);
         a = b;

@@ -138,7 +138,15 @@ void afm_rt_coef_hermite(afm_rt_prop *p, int n, int np, const double *w, const d
         p->gd0v += tip[i] * c[3 * np + i];
         p->gd1x += tip[i] * c[4 * np + i];
         p->gd1v += tip[i] * c[5 * np + i];
+        c[(AFM_RT_ROW_GD01 - AFM_RT_ROW_GC) * np + i] = c[2 * np + i] + c[4 * np + i];
+        c[(AFM_RT_ROW_GD01 - AFM_RT_ROW_GC + 1) * np + i] = c[3 * np + i] + c[5 * np + i];
     }
+    p->hx0 = p->gx0 + p->gcx;
+    p->hd0x = p->gd0x + p->gd1x;
+    p->hv0 = p->gv0 + p->gcv;
+    p->hd0v = p->gd0v + p->gd1v;
+    p->hx1 = p->gx - p->gcx;
+    p->hv1 = p->gv - p->gcv;
 }
 
 void afm_rt_coef_chain(afm_rt_prop *p, const afm_rt_prop *pf, int np) {

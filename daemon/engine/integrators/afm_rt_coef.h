@@ -26,15 +26,18 @@
  * (zeros past n). c points into a block the owner allocates: AFM_RT_COEF_ROWS np doubles
  * (p11, p12, p21, p22, g0q, g0v, g1q, g1v, then tip_i times p11, p12, p21, p22: the rows
  * that give x and x' directly; then the accurate scheme's Hermite rows gcq, gcv, gd0q, gd0v,
- * gd1q, gd1v (afm_rt_coef_hermite; zero until it is called); np each).
+ * gd1q, gd1v (afm_rt_coef_hermite; zero until it is called), then gd0q + gd1q, gd0v + gd1v (the
+ * response to D0 while D1 is held at D0: the accurate scheme's solve, summed once here); np
+ * each).
  *
  * The accurate scheme takes the force over a step as the cubic Hermite interpolant of F0,
  * F1 and D0 = tau F'(0), D1 = tau F'(tau): in sigma = s / tau,
  *   F(sigma) = F0 (1 - sigma) + F1 sigma + (F0 - F1) c(sigma) + D0 h10(sigma) + D1 h11(sigma),
  *   c = sigma - 3 sigma^2 + 2 sigma^3, h10 = sigma - 2 sigma^2 + sigma^3, h11 = sigma^3 - sigma^2,
  * so its response is the linear one (G0, G1) plus Gc (F0 - F1) + Gd0 D0 + Gd1 D1. */
-#define AFM_RT_COEF_ROWS 18
-#define AFM_RT_ROW_GC 12 /* first Hermite row: gcq; gcv, gd0q, gd0v, gd1q, gd1v follow */
+#define AFM_RT_COEF_ROWS 20
+#define AFM_RT_ROW_GC 12   /* first Hermite row: gcq; gcv, gd0q, gd0v, gd1q, gd1v follow */
+#define AFM_RT_ROW_GD01 18 /* gd0q + gd1q; gd0v + gd1v follows */
 typedef struct {
     double tau_s;
     double gx, gv;                                       /* sum_i tip_i G1_i: d(x, v)(tau) / dF1 */
@@ -48,6 +51,10 @@ typedef struct {
     double hx, hv; /* d(x*, v*) / dF1 of a full step that follows this one (coef_chain) */
     /* sum_i tip_i of the Hermite rows: d(x, v)(tau) / d(F0 - F1), / dD0, / dD1 */
     double gcx, gcv, gd0x, gd0v, gd1x, gd1v;
+    /* the same sums as the accurate scheme's solve takes them (D1 held at D0, F1 with the
+     * Hermite correction): gx0 + gcx, gd0x + gd1x, gv0 + gcv, gd0v + gd1v, gx - gcx, gv - gcv
+     * (afm_rt_coef_hermite; each rounded once, as the sum at run time was) */
+    double hx0, hd0x, hv0, hd0v, hx1, hv1;
     double *c;
 } afm_rt_prop;
 

@@ -52,6 +52,39 @@ AFM_CLONES static inline double rt_force(const afm_sim *s, const rt_state *r, do
 
 /* ---- one implicit piece ---- */
 
+/* Out of contact, d = x cos(alpha) + Z >= a0: the force terms valid there, inlined. */
+static inline __attribute__((always_inline)) double rt_force_out(const afm_sim *s,
+                                                                 const rt_state *r, double x,
+                                                                 double v, double d, double *fx,
+                                                                 double *fv) {
+    const afm_force_params *p = &s->f;
+    double f = afm_force_out_terms(p, d, fx);
+    *fv = 0.0;
+    if (p->squeeze == AFM_SQUEEZE_LINEAR) {
+        double c = fma(p->p1, s->z_m + x, p->p2);
+        if (c > 0.0) {
+            f = fma(-c, v, f);
+            *fv = -c;
+            *fx = fma(-p->p1, v, *fx);
+        }
+    } else if (p->squeeze == AFM_SQUEEZE_STARR) {
+        double sx, sv;
+        f += rt_squeeze(s, r, x, v, &sx, &sv);
+        *fx += sx;
+        *fv = sv;
+    }
+    return f;
+}
+
+/* rt_force with the evaluation out of contact (most of them) inlined: the same values (there
+ * afm_force_near_terms is afm_force_out_terms), the contact branch a call. */
+static inline __attribute__((always_inline)) double
+rt_force_at(const afm_sim *s, const rt_state *r, double x, double v, double *fx, double *fv) {
+    const double d = fma(x, s->f.cos_alpha, s->z_m);
+    if (__builtin_expect(d >= s->f.a0_m, 1)) return rt_force_out(s, r, x, v, d, fx, fv);
+    return rt_force(s, r, x, v, fx, fv);
+}
+
 /* Solve F = f(xs + gx F, vs + gv F) from the guess F. Each iteration corrects with the
  * newest reciprocal slope rj = 1 / g'(F) known before it (a chord step: out of contact g'
  * is 1 to 1e-5, so this is Newton there), which keeps the division off the critical path;
@@ -61,7 +94,7 @@ static inline __attribute__((always_inline)) double rt_solve_in(const afm_sim *s
                                                                 double gv, double F, double rj,
                                                                 rt_snap *o) {
     double fx, fv;
-    double f = rt_force(s, r, fma(gx, F, xs), fma(gv, F, vs), &fx, &fv);
+    double f = rt_force_at(s, r, fma(gx, F, xs), fma(gv, F, vs), &fx, &fv);
     double res = F - f, fn = fma(-res, rj, F);
     /* g'(F) = 1 - fx gx - fv gv is >= 1 in contact (fx, fv <= 0); the floor guards the
      * attractive branch, where it stays near 1 for any real cantilever. */
@@ -77,7 +110,7 @@ static inline __attribute__((always_inline)) double rt_solve_in(const afm_sim *s
         double lo = res > 0 ? -HUGE_VAL : F, hi = res > 0 ? F : HUGE_VAL;
         F = fn;
         for (int it = 1; it < RT_NEWTON_MAX; it++) {
-            f = rt_force(s, r, fma(gx, F, xs), fma(gv, F, vs), &fx, &fv);
+            f = rt_force_at(s, r, fma(gx, F, xs), fma(gv, F, vs), &fx, &fv);
             res = F - f;
             if (res > 0)
                 hi = F;
@@ -108,30 +141,6 @@ static AFM_CLONES_NOINLINE double rt_solve(const afm_sim *s, const rt_state *r, 
                                            double vs, double gx, double gv, double F, double rj,
                                            rt_snap *o) {
     return rt_solve_in(s, r, xs, vs, gx, gv, F, rj, o);
-}
-
-/* Out of contact, d = x cos(alpha) + Z >= a0: the force terms valid there, inlined. */
-static inline __attribute__((always_inline)) double rt_force_out(const afm_sim *s,
-                                                                 const rt_state *r, double x,
-                                                                 double v, double d, double *fx,
-                                                                 double *fv) {
-    const afm_force_params *p = &s->f;
-    double f = afm_force_out_terms(p, d, fx);
-    *fv = 0.0;
-    if (p->squeeze == AFM_SQUEEZE_LINEAR) {
-        double c = fma(p->p1, s->z_m + x, p->p2);
-        if (c > 0.0) {
-            f = fma(-c, v, f);
-            *fv = -c;
-            *fx = fma(-p->p1, v, *fx);
-        }
-    } else if (p->squeeze == AFM_SQUEEZE_STARR) {
-        double sx, sv;
-        f += rt_squeeze(s, r, x, v, &sx, &sv);
-        *fx += sx;
-        *fv = sv;
-    }
-    return f;
 }
 
 /* rt_solve for a step that starts out of contact: one force evaluation at the guess F and

@@ -34,6 +34,7 @@
  * near the line, 2320 -> 1370 for those in contact; 4 pieces miss the suite (docs/numerics.md) */
 #define RT_ACC_NEAR_PIECES 8
 #define RT_ACC_CLOSE_TRAVELS 1.0
+#define RT_ACC_SURE 0.999 /* rt_state.sure_k: below 1, so that rounding cannot decide */
 #define RT_MAX_SUBSTEPS AFM_MAX_RT_SUBSTEPS
 #define RT_RESYNC 4096 /* steps between phasor resynchronisations */
 #define RT_NEWTON_MAX 12
@@ -98,6 +99,9 @@ typedef struct {
     double ftol; /* Newton tolerance on F (N) */
     double inv_cells[RT_MAX_SUBSTEPS * RT_GRID + 1]; /* 1 / k */
     double clear_k; /* 4/27 dt: the Hermite path's largest dip per unit end speed */
+    /* RT_ACC_SURE (clear_k + RT_ACC_NEAR_TRAVELS dt) (s): a sample that starts within this
+     * times |v| of the contact line is certainly taken in pieces (rt_run_acc_t) */
+    double sure_k;
     afm_rt_starr starr;
     long since_sync;
     bool noise;   /* thermal force on */
