@@ -17,7 +17,15 @@
  *    equal the steady state that the reference integrator (CVODE, afm_sundials.c: code
  *    independent of the continuation's CVODES flow) reaches from the point perturbed by
  *    1e-4, min/max deflection within 1e-5; an unstable point (the period-1 orbit at F1),
- *    perturbed as much, leaves its branch.
+ *    perturbed as much, leaves its branch;
+ *  - the ends of branches (issue 17): on Figure 4.2 over 82.0-84.4 kHz the period-2 band of
+ *    the first PD (P1) folds 16 Hz beyond the range's end (the thesis's 84.42 kHz) and is
+ *    continued back into the range; it ends on the unstable period-1 orbit, which no branch
+ *    has passed, so that orbit is continued from there, its PD next to the end (P6) found,
+ *    and the switch at P6 finds the same period-2 branch from its other end (joins it, the
+ *    orbits equal at the same fe within 1e-6 of the orbit size); on the lumped lever a run
+ *    that ends 12 Hz short of its lower fold is continued around it onto the middle
+ *    branch, through the upper fold.
  * Tolerances: the continuation converges to 1e-9 of the orbit size (scaled residual) at
  * CVODES rtol 1e-10; the CVODE dwell settles to 1e-6 of the amplitude (afm_sweep), and its
  * sampled extremes are Hermite-refined (afm_orbit): 1e-5 is what that allows.
@@ -48,6 +56,12 @@ typedef struct {
     double multiplier[2];
     afm_cont_metrics met;
     char reason[400];
+    /* BRANCH and END records */
+    afm_cont_via via;
+    double via_param;
+    int parent, joined;
+    double join_dist, join_diff;
+    char how[300];
 } rec;
 
 typedef struct {
@@ -64,8 +78,17 @@ static int collect(void *ctx, const afm_cont_record *r) {
     o->p = r->p;
     o->param = r->param;
     o->stable = r->stable;
+    o->parent = r->parent;
+    o->via = r->via;
+    o->via_param = r->via_param;
+    o->joined = r->joined;
+    o->join_dist = r->join_dist;
+    o->join_diff = r->join_diff;
+    snprintf(o->how, sizeof o->how, "%s", r->how);
     R->n_mult = r->n_mult > 0 ? r->n_mult : R->n_mult;
-    if (r->kind != AFM_CONT_END) {
+    if (r->kind == AFM_CONT_BRANCH) {
+        memcpy(o->y, r->y, sizeof(double) * (size_t)r->n_mult);
+    } else if (r->kind != AFM_CONT_END) {
         memcpy(o->y, r->y, sizeof(double) * (size_t)r->n_mult);
         memcpy(o->mre, r->mult_re, sizeof(double) * (size_t)r->n_mult);
         memcpy(o->mim, r->mult_im, sizeof(double) * (size_t)r->n_mult);
@@ -265,18 +288,86 @@ static void agree(const afm_config *cfg, const char *what, const afm_cont_pt *pt
 
 static void fig42_pd_curve(const afm_config *cfg, const rec *pd);
 
+/* The record of kind k of branch b (the first; NULL if none). */
+static const rec *rec_of(const recs *R, afm_cont_kind k, int b) {
+    for (int i = 0; i < R->n; i++)
+        if (R->r[i].kind == k && R->r[i].branch == b) return &R->r[i];
+    return NULL;
+}
+
+/* A BRANCH record reached via v from parent (NULL if none). */
+static const rec *branch_via(const recs *R, afm_cont_via v, int parent) {
+    for (int i = 0; i < R->n; i++)
+        if (R->r[i].kind == AFM_CONT_BRANCH && R->r[i].via == v && R->r[i].parent == parent)
+            return &R->r[i];
+    return NULL;
+}
+
+/* Figure 4.2's period-2 band from both of its ends (fig42's run, 82.0-84.4 kHz). */
+static void fig42_ends(const recs *R, const rec *p1) {
+    const rec *fold = rec_of(R, AFM_CONT_LPC, 1);
+    check_true(fold && fold->param > 84.4e3,
+               "Fig. 4.2 ends: the period-2 branch of P1 folds beyond the range's end (84.4 kHz)");
+    if (fold)
+        check_thesis("Fig. 4.2", "fold that ends the period-2 band (kHz), found beyond the range",
+                     fold->param * 1e-3, 84.42, 2e-3);
+    const rec *fb = branch_via(R, AFM_CONT_VIA_FOLD, 1);
+    if (!check_true(fb && fb->p == 2 && fabs(fb->param - 84.4e3) < 1e-6,
+                    "Fig. 4.2 ends: the band continued back into the range from 84.4 kHz"))
+        return;
+    printf("# branch %d: %s\n", fb->branch, fb->how);
+    const rec *fe = rec_of(R, AFM_CONT_END, fb->branch);
+    if (!check_true(fe && strstr(fe->reason, "met the period-1 orbit"),
+                    "Fig. 4.2 ends: the band's returning part ends on the period-1 orbit"))
+        return;
+    /* the period-1 orbit there (the unstable middle part) was not continued: it is now, and
+     * its PD next to the merge found (the thesis's P6) */
+    const rec *eb = branch_via(R, AFM_CONT_VIA_END_PD, fb->branch), *p6 = NULL;
+    for (int i = 0; i < R->n && eb; i++) {
+        const rec *r = &R->r[i];
+        if (r->kind == AFM_CONT_PD && r->p == 1 && fabs(r->param - fe->param) < 30.0 &&
+            (r->branch == eb->branch || r->parent == fb->branch))
+            p6 = r;
+    }
+    if (!check_true(eb && p6, "Fig. 4.2 ends: the period-1 orbit continued from the band's end, "
+                              "its PD (P6) within 30 Hz of the end"))
+        return;
+    printf("# the band's two PDs: P1 %.3f Hz (branch 0), P6 %.3f Hz (branch %d); the band's "
+           "end located at %.3f Hz\n",
+           p1 ? p1->param : NAN, p6->param, p6->branch, fe->param);
+    check_rel(p6->param, 83230.65, 1e-4,
+              "Fig. 4.2 ends: the far PD (P6) at 83.2306 kHz (a regression value: the 80-86 kHz "
+              "run's P6)");
+    /* the switch at P6: the same period-2 branch from its other end */
+    const rec *sw = NULL;
+    for (int i = 0; i < R->n; i++)
+        if (R->r[i].kind == AFM_CONT_BRANCH && R->r[i].via == AFM_CONT_VIA_PD &&
+            R->r[i].parent == p6->branch && fabs(R->r[i].via_param - p6->param) < 1e-6)
+            sw = &R->r[i];
+    const rec *se = sw ? rec_of(R, AFM_CONT_END, sw->branch) : NULL;
+    if (!check_true(se && se->joined == fb->branch,
+                    "Fig. 4.2 ends: the switch at P6 joins the band (the same branch from its "
+                    "other end)"))
+        return;
+    printf("# %s\n# branch %d ends: %s\n", sw->how, sw->branch, se->reason);
+    check_true(se->join_diff < AFM_CONT_JOIN_TOL && se->join_dist < 1e-2,
+               "Fig. 4.2 ends: at the overlap the orbits agree (Newton from the band's "
+               "interpolated state: < 1e-6 of the orbit size; before it < 1e-2)");
+}
+
 static void fig42(void) {
     afm_config cfg;
     if (!load(&cfg)) return;
     static recs R;
     afm_cont_summary sum;
     /* from 82.0 kHz on the contact branch: the first PD (thesis P1), the period-2 branch
-     * through F1 and F2, and the period-1 branch past the stable window to F4 */
+     * through F1 and F2 to its fold just beyond 84.4 kHz and back (fig42_ends), and the
+     * period-1 branch past the stable window to F4 */
     afm_cont_opts o = {.param = "fe",
                        .from = 82.0e3,
-                       .to = 84.2e3,
+                       .to = 84.4e3,
                        .max_points = 200,
-                       .max_branches = 2,
+                       .max_branches = 5,
                        .h_max = 0.1};
     if (!check_true(run(&cfg, &o, &R, &sum) == 0, "Fig. 4.2: the continuation runs")) return;
     int npd = 0;
@@ -344,6 +435,7 @@ static void fig42(void) {
                                      1e-4 * fabs(met.min_deflection_m),
                        "unstable period-1 orbit at 82.437 kHz, perturbed by 1e-4: leaves it");
     }
+    fig42_ends(&R, pd0);
     if (pd0) fig42_pd_curve(&cfg, pd0);
 }
 
@@ -599,6 +691,44 @@ static void fig42_pd_curve(const afm_config *cfg, const rec *pd) {
     check_abs(q->multiplier[0], -1.0, 1e-2, "PD curve: the fe run's PD multiplier is -1");
 }
 
+/* A run from above the lumped lever's bistable window down to 12 Hz short of its lower fold
+ * (4% of the range): the branch is followed beyond the range's end, around the fold (the
+ * LPC of the full run, fl), and continued back into the range: the middle branch, up to the
+ * upper fold. Started from the full run's point nearest 298.7 kHz (no time integration). */
+static void lumped_beyond(const afm_config *cfg, const recs *full, const double *fl) {
+    const rec *st = NULL;
+    for (int k = 0; k < full->n; k++) {
+        const rec *r = &full->r[k];
+        if (r->kind == AFM_CONT_POINT && r->branch == 0 &&
+            (!st || fabs(r->param - 298.7e3) < fabs(st->param - 298.7e3)))
+            st = r;
+    }
+    double lo = fmin(fl[0], fl[1]), hi = fmax(fl[0], fl[1]);
+    if (!check_true(st && st->param > hi, "lumped vdW beyond: a start above the upper fold"))
+        return;
+    static recs R;
+    afm_cont_summary sum;
+    afm_cont_opts o = {.param = "fe",
+                       .from = st->param,
+                       .to = lo + 12.0,
+                       .start_y = st->y,
+                       .no_switch = true,
+                       .max_points = 60};
+    if (!check_true(run(cfg, &o, &R, &sum) == 0, "lumped vdW beyond: the continuation runs"))
+        return;
+    const rec *l0 = rec_of(&R, AFM_CONT_LPC, 0), *fb = branch_via(&R, AFM_CONT_VIA_FOLD, 0);
+    check_true(l0 && fabs(l0->param - lo) < 0.05,
+               "lumped vdW beyond: the lower fold found beyond the range's end, where the full "
+               "run has it (0.05 Hz)");
+    if (!check_true(fb && fabs(fb->param - o.to) < 1e-6 && !fb->stable,
+                    "lumped vdW beyond: continued back into the range from its end (unstable: "
+                    "the middle branch)"))
+        return;
+    const rec *l1 = rec_of(&R, AFM_CONT_LPC, fb->branch);
+    check_true(l1 && fabs(l1->param - hi) < 0.05,
+               "lumped vdW beyond: the continued branch reaches the upper fold (0.05 Hz)");
+}
+
 static void lumped_vdw(void) {
     afm_config cfg;
     char err[AFM_ERR_LEN];
@@ -661,6 +791,7 @@ static void lumped_vdw(void) {
                  fl[i], best);
         check_rel(fl[i] - f0, best - f0, 0.03, item);
     }
+    lumped_beyond(&cfg, &R, fl);
     lumped_fold_curve(&cfg, &m, c, z, ae, &R);
 }
 

@@ -12,6 +12,12 @@ check_init continue "$BUILD"
   grep -q "Phase convention" "$T/help.txt" && ok "--help: exit 0, says the method and the phase convention" ||
   bad "--help: $(head -3 "$T/help.txt")"
 
+miss=""
+for k in --no-end-switch --join-points --beyond --max-branch-points --max-branches; do
+  grep -q -- "$k" "$T/help.txt" || miss="$miss $k"
+done
+[ -z "$miss" ] && ok "--help: the options of the branches' ends and their bounds" || bad "--help lacks:$miss"
+
 # a linear copy of the Fig. 4.2 beam (no tip forces): quick, no bifurcations
 sed -e '/vdw_contact/d' -e '/viscoelastic/d' -e '/squeeze/d' config/thesis-fig-4-2.conf >"$T/lin.conf"
 "$A" continue --config "$T/lin.conf" --param fe --from 80000 --to 80400 --max-points 6 --json \
@@ -35,6 +41,12 @@ for k in branch param period stable multipliers min_deflection_m max_deflection_
   grep '"type":"point"' "$T/lin.json" | head -1 | grep -q "\"$k\":" || miss="$miss $k"
 done
 [ -z "$miss" ] && ok "point records carry every field the issue names" || bad "point records lack:$miss"
+# each branch opens with a record of how it was reached, before its first point
+head -1 "$T/lin.json" | grep '"type":"branch"' | grep '"via":"start"' | grep -q '"label":"the start orbit' &&
+  grep '"type":"end"' "$T/lin.json" | grep -q '"via":"start".*"label":' &&
+  tail -1 "$T/lin.json" | grep -q '"joins":0,"not_started":0' &&
+  ok "a branch record (via, label) opens the branch; end and summary records carry them" ||
+  bad "branch records: $(head -1 "$T/lin.json" | cut -c1-200)"
 tail -1 "$T/lin.json" | grep -q '"type":"summary"' && grep -q '"type":"end"' "$T/lin.json" &&
   ok "an end record with its reason, and a closing summary" || bad "no end or summary record"
 
@@ -99,4 +111,7 @@ refuse "--param2's config value outside its range" "outside \[--from2, --to2\]" 
 refuse "--curve-kinds bogus" "must be lpc, pd or all" --config $C --param fe --from 80000 --to 81000 --param2 z --from2 29e-9 --to2 31e-9 --curve-kinds bogus
 refuse "--curve-kinds without --param2" "is for --param2" --config $C --param fe --from 80000 --to 81000 --curve-kinds lpc
 refuse "--curves 0" "--curves wants an integer in 1..32" --config $C --param fe --from 80000 --to 81000 --param2 z --from2 29e-9 --to2 31e-9 --curves 0
+refuse "--beyond out of 0..1" "--beyond wants" --config $C --param fe --from 80000 --to 81000 --beyond 2
+refuse "--join-points 0" "--join-points wants" --config $C --param fe --from 80000 --to 81000 --join-points 0
+refuse "--max-branch-points 0" "--max-branch-points wants" --config $C --param fe --from 80000 --to 81000 --max-branch-points 0
 check_done

@@ -2,9 +2,10 @@
 /* cmd_continue.c -- `afmtwin continue`: numerical continuation of the periodic orbits of a
  * config in one parameter (analysis/afm_cont.h): the whole branch, stable and unstable,
  * with its LPC, PD and NS bifurcations, switching at each PD onto the period-doubled
- * branch; with --param2, the curves of its LPC and PD points in the plane of two parameters
- * (analysis/afm_cont_curve.h). One JSON record per point or bifurcation and line (--json),
- * or a table.
+ * branch and continuing from the ends of branches (a merge at a PD, a fold just beyond the
+ * range), each branch opened by a record of how it was reached; with --param2, the curves of its
+ * LPC and PD points in the plane of two parameters (analysis/afm_cont_curve.h). One JSON record per
+ * point or bifurcation and line (--json), or a table.
  *
  * Phases are the lag of the deflection behind the drive (x_dit = Ae sin(we t)): 90 deg for a
  * free cantilever at resonance, below 90 in the repulsive regime. */
@@ -28,9 +29,10 @@ typedef struct {
     const char *config, *param, *start, *param2, *curve_kinds;
     double from, to, from2, to2;
     const char *from_s, *to_s, *from2_s, *to2_s; /* in the unit of --param / --param2 */
-    int max_points, period, settle, max_branches, curves, curve_points;
-    double h0, h_max;
-    bool json, no_switch;
+    int max_points, period, settle, max_branches, curves, curve_points, join_points,
+        max_branch_points;
+    double h0, h_max, beyond;
+    bool json, no_switch, no_end_switch;
 } cont_cli;
 
 static void cont_usage(FILE *f) {
@@ -39,6 +41,8 @@ static void cont_usage(FILE *f) {
         "usage: afmtwin continue --config FILE --param fe|z|ae|NAME --from X --to X\n"
         "                        [--start STATE] [--max-points N] [--period P]\n"
         "                        [--settle N] [--no-switch] [--max-branches N]\n"
+        "                        [--max-branch-points N] [--no-end-switch]\n"
+        "                        [--join-points N] [--beyond F]\n"
         "                        [--step H] [--max-step H] [--json]\n"
         "                        [--param2 NAME --from2 X --to2 X [--curves N]\n"
         "                         [--curve-points N] [--curve-kinds lpc|pd|all]]\n\n"
@@ -52,7 +56,16 @@ static void cont_usage(FILE *f) {
         "located by root finding. Stability from the Floquet multipliers (the eigenvalues of\n"
         "the monodromy matrix): LPC (a multiplier through +1, a fold), PD (through -1) and NS\n"
         "(a complex pair through the unit circle) are located and refined to the parameter.\n"
-        "At each PD the period-doubled branch is continued too (unless --no-switch).\n"
+        "At each PD the period-doubled branch is continued too (unless --no-switch), and\n"
+        "so are the branches that leave from the ends of a branch (unless --no-end-switch):\n"
+        "where a period-2p branch meets the period-p orbit again (at another PD) and no\n"
+        "branch computed so far passes there, the period-p orbit is continued from there\n"
+        "both ways; a switch at a PD where a branch ended (the far end of its band) is made\n"
+        "first, and a branch that runs onto one computed before (--join-points points in a\n"
+        "row whose orbits equal that branch's at the same parameter, 1e-6 of the orbit\n"
+        "size) ends there, \"joins branch k\"; a branch that leaves the range and folds\n"
+        "back within --beyond of it is continued from the range's end inwards (its LPC\n"
+        "reported outside the range). Each branch opens with a record of how it was reached.\n"
         "With --param2, each LPC and PD found is then continued in the plane of the two\n"
         "parameters (a minimally augmented system: the orbit and a test function that is zero\n"
         "where M - I or M + I is singular): the curves that bound the bistable windows (LPC)\n"
@@ -76,7 +89,18 @@ static void cont_usage(FILE *f) {
         "                     5 Q1 / pi, at least 50: transients down by e^-5)\n"
         "  --max-points N     most points over all branches (default 2000)\n"
         "  --no-switch        stay on the start branch (no period-doubled branches)\n"
-        "  --max-branches N   most branches, 1..32 (default 8)\n"
+        "  --max-branches N   most branches, 1..32 (default 8); starts queued beyond it are\n"
+        "                     counted in the summary (not_started)\n"
+        "  --max-branch-points N  most points of one branch (default 0: no limit but\n"
+        "                     --max-points)\n"
+        "  --no-end-switch    nothing from the ends of branches: no continuation from a\n"
+        "                     merge, no switch at a PD where a branch ended, no joins, no\n"
+        "                     look beyond the range\n"
+        "  --join-points N    points in a row on a branch computed before that end a branch\n"
+        "                     (default 3)\n"
+        "  --beyond F         how far beyond the range's end to follow a branch looking for\n"
+        "                     a fold that brings it back, a fraction of the range (default\n"
+        "                     0.05; 0: not at all)\n"
         "  --step H           first step (scaled arclength: 1 = the range in the parameter,\n"
         "                     or the start orbit's amplitude in the state; default 0.02)\n"
         "  --max-step H       largest step (default 0.25)\n"
@@ -106,14 +130,22 @@ static void cont_usage(FILE *f) {
         "step),\n"
         "                     ...the point's fields}; per branch end {\"type\":\n"
         "                     \"end\", \"branch\", \"parent\", \"period\", \"param\", \"points\",\n"
-        "                     \"reason\"}; with --param2 per curve point {\"type\":\n"
+        "                     \"reason\", \"via\", \"label\", and if it ran onto another\n"
+        "                     \"joined\", \"join_dist\", \"join_diff\"}; per branch start,\n"
+        "                     before its first point, {\"type\": \"branch\", \"branch\",\n"
+        "                     \"parent\", \"period\", \"param\", \"stable\", \"via\":\n"
+        "                     \"start\"|\"PD\"|\"end\"|\"fold\", \"via_param\" (the PD, the\n"
+        "                     merge or the fold it comes from), \"label\"}; with --param2 per "
+        "curve point {\"type\":\n"
         "                     \"curve_point\", \"curve\", \"kind\": \"LPC\"|\"PD\", \"side\",\n"
         "                     \"param\", \"param2\", \"period\", \"stable\" (the other\n"
         "                     multipliers inside the circle), \"multiplier\", \"g\",\n"
         "                     ...the point's fields}, per side's end {\"type\": \"curve_end\",\n"
         "                     \"curve\", \"kind\", \"side\", \"param\", \"param2\", \"points\",\n"
         "                     \"reason\"}; last {\"type\": \"summary\", \"points\", \"branches\",\n"
-        "                     \"bifurcations\", \"maps\", \"seconds\", \"seconds_per_point\",\n"
+        "                     \"bifurcations\", \"joins\", \"not_started\", \"maps\", "
+        "\"seconds\",\n"
+        "                     \"seconds_per_point\",\n"
         "                     and with --param2 \"curves\", \"curve_points\", \"curve_seconds\"}\n"
         "  --help             this text\n\n"
         "Without --json a table (kHz or the parameter's unit, nm, nN). The config's sim.ref_rtol\n"
@@ -145,10 +177,15 @@ static afmt_unit param_unit(const char *name) {
 
 /* 0 ok, 1 --help, -1 bad usage (said). */
 static int cont_parse(int argc, char **argv, cont_cli *o) {
-    *o = (cont_cli){.from = NAN, .to = NAN, .from2 = NAN, .to2 = NAN, .period = 1, .curves = 8};
+    *o = (cont_cli){
+        .from = NAN, .to = NAN, .from2 = NAN, .to2 = NAN, .period = 1, .curves = 8, .beyond = NAN};
     const afmt_opt opts[] = {
         AFMT_FLAG("--json", &o->json),
         AFMT_FLAG("--no-switch", &o->no_switch),
+        AFMT_FLAG("--no-end-switch", &o->no_end_switch),
+        AFMT_INT("--join-points", &o->join_points, 1, 1000, NULL),
+        AFMT_INT("--max-branch-points", &o->max_branch_points, 1, 1000000, NULL),
+        AFMT_DOUBLE("--beyond", &o->beyond, 0, 1, NULL),
         AFMT_STRING("--config", &o->config),
         AFMT_STRING("--param", &o->param),
         AFMT_STRING("--start", &o->start),
@@ -257,8 +294,13 @@ typedef struct {
 } cont_sink;
 
 static const char *kind_name(afm_cont_kind k) {
-    static const char *const names[] = {"point", "LPC", "PD", "NS", "end"};
+    static const char *const names[] = {"point", "LPC", "PD", "NS", "end", "branch"};
     return names[k];
+}
+
+static const char *via_name(afm_cont_via v) {
+    static const char *const names[] = {"start", "PD", "end", "fold"};
+    return names[v];
 }
 
 static void json_metrics(cJSON *o, const afm_cont_metrics *m) {
@@ -327,6 +369,8 @@ static int cont_emit_record(void *ctx, const afm_cont_record *r) {
         if (r->kind == AFM_CONT_END)
             printf("# branch %d (period %d, from branch %d) ends after %d points: %s\n", r->branch,
                    r->p, r->parent, r->points, r->stop_reason);
+        else if (r->kind == AFM_CONT_BRANCH)
+            printf("# branch %d (period %d): %s\n", r->branch, r->p, r->how);
         else
             printf("%-5s %3d %2d %14.8g %-8s %12.6f %12.6f %10.5f %12.6f %8.3f\n",
                    kind_name(r->kind), r->branch, r->p, r->param * s->scale,
@@ -343,14 +387,29 @@ static int cont_emit_record(void *ctx, const afm_cont_record *r) {
     cJSON_AddNumberToObject(o, "parent", r->parent);
     cJSON_AddNumberToObject(o, "param", r->param);
     cJSON_AddNumberToObject(o, "period", r->p);
+    if (r->kind == AFM_CONT_END || r->kind == AFM_CONT_BRANCH) {
+        cJSON_AddStringToObject(o, "via", via_name(r->via));
+        cJSON_AddNumberToObject(o, "via_param", r->via_param);
+        cJSON_AddStringToObject(o, "label", r->how);
+    }
     if (r->kind == AFM_CONT_END) {
         cJSON_AddNumberToObject(o, "points", r->points);
         cJSON_AddStringToObject(o, "reason", r->stop_reason);
+        if (r->joined >= 0) {
+            cJSON_AddNumberToObject(o, "joined", r->joined);
+            cJSON_AddNumberToObject(o, "join_dist", r->join_dist);
+            cJSON_AddNumberToObject(o, "join_diff", r->join_diff);
+        }
         afmt_json_emit(o);
         fflush(stdout);
         return 0;
     }
     cJSON_AddBoolToObject(o, "stable", r->stable);
+    if (r->kind == AFM_CONT_BRANCH) {
+        afmt_json_emit(o);
+        fflush(stdout);
+        return 0;
+    }
     if (r->kind != AFM_CONT_POINT) {
         json_pair(o, "multiplier", r->multiplier);
         cJSON_AddBoolToObject(o, "refined", r->refined);
@@ -523,6 +582,12 @@ int afm_cmd_continue(int argc, char **argv) {
                         .max_points = o.max_points,
                         .max_branches = o.max_branches,
                         .no_switch = o.no_switch,
+                        .no_end_switch = o.no_end_switch,
+                        .join_points = o.join_points,
+                        .max_branch_points = o.max_branch_points,
+                        .beyond = isnan(o.beyond) ? 0.0
+                                  : o.beyond > 0  ? o.beyond
+                                                  : -1.0,
                         .start_y = o.start ? y0 : NULL,
                         .settle_periods = o.settle,
                         .h0 = o.h0,
@@ -556,6 +621,8 @@ int afm_cmd_continue(int argc, char **argv) {
         cJSON_AddNumberToObject(s, "points", sum.points);
         cJSON_AddNumberToObject(s, "branches", sum.branches);
         cJSON_AddNumberToObject(s, "bifurcations", sum.bifurcations);
+        cJSON_AddNumberToObject(s, "joins", sum.joins);
+        cJSON_AddNumberToObject(s, "not_started", sum.not_started);
         cJSON_AddNumberToObject(s, "maps", (double)sum.maps);
         cJSON_AddNumberToObject(s, "flow_steps", (double)sum.flow_steps);
         cJSON_AddNumberToObject(s, "seconds", sum.seconds);
@@ -568,9 +635,11 @@ int afm_cmd_continue(int argc, char **argv) {
         }
         afmt_json_emit(s);
     } else {
-        printf("# %d points on %d branches, %d bifurcations, %ld Newton maps, %.2f s (%.3f s "
-               "per point)\n",
-               sum.points, sum.branches, sum.bifurcations, sum.maps, sum.seconds, per);
+        printf("# %d points on %d branches (%d joined one computed before, %d queued not "
+               "started: --max-branches), %d bifurcations, %ld Newton maps, %.2f s (%.3f s per "
+               "point)\n",
+               sum.points, sum.branches, sum.joins, sum.not_started, sum.bifurcations, sum.maps,
+               sum.seconds, per);
         if (o.param2)
             printf("# %d curves, %d points, %ld Newton maps, %.2f s\n", sink.n_ev, cpoints, cmaps,
                    csecs);

@@ -37,7 +37,7 @@
 #define PLOT_MAX_INPUTS 8
 #define PLOT_MAX_COLS 16
 #define PLOT_MAX_SETS 24
-#define PLOT_MAX_KEYS 16
+#define PLOT_MAX_KEYS 40
 #define PLOT_LINE_MAX (1 << 20)
 #define PLOT_EV 1.602176634e-19 /* J per eV */
 
@@ -144,8 +144,12 @@ static void plot_usage(FILE *f) {
             "            min(xr) and the amplitude at fe against the parameter, stable solid,\n"
             "            unstable dashed, cut at every change of stability (at the LPC, PD or\n"
             "            NS point found there, else where the largest Floquet multiplier\n"
-            "            crosses 1 between the two points), branches of period 2 and more in\n"
-            "            their own colour; LPC, PD and NS points labelled L1.., P1.., N1.. in\n"
+            "            crosses 1 between the two points), each branch in its own colour,\n"
+            "            its legend saying its period and how it was reached (continue's\n"
+            "            branch records: the start, the PD of its parent, the end of its\n"
+            "            parent, or its parent past a fold beyond the range; \"joins bN\"\n"
+            "            when it ran onto a branch computed before); LPC, PD and NS points\n"
+            "            labelled L1.., P1.., N1.. in\n"
             "            the order found (a label that would overlap another goes up a row,\n"
             "            a thin leader down to its point); with --param2, the curves in the\n"
             "            parameter plane\n"
@@ -927,6 +931,8 @@ static int load_approach(const plot_opts *o, plot_data *d, FILE *gp) {
 
 /* ---- continue ---- */
 
+#define CONT_PLOT_BRANCHES 32 /* continue --max-branches' bound */
+
 /* A point or a bifurcation of a branch, in the order of the file. */
 typedef struct {
     int branch, period, event; /* event: 0 a point, 1 LPC, 2 PD, 3 NS */
@@ -948,6 +954,14 @@ typedef struct {
     int ncurve[3];   /* curve points per kind (1 LPC, 2 PD) */
     int max_period;
     plot_info *pi;
+    /* how each branch was reached (its "branch" record) and what it ran onto ("end") */
+    struct {
+        bool have;
+        char via[8];
+        int parent, period, joined;
+        double via_param;
+    } br[CONT_PLOT_BRANCHES];
+    int n_branch; /* 1 + the largest branch index seen */
 } cont_ctx;
 
 static double param_scale(const char *name) {
@@ -1010,7 +1024,26 @@ static int continue_row(const cJSON *o, void *vctx) {
         c->scale = param_scale(pn->valuestring);
     }
     const char *ty = t->valuestring;
-    if (!strcmp(ty, "summary") || !strcmp(ty, "end") || !strcmp(ty, "curve_end")) return 0;
+    double bn = num(o, "branch");
+    int bi = isfinite(bn) && bn >= 0 && bn < CONT_PLOT_BRANCHES ? (int)bn : -1;
+    if (bi >= 0 && !strcmp(ty, "branch")) { /* how the branch was reached: its legend */
+        const cJSON *via = cJSON_GetObjectItemCaseSensitive(o, "via");
+        c->br[bi].have = true;
+        snprintf(c->br[bi].via, sizeof c->br[bi].via, "%s",
+                 cJSON_IsString(via) ? via->valuestring : "?");
+        c->br[bi].parent = (int)num(o, "parent");
+        c->br[bi].via_param = num(o, "via_param");
+        c->br[bi].joined = -1;
+        return 0;
+    }
+    if (bi >= 0 && !strcmp(ty, "end")) {
+        double j = num(o, "joined");
+        if (isfinite(j)) c->br[bi].joined = (int)j;
+        return 0;
+    }
+    if (!strcmp(ty, "summary") || !strcmp(ty, "end") || !strcmp(ty, "curve_end") ||
+        !strcmp(ty, "branch"))
+        return 0;
     if (!strcmp(ty, "curve_point")) return curve_row(c, o);
     double x = num(o, "param"), mn = num(o, "min_deflection_m") * 1e9,
            am = num(o, "amplitude_m") * 1e9;
@@ -1032,6 +1065,10 @@ static int continue_row(const cJSON *o, void *vctx) {
     double per = num(o, "period");
     int period = isfinite(per) && per >= 1 ? (int)per : 1;
     if (period > c->max_period) c->max_period = period;
+    if (bi >= 0) {
+        c->br[bi].period = period;
+        if (bi + 1 > c->n_branch) c->n_branch = bi + 1;
+    }
     c->rec[c->n++] = (cont_rec){.branch = (int)num(o, "branch"),
                                 .period = period,
                                 .event = ev,
@@ -1147,6 +1184,25 @@ static void continue_label_rows(plot_set *ev, double xlo, double xhi, const doub
     }
 }
 
+/* The legend of branch b: "b1 (period 2): PD of b0 at 82.243 kHz, joins b2". */
+static void cont_branch_label(const cont_ctx *c, int b, char *t, size_t n) {
+    const char *u = scale_unit(c->scale);
+    double v = c->br[b].via_param * c->scale;
+    int parent = c->br[b].parent, w = snprintf(t, n, "b%d (period %d)", b, c->br[b].period);
+    if (w < 0 || (size_t)w >= n) return;
+    const char *via = c->br[b].have ? c->br[b].via : "";
+    if (!strcmp(via, "start"))
+        w += snprintf(t + w, n - (size_t)w, ": start at %.6g %s", v, u);
+    else if (!strcmp(via, "PD"))
+        w += snprintf(t + w, n - (size_t)w, ": PD of b%d at %.6g %s", parent, v, u);
+    else if (!strcmp(via, "end"))
+        w += snprintf(t + w, n - (size_t)w, ": from the end of b%d (PD, %.6g %s)", parent, v, u);
+    else if (!strcmp(via, "fold"))
+        w += snprintf(t + w, n - (size_t)w, ": b%d past its fold at %.6g %s", parent, v, u);
+    if (c->br[b].have && c->br[b].joined >= 0 && w > 0 && (size_t)w < n)
+        snprintf(t + w, n - (size_t)w, ", joins b%d", c->br[b].joined);
+}
+
 static int load_continue(const plot_opts *o, plot_data *d, FILE *gp) {
     cont_ctx c = {.ev = set_new(d, "E", "", 6),
                   .cv = set_new(d, "C", "", 4),
@@ -1194,13 +1250,14 @@ static int load_continue(const plot_opts *o, plot_data *d, FILE *gp) {
                      : !strcmp(c.name, "ae") ? "drive amplitude Ae (nm)"
                                              : pname;
     const bool curves = c.cv->n > 0;
-    /* period 1 blue, 2 purple, 3 and more green; stable solid, unstable dashed */
-    static const char *const pc[3] = {"#0072b2", "#cc79a7", "#009e73"};
-    for (int p = 0; p < 3; p++)
+    /* a colour per branch (8, then again); stable solid, unstable dashed and thin */
+    static const char *const pc[8] = {"#0072b2", "#cc79a7", "#009e73", "#d55e00",
+                                      "#56b4e9", "#e69f00", "#000000", "#999933"};
+    for (int q = 0; q < c.n_branch; q++)
         fprintf(gp,
                 "set style line %d lc rgb '%s' lw 2\nset style line %d lc rgb '%s' lw 1.2 dt "
                 "2\n",
-                1 + 2 * p, pc[p], 2 + 2 * p, pc[p]);
+                21 + 2 * q, pc[q % 8], 22 + 2 * q, pc[q % 8]);
     static const char *const ev[3][3] = {{"LPC (fold)", "7", "red"},
                                          {"PD (period doubling)", "5", "dark-green"},
                                          {"NS (torus)", "9", "orange"}};
@@ -1209,14 +1266,13 @@ static int load_continue(const plot_opts *o, plot_data *d, FILE *gp) {
     plot_key k = {0};
     key_add(&k, "with lines lw 2 lc rgb 'black'", "stable");
     key_add(&k, "with lines lw 1.2 dt 2 lc rgb 'black'", "unstable");
-    const int np = c.max_period >= 3 ? 3 : c.max_period;
-    if (np > 1)
-        for (int p = 0; p < np; p++) {
-            char with[64], t[32];
-            snprintf(with, sizeof with, "with lines ls %d", 1 + 2 * p);
-            snprintf(t, sizeof t, p < 2 ? "period %d" : "period %d and more", p + 1);
-            key_add(&k, with, t);
-        }
+    /* each branch: its period and how it was reached (parent, event) */
+    for (int q = 0; q < c.n_branch && c.n_branch > 1; q++) {
+        char with[64], t[96];
+        snprintf(with, sizeof with, "with lines ls %d", 21 + 2 * q);
+        cont_branch_label(&c, q, t, sizeof t);
+        key_add(&k, with, t);
+    }
     for (int e = 0; e < 3; e++)
         if (c.count[e + 1] > 0) {
             char with[32];
@@ -1242,11 +1298,11 @@ static int load_continue(const plot_opts *o, plot_data *d, FILE *gp) {
         if (span > 0) fprintf(gp, "set yrange [%g:%g]\n", ylo[p] - 0.04 * span, ytop + 0.02 * span);
         fprintf(gp, "set ylabel '%s'\nplot ", ylab[p]);
         const char *sep = "";
-        for (int q = 0; q < np; q++)
+        for (int q = 0; q < c.n_branch; q++)
             for (int s = 1; s >= 0; s--) {
                 fprintf(gp,
-                        "%s$B using 1:($4 == %d && $6 %s %d ? $%d : 1/0) with lines ls %d notitle",
-                        sep, s, q < 2 ? "==" : ">=", q + 1, 2 + p, 1 + 2 * q + (1 - s));
+                        "%s$B using 1:($4 == %d && $5 == %d ? $%d : 1/0) with lines ls %d notitle",
+                        sep, s, q, 2 + p, 21 + 2 * q + (1 - s));
                 sep = ", ";
             }
         if (c.ev->n > 0) /* leaders: from each point up to its label's row */

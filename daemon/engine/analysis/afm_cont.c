@@ -2,6 +2,7 @@
 /* afm_cont.c -- pseudo-arclength continuation, bifurcations and branch switching (contract
  * in afm_cont.h). */
 #include "analysis/afm_cont.h"
+#include "analysis/afm_cont_ends.h"
 
 #include "beam/afm_linalg.h"
 #include "config/afm_err.h"
@@ -13,6 +14,16 @@
 #include <string.h>
 
 #define CONT_MAX_BRANCHES 32
+#define CONT_MAX_QUEUE 64
+/* A join's first test: the other branch's interpolated state within this (scaled) of the
+ * point's; then Newton at the point's parameter from it must land on the point's orbit */
+#define CONT_JOIN_NEAR 0.1
+/* A branch ended next to a PD: within this of the range in the parameter (the merge is
+ * located to where the corrector fails next to the branch point: 1-13 Hz on Fig. 4.2) and
+ * CONT_JOIN_NEAR in the state */
+#define CONT_END_NEAR 1e-2
+/* Steps followed beyond the range's end looking for a fold */
+#define CONT_BEYOND_STEPS 40
 #define CONT_COS_TURN 0.866 /* largest turn of the tangent per step: 30 deg */
 #define CONT_REFINE_ITER 24
 /* The bracket of a refined event, relative to the step: the test functions carry the
@@ -20,11 +31,25 @@
 #define CONT_REFINE_REL 1e-6
 #define CONT_REFINE_ACCEPT 1e-4
 
+/* A queued start: a PD switch (y the PD point, v the eigenvector of its multiplier -1), or
+ * (END_PD, FOLD) the period-p orbit y at lambda continued in direction dir of the
+ * parameter. */
 typedef struct {
+    afm_cont_via via;
     double y[AFM_CONT_MAX_N], v[AFM_CONT_MAX_N];
-    double lambda;
-    int p, parent;
+    double lambda, via_param;
+    int p, parent, dir;
+    int group; /* starts queued together (the two ways from one end): never join each other */
+    bool far;  /* PD: a branch ended next to it */
+    char how[300];
 } cont_switch;
+
+/* Where a branch ended on meeting the period-p orbit (at a PD of it). */
+typedef struct {
+    double lambda, y[AFM_CONT_MAX_N];
+    int p, branch; /* p: of the ended branch */
+    double from;   /* the PD it was switched at (NAN: not a switched branch) */
+} cont_end;
 
 typedef struct {
     afm_cont_ctx c;
@@ -35,10 +60,18 @@ typedef struct {
     double lo, hi; /* the parameter range */
     int max_points;
     bool stopped;
-    cont_switch q[CONT_MAX_BRANCHES];
-    int nq, nbranch;
-    double end_lambda[CONT_MAX_BRANCHES]; /* where branches met their parent's PD */
-    int end_p[CONT_MAX_BRANCHES], nend;
+    cont_switch q[CONT_MAX_QUEUE];
+    int nq, next, nbranch, ngroup;
+    cont_end ends[CONT_MAX_BRANCHES]; /* where branches met the period-p orbit */
+    int nend;
+    afm_cont_store store;             /* every point emitted (afm_cont_ends.h) */
+    int group[CONT_MAX_BRANCHES];     /* of each branch's start */
+    int parent_of[CONT_MAX_BRANCHES]; /* each branch's parent */
+    afm_cont_via via_of[CONT_MAX_BRANCHES];
+    double from_of[CONT_MAX_BRANCHES]; /* the PD a branch was switched at (else NAN) */
+    const char *how;                   /* the current branch's, for its END record */
+    afm_cont_via via;                  /* the current branch's */
+    double via_param;
     afm_cont_pt a, b, r; /* the last point, the new one, a refined event */
     bool refined;        /* r was located (else it is the later point) */
     char *err;
@@ -126,6 +159,10 @@ static int emit_pt(cont_run *R, const afm_cont_pt *pt, afm_cont_kind kind, int b
         R->sum->bifurcations++;
     } else {
         R->sum->points++;
+        if (afm_cont_store_add(&R->store, branch, pt) != 0) {
+            snprintf(R->err, R->errlen, "continuation: out of memory");
+            return -1;
+        }
     }
     if (afm_cont_set_lambda(&R->c, pt->lambda, R->err, R->errlen) != 0 ||
         afm_cont_metrics_of(R->c.flow, pt->y, pt->p, &rec.metrics, R->err, R->errlen) != 0)
@@ -133,8 +170,15 @@ static int emit_pt(cont_run *R, const afm_cont_pt *pt, afm_cont_kind kind, int b
     return emit_rec(R, &rec);
 }
 
+/* A join of the current branch: the branch run onto (-1: none), the largest distances at
+ * the overlap (afm_cont_record). */
+typedef struct {
+    int branch, n;
+    double dist, diff;
+} cont_join;
+
 static int emit_end(cont_run *R, int branch, int parent, int p, double lambda, int points,
-                    const char *why) {
+                    const char *why, const cont_join *j) {
     afm_cont_record rec;
     memset(&rec, 0, sizeof rec);
     rec.kind = AFM_CONT_END;
@@ -143,7 +187,35 @@ static int emit_end(cont_run *R, int branch, int parent, int p, double lambda, i
     rec.p = p;
     rec.param = lambda;
     rec.points = points;
+    rec.via = R->via;
+    rec.via_param = R->via_param;
+    rec.joined = j ? j->branch : -1;
+    if (j) rec.join_dist = j->dist, rec.join_diff = j->diff;
+    snprintf(rec.how, sizeof rec.how, "%s", R->how ? R->how : "");
     snprintf(rec.stop_reason, sizeof rec.stop_reason, "%s", why);
+    return emit_rec(R, &rec);
+}
+
+/* The record that opens a branch: how it was reached, at its first point pt. */
+static int emit_branch(cont_run *R, int branch, int parent, const afm_cont_pt *pt) {
+    afm_cont_record rec;
+    memset(&rec, 0, sizeof rec);
+    rec.kind = AFM_CONT_BRANCH;
+    rec.branch = branch;
+    rec.parent = parent;
+    rec.p = pt->p;
+    rec.param = pt->lambda;
+    rec.stable = afm_cont_stable(&R->c, pt);
+    rec.n_mult = R->c.N;
+    rec.mult_re = pt->mult_re;
+    rec.mult_im = pt->mult_im;
+    rec.y = pt->y;
+    rec.residual = pt->residual;
+    rec.iterations = pt->iterations;
+    rec.via = R->via;
+    rec.via_param = R->via_param;
+    rec.joined = -1;
+    snprintf(rec.how, sizeof rec.how, "%s", R->how ? R->how : "");
     return emit_rec(R, &rec);
 }
 
@@ -202,20 +274,48 @@ static double step_of(const cont_run *R, const afm_cont_pt *a, const afm_cont_pt
     return h;
 }
 
-static bool ended_at(const cont_run *R, double lambda, int p) {
+/* The end of a period-2p branch (2p = p2) next to the PD point (lambda, y) of a period-p
+ * orbit: its index, or -1. */
+static int end_near(const cont_run *R, double lambda, const double *y, int p2) {
     for (int i = 0; i < R->nend; i++)
-        if (R->end_p[i] == p && fabs(R->end_lambda[i] - lambda) < 2e-3 * R->c.ls) return true;
-    return false;
+        if (R->ends[i].p == p2 && fabs(R->ends[i].lambda - lambda) < CONT_END_NEAR * R->c.ls &&
+            afm_cont_state_dist(&R->c, R->ends[i].y, y) < CONT_JOIN_NEAR)
+            return i;
+    return -1;
 }
 
-/* Queue a switch onto the period-2p branch at the PD point R->r. */
+/* Queue a start: at the end of the queue, or (front) next. */
+static void queue_push(cont_run *R, const cont_switch *s, bool front) {
+    if (R->nq == CONT_MAX_QUEUE) {
+        R->sum->not_started++;
+        return;
+    }
+    if (front) {
+        memmove(&R->q[R->next + 1], &R->q[R->next], sizeof R->q[0] * (size_t)(R->nq - R->next));
+        R->q[R->next] = *s;
+    } else {
+        R->q[R->nq] = *s;
+    }
+    R->nq++;
+}
+
+/* The label of a PD switch: where, and (far) which branch ended next to it. */
+static void pd_how(const cont_run *R, cont_switch *s, int e) {
+    const char *nm = R->c.par.name;
+    int n = snprintf(s->how, sizeof s->how, "switched at the PD at %s = %.10g of branch %d", nm,
+                     s->lambda, s->parent);
+    if (e >= 0 && n > 0 && (size_t)n < sizeof s->how)
+        snprintf(s->how + n, sizeof s->how - (size_t)n,
+                 "; branch %d ended next to it (at %s = %.10g): the far end of its band",
+                 R->ends[e].branch, nm, R->ends[e].lambda);
+}
+
+/* Queue a switch onto the period-2p branch at the PD point R->r; one where a branch ended
+ * (the far end of a period-2p band) first. */
 static void queue_switch(cont_run *R, int branch) {
     const afm_cont_pt *pd = &R->r;
     const int N = R->c.N;
-    if (R->o->no_switch || 2 * pd->p > AFM_CONT_MAX_P ||
-        R->nbranch + R->nq >= (R->o->max_branches > 0 ? R->o->max_branches : 8) ||
-        R->nq >= CONT_MAX_BRANCHES)
-        return;
+    if (R->o->no_switch || 2 * pd->p > AFM_CONT_MAX_P) return;
     double re[AFM_CONT_MAX_N], im[AFM_CONT_MAX_N], V[AFM_CONT_MAX_N * AFM_CONT_MAX_N];
     if (afm_la_eigvals(N, pd->M, re, im, V) != 0) return;
     int k = -1;
@@ -223,13 +323,34 @@ static void queue_switch(cont_run *R, int branch) {
     for (int i = 0; i < N; i++)
         if (im[i] == 0.0 && fabs(re[i] + 1.0) < bd) bd = fabs(re[i] + 1.0), k = i;
     if (k < 0) return;
-    cont_switch *s = &R->q[R->nq++];
-    memcpy(s->y, pd->y, sizeof(double) * (size_t)N);
+    cont_switch s;
+    memset(&s, 0, sizeof s);
+    s.via = AFM_CONT_VIA_PD;
+    memcpy(s.y, pd->y, sizeof(double) * (size_t)N);
     for (int i = 0; i < N; i++)
-        s->v[i] = V[i * N + k];
-    s->lambda = pd->lambda;
-    s->p = 2 * pd->p;
-    s->parent = branch;
+        s.v[i] = V[i * N + k];
+    s.lambda = s.via_param = pd->lambda;
+    s.p = 2 * pd->p;
+    s.parent = branch;
+    s.group = R->ngroup++;
+    int e = R->o->no_end_switch ? -1 : end_near(R, s.lambda, s.y, s.p);
+    s.far = e >= 0;
+    pd_how(R, &s, e);
+    queue_push(R, &s, s.far);
+}
+
+/* A branch ended at R->ends[e]: the queued switches at that PD go first, marked far. */
+static void promote_far(cont_run *R, int e) {
+    for (int k = R->next; k < R->nq; k++) {
+        cont_switch *s = &R->q[k];
+        if (s->via != AFM_CONT_VIA_PD || s->far || end_near(R, s->lambda, s->y, s->p) != e)
+            continue;
+        cont_switch t = *s;
+        t.far = true;
+        pd_how(R, &t, e);
+        memmove(&R->q[R->next + 1], &R->q[R->next], sizeof R->q[0] * (size_t)(k - R->next));
+        R->q[R->next] = t;
+    }
 }
 
 /* The events between R->a and R->b, refined and emitted in the order of the step. For a
@@ -296,12 +417,166 @@ static int locate_merge(cont_run *R, double gap_min) {
     return 0;
 }
 
+/* Is the period-p orbit pt on a branch computed before? 1 yes, 0 no, -1 error. */
+static int covered(cont_run *R, const afm_cont_pt *pt) {
+    afm_cont_near nr;
+    if (afm_cont_store_near(&R->store, &R->c, pt->p, pt->lambda, pt->y, NULL, NULL, 0,
+                            CONT_JOIN_NEAR, &nr) != 0)
+        return 0;
+    static afm_cont_pt t;
+    int rc = afm_cont_correct(&R->c, nr.y, pt->lambda, NULL, pt->p, &t, R->err, R->errlen);
+    if (rc < 0) return -1;
+    return rc == 0 && afm_cont_state_dist(&R->c, t.y, pt->y) < AFM_CONT_JOIN_TOL;
+}
+
+/* The period-2p branch `branch` met the period-p orbit at R->r, heading in direction dir of
+ * the parameter: unless a branch computed before passes there, queue the period-p orbit
+ * from there both ways (dir first: across the PD). 1 queued, 0 not, -1 error. */
+static int queue_end(cont_run *R, int branch, int dir) {
+    const afm_cont_pt *m = &R->r;
+    const int p = m->p / 2;
+    static afm_cont_pt s;
+    int rc = afm_cont_correct(&R->c, m->y, m->lambda, NULL, p, &s, R->err, R->errlen);
+    if (rc != 0) return rc < 0 ? -1 : 0;
+    rc = covered(R, &s);
+    if (rc != 0) return rc < 0 ? -1 : 0;
+    cont_switch q;
+    memset(&q, 0, sizeof q);
+    q.via = AFM_CONT_VIA_END_PD;
+    memcpy(q.y, s.y, sizeof q.y);
+    q.lambda = s.lambda;
+    q.via_param = m->lambda;
+    q.p = p;
+    q.parent = branch;
+    q.group = R->ngroup++;
+    for (int k = 0; k < 2; k++) { /* pushed in front: the second runs first */
+        q.dir = k == 0 ? -dir : dir;
+        snprintf(q.how, sizeof q.how,
+                 "the period-%d orbit continued %s in %s from where branch %d (period %d) met "
+                 "it at %s = %.10g (at a PD of it)",
+                 p, q.dir > 0 ? "up" : "down", R->c.par.name, branch, m->p, R->c.par.name,
+                 m->lambda);
+        queue_push(R, &q, true);
+    }
+    return 1;
+}
+
+/* The branch left the range at R->a (on the bound, its tangent outward): follow it on,
+ * points not emitted, for up to o->beyond of the range; a fold there that brings it back is
+ * emitted (an LPC outside the range), and the branch queued from the bound inwards, with a
+ * note in why. 0, or -1 / 1 (error / stopped). */
+static int beyond_range(cont_run *R, int branch, int parent, double h, char *why, size_t wlen) {
+    const afm_cont_opts *o = R->o;
+    double frac = o->beyond == 0 ? 0.05 : o->beyond;
+    if (o->no_end_switch || !(frac > 0)) return 0;
+    const int N = R->c.N;
+    double h_min = o->h_min > 0 ? o->h_min : 1e-7, h_max = o->h_max > 0 ? o->h_max : 0.25;
+    double bound = R->a.lambda, lim = frac * (R->hi - R->lo), fold = NAN;
+    int side = bound >= R->hi ? 1 : -1; /* outwards */
+    static afm_cont_pt a, b;
+    a = R->a;
+    for (int k = 0; k < CONT_BEYOND_STEPS; k++) {
+        int rc = step_from(R, &a, h, &b);
+        if (rc < 0) return -1;
+        if (rc > 0) {
+            h *= 0.5;
+            if (h < h_min) return 0;
+            continue;
+        }
+        if ((a.t[N] > 0) != (b.t[N] > 0) && isnan(fold)) { /* the fold, located */
+            double fa = psi(R, &a, AFM_CONT_LPC), fb = psi(R, &b, AFM_CONT_LPC);
+            rc = refine(R, &a, step_of(R, &a, &b), fa, fb, AFM_CONT_LPC);
+            if (rc < 0) return -1;
+            R->refined = rc == 0;
+            if (rc > 0) R->r = b;
+            fold = R->r.lambda;
+            rc = emit_pt(R, &R->r, AFM_CONT_LPC, branch, parent);
+            if (rc) return rc;
+        }
+        double out = side * (b.lambda - bound);
+        if (out > lim) return 0;
+        if (out < 0) {
+            if (isnan(fold)) return 0;
+            double f = (bound - a.lambda) / (b.lambda - a.lambda), y[AFM_CONT_MAX_N];
+            for (int i = 0; i < N; i++)
+                y[i] = a.y[i] + f * (b.y[i] - a.y[i]);
+            rc = afm_cont_correct(&R->c, y, bound, NULL, a.p, &R->r, R->err, R->errlen);
+            if (rc != 0) return rc < 0 ? -1 : 0;
+            cont_switch q;
+            memset(&q, 0, sizeof q);
+            q.via = AFM_CONT_VIA_FOLD;
+            memcpy(q.y, R->r.y, sizeof q.y);
+            q.lambda = bound;
+            q.via_param = fold;
+            q.p = a.p;
+            q.parent = branch;
+            q.dir = -side;
+            q.group = R->ngroup++;
+            snprintf(q.how, sizeof q.how,
+                     "branch %d continued back into the range at %s = %.10g after its fold at "
+                     "%s = %.10g, beyond the range's end",
+                     branch, R->c.par.name, bound, R->c.par.name, fold);
+            queue_push(R, &q, true);
+            size_t n = strlen(why);
+            if (n < wlen)
+                snprintf(why + n, wlen - n,
+                         "; it folds back at %s = %.10g, %.3g%% of the range beyond: continued "
+                         "back into the range",
+                         R->c.par.name, fold, 100.0 * fabs(fold - bound) / (R->hi - R->lo));
+            return 0;
+        }
+        a = b;
+        if (b.iterations <= 3)
+            h = fmin(1.5 * h, h_max);
+        else if (b.iterations >= 6)
+            h *= 0.7;
+    }
+    return 0;
+}
+
+/* Does point b of branch lie on a branch computed before (not its own, not one started with
+ * it, not, for a branch continued around a fold, its parent)? J counts the consecutive
+ * points that do. 0, or -1. */
+static int join_test(cont_run *R, int branch, const afm_cont_pt *b, cont_join *J) {
+    unsigned char skip[CONT_MAX_BRANCHES] = {0};
+    for (int k = 0; k < R->nbranch && k < CONT_MAX_BRANCHES; k++)
+        skip[k] = k == branch || R->group[k] == R->group[branch] ||
+                  (R->via_of[branch] == AFM_CONT_VIA_FOLD && k == R->parent_of[branch]);
+    afm_cont_near nr;
+    double diff = HUGE_VAL;
+    bool ok = false;
+    const double *yh = b->p % 2 == 0 ? b->y_half : NULL;
+    if (afm_cont_store_near(&R->store, &R->c, b->p, b->lambda, b->y, yh, skip, CONT_MAX_BRANCHES,
+                            CONT_JOIN_NEAR, &nr) == 0) {
+        static afm_cont_pt t;
+        int rc = afm_cont_correct(&R->c, nr.y, b->lambda, NULL, b->p, &t, R->err, R->errlen);
+        if (rc < 0) return -1;
+        if (rc == 0) {
+            diff = afm_cont_state_dist(&R->c, t.y, b->y);
+            if (yh) diff = fmin(diff, afm_cont_state_dist(&R->c, t.y, yh));
+            ok = diff < AFM_CONT_JOIN_TOL && (J->n == 0 || J->branch == nr.branch);
+        }
+    }
+    if (!ok) {
+        *J = (cont_join){.branch = -1};
+        return 0;
+    }
+    J->n++;
+    J->branch = nr.branch;
+    J->dist = fmax(J->dist, nr.d);
+    J->diff = fmax(J->diff, diff);
+    return 0;
+}
+
 /* Follow one branch from R->a (a converged point with its tangent), emitted already. */
 static int follow(cont_run *R, int branch, int parent, double h) {
     const afm_cont_opts *o = R->o;
     const int N = R->c.N;
     double h_min = o->h_min > 0 ? o->h_min : 1e-7, h_max = o->h_max > 0 ? o->h_max : 0.25;
-    int points = 1;
+    int points = 1, max_bp = o->max_branch_points;
+    const int jp = o->no_end_switch ? 0 : o->join_points > 0 ? o->join_points : 3;
+    cont_join J = {.branch = -1};
+    bool joined = false;
     double gap_max = R->a.p > 1 ? half_gap(R, &R->a) : 0.0;
     char why[400];
     double ua0[AFM_CONT_MAX_U];
@@ -309,6 +584,10 @@ static int follow(cont_run *R, int branch, int parent, double h) {
     for (;;) {
         if (R->sum->points >= R->max_points) {
             snprintf(why, sizeof why, "--max-points (%d) reached", R->max_points);
+            break;
+        }
+        if (max_bp > 0 && points >= max_bp) {
+            snprintf(why, sizeof why, "--max-branch-points (%d) reached", max_bp);
             break;
         }
         int rc = step_from(R, &R->a, h, &R->b);
@@ -350,9 +629,15 @@ static int follow(cont_run *R, int branch, int parent, double h) {
             if (rc < 0) return -1;
         }
         if (merged) {
+            int e = -1;
             if (R->nend < CONT_MAX_BRANCHES) {
-                R->end_lambda[R->nend] = R->r.lambda;
-                R->end_p[R->nend++] = R->r.p;
+                e = R->nend++;
+                cont_end *E = &R->ends[e];
+                E->lambda = R->r.lambda;
+                memcpy(E->y, R->r.y, sizeof E->y);
+                E->p = R->r.p;
+                E->branch = branch;
+                E->from = R->from_of[branch];
             }
             rc = emit_pt(R, &R->r, AFM_CONT_POINT, branch, parent);
             if (rc) return rc;
@@ -361,16 +646,44 @@ static int follow(cont_run *R, int branch, int parent, double h) {
                      "met the period-%d orbit at %s = %.10g (a PD point of the period-%d "
                      "branch)",
                      R->r.p / 2, R->c.par.name, R->r.lambda, R->r.p / 2);
+            if (!o->no_end_switch) {
+                if (e >= 0) promote_far(R, e);
+                int dir = R->r.t[N] > 0 ? 1 : -1;
+                if (R->r.lambda != R->a.lambda) dir = R->r.lambda > R->a.lambda ? 1 : -1;
+                rc = queue_end(R, branch, dir);
+                if (rc < 0) return -1;
+                size_t n = strlen(why);
+                if (rc)
+                    snprintf(why + n, sizeof why - n,
+                             "; no branch computed so far passes there: the period-%d orbit is "
+                             "continued from there both ways",
+                             R->r.p / 2);
+                else
+                    snprintf(why + n, sizeof why - n, "; a branch computed before passes there");
+            }
             R->a = R->r;
             break;
         }
+        if (jp > 0 && branch > 0 && join_test(R, branch, &R->b, &J) != 0) return -1;
         rc = emit_pt(R, &R->b, AFM_CONT_POINT, branch, parent);
         if (rc) return rc;
         points++;
         R->a = R->b;
+        if (jp > 0 && J.n >= jp) {
+            joined = true;
+            R->sum->joins++;
+            snprintf(why, sizeof why,
+                     "joins branch %d: the same period-%d branch, computed before (%d points: "
+                     "its orbit, interpolated at this branch's %s, within %.2g of the orbit "
+                     "size, and after Newton from there within %.2g (%.2g m of tip motion))",
+                     J.branch, R->a.p, J.n, R->c.par.name, J.dist, J.diff, J.diff * R->c.a_ref_m);
+            break;
+        }
         if (out) {
             snprintf(why, sizeof why, "reached the end of the range (%s = %.10g)", R->c.par.name,
                      R->a.lambda);
+            rc = beyond_range(R, branch, parent, h, why, sizeof why);
+            if (rc) return rc;
             break;
         }
         double ua[AFM_CONT_MAX_U], d = 0.0;
@@ -386,7 +699,7 @@ static int follow(cont_run *R, int branch, int parent, double h) {
         else if (R->a.iterations >= 6)
             h *= 0.7;
     }
-    return emit_end(R, branch, parent, R->a.p, R->a.lambda, points, why);
+    return emit_end(R, branch, parent, R->a.p, R->a.lambda, points, why, joined ? &J : NULL);
 }
 
 /* The first point of a switched branch: the period-2p orbit at scaled distance h along the
@@ -426,6 +739,14 @@ static int switch_start(cont_run *R, const cont_switch *s) {
     R->c.max_du = 0.0;
     R->c.max_iter = max_iter;
     return rc;
+}
+
+/* The first point of a branch continued from an end (END_PD, FOLD): the period-p orbit at
+ * s->lambda, its tangent in direction s->dir of the parameter. 0, 1 (not found), -1. */
+static int cont_start(cont_run *R, const cont_switch *s) {
+    int rc = afm_cont_correct(&R->c, s->y, s->lambda, NULL, s->p, &R->a, R->err, R->errlen);
+    if (rc != 0) return rc;
+    return afm_cont_tangent(&R->c, &R->a, NULL, s->dir) == 0 ? 0 : 1;
 }
 
 /* The start orbit of branch 0 at o->from into R->a, with its tangent towards o->to. */
@@ -475,7 +796,8 @@ int afm_cont_run(const afm_config *cfg, const afm_cont_opts *o, afm_cont_emit em
     memset(sum, 0, sizeof *sum);
     double t0 = afm_cont_now_s();
     if (!o->param || !isfinite(o->from) || !isfinite(o->to) || o->from == o->to || o->p < 0 ||
-        o->p > AFM_CONT_MAX_P || o->max_points < 0 || o->h0 < 0 || o->h_min < 0 || o->h_max < 0) {
+        o->p > AFM_CONT_MAX_P || o->max_points < 0 || o->h0 < 0 || o->h_min < 0 || o->h_max < 0 ||
+        o->join_points < 0 || o->max_branch_points < 0 || !isfinite(o->beyond)) {
         afm_err_set(err, errlen,
                     "continuation: needs a parameter, finite --from != --to, period 1..%d, "
                     "non-negative counts and steps",
@@ -507,29 +829,58 @@ int afm_cont_run(const afm_config *cfg, const afm_cont_opts *o, afm_cont_emit em
     if (rc == 0) rc = start_orbit(R);
     double h0 = o->h0 > 0 ? o->h0 : 0.02;
     if (rc == 0) {
+        char how0[300];
+        snprintf(how0, sizeof how0, "the start orbit at %s = %.10g (period %d, from %s)",
+                 R->c.par.name, o->from, R->a.p,
+                 o->start_y ? "the given state" : "time integration from rest");
         R->nbranch = 1;
-        rc = emit_pt(R, &R->a, AFM_CONT_POINT, 0, -1);
+        R->ngroup = 1;
+        R->parent_of[0] = -1;
+        R->from_of[0] = NAN;
+        R->via = R->via_of[0] = AFM_CONT_VIA_START;
+        R->via_param = o->from;
+        R->how = how0;
+        rc = emit_branch(R, 0, -1, &R->a);
+        if (rc == 0) rc = emit_pt(R, &R->a, AFM_CONT_POINT, 0, -1);
         if (rc == 0) rc = follow(R, 0, -1, h0);
+        R->how = NULL;
     }
-    for (int k = 0; rc == 0 && k < R->nq && !R->stopped; k++) {
-        const cont_switch *s = &R->q[k];
-        if (ended_at(R, s->lambda, s->p)) continue; /* a branch came back to this PD */
+    const int max_b = o->max_branches > 0 ? o->max_branches : 8;
+    while (rc == 0 && R->next < R->nq && !R->stopped) {
+        if (R->nbranch >= max_b || R->nbranch >= CONT_MAX_BRANCHES) {
+            sum->not_started += R->nq - R->next;
+            break;
+        }
+        const cont_switch s = R->q[R->next++]; /* a copy: starts are queued in front */
+        /* --no-end-switch: no switch where a branch came back (the far end of its band) */
+        if (o->no_end_switch && s.via == AFM_CONT_VIA_PD && end_near(R, s.lambda, s.y, s.p) >= 0)
+            continue;
         int b = R->nbranch;
-        int r2 = switch_start(R, s);
+        int r2 = s.via == AFM_CONT_VIA_PD ? switch_start(R, &s) : cont_start(R, &s);
         if (r2 < 0) {
             rc = -1;
             break;
         }
         R->nbranch++;
+        R->group[b] = s.group;
+        R->parent_of[b] = s.parent;
+        R->via_of[b] = s.via;
+        R->from_of[b] = s.via == AFM_CONT_VIA_PD ? s.lambda : NAN;
+        R->via = s.via;
+        R->via_param = s.via_param;
+        R->how = s.how;
         if (r2 > 0) {
             char why[400];
-            snprintf(why, sizeof why, "no period-%d orbit found next to the PD at %s = %.10g", s->p,
-                     R->c.par.name, s->lambda);
-            rc = emit_end(R, b, s->parent, s->p, s->lambda, 0, why);
+            snprintf(why, sizeof why, "no period-%d orbit found %s %s = %.10g", s.p,
+                     s.via == AFM_CONT_VIA_PD ? "next to the PD at" : "to continue from at",
+                     R->c.par.name, s.lambda);
+            rc = emit_end(R, b, s.parent, s.p, s.lambda, 0, why, NULL);
             continue;
         }
-        rc = emit_pt(R, &R->a, AFM_CONT_POINT, b, s->parent);
-        if (rc == 0) rc = follow(R, b, s->parent, h0);
+        rc = emit_branch(R, b, s.parent, &R->a);
+        if (rc == 0) rc = emit_pt(R, &R->a, AFM_CONT_POINT, b, s.parent);
+        if (rc == 0) rc = follow(R, b, s.parent, h0);
+        R->how = NULL;
     }
     if (rc > 0) rc = 0; /* stopped by the caller */
     sum->branches = R->nbranch;
@@ -537,6 +888,7 @@ int afm_cont_run(const afm_config *cfg, const afm_cont_opts *o, afm_cont_emit em
     if (R->c.flow) sum->flow_steps = afm_cont_flow_get_stats(R->c.flow)->steps;
     sum->seconds = afm_cont_now_s() - t0;
     afm_cont_ctx_free(&R->c);
+    afm_cont_store_free(&R->store);
     free(R);
     return rc;
 }
