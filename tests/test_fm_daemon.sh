@@ -89,6 +89,25 @@ dr=$(jget "$T/s1.json" fm_drive_amplitude_m)
     exit !(d <= 0.01 && d >= -0.01 && g <= 0.01 && g >= -0.01)}' &&
   ok "daemon's FM: f $fd Hz, shift $sd Hz = approach's $fa Hz, $sa Hz within 0.01 Hz" ||
   bad "daemon's FM: f ${fd:-?} Hz, shift ${sd:-?} Hz; approach $fa Hz, $sa Hz (0.01 Hz)"
+# the harmonics records carry the loops too (issue 32): lock state, the shift = the period's
+# tone 0 (tones[0], = fe_hz) less the status's reference, the phase error
+listen --channels harmonics --json --count 20 --timeout 3 > "$T/h1.jsonl" 2>/dev/null
+if python3 - "$T/h1.jsonl" "$ref" "$sd" <<'PY'
+import json, sys
+h = [json.loads(l) for l in open(sys.argv[1]) if l.strip()]
+ref, sd = float(sys.argv[2]), float(sys.argv[3])
+assert len(h) >= 10, len(h)
+for r in h:
+    assert r["fm_lock_state"] == "locked", r.get("fm_lock_state")
+    f0 = r["tones"][0]["frequency_hz"]
+    assert r["fe_hz"] == f0, (r["fe_hz"], f0)
+    assert abs(r["fm_frequency_shift_hz"] - (f0 - ref)) < 1e-6, (r["fm_frequency_shift_hz"], f0 - ref)
+    assert abs(r["fm_frequency_shift_hz"] - sd) < 0.01, (r["fm_frequency_shift_hz"], sd)
+    assert abs(r["fm_phase_error_deg"]) < 0.1, r["fm_phase_error_deg"]
+print("%d records, shift %.4f Hz, phase error %.2e deg" % (len(h), h[-1]["fm_frequency_shift_hz"], h[-1]["fm_phase_error_deg"]))
+PY
+then ok "harmonics records under internal FM: locked, shift = tone 0 - reference = the status's within 0.01 Hz"
+else bad "harmonics records under internal FM: $(head -c 400 "$T/h1.jsonl")"; fi
 # a dither command while the loops own tone 0: refused by the twin with the reason (status
 # `refused`: valid, but not taken), counted, nothing changed
 rej0=$(jget "$T/s1.json" refused)

@@ -200,6 +200,11 @@ static cJSON *json_head(const char *channel, const char *type, int64_t utime, in
 
 /* The operating point a record was made at: separation_m, tones [{frequency_hz,
  * amplitude_m}]. */
+/* harmonics_t.fm_lock_state (afm_fm_lock) as the status's fm_lock_state says it */
+static const char *fm_lock_name(int s) {
+    return s == 0 ? "acquiring" : s == 1 ? "locked" : s == 2 ? "lost" : "?";
+}
+
 static void json_oppoint(cJSON *o, double z_m, int n, const double *f_hz, const double *a_m) {
     json_num(o, "separation_m", z_m);
     cJSON *t = cJSON_AddArrayToObject(o, "tones");
@@ -285,6 +290,11 @@ static void print_harmonics(const listen_ctx *c, const char *channel,
         json_num(o, "tip_y_m", m->tip_y_m);
         json_num(o, "true_height_m", m->true_height_m);
         json_int(o, "material", m->material);
+        if (m->fm_lock_state >= 0) { /* issue 32: the internal FM loops */
+            json_str(o, "fm_lock_state", fm_lock_name(m->fm_lock_state));
+            json_num(o, "fm_frequency_shift_hz", m->fm_frequency_shift_hz);
+            json_num(o, "fm_phase_error_deg", m->fm_phase_error_deg);
+        }
         afmt_json_emit(o);
         return;
     }
@@ -301,6 +311,9 @@ static void print_harmonics(const listen_ctx *c, const char *channel,
     if (m->tip_x_m != 0 || m->tip_y_m != 0 || m->true_height_m != 0 || m->material != 0)
         printf("; tip (%.6g, %.6g) nm over z_s %.5g nm, material %d", m->tip_x_m * 1e9,
                m->tip_y_m * 1e9, m->true_height_m * 1e9, m->material); /* issue 18 */
+    if (m->fm_lock_state >= 0)
+        printf("; FM %s, shift %.6g Hz, phase error %.4g deg", fm_lock_name(m->fm_lock_state),
+               m->fm_frequency_shift_hz, m->fm_phase_error_deg);
     printf("\n");
 }
 

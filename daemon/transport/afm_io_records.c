@@ -31,7 +31,9 @@ void afm_io_harmonics_from_period(afm_io_harmonics *o, const afm_chain_period *p
     o->op = *op;
     o->utime = utime;
     o->seq_applied = seq_applied;
-    o->fe_hz = fe_hz;
+    /* the period's own tone 0 (its item's drive: under FM control the NCO moves it between
+     * items), not the newest one the chain has seen */
+    o->fe_hz = op->n_tones > 0 ? op->freq_hz[0] : fe_hz;
     o->p = *p;
 }
 

@@ -73,6 +73,9 @@ void afm_lcm_harmonics_msg(const afm_io_harmonics *h, afm_lcm_harm_buf *b, afmtw
         .tip_y_m = h->op.tip_y_m,
         .true_height_m = h->op.true_height_m,
         .material = (int8_t)h->op.material,
+        .fm_lock_state = (int8_t)h->op.fm_lock, /* issue 32 */
+        .fm_frequency_shift_hz = h->op.fm_shift_hz,
+        .fm_phase_error_deg = h->op.fm_phase_error_deg,
     };
 }
 

@@ -85,6 +85,10 @@ typedef struct {
     bool lat_on;
     double lat_z_m, lat_x_m, lat_y_m, lat_h_m; /* stage Z, tip x, y, true height z_s */
     int lat_mat;
+    /* the internal FM loops (fm_on) when the item was opened: after their last update before
+     * its first sample (an NCO step commits the open item, so tone 0 is constant in it) */
+    int fm_lock; /* afm_fm_lock, -1 without the loops */
+    double fm_shift_hz, fm_phase_error_deg;
     afm_sample s[SLOT];
     /* The integrator's records (afm_rt_events.h) of samples [ev_begin, ev_end): the
      * simulator's ring is this array while the item is open (front_events_attach), so each
@@ -340,6 +344,9 @@ static void back_item(afm_runner *r, ring_item *it) {
         r->b_seq = it->seq;
         r->b_fe_hz = it->drive.n > 0 ? it->drive.omega_rad_s[0] / two_pi : 0.0;
         back_oppoint(r, &it->drive);
+        r->b_op.fm_lock = it->fm_lock;
+        r->b_op.fm_shift_hz = it->fm_shift_hz;
+        r->b_op.fm_phase_error_deg = it->fm_phase_error_deg;
         if (!it->lat_on) {
             r->b_op.tip_x_m = r->b_op.tip_y_m = r->b_op.true_height_m = 0.0;
             r->b_op.material = 0;
@@ -549,6 +556,18 @@ static void item_lat(const afm_runner *r, ring_item *it) {
     it->lat_mat = r->lat_mat;
 }
 
+/* The FM loops' state into a new item (issue 32: the harmonics records carry it). */
+static void item_fm(const afm_runner *r, ring_item *it) {
+    if (!r->fm_on || it->drive.n < 1) {
+        it->fm_lock = -1;
+        it->fm_shift_hz = it->fm_phase_error_deg = NAN;
+        return;
+    }
+    it->fm_lock = (int)r->fm.lock;
+    it->fm_shift_hz = it->drive.omega_rad_s[0] / two_pi - r->fm.f_center_hz;
+    it->fm_phase_error_deg = r->fm.phase_error_deg;
+}
+
 /* The item to write samples into (reserving one), or NULL when the ring is full. */
 static ring_item *open_item(afm_runner *r) {
     ring_item *it = r->open;
@@ -576,6 +595,7 @@ static ring_item *open_item(afm_runner *r) {
     it->ev_step0 = 0;
     if (r->ev_on) afm_sim_set_events(r->sim, it->ev, SLOT); /* clears SLOT steps: O(SLOT) */
     item_lat(r, it);
+    item_fm(r, it);
     r->open = it;
     return it;
 }
@@ -816,6 +836,8 @@ afm_runner *afm_runner_create_pipelined(const afm_config *cfg, int block_max, bo
         const afm_drive *d = afm_sim_drive(r->sim);
         r->b_fe_hz = d->n > 0 ? d->omega_rad_s[0] / two_pi : 0.0;
         back_oppoint(r, d);
+        r->b_op.fm_lock = -1;
+        r->b_op.fm_shift_hz = r->b_op.fm_phase_error_deg = NAN;
     }
     return r;
 fail:

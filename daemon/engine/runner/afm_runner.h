@@ -220,6 +220,12 @@ typedef struct {
     double tip_x_m, tip_y_m; /* the tip's lateral position */
     double true_height_m;    /* z_s there (the gap is z_m - true_height_m) */
     int material;            /* the region there: 0 the forces group's sample, i materials[i-1] */
+    /* the internal FM loops (fm.control = "internal", issue 32) after their last update before
+     * the samples' item began: lock state (afm_fm_lock; -1 without the loops), frequency shift
+     * (tone 0's frequency, freq_hz[0], less the NCO's centre f_center) and PLL phase error
+     * (lock-in lag - fm.phase_setpoint_deg); NAN without the loops */
+    int fm_lock;
+    double fm_shift_hz, fm_phase_error_deg;
 } afm_runner_oppoint;
 
 /* As afm_runner_take_periods(_raw), with ops[i] the operating point of out[i]: that of the
