@@ -85,7 +85,7 @@ typedef struct {
     int lat_mat;
     afm_sample s[SLOT];
     /* The integrator's records (afm_rt_events.h) of samples [ev_begin, ev_end): the
-     * simulator's ring is this array while the item is open (front_events_attach), so each
+     * simulator's ring is this array while the item is open (open_item), so each
      * record is written once, by the integrator, straight where the back reads it: no copy
      * on the real-time thread, no allocation (the array is part of the ring's slot), and the
      * simulator never holds a committed item (detached at commit). The step ending at sample
@@ -468,7 +468,7 @@ static void inline_back(afm_runner *r) {
     if (!r->pipelined) afm_runner_chain_run(r, 0);
 }
 
-/* The simulator records into the open item (front_events_attach) and nowhere else: detached
+/* The simulator records into the open item (open_item) and nowhere else: detached
  * before the item goes to the back, and before the simulator is swapped out. */
 static void front_events_detach(afm_runner *r) {
     if (r->ev_on) afm_sim_set_events(r->sim, NULL, 0);
