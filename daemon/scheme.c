@@ -112,10 +112,10 @@ int twind_scheme_choose(twind *d, afm_config *cfg, char *err, size_t errlen) {
         else if (ca.step_events)
             snprintf(rec, sizeof rec, " with the step record");
         snprintf(sc->reason, sizeof sc->reason,
-                 "auto: accurate%s %.0f ns/sample in its worst state %s %.0f ns (%.0f%% of "
-                 "%.1f ns); fast %.0f ns",
-                 rec, sc->ns_accurate, sc->accurate ? "<=" : ">", fit_ns,
-                 100.0 * AFM_SCHEME_FIT_SHARE, budget, sc->ns_fast);
+                 "auto: accurate %.0f ns/sample in its worst state %s %.0f ns (%.0f%% of %.1f "
+                 "ns)%s; fast %.0f ns",
+                 sc->ns_accurate, sc->accurate ? "<=" : ">", fit_ns, 100.0 * AFM_SCHEME_FIT_SHARE,
+                 budget, rec, sc->ns_fast);
     }
     }
     cfg->sim.rt_scheme = sc->accurate ? AFM_RT_SCHEME_ACCURATE : AFM_RT_SCHEME_FAST;

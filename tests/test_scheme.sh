@@ -39,6 +39,9 @@ wait "$DPID"; rc=$?; DPID=""
 line=$(grep "rt scheme" "$T/auto.err")
 if [ $rc -eq 0 ] && echo "$line" | grep -Eq "rt scheme (accurate|fast) \(--scheme config\): auto: accurate [0-9]+ ns/sample in its worst state (<=|>) [0-9]+ ns .*fast [0-9]+ ns"; then
   ok "auto: start-up line names the pick and both costs ($line)"
+  echo "$line" | grep -Eq "ns \(90% of [0-9.]+ ns\) with(out)? the step record" \
+    && ok "auto: the accurate scheme measured with the per-step record (sim.step_events auto)" \
+    || bad "auto: the start-up line does not say how the step record was measured"
 else
   bad "auto: exit $rc, start-up line '$line'"
 fi

@@ -91,7 +91,7 @@ typedef struct {
     double fm_shift_hz, fm_phase_error_deg;
     afm_sample s[SLOT];
     /* The integrator's records (afm_rt_events.h) of samples [ev_begin, ev_end): the
-     * simulator's ring is this array while the item is open (front_events_attach), so each
+     * simulator's ring is this array while the item is open (open_item), so each
      * record is written once, by the integrator, straight where the back reads it: no copy
      * on the real-time thread, no allocation (the array is part of the ring's slot), and the
      * simulator never holds a committed item (detached at commit). The step ending at sample
@@ -477,7 +477,7 @@ static void inline_back(afm_runner *r) {
     if (!r->pipelined) afm_runner_chain_run(r, 0);
 }
 
-/* The simulator records into the open item (front_events_attach) and nowhere else: detached
+/* The simulator records into the open item (open_item) and nowhere else: detached
  * before the item goes to the back, and before the simulator is swapped out. */
 static void front_events_detach(afm_runner *r) {
     if (r->ev_on) afm_sim_set_events(r->sim, NULL, 0);
@@ -593,7 +593,11 @@ static ring_item *open_item(afm_runner *r) {
     it->ev_begin = it->ev_end = 0;
     it->ev_broken = false;
     it->ev_step0 = 0;
-    if (r->ev_on) afm_sim_set_events(r->sim, it->ev, SLOT); /* clears SLOT steps: O(SLOT) */
+    /* Only a scheme that records gets the ring: marking its SLOT entries empty touches 64 kB
+     * of the item per item, a cache line per sample the fast scheme would pay for nothing (a
+     * hand-over to the accurate scheme records from the next item on). */
+    if (r->ev_on && strcmp(afm_sim_scheme_name(r->sim), "fast") != 0)
+        afm_sim_set_events(r->sim, it->ev, SLOT);
     item_lat(r, it);
     item_fm(r, it);
     r->open = it;

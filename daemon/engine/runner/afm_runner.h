@@ -124,8 +124,8 @@ typedef struct afm_runner_model afm_runner_model;
  * issue 28): sim.step_events not "off", AFMTWIN_STEP_EVENTS not "0" in the environment (as
  * the offline tools, tools/opts.h), and an integrator that records: CVODE, or rt without
  * thermal noise (whose accurate scheme records; the fast scheme does not, and its samples
- * keep the sample path: a hand-over switches per sample). Read once, at create. The record
- * costs the integrator thread (~+41 % per sample, docs/numerics.md); the daemon's `--scheme
+ * keep the sample path: a hand-over switches at the next ring item). Read once, at create. The
+ * record costs the integrator thread (~+41 % per sample, docs/numerics.md); the daemon's `--scheme
  * auto` measures the accurate scheme with it (runner/afm_scheme_cost.h). */
 bool afm_runner_step_events(const afm_config *cfg);
 
@@ -136,7 +136,8 @@ bool afm_runner_step_events(const afm_config *cfg);
 afm_runner *afm_runner_create(const afm_config *cfg, int block_max, bool lockstep, char *err,
                               size_t errlen);
 /* As afm_runner_create; pipelined: the back runs on another thread (see above), through a
- * ring of ring_items (2..65536) items of AFM_RUNNER_SLOT_SAMPLES samples (~50 kB each). */
+ * ring of ring_items (2..65536) items of AFM_RUNNER_SLOT_SAMPLES samples and their
+ * integrator records (~115 kB each: 48 + 64 bytes per sample). */
 afm_runner *afm_runner_create_pipelined(const afm_config *cfg, int block_max, bool lockstep,
                                         bool pipelined, int ring_items, char *err, size_t errlen);
 void afm_runner_destroy(afm_runner **r);
