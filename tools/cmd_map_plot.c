@@ -436,6 +436,21 @@ static int write_script(FILE *sf, const mplot_opts *o, const afmt_map_data *m, i
             (ex[0] + ex[1]) * sx, ey[0] * sy, (ey[0] + ey[1]) * sy);
     const int show[4] = {2, 0, 1, 7};
     for (int k = 0; k < 4; k++) {
+        /* the colour scale spans the settled points: an unsettled point (marked black) may
+         * read anything (on fig 4-2's map, E_ts of -50 to -80 eV beside 0..30 eV settled),
+         * and its colour saturates at the scale's end instead of flattening the rest */
+        double lo = INFINITY, hi = -INFINITY;
+        for (size_t i = 0; i < (size_t)m->x.n * m->lines; i++) {
+            const afmt_map_point *p = &m->pts[d][i];
+            double v = qvalue(p, show[k]) * quantities[show[k]].scale;
+            if (!p->settled || !isfinite(v)) continue;
+            lo = fmin(lo, v);
+            hi = fmax(hi, v);
+        }
+        if (lo < hi)
+            fprintf(sf, "set cbrange [%.10g:%.10g]\n", lo, hi);
+        else
+            fprintf(sf, "set autoscale cbfix\n");
         fprintf(sf,
                 "set title '%s'\nplot $map using 1:2:%d with image notitle, "
                 "$bist using 1:2 with points pt 2 ps 1.2 lc rgb 'white' notitle, "
