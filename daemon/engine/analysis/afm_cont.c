@@ -673,10 +673,12 @@ static int follow(cont_run *R, int branch, int parent, double h) {
             joined = true;
             R->sum->joins++;
             snprintf(why, sizeof why,
-                     "joins branch %d: the same period-%d branch, computed before (%d points: "
-                     "its orbit, interpolated at this branch's %s, within %.2g of the orbit "
-                     "size, and after Newton from there within %.2g (%.2g m of tip motion))",
-                     J.branch, R->a.p, J.n, R->c.par.name, J.dist, J.diff, J.diff * R->c.a_ref_m);
+                     "joins branch %d: the same period-%d branch, computed before (%d "
+                     "points: its orbit, interpolated at this branch's %s, within %.2g of "
+                     "the orbit size (%.2g m of tip motion); Newton from there lands on "
+                     "this branch's within %.2g (%.2g m))",
+                     J.branch, R->a.p, J.n, R->c.par.name, J.dist, J.dist * R->c.a_ref_m, J.diff,
+                     J.diff * R->c.a_ref_m);
             break;
         }
         if (out) {
