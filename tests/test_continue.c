@@ -815,6 +815,9 @@ static void fig42_full(void) {
                    r->kind == AFM_CONT_PD ? "PD" : "LPC", r->param, r->met.min_deflection_m * 1e9);
     }
     check_thesis_abs("Fig. 4.2", "PD bifurcations upon contact (period-1 branch)", npd, 6, 0, "");
+    /* the six PDs pair up into three period-2 bands, each found from both of its ends */
+    check_true(sum.joins == 3, "Fig. 4.2 80-86 kHz: the switches at the three far PDs join their "
+                               "bands");
     check_true(nlpc >= 2, "Fig. 4.2: the LPC before contact and the LPC of the high branch");
 }
 

@@ -1,8 +1,7 @@
 /* SPDX-License-Identifier: MIT */
 /* afm_cont.c -- pseudo-arclength continuation, bifurcations and branch switching (contract
  * in afm_cont.h). */
-#include "analysis/afm_cont.h"
-#include "analysis/afm_cont_ends.h"
+#include "analysis/afm_cont_run.h"
 
 #include "beam/afm_linalg.h"
 #include "config/afm_err.h"
@@ -13,70 +12,12 @@
 #include <stdlib.h>
 #include <string.h>
 
-#define CONT_MAX_BRANCHES 32
-#define CONT_MAX_QUEUE 64
-/* A join's first test: the other branch's interpolated state within this (scaled) of the
- * point's; then Newton at the point's parameter from it must land on the point's orbit */
-#define CONT_JOIN_NEAR 0.1
-/* A branch ended next to a PD: within this of the range in the parameter (the merge is
- * located to where the corrector fails next to the branch point: 1-13 Hz on Fig. 4.2) and
- * CONT_JOIN_NEAR in the state */
-#define CONT_END_NEAR 1e-2
-/* Steps followed beyond the range's end looking for a fold */
-#define CONT_BEYOND_STEPS 40
 #define CONT_COS_TURN 0.866 /* largest turn of the tangent per step: 30 deg */
 #define CONT_REFINE_ITER 24
 /* The bracket of a refined event, relative to the step: the test functions carry the
  * sensitivities' error (~1e-4 of their range near zero), below which the secant wanders */
 #define CONT_REFINE_REL 1e-6
 #define CONT_REFINE_ACCEPT 1e-4
-
-/* A queued start: a PD switch (y the PD point, v the eigenvector of its multiplier -1), or
- * (END_PD, FOLD) the period-p orbit y at lambda continued in direction dir of the
- * parameter. */
-typedef struct {
-    afm_cont_via via;
-    double y[AFM_CONT_MAX_N], v[AFM_CONT_MAX_N];
-    double lambda, via_param;
-    int p, parent, dir;
-    int group; /* starts queued together (the two ways from one end): never join each other */
-    bool far;  /* PD: a branch ended next to it */
-    char how[300];
-} cont_switch;
-
-/* Where a branch ended on meeting the period-p orbit (at a PD of it). */
-typedef struct {
-    double lambda, y[AFM_CONT_MAX_N];
-    int p, branch; /* p: of the ended branch */
-    double from;   /* the PD it was switched at (NAN: not a switched branch) */
-} cont_end;
-
-typedef struct {
-    afm_cont_ctx c;
-    const afm_cont_opts *o;
-    afm_cont_emit emit;
-    void *ectx;
-    afm_cont_summary *sum;
-    double lo, hi; /* the parameter range */
-    int max_points;
-    bool stopped;
-    cont_switch q[CONT_MAX_QUEUE];
-    int nq, next, nbranch, ngroup;
-    cont_end ends[CONT_MAX_BRANCHES]; /* where branches met the period-p orbit */
-    int nend;
-    afm_cont_store store;             /* every point emitted (afm_cont_ends.h) */
-    int group[CONT_MAX_BRANCHES];     /* of each branch's start */
-    int parent_of[CONT_MAX_BRANCHES]; /* each branch's parent */
-    afm_cont_via via_of[CONT_MAX_BRANCHES];
-    double from_of[CONT_MAX_BRANCHES]; /* the PD a branch was switched at (else NAN) */
-    const char *how;                   /* the current branch's, for its END record */
-    afm_cont_via via;                  /* the current branch's */
-    double via_param;
-    afm_cont_pt a, b, r; /* the last point, the new one, a refined event */
-    bool refined;        /* r was located (else it is the later point) */
-    char *err;
-    size_t errlen;
-} cont_run;
 
 /* The multiplier that an event of kind moves through the unit circle: the real one nearest
  * -1 (PD) or +1 (LPC, a branch point), the complex one nearest the circle (NS); -1 if none. */
@@ -103,7 +44,7 @@ static int critical_of(const cont_run *R, const afm_cont_pt *pt, afm_cont_kind k
  * prod (mu - 1); NS prod_{i<j} (mu_i mu_j - 1) (also zero at a neutral saddle, mu_i mu_j = 1
  * with both real: not reported). Each is divided by its modulus at the event's bracket ends
  * by the caller's sign test only, so their scale does not matter. */
-static double psi(const cont_run *R, const afm_cont_pt *pt, afm_cont_kind kind) {
+double afm_cont_psi(const cont_run *R, const afm_cont_pt *pt, afm_cont_kind kind) {
     const int N = R->c.N;
     if (kind == AFM_CONT_LPC) return pt->t[N];
     double complex prod = 1.0;
@@ -137,7 +78,8 @@ static int emit_rec(cont_run *R, afm_cont_record *rec) {
 }
 
 /* Emit pt as a record of kind (POINT or an event). */
-static int emit_pt(cont_run *R, const afm_cont_pt *pt, afm_cont_kind kind, int branch, int parent) {
+int afm_cont_emit_pt(cont_run *R, const afm_cont_pt *pt, afm_cont_kind kind, int branch,
+                     int parent) {
     afm_cont_record rec;
     memset(&rec, 0, sizeof rec);
     rec.kind = kind;
@@ -169,13 +111,6 @@ static int emit_pt(cont_run *R, const afm_cont_pt *pt, afm_cont_kind kind, int b
         return -1;
     return emit_rec(R, &rec);
 }
-
-/* A join of the current branch: the branch run onto (-1: none), the largest distances at
- * the overlap (afm_cont_record). */
-typedef struct {
-    int branch, n;
-    double dist, diff;
-} cont_join;
 
 static int emit_end(cont_run *R, int branch, int parent, int p, double lambda, int points,
                     const char *why, const cont_join *j) {
@@ -221,7 +156,7 @@ static int emit_branch(cont_run *R, int branch, int parent, const afm_cont_pt *p
 
 /* Predictor from a along its tangent by h, corrector normal to a's tangent, tangent at out
  * (oriented along a's). 0, 1 (not converged or turned too far), -1 error. */
-static int step_from(cont_run *R, const afm_cont_pt *a, double h, afm_cont_pt *out) {
+int afm_cont_step_from(cont_run *R, const afm_cont_pt *a, double h, afm_cont_pt *out) {
     const int N = R->c.N;
     double y[AFM_CONT_MAX_N];
     for (int i = 0; i < N; i++)
@@ -236,19 +171,19 @@ static int step_from(cont_run *R, const afm_cont_pt *a, double h, afm_cont_pt *o
     return dot >= CONT_COS_TURN ? 0 : 1;
 }
 
-/* Locate the zero of psi(kind) between a (step 0, value fa) and the step hb (value fb) by the
- * Illinois method, into R->r. 0, or 1 (no convergence: R->r is the last iterate), -1. */
-static int refine(cont_run *R, const afm_cont_pt *a, double hb, double fa, double fb,
-                  afm_cont_kind kind) {
+/* Locate the zero of afm_cont_psi(kind) between a (step 0, value fa) and the step hb (value fb) by
+ * the Illinois method, into R->r. 0, or 1 (no convergence: R->r is the last iterate), -1. */
+int afm_cont_refine(cont_run *R, const afm_cont_pt *a, double hb, double fa, double fb,
+                    afm_cont_kind kind) {
     double lo = 0.0, hi = hb;
     int side = 0;
     for (int it = 0; it < CONT_REFINE_ITER; it++) {
         double h = (fb - fa) != 0.0 ? (lo * fb - hi * fa) / (fb - fa) : 0.5 * (lo + hi);
         if (!(h > fmin(lo, hi) && h < fmax(lo, hi))) h = 0.5 * (lo + hi);
-        int rc = step_from(R, a, h, &R->r);
+        int rc = afm_cont_step_from(R, a, h, &R->r);
         if (rc < 0) return -1;
         if (rc > 0) return 1;
-        double f = psi(R, &R->r, kind);
+        double f = afm_cont_psi(R, &R->r, kind);
         if (!isfinite(f)) return 1;
         if ((f > 0) == (fa > 0)) {
             lo = h, fa = f;
@@ -265,49 +200,13 @@ static int refine(cont_run *R, const afm_cont_pt *a, double hb, double fa, doubl
 }
 
 /* The step of b from a along a's tangent (the projection of b - a on it). */
-static double step_of(const cont_run *R, const afm_cont_pt *a, const afm_cont_pt *b) {
+double afm_cont_step_of(const cont_run *R, const afm_cont_pt *a, const afm_cont_pt *b) {
     double ua[AFM_CONT_MAX_U], ub[AFM_CONT_MAX_U], h = 0.0;
     afm_cont_scaled(&R->c, a->y, a->lambda, ua);
     afm_cont_scaled(&R->c, b->y, b->lambda, ub);
     for (int j = 0; j <= R->c.N; j++)
         h += a->t[j] * (ub[j] - ua[j]);
     return h;
-}
-
-/* The end of a period-2p branch (2p = p2) next to the PD point (lambda, y) of a period-p
- * orbit: its index, or -1. */
-static int end_near(const cont_run *R, double lambda, const double *y, int p2) {
-    for (int i = 0; i < R->nend; i++)
-        if (R->ends[i].p == p2 && fabs(R->ends[i].lambda - lambda) < CONT_END_NEAR * R->c.ls &&
-            afm_cont_state_dist(&R->c, R->ends[i].y, y) < CONT_JOIN_NEAR)
-            return i;
-    return -1;
-}
-
-/* Queue a start: at the end of the queue, or (front) next. */
-static void queue_push(cont_run *R, const cont_switch *s, bool front) {
-    if (R->nq == CONT_MAX_QUEUE) {
-        R->sum->not_started++;
-        return;
-    }
-    if (front) {
-        memmove(&R->q[R->next + 1], &R->q[R->next], sizeof R->q[0] * (size_t)(R->nq - R->next));
-        R->q[R->next] = *s;
-    } else {
-        R->q[R->nq] = *s;
-    }
-    R->nq++;
-}
-
-/* The label of a PD switch: where, and (far) which branch ended next to it. */
-static void pd_how(const cont_run *R, cont_switch *s, int e) {
-    const char *nm = R->c.par.name;
-    int n = snprintf(s->how, sizeof s->how, "switched at the PD at %s = %.10g of branch %d", nm,
-                     s->lambda, s->parent);
-    if (e >= 0 && n > 0 && (size_t)n < sizeof s->how)
-        snprintf(s->how + n, sizeof s->how - (size_t)n,
-                 "; branch %d ended next to it (at %s = %.10g): the far end of its band",
-                 R->ends[e].branch, nm, R->ends[e].lambda);
 }
 
 /* Queue a switch onto the period-2p branch at the PD point R->r; one where a branch ended
@@ -333,24 +232,10 @@ static void queue_switch(cont_run *R, int branch) {
     s.p = 2 * pd->p;
     s.parent = branch;
     s.group = R->ngroup++;
-    int e = R->o->no_end_switch ? -1 : end_near(R, s.lambda, s.y, s.p);
+    int e = R->o->no_end_switch ? -1 : afm_cont_end_near(R, s.lambda, s.y, s.p);
     s.far = e >= 0;
-    pd_how(R, &s, e);
-    queue_push(R, &s, s.far);
-}
-
-/* A branch ended at R->ends[e]: the queued switches at that PD go first, marked far. */
-static void promote_far(cont_run *R, int e) {
-    for (int k = R->next; k < R->nq; k++) {
-        cont_switch *s = &R->q[k];
-        if (s->via != AFM_CONT_VIA_PD || s->far || end_near(R, s->lambda, s->y, s->p) != e)
-            continue;
-        cont_switch t = *s;
-        t.far = true;
-        pd_how(R, &t, e);
-        memmove(&R->q[R->next + 1], &R->q[R->next], sizeof R->q[0] * (size_t)(k - R->next));
-        R->q[R->next] = t;
-    }
+    afm_cont_pd_how(R, &s, e);
+    afm_cont_queue_push(R, &s, s.far);
 }
 
 /* The events between R->a and R->b, refined and emitted in the order of the step. For a
@@ -363,14 +248,17 @@ static int events(cont_run *R, int branch, int parent, bool *merged) {
     afm_cont_kind kinds[4];
     int nk = 0;
     if (fold) kinds[nk++] = AFM_CONT_LPC;
-    if ((psi(R, a, AFM_CONT_PD) > 0) != (psi(R, b, AFM_CONT_PD) > 0)) kinds[nk++] = AFM_CONT_PD;
-    if ((psi(R, a, AFM_CONT_NS) > 0) != (psi(R, b, AFM_CONT_NS) > 0)) kinds[nk++] = AFM_CONT_NS;
-    if (!fold && a->p > 1 && (psi(R, a, AFM_CONT_END) > 0) != (psi(R, b, AFM_CONT_END) > 0))
+    if ((afm_cont_psi(R, a, AFM_CONT_PD) > 0) != (afm_cont_psi(R, b, AFM_CONT_PD) > 0))
+        kinds[nk++] = AFM_CONT_PD;
+    if ((afm_cont_psi(R, a, AFM_CONT_NS) > 0) != (afm_cont_psi(R, b, AFM_CONT_NS) > 0))
+        kinds[nk++] = AFM_CONT_NS;
+    if (!fold && a->p > 1 &&
+        (afm_cont_psi(R, a, AFM_CONT_END) > 0) != (afm_cont_psi(R, b, AFM_CONT_END) > 0))
         kinds[nk++] = AFM_CONT_END;
-    double hb = step_of(R, a, b);
+    double hb = afm_cont_step_of(R, a, b);
     for (int e = 0; e < nk; e++) {
-        double fa = psi(R, a, kinds[e]), fb = psi(R, b, kinds[e]);
-        int rc = refine(R, a, hb, fa, fb, kinds[e]);
+        double fa = afm_cont_psi(R, a, kinds[e]), fb = afm_cont_psi(R, b, kinds[e]);
+        int rc = afm_cont_refine(R, a, hb, fa, fb, kinds[e]);
         if (rc < 0) return -1;
         R->refined = rc == 0;
         if (rc > 0) R->r = *b;         /* not located: reported at the later point */
@@ -385,7 +273,7 @@ static int events(cont_run *R, int branch, int parent, bool *merged) {
             }
             continue; /* a branch point elsewhere: not reported */
         }
-        rc = emit_pt(R, &R->r, kinds[e], branch, parent);
+        rc = afm_cont_emit_pt(R, &R->r, kinds[e], branch, parent);
         if (rc) return rc;
         if (kinds[e] == AFM_CONT_PD) queue_switch(R, branch);
     }
@@ -397,13 +285,13 @@ static int events(cont_run *R, int branch, int parent, bool *merged) {
  * half-orbits still differ by more than gap_min (near the merge the gap falls as the square
  * root of the distance), into R->r. 0, or -1. */
 static int locate_merge(cont_run *R, double gap_min) {
-    double lo = 0.0, hi = step_of(R, &R->a, &R->b);
+    double lo = 0.0, hi = afm_cont_step_of(R, &R->a, &R->b);
     R->r = R->a;
     R->refined = false;
     for (int it = 0; it < 30 && hi - lo > CONT_REFINE_REL * hi; it++) {
         double h = 0.5 * (lo + hi);
         static afm_cont_pt t;
-        int rc = step_from(R, &R->a, h, &t);
+        int rc = afm_cont_step_from(R, &R->a, h, &t);
         if (rc < 0) return -1;
         if (rc > 0) break;
         if (half_gap(R, &t) > gap_min) {
@@ -414,157 +302,6 @@ static int locate_merge(cont_run *R, double gap_min) {
         }
     }
     R->refined = hi - lo <= CONT_REFINE_REL * hi;
-    return 0;
-}
-
-/* Is the period-p orbit pt on a branch computed before? 1 yes, 0 no, -1 error. */
-static int covered(cont_run *R, const afm_cont_pt *pt) {
-    afm_cont_near nr;
-    if (afm_cont_store_near(&R->store, &R->c, pt->p, pt->lambda, pt->y, NULL, NULL, 0,
-                            CONT_JOIN_NEAR, &nr) != 0)
-        return 0;
-    static afm_cont_pt t;
-    int rc = afm_cont_correct(&R->c, nr.y, pt->lambda, NULL, pt->p, &t, R->err, R->errlen);
-    if (rc < 0) return -1;
-    return rc == 0 && afm_cont_state_dist(&R->c, t.y, pt->y) < AFM_CONT_JOIN_TOL;
-}
-
-/* The period-2p branch `branch` met the period-p orbit at R->r, heading in direction dir of
- * the parameter: unless a branch computed before passes there, queue the period-p orbit
- * from there both ways (dir first: across the PD). 1 queued, 0 not, -1 error. */
-static int queue_end(cont_run *R, int branch, int dir) {
-    const afm_cont_pt *m = &R->r;
-    const int p = m->p / 2;
-    static afm_cont_pt s;
-    int rc = afm_cont_correct(&R->c, m->y, m->lambda, NULL, p, &s, R->err, R->errlen);
-    if (rc != 0) return rc < 0 ? -1 : 0;
-    rc = covered(R, &s);
-    if (rc != 0) return rc < 0 ? -1 : 0;
-    cont_switch q;
-    memset(&q, 0, sizeof q);
-    q.via = AFM_CONT_VIA_END_PD;
-    memcpy(q.y, s.y, sizeof q.y);
-    q.lambda = s.lambda;
-    q.via_param = m->lambda;
-    q.p = p;
-    q.parent = branch;
-    q.group = R->ngroup++;
-    for (int k = 0; k < 2; k++) { /* pushed in front: the second runs first */
-        q.dir = k == 0 ? -dir : dir;
-        snprintf(q.how, sizeof q.how,
-                 "the period-%d orbit continued %s in %s from where branch %d (period %d) met "
-                 "it at %s = %.10g (at a PD of it)",
-                 p, q.dir > 0 ? "up" : "down", R->c.par.name, branch, m->p, R->c.par.name,
-                 m->lambda);
-        queue_push(R, &q, true);
-    }
-    return 1;
-}
-
-/* The branch left the range at R->a (on the bound, its tangent outward): follow it on,
- * points not emitted, for up to o->beyond of the range; a fold there that brings it back is
- * emitted (an LPC outside the range), and the branch queued from the bound inwards, with a
- * note in why. 0, or -1 / 1 (error / stopped). */
-static int beyond_range(cont_run *R, int branch, int parent, double h, char *why, size_t wlen) {
-    const afm_cont_opts *o = R->o;
-    double frac = o->beyond == 0 ? 0.05 : o->beyond;
-    if (o->no_end_switch || !(frac > 0)) return 0;
-    const int N = R->c.N;
-    double h_min = o->h_min > 0 ? o->h_min : 1e-7, h_max = o->h_max > 0 ? o->h_max : 0.25;
-    double bound = R->a.lambda, lim = frac * (R->hi - R->lo), fold = NAN;
-    int side = bound >= R->hi ? 1 : -1; /* outwards */
-    static afm_cont_pt a, b;
-    a = R->a;
-    for (int k = 0; k < CONT_BEYOND_STEPS; k++) {
-        int rc = step_from(R, &a, h, &b);
-        if (rc < 0) return -1;
-        if (rc > 0) {
-            h *= 0.5;
-            if (h < h_min) return 0;
-            continue;
-        }
-        if ((a.t[N] > 0) != (b.t[N] > 0) && isnan(fold)) { /* the fold, located */
-            double fa = psi(R, &a, AFM_CONT_LPC), fb = psi(R, &b, AFM_CONT_LPC);
-            rc = refine(R, &a, step_of(R, &a, &b), fa, fb, AFM_CONT_LPC);
-            if (rc < 0) return -1;
-            R->refined = rc == 0;
-            if (rc > 0) R->r = b;
-            fold = R->r.lambda;
-            rc = emit_pt(R, &R->r, AFM_CONT_LPC, branch, parent);
-            if (rc) return rc;
-        }
-        double out = side * (b.lambda - bound);
-        if (out > lim) return 0;
-        if (out < 0) {
-            if (isnan(fold)) return 0;
-            double f = (bound - a.lambda) / (b.lambda - a.lambda), y[AFM_CONT_MAX_N];
-            for (int i = 0; i < N; i++)
-                y[i] = a.y[i] + f * (b.y[i] - a.y[i]);
-            rc = afm_cont_correct(&R->c, y, bound, NULL, a.p, &R->r, R->err, R->errlen);
-            if (rc != 0) return rc < 0 ? -1 : 0;
-            cont_switch q;
-            memset(&q, 0, sizeof q);
-            q.via = AFM_CONT_VIA_FOLD;
-            memcpy(q.y, R->r.y, sizeof q.y);
-            q.lambda = bound;
-            q.via_param = fold;
-            q.p = a.p;
-            q.parent = branch;
-            q.dir = -side;
-            q.group = R->ngroup++;
-            snprintf(q.how, sizeof q.how,
-                     "branch %d continued back into the range at %s = %.10g after its fold at "
-                     "%s = %.10g, beyond the range's end",
-                     branch, R->c.par.name, bound, R->c.par.name, fold);
-            queue_push(R, &q, true);
-            size_t n = strlen(why);
-            if (n < wlen)
-                snprintf(why + n, wlen - n,
-                         "; it folds back at %s = %.10g, %.3g%% of the range beyond: continued "
-                         "back into the range",
-                         R->c.par.name, fold, 100.0 * fabs(fold - bound) / (R->hi - R->lo));
-            return 0;
-        }
-        a = b;
-        if (b.iterations <= 3)
-            h = fmin(1.5 * h, h_max);
-        else if (b.iterations >= 6)
-            h *= 0.7;
-    }
-    return 0;
-}
-
-/* Does point b of branch lie on a branch computed before (not its own, not one started with
- * it, not, for a branch continued around a fold, its parent)? J counts the consecutive
- * points that do. 0, or -1. */
-static int join_test(cont_run *R, int branch, const afm_cont_pt *b, cont_join *J) {
-    unsigned char skip[CONT_MAX_BRANCHES] = {0};
-    for (int k = 0; k < R->nbranch && k < CONT_MAX_BRANCHES; k++)
-        skip[k] = k == branch || R->group[k] == R->group[branch] ||
-                  (R->via_of[branch] == AFM_CONT_VIA_FOLD && k == R->parent_of[branch]);
-    afm_cont_near nr;
-    double diff = HUGE_VAL;
-    bool ok = false;
-    const double *yh = b->p % 2 == 0 ? b->y_half : NULL;
-    if (afm_cont_store_near(&R->store, &R->c, b->p, b->lambda, b->y, yh, skip, CONT_MAX_BRANCHES,
-                            CONT_JOIN_NEAR, &nr) == 0) {
-        static afm_cont_pt t;
-        int rc = afm_cont_correct(&R->c, nr.y, b->lambda, NULL, b->p, &t, R->err, R->errlen);
-        if (rc < 0) return -1;
-        if (rc == 0) {
-            diff = afm_cont_state_dist(&R->c, t.y, b->y);
-            if (yh) diff = fmin(diff, afm_cont_state_dist(&R->c, t.y, yh));
-            ok = diff < AFM_CONT_JOIN_TOL && (J->n == 0 || J->branch == nr.branch);
-        }
-    }
-    if (!ok) {
-        *J = (cont_join){.branch = -1};
-        return 0;
-    }
-    J->n++;
-    J->branch = nr.branch;
-    J->dist = fmax(J->dist, nr.d);
-    J->diff = fmax(J->diff, diff);
     return 0;
 }
 
@@ -590,7 +327,7 @@ static int follow(cont_run *R, int branch, int parent, double h) {
             snprintf(why, sizeof why, "--max-branch-points (%d) reached", max_bp);
             break;
         }
-        int rc = step_from(R, &R->a, h, &R->b);
+        int rc = afm_cont_step_from(R, &R->a, h, &R->b);
         if (rc < 0) return -1;
         if (rc > 0) {
             h *= 0.5;
@@ -639,7 +376,7 @@ static int follow(cont_run *R, int branch, int parent, double h) {
                 E->branch = branch;
                 E->from = R->from_of[branch];
             }
-            rc = emit_pt(R, &R->r, AFM_CONT_POINT, branch, parent);
+            rc = afm_cont_emit_pt(R, &R->r, AFM_CONT_POINT, branch, parent);
             if (rc) return rc;
             points++;
             snprintf(why, sizeof why,
@@ -647,10 +384,10 @@ static int follow(cont_run *R, int branch, int parent, double h) {
                      "branch)",
                      R->r.p / 2, R->c.par.name, R->r.lambda, R->r.p / 2);
             if (!o->no_end_switch) {
-                if (e >= 0) promote_far(R, e);
+                if (e >= 0) afm_cont_promote_far(R, e);
                 int dir = R->r.t[N] > 0 ? 1 : -1;
                 if (R->r.lambda != R->a.lambda) dir = R->r.lambda > R->a.lambda ? 1 : -1;
-                rc = queue_end(R, branch, dir);
+                rc = afm_cont_queue_end(R, branch, dir);
                 if (rc < 0) return -1;
                 size_t n = strlen(why);
                 if (rc)
@@ -664,8 +401,8 @@ static int follow(cont_run *R, int branch, int parent, double h) {
             R->a = R->r;
             break;
         }
-        if (jp > 0 && branch > 0 && join_test(R, branch, &R->b, &J) != 0) return -1;
-        rc = emit_pt(R, &R->b, AFM_CONT_POINT, branch, parent);
+        if (jp > 0 && branch > 0 && afm_cont_join_test(R, branch, &R->b, &J) != 0) return -1;
+        rc = afm_cont_emit_pt(R, &R->b, AFM_CONT_POINT, branch, parent);
         if (rc) return rc;
         points++;
         R->a = R->b;
@@ -673,16 +410,18 @@ static int follow(cont_run *R, int branch, int parent, double h) {
             joined = true;
             R->sum->joins++;
             snprintf(why, sizeof why,
-                     "joins branch %d: the same period-%d branch, computed before (%d points: "
-                     "its orbit, interpolated at this branch's %s, within %.2g of the orbit "
-                     "size, and after Newton from there within %.2g (%.2g m of tip motion))",
-                     J.branch, R->a.p, J.n, R->c.par.name, J.dist, J.diff, J.diff * R->c.a_ref_m);
+                     "joins branch %d: the same period-%d branch, computed before (%d "
+                     "points: its orbit, interpolated at this branch's %s, within %.2g of "
+                     "the orbit size (%.2g m of tip motion); Newton from there lands on "
+                     "this branch's within %.2g (%.2g m))",
+                     J.branch, R->a.p, J.n, R->c.par.name, J.dist, J.dist * R->c.a_ref_m, J.diff,
+                     J.diff * R->c.a_ref_m);
             break;
         }
         if (out) {
             snprintf(why, sizeof why, "reached the end of the range (%s = %.10g)", R->c.par.name,
                      R->a.lambda);
-            rc = beyond_range(R, branch, parent, h, why, sizeof why);
+            rc = afm_cont_beyond_range(R, branch, parent, h, why, sizeof why);
             if (rc) return rc;
             break;
         }
@@ -841,7 +580,7 @@ int afm_cont_run(const afm_config *cfg, const afm_cont_opts *o, afm_cont_emit em
         R->via_param = o->from;
         R->how = how0;
         rc = emit_branch(R, 0, -1, &R->a);
-        if (rc == 0) rc = emit_pt(R, &R->a, AFM_CONT_POINT, 0, -1);
+        if (rc == 0) rc = afm_cont_emit_pt(R, &R->a, AFM_CONT_POINT, 0, -1);
         if (rc == 0) rc = follow(R, 0, -1, h0);
         R->how = NULL;
     }
@@ -853,7 +592,8 @@ int afm_cont_run(const afm_config *cfg, const afm_cont_opts *o, afm_cont_emit em
         }
         const cont_switch s = R->q[R->next++]; /* a copy: starts are queued in front */
         /* --no-end-switch: no switch where a branch came back (the far end of its band) */
-        if (o->no_end_switch && s.via == AFM_CONT_VIA_PD && end_near(R, s.lambda, s.y, s.p) >= 0)
+        if (o->no_end_switch && s.via == AFM_CONT_VIA_PD &&
+            afm_cont_end_near(R, s.lambda, s.y, s.p) >= 0)
             continue;
         int b = R->nbranch;
         int r2 = s.via == AFM_CONT_VIA_PD ? switch_start(R, &s) : cont_start(R, &s);
@@ -878,7 +618,7 @@ int afm_cont_run(const afm_config *cfg, const afm_cont_opts *o, afm_cont_emit em
             continue;
         }
         rc = emit_branch(R, b, s.parent, &R->a);
-        if (rc == 0) rc = emit_pt(R, &R->a, AFM_CONT_POINT, b, s.parent);
+        if (rc == 0) rc = afm_cont_emit_pt(R, &R->a, AFM_CONT_POINT, b, s.parent);
         if (rc == 0) rc = follow(R, b, s.parent, h0);
         R->how = NULL;
     }

@@ -25,7 +25,8 @@
  * branch ends when it merges with the period-p orbit (its two half-orbits within 1e-4
  * scaled of each other: at another PD).
  *
- * The ends of a branch (unless no_end_switch; afm_cont_ends.h keeps what was computed):
+ * The ends of a branch (unless no_end_switch; afm_cont_ends.c, with what was computed kept
+ * by afm_cont_store.c):
  *  - a merge at a PD of the period-p orbit that no branch computed so far passes through:
  *    the period-p orbit is continued from there both ways (first in the direction the
  *    ended branch was heading, i.e. across the PD), and the PD found on it is switched at;

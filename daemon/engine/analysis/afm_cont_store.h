@@ -1,13 +1,13 @@
 /* SPDX-License-Identifier: MIT */
-/* afm_cont_ends.h -- what a continuation run has computed, kept for the decisions at the ends
- * of its branches (afm_cont.c): every emitted point of every branch, in order, so that a
+/* afm_cont_store.h -- what a continuation run has computed, kept for the decisions at the ends
+ * of its branches (afm_cont_ends.c): every emitted point of every branch, in order, so that a
  * branch's orbit at a parameter value can be interpolated between two of its points. A
  * branch that reaches an orbit computed before (the period-2p branch from its other PD)
  * joins it; a merge at a PD that a period-p branch passes through is covered.
  *
  * Layer analysis/ (6; offline, allocates as points are added). */
-#ifndef AFM_CONT_ENDS_H
-#define AFM_CONT_ENDS_H
+#ifndef AFM_CONT_STORE_H
+#define AFM_CONT_STORE_H
 
 #include "analysis/afm_cont_point.h"
 
