@@ -491,9 +491,9 @@ static int run_curves(const afm_config *cfg, const cont_cli *o, cont_sink *sink,
     *secs = 0.0;
     if (sink->n_ev == 0)
         fprintf(stderr, "afmtwin continue: no %s point in the range: no curve in %s\n",
-                !o->curve_kinds || !strcmp(o->curve_kinds, "all") ? "LPC or PD"
-                : !strcmp(o->curve_kinds, "lpc")                  ? "LPC"
-                                                                  : "PD",
+                sink->want_lpc && sink->want_pd ? "LPC or PD"
+                : sink->want_lpc                ? "LPC"
+                                                : "PD",
                 o->param2);
     else if (!o->json)
         printf("# %-3s %3s %4s %14s %14s %-8s %12s %12s %10s %12s\n", "kind", "cv", "side",
