@@ -10,7 +10,8 @@
 #      samples (update_samples = 64, the fast scheme): realtime_factor_1s median >= 0.95 and
 #      >= 0.5 in every second (counted; the strict 0.99 printed), the loops locked;
 #  (b) an outside FM controller (examples/fm_pll.c, a PLL and an amplitude PI over LCM,
-#      dither commands at $FM_RATE per second, default 1000) locks within 2 s of model time
+#      dither commands at $FM_RATE per second, default 1000, for $FM_AFTER wall seconds after
+#      its lock, default 5; `make soak` runs 10 kHz for 60 s with FM_RT_CHECK=1) locks within 2 s of model time
 #      to the twin's shifted resonance (the same shift within 0.5 Hz: the daemon runs the fast
 #      scheme in real time), and while it streams the daemon applies every command it sent
 #      (none rejected, refused or dropped); with FM_RT_CHECK=1 also no resync and a real-time
@@ -30,6 +31,7 @@ cleanup() { [ -n "$DPID" ] && kill -KILL "$DPID" 2>/dev/null; rm -rf "$T"; }
 trap cleanup EXIT
 Z=6e-9
 RATE=${FM_RATE:-1000}
+AFTER=${FM_AFTER:-5} # wall seconds fm_pll streams after its lock (make soak: 60 at 10 kHz)
 url="$LCM_DEFAULT_URL"; out_url=${url/:7667/:7668}
 run=(); chrt -f 90 true 2>/dev/null && run=(chrt -f 90)
 
@@ -177,10 +179,11 @@ fi
 rt_others "$T/others" "$DPID" &
 listen --channels status --json --count 1 --timeout 5 > /dev/null 2>&1 # up
 sleep 1.2 # a whole second of running: realtime_factor_1s valid from here
-listen --channels status --json --timeout 15 > "$T/st.jsonl" 2>/dev/null & LPID=$!
+listen --channels status --json --timeout $((AFTER + 10)) > "$T/st.jsonl" 2>/dev/null & LPID=$!
 sleep 0.3
-timeout 20 "${run[@]}" "$T/fm_pll" --lcm-url "$url" --lcm-out-url "$out_url" --f0 300e3 \
-  --q 2000 --amplitude 1e-9 --rate "$RATE" --seconds 2 --after 5 > "$T/pll.out" 2>&1; prc=$?
+timeout $((AFTER + 15)) "${run[@]}" "$T/fm_pll" --lcm-url "$url" --lcm-out-url "$out_url" \
+  --f0 300e3 --q 2000 --amplitude 1e-9 --rate "$RATE" --seconds 2 --after "$AFTER" \
+  > "$T/pll.out" 2>&1; prc=$?
 sleep 0.5
 kill -TERM "$LPID" 2>/dev/null; wait "$LPID" 2>/dev/null
 sed 's/^/     /' "$T/pll.out" | cut -c1-200
