@@ -38,10 +38,11 @@ static inline double rt_fdot(const rt_state *r, const rt_snap *st, int np, int n
 }
 
 /* Advance in by k cells into o (o may be in); herm: the force Hermite in time, else linear
- * (a piece beside a crossing). Leaves o->fdot_n_s for the next piece. */
+ * (a piece beside a crossing). Leaves o->fdot_n_s for the next piece, and with rec (a step
+ * record is kept: afm_rt_evrec.h) o->acc_m_s2, from the sums the piece forms anyway. */
 static inline __attribute__((always_inline)) void
 rt_piece_acc_t(const afm_sim *s, const rt_state *r, const rt_snap *in, rt_snap *o, int k, bool herm,
-               const int np, const int nt, const bool noise) {
+               const int np, const int nt, const bool noise, const bool rec) {
     const afm_rt_prop *P = &r->prop[k - 1];
     const double *c = P->c, *ch = P->c + AFM_RT_ROW_GC * np, *c01 = P->c + AFM_RT_ROW_GD01 * np;
     const double F0 = in->tip.f_n, tau = P->tau_s;
@@ -110,17 +111,24 @@ rt_piece_acc_t(const afm_sim *s, const rt_state *r, const rt_snap *in, rt_snap *
         }
     }
     double x1 = fma(gxe, F1, xs), v1 = fma(gve, F1, vs);
-    double acc = rt_hsum(a4) + r->tip2 * F1 + rt_tones_im(r->ax_re, r->ax_im, zr1, zi1, nt);
+    const double tones_a = rt_tones_im(r->ax_re, r->ax_im, zr1, zi1, nt);
+    double acc = rt_hsum(a4) + r->tip2 * F1 + tones_a;
     double fdot = fma(o->dfdx_n_m, v1, o->dfdv_n_s_m * acc);
-    if (herm) { /* the end slope found: the state takes Gd1 (D1 - D0) */
+    if (rec && !herm) o->acc_m_s2 = acc; /* the state is final */
+    if (herm) {                          /* the end slope found: the state takes Gd1 (D1 - D0) */
         const double dd = fma(tau, fdot, -D0);
         const rt_v4 dd4 = rt_splat(dd);
+        rt_v4 e4 = rt_splat(0.0);
         for (int i = 0; i < np; i += 4) {
-            RT_V4W(o->q + i) = rt_fma4(RT_V4(ch + 4 * np + i), dd4, RT_V4(o->q + i));
-            RT_V4W(o->v + i) = rt_fma4(RT_V4(ch + 5 * np + i), dd4, RT_V4(o->v + i));
+            const rt_v4 qf = rt_fma4(RT_V4(ch + 4 * np + i), dd4, RT_V4(o->q + i));
+            const rt_v4 vf = rt_fma4(RT_V4(ch + 5 * np + i), dd4, RT_V4(o->v + i));
+            RT_V4W(o->q + i) = qf;
+            RT_V4W(o->v + i) = vf;
+            if (rec) e4 = rt_fma4(RT_V4(r->aq + i), qf, rt_fma4(RT_V4(r->av + i), vf, e4));
         }
         x1 = fma(P->gd1x, dd, x1);
         v1 = fma(P->gd1v, dd, v1);
+        if (rec) o->acc_m_s2 = rt_hsum(e4) + r->tip2 * F1 + tones_a;
     }
     o->slope_cells = 0;
     o->df_per_cell_n = (F1 - F0) * r->inv_cells[k];
@@ -131,20 +139,41 @@ rt_piece_acc_t(const afm_sim *s, const rt_state *r, const rt_snap *in, rt_snap *
 }
 
 /* rt_piece_acc_t out of line for the contact pieces, the sizes picked once. */
-static AFM_CLONES_NOINLINE void rt_piece_acc(const afm_sim *s, const rt_state *r, const rt_snap *in,
-                                             rt_snap *o, int k, bool herm) {
+static AFM_CLONES_NOINLINE void rt_piece_acc_n(const afm_sim *s, const rt_state *r,
+                                               const rt_snap *in, rt_snap *o, int k, bool herm) {
     if (r->noise)
-        rt_piece_acc_t(s, r, in, o, k, herm, r->np, rt_tones_kind(r), true);
+        rt_piece_acc_t(s, r, in, o, k, herm, r->np, rt_tones_kind(r), true, false);
     else if (r->ntones == 1 && r->np == 4)
-        rt_piece_acc_t(s, r, in, o, k, herm, 4, 1, false);
+        rt_piece_acc_t(s, r, in, o, k, herm, 4, 1, false, false);
     else if (r->ntones == 1 && r->np == 8)
-        rt_piece_acc_t(s, r, in, o, k, herm, 8, 1, false);
+        rt_piece_acc_t(s, r, in, o, k, herm, 8, 1, false, false);
     else if (r->ntones > 1 && r->np == 4)
-        rt_piece_acc_t(s, r, in, o, k, herm, 4, RT_TONES_V4, false);
+        rt_piece_acc_t(s, r, in, o, k, herm, 4, RT_TONES_V4, false, false);
     else if (r->ntones > 1 && r->np == 8)
-        rt_piece_acc_t(s, r, in, o, k, herm, 8, RT_TONES_V4, false);
+        rt_piece_acc_t(s, r, in, o, k, herm, 8, RT_TONES_V4, false, false);
     else
-        rt_piece_acc_t(s, r, in, o, k, herm, r->np, rt_tones_kind(r), false);
+        rt_piece_acc_t(s, r, in, o, k, herm, r->np, rt_tones_kind(r), false, false);
+}
+
+/* The same for a step whose record is kept (rec; without noise): its own copy, so that the
+ * loop without a record is the scheme's code alone. */
+static AFM_CLONES_NOINLINE void rt_piece_acc_rec(const afm_sim *s, const rt_state *r,
+                                                 const rt_snap *in, rt_snap *o, int k, bool herm) {
+    if (r->ntones == 1 && r->np == 4)
+        rt_piece_acc_t(s, r, in, o, k, herm, 4, 1, false, true);
+    else if (r->ntones == 1 && r->np == 8)
+        rt_piece_acc_t(s, r, in, o, k, herm, 8, 1, false, true);
+    else
+        rt_piece_acc_t(s, r, in, o, k, herm, r->np, rt_tones_kind(r), false, true);
+}
+
+/* rt_piece_acc_n, or rt_piece_acc_rec when rec. */
+static inline void rt_piece_acc(const afm_sim *s, const rt_state *r, const rt_snap *in, rt_snap *o,
+                                int k, bool herm, bool rec) {
+    if (rec)
+        rt_piece_acc_rec(s, r, in, o, k, herm);
+    else
+        rt_piece_acc_n(s, r, in, o, k, herm);
 }
 
 /* One contact substep of RT_GRID cells from a into b: Hermite, or, where its path crosses
@@ -152,7 +181,7 @@ static AFM_CLONES_NOINLINE void rt_piece_acc(const afm_sim *s, const rt_state *r
  * ea (NULL: none) gathers the pieces kept, the substep being the j0-th of the sample. */
 static void rt_substep_acc(const afm_sim *s, const rt_state *r, const rt_snap *a, rt_snap *b,
                            double tau, rt_evacc *ea, int j0) {
-    rt_piece_acc(s, r, a, b, RT_GRID, true);
+    rt_piece_acc(s, r, a, b, RT_GRID, true, ea);
     int kc = rt_crossing_cell(r, a, b, tau, true);
     const double f0 = ea ? (double)j0 / r->m : 0.0;
     if (kc < 0) {
@@ -166,7 +195,7 @@ static void rt_substep_acc(const afm_sim *s, const rt_state *r, const rt_snap *a
             memcpy(z->gv, z->lv, sizeof z->gv);
             z->given_cells = RT_GRID;
         }
-        rt_piece_acc(s, r, a, b, RT_GRID, false);
+        rt_piece_acc(s, r, a, b, RT_GRID, false, ea);
         if (ea) rt_ev_piece(ea, s, r, b, f0 + 1.0 / r->m, false);
         return;
     }
@@ -175,14 +204,14 @@ static void rt_substep_acc(const afm_sim *s, const rt_state *r, const rt_snap *a
         memcpy(z->sv, z->lv, sizeof z->sv);
         rt_bridge_draw(r, kc, RT_GRID, z->sq, z->sv);
     }
-    rt_piece_acc(s, r, a, b, kc, false);
+    rt_piece_acc(s, r, a, b, kc, false, ea);
     if (ea) rt_ev_piece(ea, s, r, b, f0 + (double)kc / (double)r->ncell, false);
     if (r->noise) {
         memcpy(z->gq, z->sq, sizeof z->gq);
         memcpy(z->gv, z->sv, sizeof z->gv);
         z->given_cells = RT_GRID - kc;
     }
-    rt_piece_acc(s, r, b, b, RT_GRID - kc, false);
+    rt_piece_acc(s, r, b, b, RT_GRID - kc, false, ea);
     if (ea) rt_ev_piece(ea, s, r, b, f0 + 1.0 / r->m, false);
 }
 
@@ -205,12 +234,12 @@ static AFM_CLONES_NOINLINE rt_snap *rt_contact_acc(const afm_sim *s, const rt_st
  * Hermite pieces, a piece whose path crosses the contact line or has an end in contact close
  * to it (RT_ACC_CLOSE_TRAVELS) redone in its share of the m contact substeps (rt_substep_acc:
  * split at the located crossing). The indentation's square root (DMT, viscoelastic) is no
- * polynomial in time near the line; away from it the pieces are fourth order. ea (NULL: none)
- * gathers the pieces kept. */
+ * polynomial in time near the line; away from it the pieces are fourth order. evs: ea gathers
+ * the pieces kept (else NULL). */
 static inline __attribute__((always_inline)) void rt_graded_acc(const afm_sim *s, const rt_state *r,
                                                                 const rt_snap *a, rt_snap *b,
                                                                 const int np, const int nt,
-                                                                rt_evacc *ea) {
+                                                                const bool evs, rt_evacc *ea) {
     const int K = RT_ACC_NEAR_PIECES, k = r->ncell / K, sub = r->m / K;
     const double tau = s->dt_s / K, taus = s->dt_s / r->m, xc = r->xc;
     const double close = RT_ACC_CLOSE_TRAVELS * tau;
@@ -222,7 +251,7 @@ static inline __attribute__((always_inline)) void rt_graded_acc(const afm_sim *s
          * it is not taken whole first (its result would be discarded) */
         bool near = in->tip.x_m < xc && xc - in->tip.x_m < close * fabs(in->tip.v_m_s);
         if (!near) {
-            rt_piece_acc_t(s, r, in, o, k, true, np, nt, false);
+            rt_piece_acc_t(s, r, in, o, k, true, np, nt, false, evs);
             near = o->tip.x_m < xc && xc - o->tip.x_m < close * fabs(o->tip.v_m_s);
         }
         if (near || rt_crossing_cell(r, in, o, tau, false) >= 0) {
@@ -271,7 +300,7 @@ static inline __attribute__((always_inline)) int rt_run_acc_t(afm_sim *s, rt_sta
         bool contact =
             at_once || (!noise && r->kinked && a->tip.x_m - r->xc < r->sure_k * fabs(a->tip.v_m_s));
         if (!contact) {
-            rt_piece_acc_t(s, r, a, b, r->ncell, true, np, nt, noise);
+            rt_piece_acc_t(s, r, a, b, r->ncell, true, np, nt, noise, evs);
             if (r->kinked) {
                 /* the path's low bound; within one travel of the contact line the steep
                  * van der Waals pulse needs the substeps even where it does not cross */
@@ -284,9 +313,11 @@ static inline __attribute__((always_inline)) int rt_run_acc_t(afm_sim *s, rt_sta
         if (contact && !noise && r->m % RT_ACC_NEAR_PIECES == 0)
             /* near or in contact: whole Hermite pieces follow the van der Waals pulse and
              * the indentation; substeps only for the pieces at the contact line */
-            rt_graded_acc(s, r, a, b, np, nt, ea);
+            rt_graded_acc(s, r, a, b, np, nt, evs, ea);
         else if (contact)
             b = rt_contact_acc(s, r, a, b, noise && !at_once, ea); /* noise: trial taken */
+        else if (evs && r->kinked) /* kept whole: clear of the contact line */
+            rt_ev_free(ea, s, r, b);
         else if (evs)
             rt_ev_piece(ea, s, r, b, 1.0, true);
         a = b;

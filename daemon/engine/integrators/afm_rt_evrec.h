@@ -36,15 +36,15 @@ static inline double rt_ev_acc(const rt_state *r, const rt_snap *st, int np, int
            rt_tones_im(r->ax_re, r->ax_im, st->z_re, st->z_im, nt);
 }
 
-/* The end quantities of st (rt_force's squeeze film expressions). */
-static inline void rt_ev_end_of(const afm_sim *s, const rt_state *r, const rt_snap *st, int np,
-                                int nt, rt_ev_end *e) {
+/* The end quantities of st (rt_force's squeeze film expressions), a its acceleration. */
+static inline __attribute__((always_inline)) void
+rt_ev_end_of(const afm_sim *s, const rt_state *r, const rt_snap *st, double a, rt_ev_end *e) {
     const afm_force_params *p = &s->f;
     e->x = st->tip.x_m;
     e->v = st->tip.v_m_s;
     e->f = st->tip.f_n;
     e->fdot = st->fdot_n_s;
-    e->a = rt_ev_acc(r, st, np, nt);
+    e->a = a;
     e->fsq = e->sqd = 0.0;
     if (p->squeeze == AFM_SQUEEZE_LINEAR) {
         double c = fma(p->p1, s->z_m + e->x, p->p2);
@@ -62,7 +62,7 @@ static inline void rt_ev_end_of(const afm_sim *s, const rt_state *r, const rt_sn
 /* A new run of samples from st (the first sample's start, or after a phasor resync). */
 static inline void rt_ev_start(rt_evacc *ea, const afm_sim *s, const rt_state *r, const rt_snap *st,
                                int np, int nt) {
-    rt_ev_end_of(s, r, st, np, nt, &ea->e0);
+    rt_ev_end_of(s, r, st, rt_ev_acc(r, st, np, nt), &ea->e0);
 }
 
 /* A new output step: nothing gathered yet. */
@@ -75,25 +75,43 @@ static inline void rt_ev_step_begin(rt_evacc *ea) {
     ea->rec.work_ts_j = 0.0;
 }
 
+/* The work int F_ts v dt over a kept piece from e0 to e1 of tau (end-corrected trapezoid);
+ * herm: its force is the Hermite cubic (ends' slopes fdot), else linear. */
+static inline __attribute__((always_inline)) void
+rt_ev_work(rt_evacc *ea, const rt_ev_end *e0, const rt_ev_end *e1, double tau, bool herm) {
+    double fd0 = herm ? e0->fdot : (e1->f - e0->f) / tau, fd1 = herm ? e1->fdot : fd0;
+    double t0 = e0->f - e0->fsq, t1 = e1->f - e1->fsq;
+    double g0 = t0 * e0->v, g1 = t1 * e1->v;
+    double d0 = (fd0 - e0->sqd) * e0->v + t0 * e0->a, d1 = (fd1 - e1->sqd) * e1->v + t1 * e1->a;
+    ea->rec.work_ts_j += 0.5 * tau * (g0 + g1) + tau * tau * (1.0 / 12.0) * (d0 - d1);
+}
+
+/* A step taken as one free piece (the accurate scheme kept its trial: its path stays above
+ * the contact line, so no crossing, and x_min_m is not kept for it): its work alone. The
+ * piece left st->acc_m_s2. */
+static inline __attribute__((always_inline)) void rt_ev_free(rt_evacc *ea, const afm_sim *s,
+                                                             const rt_state *r, const rt_snap *st) {
+    rt_ev_end e1;
+    rt_ev_end_of(s, r, st, st->acc_m_s2, &e1);
+    rt_ev_work(ea, &ea->e0, &e1, (1.0 - ea->frac0) * s->dt_s, true);
+    ea->e0 = e1;
+    ea->frac0 = 1.0;
+}
+
 /* A kept piece from the last kept end to st, ending at frac1 of the step; herm: its force is
- * the Hermite cubic (ends' slopes fdot), else linear. */
+ * the Hermite cubic (ends' slopes fdot), else linear. The piece left st->acc_m_s2. */
 static AFM_CLONES_NOINLINE void rt_ev_piece(rt_evacc *ea, const afm_sim *s, const rt_state *r,
                                             const rt_snap *st, double frac1, bool herm) {
     rt_ev_end e1;
-    rt_ev_end_of(s, r, st, r->np, rt_tones_kind(r), &e1);
+    rt_ev_end_of(s, r, st, st->acc_m_s2, &e1);
     const rt_ev_end *e0 = &ea->e0;
     const double df = frac1 - ea->frac0, tau = df * s->dt_s;
-    /* int F_ts v dt, end-corrected trapezoid */
-    double fd0 = herm ? e0->fdot : (e1.f - e0->f) / tau, fd1 = herm ? e1.fdot : fd0;
-    double t0 = e0->f - e0->fsq, t1 = e1.f - e1.fsq;
-    double g0 = t0 * e0->v, g1 = t1 * e1.v;
-    double d0 = (fd0 - e0->sqd) * e0->v + t0 * e0->a, d1 = (fd1 - e1.sqd) * e1.v + t1 * e1.a;
-    ea->rec.work_ts_j += 0.5 * tau * (g0 + g1) + tau * tau * (1.0 / 12.0) * (d0 - d1);
+    rt_ev_work(ea, e0, &e1, tau, herm);
     const double xc = r->xc;
     const bool in0 = e0->x < xc, in1 = e1.x < xc, turn = e0->v < 0.0 && e1.v > 0.0;
     if (in0 && in1) ea->rec.contact_frac += df;
     if (e1.x < ea->xmin) ea->xmin = e1.x;
-    if (in0 == in1 && !turn) { /* most pieces (every free step's): no crossing, no minimum */
+    if (in0 == in1 && !turn) { /* most pieces: no crossing, no minimum */
         ea->e0 = e1;
         ea->frac0 = frac1;
         return;

@@ -65,6 +65,9 @@ typedef struct {
     int slope_cells;             /* the piece length tip.inv_slope is for, in cells (0: none) */
     double df_per_cell_n;        /* force change per cell over the piece that ended here (N) */
     double fdot_n_s;             /* dF/dt here (N/s): the accurate scheme's Hermite end slope */
+    /* the tip's acceleration here (m/s^2), from the state as it ends (rt_ev_acc's sum): kept
+     * only by the accurate scheme's pieces taken for the step record (rt_piece_acc_t, rec) */
+    double acc_m_s2;
 } rt_snap;
 
 /* The step tables of one scheme: contact substeps m, ncell = m RT_GRID cells, the
