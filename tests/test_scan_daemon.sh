@@ -19,8 +19,12 @@
 #      it at 1 um/s: the step height it recovers (its Z on the upper plateau less on the
 #      lower one) is the true 3 nm within 2 % (see the tolerance below);
 #  (f) without a sample group a scan command is refused (counted), nothing moves.
+# SCAN_SPEED=1 runs (a)-(e) at the full sample rate (default 0.25: the other tests' load);
+# with SCAN_RT_CHECK=1 the real-time factor under (e) is asserted (>= 0.99 in every status,
+# no resync), else printed as info.
 # Prints "N passed, N failed".
 BUILD=${1:-build}
+SPEED=${SCAN_SPEED:-0.25}
 cd "$(dirname "$0")/.." || exit 1
 . tests/lib_daemon.sh
 [ "${2:-}" = "--inside" ] || netns_reexec test_scan_daemon.sh "$0" "$BUILD"
@@ -78,7 +82,7 @@ wait_for() { # K V FILE
 
 # at a quarter of real time: the daemon's SCHED_FIFO threads then leave this script (and the
 # client) the CPU they need on two shared cores (test_fm_daemon.sh does the same)
-"$D" --config "$T/step.conf" --scheme fast --speed 0.25 --quiet 2> "$T/d1.err" & DPID=$!
+"$D" --config "$T/step.conf" --scheme fast --speed "$SPEED" --quiet 2> "$T/d1.err" & DPID=$!
 status "$T/s0.json"; sleep 0.3; status "$T/s0.json"
 s_on=$(jget "$T/s0.json" sample_on); x0=$(jget "$T/s0.json" tip_x_m); h0=$(jget "$T/s0.json" true_height_m)
 z0=$(jget "$T/s0.json" separation_m); m0=$(jget "$T/s0.json" scan_mode)
@@ -187,10 +191,34 @@ grep -c 'scan:' "$T/d1.err" > /dev/null || true
 # ---- (e) an outside controller images the step -------------------------------------------
 # The tip from x 100 nm to 300 nm at 1 um/s (0.2 s); set-point 0.8 A0; the PI of hil_pi with
 # ki 300 /s updates once per published period (<= 1000/s).
+listen --channels status --json --timeout 35 > "$T/st_e.jsonl" 2>/dev/null & LPID=$!
 timeout 30 "${SC[@]}" image --lcm-url "$url" --lcm-out-url "$out_url" --from 1e-7 --to 3e-7 \
   --speed 1e-6 --ratio 0.8 --kp 0.2 --ki 300 --engage 0.1 --dwell 0.05 --out "$T/img.dat" \
   > "$T/img.out" 2>&1; irc=$?
+kill -TERM "$LPID" 2>/dev/null; wait "$LPID" 2>/dev/null
 sed 's/^/     /' "$T/img.out"
+# real time while the outside controller scans (issue 18: at the full sample rate with
+# SCAN_SPEED=1; realtime_factor_1s / the speed: the share of the speed asked for)
+python3 - "$T/st_e.jsonl" "${SCAN_RT_CHECK:-0}" "$SPEED" > "$T/rt_e.out" <<'EOF'
+import json, sys
+L = [json.loads(l) for l in open(sys.argv[1]) if l.strip()]
+speed = float(sys.argv[3])
+L = L[10:] # from 1 s in: realtime_factor_1s covers a whole second
+if len(L) < 5:
+    print("FAIL %d statuses under the scan" % len(L)); sys.exit()
+rtf = [d['realtime_factor_1s'] / speed for d in L] # of the speed asked for
+res = L[-1]['resyncs'] - L[0]['resyncs']
+good = min(rtf) >= 0.99 and res == 0
+tag = "ok" if good else ("FAIL" if sys.argv[2] == "1" else "info")
+print("%s under the scan (%d statuses, %.2f s of model time): realtime_factor_1s / speed min %.4f, resyncs %d" %
+      (tag, len(L), L[-1]['model_time_s'] - L[0]['model_time_s'], min(rtf), res))
+EOF
+read -r tag rest < "$T/rt_e.out"
+case "$tag" in
+  ok) ok "(e) speed $SPEED: $rest" ;;
+  info) echo "info (e) speed $SPEED: $rest (not counted: SCAN_RT_CHECK=1 asserts it)" ;;
+  *) bad "(e) speed $SPEED: $rest" ;;
+esac
 python3 - "$T/img.dat" $POS $EDGE $H > "$T/e.out" <<'EOF'
 import sys
 pos, edge, H = map(float, sys.argv[2:5])
