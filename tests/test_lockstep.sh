@@ -64,9 +64,9 @@ kill -TERM "$DPID"; wait "$DPID"; rc=$?; DPID=""
 [ $rc -eq 0 ] && ok "lockstep daemon exited 0" || bad "daemon exit $rc"
 
 # Scan commands (issue 18) go through lockstep as the others do: a twin over a 3 nm step
-# (tests/step-3nm.conf, test_scan_internal.sh's) rasters a line across the edge and moves the tip between ticks;
-# every completion (the harmonics records carry the tip's x, y, true height and Z, each that
-# of the sample its period ended on) is bit-identical to replay --lockstep of the same log.
+# (tests/step-3nm.conf, test_scan_internal.sh's) rasters a line across the edge and moves the
+# tip between ticks; every completion (the harmonics records carry the tip's x, y, true height
+# and Z, each that of the sample its period ended on) is bit-identical to replay --lockstep of the same log.
 # Then the same log with the daemon's own Z loop (am.control = "internal"): its lock-in takes
 # tone 0's phase from the sample index (estimators/afm_phase_gen.h), as the chain does, so the
 # daemon's slices and replay's give the same bits (before, with a phase anchored at each
@@ -80,27 +80,22 @@ S scan raster --x 150nm --size-x 100nm --pixels 16 --line-rate 50 --seq 42 --log
 S tick --n 70300 --seq 43 --log "$SC" --log-time 0.2 --config "$T/step.conf"
 S scan move --x 180nm --y 5nm --speed 1e-5 --seq 44 --log "$SC" --log-time 0.3 --config "$T/step.conf"
 S tick --n 42180 --seq 45 --log "$SC" --log-time 0.4 --config "$T/step.conf"
-"$D" --config "$T/step.conf" --mode lockstep --harmonics-every 10 --quiet 2> "$T/d2.err" &
-DPID=$!
-out=$("$A" lockstep --in "$SC" --config "$T/step.conf" --check --harmonics-every 10 2>&1); rc=$?
-echo "$out" | sed 's/^/     /'
-[ $rc -eq 0 ] && echo "$out" | grep -q "3 of 3 completions identical" \
-  && ok "scan commands in a lockstep log: 3 completions identical to replay" \
-  || bad "scan log in lockstep (exit $rc)"
-kill -TERM "$DPID"; wait "$DPID"; rc=$?; DPID=""
-[ $rc -eq 0 ] && ok "lockstep daemon (sample) exited 0" || bad "daemon exit $rc"
-
+# scan_lockstep CONF WHAT: a lockstep daemon on CONF runs $SC; 3 of 3 completions identical
+scan_lockstep() {
+  "$D" --config "$1" --mode lockstep --harmonics-every 10 --quiet 2> "$T/d-$2.err" &
+  DPID=$!
+  out=$("$A" lockstep --in "$SC" --config "$1" --check --harmonics-every 10 2>&1); rc=$?
+  echo "$out" | sed 's/^/     /'
+  [ $rc -eq 0 ] && echo "$out" | grep -q "3 of 3 completions identical" \
+    && ok "$2 in lockstep: 3 completions identical to replay" \
+    || bad "$2 in lockstep (exit $rc)"
+  kill -TERM "$DPID"; wait "$DPID"; rc=$?; DPID=""
+  [ $rc -eq 0 ] && ok "lockstep daemon ($2) exited 0" || bad "daemon ($2) exit $rc"
+}
+scan_lockstep "$T/step.conf" "scan commands"
 { cat tests/step-3nm.conf
   echo 'am = { control = "internal"; setpoint_ratio = 0.8; ki_hz = 2000.0; };'; } > "$T/am.conf"
-"$D" --config "$T/am.conf" --mode lockstep --harmonics-every 10 --quiet 2> "$T/d3.err" &
-DPID=$!
-out=$("$A" lockstep --in "$SC" --config "$T/am.conf" --check --harmonics-every 10 2>&1); rc=$?
-echo "$out" | sed 's/^/     /'
-[ $rc -eq 0 ] && echo "$out" | grep -q "3 of 3 completions identical" \
-  && ok "internal Z loop in lockstep: 3 completions identical to replay" \
-  || bad "internal Z loop in lockstep (exit $rc)"
-kill -TERM "$DPID"; wait "$DPID"; rc=$?; DPID=""
-[ $rc -eq 0 ] && ok "lockstep daemon (internal Z loop) exited 0" || bad "daemon exit $rc"
+scan_lockstep "$T/am.conf" "internal Z loop"
 for b in 1024 700; do
   "$A" replay --config "$T/am.conf" --in "$SC" --out "$T/r$b.log" --lockstep --block "$b" \
     --harmonics-every 10 --channels harmonics --quiet || bad "replay --block $b"

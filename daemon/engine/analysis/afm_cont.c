@@ -78,22 +78,29 @@ static int emit_rec(cont_run *R, afm_cont_record *rec) {
 }
 
 /* Emit pt as a record of kind (POINT or an event). */
+/* A record of kind for pt on branch (parent): the point's own fields (stability,
+ * multipliers, state, convergence). */
+static void rec_of_pt(const cont_run *R, const afm_cont_pt *pt, afm_cont_kind kind, int branch,
+                      int parent, afm_cont_record *rec) {
+    memset(rec, 0, sizeof *rec);
+    rec->kind = kind;
+    rec->branch = branch;
+    rec->parent = parent;
+    rec->p = pt->p;
+    rec->param = pt->lambda;
+    rec->stable = afm_cont_stable(&R->c, pt);
+    rec->n_mult = R->c.N;
+    rec->mult_re = pt->mult_re;
+    rec->mult_im = pt->mult_im;
+    rec->y = pt->y;
+    rec->residual = pt->residual;
+    rec->iterations = pt->iterations;
+}
+
 int afm_cont_emit_pt(cont_run *R, const afm_cont_pt *pt, afm_cont_kind kind, int branch,
                      int parent) {
     afm_cont_record rec;
-    memset(&rec, 0, sizeof rec);
-    rec.kind = kind;
-    rec.branch = branch;
-    rec.parent = parent;
-    rec.p = pt->p;
-    rec.param = pt->lambda;
-    rec.stable = afm_cont_stable(&R->c, pt);
-    rec.n_mult = R->c.N;
-    rec.mult_re = pt->mult_re;
-    rec.mult_im = pt->mult_im;
-    rec.y = pt->y;
-    rec.residual = pt->residual;
-    rec.iterations = pt->iterations;
+    rec_of_pt(R, pt, kind, branch, parent, &rec);
     if (kind != AFM_CONT_POINT) {
         rec.refined = R->refined;
         int i = critical_of(R, pt, kind);
@@ -134,19 +141,7 @@ static int emit_end(cont_run *R, int branch, int parent, int p, double lambda, i
 /* The record that opens a branch: how it was reached, at its first point pt. */
 static int emit_branch(cont_run *R, int branch, int parent, const afm_cont_pt *pt) {
     afm_cont_record rec;
-    memset(&rec, 0, sizeof rec);
-    rec.kind = AFM_CONT_BRANCH;
-    rec.branch = branch;
-    rec.parent = parent;
-    rec.p = pt->p;
-    rec.param = pt->lambda;
-    rec.stable = afm_cont_stable(&R->c, pt);
-    rec.n_mult = R->c.N;
-    rec.mult_re = pt->mult_re;
-    rec.mult_im = pt->mult_im;
-    rec.y = pt->y;
-    rec.residual = pt->residual;
-    rec.iterations = pt->iterations;
+    rec_of_pt(R, pt, AFM_CONT_BRANCH, branch, parent, &rec);
     rec.via = R->via;
     rec.via_param = R->via_param;
     rec.joined = -1;
