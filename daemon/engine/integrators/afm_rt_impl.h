@@ -34,6 +34,11 @@
  * near the line, 2320 -> 1370 for those in contact; 4 pieces miss the suite (docs/numerics.md) */
 #define RT_ACC_NEAR_PIECES 8
 #define RT_ACC_CLOSE_TRAVELS 1.0
+/* Two of those pieces are taken as one where both its ends are this many of its travels
+ * (|v| dt / 4) from the contact line, on one side (0: never) */
+#ifndef RT_ACC_MERGE_TRAVELS
+#define RT_ACC_MERGE_TRAVELS 0.0
+#endif
 #define RT_ACC_SURE 0.999 /* rt_state.sure_k: below 1, so that rounding cannot decide */
 #define RT_MAX_SUBSTEPS AFM_MAX_RT_SUBSTEPS
 #define RT_RESYNC 4096 /* steps between phasor resynchronisations */
