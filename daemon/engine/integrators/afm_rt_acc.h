@@ -243,10 +243,25 @@ static inline __attribute__((always_inline)) void rt_graded_acc(const afm_sim *s
     const int K = RT_ACC_NEAR_PIECES, k = r->ncell / K, sub = r->m / K;
     const double tau = s->dt_s / K, taus = s->dt_s / r->m, xc = r->xc;
     const double close = RT_ACC_CLOSE_TRAVELS * tau;
+    const double far2 = RT_ACC_MERGE_TRAVELS * 2.0 * tau;
     rt_snap t[2], w[2];
     const rt_snap *in = a;
     for (int p = 0; p < K; p++) {
-        rt_snap *o = p == K - 1 ? b : &t[p & 1];
+        rt_snap *o = p == K - 1 ? b : in == &t[0] ? &t[1] : &t[0];
+        /* out of contact, far from the line at both ends (RT_ACC_MERGE_TRAVELS of its
+         * travel): two pieces in one */
+        if (RT_ACC_MERGE_TRAVELS > 0 && (p & 1) == 0 &&
+            in->tip.x_m - xc > far2 * fabs(in->tip.v_m_s)) {
+            rt_snap *o2 = p + 2 == K ? b : o;
+            rt_piece_acc_t(s, r, in, o2, 2 * k, true, np, nt, false, evs);
+            if (o2->tip.x_m - xc > far2 * fabs(o2->tip.v_m_s) &&
+                !rt_crosses(r, in, o2, 2.0 * tau)) {
+                if (ea) rt_ev_piece(ea, s, r, o2, (double)(p + 2) / K, true);
+                in = o2;
+                p++;
+                continue;
+            }
+        }
         /* a start in contact close to the line: the piece is redone whatever its end, so
          * it is not taken whole first (its result would be discarded) */
         bool near = in->tip.x_m < xc && xc - in->tip.x_m < close * fabs(in->tip.v_m_s);
@@ -254,7 +269,7 @@ static inline __attribute__((always_inline)) void rt_graded_acc(const afm_sim *s
             rt_piece_acc_t(s, r, in, o, k, true, np, nt, false, evs);
             near = o->tip.x_m < xc && xc - o->tip.x_m < close * fabs(o->tip.v_m_s);
         }
-        if (near || rt_crossing_cell(r, in, o, tau, false) >= 0) {
+        if (near || rt_crosses(r, in, o, tau)) {
             const rt_snap *x = in;
             for (int j = 0; j < sub; j++) {
                 rt_snap *y = j == sub - 1 ? o : &w[j & 1];

@@ -72,4 +72,13 @@ static int rt_crossing_cell(const rt_state *r, const rt_snap *a, const rt_snap *
     return (int)lround(rt_cubic_root(&p, xc, 0.0, sm) * RT_GRID);
 }
 
+/* rt_crossing_cell(r, a, b, tau, false) >= 0, with its common answers (the ends on opposite
+ * sides, or no turn between two ends out of contact) inlined. */
+static inline bool rt_crosses(const rt_state *r, const rt_snap *a, const rt_snap *b, double tau) {
+    const bool in0 = a->tip.x_m < r->xc, in1 = b->tip.x_m < r->xc;
+    if (in0 != in1) return true;
+    if (in0 || !(a->tip.v_m_s < 0 && b->tip.v_m_s > 0)) return false;
+    return rt_crossing_cell(r, a, b, tau, false) >= 0;
+}
+
 #endif
