@@ -12,7 +12,16 @@
 #include <string.h>
 
 #define CURVE_DELTA 1e-6 /* +-delta instances of the parameter derivatives (of the range) */
-#define CURVE_FD_H 1e-4  /* scaled step of the central differences of M v */
+/* Scaled step of the central differences of M v (g_u). Their noise is that of M v (~1e-6
+ * at CURVE_SENS_RTOL) over 2 h; only the Newton steps depend on g_u, not the converged point.
+ * At 1e-4 (5e-3 of noise) the period-1 LPC of config/thesis-fig-4-2.conf (85.03 kHz, Z 30 nm,
+ * in hard contact, a multiplier -2.97 beside the +1) did not refine: g_u . v, the only way
+ * the corrector can set g, is of that size there, the first step along v came out 6x too
+ * long (orbit residual 1.5e-9 -> 1.2e-2 -> 0.25 in 3 steps). At 1e-2 (0.3 nm of a 33 nm
+ * orbit, half its 0.67 nm indentation) the contact makes the difference wrong in sign (g
+ * grows for 12 steps). 1e-3: 5e-4 of noise, the start refines in 5-8 steps (tests/
+ * test_continue.c "fig42lpc"). */
+#define CURVE_FD_H 1e-3
 /* scaled orbit residual of convergence: 1e-10 of the orbit's size, or 1e-8 once a Newton
  * step no longer reduces it by 3x (the map's own noise once the sensitivities steer the
  * steps: 1e-9..1e-8 in contact). Near a fold the residual's component along the left null
