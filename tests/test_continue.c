@@ -718,9 +718,7 @@ static int collect_lpc(void *ctx, const afm_cont_curve_record *r) {
     return 0;
 }
 
-static void fig42_lpc_curve(void) {
-    afm_config cfg;
-    if (!load(&cfg)) return;
+static void fig42_lpc_curve(const afm_config *cfg, double fe_from) {
     static const double y[8] = {1.0919573802179614e-13, 7.987954614530403e-15,
                                 -4.83331478262936e-16,  3.211951849916711e-17,
                                 -9.555346996443706e-10, -5.731477266394384e-10,
@@ -729,7 +727,7 @@ static void fig42_lpc_curve(void) {
     C.n = 0;
     afm_cont_curve_opts o = {.param = "fe",
                              .param2 = "z",
-                             .from = 80.0e3,
+                             .from = fe_from,
                              .to = 85.2e3,
                              .from2 = 28e-9,
                              .to2 = 40e-9,
@@ -740,9 +738,10 @@ static void fig42_lpc_curve(void) {
                              .max_points = 1};
     afm_cont_summary sum;
     char err[512];
-    int rc = afm_cont_curve_run(&cfg, &o, collect_lpc, &C, &sum, err, sizeof err);
+    int rc = afm_cont_curve_run(cfg, &o, collect_lpc, &C, &sum, err, sizeof err);
     if (rc != 0) printf("afm_cont_curve_run: %s\n", err);
-    printf("# LPC curve: %d points, %ld maps, %.2f s\n", sum.points, sum.maps, sum.seconds);
+    printf("# LPC curve, fe range from %.2f Hz: %d points, %ld maps, %.2f s\n", fe_from, sum.points,
+           sum.maps, sum.seconds);
     int k1 = -1;
     for (int k = 0; k < C.n; k++) {
         if (!C.end[k])
@@ -759,8 +758,19 @@ static void fig42_lpc_curve(void) {
     char item[200];
     snprintf(item, sizeof item, "LPC curve: moves in Z (%.4f nm) and fe (%.2f Hz)",
              (C.z[k1] - C.z[0]) * 1e9, C.fe[k1] - C.fe[0]);
-    check_true(C.z[k1] - C.z[0] > 0.02e-9 && C.fe[k1] < C.fe[0], item);
+    check_true(C.z[k1] - C.z[0] > 0.01e-9 && C.fe[k1] < C.fe[0], item);
     check_abs(C.mult[k1], 1.0, 1e-4, "LPC curve: a multiplier +1 at the next point");
+}
+
+/* The fe range scales the parameter's unknown: over 80-85.2 kHz the start failed on the
+ * differences' noise alone; over the branch's 84.90-85.2 kHz (as `continue` from its state
+ * there) also on the convergence test (the noise floor's residual scattering 5e-10..3e-8
+ * was taken for divergence after 5 steps). */
+static void fig42_lpc_curves(void) {
+    afm_config cfg;
+    if (!load(&cfg)) return;
+    fig42_lpc_curve(&cfg, 80.0e3);
+    fig42_lpc_curve(&cfg, 84902.01993474826);
 }
 
 /* A run from above the lumped lever's bistable window down to 12 Hz short of its lower fold
@@ -898,7 +908,7 @@ int main(int argc, char **argv) {
     if (!strcmp(only, "") || !strcmp(only, "linear")) linear();
     if (!strcmp(only, "") || !strcmp(only, "lumped")) lumped_vdw();
     if (!strcmp(only, "") || !strcmp(only, "fig42")) fig42();
-    if (!strcmp(only, "") || !strcmp(only, "fig42lpc")) fig42_lpc_curve();
+    if (!strcmp(only, "") || !strcmp(only, "fig42lpc")) fig42_lpc_curves();
     const char *v = getenv("AFMTWIN_VALIDATE");
     if ((v && !strcmp(v, "full")) || !strcmp(only, "full")) fig42_full();
     return check_done();
