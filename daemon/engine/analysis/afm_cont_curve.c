@@ -12,13 +12,23 @@
 #include <string.h>
 
 #define CURVE_DELTA 1e-6 /* +-delta instances of the parameter derivatives (of the range) */
-#define CURVE_FD_H 1e-4  /* scaled step of the central differences of M v */
+/* Scaled step of the central differences of M v (g_u). Their noise is that of M v (~1e-6
+ * at CURVE_SENS_RTOL) over 2 h; only the Newton steps depend on g_u, not the converged point.
+ * At 1e-4 (5e-3 of noise) the period-1 LPC of config/thesis-fig-4-2.conf (85.03 kHz, Z 30 nm,
+ * in hard contact, a multiplier -2.97 beside the +1) did not refine: g_u . v, the only way
+ * the corrector can set g, is of that size there, the first step along v came out 6x too
+ * long (orbit residual 1.5e-9 -> 1.2e-2 -> 0.25 in 3 steps). At 1e-2 (0.3 nm of a 33 nm
+ * orbit, half its 0.67 nm indentation) the contact makes the difference wrong in sign (g
+ * grows for 12 steps). 1e-3: 5e-4 of noise, the start refines in 5-8 steps (tests/
+ * test_continue.c "fig42lpc"). */
+#define CURVE_FD_H 1e-3
 /* scaled orbit residual of convergence: 1e-10 of the orbit's size, or 1e-8 once a Newton
- * step no longer reduces it by 3x (the map's own noise once the sensitivities steer the
- * steps: 1e-9..1e-8 in contact). Near a fold the residual's component along the left null
- * vector moves the point along the curve by far more than its size: with 1e-8 alone the
- * lumped lever's fold curve lay 0.014-0.026 Hz off the one-parameter folds, at 1e-10 within
- * 1e-4 Hz. */
+ * step no longer takes it 3x below the best iterate so far (the map's own noise once the
+ * sensitivities steer the steps: 1e-9..1e-8 in contact, scattering 5e-10..3e-8 on fig 4-2's
+ * period-1 LPC, where a comparison with the last iterate missed it for 12 steps). Near a fold the
+ * residual's component along the left null vector moves the point along the curve by far more than
+ * its size: with 1e-8 alone the lumped lever's fold curve lay 0.014-0.026 Hz off the one-parameter
+ * folds, at 1e-10 within 1e-4 Hz. */
 #define CURVE_TOL_FINE 1e-10
 #define CURVE_TOL 1e-8
 /* The sensitivities in the error test at this rtol: g_u is a difference of M's, and with the
@@ -216,7 +226,7 @@ static int correct(curve_run *R, const double *y_pred, const double *lam_pred, c
     }
     memcpy(y, y_pred, sizeof(double) * (size_t)N);
     bool have_grad = false;
-    double last = HUGE_VAL, g_last = HUGE_VAL;
+    double last = HUGE_VAL, r_min = HUGE_VAL, g_min = HUGE_VAL;
     for (int it = 1; it <= CURVE_MAX_ITER; it++) {
         double G[NMAX], A[NMAX * NMAX];
         if (it == 1 && G0)
@@ -234,15 +244,20 @@ static int correct(curve_run *R, const double *y_pred, const double *lam_pred, c
         out->residual = r;
         out->iterations = it;
         const double ag = fabs(out->g);
-        const bool r_ok = r < CURVE_TOL_FINE || (r < CURVE_TOL && r > last / 3.0);
-        if (it > 1 && r_ok && (ag < CURVE_GTOL_FINE || (ag < CURVE_GTOL && ag > g_last / 3.0))) {
+        /* stagnant: not 3x below the best iterate so far (at the noise floor r and g
+         * scatter, 5e-10..3e-8 and +-1e-6 on fig 4-2's period-1 LPC: a comparison with the
+         * last iterate alone missed it for 12 steps) */
+        const bool r_ok = r < CURVE_TOL_FINE || (r < CURVE_TOL && r > r_min / 3.0);
+        if (it > 1 && r_ok && (ag < CURVE_GTOL_FINE || (ag < CURVE_GTOL && ag > g_min / 3.0))) {
             if (!have_grad && grad_g(R, y, lam, p, out->v, out->w, out->grad) != 0) return -1;
             afm_la_eigvals(N, out->M, out->mre, out->mim, NULL);
             return 0;
         }
-        if (!isfinite(r) || (it > 3 && r > CURVE_TOL && r > 2.0 * last)) return 1;
+        /* diverging: well above the noise floor and growing */
+        if (!isfinite(r) || (it > 3 && r > 1e2 * CURVE_TOL && r > 2.0 * last)) return 1;
         last = r;
-        g_last = ag;
+        r_min = fmin(r_min, r);
+        g_min = fmin(g_min, ag);
         if (grad_g(R, y, lam, p, out->v, out->w, out->grad) != 0) return it == 1 ? -1 : 1;
         have_grad = true;
         double J[UMAX * UMAX], b[UMAX], u[UMAX];
