@@ -117,11 +117,14 @@ static bool ref_cache_name(const char *config, const char *args, const char *ext
     if (!f) return false;
     unsigned long long h = 1469598103934665603ULL; /* FNV-1a 64 */
     int ch;
-    while ((ch = fgetc(f)) != EOF) h = (h ^ (unsigned char)ch) * 1099511628211ULL;
+    while ((ch = fgetc(f)) != EOF)
+        h = (h ^ (unsigned char)ch) * 1099511628211ULL;
     fclose(f);
-    for (const char *t = args; *t; t++) h = (h ^ (unsigned char)*t) * 1099511628211ULL;
+    for (const char *t = args; *t; t++)
+        h = (h ^ (unsigned char)*t) * 1099511628211ULL;
     h = (h ^ '|') * 1099511628211ULL;
-    for (const char *t = extra; *t; t++) h = (h ^ (unsigned char)*t) * 1099511628211ULL;
+    for (const char *t = extra; *t; t++)
+        h = (h ^ (unsigned char)*t) * 1099511628211ULL;
     snprintf(out, cap, "%s/ref-%016llx.jsonl", dir, h);
     return true;
 }
