@@ -29,7 +29,8 @@
  *
  * Asserted for the accurate scheme (every case): phase lag within 0.02 deg, amplitude 1e-4
  * relative, peak force 2e-3 relative (where CVODE's exceeds 1 nN), energy per period within
- * 0.05 eV, the regime jumps between the same two steps; and, for the cases flagged "must
+ * 0.05 eV (0.005 eV on the attractive Q 300 curve, conservative: ENERGY_CONSERVATIVE_EV), the
+ * regime jumps between the same two steps; and, for the cases flagged "must
  * settle", a settled orbit at every step CVODE settled. The fast scheme is pinned at today's
  * level only, loosely (phase 2 deg, amplitude 5e-3): it is ~0.1-0.5 deg off (1.46 deg at 15 MHz, 50
  * samples per period, in the full grid), so its figures in place of the accurate ones fail the
@@ -57,6 +58,18 @@
 #define MAXSTEP 128
 #define MAXJUMP 16
 #define EV_J 1.602176634e-19
+/* The energy bound (eV) where the tip dissipates (contact, squeeze film): issue 11's. */
+#define ENERGY_EV 0.05
+/* The Q 300 probe at A0 10 nm from 11 to 3 nm (attractive branch throughout: the vdW pulse
+ * at the turning point, a shallow DMT touch; no viscous term): conservative, so the energy per
+ * period is exactly 0, and CVODE's and the accurate scheme's agree within 0.00054 eV (worst
+ * step). Without the work of the free steps in rt's step record (pieces kept whole clear of
+ * the contact line, where the vdW tail still acts near the turning point: afm_rt_evrec.h
+ * rt_ev_free) the record's energy reads 0.0287 eV off, inside ENERGY_EV, and no other bound
+ * moves. Asserted at 0.005 eV: 9x the worst measured, 1/6 of that mutation. (The cases that
+ * jump into repulsive contact, conservative too, read 0.009-0.016 eV: the kink's rounding,
+ * kept at ENERGY_EV.) */
+#define ENERGY_CONSERVATIVE_EV 0.005
 
 typedef struct {
     const char *name;
@@ -65,6 +78,7 @@ typedef struct {
     const char *args;      /* approach arguments besides --config, --integrator, --scheme */
     bool must_settle;
     const char *rt_args; /* more arguments for the two rt runs only, NULL: none (below) */
+    double energy_ev;    /* the accurate scheme's energy bound (eV), 0: ENERGY_EV */
 } steady_case;
 
 typedef struct {
@@ -252,7 +266,7 @@ static void assert_accurate(const steady_case *k, const figures *f) {
         check_abs(f->peak_rel, 0.0, 2e-3, what);
     }
     snprintf(what, sizeof what, "%s, accurate: max |energy per period - CVODE| (eV)", k->name);
-    check_abs(f->energy_ev, 0.0, 0.05, what);
+    check_abs(f->energy_ev, 0.0, k->energy_ev > 0.0 ? k->energy_ev : ENERGY_EV, what);
     /* both from the integrators' records (CVODE's dense output, rt's pieces): rt's own orbit
      * (worst 0.022 ns and 0.14 pm), below what the samples' estimator resolves (0.04-0.06 ns,
      * 0.26-0.37 pm: CVODE's OBD-rate samples against 16x, docs/numerics.md) */
@@ -370,22 +384,22 @@ int main(void) {
         {"Q 300, conservative, 11 -> 3 nm", q, NULL, NULL,
          full ? "--from 11e-9 --to 3e-9 --step 0.5e-9 --retract --periods 3000"
               : "--from 11e-9 --to 3e-9 --step 1e-9 --retract --periods 3000",
-         true, NULL},
+         true, NULL, ENERGY_CONSERVATIVE_EV},
         {"Q 300, A0 20 nm, through the jump", q, NULL, NULL,
          full ? "--ae 6.6667e-11 --from 21e-9 --to 15e-9 --step 0.5e-9 --retract --periods 4000"
               : "--ae 6.6667e-11 --from 21e-9 --to 15e-9 --step 1e-9 --retract --periods 4000",
-         true, NULL},
+         true, NULL, 0.0},
         {"1-DOF thesis, viscoelastic contact", "config/thesis-1dof.conf", NULL, NULL,
-         "--from 16e-9 --to 12e-9 --step 2e-9 --retract --periods 6000", false, NULL},
-        {"Q 300, 12 MHz (40 per period)", q, q300_rate, "sample_rate_hz = 12e6;", rates, true,
-         NULL},
-        {"Q 300, 20 MHz", q, q300_rate, "sample_rate_hz = 20e6;", rates, true, NULL},
-        {"Q 300, 15 MHz", q, q300_rate, "sample_rate_hz = 15e6;", rates, true, NULL},
+         "--from 16e-9 --to 12e-9 --step 2e-9 --retract --periods 6000", false, NULL, 0.0},
+        {"Q 300, 12 MHz (40 per period)", q, q300_rate, "sample_rate_hz = 12e6;", rates, true, NULL,
+         0.0},
+        {"Q 300, 20 MHz", q, q300_rate, "sample_rate_hz = 20e6;", rates, true, NULL, 0.0},
+        {"Q 300, 15 MHz", q, q300_rate, "sample_rate_hz = 15e6;", rates, true, NULL, 0.0},
         {"NCHV, squeeze film on", "config/nchv.conf", NULL, NULL,
-         "--from 36e-9 --to 28e-9 --step 4e-9 --retract --periods 6000", false, nchv_rt},
+         "--from 36e-9 --to 28e-9 --step 4e-9 --retract --periods 6000", false, nchv_rt, 0.0},
         {"NCHV, squeeze film off", "config/nchv.conf", nchv_squeeze,
          "squeeze = { model = \"none\"; };",
-         "--from 36e-9 --to 28e-9 --step 4e-9 --retract --periods 6000", false, nchv_rt},
+         "--from 36e-9 --to 28e-9 --step 4e-9 --retract --periods 6000", false, nchv_rt, 0.0},
     };
     for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
         if (!full && strstr(cases[i].name, "15 MHz")) continue;
