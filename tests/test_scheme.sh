@@ -5,7 +5,8 @@
 # and --scheme adaptive on nchv.conf, where the accurate scheme cannot keep real time while
 # tapping here (~300 ns per sample against 71 ns: docs/realtime.md), hands over to the fast
 # scheme without a resync, then, retracted (free: the fast scheme ~30 % busy), goes back to
-# the accurate one; the status counts the hand-overs and the model time of each scheme.
+# the accurate one; the status counts the hand-overs and the model time of each scheme, and
+# harmonic 1 carries on record by record across the hand-over back (no jump, no gap).
 # The hand-over back depends on the machine's speed only through "the fast scheme free uses
 # under 60 % of a core", which holds with a wide margin on any machine that runs the twin.
 # Prints "N passed, N failed".
