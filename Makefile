@@ -268,6 +268,7 @@ bench: deps
 	$(BUILD)/bin/afmtwin bench
 	$(BUILD)/bin/afmtwin bench-states
 	$(BUILD)/bin/afmtwin bench-scheme
+	sh tools/bench-fm.sh $(BUILD)
 	$(BUILD)/bin/afmtwin bench-daemon --daemon $(BUILD)/bin/afmtwind
 	bash tools/bench-march.sh $(BUILD)
 	sh tools/bench-map.sh $(BUILD)

@@ -220,11 +220,17 @@ static afm_sim *open_fm_twin(double f0, afm_force_params *fp, afm_fm *f) {
     return s;
 }
 
+/* the PLL's shifts at test_gradient's Z, for the self-excited drive to agree with */
+#define NZ_GRAD 9
+static double pll_shift_hz[NZ_GRAD];
+static const double grad_zs[NZ_GRAD] = {6e-9, 4e-9,    3e-9,   2e-9,  1.5e-9,
+                                        1e-9, 0.75e-9, 0.6e-9, 0.5e-9};
+
 static void test_gradient(void) {
     char err[AFM_ERR_LEN];
     const double f0 = 300e3, k = 200.0, a_set = 10e-12;
-    const double zs[] = {6e-9, 4e-9, 3e-9, 2e-9, 1.5e-9, 1e-9, 0.75e-9, 0.6e-9, 0.5e-9};
-    const int nz = (int)(sizeof zs / sizeof zs[0]);
+    const double *zs = grad_zs;
+    const int nz = NZ_GRAD;
     if (load(k, zs[0], a_set / 300.0, f0,
              "amplitude_setpoint_m = 1e-11; pll_bandwidth_hz = 200.0; "
              "amplitude_bandwidth_hz = 100.0;")) {
@@ -259,6 +265,7 @@ static void test_gradient(void) {
         printf("  %8.3f %12.5f %12.5f %12.5f %9.2e %9.4f%s\n", zs[i] * 1e9, (zs[i] + x) * 1e9,
                mn.freq_hz - f0, want, rel, mn.amplitude_m * 1e12, mn.settled ? "" : " unsettled");
         if (!mn.settled || mn.lock != AFM_FM_LOCKED) break;
+        pll_shift_hz[i] = mn.freq_hz - f0;
         n_ok++;
         if (fabs(rel) > worst) worst = fabs(rel);
     }
@@ -399,6 +406,8 @@ static void test_config(void) {
         {"amplitude_kp = -1.0;", "fm.amplitude_kp"},
         {"pll_gain = 1.0;", "unknown key"},
         {"update_samples = 1.5;", "expected an integer"},
+        {"drive = \"loop\";", "fm.drive"},
+        {"drive = \"self\"; control = \"internal\";", "fm.drive"},
     };
     for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
         char text[2048], what[1024];
@@ -435,10 +444,108 @@ static void test_config(void) {
                "afm_fm_init: a start outside the NCO window is refused");
 }
 
+/* Self-excited drive (fm.drive = "self", runner/afm_fm_self.h): free, from a 1 kHz offset,
+ * the oscillation runs where the lag is 90 deg -- the lumped model's resonance_hz exactly
+ * (phase of 1 / (w0^2 - w^2 + 2 i xi w0 w) is -90 deg at w0; the damped natural frequency
+ * f0 sqrt(1 - xi^2) is 0.42 Hz lower, the amplitude peak 0.83 Hz) -- with the amplitude at
+ * its set-point and the drive A_set / |G(f0)|; then the frequency shift on the attractive
+ * range against -(f0/2k) dF/dz (1 %, as the PLL) and against the PLL's own shifts. */
+static void test_self(void) {
+    char err[AFM_ERR_LEN];
+    const double f0 = 300e3, off = 1000.0, a_set = 10e-12;
+    if (load(40.0, 1e-6, a_set / 300.0, f0 + off,
+             "drive = \"self\"; amplitude_setpoint_m = 1e-11;")) {
+        check_true(false, "self: config loads");
+        return;
+    }
+    check_true(cfg.fm.drive == AFM_FM_DRIVE_SELF, "self: fm.drive = \"self\" loads");
+    afm_modal m;
+    afm_sim *s = afm_twin_create(&cfg, &m, NULL, err, sizeof err);
+    if (!s || afm_lockin_init(&lockin, &cfg.lockin, afm_sim_dt(s), err, sizeof err)) {
+        check_true(false, err);
+        return;
+    }
+    afm_fm_plant p;
+    afm_fm_plant_of(&m, &p);
+    const double tau_c = p.q / (PI * p.f0_hz);
+    open_loop(s, (long)(20 * tau_c * cfg.sim.sample_rate_hz));
+    afm_fm f;
+    if (afm_fm_init(&f, &cfg.fm, &cfg.lockin, &p, cfg.sim.sample_rate_hz, f0 + off, f0 + off,
+                    cfg.drive.tones[0].amplitude_m, err, sizeof err)) {
+        check_true(false, err);
+        return;
+    }
+    const double t_upd = cfg.fm.update_samples / cfg.sim.sample_rate_hz;
+    afm_fm_means mn;
+    if (afm_fm_settle(&f, s, &lockin, buf, CAP, (long)(0.005 / t_upd), 60, 1e-4, 1e-5, NULL, NULL,
+                      &mn, err, sizeof err))
+        check_true(false, err);
+    printf("# self, free from +%g Hz: f %.6f Hz (f0 %.6f, damped natural %.6f), A %.6g m, drive "
+           "%.6g m, lag - 90 %.3g deg, %s, %d windows, delay %d samples\n",
+           off, mn.freq_hz, f0, f0 * sqrt(1 - 1 / (4 * p.q * p.q)), mn.amplitude_m, mn.drive_m,
+           mn.phase_error_deg, afm_fm_lock_name(mn.lock), mn.windows, f.self.delay_samples);
+    check_true(mn.settled && mn.lock == AFM_FM_LOCKED, "self: settled and locked");
+    /* 0.01 Hz: the PLL test's, 1/40 of the gap to the damped natural frequency */
+    check_abs(mn.freq_hz, f0, 0.01,
+              "self: free oscillation at f0 (lag 90 deg) within 0.01 Hz, not at f0 sqrt(1 - xi^2)");
+    check_rel(mn.amplitude_m, a_set, 1e-4, "self: the amplitude set-point is held");
+    check_rel(mn.drive_m, a_set / p.gain, 1e-3, "self: the drive is A_set / |G(f0)|");
+    check_abs(mn.phase_error_deg, 0.0, 0.1, "self: the lock-in sees lag 90 deg (0.1 deg)");
+    afm_sim_destroy(&s);
+
+    /* the frequency shift against the force gradient and the PLL (test_gradient first) */
+    const double k = 200.0;
+    if (load(k, grad_zs[0], a_set / 300.0, f0,
+             "drive = \"self\"; amplitude_setpoint_m = 1e-11; pll_bandwidth_hz = 200.0; "
+             "amplitude_bandwidth_hz = 100.0;")) {
+        check_true(false, "self gradient: config loads");
+        return;
+    }
+    afm_force_params fp;
+    s = open_fm_twin(f0, &fp, &f);
+    if (!s) return;
+    double worst = 0.0, worst_pll = 0.0, worst_pll_hz = 0.0;
+    int n_ok = 0;
+    printf("# %8s %12s %12s %12s %9s %9s\n", "Z_nm", "self_Hz", "pll_Hz", "-f0F'/2k_Hz", "rel",
+           "rel_pll");
+    for (int i = 0; i < NZ_GRAD; i++) {
+        afm_sim_set_separation(s, grad_zs[i]);
+        if (afm_fm_settle(&f, s, &lockin, buf, CAP, (long)(0.005 / t_upd), 60, 2e-3, 1e-4, NULL,
+                          NULL, &mn, err, sizeof err)) {
+            check_true(false, err);
+            break;
+        }
+        double x = rest_x(&fp, k, grad_zs[i]), h = 1e-13;
+        double grad =
+            (afm_force_cons(&fp, grad_zs[i] + h, x) - afm_force_cons(&fp, grad_zs[i] - h, x)) /
+            (2 * h);
+        double want = -(f0 / (2 * k)) * grad, rel = (mn.freq_hz - f0) / want - 1.0;
+        double rel_pll = (mn.freq_hz - f0) / pll_shift_hz[i] - 1.0;
+        printf("  %8.3f %12.5f %12.5f %12.5f %9.2e %9.2e%s\n", grad_zs[i] * 1e9, mn.freq_hz - f0,
+               pll_shift_hz[i], want, rel, rel_pll, mn.settled ? "" : " unsettled");
+        if (!mn.settled || mn.lock != AFM_FM_LOCKED) break;
+        n_ok++;
+        worst = fmax(worst, fabs(rel));
+        worst_pll = fmax(worst_pll, fabs(rel_pll));
+        worst_pll_hz = fmax(worst_pll_hz, fabs(mn.freq_hz - f0 - pll_shift_hz[i]));
+        check_rel(mn.amplitude_m, a_set, 1e-3, "self gradient: amplitude at the set-point");
+    }
+    check_true(n_ok == NZ_GRAD, "self gradient: settled and locked at every Z (6 nm to 0.5 nm)");
+    printf("# self: worst |shift / (-(f0/2k) dF/dz) - 1| = %.3g, |shift / PLL shift - 1| = %.3g, "
+           "|shift - PLL shift| = %.3g Hz\n",
+           worst, worst_pll, worst_pll_hz);
+    check_abs(worst, 0.0, 0.01, "self gradient: shift = -(f0/2k) dF/dz within 1 % (as the PLL)");
+    /* both settled to 2e-3 Hz per window: they may differ by the two tolerances */
+    check_abs(worst_pll_hz, 0.0, 4e-3, "self gradient: shift = the PLL's within 4 mHz at every Z");
+    check_abs(worst_pll, 0.0, 1e-3, "self gradient: shift = the PLL's within 0.1 %");
+    afm_sim_destroy(&s);
+}
+
 int main(void) {
     test_config();
     test_lock();
     test_gradient();
+    test_self();
     test_sader_synthetic();
     test_sader_twin();
     return check_done();

@@ -31,7 +31,7 @@ for x in r:
               "drive_amplitude_m", "amplitude_m", "phase_error_deg", "locked", "lock_state",
               "settled", "amplitude_setpoint_m", "dissipated_energy_j"):
         assert k in x, k
-    assert x["mode"] == "fm" and x["locked"] and x["lock_state"] == "locked" and x["settled"]
+    assert x["mode"] == "fm" and x["fm_drive"] == "pll" and x["locked"] and x["lock_state"] == "locked" and x["settled"]
     assert abs(x["amplitude_m"] / x["amplitude_setpoint_m"] - 1) < 1e-3
     assert abs(x["phase_error_deg"]) < 0.01
     assert abs(x["free_frequency_hz"] - 300e3) < 0.05
@@ -41,6 +41,40 @@ assert s[0] < 0 and s[1] < s[0] and s[2] < s[1], s
 PY
 then ok "fm JSON: 3 steps locked and settled, shift < 0 growing towards the sample"
 else bad "fm JSON: $(head -c 600 "$T/fm.json")"; fi
+
+# the self-excited drive (fm.drive = "self", --fm-drive self) on the same approach: the same
+# frequency shift as the PLL's (both settle to --fm-tol 1e-3 Hz a window: 1e-4 relative, or
+# 2 mHz, whichever is larger), amplitude held, lag 90 deg
+if "$A" approach --config "$T/fm.conf" --mode fm --fm-drive self --from 5e-9 --to 3e-9 \
+    --step 1e-9 --json > "$T/self.json" 2> "$T/self.err" &&
+    python3 - "$T/fm.json" "$T/self.json" <<'PY'
+import json, sys
+p = [json.loads(l) for l in open(sys.argv[1])]
+s = [json.loads(l) for l in open(sys.argv[2])]
+assert len(s) == len(p) == 3
+for a, b in zip(p, s):
+    assert b["fm_drive"] == "self" and a["fm_drive"] == "pll"
+    assert b["locked"] and b["settled"], b
+    assert abs(b["z_m"] - a["z_m"]) < 1e-15
+    d = abs(b["frequency_shift_hz"] - a["frequency_shift_hz"])
+    assert d <= max(2e-3, 1e-4 * abs(a["frequency_shift_hz"])), (a["frequency_shift_hz"], b["frequency_shift_hz"])
+    assert abs(b["amplitude_m"] / b["amplitude_setpoint_m"] - 1) < 1e-3
+    assert abs(b["phase_error_deg"]) < 0.01
+    print("# Z %.1f nm: shift pll %.5f Hz, self %.5f Hz" % (a["z_m"] * 1e9, a["frequency_shift_hz"], b["frequency_shift_hz"]))
+PY
+then ok "--fm-drive self: the PLL's shift at every Z (1e-4 or 2 mHz), amplitude held, lag 90"
+else bad "--fm-drive self: $(cat "$T/self.err") $(head -c 600 "$T/self.json")"; fi
+"$A" approach --config "$T/fm.conf" --mode fm --fm-drive nco --from 4e-9 --to 4e-9 \
+  > /dev/null 2> "$T/e4"
+rc=$?
+[ $rc -eq 2 ] && grep -q "pll or self" "$T/e4" && ok "an unknown --fm-drive: exit 2, said" \
+  || bad "an unknown --fm-drive: exit $rc, $(cat "$T/e4")"
+sed 's/amplitude_bandwidth_hz = 100.0;/amplitude_bandwidth_hz = 100.0; drive = "selfish";/' \
+  "$T/fm.conf" > "$T/bad2.conf"
+"$A" approach --config "$T/bad2.conf" --mode fm --from 4e-9 --to 4e-9 > /dev/null 2> "$T/e5"
+rc=$?
+[ $rc -eq 2 ] && grep -q "fm.drive" "$T/e5" && ok "a bad fm.drive: exit 2 with the key" \
+  || bad "a bad fm.drive: exit $rc, $(cat "$T/e5")"
 
 "$A" approach --config "$T/fm.conf" --mode fm --from 4e-9 --to 4e-9 > "$T/fm.txt" 2>&1
 if grep -q "free resonance f_free" "$T/fm.txt" && grep -q "^approach.*locked" "$T/fm.txt"; then

@@ -33,6 +33,8 @@ static const command commands[] = {
     {"bench", afm_cmd_bench, "integrator speed and accuracy side by side"},
     {"bench-states", afm_cmd_bench_states,
      "integrator and chain cost per sample in every state, and of a Z change"},
+    {"bench-fm", afm_cmd_bench_fm,
+     "cost per sample of the internal FM control (PLL, self-excited) against AM"},
     {"bench-scheme", afm_cmd_bench_scheme,
      "which rt scheme afmtwind --scheme auto runs on each shipped config here"},
     {"thermal", afm_cmd_thermal,

@@ -20,6 +20,7 @@ int afm_cmd_replay(int argc, char **argv);
 int afm_cmd_bench_daemon(int argc, char **argv);
 int afm_cmd_bench_states(int argc, char **argv);
 int afm_cmd_bench_scheme(int argc, char **argv);
+int afm_cmd_bench_fm(int argc, char **argv);
 int afm_cmd_lockstep(int argc, char **argv);
 int afm_cmd_soak(int argc, char **argv);
 int afm_cmd_can_send(int argc, char **argv);

@@ -54,7 +54,8 @@ typedef struct {
     double rate_m_s;  /* > 0: Z ramped continuously at this speed instead of stepped */
     const char *mode; /* "am" (default) or "fm" */
     bool fm;
-    double fm_tol_hz; /* fm: settled when the mean frequency moves less than this per window */
+    double fm_tol_hz;     /* fm: settled when the mean frequency moves less than this per window */
+    const char *fm_drive; /* fm: "pll" or "self" (NULL: the config's fm.drive) */
 } approach_opts;
 
 static void approach_usage(FILE *f) {
@@ -64,6 +65,7 @@ static void approach_usage(FILE *f) {
             "                        [--ae M] [--integrator rt|reference|arkode-erk]\n"
             "                        [--scheme accurate|fast]\n"
             "                        [--tol X] [--rate M_S] [--mode am|fm] [--fm-tol HZ]\n"
+            "                        [--fm-drive pll|self]\n"
             "                        [--json]\n\n"
             "Approach curve: the tip-sample separation Z (m) goes from --from to --to in steps\n"
             "of --step (towards the sample when --to < --from), and with --retract back again.\n"
@@ -131,6 +133,11 @@ static void approach_usage(FILE *f) {
             "                     (acquiring, locked, lost), settled, and the per-period forces\n"
             "                     as in am mode (means over the last --analyse periods)\n"
             "  --fm-tol HZ        fm: frequency settling tolerance per window (default 1e-3)\n"
+            "  --fm-drive pll|self fm: what drives tone 0 (default: the config's fm.drive,\n"
+            "                     pll): the PLL's NCO at the phase set-point, or self-excited:\n"
+            "                     the deflection phase-shifted by fm.phase_setpoint_deg (a\n"
+            "                     quarter-period delay line), amplitude-limited by the\n"
+            "                     amplitude controller, its frequency counted\n"
             "  --json             one JSON object per step and line: z_m, direction\n"
             "                     (\"approach\" or \"retract\"), amplitude_m, phase_lag_deg,\n"
             "                     lockin {amplitude_m, phase_lag_deg}, harmonics [{k,\n"
@@ -185,6 +192,7 @@ static int parse_args(int argc, char **argv, approach_opts *o) {
         AFMT_DOUBLE_ABOVE("--rate", &o->rate_m_s, 0, 1.0, "(0, 1] m/s"),
         AFMT_STRING("--mode", &o->mode),
         AFMT_DOUBLE_ABOVE("--fm-tol", &o->fm_tol_hz, 0, 1e6, "(0, 1e6] Hz"),
+        AFMT_STRING("--fm-drive", &o->fm_drive),
         AFMT_INT("--periods", &o->max_periods, 2, 100000000, NULL),
         AFMT_INT("--analyse", &o->analyse, 1, MAX_ANALYSE, NULL),
         AFMT_INT("--harmonics", &o->k_max, 1, AFM_MAX_HARMONICS, NULL),
@@ -221,6 +229,14 @@ static int parse_args(int argc, char **argv, approach_opts *o) {
         return -1;
     }
     o->fm = strcmp(o->mode, "fm") == 0;
+    if (o->fm_drive && strcmp(o->fm_drive, "pll") != 0 && strcmp(o->fm_drive, "self") != 0) {
+        fprintf(stderr, "afmtwin approach: --fm-drive must be pll or self (got %s)\n", o->fm_drive);
+        return -1;
+    }
+    if (o->fm_drive && !o->fm) {
+        fprintf(stderr, "afmtwin approach: --fm-drive needs --mode fm\n");
+        return -1;
+    }
     if (o->fm && o->rate_m_s > 0) {
         fprintf(stderr, "afmtwin approach: --rate is for --mode am only\n");
         return -1;
@@ -598,12 +614,14 @@ typedef struct {
     approach_point pt; /* z, direction, per-period forces and harmonics (as am) */
     afm_fm_means fm;
     double f_free_hz, a_set_m;
+    bool self; /* the self-excited drive */
 } approach_fm_point;
 
 static int print_fm_json(const approach_fm_point *p) {
     cJSON *o = cJSON_CreateObject();
     cJSON_AddNumberToObject(o, "z_m", p->pt.z_m);
     cJSON_AddStringToObject(o, "mode", "fm");
+    cJSON_AddStringToObject(o, "fm_drive", p->self ? "self" : "pll");
     cJSON_AddStringToObject(o, "integrator", json_integrator);
     cJSON_AddStringToObject(o, "scheme", json_scheme);
     cJSON_AddStringToObject(o, "direction", p->pt.retract ? "retract" : "approach");
@@ -645,6 +663,8 @@ static int approach_fm(afm_sim *sim, const afm_modal *m, afm_config *cfg, approa
     afm_fm_plant p;
     afm_fm_plant_of(m, &p);
     const double f_start = isnan(o->fe_hz) ? p.f0_hz : o->fe_hz;
+    if (o->fm_drive)
+        cfg->fm.drive = strcmp(o->fm_drive, "self") ? AFM_FM_DRIVE_PLL : AFM_FM_DRIVE_SELF;
     static afm_fm f;
     if (afm_fm_init(&f, &cfg->fm, lk, &p, cfg->sim.sample_rate_hz, f_start, f_start,
                     fmin(cfg->drive.tones[0].amplitude_m, cfg->fm.drive_max_m), err, sizeof err) ||
@@ -679,12 +699,14 @@ static int approach_fm(afm_sim *sim, const afm_modal *m, afm_config *cfg, approa
     const double f_free = mn.freq_hz;
     afm_fm_recenter(&f);
     if (!o->json) {
-        printf("# afmtwin approach %s --mode fm: integrator %s (scheme %s); PLL bandwidth %g Hz "
+        printf("# afmtwin approach %s --mode fm: drive %s; integrator %s (scheme %s); PLL "
+               "bandwidth %g Hz "
                "(kp %.4g Hz/deg, ki %.4g Hz/(deg s)), amplitude bandwidth %g Hz (kp %.4g, ki "
                "%.4g 1/s), lock-in tau %g s order %d, update every %d samples\n",
-               o->config, afm_sim_integrator_name(sim), afm_sim_scheme_name(sim),
-               cfg->fm.pll_bandwidth_hz, f.kp, f.ki, cfg->fm.amplitude_bandwidth_hz, f.akp, f.aki,
-               lk->time_constant_s, lk->order, cfg->fm.update_samples);
+               o->config, cfg->fm.drive == AFM_FM_DRIVE_SELF ? "self-excited (delay line)" : "pll",
+               afm_sim_integrator_name(sim), afm_sim_scheme_name(sim), cfg->fm.pll_bandwidth_hz,
+               f.kp, f.ki, cfg->fm.amplitude_bandwidth_hz, f.akp, f.aki, lk->time_constant_s,
+               lk->order, cfg->fm.update_samples);
         printf("# free resonance f_free %.6f Hz (locked at Z 1 um, lag %.3f deg held; model mode "
                "1: %.6f Hz, Q %.5g); amplitude set-point %.6g nm, free drive %.6g pm\n",
                f_free, cfg->fm.phase_setpoint_deg, p.f0_hz, p.q, f.a_set_m * 1e9,
@@ -703,6 +725,7 @@ static int approach_fm(afm_sim *sim, const afm_modal *m, afm_config *cfg, approa
             memset(&q, 0, sizeof q);
             q.pt.retract = pass == 1;
             q.f_free_hz = f_free;
+            q.self = cfg->fm.drive == AFM_FM_DRIVE_SELF;
             q.a_set_m = f.a_set_m;
             double z = step_z(o->from_m, o->to_m, o->step_m, pass ? n_steps - 1 - i : i, n_steps);
             afmt_progress_update(&pg, "approach --mode fm: %s step %d/%d, Z %.4f nm",

@@ -98,6 +98,7 @@ void afm_config_defaults(afm_config *cfg) {
     fm->amplitude_bandwidth_hz = 50.0;
     fm->drive_max_m = 1e-6;
     fm->update_samples = 1024; /* the daemon's ring item: 73 us at 14.06 MHz */
+    fm->drive = AFM_FM_DRIVE_PLL;
 
     /* AM Z control (issue 18): afmtwin scan's controller with or without a group */
     afm_cfg_am *am = &cfg->am;
@@ -866,9 +867,11 @@ static int load_fm(const loader *L, const config_setting_t *root, afm_cfg_fm *c)
                                        "drive_max_m",
                                        "update_samples",
                                        "control",
+                                       "drive",
                                        NULL};
     static const char *const controls[] = {"none", "internal", NULL};
-    int control = (int)c->control;
+    static const char *const drives[] = {"pll", "self", NULL};
+    int control = (int)c->control, drive = (int)c->drive;
     config_setting_t *g;
     if (get_feature(L, root, "fm", &g, &c->enabled)) return -1;
     if (!g) return 0;
@@ -886,9 +889,11 @@ static int load_fm(const loader *L, const config_setting_t *root, afm_cfg_fm *c)
         get_num(L, g, "amplitude_ki_hz", false, &c->amplitude_ki_hz, NULL) ||
         get_num(L, g, "drive_max_m", false, &c->drive_max_m, NULL) ||
         get_int(L, g, "update_samples", false, &c->update_samples) ||
-        get_choice(L, g, "control", false, controls, &control))
+        get_choice(L, g, "control", false, controls, &control) ||
+        get_choice(L, g, "drive", false, drives, &drive))
         return -1;
     c->control = (afm_fm_control)control;
+    c->drive = (afm_fm_drive)drive;
     return 0;
 }
 

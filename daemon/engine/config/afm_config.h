@@ -262,6 +262,12 @@ typedef struct {
  * PLL and amplitude loops on tone 0 (runner/afm_runner.h) and refuses dither commands. */
 typedef enum { AFM_FM_CONTROL_NONE = 0, AFM_FM_CONTROL_INTERNAL = 1 } afm_fm_control;
 
+/* fm.drive: what drives tone 0 (runner/afm_fm.h). AFM_FM_DRIVE_PLL, the PLL's NCO at the
+ * lock-in phase set-point; AFM_FM_DRIVE_SELF, self-excitation: the deflection phase-shifted
+ * by phase_setpoint_deg (90: on resonance) and amplitude-limited by the amplitude controller,
+ * the oscillation finding its own frequency. */
+typedef enum { AFM_FM_DRIVE_PLL = 0, AFM_FM_DRIVE_SELF = 1 } afm_fm_drive;
+
 typedef struct {
     bool enabled;
     double phase_setpoint_deg;     /* lock-in lag the PLL holds, (0, 180); 90: resonance */
@@ -279,6 +285,7 @@ typedef struct {
     double drive_max_m;            /* the drive amplitude's limit, (0, 1e-6] */
     int update_samples;            /* controller update period (samples), 1..4096 */
     afm_fm_control control;        /* the daemon: who moves tone 0 (default none) */
+    afm_fm_drive drive;            /* pll (default) or self-excited (offline tools only) */
 } afm_cfg_fm;
 
 /* Amplitude-modulation Z control (issue 18; runner/afm_pi.h): the reference PI on the lock-in

@@ -55,6 +55,19 @@ void afm_drive_set_grid(afm_drive *d, double t_start_s, double dt_s) {
         place(d, j);
 }
 
+void afm_drive_set_tone_phase(afm_drive *d, double t_s, int j, double amp_m, double freq_hz,
+                              double theta_rad) {
+    if (j < 0 || j >= AFM_MAX_TONES) return;
+    double ph = fmod(theta_rad, two_pi);
+    d->phase_rad[j] = ph < 0 ? ph + two_pi : ph;
+    d->t0_s[j] = t_s;
+    d->amp_m[j] = amp_m;
+    d->freq_hz[j] = freq_hz;
+    d->omega_rad_s[j] = two_pi * freq_hz;
+    if (j >= d->n) d->n = j + 1;
+    place(d, j);
+}
+
 void afm_drive_retime(afm_drive *d, double t_from_s, double t_to_s) {
     for (int j = 0; j < d->n; j++) {
         d->phase_rad[j] = afm_drive_phase_mod(d, j, t_from_s);

@@ -61,4 +61,10 @@ double afm_drive_x(const afm_drive *d, double t_s, double *acc);
  * checked by the caller (afm_sim_set_tone). */
 void afm_drive_set_tone(afm_drive *d, double t_s, int j, double amp_m, double freq_hz);
 
+/* Tone j restarted at time t with phase theta_rad (any real; kept mod 2 pi) there: a phase
+ * jump, for a drive re-synthesised from a measured phase (runner/afm_fm.h, self-excitation).
+ * j may equal n. Values are checked by the caller (afm_sim_set_tone_phase). */
+void afm_drive_set_tone_phase(afm_drive *d, double t_s, int j, double amp_m, double freq_hz,
+                              double theta_rad);
+
 #endif

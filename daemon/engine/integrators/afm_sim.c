@@ -159,6 +159,16 @@ int afm_sim_set_tone(afm_sim *s, int j, double amp_m, double freq_hz) {
     return AFM_SIM_OK;
 }
 
+int afm_sim_set_tone_phase(afm_sim *s, int j, double amp_m, double freq_hz, double theta_rad) {
+    if (j < 0 || j > s->drive.n || j >= AFM_MAX_TONES || !isfinite(amp_m) || !isfinite(freq_hz) ||
+        !isfinite(theta_rad) || amp_m < 0 || amp_m > AFM_LIM_TONE_AMPLITUDE_MAX_M || freq_hz <= 0 ||
+        freq_hz >= 0.5 * s->cfg.sample_rate_hz)
+        return AFM_SIM_EINVAL;
+    afm_drive_set_tone_phase(&s->drive, s->t_s, j, amp_m, freq_hz, theta_rad);
+    s->be->changed(s);
+    return AFM_SIM_OK;
+}
+
 int afm_sim_set_separation(afm_sim *s, double z_m) {
     if (!isfinite(z_m) || z_m < 0 || z_m > AFM_LIM_SEPARATION_MAX_M) return AFM_SIM_EINVAL;
     s->z_m = z_m;

@@ -43,6 +43,9 @@ int afm_sim_run(afm_sim *s, int n, afm_sample *out);
 /* Phase-continuous tone change at the current model time (j <= current tone count).
  * Rejects NaN, amp < 0 or > 1e-6 m, freq <= 0 or >= rate/2 with AFM_SIM_EINVAL. */
 int afm_sim_set_tone(afm_sim *s, int j, double amp_m, double freq_hz);
+/* The same with tone j's phase at the current model time set to theta_rad (finite): a phase
+ * jump (afm_drive_set_tone_phase; the FM self-excited drive, runner/afm_fm.h). */
+int afm_sim_set_tone_phase(afm_sim *s, int j, double amp_m, double freq_hz, double theta_rad);
 /* New separation Z (m), 0 <= Z <= 1e-3. */
 int afm_sim_set_separation(afm_sim *s, double z_m);
 /* Back to rest (q = q' = 0) at the current drive; model time kept. */

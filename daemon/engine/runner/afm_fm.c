@@ -74,6 +74,14 @@ int afm_fm_init(afm_fm *f, const afm_cfg_fm *c, const afm_cfg_lockin *lk, const 
                    k ? "the amplitude" : "the PLL", bws[k], lk->order, lk->time_constant_s,
                    lag * 180.0 / PI);
     }
+    if (c->drive == AFM_FM_DRIVE_SELF) {
+        double f_lo = fmax(f_center_hz - c->max_shift_hz, 1e-3 * sample_rate_hz);
+        int D = (int)nearbyint(sample_rate_hz / (4.0 * f_lo));
+        if (2 * D + 1 > AFM_FM_SELF_CAP)
+            FM_BAD("drive = \"self\": half a period at %g Hz is %d samples at %g Hz, the delay "
+                   "line holds %d",
+                   f_lo, 2 * D, sample_rate_hz, AFM_FM_SELF_CAP - 1);
+    }
 #undef FM_BAD
     memset(f, 0, sizeof *f);
     f->c = *c;
@@ -95,6 +103,7 @@ int afm_fm_init(afm_fm *f, const afm_cfg_fm *c, const afm_cfg_lockin *lk, const 
     f->amplitude_m = f->lag_deg = NAN;
     f->lock = AFM_FM_ACQUIRING;
     f->t_lock_s = NAN;
+    afm_fm_self_init(&f->self, sample_rate_hz, f_start_hz, c->pll_bandwidth_hz);
     return 0;
 }
 
@@ -127,8 +136,17 @@ void afm_fm_update(afm_fm *f, double amplitude_m, double lag_deg, double dt_s) {
     const double lo = fmax(-lim, 1e-3 * f->rate_hz - f->f_center_hz),
                  hi = fmin(lim, 0.499 * f->rate_hz - f->f_center_hz);
     bool lim_i = false, lim_o = false;
-    f->df_i_hz = clamp(f->df_i_hz - f->ki * e * dt_s, lo, hi, &lim_i);
-    double df = clamp(f->df_i_hz - f->kp * e, lo, hi, &lim_o);
+    double df;
+    if (f->c.drive == AFM_FM_DRIVE_SELF) {
+        /* the oscillation's own frequency (afm_fm_self_measure), clamped to the window */
+        df = clamp(f->self.f_est_hz - f->f_center_hz, lo, hi, &lim_o);
+        f->df_i_hz = df;
+        if (f->self_ok)
+            f->drive_phase_rad = f->self.phase_rad + f->c.phase_setpoint_deg * (PI / 180.0);
+    } else {
+        f->df_i_hz = clamp(f->df_i_hz - f->ki * e * dt_s, lo, hi, &lim_i);
+        df = clamp(f->df_i_hz - f->kp * e, lo, hi, &lim_o);
+    }
     f->freq_hz = f->f_center_hz + df;
     f->f_limited = lim_o;
     f->phase_error_deg = e;
@@ -183,12 +201,26 @@ int afm_fm_run(afm_fm *f, afm_sim *s, afm_lockin *l, afm_sample *buf, int cap, l
         const afm_drive *d = afm_sim_drive(s);
         for (int i = 0; i < n; i++)
             afm_lockin_push(l, buf[i].x_m, afm_drive_phase(d, 0, buf[i].t_s));
+        const bool self = f->c.drive == AFM_FM_DRIVE_SELF;
+        if (self)
+            for (int i = 0; i < n; i++)
+                afm_fm_self_push(&f->self, buf[i].x_m);
         if (cb) cb(ctx, s, buf, n);
         double a, lag;
         afm_lockin_polar(l, &a, &lag);
         double f_old = f->freq_hz, d_old = f->drive_m;
+        if (self) f->self_ok = afm_fm_self_measure(&f->self, f->freq_hz, dt);
         afm_fm_update(f, a, lag, dt);
-        if (f->freq_hz != f_old || f->drive_m != d_old) {
+        if (self && f->self_ok) {
+            /* re-synthesised: the deflection's phase plus the set-point, now */
+            afm_lockin_retune(l);
+            rc = afm_sim_set_tone_phase(s, 0, f->drive_m, f->freq_hz, f->drive_phase_rad);
+            if (rc != AFM_SIM_OK) {
+                snprintf(err, errlen, "fm: tone 0 (%g m, %g Hz, %g rad) refused (code %d)",
+                         f->drive_m, f->freq_hz, f->drive_phase_rad, rc);
+                return -1;
+            }
+        } else if (f->freq_hz != f_old || f->drive_m != d_old) {
             if (f->freq_hz != f_old) afm_lockin_retune(l);
             rc = afm_sim_set_tone(s, 0, f->drive_m, f->freq_hz);
             if (rc != AFM_SIM_OK) {

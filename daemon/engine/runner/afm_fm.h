@@ -34,6 +34,21 @@
  * reference: the start frequency or the free resonance) and afm_fm_recenter moves it to the
  * frequency in force (`afmtwin approach --mode fm`: the locked free resonance at Z = 1 um).
  *
+ * Self-excited drive (fm.drive = "self", runner/afm_fm_self.h): no NCO at a phase set-point;
+ * at each update tone 0 is re-synthesised at the deflection's own phase (from a delay line
+ * of a quarter period at the frequency in force) plus phase_setpoint_deg (90: the deflection
+ * lags the drive by 90 deg), at the frequency the oscillation counts for itself (its phase
+ * advance between updates, low-passed at pll_bandwidth_hz), with the amplitude controller's
+ * drive as its amplitude (limited to [0, drive_max_m]). The oscillation so sits where the
+ * lag is the set-point -- on its shifted resonance -- without a phase loop: freq_hz is the
+ * counted frequency (clamped to the NCO window; at the clamp f_limited as for the PLL),
+ * phase_error_deg the lock-in's lag less the set-point as before (a check, not a control
+ * input), the lock state from it. Phase jumps are at update boundaries only (the drive a
+ * sinusoid between them, as the integrator's tones are): a real controller's phase shifter
+ * acts sample by sample; here the re-synthesised sinusoid equals the shifted deflection
+ * while the deflection is one (small amplitude) and the update is short against the
+ * envelope time Q / (pi f0).
+ *
  * Layer runner/ (5) (uses afm_sim, afm_lockin, the model). No allocation; the controllers
  * are a few tens of flops an update. What an NCO step costs is elsewhere: the estimators
  * follow a phase-continuous tone-0 step in O(1) (afm_lockin_rebase, afm_harm_rebase,
@@ -49,6 +64,7 @@
 #include "config/afm_config.h"
 #include "estimators/afm_lockin.h"
 #include "integrators/afm_sim.h"
+#include "runner/afm_fm_self.h"
 
 #include <stdbool.h>
 #include <stddef.h>
@@ -93,18 +109,25 @@ typedef struct {
     double t_lock_s;        /* controller time of the last ACQUIRING/LOST -> LOCKED; NAN */
     double t_s;             /* controller time (sum of update intervals) */
     long updates;
+    /* self-excited drive (c.drive == AFM_FM_DRIVE_SELF) */
+    afm_fm_self self;       /* delay line and frequency counter */
+    double drive_phase_rad; /* tone 0's phase set at the last update (deflection + set-point) */
+    bool self_ok;           /* the last update measured the deflection's phase */
 } afm_fm;
 
 /* Check c against the lock-in lk (the 45 deg margin rule) and derive the gains for plant p;
  * start the NCO at f_start_hz (integrator at f_start - f_center) and the drive at
  * drive_start_m, amplitude control at c->amplitude_setpoint_m (0: off until
- * afm_fm_hold_amplitude). 0, or -1 with err (f untouched). */
+ * afm_fm_hold_amplitude). Self-excited, the delay line must hold half a period at the
+ * window's lowest frequency. 0, or -1 with err (f untouched). */
 int afm_fm_init(afm_fm *f, const afm_cfg_fm *c, const afm_cfg_lockin *lk, const afm_fm_plant *p,
                 double sample_rate_hz, double f_center_hz, double f_start_hz, double drive_start_m,
                 char *err, size_t errlen);
 
 /* One controller update with the lock-in's amplitude (m) and lag (deg) after dt_s; sets
- * f->freq_hz and f->drive_m (the caller applies them). Non-finite inputs change nothing. */
+ * f->freq_hz and f->drive_m (the caller applies them). Non-finite inputs change nothing.
+ * Self-excited: the frequency is the counter's (afm_fm_self_measure first, as afm_fm_run
+ * does), and f->drive_phase_rad the phase to give tone 0 now (when f->self_ok). */
 void afm_fm_update(afm_fm *f, double amplitude_m, double lag_deg, double dt_s);
 
 /* The amplitude set-point (m); 0 turns amplitude control off (the drive is held). */
@@ -123,7 +146,8 @@ typedef void (*afm_fm_on_samples)(void *ctx, const afm_sim *s, const afm_sample 
 
 /* Run n_updates updates of f->c.update_samples samples on s: integrate into buf (cap >=
  * update_samples samples), push the tip deflection into the lock-in l (tone 0's phase as the
- * reference), hand the samples to cb, update the controllers, set tone 0 (phase-continuous)
+ * reference) and, self-excited, into the delay line, hand the samples to cb, update the
+ * controllers, set tone 0 (phase-continuous; self-excited with the re-synthesised phase)
  * when the frequency or drive changed. 0, or -1 with err (a simulation failure, a refused
  * tone). No allocation. */
 int afm_fm_run(afm_fm *f, afm_sim *s, afm_lockin *l, afm_sample *buf, int cap, long n_updates,
