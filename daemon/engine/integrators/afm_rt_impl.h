@@ -33,13 +33,18 @@
  * substeps). Callgrind, NCHV tapping: 4500 -> 2700 instructions per sample for the samples
  * near the line, 2320 -> 1370 for those in contact; 4 pieces miss the suite (docs/numerics.md) */
 #define RT_ACC_NEAR_PIECES 8
+/* (-DRT_ACC_CLOSE_TRAVELS=0.5: default.conf 829 -> 797, nchv.conf 923 -> 891; only the suite's
+ * NCHV cases were run with it, 42/0: an option, docs/numerics.md) */
+#ifndef RT_ACC_CLOSE_TRAVELS
 #define RT_ACC_CLOSE_TRAVELS 1.0
+#endif
 /* Two of those pieces are taken as one where both its ends are out of contact, this many of
  * its travels (|v| dt / 4) above the contact line (0: never). Callgrind: default.conf 933 -> 873
- * instructions per sample, nchv.conf 1024 -> 963, test_rt_steady's worst figures as without;
- * merging in contact too NCHV's energy per period missed its bound (0.14 eV, docs/numerics.md) */
+ * instructions per sample at 4 travels, 829 at 2 (nchv.conf 1024 -> 963 -> 923), 810 at 1;
+ * test_rt_steady 148/0 at each, its worst figures moved least at 2 (docs/numerics.md, third
+ * round); merging in contact too NCHV's energy per period missed its bound (0.14 eV) */
 #ifndef RT_ACC_MERGE_TRAVELS
-#define RT_ACC_MERGE_TRAVELS 4.0
+#define RT_ACC_MERGE_TRAVELS 2.0
 #endif
 #define RT_ACC_SURE 0.999 /* rt_state.sure_k: below 1, so that rounding cannot decide */
 #define RT_MAX_SUBSTEPS AFM_MAX_RT_SUBSTEPS
