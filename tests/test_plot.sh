@@ -214,9 +214,9 @@ segs=$(awk '/^\$B << EOD/ { f = 1; next }
   f { s = n ? s "," $1 : ($4 == 1 ? "solid:" : "dashed:") $1; if (n && $4 != st) s = s "!"; st = $4; n++ }' \
   "$T/cont.gp" 2>/dev/null)
 if [ $rc -eq 0 ] && [ "$segs" = "solid:80,81,81.5 dashed:81.5,82,83,83.5 solid:83.5,84 " ] \
-  && grep -q '\$B using 1:(\$4 == 1 && \$6 == 1 ? \$2 : 1/0) with lines ls 1 notitle' "$T/cont.gp" \
-  && grep -q '\$B using 1:(\$4 == 0 && \$6 == 1 ? \$2 : 1/0) with lines ls 2 notitle' "$T/cont.gp" \
-  && grep -q "^set style line 2 .* dt 2" "$T/cont.gp" && ! grep -q "^set style line 1 .* dt " "$T/cont.gp"; then
+  && grep -q '\$B using 1:(\$4 == 1 && \$5 == 0 ? \$2 : 1/0) with lines ls 21 notitle' "$T/cont.gp" \
+  && grep -q '\$B using 1:(\$4 == 0 && \$5 == 0 ? \$2 : 1/0) with lines ls 22 notitle' "$T/cont.gp" \
+  && grep -q "^set style line 22 .* dt 2" "$T/cont.gp" && ! grep -q "^set style line 21 .* dt " "$T/cont.gp"; then
   ok "continue: cut at the PD (81.5 kHz) and where |mu| crosses 1 (83.5 kHz), both segments sharing the point"
 else bad "continue segments: exit $rc, '$segs' $(cat "$T/cont.err")"; fi
 # 5. bifurcation labels that do not overlap (issue 30: fig 4.2's "P2P6" ran together, and
