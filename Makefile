@@ -278,7 +278,7 @@ bench: deps
 # against replay (the first 60 s of model time of each: ~3 min more per config).
 soak: deps
 	$(MAKE) $(BUILD)/bin/afmtwin $(BUILD)/bin/afmtwind
-	AFMTWIN_SOAK_S=300 AFMTWIN_SOAK_CHECK_S=60 AFMTWIN_SOAK_MIN_RTF=0.99 bash tests/test_soak.sh $(BUILD)
+	AFMTWIN_SOAK_S=300 AFMTWIN_SOAK_CHECK_S=60 AFMTWIN_SOAK_MIN_RTF=0.99 AFMTWIN_RT_SPEED=1 bash tests/test_soak.sh $(BUILD)
 	FM_RATE=10000 FM_AFTER=60 FM_RT_CHECK=1 bash tests/test_fm_daemon.sh $(BUILD)
 
 clean:

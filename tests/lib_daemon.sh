@@ -48,6 +48,16 @@ daemon_test_init() {
   export LCM_DEFAULT_URL='udpm://239.255.76.67:7667?ttl=0&recv_buf_size=4194304'
   # `afmtwin send` checks against this config when given no --config (not installed here).
   export AFMTWIN_CONFIG=config/default.conf
+  # RT_SPEED: the daemon's --speed in make test's real-time guards (test_collapse,
+  # test_flood B, test_soak, test_scheme's adaptive run), which judge the real-time factor as
+  # a share of it. On this 2-core machine kind, default.conf at 14.06 MHz runs at capacity at
+  # 1x even with the fast scheme (2026-12-06, quiet machine: the integrator ~60 ns a sample
+  # of the 71 ns budget, the output chain thread 90-100 % busy; the real-time factor of the
+  # last second 0.45-1.0 on main and on 977ff6f, which read 0.999 on the machines before).
+  # The guards are there for collapses (0.015-0.04 of real time) and starvation, not for the
+  # machine's margin: at half speed both threads have ~50 % to spare. make soak and make flood
+  # (AFMTWIN_RT_SPEED=1) keep the strict full-speed check; docs/realtime.md has the figures.
+  RT_SPEED=${AFMTWIN_RT_SPEED:-0.5}
   pass=0; fail=0
   ok()  { echo "ok   $1"; pass=$((pass+1)); }
   bad() { echo "FAIL $1"; fail=$((fail+1)); }
