@@ -126,13 +126,14 @@ read -r tag rest < "$T/b.out"
 [ "$tag" = ok ] && ok "(b) move at 5 um/s, harmonics: $rest" || bad "(b) move at 5 um/s: $rest"
 
 # ---- (c) a raster ------------------------------------------------------------------------
-listen --channels harmonics --json --timeout 4 > "$T/h3.jsonl" 2>/dev/null & LPID=$!
+listen --channels harmonics --json --timeout 8 > "$T/h3.jsonl" 2>/dev/null & LPID=$!
 sleep 0.5
 # 4 lines of 300 nm from (100, 0) nm, 40 nm of y, 10 lines/s (0.4 s)
 "${SC[@]}" send --lcm-url "$url" --seq 13 --mode 3 --x 1e-7 --y 0 --size-x 3e-7 --size-y 4e-8 \
   --lines 4 --pixels 64 --rate 10
 wait_for scan_mode raster "$T/s3.json"
-sleep 0.6; kill -TERM "$LPID" 2>/dev/null; wait "$LPID" 2>/dev/null
+# the raster's 0.4 s of model time take 0.4 / SPEED s of wall time (1.6 s at 0.25)
+sleep "$(awk -v s="$SPEED" 'BEGIN { print 0.4 / s + 0.2 }')"; kill -TERM "$LPID" 2>/dev/null; wait "$LPID" 2>/dev/null
 status "$T/s3b.json"
 python3 - "$T/h3.jsonl" $POS $EDGE $H > "$T/c.out" <<'EOF'
 import json, sys

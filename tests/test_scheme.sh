@@ -114,7 +114,9 @@ n=$(wc -l < "$T/ad.json")
 # between them, lag 0.0001 deg. Bound 1e-3 and 0.01 deg: a jump of the state (a reset, a
 # resync, a lost or repeated block) moves harmonic 1 by far more; and no gap in model time.
 tz=$(grep '"separation_m":1e-06' "$T/ad.json" | head -n 1 | grep -o '"model_time_s":[^,]*' | cut -d: -f2)
-hb=$(grep '"rt_scheme_reason":"margin back' "$T/ad.json" | head -n 1 | grep -o '"model_time_s":[^,]*' | cut -d: -f2)
+# the first hand-over back after the retract (at half speed one may come while tapping too)
+hb=$(grep '"rt_scheme_reason":"margin back' "$T/ad.json" | grep -o '"model_time_s":[^,]*' | cut -d: -f2 \
+  | awk -v t0="${tz:-1e9}" '$1 > t0 + 1.0 { print; exit }')
 grep '"channel":"AFMTWIN_HARMONICS"' "$T/adh.json" \
   | sed 's/.*"msg_seq":\([0-9]*\).*"t_s":\([^,]*\).*"deflection_amplitude_m":\[\([^,]*\).*"deflection_lag_deg":\[\([^,]*\).*/\1 \2 \3 \4/' \
   > "$T/h.txt"
