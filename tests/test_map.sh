@@ -125,6 +125,59 @@ badarg "no --out" "required" --config $CONF --x fe 80kHz 88kHz 5 --y z 20nm 30nm
 badarg "--direction sideways" "up, down or both" --config $CONF --x fe 80kHz 88kHz 5 --y z 20nm 30nm 2 --direction sideways "${O[@]}"
 badarg "Z above 1 mm" "values must be in" --config $CONF --x fe 80kHz 88kHz 5 --y z 20nm 2mm 2 "${O[@]}"
 badarg "fe above half the sample rate" "half the sample rate" --config $CONF --x fe 80kHz 5MHz 5 --y z 20nm 30nm 2 "${O[@]}"
+badarg "a named parameter on --x" "the y axis only" --config $CONF --x forces.vdw_contact.hamaker_j 1e-19 2e-19 2 --y fe 80kHz 88kHz 3 "${O[@]}"
+badarg "an unknown named parameter" "unknown parameter 'forces.bogus'" --config $CONF --x fe 80kHz 88kHz 5 --y forces.bogus 1 2 2 "${O[@]}"
+badarg "a named value out of its range" "out of range" --config $CONF --x fe 80kHz 88kHz 5 --y forces.vdw_contact.hamaker_j -1e-19 2e-19 2 "${O[@]}"
+
+# ---- a live parameter as the y axis (Hamaker constant): each line is `afmtwin sweep` of the
+# config with that value (set as `afmtwin send param` sets it; compared to the 1e-14 of
+# sweep's JSON), the same bytes under mpirun -np 2, the unit in the header and the plot's
+# label ----
+HMAP=(map --config $CONF --x fe 80000 88000 6 --y forces.vdw_contact.hamaker_j 1e-19 2e-19 2
+  --direction up --max-periods 1500)
+netns "$A" "${HMAP[@]}" --out "$T/h.map" 2> "$T/h.err"; rc=$?
+[ $rc -eq 0 ] && grep -q '^y forces.vdw_contact.hamaker_j 9.9999999999999998e-20 2e-19 2 J$' "$T/h.map" \
+  && [ "$(grep -c '^P ' "$T/h.map")" = 12 ] \
+  && ok "map --y forces.vdw_contact.hamaker_j: 2 lines of 6, the header names it with its unit (J)" \
+  || bad "map --y forces.vdw_contact.hamaker_j: exit $rc: $(head -c 300 "$T/h.err") $(sed -n 5p "$T/h.map")"
+sed 's/hamaker_j = 1.29e-19/hamaker_j = 2e-19/' $CONF > "$T/h2.conf"
+grep -q 'hamaker_j = 2e-19' "$T/h2.conf" || bad "test set-up: no hamaker_j = 1.29e-19 in $CONF"
+"$A" sweep --config "$T/h2.conf" --from 80000 --to 88000 --step 1600 --max-periods 1500 --json \
+  > "$T/hsweep.json" 2> /dev/null
+h_ok=$(python3 - "$T/hsweep.json" "$T/h.map" <<'EOF'
+import json, sys
+rows = [json.loads(l) for l in open(sys.argv[1])]
+pts = {}
+for l in open(sys.argv[2]):
+    f = l.split()
+    if f[:3] == ["P", "1", "u"]:
+        pts[int(f[3])] = [float(v) for v in f[4:14]] + [int(v) for v in f[14:]]
+bad = 0
+for i, o in enumerate(rows):
+    h = [x for x in o["harmonics"] if x["k"] == 1][0]
+    p = pts.get(i)
+    want = [o["fe_hz"], h["deflection_amplitude_m"], h["phase_lag_deg"], o["periodicity"],
+            o["settle_periods"]]
+    if p is None or p[1] != 2e-19 or any(abs(a - b) > 1e-14 * abs(a) for a, b in
+                                        zip(want, [p[0], p[2], p[3], p[10], p[12]])):
+        bad += 1
+        print("point", i, want, p, file=sys.stderr)
+print("ok" if bad == 0 and len(rows) == 6 else "bad")
+EOF
+)
+[ "$h_ok" = ok ] \
+  && ok "the Hamaker 2e-19 J line equals afmtwin sweep of the config with hamaker_j = 2e-19 (fe, A1, lag, p, periods to 1e-14)" \
+  || bad "the Hamaker 2e-19 J line differs from afmtwin sweep of that config"
+if [ $NOMPI -eq 0 ] && command -v mpirun > /dev/null; then
+  netns mpirun -np 2 "$A" "${HMAP[@]}" --out "$T/h2.map" > "$T/h2.out" 2>&1; rc=$?
+  [ $rc -eq 0 ] && cmp -s "$T/h.map" "$T/h2.map" \
+    && ok "a named y axis under mpirun -np 2: the same file, byte for byte" \
+    || bad "a named y axis under mpirun -np 2: exit $rc or a different file: $(tail -2 "$T/h2.out")"
+fi
+"$A" plot map "$T/h.map" --out "$T/h.png" --script "$T/h.gp" 2> "$T/hp.err"; rc=$?
+[ $rc -eq 0 ] && grep -q "set ylabel 'forces.vdw_contact.hamaker_j (J)'" "$T/h.gp" \
+  && ok "plot map of a named y axis: labelled with its name and unit" \
+  || bad "plot map of a named y axis: exit $rc: $(head -2 "$T/hp.err")"
 badarg "a missing config" "cannot" --config /no/such.conf --x fe 80kHz 88kHz 5 --y z 20nm 30nm 2 "${O[@]}"
 
 # ---- a map line is `afmtwin sweep` ----

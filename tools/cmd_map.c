@@ -11,6 +11,7 @@
  * here, in the tools layer: the engine knows nothing of it. Without mpirun the same binary
  * runs as one process (MPI singleton). */
 #include "afmtwin_cmds.h"
+#include "lcm_tool.h"
 #include "map_file.h"
 #include "opts.h"
 
@@ -19,6 +20,7 @@
 #include "estimators/afm_orbit.h"
 #include "forces/afm_force.h"
 #include "integrators/afm_sim.h"
+#include "runner/afm_cmd.h"
 #include "runner/afm_twin.h"
 
 #if AFMT_NO_MPI
@@ -101,7 +103,10 @@ static void map_usage(FILE *f) {
         "  --config FILE       libconfig model file\n"
         "  --x NAME FROM TO N  the axis swept within a line: fe (Hz), z (m) or ae (m); N >= 1\n"
         "                      points FROM + (TO - FROM) i / (N - 1), FROM < TO (N 1: FROM)\n"
-        "  --y NAME FROM TO N  the axis across lines (another parameter than x)\n"
+        "  --y NAME FROM TO N  the axis across lines (another parameter than x): fe, z, ae, or\n"
+        "                      a live parameter of `afmtwin send param` by its name and in its\n"
+        "                      unit (e.g. forces.vdw_contact.hamaker_j 5e-20 2e-19 4), set in\n"
+        "                      each line's config as that command would set it\n"
         "  --out FILE          the map file (overwritten, unless --resume)\n"
         "  --direction D       up, down or both (default both)\n"
         "  --integrator NAME   rt, reference or arkode-erk; default the "
@@ -134,18 +139,45 @@ static int parse_axis(char **argv, int argc, int i, afmt_map_axis *a) {
     const char *opt = argv[i];
     (void)argc; /* the caller checked that four words follow */
     int p = afmt_map_param_parse(argv[i + 1]);
+    if (p == AFMT_MAP_NAMED) p = -1; /* the file's word for a named axis, not a name */
     if (p < 0) {
-        fprintf(stderr, "afmtwin map: %s: unknown parameter '%s' (fe, z or ae)\n", opt,
-                argv[i + 1]);
-        return -1;
+        /* a live parameter of `afmtwin send param` (afm_cmd.h's table), on --y only */
+        int entry, index;
+        char perr[AFM_ERR_LEN];
+        if (afm_param_lookup(argv[i + 1], &entry, &index, perr, sizeof perr) != 0) {
+            fprintf(stderr, "afmtwin map: %s: '%s' is not fe, z, ae or a live parameter: %s\n", opt,
+                    argv[i + 1], perr);
+            return -1;
+        }
+        if (strcmp(opt, "--y") != 0) {
+            fprintf(stderr,
+                    "afmtwin map: --x %s: a named parameter can be the y axis only (each line "
+                    "is built with its value; along x the state is carried: fe, z or ae)\n",
+                    argv[i + 1]);
+            return -1;
+        }
+        int nd;
+        const afm_param_def *d = &afm_param_table(&nd)[entry];
+        p = AFMT_MAP_NAMED;
+        afm_param_name(entry, index, a->name, sizeof a->name);
+        snprintf(a->unit, sizeof a->unit, "%s", d->unit && d->unit[0] ? d->unit : "-");
     }
     a->param = (afmt_map_param)p;
-    afmt_unit u = p == AFMT_MAP_FE ? AFMT_UNIT_HZ : AFMT_UNIT_M;
     char what[32];
     snprintf(what, sizeof what, "%s FROM", opt);
-    if (afmt_opt_si_value("map", what, argv[i + 2], u, &a->from)) return -1;
-    snprintf(what, sizeof what, "%s TO", opt);
-    if (afmt_opt_si_value("map", what, argv[i + 3], u, &a->to)) return -1;
+    if (p == AFMT_MAP_NAMED) { /* plain numbers in the parameter's unit; its range below */
+        if (afmt_parse_double(argv[i + 2], &a->from) || afmt_parse_double(argv[i + 3], &a->to) ||
+            !isfinite(a->from) || !isfinite(a->to)) {
+            fprintf(stderr, "afmtwin map: %s %s: FROM and TO must be numbers, got '%s' '%s'\n", opt,
+                    a->name, argv[i + 2], argv[i + 3]);
+            return -1;
+        }
+    } else {
+        afmt_unit u = p == AFMT_MAP_FE ? AFMT_UNIT_HZ : AFMT_UNIT_M;
+        if (afmt_opt_si_value("map", what, argv[i + 2], u, &a->from)) return -1;
+        snprintf(what, sizeof what, "%s TO", opt);
+        if (afmt_opt_si_value("map", what, argv[i + 3], u, &a->to)) return -1;
+    }
     char *end;
     errno = 0;
     long n = strtol(argv[i + 4], &end, 10);
@@ -156,8 +188,8 @@ static int parse_axis(char **argv, int argc, int i, afmt_map_axis *a) {
     }
     a->n = (int)n;
     double hi = p == AFMT_MAP_Z ? 1e-3 : p == AFMT_MAP_AE ? 1e-6 : HUGE_VAL;
-    if (!(a->from >= 0 && a->to >= 0 && a->from <= hi && a->to <= hi) ||
-        (p == AFMT_MAP_FE && a->from <= 0)) {
+    if (p != AFMT_MAP_NAMED && (!(a->from >= 0 && a->to >= 0 && a->from <= hi && a->to <= hi) ||
+                                (p == AFMT_MAP_FE && a->from <= 0))) {
         fprintf(stderr, "afmtwin map: %s %s: values must be in %s (got %g .. %g)\n", opt,
                 argv[i + 1],
                 p == AFMT_MAP_FE  ? "(0, rate / 2) Hz"
@@ -247,7 +279,7 @@ static int parse_args(int argc, char **argv, map_opts *o) {
         fprintf(stderr, "afmtwin map: --config, --x, --y and --out are required\n");
         return -1;
     }
-    if (o->x.param == o->y.param) {
+    if (o->x.param == o->y.param && o->x.param != AFMT_MAP_NAMED) {
         fprintf(stderr, "afmtwin map: --x and --y must be different parameters (both %s)\n",
                 afmt_map_param_name(o->x.param));
         return -1;
@@ -259,13 +291,23 @@ static int parse_args(int argc, char **argv, map_opts *o) {
     return 0;
 }
 
-static void set_param(afm_config *cfg, afmt_map_param p, double v) {
-    if (p == AFMT_MAP_FE)
+/* The axis's parameter at value v in cfg. A named one goes through afm_param_apply, as
+ * `afmtwin send param` would apply it (its range, the config's validity). 0, or -1 with err
+ * (cfg unchanged). */
+static int set_param(afm_config *cfg, const afmt_map_axis *a, double v, char *err, size_t errlen) {
+    if (a->param == AFMT_MAP_FE)
         cfg->drive.tones[0].frequency_hz = v;
-    else if (p == AFMT_MAP_Z)
+    else if (a->param == AFMT_MAP_Z)
         cfg->drive.separation_m = v;
-    else
+    else if (a->param == AFMT_MAP_AE)
         cfg->drive.tones[0].amplitude_m = v;
+    else {
+        afm_cmd_param cp = {.n = 1};
+        if (afm_param_lookup(a->name, &cp.entry[0], &cp.index[0], err, errlen) != 0) return -1;
+        cp.value[0] = v;
+        if (afm_param_apply(cfg, &cp, NULL, err, errlen) != 0) return -1;
+    }
+    return 0;
 }
 
 /* Everything a line needs, the same on every rank. */
@@ -350,9 +392,10 @@ static int run_line(const map_ctx *c, int iy, afmt_map_point *pts[2], char *err,
     cfg = c->base;
     const afmt_map_axis *xa = &c->spec.x;
     const int nx = xa->n;
-    set_param(&cfg, c->spec.y.param, afmt_map_axis_value(&c->spec.y, iy));
     const bool up = c->spec.dirs & AFMT_MAP_UP;
-    set_param(&cfg, xa->param, up ? xa->from : xa->to);
+    if (set_param(&cfg, &c->spec.y, afmt_map_axis_value(&c->spec.y, iy), err, errlen) != 0 ||
+        set_param(&cfg, xa, up ? xa->from : xa->to, err, errlen) != 0)
+        return -1;
     if (afm_config_validate(&cfg, err, errlen) != 0) return -1;
     afm_sim *sim = afm_twin_create(&cfg, NULL, NULL, err, errlen);
     if (!sim) return -1;
@@ -509,12 +552,12 @@ static int map_setup(const map_opts *o, map_ctx *c) {
     char err[AFM_ERR_LEN];
     for (int corner = 0; corner < 4; corner++) {
         t = *cfg;
-        set_param(&t, o->x.param, corner & 1 ? o->x.to : o->x.from);
-        set_param(&t, o->y.param, corner & 2 ? o->y.to : o->y.from);
-        if (afm_config_validate(&t, err, sizeof err) != 0) {
-            fprintf(stderr, "afmtwin map: at x %s = %g, y %s = %g: %s\n",
-                    afmt_map_param_name(o->x.param), corner & 1 ? o->x.to : o->x.from,
-                    afmt_map_param_name(o->y.param), corner & 2 ? o->y.to : o->y.from, err);
+        if (set_param(&t, &o->y, corner & 2 ? o->y.to : o->y.from, err, sizeof err) != 0 ||
+            set_param(&t, &o->x, corner & 1 ? o->x.to : o->x.from, err, sizeof err) != 0 ||
+            afm_config_validate(&t, err, sizeof err) != 0) {
+            fprintf(stderr, "afmtwin map: at x %s = %g, y %s = %g: %s\n", afmt_map_axis_name(&o->x),
+                    corner & 1 ? o->x.to : o->x.from, afmt_map_axis_name(&o->y),
+                    corner & 2 ? o->y.to : o->y.from, err);
             return -1;
         }
     }

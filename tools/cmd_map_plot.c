@@ -144,10 +144,9 @@ static int write_all_gsf(const char *prefix, const afmt_map_data *m) {
     float *v = malloc(np * sizeof *v);
     if (!v) return -1;
     char path[4096], title[256], ynote[96] = "";
-    if (strcmp(afmt_map_param_unit(m->x.param), afmt_map_param_unit(m->y.param)))
-        snprintf(ynote, sizeof ynote, "; x %s in %s, y %s in %s", afmt_map_param_name(m->x.param),
-                 afmt_map_param_unit(m->x.param), afmt_map_param_name(m->y.param),
-                 afmt_map_param_unit(m->y.param));
+    if (strcmp(afmt_map_axis_unit(&m->x), afmt_map_axis_unit(&m->y)))
+        snprintf(ynote, sizeof ynote, "; x %s in %s, y %s in %s", afmt_map_axis_name(&m->x),
+                 afmt_map_axis_unit(&m->x), afmt_map_axis_name(&m->y), afmt_map_axis_unit(&m->y));
     int rc = 0;
     for (int d = 0; d < 2 && !rc; d++) {
         if (!m->pts[d]) continue;
@@ -175,14 +174,19 @@ static int write_all_gsf(const char *prefix, const afmt_map_data *m) {
     return rc;
 }
 
-static double axis_scale(afmt_map_param p) {
-    return p == AFMT_MAP_FE ? 1e-3 : 1e9;
+static double axis_scale(const afmt_map_axis *a) {
+    return a->param == AFMT_MAP_FE ? 1e-3 : a->param == AFMT_MAP_NAMED ? 1.0 : 1e9;
 }
 
-static const char *axis_label(afmt_map_param p) {
-    return p == AFMT_MAP_FE  ? "drive frequency fe (kHz)"
-           : p == AFMT_MAP_Z ? "separation Z (nm)"
-                             : "drive amplitude Ae (nm)";
+/* The axis's label (a named parameter: its name and unit, into buf). */
+static const char *axis_label(const afmt_map_axis *a, char *buf, size_t len) {
+    if (a->param == AFMT_MAP_NAMED) {
+        snprintf(buf, len, "%s (%s)", a->name, a->unit);
+        return buf;
+    }
+    return a->param == AFMT_MAP_FE  ? "drive frequency fe (kHz)"
+           : a->param == AFMT_MAP_Z ? "separation Z (nm)"
+                                    : "drive amplitude Ae (nm)";
 }
 
 /* The LPC and PD curves of a `continue --param2 --json` file as gnuplot data (x y, in the
@@ -205,7 +209,7 @@ static int read_curves(const char *path, const afmt_map_data *m, char **lpc, cha
     size_t cap = 0;
     int rc = 0, lineno = 0, cur = -1, side = -1;
     double start[2] = {NAN, NAN};
-    const double sx = axis_scale(m->x.param), sy = axis_scale(m->y.param);
+    const double sx = axis_scale(&m->x), sy = axis_scale(&m->y);
     if (!out[0] || !out[1]) rc = -1;
     while (!rc && getline(&line, &cap, f) > 0) {
         lineno++;
@@ -223,8 +227,16 @@ static int read_curves(const char *path, const afmt_map_data *m, char **lpc, cha
                         *kd = cJSON_GetObjectItemCaseSensitive(o, "kind"),
                         *cv = cJSON_GetObjectItemCaseSensitive(o, "curve"),
                         *sd = cJSON_GetObjectItemCaseSensitive(o, "side");
-            int p1 = cJSON_IsString(n1) ? afmt_map_param_parse(n1->valuestring) : -1;
-            int p2 = cJSON_IsString(n2) ? afmt_map_param_parse(n2->valuestring) : -1;
+            const char *xn = afmt_map_axis_name(&m->x), *yn = afmt_map_axis_name(&m->y);
+            /* a curve's names as continue writes them: fe, z, ae or the table's name */
+            int p1 = !cJSON_IsString(n1)            ? -1
+                     : !strcmp(n1->valuestring, xn) ? 0
+                     : !strcmp(n1->valuestring, yn) ? 1
+                                                    : 2;
+            int p2 = !cJSON_IsString(n2)            ? -1
+                     : !strcmp(n2->valuestring, xn) ? 0
+                     : !strcmp(n2->valuestring, yn) ? 1
+                                                    : 2;
             if (p1 < 0 || p2 < 0 || !cJSON_IsNumber(v1) || !cJSON_IsNumber(v2) ||
                 !cJSON_IsString(kd) || !cJSON_IsNumber(cv) || !cJSON_IsNumber(sd)) {
                 snprintf(err, errlen,
@@ -232,14 +244,12 @@ static int read_curves(const char *path, const afmt_map_data *m, char **lpc, cha
                          "param, param2, kind, curve or side",
                          path, lineno);
                 rc = -1;
-            } else if (!((p1 == (int)m->x.param && p2 == (int)m->y.param) ||
-                         (p1 == (int)m->y.param && p2 == (int)m->x.param))) {
+            } else if (!((p1 == 0 && p2 == 1) || (p1 == 1 && p2 == 0))) {
                 snprintf(err, errlen, "%s:%d: curves in (%s, %s), the map is in (%s, %s)", path,
-                         lineno, n1->valuestring, n2->valuestring, afmt_map_param_name(m->x.param),
-                         afmt_map_param_name(m->y.param));
+                         lineno, n1->valuestring, n2->valuestring, xn, yn);
                 rc = -1;
             } else {
-                bool swap = p1 != (int)m->x.param;
+                bool swap = p1 != 0;
                 double x = (swap ? v2 : v1)->valuedouble * sx,
                        y = (swap ? v1 : v2)->valuedouble * sy;
                 FILE *g = out[!strcmp(kd->valuestring, "PD")];
@@ -282,7 +292,7 @@ static int read_curves(const char *path, const afmt_map_data *m, char **lpc, cha
  * plotting units. Returns the number of segments. */
 static int write_contour(FILE *sf, const afmt_map_data *m, const double *v, int ny, double level) {
     const int nx = m->x.n;
-    const double sx = axis_scale(m->x.param), sy = axis_scale(m->y.param);
+    const double sx = axis_scale(&m->x), sy = axis_scale(&m->y);
     int nseg = 0;
     for (int iy = 0; iy + 1 < ny; iy++)
         for (int ix = 0; ix + 1 < nx; ix++) {
@@ -347,7 +357,7 @@ static void map_info_line(const afmt_map_data *m, char *out, size_t n) {
             else if (ax[i]->param == AFMT_MAP_Z)
                 plot_info_z(&pi, v[j]);
             else
-                plot_info_param(&pi, "ae", v[j]);
+                plot_info_param(&pi, afmt_map_axis_name(ax[i]), v[j]);
         }
     }
     plot_info_line(&pi, out, n);
@@ -357,7 +367,7 @@ static void map_info_line(const afmt_map_data *m, char *out, size_t n) {
 
 static int write_script(FILE *sf, const mplot_opts *o, const afmt_map_data *m, int d,
                         const char *lpc, const char *pd) {
-    const double sx = axis_scale(m->x.param), sy = axis_scale(m->y.param);
+    const double sx = axis_scale(&m->x), sy = axis_scale(&m->y);
     bool svg = o->out && strlen(o->out) > 4 && !strcmp(o->out + strlen(o->out) - 4, ".svg");
     fprintf(sf, "set terminal %s size %d,%d noenhanced\nset output '%s'\n",
             svg ? "svg" : "pngcairo", o->width, o->height, o->out);
@@ -424,10 +434,11 @@ static int write_script(FILE *sf, const mplot_opts *o, const afmt_map_data *m, i
     if (pd && *pd) fprintf(sf, "; dashed magenta: PD curves");
     if (!isnan(o->contour_n)) fprintf(sf, "; white line: peak force %.4g nN", o->contour_n * 1e9);
     fprintf(sf, "'\n");
+    char xlab[128], ylab[128];
     fprintf(sf,
             "set xlabel '%s'\nset ylabel '%s'\nset palette rgb 33,13,10\nset autoscale cbfix\nset "
             "format cb '%%g'\n",
-            axis_label(m->x.param), axis_label(m->y.param));
+            axis_label(&m->x, xlab, sizeof xlab), axis_label(&m->y, ylab, sizeof ylab));
     /* the picture's extent: the map's pixels (curves outside it are clipped) */
     double ex[2], ey[2];
     gsf_axis(&m->x, &ex[1], &ex[0]);

@@ -137,8 +137,10 @@ int afm_cmd_plan(int argc, char **argv) {
             }
         }
     qsort(pairs, n, sizeof *pairs, cmp_pair);
-    const double ys = m.y.param == AFMT_MAP_FE ? 1.0 : 1e9;
-    const char *yu = m.y.param == AFMT_MAP_FE ? "Hz" : "nm";
+    const double ys = m.y.param == AFMT_MAP_FE || m.y.param == AFMT_MAP_NAMED ? 1.0 : 1e9;
+    const char *yu = m.y.param == AFMT_MAP_FE      ? "Hz"
+                     : m.y.param == AFMT_MAP_NAMED ? m.y.unit
+                                                   : "nm";
     printf("# afmtwin plan %s: patterning peak force >= %g N, imaging <= %g N; %zu pairs, the "
            "best %d (margin: fe distance to the nearest jump the switch does not cross)\n",
            o.map, o.peak_n, o.imaging_n, n, n < (size_t)o.top ? (int)n : o.top);
@@ -150,7 +152,7 @@ int afm_cmd_plan(int argc, char **argv) {
         printf("%zu. %s %.6g %s: image at fe %.6g Hz (peak %.4g N, A %.4g nm, lag %.2f deg), "
                "pattern at fe %.6g Hz (peak %.4g N, A %.4g nm, lag %.2f deg); path: %s pass "
                "from fe %.6g Hz; margin ",
-               k + 1, afmt_map_param_name(m.y.param), afmt_map_axis_value(&m.y, q->iy) * ys, yu, fi,
+               k + 1, afmt_map_axis_name(&m.y), afmt_map_axis_value(&m.y, q->iy) * ys, yu, fi,
                row[q->i].peak_force_n, row[q->i].amplitude_m * 1e9, row[q->i].lag_deg, fp,
                row[q->p].peak_force_n, row[q->p].amplitude_m * 1e9, row[q->p].lag_deg,
                q->dir ? "down" : "up", q->dir ? m.x.to : m.x.from);

@@ -9,8 +9,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-static const char *const param_names[] = {"fe", "z", "ae"};
-static const char *const param_units[] = {"Hz", "m", "m"};
+static const char *const param_names[] = {"fe", "z", "ae", "named"};
+static const char *const param_units[] = {"Hz", "m", "m", "-"};
 
 const char *afmt_map_param_name(afmt_map_param p) {
     return param_names[p];
@@ -18,6 +18,14 @@ const char *afmt_map_param_name(afmt_map_param p) {
 
 const char *afmt_map_param_unit(afmt_map_param p) {
     return param_units[p];
+}
+
+const char *afmt_map_axis_name(const afmt_map_axis *a) {
+    return a->param == AFMT_MAP_NAMED ? a->name : param_names[a->param];
+}
+
+const char *afmt_map_axis_unit(const afmt_map_axis *a) {
+    return a->param == AFMT_MAP_NAMED ? a->unit : param_units[a->param];
 }
 
 int afmt_map_param_parse(const char *s) {
@@ -111,8 +119,9 @@ char *afmt_map_header(const afmt_map_spec *sp) {
               (unsigned long long)sp->config_hash);
     sb_printf(&b, "x %s %.17g %.17g %d\n", afmt_map_param_name(sp->x.param), sp->x.from, sp->x.to,
               sp->x.n);
-    sb_printf(&b, "y %s %.17g %.17g %d\n", afmt_map_param_name(sp->y.param), sp->y.from, sp->y.to,
-              sp->y.n);
+    sb_printf(&b, "y %s %.17g %.17g %d", afmt_map_axis_name(&sp->y), sp->y.from, sp->y.to, sp->y.n);
+    if (sp->y.param == AFMT_MAP_NAMED) sb_printf(&b, " %s", sp->y.unit);
+    sb_printf(&b, "\n");
     sb_printf(&b, "direction %s\nintegrator %s scheme %s\n", dir_word(sp->dirs), sp->integrator,
               sp->scheme);
     sb_printf(&b,
@@ -322,12 +331,22 @@ int afmt_map_resume_check(const char *path, const char *header, int ny, int *lin
 /* ---- reading a whole map ---- */
 
 static int read_axis(const char *line, const char *key, afmt_map_axis *a) {
-    char name[8];
-    char fmt[32];
-    snprintf(fmt, sizeof fmt, "%s %%7s %%lf %%lf %%d", key);
-    if (sscanf(line, fmt, name, &a->from, &a->to, &a->n) != 4) return -1;
+    char name[80], unit[16];
+    char fmt[48];
+    snprintf(fmt, sizeof fmt, "%s %%79s %%lf %%lf %%d %%15s", key);
+    char one[256]; /* this line alone: the unit is looked for on it only */
+    snprintf(one, sizeof one, "%.*s", (int)strcspn(line, "\n"), line);
+    int k = sscanf(one, fmt, name, &a->from, &a->to, &a->n, unit);
+    if (k < 4 || a->n < 1 || a->n > AFMT_MAP_MAX_N) return -1;
     int p = afmt_map_param_parse(name);
-    if (p < 0 || a->n < 1 || a->n > AFMT_MAP_MAX_N) return -1;
+    if (p == AFMT_MAP_NAMED) return -1;
+    if (p < 0) { /* a named parameter: y only, with its unit */
+        if (strcmp(key, "y") || k != 5) return -1;
+        p = AFMT_MAP_NAMED;
+        snprintf(a->name, sizeof a->name, "%s", name);
+        snprintf(a->unit, sizeof a->unit, "%s", unit);
+    } else if (k != 4)
+        return -1;
     a->param = (afmt_map_param)p;
     return 0;
 }

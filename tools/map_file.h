@@ -10,7 +10,9 @@
  *   config PATH
  *   config_fnv1a64 HEX          the config file's bytes, FNV-1a 64
  *   x NAME FROM TO N            NAME fe (Hz), z (m) or ae (m); value i = FROM + (TO - FROM)
- *   y NAME FROM TO N            i / (N - 1), the last one TO exactly (N 1: FROM)
+ *   y NAME FROM TO N [UNIT]     i / (N - 1), the last one TO exactly (N 1: FROM); y may
+ *                               also name a live parameter (forces.vdw_contact.hamaker_j),
+ *                               then followed by its unit ("-" for none)
  *   direction up|down|both
  *   integrator NAME scheme NAME
  *   tol X max_periods N jump_tol X jump_deg X bistable_tol X bistable_deg X
@@ -37,12 +39,16 @@
 
 #define AFMT_MAP_MAX_N 100000 /* points per axis */
 
-typedef enum { AFMT_MAP_FE = 0, AFMT_MAP_Z, AFMT_MAP_AE } afmt_map_param;
+/* AFMT_MAP_NAMED: a live parameter of `afmtwin send param` (afm_cmd.h's table) by its name,
+ * set in each line's config (the y axis only: `afmtwin map`). */
+typedef enum { AFMT_MAP_FE = 0, AFMT_MAP_Z, AFMT_MAP_AE, AFMT_MAP_NAMED } afmt_map_param;
 
 typedef struct {
     afmt_map_param param;
     double from, to; /* from < to, or from == to with n == 1 */
     int n;
+    char name[80]; /* AFMT_MAP_NAMED: the table's name (e.g. forces.vdw_contact.hamaker_j) */
+    char unit[16]; /* AFMT_MAP_NAMED: its SI unit ("-" for none) */
 } afmt_map_axis;
 
 enum { AFMT_MAP_UP = 1, AFMT_MAP_DOWN = 2, AFMT_MAP_BOTH = 3 };
@@ -73,8 +79,11 @@ typedef struct {
     int settle_periods;
 } afmt_map_point;
 
-const char *afmt_map_param_name(afmt_map_param p); /* "fe", "z", "ae" */
+const char *afmt_map_param_name(afmt_map_param p); /* "fe", "z", "ae" ("named") */
 const char *afmt_map_param_unit(afmt_map_param p); /* "Hz", "m", "m" */
+/* An axis's parameter name and unit: fe/z/ae's, or a named one's own. */
+const char *afmt_map_axis_name(const afmt_map_axis *a);
+const char *afmt_map_axis_unit(const afmt_map_axis *a);
 /* -1 for an unknown name. */
 int afmt_map_param_parse(const char *s);
 /* Value i of an axis. */
