@@ -20,6 +20,7 @@
 #include "estimators/afm_orbit.h"
 #include "forces/afm_force.h"
 #include "integrators/afm_sim.h"
+#include "integrators/afm_sim_live.h"
 #include "runner/afm_cmd.h"
 #include "runner/afm_twin.h"
 
@@ -101,12 +102,14 @@ static void map_usage(FILE *f) {
         "checksum, and flushed to disk.\n\n"
         "options:\n"
         "  --config FILE       libconfig model file\n"
-        "  --x NAME FROM TO N  the axis swept within a line: fe (Hz), z (m) or ae (m); N >= 1\n"
+        "  --x NAME FROM TO N  the axis swept within a line: fe (Hz), z (m), ae (m) or a\n"
+        "                      tip-sample force parameter of `afmtwin send param` (its unit),\n"
+        "                      set at once with the state kept, as that command does; N >= 1\n"
         "                      points FROM + (TO - FROM) i / (N - 1), FROM < TO (N 1: FROM)\n"
         "  --y NAME FROM TO N  the axis across lines (another parameter than x): fe, z, ae, or\n"
-        "                      a live parameter of `afmtwin send param` by its name and in its\n"
-        "                      unit (e.g. forces.vdw_contact.hamaker_j 5e-20 2e-19 4), set in\n"
-        "                      each line's config as that command would set it\n"
+        "                      any live parameter of `afmtwin send param` by its name and in\n"
+        "                      its unit (e.g. forces.vdw_contact.hamaker_j 5e-20 2e-19 4), set\n"
+        "                      in each line's config as that command would set it\n"
         "  --out FILE          the map file (overwritten, unless --resume)\n"
         "  --direction D       up, down or both (default both)\n"
         "  --integrator NAME   rt, reference or arkode-erk; default the "
@@ -149,15 +152,17 @@ static int parse_axis(char **argv, int argc, int i, afmt_map_axis *a) {
                     argv[i + 1], perr);
             return -1;
         }
-        if (strcmp(opt, "--y") != 0) {
+        int nd;
+        const afm_param_def *d = &afm_param_table(&nd)[entry];
+        if (strcmp(opt, "--y") != 0 && d->effect != AFM_PARAM_FORCE) {
             fprintf(stderr,
-                    "afmtwin map: --x %s: a named parameter can be the y axis only (each line "
-                    "is built with its value; along x the state is carried: fe, z or ae)\n",
+                    "afmtwin map: --x %s: along x the state is carried from point to point, so "
+                    "x takes fe, z, ae or a tip-sample force parameter (set at once, as "
+                    "`afmtwin send param` does); a damping or geometry parameter rebuilds the "
+                    "model: put it on --y\n",
                     argv[i + 1]);
             return -1;
         }
-        int nd;
-        const afm_param_def *d = &afm_param_table(&nd)[entry];
         p = AFMT_MAP_NAMED;
         afm_param_name(entry, index, a->name, sizeof a->name);
         snprintf(a->unit, sizeof a->unit, "%s", d->unit && d->unit[0] ? d->unit : "-");
@@ -279,9 +284,10 @@ static int parse_args(int argc, char **argv, map_opts *o) {
         fprintf(stderr, "afmtwin map: --config, --x, --y and --out are required\n");
         return -1;
     }
-    if (o->x.param == o->y.param && o->x.param != AFMT_MAP_NAMED) {
+    if (o->x.param == o->y.param &&
+        (o->x.param != AFMT_MAP_NAMED || !strcmp(o->x.name, o->y.name))) {
         fprintf(stderr, "afmtwin map: --x and --y must be different parameters (both %s)\n",
-                afmt_map_param_name(o->x.param));
+                afmt_map_axis_name(&o->x));
         return -1;
     }
     if (o->tol >= 1 || o->jump_tol >= 1 || o->bistable_tol >= 1) {
@@ -427,7 +433,22 @@ static int run_line(const map_ctx *c, int iy, afmt_map_point *pts[2], char *err,
             int ix = d ? nx - 1 - k : k;
             double xv = afmt_map_axis_value(xa, ix);
             int settled;
-            if (xa->param == AFMT_MAP_Z) {
+            if (xa->param == AFMT_MAP_NAMED) { /* a force parameter: new constants, state kept */
+                static afm_force_params f;
+                const afm_modal *m = afm_sim_model(sim);
+                double len = m->beam_length_m > 0 ? m->beam_length_m : cfg.forces.plate_length_m;
+                double wid =
+                    m->beam_mean_width_m > 0 ? m->beam_mean_width_m : cfg.forces.plate_width_m;
+                if (set_param(&cfg, xa, xv, err, errlen) != 0 ||
+                    afm_force_init(&f, &cfg.forces, len, wid, err, errlen) != 0)
+                    goto out;
+                if (afm_sim_set_forces(sim, &f) != AFM_SIM_OK) {
+                    snprintf(err, errlen, "cannot set %s = %g", xa->name, xv);
+                    goto out;
+                }
+                afm_cycle_set_forces(&est.cycle, afm_sim_forces(sim), z);
+                settled = afm_sweep_dwell(&sw, sim, &ob, err, errlen);
+            } else if (xa->param == AFMT_MAP_Z) {
                 if (afm_sim_set_separation(sim, xv) != AFM_SIM_OK) {
                     snprintf(err, errlen, "cannot set Z = %g m", xv);
                     goto out;

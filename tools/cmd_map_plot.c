@@ -131,7 +131,7 @@ static int write_gsf(const char *path, const afmt_map_data *m, const char *title
     afmt_gsf_header h = {.xres = m->x.n, .yres = m->y.n, .z_units = zunit, .title = title};
     gsf_axis(&m->x, &h.xreal, &h.xoffset);
     gsf_axis(&m->y, &h.yreal, &h.yoffset);
-    h.xy_units = afmt_map_param_unit(m->x.param);
+    h.xy_units = afmt_map_axis_unit(&m->x);
     FILE *f = fopen(path, "wb");
     if (!f) return -1;
     int rc = afmt_gsf_write_header(f, &h) || afmt_gsf_write_values(f, v, (size_t)m->x.n * m->y.n);

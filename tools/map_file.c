@@ -117,8 +117,9 @@ char *afmt_map_header(const afmt_map_spec *sp) {
     sbuf b = {0};
     sb_printf(&b, "afmtwin-map 1\nconfig %s\nconfig_fnv1a64 %016llx\n", sp->config_path,
               (unsigned long long)sp->config_hash);
-    sb_printf(&b, "x %s %.17g %.17g %d\n", afmt_map_param_name(sp->x.param), sp->x.from, sp->x.to,
-              sp->x.n);
+    sb_printf(&b, "x %s %.17g %.17g %d", afmt_map_axis_name(&sp->x), sp->x.from, sp->x.to, sp->x.n);
+    if (sp->x.param == AFMT_MAP_NAMED) sb_printf(&b, " %s", sp->x.unit);
+    sb_printf(&b, "\n");
     sb_printf(&b, "y %s %.17g %.17g %d", afmt_map_axis_name(&sp->y), sp->y.from, sp->y.to, sp->y.n);
     if (sp->y.param == AFMT_MAP_NAMED) sb_printf(&b, " %s", sp->y.unit);
     sb_printf(&b, "\n");
@@ -331,21 +332,26 @@ int afmt_map_resume_check(const char *path, const char *header, int ny, int *lin
 /* ---- reading a whole map ---- */
 
 static int read_axis(const char *line, const char *key, afmt_map_axis *a) {
-    char name[80], unit[16];
+    char name[80];
     char fmt[48];
-    snprintf(fmt, sizeof fmt, "%s %%79s %%lf %%lf %%d %%15s", key);
-    char one[256]; /* this line alone: the unit is looked for on it only */
+    char one[256]; /* this line alone: a named axis's unit is the rest of it ("Pa s") */
     snprintf(one, sizeof one, "%.*s", (int)strcspn(line, "\n"), line);
-    int k = sscanf(one, fmt, name, &a->from, &a->to, &a->n, unit);
-    if (k < 4 || a->n < 1 || a->n > AFMT_MAP_MAX_N) return -1;
+    snprintf(fmt, sizeof fmt, "%s %%79s %%lf %%lf %%d%%n", key);
+    int used = 0;
+    if (sscanf(one, fmt, name, &a->from, &a->to, &a->n, &used) != 4 || used <= 0 || a->n < 1 ||
+        a->n > AFMT_MAP_MAX_N)
+        return -1;
+    const char *unit = one + used;
+    while (*unit == ' ')
+        unit++;
     int p = afmt_map_param_parse(name);
     if (p == AFMT_MAP_NAMED) return -1;
-    if (p < 0) { /* a named parameter: y only, with its unit */
-        if (strcmp(key, "y") || k != 5) return -1;
+    if (p < 0) { /* a named parameter, with its unit */
+        if (!*unit || strlen(unit) >= sizeof a->unit) return -1;
         p = AFMT_MAP_NAMED;
         snprintf(a->name, sizeof a->name, "%s", name);
         snprintf(a->unit, sizeof a->unit, "%s", unit);
-    } else if (k != 4)
+    } else if (*unit)
         return -1;
     a->param = (afmt_map_param)p;
     return 0;

@@ -9,9 +9,9 @@
  *   afmtwin-map 1
  *   config PATH
  *   config_fnv1a64 HEX          the config file's bytes, FNV-1a 64
- *   x NAME FROM TO N            NAME fe (Hz), z (m) or ae (m); value i = FROM + (TO - FROM)
- *   y NAME FROM TO N [UNIT]     i / (N - 1), the last one TO exactly (N 1: FROM); y may
- *                               also name a live parameter (forces.vdw_contact.hamaker_j),
+ *   x NAME FROM TO N [UNIT]     NAME fe (Hz), z (m) or ae (m); value i = FROM + (TO - FROM)
+ *   y NAME FROM TO N [UNIT]     i / (N - 1), the last one TO exactly (N 1: FROM); or a live
+ *                               parameter (forces.vdw_contact.hamaker_j; on x a force one),
  *                               then followed by its unit ("-" for none)
  *   direction up|down|both
  *   integrator NAME scheme NAME
@@ -39,8 +39,9 @@
 
 #define AFMT_MAP_MAX_N 100000 /* points per axis */
 
-/* AFMT_MAP_NAMED: a live parameter of `afmtwin send param` (afm_cmd.h's table) by its name,
- * set in each line's config (the y axis only: `afmtwin map`). */
+/* AFMT_MAP_NAMED: a live parameter of `afmtwin send param` (afm_cmd.h's table) by its name:
+ * on y any (set in each line's config), on x a tip-sample force one (set at once, the state
+ * carried: `afmtwin map`). */
 typedef enum { AFMT_MAP_FE = 0, AFMT_MAP_Z, AFMT_MAP_AE, AFMT_MAP_NAMED } afmt_map_param;
 
 typedef struct {
