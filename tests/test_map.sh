@@ -125,7 +125,7 @@ badarg "no --out" "required" --config $CONF --x fe 80kHz 88kHz 5 --y z 20nm 30nm
 badarg "--direction sideways" "up, down or both" --config $CONF --x fe 80kHz 88kHz 5 --y z 20nm 30nm 2 --direction sideways "${O[@]}"
 badarg "Z above 1 mm" "values must be in" --config $CONF --x fe 80kHz 88kHz 5 --y z 20nm 2mm 2 "${O[@]}"
 badarg "fe above half the sample rate" "half the sample rate" --config $CONF --x fe 80kHz 5MHz 5 --y z 20nm 30nm 2 "${O[@]}"
-badarg "a damping parameter on --x" "put it on --y" --config $CONF --x "model.quality_factor[0]" 100 200 2 --y fe 80kHz 88kHz 3 "${O[@]}"
+badarg "a geometry parameter on --x" "put it on --y" --config $CONF --x model.beam.length_m 1e-4 2e-4 2 --y fe 80kHz 88kHz 3 "${O[@]}"
 badarg "an unknown named parameter" "unknown parameter 'forces.bogus'" --config $CONF --x fe 80kHz 88kHz 5 --y forces.bogus 1 2 2 "${O[@]}"
 badarg "a named value out of its range" "out of range" --config $CONF --x fe 80kHz 88kHz 5 --y forces.vdw_contact.hamaker_j -1e-19 2e-19 2 "${O[@]}"
 
@@ -174,19 +174,23 @@ if [ $NOMPI -eq 0 ] && command -v mpirun > /dev/null; then
     && ok "a named y axis under mpirun -np 2: the same file, byte for byte" \
     || bad "a named y axis under mpirun -np 2: exit $rc or a different file: $(tail -2 "$T/h2.out")"
 fi
-# ---- a force parameter along x: set at once with the state carried (as `afmtwin send param`
-# does), each point the settled orbit of a fresh start at that value (a map with that x alone):
-# amplitude within 1e-5 relative and lag within 1e-3 deg (both settle to --tol 1e-6 per period;
-# measured 3e-6 and 4e-5 deg; Hamaker 1e-19 -> 2e-19 J moves them 8e-4 and 0.15 deg at 80 kHz,
-# so a point still on the old constants fails) ----
-XMAP=(map --config $CONF --x forces.vdw_contact.hamaker_j 1e-19 2e-19 3 --y fe 80000 84000 2
-  --direction up --max-periods 1500)
-netns "$A" "${XMAP[@]}" --out "$T/hx.map" 2> "$T/hx.err"; rc=$?
-for v in 1e-19 1.5e-19 2e-19; do
-  netns "$A" map --config $CONF --x forces.vdw_contact.hamaker_j $v $v 1 --y fe 80000 84000 2 \
-    --direction up --max-periods 1500 --out "$T/hx-$v.map" 2>> "$T/hx.err"
-done
-hx_ok=$(python3 - "$T/hx.map" "$T"/hx-1e-19.map "$T"/hx-1.5e-19.map "$T"/hx-2e-19.map <<'EOF'
+# ---- a force or damping parameter along x: set with the state carried (as `afmtwin send
+# param` applies it in the daemon: new force constants, or a new model's simulator continuing
+# the state), each point the settled orbit of a fresh start at that value (a map with that x
+# alone): amplitude within 1e-4 relative and lag within 0.01 deg. Both runs stop once a
+# period changes by under --tol 1e-6, i.e. up to ~tol Q / pi = 6e-5 from the orbit at Q 200;
+# measured 7.5e-6 and 0.0004 deg. One step of each parameter moves the orbit far more
+# (Hamaker 1e-19 -> 1.5e-19 J: 4e-4, 0.07 deg; damping ratio 0.002 -> 0.0025: 3e-4, 2.1 deg),
+# so a point left on the old value fails ----
+carried() { # NAME V0 V1 V2
+  local name=$1; shift
+  netns "$A" map --config $CONF --x "$name" $1 $3 3 --y fe 80000 84000 2 --direction up \
+    --max-periods 1500 --out "$T/cx.map" 2> "$T/cx.err"; local rc=$?
+  for v in "$@"; do
+    netns "$A" map --config $CONF --x "$name" $v $v 1 --y fe 80000 84000 2 --direction up \
+      --max-periods 1500 --out "$T/cx-$v.map" 2>> "$T/cx.err"
+  done
+  local r; r=$(python3 - "$T/cx.map" "$T/cx-$1.map" "$T/cx-$2.map" "$T/cx-$3.map" <<'EOF'
 import sys
 def pts(path):
     return {(int(f[1]), int(f[3])): f for f in (l.split() for l in open(path)) if f[:1] == ["P"]}
@@ -198,13 +202,16 @@ for ix, path in enumerate(sys.argv[2:]):
             bad += 1; continue
         da = abs(float(a[6]) / float(b[6]) - 1); dl = abs(float(a[7]) - float(b[7]))
         worst_a = max(worst_a, da); worst_l = max(worst_l, dl)
-        bad += da > 1e-5 or dl > 1e-3
+        bad += da > 1e-4 or dl > 1e-2
 print("%s worst %.2g relative, %.2g deg" % ("ok" if bad == 0 and len(m) == 6 else "bad", worst_a, worst_l))
 EOF
 )
-[ $rc -eq 0 ] && [ "${hx_ok%% *}" = ok ] && grep -q '^x forces.vdw_contact.hamaker_j .* 3 J$' "$T/hx.map" \
-  && ok "a force parameter along x (Hamaker 1e-19 -> 2e-19 J, state carried): each point = a fresh start at its value (${hx_ok#ok })" \
-  || bad "a force parameter along x: exit $rc, $hx_ok $(head -c 200 "$T/hx.err")"
+  [ $rc -eq 0 ] && [ "${r%% *}" = ok ] && [ -n "$(awk -v n="$name" '$1 == "x" && $2 == n && $5 == 3' "$T/cx.map")" ] \
+    && ok "$name along x ($1 -> $3, state carried): each point = a fresh start at its value (${r#ok })" \
+    || bad "$name along x: exit $rc, $r $(head -c 200 "$T/cx.err")"
+}
+carried forces.vdw_contact.hamaker_j 1e-19 1.5e-19 2e-19
+carried "model.damping_ratio[0]" 0.002 0.0025 0.003
 "$A" plot map "$T/h.map" --out "$T/h.png" --script "$T/h.gp" 2> "$T/hp.err"; rc=$?
 [ $rc -eq 0 ] && grep -q "set ylabel 'forces.vdw_contact.hamaker_j (J)'" "$T/h.gp" \
   && ok "plot map of a named y axis: labelled with its name and unit" \

@@ -103,7 +103,7 @@ static void map_usage(FILE *f) {
         "options:\n"
         "  --config FILE       libconfig model file\n"
         "  --x NAME FROM TO N  the axis swept within a line: fe (Hz), z (m), ae (m) or a\n"
-        "                      tip-sample force parameter of `afmtwin send param` (its unit),\n"
+        "                      force or damping parameter of `afmtwin send param` (its unit),\n"
         "                      set at once with the state kept, as that command does; N >= 1\n"
         "                      points FROM + (TO - FROM) i / (N - 1), FROM < TO (N 1: FROM)\n"
         "  --y NAME FROM TO N  the axis across lines (another parameter than x): fe, z, ae, or\n"
@@ -154,12 +154,13 @@ static int parse_axis(char **argv, int argc, int i, afmt_map_axis *a) {
         }
         int nd;
         const afm_param_def *d = &afm_param_table(&nd)[entry];
-        if (strcmp(opt, "--y") != 0 && d->effect != AFM_PARAM_FORCE) {
+        if (strcmp(opt, "--y") != 0 && d->effect != AFM_PARAM_FORCE &&
+            d->effect != AFM_PARAM_DAMPING) {
             fprintf(stderr,
                     "afmtwin map: --x %s: along x the state is carried from point to point, so "
-                    "x takes fe, z, ae or a tip-sample force parameter (set at once, as "
-                    "`afmtwin send param` does); a damping or geometry parameter rebuilds the "
-                    "model: put it on --y\n",
+                    "x takes fe, z, ae, a tip-sample force or a damping parameter (as `afmtwin "
+                    "send param` applies them, the state kept); a geometry parameter changes "
+                    "the modes, whose state cannot be carried: put it on --y\n",
                     argv[i + 1]);
             return -1;
         }
@@ -427,13 +428,36 @@ static int run_line(const map_ctx *c, int iy, afmt_map_point *pts[2], char *err,
     sw.on_samples = on_samples;
     sw.on_samples_ctx = &est;
     double fe = cfg.drive.tones[0].frequency_hz, ae = cfg.drive.tones[0].amplitude_m;
+    bool x_damping = false;
+    if (xa->param == AFMT_MAP_NAMED) {
+        int entry, index, nd;
+        if (afm_param_lookup(xa->name, &entry, &index, err, errlen) != 0) goto out;
+        x_damping = afm_param_table(&nd)[entry].effect == AFM_PARAM_DAMPING;
+    }
     for (int d = 0; d < 2; d++) {
         if (!pts[d]) continue;
         for (int k = 0; k < nx; k++) {
             int ix = d ? nx - 1 - k : k;
             double xv = afmt_map_axis_value(xa, ix);
             int settled;
-            if (xa->param == AFMT_MAP_NAMED) { /* a force parameter: new constants, state kept */
+            if (xa->param == AFMT_MAP_NAMED && x_damping) {
+                /* a damping parameter: a new simulator of the new model that continues the
+                 * old one's drive, Z, time and modal state, as the daemon swaps one in */
+                if (set_param(&cfg, xa, xv, err, errlen) != 0) goto out;
+                afm_sim *ns = afm_twin_create(&cfg, NULL, NULL, err, errlen);
+                if (!ns) goto out;
+                if (afm_sim_continue(ns, sim, AFM_SIM_KEEP_DRIVE | AFM_SIM_KEEP_STATE) !=
+                    AFM_SIM_OK) {
+                    snprintf(err, errlen, "cannot carry the state to %s = %g", xa->name, xv);
+                    afm_sim_destroy(&ns);
+                    goto out;
+                }
+                if (ev_ring) afm_sim_set_events(ns, ev_ring, 2 * sw.cap);
+                afm_sim_destroy(&sim);
+                sim = ns;
+                afm_cycle_set_forces(&est.cycle, afm_sim_forces(sim), z);
+                settled = afm_sweep_dwell(&sw, sim, &ob, err, errlen);
+            } else if (xa->param == AFMT_MAP_NAMED) { /* a force parameter: state kept */
                 static afm_force_params f;
                 const afm_modal *m = afm_sim_model(sim);
                 double len = m->beam_length_m > 0 ? m->beam_length_m : cfg.forces.plate_length_m;
