@@ -9,9 +9,22 @@
 #include <stdio.h>
 #include <string.h>
 
+/* The ADC's vector path: in an AVX2 + FMA build the only one; in a portable build
+ * (AFM_MULTIVERSION) compiled for them by a target attribute and taken where the CPU has
+ * them: target_clones alone gives the x86-64-v3 copy of afm_obd_read_block the scalar loop
+ * (__AVX2__ is a compile-time macro). The same bits either way (the scalar lines are the
+ * vector ones a lane at a time). */
 #if defined(__AVX2__) && defined(__FMA__)
-#include <immintrin.h>
 #define OBD_AVX2 1
+#define OBD_AVX2_ATTR
+#elif defined(AFM_MULTIVERSION) && defined(__x86_64__) && defined(__GNUC__) &&                     \
+    (!defined(__clang__) || __clang_major__ >= 16)
+#define OBD_AVX2 1
+#define OBD_AVX2_DISPATCH 1
+#define OBD_AVX2_ATTR __attribute__((target("avx2,fma")))
+#endif
+#if defined(OBD_AVX2)
+#include <immintrin.h>
 #endif
 
 /* The block path reads the samples' input field with a stride of whole doubles. */
@@ -62,11 +75,11 @@ void afm_obd_refill(afm_obd *o) {
 /* ADC path over n samples with input field in (stride STRIDE) and normals z (NULL: no
  * noise); returns the clamps. The scalar lines are afm_obd_read's, the vector ones the same
  * operations four at a time (max(lo, c) keeps a NaN c: the second operand is returned). */
-static inline long long adc_run(const afm_obd *o, const double *in, int n, const double *z,
-                                double *out) {
-    long long sat = 0;
-    int i = 0;
 #if defined(OBD_AVX2)
+/* The vector lines: samples [0, i) four at a time; returns i, the clamps into *sat. */
+OBD_AVX2_ATTR static inline int adc_vec(const afm_obd *o, const double *in, int n, const double *z,
+                                        double *out, long long *sat) {
+    int i = 0;
     const __m256i idx = _mm256_setr_epi64x(0, STRIDE, 2 * STRIDE, 3 * STRIDE);
     const __m256d g = _mm256_set1_pd(o->cnt_gain), sg = _mm256_set1_pd(o->cnt_sigma);
     const __m256d lo = _mm256_set1_pd(o->count_min), hi = _mm256_set1_pd(o->count_max);
@@ -92,7 +105,20 @@ static inline long long adc_run(const afm_obd *o, const double *in, int n, const
 #undef ADC4
     long long cl[4];
     _mm256_storeu_si256((__m256i *)cl, clamps);
-    sat = (cl[0] + cl[1]) + (cl[2] + cl[3]);
+    *sat = (cl[0] + cl[1]) + (cl[2] + cl[3]);
+    return i;
+}
+#endif
+
+static inline long long adc_run(const afm_obd *o, const double *in, int n, const double *z,
+                                double *out) {
+    long long sat = 0;
+    int i = 0;
+#if defined(OBD_AVX2_DISPATCH)
+    if (__builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma"))
+        i = adc_vec(o, in, n, z, out, &sat);
+#elif defined(OBD_AVX2)
+    i = adc_vec(o, in, n, z, out, &sat);
 #endif
     for (; i < n; i++) {
         double c = o->cnt_gain * in[(size_t)i * STRIDE];
