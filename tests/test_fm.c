@@ -407,7 +407,6 @@ static void test_config(void) {
         {"pll_gain = 1.0;", "unknown key"},
         {"update_samples = 1.5;", "expected an integer"},
         {"drive = \"loop\";", "fm.drive"},
-        {"drive = \"self\"; control = \"internal\";", "fm.drive"},
     };
     for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
         char text[2048], what[1024];

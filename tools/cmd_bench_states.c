@@ -62,6 +62,7 @@ typedef enum {
     ST_DAMPING,
     ST_FM_1024,
     ST_FM_64,
+    ST_FM_SELF,
     ST_SAMPLE_HOLD,
     ST_SAMPLE_RASTER,
     ST_SAMPLE_RASTER_AM,
@@ -92,6 +93,7 @@ static const struct {
     [ST_DAMPING] = {"after a damping change (model swap), first 5 ms", 0.005},
     [ST_FM_1024] = {"FM: internal PLL + amplitude, update every 1024", 0.01},
     [ST_FM_64] = {"FM: internal PLL + amplitude, update every 64", 0.01},
+    [ST_FM_SELF] = {"FM: self-excited drive + amplitude, update every 1024", 0.01},
     [ST_SAMPLE_HOLD] = {"sample: a grating under the tip, holding (Z 40 nm)", 0.01},
     [ST_SAMPLE_RASTER] = {"sample: rastering the grating, 10 lines/s (Z 40 nm)", 0.01},
     [ST_SAMPLE_RASTER_AM] = {"sample: rastering it under am.control internal", 0.01},
@@ -249,10 +251,13 @@ static afm_cmd param1(const char *name, double v) {
 static int run_state(const afm_config *cfg, double uptime_s, state_id id, state_result *out) {
     char err[AFM_ERR_LEN];
     bench_twin t = {.cfg = cfg, .shadow = *cfg};
-    if (id == ST_FM_1024 || id == ST_FM_64) { /* the runner's FM loops move tone 0 (issue 32) */
+    if (id == ST_FM_1024 || id == ST_FM_64 || id == ST_FM_SELF) {
+        /* the runner's FM loops move tone 0 (issue 32); self-excited, it is re-synthesised
+         * (a phase jump) at every update */
         t.shadow.fm.enabled = true;
         t.shadow.fm.control = AFM_FM_CONTROL_INTERNAL;
         t.shadow.fm.update_samples = id == ST_FM_64 ? 64 : 1024;
+        if (id == ST_FM_SELF) t.shadow.fm.drive = AFM_FM_DRIVE_SELF;
     }
     if (id == ST_SAMPLE_HOLD || id == ST_SAMPLE_RASTER || id == ST_SAMPLE_RASTER_AM)
         bench_sample(&t.shadow);

@@ -21,6 +21,7 @@
 #include "config/afm_config.h"
 #include "transport/afm_io.h"
 #include "runner/afm_a0.h"
+#include "runner/afm_fm.h"
 #include "runner/afm_runner.h"
 
 #include "transport/afm_io_records.h"
@@ -279,6 +280,16 @@ static void emit_status(replay_ctx *x, const afm_runner_status *st) {
     s.am_error_m = st->am_error_m;
     s.am_setpoint_m = st->am_setpoint_m;
     s.am_amplitude_m = st->am_amplitude_m;
+    s.fm_control = st->fm_on ? "internal" : "none"; /* issue 32: as the daemon's publish.c */
+    s.fm_lock_state = st->fm_on ? afm_fm_lock_name((afm_fm_lock)st->fm_lock) : "";
+    s.fm_frequency_hz = st->fm_frequency_hz;
+    s.fm_reference_hz = st->fm_reference_hz;
+    s.fm_frequency_shift_hz = st->fm_frequency_hz - st->fm_reference_hz;
+    s.fm_phase_error_deg = st->fm_phase_error_deg;
+    s.fm_drive_amplitude_m = st->fm_drive_m;
+    s.fm_amplitude_m = st->fm_amplitude_m;
+    s.fm_amplitude_setpoint_m = st->fm_amplitude_setpoint_m;
+    s.fm_tone_changes = st->fm_tone_changes;
     afmtwin_status_t m;
     afm_lcm_status_msg(&s, &m);
     WRITE_MSG(x, afmtwin_status_t, OUT_STATUS, &m);

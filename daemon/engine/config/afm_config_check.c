@@ -413,9 +413,6 @@ static int check_fm(const afm_config *c, char *key, char *why, size_t why_len) {
          "\"internal\" needs the fm group enabled (fm.enabled = true)");
     NEED(f->drive == AFM_FM_DRIVE_PLL || f->drive == AFM_FM_DRIVE_SELF, "fm.drive",
          "must be \"pll\" or \"self\" (got %d)", (int)f->drive);
-    NEED(f->drive == AFM_FM_DRIVE_PLL || f->control == AFM_FM_CONTROL_NONE, "fm.drive",
-         "\"self\" runs offline only (afmtwin approach --mode fm); the daemon's "
-         "fm.control = \"internal\" needs \"pll\"");
     if (f->enabled) {
         /* the lock-in's filter must leave the loops 45 deg of phase margin at crossover */
         double lag = c->lockin.order * atan(2.0 * 3.14159265358979323846 *

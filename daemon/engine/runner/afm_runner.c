@@ -671,6 +671,18 @@ static void ctl_lockin_feed(afm_runner *r, const afm_sample *s, int k) {
     afm_lockin_push_n(&r->fm_lk, r->fm_u, r->fm_th, k);
 }
 
+/* The state went back to rest (a reset, a blow-up): the controllers' lock-in starts over,
+ * and the self-excited drive's delay line, whose samples no longer continue, refills (the
+ * counter keeps the frequency in force). */
+static void ctl_restart(afm_runner *r) {
+    if (!r->fm_on && !r->zc_on) return;
+    afm_lockin_reset(&r->fm_lk);
+    afm_phase_gen_reset(&r->fm_pg, r->cfg.sim.sample_rate_hz);
+    if (r->fm_on && r->fm.c.drive == AFM_FM_DRIVE_SELF)
+        afm_fm_self_init(&r->fm.self, r->cfg.sim.sample_rate_hz, r->fm.freq_hz,
+                         r->fm.c.pll_bandwidth_hz);
+}
+
 /* After the k samples s[0..k) just run: feed the FM lock-in; at an update boundary (every
  * update_samples samples counted from create) update the loops and set tone 0, phase
  * continuous. The open item is committed first: an item carries one drive. */
@@ -678,14 +690,36 @@ static void fm_after(afm_runner *r, const afm_sample *s, int k) {
     const afm_drive *d = afm_sim_drive(r->sim);
     if (k <= 0) return;
     ctl_lockin_feed(r, s, k);
+    const bool self = r->fm.c.drive == AFM_FM_DRIVE_SELF;
+    if (self) /* the self-excited drive's delay line: one store a sample */
+        for (int i = 0; i < k; i++)
+            afm_fm_self_push(&r->fm.self, s[i].x_m);
     const int u = r->fm.c.update_samples;
     if (r->samples % u != 0) return;
     double a, lag;
     afm_lockin_polar(&r->fm_lk, &a, &lag);
-    afm_fm_update(&r->fm, a, lag, u * afm_sim_dt(r->sim));
+    const double dt = u * afm_sim_dt(r->sim);
+    /* self-excited: count the oscillation's frequency first, as afm_fm_run does */
+    if (self) r->fm.self_ok = afm_fm_self_measure(&r->fm.self, r->fm.freq_hz, dt);
+    afm_fm_update(&r->fm, a, lag, dt);
     if (r->fm_hold_pending && r->fm.lock == AFM_FM_LOCKED) {
         afm_fm_hold_amplitude(&r->fm, a);
         r->fm_hold_pending = false;
+    }
+    if (self && r->fm.self_ok) {
+        /* re-synthesised every update (afm_fm_run's order): tone 0 at the deflection's phase
+         * plus the set-point, the counted frequency and the amplitude loop's drive -- a phase
+         * jump, which the lock-ins here and in the chain follow by a retune (the phase does
+         * not continue: afm_phase_gen says STEP, the O(1) rebase declines). No NCO quantum:
+         * the tone changes every update anyway. */
+        commit_open(r);
+        if (afm_sim_set_tone_phase(r->sim, 0, r->fm.drive_m, r->fm.freq_hz,
+                                   r->fm.drive_phase_rad) != AFM_SIM_OK) {
+            r->fm_tone_refused++;
+            return;
+        }
+        r->fm_tone_changes++;
+        return;
     }
     /* The NCO's resolution: tone 0 moves only when the loop's frequency leaves the quantum
      * it is in. A locked PLL moves by far less than that per update; each step costs the
@@ -1256,10 +1290,7 @@ int afm_runner_apply(afm_runner *r, const afm_cmd *c, afm_runner_model **model, 
             break;
         case AFM_CTL_RESET:
             afm_sim_reset(r->sim);
-            if (r->fm_on || r->zc_on) {
-                afm_lockin_reset(&r->fm_lk);
-                afm_phase_gen_reset(&r->fm_pg, r->cfg.sim.sample_rate_hz);
-            }
+            ctl_restart(r);
             if (r->zc_on) r->zc_hold_until = r->samples + zc_settle_samples(r);
             emit(r, IT_RESET, NULL);
             r->ramping = false;
@@ -1421,10 +1452,7 @@ long long afm_runner_run(afm_runner *r, long long n) {
             it->n += (int)k;
             item_lat(r, it);
         } else {
-            if (r->fm_on || r->zc_on) {
-                afm_lockin_reset(&r->fm_lk);
-                afm_phase_gen_reset(&r->fm_pg, r->cfg.sim.sample_rate_hz);
-            }
+            ctl_restart(r);
             if (r->zc_on) r->zc_hold_until = r->samples + zc_settle_samples(r);
             /* The simulator reset itself to rest; its clock counts the steps it took. The
              * samples of this slice are dropped; the chain starts over. */
