@@ -285,7 +285,7 @@ typedef struct {
     double drive_max_m;            /* the drive amplitude's limit, (0, 1e-6] */
     int update_samples;            /* controller update period (samples), 1..4096 */
     afm_fm_control control;        /* the daemon: who moves tone 0 (default none) */
-    afm_fm_drive drive;            /* pll (default) or self-excited (offline tools only) */
+    afm_fm_drive drive;            /* pll (default) or self-excited */
 } afm_cfg_fm;
 
 /* Amplitude-modulation Z control (issue 18; runner/afm_pi.h): the reference PI on the lock-in

@@ -72,6 +72,13 @@
  * fm.amplitude_setpoint_m 0 the amplitude first locked at is held. Dither commands are
  * rejected while it runs (nothing changed). No allocation: a few tens of flops per update
  * plus the lock-in per sample and, per NCO step, the integrator's tone change.
+ * Self-excited (fm.drive = "self", runner/afm_fm_self.h) the front also stores every sample
+ * in the delay line (one store), counts the oscillation's frequency at each update before
+ * the loops (afm_fm_run's order) and re-synthesises tone 0 at the deflection's phase plus
+ * the set-point every update (afm_sim_set_tone_phase: a phase jump, the item committed
+ * first; the lock-ins here and in the chain retune), with no NCO quantum; a reset or a
+ * blow-up refills the delay line. The status's fm_frequency_hz is then the counted
+ * frequency and fm_phase_error_deg the lock-in's check (~0), not a control input.
  *
  * Internal AM Z control (the config's am.control = "internal", issue 18; runner/afm_pi.h):
  * the front runs the reference PI of `afmtwin scan` (afm_scan.h) on Z itself, fed the
