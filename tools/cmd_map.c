@@ -144,7 +144,8 @@ static int parse_axis(char **argv, int argc, int i, afmt_map_axis *a) {
     int p = afmt_map_param_parse(argv[i + 1]);
     if (p == AFMT_MAP_NAMED) p = -1; /* the file's word for a named axis, not a name */
     if (p < 0) {
-        /* a live parameter of `afmtwin send param` (afm_cmd.h's table), on --y only */
+        /* a live parameter of `afmtwin send param` (afm_cmd.h's table): any on --y, a force
+         * or damping one on --x */
         int entry, index;
         char perr[AFM_ERR_LEN];
         if (afm_param_lookup(argv[i + 1], &entry, &index, perr, sizeof perr) != 0) {
