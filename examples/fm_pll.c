@@ -232,8 +232,9 @@ int main(int argc, char **argv) {
             }
             continue;
         }
-        /* wait for outputs until the next command is due */
-        int ms = (int)((next - now) * 1e3);
+        /* wait for outputs until the next command is due, rounded up to whole ms: rounding
+         * down polls with 0 and spins, which at SCHED_FIFO starves the twin on a small box */
+        int ms = (int)ceil((next - now) * 1e3);
         struct pollfd p = {.fd = fd, .events = POLLIN};
         if (poll(&p, 1, ms) > 0 && (p.revents & POLLIN)) {
             if (lcm_handle(in) != 0) {
