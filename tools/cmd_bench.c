@@ -14,6 +14,7 @@
 #include "estimators/afm_chain.h"
 #include "config/afm_config.h"
 #include "forces/afm_force.h"
+#include "runner/afm_twin.h"
 #include "beam/afm_model.h"
 #include "integrators/afm_sim.h"
 
@@ -156,9 +157,7 @@ static int load_case(const bench_opts *o, const bench_case *bc, afm_config *cfg,
     if (bc->free_amp_m > 0) t->amplitude_m = bc->free_amp_m / gain;
     if (bc->setpoint > 0) cfg->drive.separation_m = bc->setpoint * gain * t->amplitude_m;
     if (afm_config_validate(cfg, err, errlen) != 0) return -1;
-    double len = m->beam_length_m > 0 ? m->beam_length_m : cfg->forces.plate_length_m;
-    double wid = m->beam_mean_width_m > 0 ? m->beam_mean_width_m : cfg->forces.plate_width_m;
-    return afm_force_init(f, &cfg->forces, len, wid, err, errlen);
+    return afm_twin_forces(cfg, m, NULL, f, err, errlen);
 }
 
 /* A simulator of kind k on cfg's drive, started from (q, qd) if q is non-NULL. */

@@ -460,12 +460,8 @@ static int run_line(const map_ctx *c, int iy, afmt_map_point *pts[2], char *err,
                 settled = afm_sweep_dwell(&sw, sim, &ob, err, errlen);
             } else if (xa->param == AFMT_MAP_NAMED) { /* a force parameter: state kept */
                 static afm_force_params f;
-                const afm_modal *m = afm_sim_model(sim);
-                double len = m->beam_length_m > 0 ? m->beam_length_m : cfg.forces.plate_length_m;
-                double wid =
-                    m->beam_mean_width_m > 0 ? m->beam_mean_width_m : cfg.forces.plate_width_m;
                 if (set_param(&cfg, xa, xv, err, errlen) != 0 ||
-                    afm_force_init(&f, &cfg.forces, len, wid, err, errlen) != 0)
+                    afm_twin_forces(&cfg, afm_sim_model(sim), NULL, &f, err, errlen) != 0)
                     goto out;
                 if (afm_sim_set_forces(sim, &f) != AFM_SIM_OK) {
                     snprintf(err, errlen, "cannot set %s = %g", xa->name, xv);

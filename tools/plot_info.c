@@ -37,9 +37,7 @@ int plot_info_config(plot_info *pi, const char *path) {
         fprintf(stderr, "afmtwin plot: %s: %s\n", path, err);
         return -1;
     }
-    double len, wid;
-    afm_twin_plate(&cfg, &pi->model, &len, &wid);
-    pi->have_forces = afm_force_init(&pi->forces, &cfg.forces, len, wid, err, sizeof err) == 0;
+    pi->have_forces = afm_twin_forces(&cfg, &pi->model, NULL, &pi->forces, err, sizeof err) == 0;
     const char *b = strrchr(path, '/');
     snprintf(pi->config, sizeof pi->config, "%s", b ? b + 1 : path);
     pi->have_model = pi->model.n > 0;

@@ -4,20 +4,13 @@
 #include "analysis/afm_cont_model.h"
 
 #include "runner/afm_cmd.h"
+#include "runner/afm_twin.h"
 #include "config/afm_err.h"
 #include "config/afm_limits.h"
 
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
-
-/* The force constants of cfg on modal form m (Starr's plate is the beam, as afm_twin). */
-static int forces_of(const afm_config *cfg, const afm_modal *m, afm_force_params *f, char *err,
-                     size_t errlen) {
-    double len = m->beam_length_m > 0 ? m->beam_length_m : cfg->forces.plate_length_m;
-    double wid = m->beam_mean_width_m > 0 ? m->beam_mean_width_m : cfg->forces.plate_width_m;
-    return afm_force_init(f, &cfg->forces, len, wid, err, errlen);
-}
 
 int afm_cont_base_init(afm_cont_base *b, const afm_config *cfg, char *err, size_t errlen) {
     if (cfg->drive.n_tones != 1) {
@@ -31,7 +24,7 @@ int afm_cont_base_init(afm_cont_base *b, const afm_config *cfg, char *err, size_
     b->m = zero;
     if (afm_model_build(&cfg->model, &b->m, err, errlen) != 0) return -1;
     afm_force_params f;
-    return forces_of(cfg, &b->m, &f, err, errlen);
+    return afm_twin_forces(cfg, &b->m, NULL, &f, err, errlen);
 }
 
 int afm_cont_param_parse(const afm_cont_base *b, const char *name, afm_cont_param *p, char *err,
@@ -165,7 +158,7 @@ int afm_cont_inst_at(const afm_cont_base *b, const afm_cont_param *ps, const dou
     for (int i = 0; i < out->m.n && cfg.model.n_damping > 0; i++)
         out->m.xi[i] =
             cfg.model.damping_ratio[i < cfg.model.n_damping ? i : cfg.model.n_damping - 1];
-    if (forces_of(&cfg, &out->m, &out->f, err, errlen) != 0) return -1;
+    if (afm_twin_forces(&cfg, &out->m, NULL, &out->f, err, errlen) != 0) return -1;
     out->fe_hz = cfg.drive.tones[0].frequency_hz;
     out->ae_m = cfg.drive.tones[0].amplitude_m;
     out->z_m = cfg.drive.separation_m;

@@ -14,6 +14,13 @@ void afm_twin_plate(const afm_config *cfg, const afm_modal *m, double *length_m,
     *width_m = m->beam_mean_width_m > 0 ? m->beam_mean_width_m : cfg->forces.plate_width_m;
 }
 
+int afm_twin_forces(const afm_config *cfg, const afm_modal *m, const afm_cfg_forces *fc,
+                    afm_force_params *out, char *err, size_t errlen) {
+    double len, wid;
+    afm_twin_plate(cfg, m, &len, &wid);
+    return afm_force_init(out, fc ? fc : &cfg->forces, len, wid, err, errlen);
+}
+
 afm_sim *afm_twin_create(const afm_config *cfg, afm_modal *m_out, afm_force_params *f_out,
                          char *err, size_t errlen) {
     static const afm_modal zero_modal;
@@ -26,9 +33,7 @@ afm_sim *afm_twin_create(const afm_config *cfg, afm_modal *m_out, afm_force_para
     }
     *m = zero_modal;
     if (afm_model_build(&cfg->model, m, err, errlen) != 0) goto done;
-    double len, wid;
-    afm_twin_plate(cfg, m, &len, &wid);
-    if (afm_force_init(&f, &cfg->forces, len, wid, err, errlen) != 0) goto done;
+    if (afm_twin_forces(cfg, m, NULL, &f, err, errlen) != 0) goto done;
     s = afm_sim_create(m, &f, &cfg->drive, &cfg->sim, err, errlen);
     if (s && cfg->thermal.enabled && afm_sim_set_thermal(s, &cfg->thermal, err, errlen) != 0)
         afm_sim_destroy(&s);

@@ -20,6 +20,12 @@ afm_sim *afm_twin_create(const afm_config *cfg, afm_modal *m_out, afm_force_para
  * lumped model's plate from cfg's forces group. */
 void afm_twin_plate(const afm_config *cfg, const afm_modal *m, double *length_m, double *width_m);
 
+/* The force constants of forces group fc (a material's, or NULL for cfg's own) on model m,
+ * with afm_twin_plate's plate: what every tool and the runner hand the simulator. No
+ * allocation. 0, or -1 with err. */
+int afm_twin_forces(const afm_config *cfg, const afm_modal *m, const afm_cfg_forces *fc,
+                    afm_force_params *out, char *err, size_t errlen);
+
 /* A new simulator on src's model, forces, separation and drive, started at t = 0 from
  * src's current modal state with every tone at src's current phase, integrating with the
  * integrator and tolerances of sim (e.g. to compare integrators from one settled state).
