@@ -1,5 +1,5 @@
 /* SPDX-License-Identifier: MIT */
-/* afmtwind.c -- the daemon's main: options, start-up in order (config, memory lock,
+/* afmtwind.c -- the daemon's main: start-up in order (config, memory lock,
  * runner, queues, transport, threads), signals, the once-a-second status line, and a clean
  * shutdown in reverse order. */
 #include "twind.h"
@@ -15,238 +15,12 @@
 #include <string.h>
 #include <time.h>
 
-#ifndef AFMTWIN_VERSION
-#define AFMTWIN_VERSION "unknown"
-#endif
-
 #define CMD_Q_LEN 256
 #define TRASH_Q_LEN 64
 #define RTREJ_Q_LEN 64
 #define SAMPLES_Q_LEN 256 /* records of up to AFM_IO_MAX_BLOCK samples (~8 MB in all) */
 #define HARM_Q_LEN 4096
 #define DONE_Q_LEN 1024
-
-static void usage(FILE *f) {
-    fprintf(f,
-            "usage: afmtwind --config FILE [options]\n"
-            "\n"
-            "Runs the AFM cantilever twin and talks LCM: commands on PREFIX{DITHER,SETPOINT,\n"
-            "PARAM,CONTROL,TICK} (--lcm-url), outputs on PREFIX{HARMONICS,STATUS,TICK_DONE}\n"
-            "(--lcm-out-url: by default the same udpm group, port + 1) and the sample\n"
-            "stream PREFIX SAMPLES (--lcm-samples-url: port + 2). Every output message\n"
-            "carries msg_seq (per channel, +1 each). Foreground;\n"
-            "one status line a second on stderr. SIGTERM/SIGINT stop (a final status is\n"
-            "published), SIGHUP reloads FILE (a bad file keeps the running config).\n"
-            "\n"
-            "options:\n"
-            "  --config FILE          twin configuration (libconfig), required\n"
-            "  --lcm-url URL          LCM URL of the commands (default: $LCM_DEFAULT_URL or\n"
-            "                         udpm://239.255.76.67:7667?ttl=0)\n"
-            "  --lcm-out-url URL      LCM URL of the outputs (default: --lcm-url with the udpm\n"
-            "                         port + 1, so that the command socket carries commands only)\n"
-            "  --lcm-samples-url URL  LCM URL of the sample stream (default: --lcm-url with the\n"
-            "                         udpm port + 2, so that status and harmonics subscribers\n"
-            "                         do not receive it)\n"
-            "  --mode M               realtime (default), freerun or lockstep\n"
-            "  --scheme S             the rt integrator's scheme (docs/realtime.md): auto (the\n"
-            "                         default unless the config's sim.rt_scheme names one):\n"
-            "                         both measured on this model before real time starts,\n"
-            "                         accurate where its worst state fits 90%% of the budget,\n"
-            "                         else fast; adaptive: accurate, handed over to fast while\n"
-            "                         the loop falls behind and back when the margin returns;\n"
-            "                         accurate or fast: forced (real time may be lost)\n"
-            "  --prefix NAME_         channel prefix (default AFMTWIN_)\n"
-            "  --cpu N                pin the integrator thread to CPU N\n"
-            "  --chain-cpu N          pin the output-chain thread to CPU N\n"
-            "  --aux-cpu N            pin the receive and publish threads (and LCM's) to CPU N\n"
-            "                         (lockstep co-simulation on two cores: --cpu 0 --chain-cpu 1\n"
-            "                         --aux-cpu 0, the controller on CPU 0: README)\n"
-            "  --rt-priority N        SCHED_FIFO priority 1..99 (default 80)\n"
-            "  --block-us N           real-time block length in microseconds (default 1000)\n"
-            "  --speed X              realtime: model seconds per wall second (default 1)\n"
-            "  --max-lag-ms N         realtime: when the lag passes N ms the backlog is\n"
-            "                         dropped and counted as a resync (default 100)\n"
-            "  --ring-us N            buffer between integrator and output chain, in model\n"
-            "                         microseconds (default 5000)\n"
-            "  --harmonics-every K    publish every K-th period's harmonics (default: auto,\n"
-            "                         at most --harmonics-max-hz records a second)\n"
-            "  --harmonics-max-hz F   cap for the automatic choice (default 1000)\n"
-            "  --exit-after S         stop after S seconds, as on SIGTERM (tests)\n"
-            "  --start-time S         model time starts at S s instead of 0 (tests of a twin\n"
-            "                         that has been up that long)\n"
-            "  --quiet                no status line\n"
-            "  --a0-track             recompute the status's A0 (free_amplitude_m) on a worker\n"
-            "                         thread after each change of tone 0 or of the model;\n"
-            "                         without it A0 is the start-up (or reloaded) config's and\n"
-            "                         reads NaN once the drive differs. Its computations take\n"
-            "                         ~5 %% of real time in the second they run\n"
-            "  --help                 this text\n"
-            "  --version              the version\n");
-}
-
-const char *twind_mode_name(twind_mode m) {
-    switch (m) {
-    case TWIND_REALTIME:
-        return "realtime";
-    case TWIND_FREERUN:
-        return "freerun";
-    case TWIND_LOCKSTEP:
-        return "lockstep";
-    }
-    return "?";
-}
-
-int64_t twind_utime_now(void) {
-    struct timespec t;
-    clock_gettime(CLOCK_REALTIME, &t);
-    return (int64_t)t.tv_sec * 1000000 + t.tv_nsec / 1000;
-}
-
-struct timespec twind_deadline_in(long ns) {
-    struct timespec ts;
-    clock_gettime(CLOCK_REALTIME, &ts);
-    ts.tv_nsec += ns;
-    while (ts.tv_nsec >= 1000000000L) {
-        ts.tv_sec++;
-        ts.tv_nsec -= 1000000000L;
-    }
-    return ts;
-}
-
-double twind_mono_now(void) {
-    struct timespec t;
-    clock_gettime(CLOCK_MONOTONIC, &t);
-    return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
-}
-
-static int parse_num(const char *opt, const char *s, double lo, double hi, double *out) {
-    char *end;
-    errno = 0;
-    double v = s ? strtod(s, &end) : NAN;
-    if (!s || errno || end == s || *end || !(v >= lo && v <= hi)) {
-        fprintf(stderr, "afmtwind: %s needs a number in [%g, %g], got '%s'\n", opt, lo, hi,
-                s ? s : "(nothing)");
-        return -1;
-    }
-    *out = v;
-    return 0;
-}
-
-static int parse_args(int argc, char **argv, twind_opts *o) {
-    *o = (twind_opts){.prefix = "AFMTWIN_",
-                      .mode = TWIND_REALTIME,
-                      .cpu = -1,
-                      .chain_cpu = -1,
-                      .aux_cpu = -1,
-                      .rt_priority = 80,
-                      .block_s = 1e-3,
-                      .harmonics_max_hz = 1000.0,
-                      .speed = 1.0,
-                      .max_lag_s = 0.1,
-                      .ring_s = 5e-3};
-    for (int i = 1; i < argc; i++) {
-        const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
-        double x;
-        if (!strcmp(a, "--help")) {
-            usage(stdout);
-            exit(0);
-        } else if (!strcmp(a, "--version")) {
-            printf("afmtwind %s\n", AFMTWIN_VERSION);
-            exit(0);
-        } else if (!strcmp(a, "--quiet")) {
-            o->quiet = 1;
-            continue;
-        } else if (!strcmp(a, "--a0-track")) {
-            o->a0_track = 1;
-            continue;
-        } else if (!v) {
-            fprintf(stderr, "afmtwind: unknown option or missing value: %s\n", a);
-            return -1;
-        } else if (!strcmp(a, "--config")) {
-            o->config_path = v;
-        } else if (!strcmp(a, "--lcm-url")) {
-            o->lcm_url = v;
-        } else if (!strcmp(a, "--lcm-out-url")) {
-            o->lcm_out_url = v;
-        } else if (!strcmp(a, "--lcm-samples-url")) {
-            o->lcm_samples_url = v;
-        } else if (!strcmp(a, "--aux-cpu")) {
-            if (parse_num(a, v, 0, 1023, &x) || x != floor(x)) return -1;
-            o->aux_cpu = (int)x;
-        } else if (!strcmp(a, "--chain-cpu")) {
-            if (parse_num(a, v, 0, 1023, &x) || x != floor(x)) return -1;
-            o->chain_cpu = (int)x;
-        } else if (!strcmp(a, "--speed")) {
-            if (parse_num(a, v, 1e-3, 1e3, &x)) return -1;
-            o->speed = x;
-        } else if (!strcmp(a, "--max-lag-ms")) {
-            if (parse_num(a, v, 1, 1e6, &x)) return -1;
-            o->max_lag_s = x * 1e-3;
-        } else if (!strcmp(a, "--ring-us")) {
-            if (parse_num(a, v, 100, 1e6, &x)) return -1;
-            o->ring_s = x * 1e-6;
-        } else if (!strcmp(a, "--prefix")) {
-            o->prefix = v;
-        } else if (!strcmp(a, "--mode")) {
-            if (!strcmp(v, "realtime"))
-                o->mode = TWIND_REALTIME;
-            else if (!strcmp(v, "freerun"))
-                o->mode = TWIND_FREERUN;
-            else if (!strcmp(v, "lockstep"))
-                o->mode = TWIND_LOCKSTEP;
-            else {
-                fprintf(stderr,
-                        "afmtwind: --mode must be realtime, freerun or lockstep, got '%s'\n", v);
-                return -1;
-            }
-        } else if (!strcmp(a, "--scheme")) {
-            if (!strcmp(v, "auto"))
-                o->scheme = TWIND_SCHEME_AUTO;
-            else if (!strcmp(v, "adaptive"))
-                o->scheme = TWIND_SCHEME_ADAPTIVE;
-            else if (!strcmp(v, "accurate"))
-                o->scheme = TWIND_SCHEME_ACCURATE;
-            else if (!strcmp(v, "fast"))
-                o->scheme = TWIND_SCHEME_FAST;
-            else {
-                fprintf(stderr,
-                        "afmtwind: --scheme must be auto, adaptive, accurate or fast, got '%s'\n",
-                        v);
-                return -1;
-            }
-        } else if (!strcmp(a, "--cpu")) {
-            if (parse_num(a, v, 0, 1023, &x) || x != floor(x)) return -1;
-            o->cpu = (int)x;
-        } else if (!strcmp(a, "--rt-priority")) {
-            if (parse_num(a, v, 1, 99, &x) || x != floor(x)) return -1;
-            o->rt_priority = (int)x;
-        } else if (!strcmp(a, "--block-us")) {
-            if (parse_num(a, v, 10, 1e6, &x)) return -1;
-            o->block_s = x * 1e-6;
-        } else if (!strcmp(a, "--harmonics-every")) {
-            if (parse_num(a, v, 1, 1e9, &x) || x != floor(x)) return -1;
-            o->harmonics_every = (int)x;
-        } else if (!strcmp(a, "--harmonics-max-hz")) {
-            if (parse_num(a, v, 1e-3, 1e9, &x)) return -1;
-            o->harmonics_max_hz = x;
-        } else if (!strcmp(a, "--start-time")) {
-            if (parse_num(a, v, 0, 1e9, &x)) return -1;
-            o->start_s = x;
-        } else if (!strcmp(a, "--exit-after")) {
-            if (parse_num(a, v, 0, 1e9, &x)) return -1;
-            o->exit_after_s = x;
-        } else {
-            fprintf(stderr, "afmtwind: unknown option %s (see --help)\n", a);
-            return -1;
-        }
-        i++;
-    }
-    if (!o->config_path) {
-        fprintf(stderr, "afmtwind: --config FILE is required (see --help)\n");
-        return -1;
-    }
-    return 0;
-}
 
 /* The stderr status line: whether the twin keeps up (the real-time factor of the last second
  * of running, resyncs and the model time they skipped, the chain's lag), what the cantilever
@@ -561,8 +335,8 @@ static void release(twind *d) {
 int main(int argc, char **argv) {
     static twind d; /* large (config copies); zero-initialised */
     char err[AFM_ERR_LEN];
-    if (parse_args(argc, argv, &d.opt)) {
-        usage(stderr);
+    if (twind_parse_args(argc, argv, &d.opt)) {
+        fprintf(stderr, "(afmtwind --help describes every option)\n");
         return 2;
     }
     afm_config cfg;

@@ -217,8 +217,12 @@ typedef struct {
     char rt_warn[512];
 } twind;
 
-/* afmtwind.c */
+/* twind_clock.c */
 const char *twind_mode_name(twind_mode m);
+
+/* twind_opts.c: argv into o (defaults first); -1 after saying what is wrong on stderr.
+ * --help and --version print on stdout and exit 0. */
+int twind_parse_args(int argc, char **argv, twind_opts *o);
 
 /* rt_setup.c: mlockall (on the calling process), SCHED_FIFO and CPU affinity for the
  * calling thread. Each failure is described in warn (appended), never fatal. */
@@ -321,7 +325,7 @@ static inline void twind_csnap_read(twind *d, twind_chain_snapshot *s) {
     TWIND_SEQLOCK_READ(&d->csnap_seq, s, &d->csnap);
 }
 
-/* Wall clock now (CLOCK_REALTIME, us) for utime stamps, and CLOCK_MONOTONIC in s. */
+/* twind_clock.c: wall clock now (CLOCK_REALTIME, us) for utime stamps, and CLOCK_MONOTONIC in s. */
 int64_t twind_utime_now(void);
 double twind_mono_now(void);
 /* sem_timedwait's deadline (CLOCK_REALTIME) ns from now. */
