@@ -2,21 +2,20 @@
 /* afm_config.c -- reads a libconfig file into afm_config and checks it (contract in
  * afm_config.h, keys in config/README.md).
  *
- * Two passes. The loader walks the file group by group: every member must be a known key
- * of the right type, required keys must be present, and values with no struct field of
- * their own (quality factors, tip/sample moduli) are range-checked on the spot. Then the
- * filled struct goes through the same checks afm_config_validate() runs after CLI
+ * Two passes. The loader walks the file group by group (its typed reads: afm_config_read.c): every
+ * member must be a known key of the right type, required keys must be present, and values with no
+ * struct field of their own (quality factors, tip/sample moduli) are range-checked on the spot.
+ * Then the filled struct goes through the same checks afm_config_validate() runs after CLI
  * overrides (afm_config_check.c); that pass names the failing key by its config path, and the
  * loader turns the path back into a line number. Every failure leaves the caller's struct
  * untouched. */
 #include "config/afm_config.h"
 #include "config/afm_config_impl.h"
+#include "config/afm_config_read.h"
 
 #include <errno.h>
-#include <limits.h>
 #include <libconfig.h>
 #include <math.h>
-#include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -114,307 +113,98 @@ void afm_config_defaults(afm_config *cfg) {
 
 /* ------------------------------------------------------------------ loader */
 
-typedef struct {
-    const char *path; /* file name for messages */
-    char *err;
-    size_t errlen;
-} loader;
-
-/* Config path of a setting: "model.beam.width_m[1]". */
-static void setting_path(const config_setting_t *s, char *buf, size_t len) {
-    const config_setting_t *parent = config_setting_parent(s);
-    if (!parent || config_setting_is_root(s)) {
-        buf[0] = '\0';
-        return;
-    }
-    setting_path(parent, buf, len);
-    size_t n = strlen(buf);
-    const char *name = config_setting_name(s);
-    if (name)
-        snprintf(buf + n, len - n, "%s%s", n ? "." : "", name);
-    else
-        snprintf(buf + n, len - n, "[%d]", config_setting_index(s));
-}
-
-static int line_of(const config_setting_t *s) {
-    int line = s ? (int)config_setting_source_line(s) : 0;
-    return line > 0 ? line : 1;
-}
-
-static const char *file_of(const loader *L, const config_setting_t *s) {
-    const char *f = s ? config_setting_source_file(s) : NULL;
-    return f ? f : L->path;
-}
-
-/* "FILE:LINE: key 'PATH[.name]': reason". s is the setting at fault, or for a missing key
- * its parent group (name then gives the key). Always returns -1. */
-static int fail(const loader *L, const config_setting_t *s, const char *name, const char *fmt, ...)
-    __attribute__((format(printf, 4, 5)));
-static int fail(const loader *L, const config_setting_t *s, const char *name, const char *fmt,
-                ...) {
-    char key[KEY_LEN], why[AFM_ERR_LEN];
-    setting_path(s, key, sizeof key);
-    if (name) {
-        size_t n = strlen(key);
-        snprintf(key + n, sizeof key - n, "%s%s", n ? "." : "", name);
-    }
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(why, sizeof why, fmt, ap);
-    va_end(ap);
-    if (L->err && L->errlen)
-        snprintf(L->err, L->errlen, "%s:%d: key '%s': %s", file_of(L, s), line_of(s), key, why);
-    return -1;
-}
-
-static const char *type_name(const config_setting_t *s) {
-    switch (config_setting_type(s)) {
-    case CONFIG_TYPE_GROUP:
-        return "a group";
-    case CONFIG_TYPE_INT:
-    case CONFIG_TYPE_INT64:
-        return "an integer";
-    case CONFIG_TYPE_FLOAT:
-        return "a floating-point number";
-    case CONFIG_TYPE_STRING:
-        return "a string";
-    case CONFIG_TYPE_BOOL:
-        return "a boolean";
-    case CONFIG_TYPE_ARRAY:
-        return "an array";
-    case CONFIG_TYPE_LIST:
-        return "a list";
-    default:
-        return "an unknown type";
-    }
-}
-
-/* Every member of g must be in allowed (NULL-terminated). */
-static int only_keys(const loader *L, const config_setting_t *g, const char *const *allowed) {
-    for (int i = 0; i < config_setting_length(g); i++) {
-        const config_setting_t *m = config_setting_get_elem(g, (unsigned)i);
-        const char *name = config_setting_name(m);
-        bool ok = false;
-        for (const char *const *a = allowed; *a && !ok; a++)
-            ok = strcmp(*a, name) == 0;
-        if (!ok) {
-            char list[256] = "";
-            for (const char *const *a = allowed; *a; a++) {
-                size_t n = strlen(list);
-                snprintf(list + n, sizeof list - n, "%s%s", n ? ", " : "", *a);
-            }
-            return fail(L, m, NULL, "unknown key (allowed here: %s)", list);
-        }
-    }
-    return 0;
-}
-
-/* A member that may be absent. *out = NULL when absent. */
-static int member(const loader *L, const config_setting_t *g, const char *name, bool required,
-                  config_setting_t **out) {
-    *out = config_setting_get_member(g, name);
-    if (!*out && required) return fail(L, g, name, "missing required key");
-    return 0;
-}
-
-static int as_number(const loader *L, const config_setting_t *s, double *out) {
-    switch (config_setting_type(s)) {
-    case CONFIG_TYPE_INT:
-        *out = config_setting_get_int(s);
-        break;
-    case CONFIG_TYPE_INT64:
-        *out = (double)config_setting_get_int64(s);
-        break;
-    case CONFIG_TYPE_FLOAT:
-        *out = config_setting_get_float(s);
-        break;
-    default:
-        return fail(L, s, NULL, "expected a number, got %s", type_name(s));
-    }
-    if (!isfinite(*out)) return fail(L, s, NULL, "not a finite number");
-    return 0;
-}
-
-/* Number key; leaves *out alone when absent and optional. */
-static int get_num(const loader *L, const config_setting_t *g, const char *name, bool required,
-                   double *out, bool *present) {
-    config_setting_t *s;
-    if (member(L, g, name, required, &s)) return -1;
-    if (present) *present = s != NULL;
-    return s ? as_number(L, s, out) : 0;
-}
-
-/* Any libconfig integer (int or int64) as long long; -1 with a message otherwise. */
-static int as_integer(const loader *L, const config_setting_t *s, long long *v) {
-    switch (config_setting_type(s)) {
-    case CONFIG_TYPE_INT:
-        *v = config_setting_get_int(s);
-        return 0;
-    case CONFIG_TYPE_INT64:
-        *v = config_setting_get_int64(s);
-        return 0;
-    default:
-        return fail(L, s, NULL, "expected an integer, got %s", type_name(s));
-    }
-}
-
-static int as_int(const loader *L, const config_setting_t *s, int *out) {
-    long long v = 0;
-    if (as_integer(L, s, &v)) return -1;
-    if (v < INT_MIN || v > INT_MAX) return fail(L, s, NULL, "integer out of range");
-    *out = (int)v;
-    return 0;
-}
-
-static int get_int(const loader *L, const config_setting_t *g, const char *name, bool required,
-                   int *out) {
-    config_setting_t *s;
-    if (member(L, g, name, required, &s)) return -1;
-    return s ? as_int(L, s, out) : 0;
-}
-
-static int get_bool(const loader *L, const config_setting_t *g, const char *name, bool *out) {
-    config_setting_t *s;
-    if (member(L, g, name, false, &s)) return -1;
-    if (!s) return 0;
-    if (config_setting_type(s) != CONFIG_TYPE_BOOL)
-        return fail(L, s, NULL, "expected true or false, got %s", type_name(s));
-    *out = config_setting_get_bool(s);
-    return 0;
-}
-
-/* String key that must be one of names[]; *out = index. */
-static int get_choice(const loader *L, const config_setting_t *g, const char *name, bool required,
-                      const char *const *names, int *out) {
-    config_setting_t *s;
-    if (member(L, g, name, required, &s)) return -1;
-    if (!s) return 0;
-    char list[128] = "";
-    for (int i = 0; names[i]; i++) {
-        size_t n = strlen(list);
-        snprintf(list + n, sizeof list - n, "%s\"%s\"", i ? ", " : "", names[i]);
-    }
-    if (config_setting_type(s) != CONFIG_TYPE_STRING)
-        return fail(L, s, NULL, "expected one of %s, got %s", list, type_name(s));
-    const char *v = config_setting_get_string(s);
-    for (int i = 0; names[i]; i++)
-        if (strcmp(v, names[i]) == 0) {
-            *out = i;
-            return 0;
-        }
-    return fail(L, s, NULL, "\"%s\" is not one of %s", v, list);
-}
-
-static int get_group(const loader *L, const config_setting_t *g, const char *name, bool required,
-                     config_setting_t **out) {
-    *out = config_setting_get_member(g, name);
-    if (!*out && required) return fail(L, g, name, "missing required group");
-    if (*out && config_setting_type(*out) != CONFIG_TYPE_GROUP)
-        return fail(L, *out, NULL, "expected a group { ... }, got %s", type_name(*out));
-    return 0;
-}
-
-/* Numbers given as [a, b, ...] or (a, b, ...), 1..max of them. */
-static int as_vector(const loader *L, const config_setting_t *s, double *v, int max, int *n) {
-    int t = config_setting_type(s);
-    if (t != CONFIG_TYPE_ARRAY && t != CONFIG_TYPE_LIST)
-        return fail(L, s, NULL, "expected an array [ ... ], got %s", type_name(s));
-    int len = config_setting_length(s);
-    if (len < 1 || len > max) return fail(L, s, NULL, "needs 1 to %d values (got %d)", max, len);
-    for (int i = 0; i < len; i++)
-        if (as_number(L, config_setting_get_elem(s, (unsigned)i), &v[i])) return -1;
-    *n = len;
-    return 0;
-}
-
 /* Geometric profile: a scalar (uniform) or [clamp, free end]. */
-static int get_profile(const loader *L, const config_setting_t *g, const char *name, double v[2]) {
+static int get_profile(const afm_cfgr *L, const config_setting_t *g, const char *name,
+                       double v[2]) {
     config_setting_t *s;
-    if (member(L, g, name, true, &s)) return -1;
+    if (afm_cfgr_member(L, g, name, true, &s)) return -1;
     int t = config_setting_type(s);
     if (t == CONFIG_TYPE_ARRAY || t == CONFIG_TYPE_LIST) {
         int n;
-        if (as_vector(L, s, v, 2, &n)) return -1;
+        if (afm_cfgr_vector(L, s, v, 2, &n)) return -1;
         if (n == 1) v[1] = v[0];
         return 0;
     }
-    if (as_number(L, s, &v[0])) return -1;
+    if (afm_cfgr_as_num(L, s, &v[0])) return -1;
     v[1] = v[0];
     return 0;
 }
 
 /* Optional group with "enabled" (default true when the group is present). */
-static int get_feature(const loader *L, const config_setting_t *g, const char *name,
+static int get_feature(const afm_cfgr *L, const config_setting_t *g, const char *name,
                        config_setting_t **out, bool *enabled) {
     *enabled = false;
-    if (get_group(L, g, name, false, out)) return -1;
+    if (afm_cfgr_group(L, g, name, false, out)) return -1;
     if (!*out) return 0;
     *enabled = true;
-    return get_bool(L, *out, "enabled", enabled);
+    return afm_cfgr_bool(L, *out, "enabled", enabled);
 }
 
-static int load_beam(const loader *L, const config_setting_t *g, afm_cfg_beam *b) {
+static int load_beam(const afm_cfgr *L, const config_setting_t *g, afm_cfg_beam *b) {
     static const char *const keys[] = {
         "youngs_modulus_pa", "density_kg_m3", "poisson_ratio", "length_m",   "width_m",
         "height_m",          "tip_mass_kg",   "elements",      "kept_modes", NULL};
-    if (only_keys(L, g, keys) ||
-        get_num(L, g, "youngs_modulus_pa", true, &b->youngs_modulus_pa, NULL) ||
-        get_num(L, g, "density_kg_m3", true, &b->density_kg_m3, NULL) ||
-        get_num(L, g, "poisson_ratio", false, &b->poisson_ratio, NULL) ||
-        get_num(L, g, "length_m", true, &b->length_m, NULL) ||
+    if (afm_cfgr_only_keys(L, g, keys) ||
+        afm_cfgr_num(L, g, "youngs_modulus_pa", true, &b->youngs_modulus_pa, NULL) ||
+        afm_cfgr_num(L, g, "density_kg_m3", true, &b->density_kg_m3, NULL) ||
+        afm_cfgr_num(L, g, "poisson_ratio", false, &b->poisson_ratio, NULL) ||
+        afm_cfgr_num(L, g, "length_m", true, &b->length_m, NULL) ||
         get_profile(L, g, "width_m", b->width_m) || get_profile(L, g, "height_m", b->height_m) ||
-        get_num(L, g, "tip_mass_kg", true, &b->tip_mass_kg, NULL) ||
-        get_int(L, g, "elements", false, &b->n_elements) ||
-        get_int(L, g, "kept_modes", true, &b->n_kept))
+        afm_cfgr_num(L, g, "tip_mass_kg", true, &b->tip_mass_kg, NULL) ||
+        afm_cfgr_int(L, g, "elements", false, &b->n_elements) ||
+        afm_cfgr_int(L, g, "kept_modes", true, &b->n_kept))
         return -1;
     return 0;
 }
 
-static int load_model(const loader *L, const config_setting_t *root, afm_cfg_model *m) {
+static int load_model(const afm_cfgr *L, const config_setting_t *root, afm_cfg_model *m) {
     static const char *const keys[] = {"kind",          "beam",           "lumped",
                                        "damping_ratio", "quality_factor", NULL};
     static const char *const kinds[] = {"beam", "lumped", NULL};
     config_setting_t *g, *beam, *lumped, *xi, *q;
     int kind = 0;
-    if (get_group(L, root, "model", true, &g) || only_keys(L, g, keys) ||
-        get_choice(L, g, "kind", true, kinds, &kind))
+    if (afm_cfgr_group(L, root, "model", true, &g) || afm_cfgr_only_keys(L, g, keys) ||
+        afm_cfgr_choice(L, g, "kind", true, kinds, &kind))
         return -1;
     m->kind = (afm_model_kind)kind;
-    if (get_group(L, g, "beam", false, &beam) || get_group(L, g, "lumped", false, &lumped))
+    if (afm_cfgr_group(L, g, "beam", false, &beam) ||
+        afm_cfgr_group(L, g, "lumped", false, &lumped))
         return -1;
     if (m->kind == AFM_MODEL_BEAM) {
-        if (lumped) return fail(L, lumped, NULL, "not used when kind = \"beam\"");
-        if (!beam) return fail(L, g, "beam", "missing required group (kind = \"beam\")");
+        if (lumped) return afm_cfgr_fail(L, lumped, NULL, "not used when kind = \"beam\"");
+        if (!beam) return afm_cfgr_fail(L, g, "beam", "missing required group (kind = \"beam\")");
         if (load_beam(L, beam, &m->beam)) return -1;
     } else {
         static const char *const lkeys[] = {"stiffness_n_m", "resonance_hz", NULL};
-        if (beam) return fail(L, beam, NULL, "not used when kind = \"lumped\"");
-        if (!lumped) return fail(L, g, "lumped", "missing required group (kind = \"lumped\")");
-        if (only_keys(L, lumped, lkeys) ||
-            get_num(L, lumped, "stiffness_n_m", true, &m->lumped.stiffness_n_m, NULL) ||
-            get_num(L, lumped, "resonance_hz", true, &m->lumped.resonance_hz, NULL))
+        if (beam) return afm_cfgr_fail(L, beam, NULL, "not used when kind = \"lumped\"");
+        if (!lumped)
+            return afm_cfgr_fail(L, g, "lumped", "missing required group (kind = \"lumped\")");
+        if (afm_cfgr_only_keys(L, lumped, lkeys) ||
+            afm_cfgr_num(L, lumped, "stiffness_n_m", true, &m->lumped.stiffness_n_m, NULL) ||
+            afm_cfgr_num(L, lumped, "resonance_hz", true, &m->lumped.resonance_hz, NULL))
             return -1;
     }
 
     xi = config_setting_get_member(g, "damping_ratio");
     q = config_setting_get_member(g, "quality_factor");
-    if (xi && q) return fail(L, q, NULL, "give damping_ratio or quality_factor, not both");
-    if (!xi && !q) return fail(L, g, "damping_ratio", "missing required key (or quality_factor)");
-    if (xi) return as_vector(L, xi, m->damping_ratio, AFM_MAX_MODES, &m->n_damping);
+    if (xi && q) return afm_cfgr_fail(L, q, NULL, "give damping_ratio or quality_factor, not both");
+    if (!xi && !q)
+        return afm_cfgr_fail(L, g, "damping_ratio", "missing required key (or quality_factor)");
+    if (xi) return afm_cfgr_vector(L, xi, m->damping_ratio, AFM_MAX_MODES, &m->n_damping);
     double qv[AFM_MAX_MODES];
     int n;
-    if (as_vector(L, q, qv, AFM_MAX_MODES, &n)) return -1;
+    if (afm_cfgr_vector(L, q, qv, AFM_MAX_MODES, &n)) return -1;
     for (int i = 0; i < n; i++) {
         if (!(qv[i] > 0.5))
-            return fail(L, config_setting_get_elem(q, (unsigned)i), NULL,
-                        "quality factor must be > 0.5 (damping ratio < 1), got %g", qv[i]);
+            return afm_cfgr_fail(L, config_setting_get_elem(q, (unsigned)i), NULL,
+                                 "quality factor must be > 0.5 (damping ratio < 1), got %g", qv[i]);
         m->damping_ratio[i] = 1.0 / (2.0 * qv[i]);
     }
     m->n_damping = n;
     return 0;
 }
 
-static int load_vdw(const loader *L, const config_setting_t *g, afm_cfg_forces *f) {
+static int load_vdw(const afm_cfgr *L, const config_setting_t *g, afm_cfg_forces *f) {
     static const char *const keys[] = {"enabled",
                                        "hamaker_j",
                                        "a0_m",
@@ -424,8 +214,9 @@ static int load_vdw(const loader *L, const config_setting_t *g, afm_cfg_forces *
                                        "sample_modulus_pa",
                                        "sample_poisson",
                                        NULL};
-    if (only_keys(L, g, keys) || get_num(L, g, "hamaker_j", f->vdw_contact, &f->hamaker_j, NULL) ||
-        get_num(L, g, "a0_m", f->vdw_contact, &f->a0_m, NULL))
+    if (afm_cfgr_only_keys(L, g, keys) ||
+        afm_cfgr_num(L, g, "hamaker_j", f->vdw_contact, &f->hamaker_j, NULL) ||
+        afm_cfgr_num(L, g, "a0_m", f->vdw_contact, &f->a0_m, NULL))
         return -1;
     static const char *const parts[] = {"tip_modulus_pa", "tip_poisson", "sample_modulus_pa",
                                         "sample_poisson"};
@@ -434,32 +225,33 @@ static int load_vdw(const loader *L, const config_setting_t *g, afm_cfg_forces *
     for (int i = 0; i < 4; i++)
         nparts += config_setting_get_member(g, parts[i]) != NULL;
     if (er && nparts)
-        return fail(
+        return afm_cfgr_fail(
             L, er, NULL,
             "give reduced_modulus_pa or the tip/sample moduli and Poisson ratios, not both");
-    if (er) return as_number(L, er, &f->reduced_modulus_pa);
+    if (er) return afm_cfgr_as_num(L, er, &f->reduced_modulus_pa);
     if (nparts == 0) {
         if (f->vdw_contact)
-            return fail(L, g, "reduced_modulus_pa",
-                        "missing required key (or tip_modulus_pa, tip_poisson, sample_modulus_pa, "
-                        "sample_poisson)");
+            return afm_cfgr_fail(
+                L, g, "reduced_modulus_pa",
+                "missing required key (or tip_modulus_pa, tip_poisson, sample_modulus_pa, "
+                "sample_poisson)");
         return 0;
     }
     double v[4];
     for (int i = 0; i < 4; i++) {
         config_setting_t *s;
-        if (member(L, g, parts[i], true, &s) || as_number(L, s, &v[i])) return -1;
+        if (afm_cfgr_member(L, g, parts[i], true, &s) || afm_cfgr_as_num(L, s, &v[i])) return -1;
         bool modulus = (i % 2) == 0;
-        if (modulus && !(v[i] > 0)) return fail(L, s, NULL, "must be > 0 (got %g)", v[i]);
+        if (modulus && !(v[i] > 0)) return afm_cfgr_fail(L, s, NULL, "must be > 0 (got %g)", v[i]);
         if (!modulus && !(v[i] > -1 && v[i] < 0.5))
-            return fail(L, s, NULL, "must be in (-1, 0.5) (got %g)", v[i]);
+            return afm_cfgr_fail(L, s, NULL, "must be in (-1, 0.5) (got %g)", v[i]);
     }
     /* Eq. 2.22: 1/Er = (1 - nu_t^2)/E_t + (1 - nu_s^2)/E_s */
     f->reduced_modulus_pa = 1.0 / ((1 - v[1] * v[1]) / v[0] + (1 - v[3] * v[3]) / v[2]);
     return 0;
 }
 
-static int load_squeeze(const loader *L, const config_setting_t *g, afm_model_kind kind,
+static int load_squeeze(const afm_cfgr *L, const config_setting_t *g, afm_model_kind kind,
                         afm_cfg_forces *f) {
     static const char *const beam_keys[] = {
         "model", "eta0_pa_s",    "gas_constant_j_kg_k", "temperature_k", "pressure_pa",
@@ -474,62 +266,62 @@ static int load_squeeze(const loader *L, const config_setting_t *g, afm_model_ki
         for (int i = 0; i < 2; i++) {
             config_setting_t *s = config_setting_get_member(g, plate[i]);
             if (s)
-                return fail(L, s, NULL,
-                            "only for kind = \"lumped\"; a beam takes it from its geometry");
+                return afm_cfgr_fail(
+                    L, s, NULL, "only for kind = \"lumped\"; a beam takes it from its geometry");
         }
     }
     int sq = 0;
-    if (only_keys(L, g, kind == AFM_MODEL_BEAM ? beam_keys : lumped_keys) ||
-        get_choice(L, g, "model", true, models, &sq))
+    if (afm_cfgr_only_keys(L, g, kind == AFM_MODEL_BEAM ? beam_keys : lumped_keys) ||
+        afm_cfgr_choice(L, g, "model", true, models, &sq))
         return -1;
     f->squeeze = (afm_squeeze_kind)sq;
     bool starr = f->squeeze == AFM_SQUEEZE_STARR, lin = f->squeeze == AFM_SQUEEZE_LINEAR;
-    if (get_num(L, g, "eta0_pa_s", false, &f->eta0_pa_s, NULL) ||
-        get_num(L, g, "gas_constant_j_kg_k", false, &f->gas_constant_j_kg_k, NULL) ||
-        get_num(L, g, "temperature_k", false, &f->temperature_k, NULL) ||
-        get_num(L, g, "pressure_pa", false, &f->pressure_pa, NULL) ||
-        get_num(L, g, "kappa", starr, &f->kappa, NULL) ||
-        get_num(L, g, "tip_length_m", starr, &f->tip_length_m, NULL) ||
-        get_num(L, g, "p1_n_s_m2", lin, &f->p1_n_s_m2, NULL) ||
-        get_num(L, g, "p2_n_s_m", lin, &f->p2_n_s_m, NULL))
+    if (afm_cfgr_num(L, g, "eta0_pa_s", false, &f->eta0_pa_s, NULL) ||
+        afm_cfgr_num(L, g, "gas_constant_j_kg_k", false, &f->gas_constant_j_kg_k, NULL) ||
+        afm_cfgr_num(L, g, "temperature_k", false, &f->temperature_k, NULL) ||
+        afm_cfgr_num(L, g, "pressure_pa", false, &f->pressure_pa, NULL) ||
+        afm_cfgr_num(L, g, "kappa", starr, &f->kappa, NULL) ||
+        afm_cfgr_num(L, g, "tip_length_m", starr, &f->tip_length_m, NULL) ||
+        afm_cfgr_num(L, g, "p1_n_s_m2", lin, &f->p1_n_s_m2, NULL) ||
+        afm_cfgr_num(L, g, "p2_n_s_m", lin, &f->p2_n_s_m, NULL))
         return -1;
     if (kind == AFM_MODEL_LUMPED &&
-        (get_num(L, g, "plate_length_m", starr, &f->plate_length_m, NULL) ||
-         get_num(L, g, "plate_width_m", starr, &f->plate_width_m, NULL)))
+        (afm_cfgr_num(L, g, "plate_length_m", starr, &f->plate_length_m, NULL) ||
+         afm_cfgr_num(L, g, "plate_width_m", starr, &f->plate_width_m, NULL)))
         return -1;
     return 0;
 }
 
-static int load_forces(const loader *L, const config_setting_t *root, afm_model_kind kind,
+static int load_forces(const afm_cfgr *L, const config_setting_t *root, afm_model_kind kind,
                        afm_cfg_forces *f) {
     static const char *const keys[] = {"inclination_deg", "radius_m", "vdw_contact",
                                        "viscoelastic",    "squeeze",  "capillary",
                                        "electrostatic",   NULL};
     config_setting_t *g, *s;
     double a = 0;
-    if (get_group(L, root, "forces", false, &g)) return -1;
+    if (afm_cfgr_group(L, root, "forces", false, &g)) return -1;
     if (!g) return 0; /* no tip forces at all */
-    if (only_keys(L, g, keys)) return -1;
+    if (afm_cfgr_only_keys(L, g, keys)) return -1;
 
     if (get_feature(L, g, "vdw_contact", &s, &f->vdw_contact) || (s && load_vdw(L, s, f)))
         return -1;
     if (get_feature(L, g, "viscoelastic", &s, &f->viscoelastic)) return -1;
     if (s) {
         static const char *const vkeys[] = {"enabled", "eta_pa_s", NULL};
-        if (only_keys(L, s, vkeys) ||
-            get_num(L, s, "eta_pa_s", f->viscoelastic, &f->eta_pa_s, NULL))
+        if (afm_cfgr_only_keys(L, s, vkeys) ||
+            afm_cfgr_num(L, s, "eta_pa_s", f->viscoelastic, &f->eta_pa_s, NULL))
             return -1;
     }
-    if (get_group(L, g, "squeeze", false, &s) || (s && load_squeeze(L, s, kind, f))) return -1;
+    if (afm_cfgr_group(L, g, "squeeze", false, &s) || (s && load_squeeze(L, s, kind, f))) return -1;
     if (get_feature(L, g, "capillary", &s, &f->capillary)) return -1;
     if (s) {
         static const char *const ckeys[] = {"enabled", "surface_energy_j_m2", "contact_angle_deg",
                                             "meniscus_d_m", NULL};
         bool on = f->capillary;
-        if (only_keys(L, s, ckeys) ||
-            get_num(L, s, "surface_energy_j_m2", on, &f->surface_energy_j_m2, NULL) ||
-            get_num(L, s, "contact_angle_deg", on, &a, NULL) ||
-            get_num(L, s, "meniscus_d_m", on, &f->meniscus_d_m, NULL))
+        if (afm_cfgr_only_keys(L, s, ckeys) ||
+            afm_cfgr_num(L, s, "surface_energy_j_m2", on, &f->surface_energy_j_m2, NULL) ||
+            afm_cfgr_num(L, s, "contact_angle_deg", on, &a, NULL) ||
+            afm_cfgr_num(L, s, "meniscus_d_m", on, &f->meniscus_d_m, NULL))
             return -1;
         f->contact_angle_rad = a * deg;
     }
@@ -539,44 +331,47 @@ static int load_forces(const loader *L, const config_setting_t *root, afm_model_
                                             "cone_length_m", NULL};
         bool on = f->electrostatic;
         a = 0;
-        if (only_keys(L, s, ekeys) || get_num(L, s, "voltage_v", on, &f->voltage_v, NULL) ||
-            get_num(L, s, "cone_half_angle_deg", on, &a, NULL) ||
-            get_num(L, s, "cone_length_m", on, &f->cone_length_m, NULL))
+        if (afm_cfgr_only_keys(L, s, ekeys) ||
+            afm_cfgr_num(L, s, "voltage_v", on, &f->voltage_v, NULL) ||
+            afm_cfgr_num(L, s, "cone_half_angle_deg", on, &a, NULL) ||
+            afm_cfgr_num(L, s, "cone_length_m", on, &f->cone_length_m, NULL))
             return -1;
         f->cone_half_angle_rad = a * deg;
     }
 
     a = 0;
-    if (get_num(L, g, "inclination_deg", false, &a, NULL)) return -1;
+    if (afm_cfgr_num(L, g, "inclination_deg", false, &a, NULL)) return -1;
     f->inclination_rad = a * deg;
     bool need_r = f->vdw_contact || f->viscoelastic || f->capillary;
-    return get_num(L, g, "radius_m", need_r, &f->radius_m, NULL);
+    return afm_cfgr_num(L, g, "radius_m", need_r, &f->radius_m, NULL);
 }
 
-static int load_drive(const loader *L, const config_setting_t *root, afm_cfg_drive *d) {
+static int load_drive(const afm_cfgr *L, const config_setting_t *root, afm_cfg_drive *d) {
     static const char *const keys[] = {"separation_m", "tones", NULL};
     static const char *const tkeys[] = {"amplitude_m", "frequency_hz", "phase_deg", NULL};
     config_setting_t *g, *tones;
-    if (get_group(L, root, "drive", true, &g) || only_keys(L, g, keys) ||
-        get_num(L, g, "separation_m", true, &d->separation_m, NULL) ||
-        member(L, g, "tones", true, &tones))
+    if (afm_cfgr_group(L, root, "drive", true, &g) || afm_cfgr_only_keys(L, g, keys) ||
+        afm_cfgr_num(L, g, "separation_m", true, &d->separation_m, NULL) ||
+        afm_cfgr_member(L, g, "tones", true, &tones))
         return -1;
     if (config_setting_type(tones) != CONFIG_TYPE_LIST)
-        return fail(L, tones, NULL, "expected a list ( { ... }, ... ), got %s", type_name(tones));
+        return afm_cfgr_fail(L, tones, NULL, "expected a list ( { ... }, ... ), got %s",
+                             afm_cfgr_type(tones));
     int n = config_setting_length(tones);
     if (n < 1 || n > AFM_MAX_TONES)
-        return fail(L, tones, NULL, "needs 1 to %d tones (got %d)", AFM_MAX_TONES, n);
+        return afm_cfgr_fail(L, tones, NULL, "needs 1 to %d tones (got %d)", AFM_MAX_TONES, n);
     for (int j = 0; j < n; j++) {
         config_setting_t *t = config_setting_get_elem(tones, (unsigned)j);
         afm_cfg_tone *tone = &d->tones[j];
         double ph = 0;
         if (config_setting_type(t) != CONFIG_TYPE_GROUP)
-            return fail(L, t, NULL, "expected a group { amplitude_m; frequency_hz; ... }, got %s",
-                        type_name(t));
-        if (only_keys(L, t, tkeys) ||
-            get_num(L, t, "amplitude_m", true, &tone->amplitude_m, NULL) ||
-            get_num(L, t, "frequency_hz", true, &tone->frequency_hz, NULL) ||
-            get_num(L, t, "phase_deg", false, &ph, NULL))
+            return afm_cfgr_fail(L, t, NULL,
+                                 "expected a group { amplitude_m; frequency_hz; ... }, got %s",
+                                 afm_cfgr_type(t));
+        if (afm_cfgr_only_keys(L, t, tkeys) ||
+            afm_cfgr_num(L, t, "amplitude_m", true, &tone->amplitude_m, NULL) ||
+            afm_cfgr_num(L, t, "frequency_hz", true, &tone->frequency_hz, NULL) ||
+            afm_cfgr_num(L, t, "phase_deg", false, &ph, NULL))
             return -1;
         tone->phase_rad = ph * deg;
     }
@@ -584,7 +379,7 @@ static int load_drive(const loader *L, const config_setting_t *root, afm_cfg_dri
     return 0;
 }
 
-static int load_sim(const loader *L, const config_setting_t *root, afm_cfg_sim *s) {
+static int load_sim(const afm_cfgr *L, const config_setting_t *root, afm_cfg_sim *s) {
     static const char *const keys[] = {"sample_rate_hz", "integrator",  "rt_substeps_contact",
                                        "rt_scheme",      "step_events", "ref_rtol",
                                        "harmonics",      NULL};
@@ -593,15 +388,16 @@ static int load_sim(const loader *L, const config_setting_t *root, afm_cfg_sim *
     static const char *const step_events[] = {"auto", "on", "off", NULL};
     config_setting_t *g, *h;
     int integ = (int)s->integrator, scheme = (int)s->rt_scheme, ev = (int)s->step_events;
-    if (get_group(L, root, "sim", false, &g)) return -1;
+    if (afm_cfgr_group(L, root, "sim", false, &g)) return -1;
     if (!g) return 0;
-    if (only_keys(L, g, keys) || get_num(L, g, "sample_rate_hz", false, &s->sample_rate_hz, NULL) ||
-        get_choice(L, g, "integrator", false, integrators, &integ) ||
-        get_int(L, g, "rt_substeps_contact", false, &s->rt_substeps_contact) ||
-        get_choice(L, g, "rt_scheme", false, schemes, &scheme) ||
-        get_choice(L, g, "step_events", false, step_events, &ev) ||
-        get_num(L, g, "ref_rtol", false, &s->ref_rtol, NULL) ||
-        member(L, g, "harmonics", false, &h))
+    if (afm_cfgr_only_keys(L, g, keys) ||
+        afm_cfgr_num(L, g, "sample_rate_hz", false, &s->sample_rate_hz, NULL) ||
+        afm_cfgr_choice(L, g, "integrator", false, integrators, &integ) ||
+        afm_cfgr_int(L, g, "rt_substeps_contact", false, &s->rt_substeps_contact) ||
+        afm_cfgr_choice(L, g, "rt_scheme", false, schemes, &scheme) ||
+        afm_cfgr_choice(L, g, "step_events", false, step_events, &ev) ||
+        afm_cfgr_num(L, g, "ref_rtol", false, &s->ref_rtol, NULL) ||
+        afm_cfgr_member(L, g, "harmonics", false, &h))
         return -1;
     s->integrator = (afm_integrator_kind)integ;
     s->rt_scheme = (afm_rt_scheme_kind)scheme;
@@ -609,25 +405,27 @@ static int load_sim(const loader *L, const config_setting_t *root, afm_cfg_sim *
     if (h) {
         int t = config_setting_type(h), n = config_setting_length(h);
         if (t != CONFIG_TYPE_ARRAY && t != CONFIG_TYPE_LIST)
-            return fail(L, h, NULL, "expected an array of integers, got %s", type_name(h));
+            return afm_cfgr_fail(L, h, NULL, "expected an array of integers, got %s",
+                                 afm_cfgr_type(h));
         if (n < 1 || n > AFM_MAX_HARMONICS)
-            return fail(L, h, NULL, "needs 1 to %d values (got %d)", AFM_MAX_HARMONICS, n);
+            return afm_cfgr_fail(L, h, NULL, "needs 1 to %d values (got %d)", AFM_MAX_HARMONICS, n);
         for (int i = 0; i < n; i++)
-            if (as_int(L, config_setting_get_elem(h, (unsigned)i), &s->harmonics[i])) return -1;
+            if (afm_cfgr_as_int(L, config_setting_get_elem(h, (unsigned)i), &s->harmonics[i]))
+                return -1;
         s->n_harmonics = n;
     }
     return 0;
 }
 
 /* Non-negative integer that fits an unsigned long (noise generator seeds). */
-static int get_seed(const loader *L, const config_setting_t *g, const char *name,
+static int get_seed(const afm_cfgr *L, const config_setting_t *g, const char *name,
                     unsigned long *out) {
     config_setting_t *s;
-    if (member(L, g, name, false, &s)) return -1;
+    if (afm_cfgr_member(L, g, name, false, &s)) return -1;
     if (!s) return 0;
     long long v = 0;
-    if (as_integer(L, s, &v)) return -1;
-    if (v < 0) return fail(L, s, NULL, "must be >= 0 (got %lld)", v);
+    if (afm_cfgr_as_integer(L, s, &v)) return -1;
+    if (v < 0) return afm_cfgr_fail(L, s, NULL, "must be >= 0 (got %lld)", v);
     *out = (unsigned long)v;
     return 0;
 }
@@ -635,44 +433,47 @@ static int get_seed(const loader *L, const config_setting_t *g, const char *name
 /* obd, thermal, lockin, output: optional groups (issue 4). obd is on unless the group
  * says enabled = false; thermal is off unless its group is present (enabled defaults to
  * true then, as for the force features). */
-static int load_chain(const loader *L, const config_setting_t *root, afm_config *c) {
+static int load_chain(const afm_cfgr *L, const config_setting_t *root, afm_config *c) {
     static const char *const okeys[] = {
         "enabled", "noise_density_m_rthz", "adc_bits", "full_scale_m", "seed", NULL};
     static const char *const tkeys[] = {"enabled", "temperature_k", "seed", NULL};
     static const char *const lkeys[] = {"time_constant_s", "order", NULL};
     static const char *const outkeys[] = {"decimation", "passband_fraction", NULL};
     config_setting_t *g, *s;
-    if (get_group(L, root, "obd", false, &g)) return -1;
-    if (g && (only_keys(L, g, okeys) || get_bool(L, g, "enabled", &c->obd.enabled) ||
-              get_num(L, g, "noise_density_m_rthz", false, &c->obd.noise_density_m_rthz, NULL) ||
-              get_int(L, g, "adc_bits", false, &c->obd.adc_bits) ||
-              get_num(L, g, "full_scale_m", false, &c->obd.full_scale_m, NULL) ||
-              get_seed(L, g, "seed", &c->obd.seed)))
+    if (afm_cfgr_group(L, root, "obd", false, &g)) return -1;
+    if (g &&
+        (afm_cfgr_only_keys(L, g, okeys) || afm_cfgr_bool(L, g, "enabled", &c->obd.enabled) ||
+         afm_cfgr_num(L, g, "noise_density_m_rthz", false, &c->obd.noise_density_m_rthz, NULL) ||
+         afm_cfgr_int(L, g, "adc_bits", false, &c->obd.adc_bits) ||
+         afm_cfgr_num(L, g, "full_scale_m", false, &c->obd.full_scale_m, NULL) ||
+         get_seed(L, g, "seed", &c->obd.seed)))
         return -1;
     if (get_feature(L, root, "thermal", &g, &c->thermal.enabled)) return -1;
-    if (g && (only_keys(L, g, tkeys) ||
-              get_num(L, g, "temperature_k", false, &c->thermal.temperature_k, NULL) ||
+    if (g && (afm_cfgr_only_keys(L, g, tkeys) ||
+              afm_cfgr_num(L, g, "temperature_k", false, &c->thermal.temperature_k, NULL) ||
               get_seed(L, g, "seed", &c->thermal.seed)))
         return -1;
-    if (get_group(L, root, "lockin", false, &g)) return -1;
-    if (g && (only_keys(L, g, lkeys) ||
-              get_num(L, g, "time_constant_s", false, &c->lockin.time_constant_s, NULL) ||
-              get_int(L, g, "order", false, &c->lockin.order)))
+    if (afm_cfgr_group(L, root, "lockin", false, &g)) return -1;
+    if (g && (afm_cfgr_only_keys(L, g, lkeys) ||
+              afm_cfgr_num(L, g, "time_constant_s", false, &c->lockin.time_constant_s, NULL) ||
+              afm_cfgr_int(L, g, "order", false, &c->lockin.order)))
         return -1;
-    if (get_group(L, root, "output", false, &g)) return -1;
+    if (afm_cfgr_group(L, root, "output", false, &g)) return -1;
     if (!g) return 0;
-    if (only_keys(L, g, outkeys) ||
-        get_num(L, g, "passband_fraction", false, &c->output.passband_fraction, NULL) ||
-        member(L, g, "decimation", false, &s))
+    if (afm_cfgr_only_keys(L, g, outkeys) ||
+        afm_cfgr_num(L, g, "passband_fraction", false, &c->output.passband_fraction, NULL) ||
+        afm_cfgr_member(L, g, "decimation", false, &s))
         return -1;
     if (s) {
         int t = config_setting_type(s), n = config_setting_length(s);
         if (t != CONFIG_TYPE_ARRAY && t != CONFIG_TYPE_LIST)
-            return fail(L, s, NULL, "expected an array of integers, got %s", type_name(s));
+            return afm_cfgr_fail(L, s, NULL, "expected an array of integers, got %s",
+                                 afm_cfgr_type(s));
         if (n < 1 || n > AFM_MAX_OUTPUTS)
-            return fail(L, s, NULL, "needs 1 to %d values (got %d)", AFM_MAX_OUTPUTS, n);
+            return afm_cfgr_fail(L, s, NULL, "needs 1 to %d values (got %d)", AFM_MAX_OUTPUTS, n);
         for (int i = 0; i < n; i++)
-            if (as_int(L, config_setting_get_elem(s, (unsigned)i), &c->output.decimation[i]))
+            if (afm_cfgr_as_int(L, config_setting_get_elem(s, (unsigned)i),
+                                &c->output.decimation[i]))
                 return -1;
         c->output.n_outputs = n;
     }
@@ -681,101 +482,86 @@ static int load_chain(const loader *L, const config_setting_t *root, afm_config 
 
 /* sample: optional group (issue 18): features = ( { type = "..."; ... }, ... ), an image
  * group and materials = ( { ... }, ... ). Ranges are checked in afm_config_check.c. */
-static int load_feature(const loader *L, const config_setting_t *g, afm_cfg_feature *f) {
+static int load_feature(const afm_cfgr *L, const config_setting_t *g, afm_cfg_feature *f) {
     static const char *const keys[] = {"type",    "height_m", "position_m", "angle_deg", "pitch_m",
                                        "duty",    "edge_m",   "x_m",        "y_m",       "radius_m",
                                        "slope_x", "slope_y",  "material",   NULL};
     static const char *const kinds[] = {"tilt", "step", "grating", "sphere", NULL};
     if (config_setting_type(g) != CONFIG_TYPE_GROUP)
-        return fail(L, g, NULL, "expected a group { type = ...; ... }, got %s", type_name(g));
+        return afm_cfgr_fail(L, g, NULL, "expected a group { type = ...; ... }, got %s",
+                             afm_cfgr_type(g));
     int kind = 0;
     *f = (afm_cfg_feature){.duty = 0.5, .edge_m = 1e-8};
-    if (only_keys(L, g, keys) || get_choice(L, g, "type", true, kinds, &kind) ||
-        get_num(L, g, "height_m", false, &f->height_m, NULL) ||
-        get_num(L, g, "position_m", false, &f->position_m, NULL) ||
-        get_num(L, g, "angle_deg", false, &f->angle_deg, NULL) ||
-        get_num(L, g, "pitch_m", kind == AFM_FEATURE_GRATING, &f->pitch_m, NULL) ||
-        get_num(L, g, "duty", false, &f->duty, NULL) ||
-        get_num(L, g, "edge_m", false, &f->edge_m, NULL) ||
-        get_num(L, g, "x_m", false, &f->x_m, NULL) || get_num(L, g, "y_m", false, &f->y_m, NULL) ||
-        get_num(L, g, "radius_m", kind == AFM_FEATURE_SPHERE, &f->radius_m, NULL) ||
-        get_num(L, g, "slope_x", false, &f->slope_x, NULL) ||
-        get_num(L, g, "slope_y", false, &f->slope_y, NULL) ||
-        get_int(L, g, "material", false, &f->material))
+    if (afm_cfgr_only_keys(L, g, keys) || afm_cfgr_choice(L, g, "type", true, kinds, &kind) ||
+        afm_cfgr_num(L, g, "height_m", false, &f->height_m, NULL) ||
+        afm_cfgr_num(L, g, "position_m", false, &f->position_m, NULL) ||
+        afm_cfgr_num(L, g, "angle_deg", false, &f->angle_deg, NULL) ||
+        afm_cfgr_num(L, g, "pitch_m", kind == AFM_FEATURE_GRATING, &f->pitch_m, NULL) ||
+        afm_cfgr_num(L, g, "duty", false, &f->duty, NULL) ||
+        afm_cfgr_num(L, g, "edge_m", false, &f->edge_m, NULL) ||
+        afm_cfgr_num(L, g, "x_m", false, &f->x_m, NULL) ||
+        afm_cfgr_num(L, g, "y_m", false, &f->y_m, NULL) ||
+        afm_cfgr_num(L, g, "radius_m", kind == AFM_FEATURE_SPHERE, &f->radius_m, NULL) ||
+        afm_cfgr_num(L, g, "slope_x", false, &f->slope_x, NULL) ||
+        afm_cfgr_num(L, g, "slope_y", false, &f->slope_y, NULL) ||
+        afm_cfgr_int(L, g, "material", false, &f->material))
         return -1;
     f->kind = (afm_feature_kind)kind;
     return 0;
 }
 
-static int load_material(const loader *L, const config_setting_t *g, afm_cfg_material *m) {
+static int load_material(const afm_cfgr *L, const config_setting_t *g, afm_cfg_material *m) {
     static const char *const keys[] = {"reduced_modulus_pa", "hamaker_j", "a0_m", "eta_pa_s", NULL};
     if (config_setting_type(g) != CONFIG_TYPE_GROUP)
-        return fail(L, g, NULL, "expected a group { reduced_modulus_pa = ...; }, got %s",
-                    type_name(g));
+        return afm_cfgr_fail(L, g, NULL, "expected a group { reduced_modulus_pa = ...; }, got %s",
+                             afm_cfgr_type(g));
     *m = (afm_cfg_material){NAN, NAN, NAN, NAN};
-    return only_keys(L, g, keys) ||
-                   get_num(L, g, "reduced_modulus_pa", false, &m->reduced_modulus_pa, NULL) ||
-                   get_num(L, g, "hamaker_j", false, &m->hamaker_j, NULL) ||
-                   get_num(L, g, "a0_m", false, &m->a0_m, NULL) ||
-                   get_num(L, g, "eta_pa_s", false, &m->eta_pa_s, NULL)
+    return afm_cfgr_only_keys(L, g, keys) ||
+                   afm_cfgr_num(L, g, "reduced_modulus_pa", false, &m->reduced_modulus_pa, NULL) ||
+                   afm_cfgr_num(L, g, "hamaker_j", false, &m->hamaker_j, NULL) ||
+                   afm_cfgr_num(L, g, "a0_m", false, &m->a0_m, NULL) ||
+                   afm_cfgr_num(L, g, "eta_pa_s", false, &m->eta_pa_s, NULL)
                ? -1
                : 0;
 }
 
-/* A list ( {...}, ... ) of at most max groups, each read by one(). */
-static int load_list(const loader *L, const config_setting_t *g, const char *name, int max, int *n,
-                     int (*one)(const loader *, const config_setting_t *, void *), void *items,
-                     size_t size) {
-    config_setting_t *s;
-    if (member(L, g, name, false, &s)) return -1;
-    if (!s) return 0;
-    if (config_setting_type(s) != CONFIG_TYPE_LIST)
-        return fail(L, s, NULL, "expected a list ( { ... }, ... ), got %s", type_name(s));
-    int len = config_setting_length(s);
-    if (len > max) return fail(L, s, NULL, "at most %d entries (got %d)", max, len);
-    for (int i = 0; i < len; i++)
-        if (one(L, config_setting_get_elem(s, (unsigned)i), (char *)items + (size_t)i * size))
-            return -1;
-    *n = len;
-    return 0;
-}
-
-static int one_feature(const loader *L, const config_setting_t *g, void *f) {
+static int one_feature(const afm_cfgr *L, const config_setting_t *g, void *f) {
     return load_feature(L, g, f);
 }
-static int one_material(const loader *L, const config_setting_t *g, void *m) {
+static int one_material(const afm_cfgr *L, const config_setting_t *g, void *m) {
     return load_material(L, g, m);
 }
 
-static int load_sample(const loader *L, const config_setting_t *root, afm_cfg_sample *c) {
+static int load_sample(const afm_cfgr *L, const config_setting_t *root, afm_cfg_sample *c) {
     static const char *const keys[] = {"enabled", "features", "materials", "image", NULL};
     static const char *const ikeys[] = {"file", "pixel_m", "height_per_level_m",
                                         "x0_m", "y0_m",    NULL};
     config_setting_t *g, *im, *s;
     if (get_feature(L, root, "sample", &g, &c->enabled)) return -1;
     if (!g) return 0;
-    if (only_keys(L, g, keys) ||
-        load_list(L, g, "features", AFM_MAX_FEATURES, &c->n_features, one_feature, c->features,
-                  sizeof c->features[0]) ||
-        load_list(L, g, "materials", AFM_MAX_MATERIALS, &c->n_materials, one_material, c->materials,
-                  sizeof c->materials[0]) ||
-        get_group(L, g, "image", false, &im))
+    if (afm_cfgr_only_keys(L, g, keys) ||
+        afm_cfgr_list(L, g, "features", AFM_MAX_FEATURES, &c->n_features, one_feature, c->features,
+                      sizeof c->features[0]) ||
+        afm_cfgr_list(L, g, "materials", AFM_MAX_MATERIALS, &c->n_materials, one_material,
+                      c->materials, sizeof c->materials[0]) ||
+        afm_cfgr_group(L, g, "image", false, &im))
         return -1;
     if (!im) return 0;
-    if (only_keys(L, im, ikeys) || member(L, im, "file", true, &s) ||
-        get_num(L, im, "pixel_m", true, &c->image_pixel_m, NULL) ||
-        get_num(L, im, "height_per_level_m", true, &c->image_height_per_level_m, NULL) ||
-        get_num(L, im, "x0_m", false, &c->image_x0_m, NULL) ||
-        get_num(L, im, "y0_m", false, &c->image_y0_m, NULL))
+    if (afm_cfgr_only_keys(L, im, ikeys) || afm_cfgr_member(L, im, "file", true, &s) ||
+        afm_cfgr_num(L, im, "pixel_m", true, &c->image_pixel_m, NULL) ||
+        afm_cfgr_num(L, im, "height_per_level_m", true, &c->image_height_per_level_m, NULL) ||
+        afm_cfgr_num(L, im, "x0_m", false, &c->image_x0_m, NULL) ||
+        afm_cfgr_num(L, im, "y0_m", false, &c->image_y0_m, NULL))
         return -1;
     if (config_setting_type(s) != CONFIG_TYPE_STRING)
-        return fail(L, s, NULL, "expected a file name, got %s", type_name(s));
+        return afm_cfgr_fail(L, s, NULL, "expected a file name, got %s", afm_cfgr_type(s));
     /* relative to the config file's folder */
     const char *v = config_setting_get_string(s), *slash = strrchr(L->path, '/');
     int dir = v[0] != '/' && slash ? (int)(slash - L->path) + 1 : 0;
     if ((size_t)dir + strlen(v) >= sizeof c->image_file)
-        return fail(L, s, NULL, "path too long (at most %zu characters with the config's folder)",
-                    sizeof c->image_file - 1);
+        return afm_cfgr_fail(L, s, NULL,
+                             "path too long (at most %zu characters with the config's folder)",
+                             sizeof c->image_file - 1);
     snprintf(c->image_file, sizeof c->image_file, "%.*s%s", dir, L->path, v);
     return 0;
 }
@@ -790,7 +576,7 @@ static const char *const can_id_keys[AFM_CAN_N_SIGNALS + 1] = {"dither_frequency
                                                                "heartbeat",
                                                                NULL};
 
-static int load_can(const loader *L, const config_setting_t *root, afm_cfg_can *c) {
+static int load_can(const afm_cfgr *L, const config_setting_t *root, afm_cfg_can *c) {
     static const char *const keys[] = {
         "enabled",         "interface", "fd",    "extended_ids",        "byte_order",
         "encoding",        "ids",       "scale", "heartbeat_timeout_s", "reconnect_min_s",
@@ -803,55 +589,56 @@ static int load_can(const loader *L, const config_setting_t *root, afm_cfg_can *
     if (get_feature(L, root, "can", &g, &c->enabled)) return -1;
     if (!g) return 0;
     int order = c->big_endian ? 1 : 0, enc = (int)c->encoding;
-    if (only_keys(L, g, keys) || get_bool(L, g, "fd", &c->fd) ||
-        get_bool(L, g, "extended_ids", &c->extended_ids) ||
-        get_choice(L, g, "byte_order", false, orders, &order) ||
-        get_choice(L, g, "encoding", false, encodings, &enc) ||
-        get_num(L, g, "heartbeat_timeout_s", false, &c->heartbeat_timeout_s, NULL) ||
-        get_num(L, g, "reconnect_min_s", false, &c->reconnect_min_s, NULL) ||
-        get_num(L, g, "reconnect_max_s", false, &c->reconnect_max_s, NULL) ||
-        member(L, g, "interface", false, &s))
+    if (afm_cfgr_only_keys(L, g, keys) || afm_cfgr_bool(L, g, "fd", &c->fd) ||
+        afm_cfgr_bool(L, g, "extended_ids", &c->extended_ids) ||
+        afm_cfgr_choice(L, g, "byte_order", false, orders, &order) ||
+        afm_cfgr_choice(L, g, "encoding", false, encodings, &enc) ||
+        afm_cfgr_num(L, g, "heartbeat_timeout_s", false, &c->heartbeat_timeout_s, NULL) ||
+        afm_cfgr_num(L, g, "reconnect_min_s", false, &c->reconnect_min_s, NULL) ||
+        afm_cfgr_num(L, g, "reconnect_max_s", false, &c->reconnect_max_s, NULL) ||
+        afm_cfgr_member(L, g, "interface", false, &s))
         return -1;
     c->big_endian = order == 1;
     c->encoding = (afm_can_encoding)enc;
     if (s) {
         if (config_setting_type(s) != CONFIG_TYPE_STRING)
-            return fail(L, s, NULL, "expected a string (e.g. \"can0\"), got %s", type_name(s));
+            return afm_cfgr_fail(L, s, NULL, "expected a string (e.g. \"can0\"), got %s",
+                                 afm_cfgr_type(s));
         const char *v = config_setting_get_string(s);
         size_t n = strlen(v);
         if (n < 1 || n >= sizeof c->interface || strpbrk(v, " \t\n/:"))
-            return fail(L, s, NULL,
-                        "\"%s\" is not an interface name (1 to %zu characters, no "
-                        "spaces, '/' or ':')",
-                        v, sizeof c->interface - 1);
+            return afm_cfgr_fail(L, s, NULL,
+                                 "\"%s\" is not an interface name (1 to %zu characters, no "
+                                 "spaces, '/' or ':')",
+                                 v, sizeof c->interface - 1);
         memcpy(c->interface, v, n + 1);
     }
-    if (get_group(L, g, "ids", false, &s)) return -1;
+    if (afm_cfgr_group(L, g, "ids", false, &s)) return -1;
     if (s) {
-        if (only_keys(L, s, can_id_keys)) return -1;
+        if (afm_cfgr_only_keys(L, s, can_id_keys)) return -1;
         for (int i = 0; i < AFM_CAN_N_SIGNALS; i++) {
             config_setting_t *m = config_setting_get_member(s, can_id_keys[i]);
             int v;
             if (!m) continue;
-            if (as_int(L, m, &v)) return -1;
-            if (v < 0) return fail(L, m, NULL, "a frame id is >= 0 (got %d)", v);
+            if (afm_cfgr_as_int(L, m, &v)) return -1;
+            if (v < 0) return afm_cfgr_fail(L, m, NULL, "a frame id is >= 0 (got %d)", v);
             c->id[i] = (unsigned)v;
         }
     }
-    if (get_group(L, g, "scale", false, &s)) return -1;
-    if (s && (only_keys(L, s, skeys) ||
-              get_num(L, s, "frequency_hz", false, &c->scale_frequency_hz, NULL) ||
-              get_num(L, s, "amplitude_m", false, &c->scale_amplitude_m, NULL) ||
-              get_num(L, s, "phase_rad", false, &c->scale_phase_rad, NULL) ||
-              get_num(L, s, "separation_m", false, &c->scale_separation_m, NULL) ||
-              get_num(L, s, "ramp_m_s", false, &c->scale_ramp_m_s, NULL)))
+    if (afm_cfgr_group(L, g, "scale", false, &s)) return -1;
+    if (s && (afm_cfgr_only_keys(L, s, skeys) ||
+              afm_cfgr_num(L, s, "frequency_hz", false, &c->scale_frequency_hz, NULL) ||
+              afm_cfgr_num(L, s, "amplitude_m", false, &c->scale_amplitude_m, NULL) ||
+              afm_cfgr_num(L, s, "phase_rad", false, &c->scale_phase_rad, NULL) ||
+              afm_cfgr_num(L, s, "separation_m", false, &c->scale_separation_m, NULL) ||
+              afm_cfgr_num(L, s, "ramp_m_s", false, &c->scale_ramp_m_s, NULL)))
         return -1;
     return 0;
 }
 
 /* fm: optional group (issue 32); enabled defaults to true when the group is present. Ranges
  * are checked in afm_config_check.c. */
-static int load_fm(const loader *L, const config_setting_t *root, afm_cfg_fm *c) {
+static int load_fm(const afm_cfgr *L, const config_setting_t *root, afm_cfg_fm *c) {
     static const char *const keys[] = {"enabled",
                                        "phase_setpoint_deg",
                                        "pll_bandwidth_hz",
@@ -875,22 +662,22 @@ static int load_fm(const loader *L, const config_setting_t *root, afm_cfg_fm *c)
     config_setting_t *g;
     if (get_feature(L, root, "fm", &g, &c->enabled)) return -1;
     if (!g) return 0;
-    if (only_keys(L, g, keys) ||
-        get_num(L, g, "phase_setpoint_deg", false, &c->phase_setpoint_deg, NULL) ||
-        get_num(L, g, "pll_bandwidth_hz", false, &c->pll_bandwidth_hz, NULL) ||
-        get_num(L, g, "pll_kp_hz_per_deg", false, &c->pll_kp_hz_per_deg, NULL) ||
-        get_num(L, g, "pll_ki_hz_per_deg_s", false, &c->pll_ki_hz_per_deg_s, NULL) ||
-        get_num(L, g, "max_shift_hz", false, &c->max_shift_hz, NULL) ||
-        get_num(L, g, "lock_threshold_deg", false, &c->lock_threshold_deg, NULL) ||
-        get_num(L, g, "lock_time_s", false, &c->lock_time_s, NULL) ||
-        get_num(L, g, "amplitude_setpoint_m", false, &c->amplitude_setpoint_m, NULL) ||
-        get_num(L, g, "amplitude_bandwidth_hz", false, &c->amplitude_bandwidth_hz, NULL) ||
-        get_num(L, g, "amplitude_kp", false, &c->amplitude_kp, NULL) ||
-        get_num(L, g, "amplitude_ki_hz", false, &c->amplitude_ki_hz, NULL) ||
-        get_num(L, g, "drive_max_m", false, &c->drive_max_m, NULL) ||
-        get_int(L, g, "update_samples", false, &c->update_samples) ||
-        get_choice(L, g, "control", false, controls, &control) ||
-        get_choice(L, g, "drive", false, drives, &drive))
+    if (afm_cfgr_only_keys(L, g, keys) ||
+        afm_cfgr_num(L, g, "phase_setpoint_deg", false, &c->phase_setpoint_deg, NULL) ||
+        afm_cfgr_num(L, g, "pll_bandwidth_hz", false, &c->pll_bandwidth_hz, NULL) ||
+        afm_cfgr_num(L, g, "pll_kp_hz_per_deg", false, &c->pll_kp_hz_per_deg, NULL) ||
+        afm_cfgr_num(L, g, "pll_ki_hz_per_deg_s", false, &c->pll_ki_hz_per_deg_s, NULL) ||
+        afm_cfgr_num(L, g, "max_shift_hz", false, &c->max_shift_hz, NULL) ||
+        afm_cfgr_num(L, g, "lock_threshold_deg", false, &c->lock_threshold_deg, NULL) ||
+        afm_cfgr_num(L, g, "lock_time_s", false, &c->lock_time_s, NULL) ||
+        afm_cfgr_num(L, g, "amplitude_setpoint_m", false, &c->amplitude_setpoint_m, NULL) ||
+        afm_cfgr_num(L, g, "amplitude_bandwidth_hz", false, &c->amplitude_bandwidth_hz, NULL) ||
+        afm_cfgr_num(L, g, "amplitude_kp", false, &c->amplitude_kp, NULL) ||
+        afm_cfgr_num(L, g, "amplitude_ki_hz", false, &c->amplitude_ki_hz, NULL) ||
+        afm_cfgr_num(L, g, "drive_max_m", false, &c->drive_max_m, NULL) ||
+        afm_cfgr_int(L, g, "update_samples", false, &c->update_samples) ||
+        afm_cfgr_choice(L, g, "control", false, controls, &control) ||
+        afm_cfgr_choice(L, g, "drive", false, drives, &drive))
         return -1;
     c->control = (afm_fm_control)control;
     c->drive = (afm_fm_drive)drive;
@@ -899,7 +686,7 @@ static int load_fm(const loader *L, const config_setting_t *root, afm_cfg_fm *c)
 
 /* am: optional group (issue 18); enabled defaults to true when the group is present. Ranges
  * are checked in afm_config_check.c. */
-static int load_am(const loader *L, const config_setting_t *root, afm_cfg_am *c) {
+static int load_am(const afm_cfgr *L, const config_setting_t *root, afm_cfg_am *c) {
     static const char *const keys[] = {"enabled",        "control", "setpoint_ratio", "kp", "ki_hz",
                                        "z_rate_max_m_s", "z_min_m", "z_max_m",        NULL};
     static const char *const controls[] = {"none", "internal", NULL};
@@ -907,56 +694,28 @@ static int load_am(const loader *L, const config_setting_t *root, afm_cfg_am *c)
     config_setting_t *g;
     if (get_feature(L, root, "am", &g, &c->enabled)) return -1;
     if (!g) return 0;
-    if (only_keys(L, g, keys) || get_num(L, g, "setpoint_ratio", false, &c->setpoint_ratio, NULL) ||
-        get_num(L, g, "kp", false, &c->kp, NULL) ||
-        get_num(L, g, "ki_hz", false, &c->ki_hz, NULL) ||
-        get_num(L, g, "z_rate_max_m_s", false, &c->z_rate_max_m_s, NULL) ||
-        get_num(L, g, "z_min_m", false, &c->z_min_m, NULL) ||
-        get_num(L, g, "z_max_m", false, &c->z_max_m, NULL) ||
-        get_choice(L, g, "control", false, controls, &control))
+    if (afm_cfgr_only_keys(L, g, keys) ||
+        afm_cfgr_num(L, g, "setpoint_ratio", false, &c->setpoint_ratio, NULL) ||
+        afm_cfgr_num(L, g, "kp", false, &c->kp, NULL) ||
+        afm_cfgr_num(L, g, "ki_hz", false, &c->ki_hz, NULL) ||
+        afm_cfgr_num(L, g, "z_rate_max_m_s", false, &c->z_rate_max_m_s, NULL) ||
+        afm_cfgr_num(L, g, "z_min_m", false, &c->z_min_m, NULL) ||
+        afm_cfgr_num(L, g, "z_max_m", false, &c->z_max_m, NULL) ||
+        afm_cfgr_choice(L, g, "control", false, controls, &control))
         return -1;
     c->control = (afm_am_control)control;
     return 0;
 }
 
-/* Setting for a path written by afm_config_check_all ("drive.tones[1].frequency_hz"); the deepest
- * existing ancestor when the key itself is absent (a default value). */
-static const config_setting_t *resolve(const config_setting_t *root, const char *path) {
-    const config_setting_t *s = root;
-    char buf[KEY_LEN];
-    snprintf(buf, sizeof buf, "%s", path);
-    char *save = NULL;
-    for (char *tok = strtok_r(buf, ".", &save); tok; tok = strtok_r(NULL, ".", &save)) {
-        char *br = strchr(tok, '[');
-        int idx = -1;
-        if (br) {
-            idx = (int)strtol(br + 1, NULL, 10);
-            *br = '\0';
-        }
-        const config_setting_t *next = config_setting_get_member(s, tok);
-        if (!next) return s;
-        s = next;
-        if (idx >= 0) {
-            int t = config_setting_type(s);
-            if (t != CONFIG_TYPE_ARRAY && t != CONFIG_TYPE_LIST)
-                return s; /* a scalar standing for both ends, e.g. width_m = 28e-6 */
-            next = config_setting_get_elem(s, (unsigned)idx);
-            if (!next) return s;
-            s = next;
-        }
-    }
-    return s;
-}
-
 #define MAX_CONFIG_BYTES (1 << 20) /* a config is a few kB; a larger file is not one */
 
-static int load_parsed(config_t *lc, loader *L, afm_config *tmp, afm_config *cfg);
+static int load_parsed(config_t *lc, afm_cfgr *L, afm_config *tmp, afm_config *cfg);
 
 /* A config from the libconfig text in text (name: what messages call it). */
 int afm_config_parse(const char *text, const char *name, afm_config *cfg, char *err,
                      size_t errlen) {
     if (!name) name = "(string)";
-    loader L = {name, err, errlen};
+    afm_cfgr L = {name, err, errlen};
     if (err && errlen) err[0] = '\0';
     if (!text || !cfg) {
         if (err && errlen) snprintf(err, errlen, "afm_config_parse: NULL argument");
@@ -978,7 +737,7 @@ int afm_config_parse(const char *text, const char *name, afm_config *cfg, char *
 }
 
 int afm_config_load(const char *path, afm_config *cfg, char *err, size_t errlen) {
-    loader L = {path ? path : "(null)", err, errlen};
+    afm_cfgr L = {path ? path : "(null)", err, errlen};
     if (err && errlen) err[0] = '\0';
     if (!path || !cfg) {
         if (err && errlen) snprintf(err, errlen, "afm_config_load: NULL argument");
@@ -1021,7 +780,7 @@ int afm_config_load(const char *path, afm_config *cfg, char *err, size_t errlen)
 }
 
 /* The groups and the checks of a parsed file; destroys lc. */
-static int load_parsed(config_t *lc, loader *L, afm_config *tmp, afm_config *cfg) {
+static int load_parsed(config_t *lc, afm_cfgr *L, afm_config *tmp, afm_config *cfg) {
     int rc = -1;
     char *err = L->err;
     size_t errlen = L->errlen;
@@ -1029,7 +788,7 @@ static int load_parsed(config_t *lc, loader *L, afm_config *tmp, afm_config *cfg
     static const char *const keys[] = {"model",   "forces", "drive",  "sim", "obd",
                                        "thermal", "lockin", "output", "can", "sample",
                                        "fm",      "am",     NULL};
-    if (only_keys(L, root, keys) || load_model(L, root, &tmp->model) ||
+    if (afm_cfgr_only_keys(L, root, keys) || load_model(L, root, &tmp->model) ||
         load_forces(L, root, tmp->model.kind, &tmp->forces) || load_drive(L, root, &tmp->drive) ||
         load_sim(L, root, &tmp->sim) || load_chain(L, root, tmp) || load_can(L, root, &tmp->can) ||
         load_sample(L, root, &tmp->sample) || load_fm(L, root, &tmp->fm) ||
@@ -1047,13 +806,14 @@ static int load_parsed(config_t *lc, loader *L, afm_config *tmp, afm_config *cfg
             snprintf(rest, sizeof rest, "%.15s", key + sizeof xi_key - 1);
             snprintf(key, sizeof key, "model.quality_factor%s", rest);
         }
-        const config_setting_t *s = resolve(root, key);
+        const config_setting_t *s = afm_cfgr_resolve(root, key);
         char *br = strrchr(key, '[');
         /* "x.width_m[1]" resolved to a named scalar (not an array element): drop "[1]" */
         if (br && !strchr(br, '.') && config_setting_is_scalar(s) && config_setting_name(s))
             *br = '\0';
         if (err && errlen)
-            snprintf(err, errlen, "%s:%d: key '%s': %s", file_of(L, s), line_of(s), key, why);
+            snprintf(err, errlen, "%s:%d: key '%s': %s", afm_cfgr_file(L, s), afm_cfgr_line(s), key,
+                     why);
         goto out;
     }
     *cfg = *tmp;
