@@ -281,6 +281,7 @@ static void emit_status(replay_ctx *x, const afm_runner_status *st) {
     s.am_setpoint_m = st->am_setpoint_m;
     s.am_amplitude_m = st->am_amplitude_m;
     s.fm_control = st->fm_on ? "internal" : "none"; /* issue 32: as the daemon's publish.c */
+    s.fm_drive = st->fm_on ? afm_fm_drive_name((afm_fm_drive)st->fm_drive) : "none";
     s.fm_lock_state = st->fm_on ? afm_fm_lock_name((afm_fm_lock)st->fm_lock) : "";
     s.fm_frequency_hz = st->fm_frequency_hz;
     s.fm_reference_hz = st->fm_reference_hz;

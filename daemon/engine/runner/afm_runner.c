@@ -87,7 +87,8 @@ typedef struct {
     int lat_mat;
     /* the internal FM loops (fm_on) when the item was opened: after their last update before
      * its first sample (an NCO step commits the open item, so tone 0 is constant in it) */
-    int fm_lock; /* afm_fm_lock, -1 without the loops */
+    int fm_lock;  /* afm_fm_lock, -1 without the loops */
+    int fm_drive; /* afm_fm_drive, -1 without the loops */
     double fm_shift_hz, fm_phase_error_deg;
     afm_sample s[SLOT];
     /* The integrator's records (afm_rt_events.h) of samples [ev_begin, ev_end): the
@@ -345,6 +346,7 @@ static void back_item(afm_runner *r, ring_item *it) {
         r->b_fe_hz = it->drive.n > 0 ? it->drive.omega_rad_s[0] / two_pi : 0.0;
         back_oppoint(r, &it->drive);
         r->b_op.fm_lock = it->fm_lock;
+        r->b_op.fm_drive = it->fm_drive;
         r->b_op.fm_shift_hz = it->fm_shift_hz;
         r->b_op.fm_phase_error_deg = it->fm_phase_error_deg;
         if (!it->lat_on) {
@@ -559,11 +561,12 @@ static void item_lat(const afm_runner *r, ring_item *it) {
 /* The FM loops' state into a new item (issue 32: the harmonics records carry it). */
 static void item_fm(const afm_runner *r, ring_item *it) {
     if (!r->fm_on || it->drive.n < 1) {
-        it->fm_lock = -1;
+        it->fm_lock = it->fm_drive = -1;
         it->fm_shift_hz = it->fm_phase_error_deg = NAN;
         return;
     }
     it->fm_lock = (int)r->fm.lock;
+    it->fm_drive = (int)r->fm.c.drive;
     it->fm_shift_hz = it->drive.omega_rad_s[0] / two_pi - r->fm.f_center_hz;
     it->fm_phase_error_deg = r->fm.phase_error_deg;
 }
@@ -874,7 +877,7 @@ afm_runner *afm_runner_create_pipelined(const afm_config *cfg, int block_max, bo
         const afm_drive *d = afm_sim_drive(r->sim);
         r->b_fe_hz = d->n > 0 ? d->omega_rad_s[0] / two_pi : 0.0;
         back_oppoint(r, d);
-        r->b_op.fm_lock = -1;
+        r->b_op.fm_lock = r->b_op.fm_drive = -1;
         r->b_op.fm_shift_hz = r->b_op.fm_phase_error_deg = NAN;
     }
     return r;
@@ -1556,6 +1559,7 @@ void afm_runner_status_get(const afm_runner *r, afm_runner_status *st) {
     st->fm_on = r->fm_on;
     if (r->fm_on) {
         st->fm_lock = (int)r->fm.lock;
+        st->fm_drive = (int)r->fm.c.drive;
         st->fm_frequency_hz = r->fm.freq_hz;
         st->fm_reference_hz = r->fm.f_center_hz;
         st->fm_phase_error_deg = r->fm.phase_error_deg;
@@ -1563,7 +1567,7 @@ void afm_runner_status_get(const afm_runner *r, afm_runner_status *st) {
         st->fm_amplitude_m = r->fm.amplitude_m;
         st->fm_amplitude_setpoint_m = r->fm.a_set_m;
     } else {
-        st->fm_lock = 0;
+        st->fm_lock = st->fm_drive = 0;
         st->fm_frequency_hz = st->fm_reference_hz = st->fm_phase_error_deg = NAN;
         st->fm_drive_m = st->fm_amplitude_m = st->fm_amplitude_setpoint_m = NAN;
     }

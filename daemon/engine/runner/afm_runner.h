@@ -231,8 +231,9 @@ typedef struct {
     /* the internal FM loops (fm.control = "internal", issue 32) after their last update before
      * the samples' item began: lock state (afm_fm_lock; -1 without the loops), frequency shift
      * (tone 0's frequency, freq_hz[0], less the NCO's centre f_center) and PLL phase error
-     * (lock-in lag - fm.phase_setpoint_deg); NAN without the loops */
-    int fm_lock;
+     * (lock-in lag - fm.phase_setpoint_deg); NAN without the loops; the drive they run
+     * (afm_fm_drive: 0 pll, 1 self; -1 without the loops) */
+    int fm_lock, fm_drive;
     double fm_shift_hz, fm_phase_error_deg;
 } afm_runner_oppoint;
 
@@ -292,6 +293,7 @@ typedef struct {
     /* internal FM control (fm.control = "internal"; NAN and 0 without it) */
     bool fm_on;
     int fm_lock;                    /* afm_fm_lock: 0 acquiring, 1 locked, 2 lost */
+    int fm_drive;                   /* afm_fm_drive: the config's fm.drive (pll, self) */
     double fm_frequency_hz;         /* tone 0's frequency, the NCO */
     double fm_reference_hz;         /* the shift's reference: mode 1's f0 of the model */
     double fm_phase_error_deg;      /* lock-in lag - fm.phase_setpoint_deg, last update */
