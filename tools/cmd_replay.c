@@ -369,14 +369,25 @@ static void apply_event(replay_ctx *x, afm_cmd_kind kind, const afm_lcm_log_even
     }
     afm_runner_model *model = NULL;
     bool new_chain = false;
+    /* the drive in force (tone 0 as given), as the daemon follows it (cmd_in.c drive_now) */
+    const afm_drive *dr = afm_sim_drive(afm_runner_sim(x->r));
+    afm_cmd_dither now = {.n_tones = dr->n};
+    if (dr->n >= 1) {
+        now.frequency_hz[0] = dr->freq_hz[0];
+        now.amplitude_m[0] = dr->amp_m[0];
+    }
     if (afm_runner_cmd_needs_model(cfg, &c, &new_chain)) {
         static afm_config t; /* large */
         t = *cfg;
         if (afm_param_apply(&t, &c.u.param, NULL, err, sizeof err) ||
-            !(model = afm_runner_model_build(&t, new_chain, err, sizeof err))) {
+            !(model = afm_runner_model_build_at(&t, new_chain, &now, err, sizeof err))) {
             reject(x, ev->channel, err);
             return;
         }
+    } else if (afm_runner_dither_moves_a0(cfg, &now, &c) &&
+               !(model = afm_runner_model_a0(cfg, &c.u.dither, err, sizeof err))) {
+        reject(x, ev->channel, err);
+        return;
     }
     /* Outputs so far carry the old seq_applied. */
     emit_all(x, false);
