@@ -163,10 +163,10 @@ static void drive_from_config(twind *d, const afm_cfg_drive *dr) {
 }
 
 /* A model off the real-time threads, at normal priority (twind_rt_setup_build). */
-static afm_runner_model *build(twind *d, const afm_config *cfg, bool new_chain, char *err,
-                               size_t errlen) {
+static afm_runner_model *build(twind *d, const afm_config *cfg, bool new_chain,
+                               const afm_cmd_dither *drive, char *err, size_t errlen) {
     twind_rt_setup_build(d->opt.rt_priority - 10, true);
-    afm_runner_model *m = afm_runner_model_build(cfg, new_chain, err, errlen);
+    afm_runner_model *m = afm_runner_model_build_at(cfg, new_chain, drive, err, errlen);
     twind_rt_setup_build(d->opt.rt_priority - 10, false);
     return m;
 }
@@ -183,7 +183,20 @@ static int on_cmd(void *ctx, const afm_cmd *c) {
         return -1;
     }
     if (c->kind != AFM_CMD_PARAM) {
-        if (enqueue(d, c, NULL, kind)) return -1;
+        /* A dither that moves tone 0 under the internal AM Z loop brings the new free
+         * amplitude A0 (the loop's reference), computed here, off the real-time threads. */
+        afm_runner_model *m = NULL;
+        if (afm_runner_dither_moves_a0(&d->shadow, &d->drive_now, c)) {
+            twind_rt_setup_build(d->opt.rt_priority - 10, true); /* as build() */
+            m = afm_runner_model_a0(&d->shadow, &c->u.dither, err, sizeof err);
+            twind_rt_setup_build(d->opt.rt_priority - 10, false);
+            if (!m) {
+                snprintf(why, sizeof why, "dither: cannot compute the new A0: %.200s", err);
+                reject_cmd(d, c, why);
+                return -1;
+            }
+        }
+        if (enqueue(d, c, m, kind)) return -1;
         if (c->kind == AFM_CMD_DITHER) {
             follow_dither(d, &c->u.dither);
             twind_a0_request(d, &d->shadow, &d->drive_now, false); /* if tone 0 changed */
@@ -205,7 +218,7 @@ static int on_cmd(void *ctx, const afm_cmd *c) {
     afm_runner_model *m = NULL;
     bool new_chain = false;
     if (afm_runner_cmd_needs_model(&d->shadow, c, &new_chain)) {
-        m = build(d, &next, new_chain, err, sizeof err);
+        m = build(d, &next, new_chain, &d->drive_now, err, sizeof err);
         if (!m) {
             snprintf(why, sizeof why, "param: cannot build the new model: %.200s", err);
             reject_cmd(d, c, why);
@@ -256,7 +269,7 @@ static void do_reload(twind *d) {
         twind_reject(d, why);
         return;
     }
-    afm_runner_model *m = build(d, &next, true, err, sizeof err);
+    afm_runner_model *m = build(d, &next, true, NULL, err, sizeof err); /* the file's drive */
     if (m && afm_cmd_check_cfg_drive(afm_runner_model_modal(m), &next.drive, err, sizeof err))
         afm_runner_model_destroy(&m);
     if (!m) {

@@ -74,6 +74,7 @@ void twind_status_fill(twind *d, afm_io_status *o, twind_rtf_state *rs) {
     o->model_s_accurate = s.model_s_accurate;
     o->model_s_fast = s.model_s_fast;
     o->fm_control = s.st.fm_on ? "internal" : "none"; /* issue 32 */
+    o->fm_drive = s.st.fm_on ? afm_fm_drive_name((afm_fm_drive)s.st.fm_drive) : "none";
     o->fm_lock_state = s.st.fm_on ? afm_fm_lock_name((afm_fm_lock)s.st.fm_lock) : "";
     o->fm_frequency_hz = s.st.fm_frequency_hz;
     o->fm_reference_hz = s.st.fm_reference_hz;

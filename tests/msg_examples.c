@@ -47,7 +47,7 @@ int ex_status(uint8_t *b, int cap, const char *last_reject) {
     st.can_state = "off";
     st.can_last_reject = st.last_refusal = st.last_drop = st.pause_reason = "";
     st.rt_scheme = st.rt_scheme_reason = "";
-    st.fm_control = "none";
+    st.fm_control = st.fm_drive = "none";
     st.fm_lock_state = "";
     st.scan_mode = "hold"; /* issue 18 */
     st.am_control = "none";

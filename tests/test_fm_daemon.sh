@@ -76,12 +76,13 @@ done
 sleep 0.5 # settled: a few tens of lock times more
 listen --channels status --json --count 1 --timeout 3 > "$T/s1.json" 2>/dev/null
 fc=$(jget "$T/s1.json" fm_control); fl=$(jget "$T/s1.json" fm_lock_state)
+fdr=$(jget "$T/s1.json" fm_drive)
 fd=$(jget "$T/s1.json" fm_frequency_hz); sd=$(jget "$T/s1.json" fm_frequency_shift_hz)
 ref=$(jget "$T/s1.json" fm_reference_hz); pe=$(jget "$T/s1.json" fm_phase_error_deg)
 dr=$(jget "$T/s1.json" fm_drive_amplitude_m)
-[ "$st" = locked ] && [ "$fc" = internal ] && [ "$fl" = locked ] &&
-  ok "internal FM: status fm_control internal, locked (phase error $pe deg, drive $dr m, reference $ref Hz)" ||
-  bad "internal FM: fm_control '$fc', lock '$fl' ($(tail -2 "$T/d1.err"))"
+[ "$st" = locked ] && [ "$fc" = internal ] && [ "$fl" = locked ] && [ "$fdr" = pll ] &&
+  ok "internal FM: status fm_control internal, fm_drive pll, locked (phase error $pe deg, drive $dr m, reference $ref Hz)" ||
+  bad "internal FM: fm_control '$fc', fm_drive '$fdr', lock '$fl' ($(tail -2 "$T/d1.err"))"
 # Tolerance 0.01 Hz (6e-5 of the shift): the same integrator, loops and lock-in as approach;
 # what differs is the NCO's 1 mHz resolution, the status being one update against a window's
 # mean, and the reference (mode 1's f0 against the frequency locked at Z 1 um: 3e-5 Hz here).
@@ -101,6 +102,7 @@ ref, sd = float(sys.argv[2]), float(sys.argv[3])
 assert len(h) >= 10, len(h)
 for r in h:
     assert r["fm_lock_state"] == "locked", r.get("fm_lock_state")
+    assert r["fm_drive"] == "pll", r.get("fm_drive")
     f0 = r["tones"][0]["frequency_hz"]
     assert r["fe_hz"] == f0, (r["fe_hz"], f0)
     assert abs(r["fm_frequency_shift_hz"] - (f0 - ref)) < 1e-6, (r["fm_frequency_shift_hz"], f0 - ref)
@@ -108,7 +110,7 @@ for r in h:
     assert abs(r["fm_phase_error_deg"]) < 0.1, r["fm_phase_error_deg"]
 print("%d records, shift %.4f Hz, phase error %.2e deg" % (len(h), h[-1]["fm_frequency_shift_hz"], h[-1]["fm_phase_error_deg"]))
 PY
-then ok "harmonics records under internal FM: locked, shift = tone 0 - reference = the status's within 0.01 Hz"
+then ok "harmonics records under internal FM: locked, fm_drive pll, shift = tone 0 - reference = the status's within 0.01 Hz"
 else bad "harmonics records under internal FM: $(head -c 400 "$T/h1.jsonl")"; fi
 # a dither command while the loops own tone 0: refused by the twin with the reason (status
 # `refused`: valid, but not taken), counted, nothing changed
@@ -211,12 +213,14 @@ last = w[-1]
 rtf = [d['realtime_factor_1s'] for d in w]
 res = last['resyncs'] - w[0]['resyncs']
 acc = (last['applied'], last['received'], last['rejected'], last['refused'], last['dropped'])
-okc = acc[0] == sent and acc[1] == sent and acc[2:] == (0, 0, 0)
+okc = acc[0] == sent and acc[1] == sent and acc[2:] == (0, 0, 0) and \
+    (last['fm_control'], last['fm_drive']) == ('none', 'none')
 okr = res == 0 and min(rtf) >= 0.99
 if not okr and sys.argv[3] != "1":
     okr = None
-print("%s applied %d of %d sent (received %d, rejected %d, refused %d, dropped %d)" %
-      ("ok  " if okc else "FAIL", acc[0], sent, acc[1], acc[2], acc[3], acc[4]))
+print("%s applied %d of %d sent (received %d, rejected %d, refused %d, dropped %d; fm_control "
+      "%s, fm_drive %s)" % ("ok  " if okc else "FAIL", acc[0], sent, acc[1], acc[2], acc[3],
+      acc[4], last['fm_control'], last['fm_drive']))
 tag = {True: "ok  ", False: "FAIL", None: "info"}[okr]
 print("%s under the stream (%d statuses, %.1f s of model time): resyncs %d, realtime_factor_1s min %.4f" %
       (tag, len(w), w[-1]['model_time_s'] - w[0]['model_time_s'], res, min(rtf)))

@@ -87,11 +87,11 @@ by_t = {d["model_time_s"]: d for d in L if d["model_time_s"] > 0.1}
 v = [d["fm_frequency_shift_hz"] for d in by_t.values()]
 last = L[-1]
 assert len(v) >= 20, "%d statuses after 0.1 s of model time" % len(v)
-assert last["fm_control"] == "internal" and last["fm_lock_state"] == "locked", \
-    (last["fm_control"], last["fm_lock_state"])
+assert last["fm_control"] == "internal" and last["fm_lock_state"] == "locked" and \
+    last["fm_drive"] == "self", (last["fm_control"], last["fm_lock_state"], last["fm_drive"])
 assert all(d["fm_lock_state"] == "locked" for d in by_t.values())
 m = statistics.mean(v)
-print("%d statuses to %.2f s of model time: locked, shift %.5f Hz (sd %.4f), approach %.5f Hz, "
+print("%d statuses to %.2f s of model time: locked, fm_drive self, shift %.5f Hz (sd %.4f), approach %.5f Hz, "
       "difference %.1e Hz; phase error %.1e deg, drive %.4e m, reference %.3f Hz" %
       (len(v), last["model_time_s"], m, statistics.pstdev(v), sa, m - sa,
        last["fm_phase_error_deg"], last["fm_drive_amplitude_m"], last["fm_reference_hz"]))
@@ -107,13 +107,14 @@ ref, sa = float(sys.argv[2]), float(sys.argv[3])
 assert len(h) >= 20, len(h)
 for r in h:
     assert r["fm_lock_state"] == "locked", r.get("fm_lock_state")
+    assert r["fm_drive"] == "self", r.get("fm_drive")
     f0 = r["tones"][0]["frequency_hz"]
     assert r["fe_hz"] == f0, (r["fe_hz"], f0)
     assert abs(r["fm_frequency_shift_hz"] - (f0 - ref)) < 1e-6, (r["fm_frequency_shift_hz"], f0 - ref)
     # one update's count: 5 sd of its scatter (0.004 Hz)
     assert abs(r["fm_frequency_shift_hz"] - sa) < 0.02, (r["fm_frequency_shift_hz"], sa)
     assert abs(r["fm_phase_error_deg"]) < 0.1, r["fm_phase_error_deg"]
-print("%d records, shift %.4f Hz, phase error %.1e deg" %
+print("%d records, fm_drive self, shift %.4f Hz, phase error %.1e deg" %
       (len(h), h[-1]["fm_frequency_shift_hz"], h[-1]["fm_phase_error_deg"]))
 PY
 then ok "harmonics records under the self drive: $(cat "$T/h.out"); shift = tone 0 - reference, within 0.02 Hz of approach's"

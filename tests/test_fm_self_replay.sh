@@ -78,21 +78,21 @@ out = []
 def check(cond, msg):
     out.append(("ok   " if cond else "FAIL ") + msg)
 s = st[-1]
-check(s["fm_control"] == "internal" and s["fm_lock_state"] == "locked" and
-      abs(s["fm_frequency_shift_hz"] - sa) <= 0.02,
-      "replay, self drive: status %s, %s, shift %.4f Hz = approach's %.4f within 0.02 Hz "
-      "(phase error %.2e deg, drive %.4g m)" % (s["fm_control"], s["fm_lock_state"],
+check(s["fm_control"] == "internal" and s["fm_drive"] == "self" and
+      s["fm_lock_state"] == "locked" and abs(s["fm_frequency_shift_hz"] - sa) <= 0.02,
+      "replay, self drive: status %s, fm_drive %s, %s, shift %.4f Hz = approach's %.4f within 0.02 Hz "
+      "(phase error %.2e deg, drive %.4g m)" % (s["fm_control"], s["fm_drive"], s["fm_lock_state"],
       s["fm_frequency_shift_hz"], sa, s["fm_phase_error_deg"], s["fm_drive_amplitude_m"]))
 t_end = h[-1]["t_s"] if h else 0
 w = [r for r in h if r["t_s"] >= t_end - 0.02]
 mean = sum(r["fm_frequency_shift_hz"] for r in w) / len(w) if w else float("nan")
 spread = max(abs(r["fm_frequency_shift_hz"] - mean) for r in w) if w else float("nan")
-lk = all(r["fm_lock_state"] == "locked" for r in w)
+lk = all(r["fm_lock_state"] == "locked" and r["fm_drive"] == "self" for r in w)
 pe = max(abs(r["fm_phase_error_deg"]) for r in w) if w else float("nan")
 tone = all(abs(r["fm_frequency_shift_hz"] - (r["tones"][0]["frequency_hz"] -
            s["fm_reference_hz"])) < 1e-6 for r in w)
 check(len(w) >= 100 and lk and tone and abs(mean - sa) <= 0.01 and pe < 0.05,
-      "harmonics records, last 20 ms: %d, locked %s, shift = tone 0 - reference %s, mean "
+      "harmonics records, last 20 ms: %d, locked (fm_drive self) %s, shift = tone 0 - reference %s, mean "
       "%.4f Hz (+-%.4f) = approach's within 0.01 Hz, |phase error| <= %.2e deg (< 0.05)" %
       (len(w), lk, tone, mean, spread, pe))
 updates = int(s["model_time_s"] * rate) // upd

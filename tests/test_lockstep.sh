@@ -80,14 +80,16 @@ S scan raster --x 150nm --size-x 100nm --pixels 16 --line-rate 50 --seq 42 --log
 S tick --n 70300 --seq 43 --log "$SC" --log-time 0.2 --config "$T/step.conf"
 S scan move --x 180nm --y 5nm --speed 1e-5 --seq 44 --log "$SC" --log-time 0.3 --config "$T/step.conf"
 S tick --n 42180 --seq 45 --log "$SC" --log-time 0.4 --config "$T/step.conf"
-# scan_lockstep CONF WHAT: a lockstep daemon on CONF runs $SC; 3 of 3 completions identical
+# scan_lockstep CONF WHAT [LOG N]: a lockstep daemon on CONF runs LOG ($SC); N (3) of N
+# completions identical
 scan_lockstep() {
+  local log=${3:-$SC} n=${4:-3}
   "$D" --config "$1" --mode lockstep --harmonics-every 10 --quiet 2> "$T/d-$2.err" &
   DPID=$!
-  out=$("$A" lockstep --in "$SC" --config "$1" --check --harmonics-every 10 2>&1); rc=$?
+  out=$("$A" lockstep --in "$log" --config "$1" --check --harmonics-every 10 2>&1); rc=$?
   echo "$out" | sed 's/^/     /'
-  [ $rc -eq 0 ] && echo "$out" | grep -q "3 of 3 completions identical" \
-    && ok "$2 in lockstep: 3 completions identical to replay" \
+  [ $rc -eq 0 ] && echo "$out" | grep -q "$n of $n completions identical" \
+    && ok "$2 in lockstep: $n completions identical to replay" \
     || bad "$2 in lockstep (exit $rc)"
   kill -TERM "$DPID"; wait "$DPID"; rc=$?; DPID=""
   [ $rc -eq 0 ] && ok "lockstep daemon ($2) exited 0" || bad "daemon ($2) exit $rc"
@@ -96,6 +98,29 @@ scan_lockstep "$T/step.conf" "scan commands"
 { cat tests/step-3nm.conf
   echo 'am = { control = "internal"; setpoint_ratio = 0.8; ki_hz = 2000.0; };'; } > "$T/am.conf"
 scan_lockstep "$T/am.conf" "internal Z loop"
+# The internal Z loop under the commands that move its reference or its lock-in: a dither
+# that moves tone 0 (its A0 computed off the real-time thread by the daemon and by replay
+# alike), a tip-sample force param (no new A0), a squeeze-film and a damping param (new A0
+# at the drive in force), a reset (the lock-in starts over), a pause with a step.
+AM="$T/am.log"
+sed 's/radius_m = 1e-8;/radius_m = 1e-8; squeeze = { model = "linear"; p1_n_s_m2 = 0.0; p2_n_s_m = 1e-9; };/' \
+  "$T/am.conf" > "$T/amsq.conf"
+C() { S "$@" --log "$AM" --config "$T/amsq.conf"; }
+C tick --n 14060 --seq 51 --log-time 0
+C dither --freq 300e3 --amp 1.5e-10 --seq 52 --log-time 0.1
+C tick --n 21090 --seq 53 --log-time 0.2
+C param forces.vdw_contact.hamaker_j=2e-19 --seq 54 --log-time 0.3
+C tick --n 7030 --seq 55 --log-time 0.4
+C param forces.squeeze.p2_n_s_m=2e-8 --seq 56 --log-time 0.5
+C param 'model.quality_factor[0]=120' --seq 57 --log-time 0.55
+C tick --n 10000 --seq 58 --log-time 0.6
+C control reset --seq 59 --log-time 0.7
+C tick --n 7000 --seq 60 --log-time 0.8
+C control pause --seq 61 --log-time 0.85
+C control step --n 3000 --seq 62 --log-time 0.9
+C control run --seq 63 --log-time 0.95
+C tick --n 2000 --seq 64 --log-time 1.0
+scan_lockstep "$T/amsq.conf" "internal Z loop under dither, force, squeeze, damping, reset, step" "$AM" 7
 for b in 1024 700; do
   "$A" replay --config "$T/am.conf" --in "$SC" --out "$T/r$b.log" --lockstep --block "$b" \
     --harmonics-every 10 --channels harmonics --quiet || bad "replay --block $b"

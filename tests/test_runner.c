@@ -763,6 +763,110 @@ static void test_am_force_a0(const afm_config *cfg0) {
     afm_runner_destroy(&r);
 }
 
+/* One param command: name[index] = v. */
+static afm_cmd param_cmd(const char *name, double v, int64_t seq) {
+    char err[AFM_ERR_LEN];
+    int ent = 0, idx = -1;
+    afm_param_lookup(name, &ent, &idx, err, sizeof err);
+    return (afm_cmd){.kind = AFM_CMD_PARAM,
+                     .seq = seq,
+                     .u.param = {.n = 1, .entry = {ent}, .index = {idx}, .value = {v}}};
+}
+
+/* A0 of cfg at tone 0 (fe, ae). */
+static double a0_at(const afm_config *cfg, double fe, double ae) {
+    static afm_config t; /* large */
+    char err[AFM_ERR_LEN];
+    afm_a0 a0;
+    t = *cfg;
+    t.drive.tones[0].frequency_hz = fe;
+    t.drive.tones[0].amplitude_m = ae;
+    return afm_a0_compute(&t, &a0, err, sizeof err) ? NAN : a0.amplitude_m;
+}
+
+/* am.control = "internal" (issue 18): what moves the free amplitude A0 sets the Z loop's
+ * reference again, what does not leaves it. A0 is the amplitude far from the sample: a
+ * tip-sample force constant (the Hamaker constant here) leaves it bit for bit (afm_a0.h
+ * switches the gap-dependent forces off), so no model is asked for and the set-point stays;
+ * a dither that moves tone 0 (amplitude x1.5) comes with afm_runner_model_a0 and the
+ * set-point becomes ratio x A0 at the new drive exactly (~x1.5: linear far from the
+ * sample); a damping change after it brings the new model's A0 at the drive in force
+ * (afm_runner_model_build_at), not at the config's tone 0 (which would be 1/1.5 of it). */
+static void test_am_drive_a0(const afm_config *cfg0) {
+    char err[AFM_ERR_LEN];
+    static afm_config cfg, next;
+    cfg = *cfg0;
+    cfg.am.enabled = true;
+    cfg.am.control = AFM_AM_CONTROL_INTERNAL;
+    const double fe = cfg.drive.tones[0].frequency_hz, ae = cfg.drive.tones[0].amplitude_m;
+    afm_runner *r = afm_runner_create(&cfg, 4096, false, err, sizeof err);
+    if (!r) {
+        check_true(false, err);
+        return;
+    }
+    afm_runner_status st0, st1, st2, st3;
+    afm_runner_status_get(r, &st0);
+    /* a tip-sample force constant */
+    afm_cmd h = param_cmd("forces.vdw_contact.hamaker_j", 3e-19, 3);
+    bool nc = true;
+    next = cfg;
+    afm_param_apply(&next, &h.u.param, NULL, err, sizeof err);
+    const double a0_h = a0_at(&next, fe, ae), a0_c = a0_at(&cfg, fe, ae);
+    printf("  A0 %.9f nm; with the Hamaker constant 3e-19 J %.9f nm\n", a0_c * 1e9, a0_h * 1e9);
+    check_true(a0_h == a0_c,
+               "a tip-sample force constant leaves A0 bit for bit (far from the sample)");
+    check_true(afm_runner_cmd_needs_model(&cfg, &h, &nc) == 0 &&
+                   afm_runner_apply(r, &h, NULL, err, sizeof err) == 0,
+               "am.control internal: a Hamaker param needs no model (no A0 to recompute)");
+    afm_runner_status_get(r, &st1);
+    check_true(st1.am_setpoint_m == st0.am_setpoint_m, "... and the set-point stays");
+    /* a dither that moves tone 0 */
+    afm_cmd_dither now = {.n_tones = 1, .frequency_hz = {fe}, .amplitude_m = {ae}};
+    afm_cmd d = {.kind = AFM_CMD_DITHER,
+                 .seq = 4,
+                 .u.dither = {.n_tones = 1, .frequency_hz = {fe}, .amplitude_m = {1.5 * ae}}};
+    afm_cmd same = d;
+    same.u.dither.amplitude_m[0] = ae;
+    check_true(afm_runner_dither_moves_a0(&cfg, &now, &d) &&
+                   !afm_runner_dither_moves_a0(&cfg, &now, &same) &&
+                   !afm_runner_dither_moves_a0(cfg0, &now, &d),
+               "a dither moves A0 when tone 0 changes (and the loop is internal), not otherwise");
+    afm_runner_model *m = afm_runner_model_a0(&cfg, &d.u.dither, err, sizeof err);
+    bool ok = m && afm_runner_apply(r, &d, &m, err, sizeof err) == 0;
+    afm_runner_model_destroy(&m);
+    afm_runner_status_get(r, &st2);
+    const double a0_d = a0_at(&cfg, fe, 1.5 * ae), want_d = cfg.am.setpoint_ratio * a0_d;
+    printf("  dither tone 0 x1.5: set-point %.6f -> %.6f nm (ratio x A0 %.6f nm; x%.6f)\n",
+           st1.am_setpoint_m * 1e9, st2.am_setpoint_m * 1e9, want_d * 1e9,
+           st2.am_setpoint_m / st1.am_setpoint_m);
+    check_true(
+        ok && st2.am_setpoint_m == want_d &&
+            fabs(st2.am_setpoint_m / st1.am_setpoint_m - 1.5) < 1e-3,
+        "a dither of tone 0: the set-point is ratio x A0 at the new drive (x1.5 within 1e-3)");
+    /* damping after the dither: the new model's A0 at the drive in force */
+    afm_cmd q = param_cmd("model.damping_ratio[0]", 0.0015, 5);
+    next = cfg;
+    afm_param_apply(&next, &q.u.param, NULL, err, sizeof err);
+    const afm_drive *dr = afm_sim_drive(afm_runner_sim(r));
+    afm_cmd_dither in_force = {
+        .n_tones = 1, .frequency_hz = {dr->freq_hz[0]}, .amplitude_m = {dr->amp_m[0]}};
+    m = afm_runner_cmd_needs_model(&cfg, &q, &nc) == 1
+            ? afm_runner_model_build_at(&next, nc, &in_force, err, sizeof err)
+            : NULL;
+    ok = m && afm_runner_apply(r, &q, &m, err, sizeof err) == 0;
+    afm_runner_model_destroy(&m);
+    afm_runner_status_get(r, &st3);
+    const double want_q = cfg.am.setpoint_ratio * a0_at(&next, fe, 1.5 * ae);
+    printf("  damping ratio 0.0015 after it: set-point %.6f nm (ratio x A0 at the drive in force "
+           "%.6f nm; at the config's tone 0 it would be %.6f nm)\n",
+           st3.am_setpoint_m * 1e9, want_q * 1e9,
+           cfg.am.setpoint_ratio * a0_at(&next, fe, ae) * 1e9);
+    check_true(
+        ok && st3.am_setpoint_m == want_q && fabs(st3.am_setpoint_m / st2.am_setpoint_m - 1) > 0.05,
+        "a damping change: the set-point is ratio x the new model's A0 at the drive in force");
+    afm_runner_destroy(&r);
+}
+
 /* The period metrics of cfg's twin run directly: a simulator (with the record ring when ev)
  * and a chain of its own attached to it, fed each sample's record (afm_sim_events_at, as the
  * offline tools feed afm_cycle_push_ev, tools/cmd_approach.c) by afm_chain_push_ev, or none
@@ -998,6 +1102,7 @@ int main(void) {
     test_phase_origin(&cfg);
     test_scan_slices(&cfg);
     test_am_force_a0(&cfg);
+    test_am_drive_a0(&cfg);
     test_step_events();
     return check_done();
 }

@@ -21,7 +21,9 @@
 #      loop holds the amplitude at the set-point (|error| < 1 % of it) with separation_m its
 #      Z; a setpoint command is refused (send --wait: exit 1, the reason names am.control);
 #  (e) the daemon rasters the step (send scan raster --wait): its Z image (harmonics
-#      records) reproduces the step within 2 % and equals the offline scan within 0.05 nm.
+#      records) reproduces the step within 2 % and equals the offline scan within 0.05 nm;
+#  (f) the set-point (am.setpoint_ratio x A0) follows what moves the free amplitude: a
+#      dither of tone 0 and a damping change do, a tip-sample force constant does not.
 # Prints "N passed, N failed".
 BUILD=${1:-build}
 cd "$(dirname "$0")/.." || exit 1
@@ -199,6 +201,34 @@ done < "$T/e.out"
 # (e)'s 0.05 nm: (c)'s reading, plus the raster's start, which the daemon takes at the block
 # the command arrives in rather than on a 1024-sample grid: within 64 samples of the
 # position grid (0.014 nm of x, 3 pm of Z over the edge).
+# ---- (f) what moves the free amplitude A0 moves the set-point -----------------------------
+# A0 is the FREE amplitude (far from the sample): tone 0 of the drive and the damping set it,
+# a tip-sample force constant does not. Each command is sent with --wait; the status's
+# am_setpoint_m after it, against the one before: a dither of tone 0 x1.2 -> x1.2 (a linear
+# lever far from the sample: within 1e-6), the Hamaker constant x2 -> the same bits, Q 100 ->
+# 120 at resonance -> x1.2 (|H| at f0 goes as sqrt(Q^2 + 1): 1.2 within 1e-4; 1e-3 for
+# the lock-in-free A0's settling). Before the fix the dither and the damping change kept the
+# old set-point: ratio 1.
+sp() { status "$T/f.json"; jget "$T/f.json" am_setpoint_m; }
+fsend() { "$A" send "$@" "${C[@]}" --wait > "$T/f.out" 2>&1 || bad "(f) send $*: $(head -2 "$T/f.out")"; }
+s0=$(sp)
+fsend dither --freq 300e3 --amp 1.2e-10 --seq 8
+s1=$(sp)
+fsend param forces.vdw_contact.hamaker_j=2e-19 --seq 9
+s2=$(sp)
+fsend param 'model.quality_factor[0]=120' --seq 10
+s3=$(sp)
+python3 - "$s0" "$s1" "$s2" "$s3" > "$T/f.res" <<'EOF2'
+import sys
+s0, s1, s2, s3 = (float(v) if v else float('nan') for v in sys.argv[1:5])
+good = abs(s1 / s0 - 1.2) <= 1e-6 and s2 == s1 and abs(s3 / s2 - 1.2) <= 1e-3
+print("ok" if good else "FAIL", "set-point %.6f nm; dither x1.2: %.6f nm (x%.7f); Hamaker x2: %.6f nm "
+      "(%s); Q 100 -> 120: %.6f nm (x%.6f)" % (s0 * 1e9, s1 * 1e9, s1 / s0, s2 * 1e9,
+      "same" if s2 == s1 else "MOVED", s3 * 1e9, s3 / s2))
+EOF2
+read -r tag rest < "$T/f.res"
+[ "$tag" = ok ] && ok "(f) A0 follows the drive and the damping, not the tip forces: $rest" ||
+  bad "(f) A0 and the set-point: $rest"
 kill -TERM "$DPID"; wait "$DPID"; drc=$?; DPID=""
 [ "$drc" -eq 0 ] && ok "daemon stopped cleanly" || bad "daemon exit $drc"
 echo "$pass passed, $fail failed"

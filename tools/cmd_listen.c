@@ -205,6 +205,11 @@ static const char *fm_lock_name(int s) {
     return s == 0 ? "acquiring" : s == 1 ? "locked" : s == 2 ? "lost" : "?";
 }
 
+/* harmonics_t.fm_drive (afm_fm_drive) as the status's fm_drive says it */
+static const char *fm_drive_name(int d) {
+    return d == 0 ? "pll" : d == 1 ? "self" : "?";
+}
+
 static void json_oppoint(cJSON *o, double z_m, int n, const double *f_hz, const double *a_m) {
     json_num(o, "separation_m", z_m);
     cJSON *t = cJSON_AddArrayToObject(o, "tones");
@@ -292,6 +297,7 @@ static void print_harmonics(const listen_ctx *c, const char *channel,
         json_int(o, "material", m->material);
         if (m->fm_lock_state >= 0) { /* issue 32: the internal FM loops */
             json_str(o, "fm_lock_state", fm_lock_name(m->fm_lock_state));
+            json_str(o, "fm_drive", fm_drive_name(m->fm_drive));
             json_num(o, "fm_frequency_shift_hz", m->fm_frequency_shift_hz);
             json_num(o, "fm_phase_error_deg", m->fm_phase_error_deg);
         }
@@ -312,8 +318,8 @@ static void print_harmonics(const listen_ctx *c, const char *channel,
         printf("; tip (%.6g, %.6g) nm over z_s %.5g nm, material %d", m->tip_x_m * 1e9,
                m->tip_y_m * 1e9, m->true_height_m * 1e9, m->material); /* issue 18 */
     if (m->fm_lock_state >= 0)
-        printf("; FM %s, shift %.6g Hz, phase error %.4g deg", fm_lock_name(m->fm_lock_state),
-               m->fm_frequency_shift_hz, m->fm_phase_error_deg);
+        printf("; FM (%s) %s, shift %.6g Hz, phase error %.4g deg", fm_drive_name(m->fm_drive),
+               fm_lock_name(m->fm_lock_state), m->fm_frequency_shift_hz, m->fm_phase_error_deg);
     printf("\n");
 }
 
@@ -362,6 +368,7 @@ static void print_status(const listen_ctx *c, const char *channel, const afmtwin
         json_num(o, "model_s_accurate", m->model_s_accurate);
         json_num(o, "model_s_fast", m->model_s_fast);
         json_str(o, "fm_control", m->fm_control); /* issue 32 */
+        json_str(o, "fm_drive", m->fm_drive);
         json_str(o, "fm_lock_state", m->fm_lock_state);
         json_num(o, "fm_frequency_hz", m->fm_frequency_hz);
         json_num(o, "fm_reference_hz", m->fm_reference_hz);
@@ -423,12 +430,14 @@ static void print_status(const listen_ctx *c, const char *channel, const afmtwin
     if (m->rt_scheme && m->rt_scheme[0]) /* one line per message: the reason is in --json */
         printf(" | rt scheme %s, %lld handovers", m->rt_scheme, (long long)m->scheme_handovers);
     if (m->fm_control && strcmp(m->fm_control, "internal") == 0) {
-        char fl[SHOW_LEN];
+        char fl[SHOW_LEN], fd[SHOW_LEN];
         show(fl, m->fm_lock_state);
-        printf(" | FM %s: shift %.4f Hz (f %.6f Hz, ref %.6f Hz) phase error %.3f deg drive %.4g "
-               "pm A %.4g nm",
-               fl, m->fm_frequency_shift_hz, m->fm_frequency_hz, m->fm_reference_hz,
-               m->fm_phase_error_deg, m->fm_drive_amplitude_m * 1e12, m->fm_amplitude_m * 1e9);
+        show(fd, m->fm_drive);
+        printf(
+            " | FM (%s) %s: shift %.4f Hz (f %.6f Hz, ref %.6f Hz) phase error %.3f deg drive %.4g "
+            "pm A %.4g nm",
+            fd, fl, m->fm_frequency_shift_hz, m->fm_frequency_hz, m->fm_reference_hz,
+            m->fm_phase_error_deg, m->fm_drive_amplitude_m * 1e12, m->fm_amplitude_m * 1e9);
     }
     if (m->am_control && strcmp(m->am_control, "internal") == 0) /* issue 18 */
         printf(" | AM Z loop: Z %.5g nm error %.4g nm (set-point %.4g nm, A %.4g nm)",

@@ -281,6 +281,7 @@ static void emit_status(replay_ctx *x, const afm_runner_status *st) {
     s.am_setpoint_m = st->am_setpoint_m;
     s.am_amplitude_m = st->am_amplitude_m;
     s.fm_control = st->fm_on ? "internal" : "none"; /* issue 32: as the daemon's publish.c */
+    s.fm_drive = st->fm_on ? afm_fm_drive_name((afm_fm_drive)st->fm_drive) : "none";
     s.fm_lock_state = st->fm_on ? afm_fm_lock_name((afm_fm_lock)st->fm_lock) : "";
     s.fm_frequency_hz = st->fm_frequency_hz;
     s.fm_reference_hz = st->fm_reference_hz;
@@ -369,14 +370,25 @@ static void apply_event(replay_ctx *x, afm_cmd_kind kind, const afm_lcm_log_even
     }
     afm_runner_model *model = NULL;
     bool new_chain = false;
+    /* the drive in force (tone 0 as given), as the daemon follows it (cmd_in.c drive_now) */
+    const afm_drive *dr = afm_sim_drive(afm_runner_sim(x->r));
+    afm_cmd_dither now = {.n_tones = dr->n};
+    if (dr->n >= 1) {
+        now.frequency_hz[0] = dr->freq_hz[0];
+        now.amplitude_m[0] = dr->amp_m[0];
+    }
     if (afm_runner_cmd_needs_model(cfg, &c, &new_chain)) {
         static afm_config t; /* large */
         t = *cfg;
         if (afm_param_apply(&t, &c.u.param, NULL, err, sizeof err) ||
-            !(model = afm_runner_model_build(&t, new_chain, err, sizeof err))) {
+            !(model = afm_runner_model_build_at(&t, new_chain, &now, err, sizeof err))) {
             reject(x, ev->channel, err);
             return;
         }
+    } else if (afm_runner_dither_moves_a0(cfg, &now, &c) &&
+               !(model = afm_runner_model_a0(cfg, &c.u.dither, err, sizeof err))) {
+        reject(x, ev->channel, err);
+        return;
     }
     /* Outputs so far carry the old seq_applied. */
     emit_all(x, false);

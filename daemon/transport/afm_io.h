@@ -99,8 +99,10 @@ typedef struct {
     char rt_scheme_reason[AFM_IO_REASON_LEN];
     int64_t scheme_handovers;
     double model_s_accurate, model_s_fast;
-    /* Issue 32: internal FM control (fm_control "none", fm_lock_state "", NaN without it). */
+    /* Issue 32: internal FM control (fm_control and fm_drive "none", fm_lock_state "", NaN
+     * without it); fm_drive "pll" or "self", the config's fm.drive. */
     const char *fm_control;
+    const char *fm_drive;
     const char *fm_lock_state;
     double fm_frequency_hz, fm_reference_hz, fm_frequency_shift_hz, fm_phase_error_deg;
     double fm_drive_amplitude_m, fm_amplitude_m, fm_amplitude_setpoint_m;

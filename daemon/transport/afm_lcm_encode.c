@@ -74,6 +74,7 @@ void afm_lcm_harmonics_msg(const afm_io_harmonics *h, afm_lcm_harm_buf *b, afmtw
         .true_height_m = h->op.true_height_m,
         .material = (int8_t)h->op.material,
         .fm_lock_state = (int8_t)h->op.fm_lock, /* issue 32 */
+        .fm_drive = (int8_t)h->op.fm_drive,
         .fm_frequency_shift_hz = h->op.fm_shift_hz,
         .fm_phase_error_deg = h->op.fm_phase_error_deg,
     };
@@ -126,6 +127,7 @@ void afm_lcm_status_msg(const afm_io_status *s, afmtwin_status_t *m) {
         .model_s_accurate = s->model_s_accurate,
         .model_s_fast = s->model_s_fast,
         .fm_control = (char *)(s->fm_control ? s->fm_control : "none"), /* issue 32 */
+        .fm_drive = (char *)(s->fm_drive ? s->fm_drive : "none"),
         .fm_lock_state = (char *)(s->fm_lock_state ? s->fm_lock_state : ""),
         .fm_frequency_hz = s->fm_frequency_hz,
         .fm_reference_hz = s->fm_reference_hz,

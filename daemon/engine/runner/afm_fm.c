@@ -9,6 +9,10 @@
 #define PI 3.14159265358979323846
 #define ACQUIRE_LOCK_TIMES 20.0 /* never locked after this many lock times: LOST */
 
+const char *afm_fm_drive_name(afm_fm_drive d) {
+    return d == AFM_FM_DRIVE_SELF ? "self" : "pll";
+}
+
 const char *afm_fm_lock_name(afm_fm_lock l) {
     switch (l) {
     case AFM_FM_LOCKED:

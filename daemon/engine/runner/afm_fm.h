@@ -74,6 +74,9 @@ typedef enum { AFM_FM_ACQUIRING = 0, AFM_FM_LOCKED = 1, AFM_FM_LOST = 2 } afm_fm
 /* "acquiring", "locked", "lost". */
 const char *afm_fm_lock_name(afm_fm_lock l);
 
+/* The config's fm.drive as the status says it: "pll", "self". */
+const char *afm_fm_drive_name(afm_fm_drive d);
+
 /* What the derived gains are designed for: mode 1 of the model, free. */
 typedef struct {
     double f0_hz; /* mode 1's resonance */

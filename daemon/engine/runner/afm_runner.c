@@ -87,7 +87,8 @@ typedef struct {
     int lat_mat;
     /* the internal FM loops (fm_on) when the item was opened: after their last update before
      * its first sample (an NCO step commits the open item, so tone 0 is constant in it) */
-    int fm_lock; /* afm_fm_lock, -1 without the loops */
+    int fm_lock;  /* afm_fm_lock, -1 without the loops */
+    int fm_drive; /* afm_fm_drive, -1 without the loops */
     double fm_shift_hz, fm_phase_error_deg;
     afm_sample s[SLOT];
     /* The integrator's records (afm_rt_events.h) of samples [ev_begin, ev_end): the
@@ -223,8 +224,43 @@ void afm_runner_model_destroy(afm_runner_model **mp) {
     *mp = NULL;
 }
 
+/* cfg's A0 config with tone 0 of the drive in force (drive NULL: cfg's own tone 0). */
+static void a0_config(afm_config *out, const afm_config *cfg, const afm_cmd_dither *drive) {
+    *out = *cfg;
+    if (drive && drive->n_tones >= 1 && out->drive.n_tones >= 1) {
+        out->drive.tones[0].frequency_hz = drive->frequency_hz[0];
+        out->drive.tones[0].amplitude_m = drive->amplitude_m[0];
+    }
+}
+
 afm_runner_model *afm_runner_model_build(const afm_config *cfg, bool new_chain, char *err,
                                          size_t errlen) {
+    return afm_runner_model_build_at(cfg, new_chain, NULL, err, errlen);
+}
+
+afm_runner_model *afm_runner_model_a0(const afm_config *cfg, const afm_cmd_dither *drive, char *err,
+                                      size_t errlen) {
+    afm_runner_model *m = calloc(1, sizeof *m);
+    if (!m) {
+        afm_err_set(err, errlen, "out of memory");
+        return NULL;
+    }
+    m->cfg = *cfg;
+    afm_config tc;
+    a0_config(&tc, cfg, drive);
+    if (cfg->sample.enabled) /* the forces of material 0, as the running twin's A0 */
+        afm_surface_material_forces(&cfg->sample, &cfg->forces, 0, &tc.forces);
+    afm_a0 a0;
+    if (afm_a0_compute(&tc, &a0, err, errlen)) {
+        free(m);
+        return NULL;
+    }
+    m->a0_m = a0.amplitude_m;
+    return m;
+}
+
+afm_runner_model *afm_runner_model_build_at(const afm_config *cfg, bool new_chain,
+                                            const afm_cmd_dither *drive, char *err, size_t errlen) {
     afm_runner_model *m = calloc(1, sizeof *m);
     if (!m) {
         afm_err_set(err, errlen, "out of memory");
@@ -253,7 +289,9 @@ afm_runner_model *afm_runner_model_build(const afm_config *cfg, bool new_chain, 
     if (cfg->thermal.enabled && afm_sim_set_thermal(m->sim, &cfg->thermal, err, errlen)) goto fail;
     if (cfg->am.control == AFM_AM_CONTROL_INTERNAL) { /* the set-point's reference, off-thread */
         afm_a0 a0;
-        if (afm_a0_compute(&tc, &a0, err, errlen)) goto fail;
+        afm_config ac;
+        a0_config(&ac, &tc, drive); /* at the drive in force: dithers may have moved tone 0 */
+        if (afm_a0_compute(&ac, &a0, err, errlen)) goto fail;
         m->a0_m = a0.amplitude_m;
     }
     if (new_chain) {
@@ -345,6 +383,7 @@ static void back_item(afm_runner *r, ring_item *it) {
         r->b_fe_hz = it->drive.n > 0 ? it->drive.omega_rad_s[0] / two_pi : 0.0;
         back_oppoint(r, &it->drive);
         r->b_op.fm_lock = it->fm_lock;
+        r->b_op.fm_drive = it->fm_drive;
         r->b_op.fm_shift_hz = it->fm_shift_hz;
         r->b_op.fm_phase_error_deg = it->fm_phase_error_deg;
         if (!it->lat_on) {
@@ -559,11 +598,12 @@ static void item_lat(const afm_runner *r, ring_item *it) {
 /* The FM loops' state into a new item (issue 32: the harmonics records carry it). */
 static void item_fm(const afm_runner *r, ring_item *it) {
     if (!r->fm_on || it->drive.n < 1) {
-        it->fm_lock = -1;
+        it->fm_lock = it->fm_drive = -1;
         it->fm_shift_hz = it->fm_phase_error_deg = NAN;
         return;
     }
     it->fm_lock = (int)r->fm.lock;
+    it->fm_drive = (int)r->fm.c.drive;
     it->fm_shift_hz = it->drive.omega_rad_s[0] / two_pi - r->fm.f_center_hz;
     it->fm_phase_error_deg = r->fm.phase_error_deg;
 }
@@ -874,7 +914,7 @@ afm_runner *afm_runner_create_pipelined(const afm_config *cfg, int block_max, bo
         const afm_drive *d = afm_sim_drive(r->sim);
         r->b_fe_hz = d->n > 0 ? d->omega_rad_s[0] / two_pi : 0.0;
         back_oppoint(r, d);
-        r->b_op.fm_lock = -1;
+        r->b_op.fm_lock = r->b_op.fm_drive = -1;
         r->b_op.fm_shift_hz = r->b_op.fm_phase_error_deg = NAN;
     }
     return r;
@@ -930,6 +970,30 @@ int afm_runner_set_time(afm_runner *r, double t_s, char *err, size_t errlen) {
     return 0;
 }
 
+/* Whether a FORCE param moves the free amplitude A0: only the squeeze film's constants.
+ * A0 is the amplitude far from the sample (afm_a0.h: Z 1 um, the gap-dependent tip forces
+ * -- vdW/DMT contact and its Hamaker constant, modulus and a0, viscoelastic, capillary,
+ * electrostatic, the tip radius they scale with -- switched off), so a tip-sample force
+ * constant leaves A0 as it is, bit for bit (tests/test_runner.c); the squeeze film damps
+ * the beam at any Z and moves it (~10 % on default.conf). */
+static bool param_moves_a0(const afm_cmd_param *p) {
+    static const char sq[] = "forces.squeeze.";
+    for (int i = 0; i < p->n; i++) {
+        const afm_param_def *d = &afm_param_table(NULL)[p->entry[i]];
+        if (d->effect >= AFM_PARAM_DAMPING || !strncmp(d->name, sq, sizeof sq - 1)) return true;
+    }
+    return false;
+}
+
+bool afm_runner_dither_moves_a0(const afm_config *cfg, const afm_cmd_dither *now,
+                                const afm_cmd *c) {
+    if (cfg->am.control != AFM_AM_CONTROL_INTERNAL || c->kind != AFM_CMD_DITHER) return false;
+    const afm_cmd_dither *d = &c->u.dither;
+    if (d->n_tones < 1 || !(d->amplitude_m[0] > 0)) return false; /* silent: no A0 to hold */
+    return now->n_tones < 1 || d->frequency_hz[0] != now->frequency_hz[0] ||
+           d->amplitude_m[0] != now->amplitude_m[0];
+}
+
 int afm_runner_cmd_needs_model(const afm_config *cfg, const afm_cmd *c, bool *new_chain) {
     bool nc = false;
     int need = 0;
@@ -942,7 +1006,8 @@ int afm_runner_cmd_needs_model(const afm_config *cfg, const afm_cmd *c, bool *ne
         if (afm_param_apply(&t, &c->u.param, &e, NULL, 0) == 0 && e >= AFM_PARAM_DAMPING) {
             need = 1;
             nc = e == AFM_PARAM_GEOMETRY;
-        } else if (e == AFM_PARAM_FORCE && t.am.control == AFM_AM_CONTROL_INTERNAL) {
+        } else if (e == AFM_PARAM_FORCE && t.am.control == AFM_AM_CONTROL_INTERNAL &&
+                   param_moves_a0(&c->u.param)) {
             need = 1; /* only for its A0: the squeeze film's constants move A0 by ~10 % */
         }
     }
@@ -1272,6 +1337,11 @@ int afm_runner_apply(afm_runner *r, const afm_cmd *c, afm_runner_model **model, 
     switch (c->kind) {
     case AFM_CMD_DITHER:
         if (apply_dither(r, &c->u.dither, err, errlen)) return -1;
+        /* A new tone 0 moves the free amplitude: the AM Z loop's reference follows, from
+         * the A0 computed off the real-time thread (afm_runner_model_a0; the model goes
+         * back to the caller). Without one the set-point stays. */
+        if (r->zc_on && model && *model && (*model)->a0_m > 0)
+            r->zc.a_set_m = r->zc.c.setpoint_ratio * (*model)->a0_m;
         break;
     case AFM_CMD_SETPOINT:
         apply_setpoint(r, &c->u.setpoint);
@@ -1556,6 +1626,7 @@ void afm_runner_status_get(const afm_runner *r, afm_runner_status *st) {
     st->fm_on = r->fm_on;
     if (r->fm_on) {
         st->fm_lock = (int)r->fm.lock;
+        st->fm_drive = (int)r->fm.c.drive;
         st->fm_frequency_hz = r->fm.freq_hz;
         st->fm_reference_hz = r->fm.f_center_hz;
         st->fm_phase_error_deg = r->fm.phase_error_deg;
@@ -1563,7 +1634,7 @@ void afm_runner_status_get(const afm_runner *r, afm_runner_status *st) {
         st->fm_amplitude_m = r->fm.amplitude_m;
         st->fm_amplitude_setpoint_m = r->fm.a_set_m;
     } else {
-        st->fm_lock = 0;
+        st->fm_lock = st->fm_drive = 0;
         st->fm_frequency_hz = st->fm_reference_hz = st->fm_phase_error_deg = NAN;
         st->fm_drive_m = st->fm_amplitude_m = st->fm_amplitude_setpoint_m = NAN;
     }

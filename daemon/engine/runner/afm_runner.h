@@ -91,7 +91,10 @@
  * so a raster through the daemon images as the offline scan does. After create, a reset, a
  * blow-up and a reload it waits for the lock-in to settle (12 time constants per order plus
  * 5 Q / (pi f0)) before moving Z. Setpoint commands and params that set Z are rejected while
- * it runs (nothing changed); a new model (damping, geometry) brings its own A0.
+ * it runs (nothing changed). A0 is the free amplitude: what sets it sets the reference
+ * again, from an A0 computed off the real-time thread -- a new model (damping, geometry)
+ * brings its own at the drive in force, a squeeze-film param and a dither that moves tone 0
+ * come with one (afm_runner_dither_moves_a0); a tip-sample force constant does not move it.
  * Every applied command but a reload sets seq_applied = its seq (a reload keeps it); the
  * outputs carry the seq_applied of the samples they come from (chain_status_get).
  *
@@ -160,16 +163,38 @@ bool afm_runner_pipelined(const afm_runner *r);
  * Allocates: call off the real-time thread. NULL with err. */
 afm_runner_model *afm_runner_model_build(const afm_config *cfg, bool new_chain, char *err,
                                          size_t errlen);
+/* The same, with the AM Z loop's A0 (am.control = "internal") at tone 0 of drive, the drive
+ * in force (dither commands move it away from cfg's; NULL: cfg's tone 0). */
+afm_runner_model *afm_runner_model_build_at(const afm_config *cfg, bool new_chain,
+                                            const afm_cmd_dither *drive, char *err, size_t errlen);
+/* For a dither that moves tone 0 under am.control = "internal"
+ * (afm_runner_dither_moves_a0): a model holding only the free amplitude A0 of cfg at tone
+ * 0 of drive (the command's), no simulator; pass it to afm_runner_apply with the dither,
+ * the set-point becomes setpoint_ratio x A0 and the model comes back to the caller.
+ * Allocates and runs a short simulation (~0.1 s): off the real-time thread. NULL with err. */
+afm_runner_model *afm_runner_model_a0(const afm_config *cfg, const afm_cmd_dither *drive, char *err,
+                                      size_t errlen);
 void afm_runner_model_destroy(afm_runner_model **m);
 /* The modal model of m (for command limits: afm_cmd_limits.model), NULL without one. */
 const afm_modal *afm_runner_model_modal(const afm_runner_model *m);
 
 /* Does this (validated) command need a model from afm_runner_model_build? 1 for a reload
  * and for a param command whose strongest effect is DAMPING or GEOMETRY (then *new_chain
- * says whether the model needs a chain), and for a FORCE param while am.control is
- * "internal" (only the model's A0 is used: the set-point's new reference; the model comes
- * back to the caller), else 0. cfg: the config before the command. */
+ * says whether the model needs a chain), and for a FORCE param of the squeeze film while
+ * am.control is "internal" (only the model's A0 is used: the set-point's new reference; the
+ * model comes back to the caller; the other force constants are the tip's, which A0, the
+ * amplitude far from the sample, does not see), else 0. cfg: the config before the
+ * command. Build the model at the drive in force (afm_runner_model_build_at). */
 int afm_runner_cmd_needs_model(const afm_config *cfg, const afm_cmd *c, bool *new_chain);
+
+/* Does dither command c, with now the drive in force (frequency and amplitude of tone 0 as
+ * given), move the free amplitude A0 of the internal AM Z loop (am.control = "internal")?
+ * true when tone 0's frequency or amplitude changes (to a sounding tone); then build
+ * afm_runner_model_a0 for it. A0 is the FREE amplitude: the drive (tone 0), the damping,
+ * the model and the squeeze film set it (a new model brings its own, afm_runner_model_build
+ * at the drive in force); the tip-sample forces do not (far from the sample they vanish:
+ * afm_runner_cmd_needs_model asks for no model for them). */
+bool afm_runner_dither_moves_a0(const afm_config *cfg, const afm_cmd_dither *now, const afm_cmd *c);
 
 /* Apply c now (between runs). model: NULL, or the address of a model handle for the
  * commands that need one; on success it then holds the objects swapped out (destroy them
@@ -231,8 +256,9 @@ typedef struct {
     /* the internal FM loops (fm.control = "internal", issue 32) after their last update before
      * the samples' item began: lock state (afm_fm_lock; -1 without the loops), frequency shift
      * (tone 0's frequency, freq_hz[0], less the NCO's centre f_center) and PLL phase error
-     * (lock-in lag - fm.phase_setpoint_deg); NAN without the loops */
-    int fm_lock;
+     * (lock-in lag - fm.phase_setpoint_deg); NAN without the loops; the drive they run
+     * (afm_fm_drive: 0 pll, 1 self; -1 without the loops) */
+    int fm_lock, fm_drive;
     double fm_shift_hz, fm_phase_error_deg;
 } afm_runner_oppoint;
 
@@ -292,6 +318,7 @@ typedef struct {
     /* internal FM control (fm.control = "internal"; NAN and 0 without it) */
     bool fm_on;
     int fm_lock;                    /* afm_fm_lock: 0 acquiring, 1 locked, 2 lost */
+    int fm_drive;                   /* afm_fm_drive: the config's fm.drive (pll, self) */
     double fm_frequency_hz;         /* tone 0's frequency, the NCO */
     double fm_reference_hz;         /* the shift's reference: mode 1's f0 of the model */
     double fm_phase_error_deg;      /* lock-in lag - fm.phase_setpoint_deg, last update */
