@@ -279,12 +279,10 @@ afm_runner_model *afm_runner_model_build_at(const afm_config *cfg, bool new_chai
     m->sim = afm_twin_create(&tc, NULL, NULL, err, errlen);
     if (!m->sim) goto fail;
     for (int k = 1; m->surf && k <= cfg->sample.n_materials; k++) { /* every material's forces */
-        double len, wid;
         afm_cfg_forces f;
         afm_force_params fp;
-        afm_twin_plate(cfg, afm_sim_model(m->sim), &len, &wid);
         afm_surface_material_forces(&cfg->sample, &cfg->forces, k, &f);
-        if (afm_force_init(&fp, &f, len, wid, err, errlen)) goto fail;
+        if (afm_twin_forces(cfg, afm_sim_model(m->sim), &f, &fp, err, errlen)) goto fail;
     }
     if (cfg->thermal.enabled && afm_sim_set_thermal(m->sim, &cfg->thermal, err, errlen)) goto fail;
     if (cfg->am.control == AFM_AM_CONTROL_INTERNAL) { /* the set-point's reference, off-thread */
@@ -1031,12 +1029,10 @@ static double lat_gap(afm_runner *r, double z) {
  * allocation. 0, or -1 with err. */
 static int lat_materials(const afm_runner *r, const afm_config *c, afm_force_params *out, char *err,
                          size_t errlen) {
-    double len, wid;
-    afm_twin_plate(c, afm_sim_model(r->sim), &len, &wid);
     for (int k = 0; k <= c->sample.n_materials && k <= AFM_MAX_MATERIALS; k++) {
         afm_cfg_forces f;
         afm_surface_material_forces(&c->sample, &c->forces, k, &f);
-        if (afm_force_init(&out[k], &f, len, wid, err, errlen)) return -1;
+        if (afm_twin_forces(c, afm_sim_model(r->sim), &f, &out[k], err, errlen)) return -1;
     }
     return 0;
 }
@@ -1274,11 +1270,8 @@ static int apply_param(afm_runner *r, const afm_cmd_param *p, afm_runner_model *
         if (lat_materials(r, &t, r->mat_tmp, err, errlen)) return -1;
         memcpy(r->mat, r->mat_tmp, sizeof r->mat);
     } else if (e == AFM_PARAM_FORCE) {
-        const afm_modal *m = afm_sim_model(r->sim);
-        double len = m->beam_length_m > 0 ? m->beam_length_m : t.forces.plate_length_m;
-        double wid = m->beam_mean_width_m > 0 ? m->beam_mean_width_m : t.forces.plate_width_m;
         afm_force_params f;
-        if (afm_force_init(&f, &t.forces, len, wid, err, errlen)) return -1;
+        if (afm_twin_forces(&t, afm_sim_model(r->sim), NULL, &f, err, errlen)) return -1;
         if (afm_sim_set_forces(r->sim, &f) != AFM_SIM_OK) {
             afm_err_set(err, errlen, "param: the simulator refused the new force constants");
             return -1;

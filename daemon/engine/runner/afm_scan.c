@@ -197,8 +197,6 @@ int afm_scan_run(afm_sim *s, const afm_config *cfg, const afm_modal *m, const af
     if (check_cfg(sc, pc, err, errlen)) return -1;
     const afm_cfg_sample *sample = &cfg->sample;
     const afm_cfg_lockin *lockin = &cfg->lockin;
-    double len, wid;
-    afm_twin_plate(cfg, m, &len, &wid);
     scan_state *st = calloc(1, sizeof *st);
     if (!st) {
         snprintf(err, errlen, "scan: out of memory");
@@ -209,7 +207,7 @@ int afm_scan_run(afm_sim *s, const afm_config *cfg, const afm_modal *m, const af
     for (int k = 0; k <= sample->n_materials; k++) {
         afm_cfg_forces f;
         afm_surface_material_forces(sample, &cfg->forces, k, &f);
-        if (afm_force_init(&st->mat[k], &f, len, wid, err, errlen)) goto out;
+        if (afm_twin_forces(cfg, m, &f, &st->mat[k], err, errlen)) goto out;
     }
     if (afm_lockin_init(&st->lockin, lockin, dt, err, errlen) ||
         afm_cycle_init(&st->cycle, afm_force_contact_x(&st->mat[0], 1e-6), st->mat[0].cos_alpha,
