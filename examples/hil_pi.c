@@ -4,7 +4,8 @@
  *
  * It reads the lock-in amplitude of each published drive period (HARMONICS, on the output
  * URL), measures the free amplitude A0 first, then commands Z (SETPOINT, on the command URL)
- * after every period so that the amplitude is ratio x A0:
+ * after every period that ran with its last command (seq_applied) so that the amplitude is
+ * ratio x A0:
  *     e = A - A_set,   Z = Zi - kp e,   dZi/dt = -ki e   (t: model time of the periods)
  * A above the set-point moves the tip towards the sample (Z down). It exits 0 once the mean
  * amplitude over the last --hold seconds of model time is within --tol of the set-point, 1
@@ -33,6 +34,7 @@
 #define A0_SETTLE_S 0.02 /* model time the lever rings in there first (~50 time constants) */
 #define A0_PERIODS 50    /* records averaged for A0 after that */
 #define SEQ0 5000000     /* our setpoint commands: seq 5e6 (to A0_Z_M), 5e6 + 1, ... */
+#define WAIT_MAX 50      /* records waited for our last command before updating anyway */
 
 typedef struct {
     double ratio, kp, ki, seconds, hold_s, tol;
@@ -43,7 +45,7 @@ typedef struct {
     int n_free, n_a0; /* records heard while measuring A0, and averaged */
     double t_far;     /* model time of the first record at A0_Z_M (NAN before) */
     double a0_sum, a0, a_set, z0, zi, z, t_start, t_last;
-    int have_z0;
+    int have_z0, waited;
     double hold_sum, hold_t0;
     long hold_n, records;
     int done, locked;
@@ -99,14 +101,24 @@ static void on_harmonics(const lcm_recv_buf_t *rb, const char *ch, const afmtwin
     }
     double dt = m->t_s - c->t_last;
     if (dt <= 0) return;
-    c->t_last = m->t_s;
     c->records++;
+    /* Update only on a period that ran with the last Z sent (its seq_applied): the records
+     * and the commands travel in wall time (the daemon's threads, LCM, this process), so on
+     * a loaded machine a command may land several periods after the one it answered; a loop
+     * updating on every record would then integrate the same error again and again and
+     * ring. Waiting makes the delay one period whatever the load; the model time integrated
+     * at once is capped (0.5 / ki) so that a long wait never makes one large step. A lost
+     * command (UDP) is waited for at most WAIT_MAX records. */
     double e = a - c->a_set;
-    c->zi -= c->ki * e * dt;
-    if (c->zi < 0) c->zi = 0; /* anti-windup: Z stays in 0 .. start Z */
-    if (c->zi > c->z0) c->zi = c->z0;
-    c->z = fmin(fmax(c->zi - c->kp * e, 0), c->z0);
-    send_z(c, c->z);
+    if (m->seq_applied == c->seq - 1 || ++c->waited >= WAIT_MAX) {
+        c->waited = 0;
+        c->t_last = m->t_s;
+        c->zi -= c->ki * e * fmin(dt, 0.5 / fmax(c->ki, 1e-30));
+        if (c->zi < 0) c->zi = 0; /* anti-windup: Z stays in 0 .. start Z */
+        if (c->zi > c->z0) c->zi = c->z0;
+        c->z = fmin(fmax(c->zi - c->kp * e, 0), c->z0);
+        send_z(c, c->z);
+    }
     double t = m->t_s - c->t_start;
     /* lock test: the mean amplitude over a window of hold_s of model time */
     if (c->hold_n == 0) c->hold_t0 = m->t_s;
@@ -149,7 +161,7 @@ int main(int argc, char **argv) {
     const char *url = AFMTWIN_DEFAULT_URL, *out_url = AFMTWIN_DEFAULT_OUT_URL;
     const char *prefix = AFMTWIN_DEFAULT_PREFIX;
     double timeout_s = 10;
-    for (int i = 1; i < argc; i++) {
+    for (int i = 1; i < argc; i += 2) { /* every option takes a value (--help returns) */
         const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
         double *num = !strcmp(a, "--ratio")     ? &c.ratio
                       : !strcmp(a, "--kp")      ? &c.kp
@@ -179,7 +191,6 @@ int main(int argc, char **argv) {
             usage(stderr);
             return 2;
         }
-        i++;
     }
     if (!(c.ratio > 0 && c.ratio < 1)) {
         fprintf(stderr, "hil_pi: --ratio wants 0 < R < 1\n");

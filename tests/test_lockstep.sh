@@ -6,7 +6,10 @@
 # from its times). Every completion (tick_done_t: seq, samples, model time, the digests of
 # the samples and harmonics messages) must match the outputs received and, bit for bit,
 # `afmtwin replay --lockstep` of the same sequence; also a log with scan commands over a
-# sample (issue 18). Prints "N passed, N failed".
+# sample (issue 18), with and without the daemon's own Z loop, and a log that moves that
+# loop's reference and lock-in (dither, force, squeeze, damping, reset, step: 7 of 7
+# completions identical; with theta accumulated from each slice's first sample, the bug
+# ad21b2c fixed, it fails where the 3-completion scan log passes). Prints "N passed, N failed".
 BUILD=${1:-build}
 cd "$(dirname "$0")/.." || exit 1
 . tests/lib_daemon.sh
