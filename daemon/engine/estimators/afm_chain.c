@@ -209,6 +209,7 @@ int afm_chain_attach(afm_chain *c, const afm_sim *sim, char *err, size_t errlen)
     double xc = afm_force_contact_x(f, afm_sim_separation(sim));
     if (afm_cycle_init(&c->cycle, xc, f->cos_alpha, err, errlen)) return -1;
     afm_cycle_set_forces(&c->cycle, f, afm_sim_separation(sim));
+    afm_cycle_set_defer(&c->cycle, true); /* finished per record read (afm_chain.h) */
     c->forces = f;
     c->cos_alpha = f->cos_alpha;
     c->drive = afm_sim_drive(sim);
@@ -349,10 +350,13 @@ static void put_period(afm_chain *c) {
      * afm_chain_period_finish). */
     memcpy(&p->harm, &c->harm.out,
            offsetof(afm_harm_result, raw) + (size_t)(4 * c->harm.nl) * sizeof p->harm.raw[0]);
-    if (c->cycle.periods > 0)
+    if (c->cycle.periods > 0) {
         p->cycle = c->cycle.out;
-    else
+        memcpy(&p->cycle_def, &c->cycle.out_def, AFM_CYCLE_DEFERRED_SIZE(&c->cycle.out_def));
+    } else {
         memset(&p->cycle, 0, sizeof p->cycle);
+        p->cycle_def.n = p->cycle_def.n_energy = 0;
+    }
     afm_lockin_xy(&c->lockin, &p->lockin_x_m, &p->lockin_y_m);
     c->stats.periods++;
 }
@@ -489,6 +493,7 @@ int afm_chain_available(const afm_chain *c, int i) {
 void afm_chain_period_finish(const afm_chain *c, afm_chain_period *p) {
     afm_harm_polar(&c->harm, &p->harm);
     afm_lockin_polar_of(p->lockin_x_m, p->lockin_y_m, &p->lockin_amplitude_m, &p->lockin_phase_deg);
+    afm_cycle_finish(&p->cycle, &p->cycle_def);
 }
 
 int afm_chain_take_periods(afm_chain *c, afm_chain_period *out, int max) {
@@ -501,7 +506,10 @@ int afm_chain_take_periods(afm_chain *c, afm_chain_period *out, int max) {
 int afm_chain_take_periods_raw(afm_chain *c, afm_chain_period *out, int max) {
     int n = 0;
     while (n < max && c->p_count > 0) {
-        out[n++] = c->periods[c->p_head];
+        const afm_chain_period *p = &c->periods[c->p_head];
+        /* the used part of the deferred steps only */
+        memcpy(&out[n++], p,
+               offsetof(afm_chain_period, cycle_def) + AFM_CYCLE_DEFERRED_SIZE(&p->cycle_def));
         c->p_head = (c->p_head + 1) % PERIOD_RING;
         c->p_count--;
     }
