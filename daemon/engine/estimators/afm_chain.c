@@ -399,8 +399,8 @@ static inline const afm_step_events *ev_used(const afm_chain *c, const afm_sampl
  * a sample with one goes through afm_cycle_push_ev, a run without through afm_cycle_push_n
  * (the same bits as afm_cycle_push). estimator_rejects
  * counts, per run, the most samples any one estimator refused. */
-static void estimators(afm_chain *c, const afm_sample *s, const double *obd, const double *f,
-                       const afm_step_events *const *ev, int n) {
+AFM_CLONES static void estimators(afm_chain *c, const afm_sample *s, const double *obd,
+                                  const double *f, const afm_step_events *const *ev, int n) {
     double th[CHUNK];
     if (afm_phase_gen_run(&c->phase, c->drive, s, n, th) == AFM_PHASE_STEP) retune(c, th);
     for (int i = 0; i < n;) {

@@ -10,10 +10,8 @@
 
 #if defined(__GNUC__)
 #define CYCLE_INLINE inline __attribute__((always_inline))
-#define CYCLE_NOINLINE __attribute__((noinline))
 #else
 #define CYCLE_INLINE inline
-#define CYCLE_NOINLINE
 #endif
 
 /* *d = *s (afm_sample: 6 doubles) without the string copy the compiler picks. */
@@ -144,8 +142,8 @@ static CYCLE_INLINE void split_sample(const afm_cycle *c, const afm_sample *s, a
 }
 
 /* split_sample of s[0 .. m-1] into d (a run's samples). */
-static void split_run(const afm_cycle *c, const afm_sample *restrict s, afm_sample *restrict d,
-                      int m) {
+static AFM_CLONES_NOINLINE void split_run(const afm_cycle *c, const afm_sample *restrict s,
+                                          afm_sample *restrict d, int m) {
     const afm_force_params *f = c->forces;
     if (f->squeeze == AFM_SQUEEZE_LINEAR) { /* squeeze_force's, the constants hoisted */
         const double p1 = f->p1, p2 = f->p2, z = c->z_m;
@@ -653,7 +651,8 @@ static void step_plain(afm_cycle *c, const afm_sample *s) {
  * a boundary: no step, h = 0): the ending period, if one is active, gets the first part of
  * the step and is finished into c->out; the new one starts at s with the rest. Returns 1
  * when a period was completed. */
-static int step_boundary(afm_cycle *c, const afm_sample *s, double frac, bool has_step) {
+static AFM_CLONES_NOINLINE int step_boundary(afm_cycle *c, const afm_sample *s, double frac,
+                                             bool has_step) {
     afm_cycle_metrics *m = &c->cur, *o = &c->out;
     const afm_sample *p = &c->prev;
     bool finishing = c->active && has_step;
@@ -916,7 +915,7 @@ typedef struct {
  * record e, bit l of lm / cr / mn flags step k0 + l. lm: f has a local maximum at p (>= both
  * neighbours): the parabola; cr: p and q lie on opposite sides of the contact line; mn: a
  * Bernstein control point below both p and q: step_min. As step_plain. */
-static CYCLE_NOINLINE void run_events(run_state *r, const run_flags *fl) {
+static AFM_CLONES_NOINLINE void run_events(run_state *r, const run_flags *fl) {
     const afm_sample *s = r->s;
     for (int e = 0; e < fl->n_ev; e++) {
         unsigned ev = fl->ev[e];
@@ -1180,8 +1179,8 @@ static CYCLE_INLINE int push_exact(afm_cycle *c, const afm_sample *q, double th)
     return push_slow(c, q, th);
 }
 
-int afm_cycle_push_n(afm_cycle *c, const afm_sample *s, const double *th, int n, int *done,
-                     long long *rejects) {
+AFM_CLONES int afm_cycle_push_n(afm_cycle *c, const afm_sample *s, const double *th, int n,
+                                int *done, long long *rejects) {
     *done = 0;
     int i = 0, one_by_one = 0;
     while (i < n) {
