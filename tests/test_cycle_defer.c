@@ -9,9 +9,10 @@
  * has more near-contact steps; nchv.conf, chattering; and at 4x the sample rate, where a
  * period has more than the record holds and they are finished at once), the same
  * samples go through an eager afm_cycle and a deferred one, through afm_cycle_push_n in
- * blocks of random lengths (the chain's vector runs) and afm_cycle_push_ev (the integrator's
- * records, the accurate scheme), with a change of Z in the middle of the run and a change of
- * the force law's values in place (as the runner's mirror changes them, before
+ * blocks of random lengths (the chain's vector runs; the deferred one, as the chain, with the
+ * squeeze film split off by afm_cycle_split_forces: afm_cycle_push_n_split) and afm_cycle_push_ev
+ * (the integrator's records, the accurate scheme), with a change of Z in the middle of the run and
+ * a change of the force law's values in place (as the runner's mirror changes them, before
  * afm_cycle_set_forces): every period's metrics, finished from a copy of the record taken at
  * the period's end and finished later, are memcmp-equal to the eager ones. The deferred
  * record must also defer (most periods hold entries; their energy is NaN until finished). */
@@ -102,9 +103,11 @@ static void defer_case(const char *config, double z_m, double oversample, bool e
                     de = afm_cycle_push_ev(&eager, &b[a], th[a], ev) == 1;
                     dl = afm_cycle_push_ev(&lazy, &b[a], th[a], ev) == 1;
                     me = ml = 1;
-                } else {
+                } else { /* the deferred one with the chain's split (afm_chain.c) */
+                    static double fts[NB], psq[NB];
+                    afm_cycle_split_forces(&lazy, b + a, k - j, fts, psq);
                     me = afm_cycle_push_n(&eager, b + a, th + a, k - j, &de, &rej_e);
-                    ml = afm_cycle_push_n(&lazy, b + a, th + a, k - j, &dl, &rej_l);
+                    ml = afm_cycle_push_n_split(&lazy, b + a, th + a, fts, psq, k - j, &dl, &rej_l);
                 }
                 if (me != ml || de != dl) {
                     check_true(false, "eager and deferred consume the same samples");

@@ -275,7 +275,7 @@ static void stamp_cascade(stream *s, const double *t_src, int ph) {
 }
 
 /* Frames (x, obd, f, base) of n samples into dst (AFM_DECIM_CH doubles each, 32-byte
- * aligned), f the tip-sample force fts[i] (afm_cycle_tip_forces). Returns 1 when every
+ * aligned), f the tip-sample force fts[i] (afm_cycle_split_forces). Returns 1 when every
  * channel of every frame is finite (x 0 is 0 for finite x and NaN for inf and NaN: the sum
  * of those over the frames is 0 exactly when all are finite). */
 AFM_CLONES static int pack_frames(double *dst, const afm_sample *p, const double *obd,
@@ -400,7 +400,8 @@ static inline const afm_step_events *ev_used(const afm_chain *c, const afm_sampl
  * (the same bits as afm_cycle_push). estimator_rejects
  * counts, per run, the most samples any one estimator refused. */
 AFM_CLONES static void estimators(afm_chain *c, const afm_sample *s, const double *obd,
-                                  const double *f, const afm_step_events *const *ev, int n) {
+                                  const double *f, const double *q,
+                                  const afm_step_events *const *ev, int n) {
     double th[CHUNK];
     if (afm_phase_gen_run(&c->phase, c->drive, s, n, th) == AFM_PHASE_STEP) retune(c, th);
     for (int i = 0; i < n;) {
@@ -419,7 +420,7 @@ AFM_CLONES static void estimators(afm_chain *c, const afm_sample *s, const doubl
             while (ev && j + m < k && !ev_used(c, s, a + m, ev[a + m]))
                 m++;
             if (!ev) m = k - j;
-            j += afm_cycle_push_n(&c->cycle, s + a, th + a, m, &dc, &rc);
+            j += afm_cycle_push_n_split(&c->cycle, s + a, th + a, f + a, q + a, m, &dc, &rc);
         }
         rl = afm_lockin_push_n(&c->lockin, obd + i, th + i, k);
         long long r = rh > rc ? rh : rc;
@@ -430,7 +431,7 @@ AFM_CLONES static void estimators(afm_chain *c, const afm_sample *s, const doubl
 }
 
 int afm_chain_push_ev(afm_chain *c, const afm_sample *s, const afm_step_events *const *ev, int n) {
-    double obd_buf[CHUNK], f_buf[CHUNK];
+    double obd_buf[CHUNK], f_buf[CHUNK], q_buf[CHUNK];
     for (int done = 0; done < n;) {
         int k = n - done < CHUNK ? n - done : CHUNK;
         const afm_sample *p = s + done;
@@ -442,12 +443,12 @@ int afm_chain_push_ev(afm_chain *c, const afm_sample *s, const afm_step_events *
            share is the cycle metrics' squeeze_dissipated_energy_j). Detached, the cycle's
            force law may be gone: the samples' force as it is. */
         if (c->attached) {
-            afm_cycle_tip_forces(&c->cycle, p, k, f_buf);
+            afm_cycle_split_forces(&c->cycle, p, k, f_buf, q_buf); /* and F_sq v */
         } else {
             for (int i = 0; i < k; i++)
                 f_buf[i] = p[i].f_n;
         }
-        if (c->attached) estimators(c, p, obd_buf, f_buf, ev ? ev + done : NULL, k);
+        if (c->attached) estimators(c, p, obd_buf, f_buf, q_buf, ev ? ev + done : NULL, k);
         run_streams(c, p, obd_buf, f_buf, k);
         c->stats.pushed += k;
         done += k;

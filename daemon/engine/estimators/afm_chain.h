@@ -7,7 +7,7 @@
  * afm_lockin, afm_cycle). Per full-rate sample s (afm_sample, sample rate cfg.sim.sample_rate_hz):
  *   obd_m = afm_obd_read(s)    (calibrated slope + noise + ADC; x when obd is disabled)
  *   f_ts  = the tip-sample force: f_n less the squeeze film on the beam (attached, with a
- *           squeeze film in the force law: afm_cycle_tip_forces; f_n as it is otherwise)
+ *           squeeze film in the force law: afm_cycle_split_forces; f_n as it is otherwise)
  *   frame = (x_m, obd_m, f_ts, base_m) -> decimator of each stream -> ring of the stream
  * computed a block at a time (afm_obd_read_block; the frames go straight into the first
  * decimator's input), with the same results however the samples are split into pushes.

@@ -180,6 +180,31 @@ AFM_CLONES void afm_cycle_tip_forces(const afm_cycle *c, const afm_sample *restr
         f_ts[j] = s[j].f_n - squeeze_force(c, s[j].x_m, s[j].v_m_s);
 }
 
+AFM_CLONES void afm_cycle_split_forces(const afm_cycle *c, const afm_sample *restrict s, int n,
+                                       double *restrict f_ts, double *restrict p_sq) {
+    if (!c->split) {
+        for (int j = 0; j < n; j++)
+            f_ts[j] = s[j].f_n;
+        return;
+    }
+    const afm_force_params *f = c->forces;
+    if (f->squeeze == AFM_SQUEEZE_LINEAR) { /* split_run's, the same bits */
+        const double p1 = f->p1, p2 = f->p2, z = c->z_m;
+        for (int j = 0; j < n; j++) {
+            double cq = p1 * (z + s[j].x_m) + p2, v = s[j].v_m_s;
+            double fs = cq > 0.0 ? -cq * v : 0.0;
+            f_ts[j] = s[j].f_n - fs;
+            p_sq[j] = fs * v;
+        }
+        return;
+    }
+    for (int j = 0; j < n; j++) { /* split_sample's */
+        double fs = squeeze_force(c, s[j].x_m, s[j].v_m_s);
+        f_ts[j] = s[j].f_n - fs;
+        p_sq[j] = fs * s[j].v_m_s;
+    }
+}
+
 /* The force law a step is taken under: the cycle's (eager), or a deferred step's own (its
  * record's copy of the law, its separation and contact line). */
 typedef struct {
@@ -1179,8 +1204,14 @@ static CYCLE_INLINE int push_exact(afm_cycle *c, const afm_sample *q, double th)
     return push_slow(c, q, th);
 }
 
-AFM_CLONES int afm_cycle_push_n(afm_cycle *c, const afm_sample *s, const double *th, int n,
-                                int *done, long long *rejects) {
+int afm_cycle_push_n(afm_cycle *c, const afm_sample *s, const double *th, int n, int *done,
+                     long long *rejects) {
+    return afm_cycle_push_n_split(c, s, th, NULL, NULL, n, done, rejects);
+}
+
+AFM_CLONES int afm_cycle_push_n_split(afm_cycle *c, const afm_sample *s, const double *th,
+                                      const double *f_ts, const double *p_sq, int n, int *done,
+                                      long long *rejects) {
     *done = 0;
     int i = 0, one_by_one = 0;
     while (i < n) {
@@ -1194,7 +1225,14 @@ AFM_CLONES int afm_cycle_push_n(afm_cycle *c, const afm_sample *s, const double 
             if (m >= RUN_MIN) {
                 const afm_sample *rs = s + i;
                 afm_sample sp[SPLIT_MAX];
-                if (c->split) { /* the run on the split samples */
+                if (c->split && f_ts) { /* the run on the split samples, split already */
+                    for (int j = 0; j < m; j++) {
+                        copy_sample(sp + j, s + i + j);
+                        sp[j].f_n = f_ts[i + j];
+                        sp[j].theta_rad = p_sq[i + j];
+                    }
+                    rs = sp;
+                } else if (c->split) { /* the run on the split samples */
                     split_run(c, s + i, sp, m);
                     rs = sp;
                 }

@@ -206,6 +206,12 @@ void afm_cycle_set_defer(afm_cycle *c, bool on);
 /* m's deferred figures from d (afm_cycle_set_defer); then d is all zero (m final). */
 void afm_cycle_finish(afm_cycle_metrics *m, afm_cycle_deferred *d);
 
+/* afm_cycle_tip_forces, and with a squeeze film p_sq[i] = F_sq v of s[i] (W; p_sq untouched
+ * without): the split of the samples (afm_cycle.c, split_sample), the same bits, for
+ * afm_cycle_push_n_split. */
+void afm_cycle_split_forces(const afm_cycle *c, const afm_sample *restrict s, int n,
+                            double *restrict f_ts, double *restrict p_sq);
+
 /* Forget the partial period and the history (keeps the contact line, the force law and
  * the defer setting). */
 void afm_cycle_reset(afm_cycle *c);
@@ -237,5 +243,11 @@ int afm_cycle_push_ev(afm_cycle *c, const afm_sample *s, double theta_rad,
  * flagged steps in order. */
 int afm_cycle_push_n(afm_cycle *c, const afm_sample *s, const double *theta_rad, int n, int *done,
                      long long *rejects);
+/* afm_cycle_push_n with the samples' split from afm_cycle_split_forces (f_ts[i], p_sq[i] of
+ * s[i], under the law in force now; NULL: split here): the vector runs take them instead of
+ * evaluating the squeeze film again (the output chain has them for its streams). Same bits. */
+int afm_cycle_push_n_split(afm_cycle *c, const afm_sample *s, const double *theta_rad,
+                           const double *f_ts, const double *p_sq, int n, int *done,
+                           long long *rejects);
 
 #endif
