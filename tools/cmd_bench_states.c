@@ -514,8 +514,9 @@ static int pick_scheme(afm_config *cfg, const char *want, char *why, size_t len)
         if (afm_scheme_cost_measure(cfg, AFM_RT_SCHEME_ACCURATE, &ca, why, len) ||
             afm_scheme_cost_measure(cfg, AFM_RT_SCHEME_FAST, &cf, why, len))
             return -1;
-        bool use_acc = ca.worst_ns <= fit_ns, no_rec = false;
+        bool use_acc = ca.worst_ns <= fit_ns, no_rec = false, tried = false;
         if (!use_acc && ca.step_events && cfg->sim.step_events == AFM_STEP_EVENTS_AUTO) {
+            tried = true;
             static afm_config c; /* large */
             c = *cfg;
             c.sim.step_events = AFM_STEP_EVENTS_OFF;
@@ -528,7 +529,7 @@ static int pick_scheme(afm_config *cfg, const char *want, char *why, size_t len)
                  "scheme: %s (auto, as afmtwind at 1x: accurate %.0f ns%s %s %.0f ns, "
                  "fast %.0f ns)",
                  use_acc ? "accurate" : "fast", ca.worst_ns,
-                 no_rec ? " without the step record" : "", use_acc ? "<=" : ">", fit_ns,
+                 tried ? " without the step record" : "", use_acc ? "<=" : ">", fit_ns,
                  cf.worst_ns);
     }
     return 0;
