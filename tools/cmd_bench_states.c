@@ -11,7 +11,11 @@
  * commands (models for geometry and damping changes built beforehand, off the clock, as
  * the daemon's receive thread does), then a timed window. Per state: mean ns per sample and
  * the worst ring item of each stage, and the estimators' table rebuilds; `--runs` repeats
- * give the median of the means and the median of the worst items. */
+ * give the median of the means and the median of the worst items. The rt integrator's scheme
+ * is the one the daemon would run (--scheme auto: the config's sim.rt_scheme when it names
+ * one, else the daemon's start-up measurement at 1x, daemon/scheme.c), so that the bench
+ * measures what runs (issue 29: on default.conf the daemon picks fast on a slow machine,
+ * while the engine's own auto is the accurate scheme). */
 #include "afmtwin_cmds.h"
 #include "json_out.h"
 #include "lcm_tool.h"
@@ -20,6 +24,8 @@
 #include "runner/afm_cmd.h"
 #include "config/afm_config.h"
 #include "runner/afm_runner.h"
+#include "runner/afm_scheme_cost.h"
+#include "transport/afm_io_records.h"
 #include "integrators/afm_sim.h"
 #include "integrators/afm_sim_live.h"
 #include "runner/afm_twin.h"
@@ -134,6 +140,7 @@ typedef struct {
     long long seq;
     double sum_i, sum_c, worst_i, worst_c;
     long long n, bad;
+    long long periods; /* period records taken (which ones are finished: drain) */
     bool timing;
 } bench_twin;
 
@@ -148,15 +155,30 @@ static double median(double *v, int n) {
 }
 
 /* Take every output the chain stage made (as the daemon's chain thread: blocks by pointer,
- * period records raw). */
-static void drain(afm_runner *r) {
+ * period records raw, finished as daemon/chain_loop.c does with its defaults: every k-th
+ * for at most 1000 harmonics records a second, and the newest of each take for the status). */
+static void drain(bench_twin *t) {
+    afm_runner *r = t->r;
     afm_chain_block b;
     for (int s = 0; s < afm_runner_n_streams(r); s++)
         while (afm_runner_take_block(r, s, &b, 0) > 0) {
         }
-    afm_chain_period p[64];
-    while (afm_runner_take_periods_raw(r, p, 64) > 0) {
+    static afm_chain_period p[64]; /* large */
+    afm_runner_chain_status st;
+    afm_runner_chain_status_get(r, &st);
+    const int every = afm_io_harmonics_every(0, st.fe_hz, 1000.0);
+    int n, newest = -1;
+    bool finished = false;
+    while ((n = afm_runner_take_periods_raw(r, p, 64)) > 0) {
+        newest = n - 1;
+        finished = false;
+        for (int i = 0; i < n; i++) {
+            if (t->periods++ % every != 0) continue;
+            afm_runner_period_finish(r, &p[i]);
+            finished = i == newest;
+        }
     }
+    if (newest >= 0 && !finished) afm_runner_period_finish(r, &p[newest]);
     afm_runner_model *m;
     while (afm_runner_take_trash(r, &m))
         afm_runner_model_destroy(&m);
@@ -174,7 +196,7 @@ static long long run(bench_twin *t, long long n) {
         long long adv = afm_runner_run(t->r, k);
         double t1 = afmt_mono_s();
         afm_runner_chain_run(t->r, 0);
-        drain(t->r);
+        drain(t);
         double t2 = afmt_mono_s();
         if (adv <= 0) break;
         if (t->timing) {
@@ -468,10 +490,55 @@ static int z_change_cost(const afm_config *cfg, double *z_ns, double *full_ns) {
     return 0;
 }
 
+/* cfg's rt scheme (and step record) as the daemon would run it at 1x: want "accurate" or
+ * "fast" forced; "auto" the config's sim.rt_scheme when it names one, else daemon/scheme.c's
+ * choice (both measured with afm_scheme_cost_measure; accurate when its worst state fits
+ * AFM_SCHEME_FIT_SHARE of 1 / rate, without the step record if only that fits under
+ * sim.step_events auto). *why says what was picked (stderr). 0, or -1 with why the error. */
+static int pick_scheme(afm_config *cfg, const char *want, char *why, size_t len) {
+    const bool acc = !strcmp(want, "accurate"), fast = !strcmp(want, "fast");
+    if (!acc && !fast && strcmp(want, "auto")) {
+        snprintf(why, len, "--scheme must be auto, accurate or fast, got '%s'", want);
+        return -1;
+    }
+    if (cfg->sim.integrator != AFM_INTEGRATOR_RT) {
+        snprintf(why, len, "scheme: - (not the rt integrator)");
+    } else if (acc || fast || cfg->sim.rt_scheme != AFM_RT_SCHEME_AUTO) {
+        if (acc || fast) cfg->sim.rt_scheme = acc ? AFM_RT_SCHEME_ACCURATE : AFM_RT_SCHEME_FAST;
+        snprintf(why, len, "scheme: %s (%s)",
+                 cfg->sim.rt_scheme == AFM_RT_SCHEME_ACCURATE ? "accurate" : "fast",
+                 acc || fast ? "--scheme" : "config sim.rt_scheme");
+    } else {
+        const double fit_ns = AFM_SCHEME_FIT_SHARE * 1e9 / cfg->sim.sample_rate_hz;
+        afm_scheme_cost ca, cf;
+        if (afm_scheme_cost_measure(cfg, AFM_RT_SCHEME_ACCURATE, &ca, why, len) ||
+            afm_scheme_cost_measure(cfg, AFM_RT_SCHEME_FAST, &cf, why, len))
+            return -1;
+        bool use_acc = ca.worst_ns <= fit_ns, no_rec = false, tried = false;
+        if (!use_acc && ca.step_events && cfg->sim.step_events == AFM_STEP_EVENTS_AUTO) {
+            tried = true;
+            static afm_config c; /* large */
+            c = *cfg;
+            c.sim.step_events = AFM_STEP_EVENTS_OFF;
+            if (afm_scheme_cost_measure(&c, AFM_RT_SCHEME_ACCURATE, &ca, why, len)) return -1;
+            use_acc = no_rec = ca.worst_ns <= fit_ns;
+        }
+        if (no_rec) cfg->sim.step_events = AFM_STEP_EVENTS_OFF;
+        cfg->sim.rt_scheme = use_acc ? AFM_RT_SCHEME_ACCURATE : AFM_RT_SCHEME_FAST;
+        snprintf(why, len,
+                 "scheme: %s (auto, as afmtwind at 1x: accurate %.0f ns%s %s %.0f ns, "
+                 "fast %.0f ns)",
+                 use_acc ? "accurate" : "fast", ca.worst_ns,
+                 tried ? " without the step record" : "", use_acc ? "<=" : ">", fit_ns,
+                 cf.worst_ns);
+    }
+    return 0;
+}
+
 static void usage(FILE *f) {
     fprintf(f,
             "usage: afmtwin bench-states [--config FILE] [--uptime S] [--runs N] [--only TEXT]\n"
-            "                            [--json]\n\n"
+            "                            [--scheme auto|accurate|fast] [--json]\n\n"
             "Cost per sample of the integrator and of the output chain (OBD, decimators,\n"
             "estimators) in every state a controller can put the twin in: steady tapping,\n"
             "free far from resonance, just retracted, a frequency step every ring item, a Z\n"
@@ -490,13 +557,17 @@ static void usage(FILE *f) {
             "  --uptime S     model time the twin starts at (default 20 s; 0..1e6)\n"
             "  --runs N       repeats per state, 1..%d (default 3)\n"
             "  --only TEXT    only the states whose name contains TEXT (e.g. for a profile)\n"
+            "  --scheme S     the rt integrator's scheme: auto (default: what afmtwind at 1x\n"
+            "                 would run: the config's sim.rt_scheme if it names one, else both\n"
+            "                 measured on this machine as the daemon's --scheme auto does),\n"
+            "                 accurate or fast (forced; other integrators have no schemes)\n"
             "  --json         one JSON object on stdout\n"
             "  --help         this text\n",
             MAX_RUNS);
 }
 
 int afm_cmd_bench_states(int argc, char **argv) {
-    const char *path = "config/default.conf", *only = NULL;
+    const char *path = "config/default.conf", *only = NULL, *scheme = "auto";
     double uptime = 20.0;
     int runs = 3;
     bool json = false;
@@ -504,6 +575,7 @@ int afm_cmd_bench_states(int argc, char **argv) {
         AFMT_FLAG("--json", &json),
         AFMT_STRING("--config", &path),
         AFMT_STRING("--only", &only),
+        AFMT_STRING("--scheme", &scheme),
         AFMT_DOUBLE("--uptime", &uptime, 0, 1e6, "0..1e6 s"),
         AFMT_INT("--runs", &runs, 1, MAX_RUNS, NULL),
         AFMT_OPTS_END,
@@ -513,6 +585,11 @@ int afm_cmd_bench_states(int argc, char **argv) {
     if (prc) return prc == AFMT_OPTS_HELP ? 0 : 2;
     static afm_config cfg;
     if (afmt_config_load("bench-states", path, &cfg)) return 2;
+    char why[256];
+    if (pick_scheme(&cfg, scheme, why, sizeof why)) {
+        fprintf(stderr, "afmtwin bench-states: %s\n", why);
+        return 2;
+    }
     /* SCHED_FIFO as the daemon's threads: otherwise a 4 ms time slice of another process
      * lands in a window now and then (seen as a worst item of ~4000 ns/sample) */
     struct sched_param prio = {.sched_priority = BENCH_PRIO};
@@ -556,6 +633,7 @@ int afm_cmd_bench_states(int argc, char **argv) {
         cJSON_AddNumberToObject(root, "runs", runs);
         cJSON_AddNumberToObject(root, "budget_ns_per_sample", budget);
         cJSON_AddBoolToObject(root, "sched_fifo", fifo);
+        cJSON_AddStringToObject(root, "scheme", why);
         for (int s = 0; s < N_STATES; s++) {
             cJSON *e = cJSON_CreateObject();
             cJSON_AddStringToObject(e, "state", states[s].name);
@@ -581,6 +659,7 @@ int afm_cmd_bench_states(int argc, char **argv) {
                   "70"
                 : "normal priority: SCHED_FIFO refused",
            runs, budget);
+    printf("  %s\n", why);
     printf("  %-52s %21s %21s %8s %9s\n", "state", "integrator ns/sample", "chain ns/sample",
            "1 core", "rebuilds");
     printf("  %-52s %10s %10s %10s %10s %8s\n", "", "mean", "worst item", "mean", "worst item",

@@ -38,11 +38,19 @@ typedef struct {
     afm_runner_oppoint op; /* Z and the tones they were made at */
 } afm_io_samples;
 
+/* What a harmonics record publishes of a finished afm_chain_period (not its deferred steps:
+ * ~2 KB a record in the publisher's queue). */
+typedef struct {
+    afm_harm_result harm;
+    afm_cycle_metrics cycle;
+    double lockin_amplitude_m, lockin_phase_deg;
+} afm_io_period;
+
 typedef struct {
     int64_t utime;
     int64_t seq_applied;
     double fe_hz;          /* tone 0 frequency when the period ended */
-    afm_chain_period p;    /* t_s = p.cycle.t_start_s */
+    afm_io_period p;       /* t_s = p.cycle.t_start_s */
     afm_runner_oppoint op; /* Z and the tones of the period */
 } afm_io_harmonics;
 

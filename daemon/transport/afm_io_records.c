@@ -34,7 +34,10 @@ void afm_io_harmonics_from_period(afm_io_harmonics *o, const afm_chain_period *p
     /* the period's own tone 0 (its item's drive: under FM control the NCO moves it between
      * items), not the newest one the chain has seen */
     o->fe_hz = op->n_tones > 0 ? op->freq_hz[0] : fe_hz;
-    o->p = *p;
+    o->p.harm = p->harm;
+    o->p.cycle = p->cycle;
+    o->p.lockin_amplitude_m = p->lockin_amplitude_m;
+    o->p.lockin_phase_deg = p->lockin_phase_deg;
 }
 
 int afm_io_harmonics_every(int every, double fe_hz, double max_hz) {

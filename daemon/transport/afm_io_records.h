@@ -11,7 +11,7 @@
 void afm_io_samples_from_block(afm_io_samples *o, const afm_chain_block *b, int64_t utime,
                                int64_t seq_applied, const afm_runner_oppoint *op);
 
-/* A harmonics record from one period's estimates. */
+/* A harmonics record from one period's estimates (p finished: afm_chain_period_finish). */
 void afm_io_harmonics_from_period(afm_io_harmonics *o, const afm_chain_period *p, double fe_hz,
                                   int64_t utime, int64_t seq_applied, const afm_runner_oppoint *op);
 

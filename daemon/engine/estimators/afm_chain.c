@@ -209,6 +209,7 @@ int afm_chain_attach(afm_chain *c, const afm_sim *sim, char *err, size_t errlen)
     double xc = afm_force_contact_x(f, afm_sim_separation(sim));
     if (afm_cycle_init(&c->cycle, xc, f->cos_alpha, err, errlen)) return -1;
     afm_cycle_set_forces(&c->cycle, f, afm_sim_separation(sim));
+    afm_cycle_set_defer(&c->cycle, true); /* finished per record read (afm_chain.h) */
     c->forces = f;
     c->cos_alpha = f->cos_alpha;
     c->drive = afm_sim_drive(sim);
@@ -274,7 +275,7 @@ static void stamp_cascade(stream *s, const double *t_src, int ph) {
 }
 
 /* Frames (x, obd, f, base) of n samples into dst (AFM_DECIM_CH doubles each, 32-byte
- * aligned), f the tip-sample force fts[i] (afm_cycle_tip_forces). Returns 1 when every
+ * aligned), f the tip-sample force fts[i] (afm_cycle_split_forces). Returns 1 when every
  * channel of every frame is finite (x 0 is 0 for finite x and NaN for inf and NaN: the sum
  * of those over the frames is 0 exactly when all are finite). */
 AFM_CLONES static int pack_frames(double *dst, const afm_sample *p, const double *obd,
@@ -349,10 +350,13 @@ static void put_period(afm_chain *c) {
      * afm_chain_period_finish). */
     memcpy(&p->harm, &c->harm.out,
            offsetof(afm_harm_result, raw) + (size_t)(4 * c->harm.nl) * sizeof p->harm.raw[0]);
-    if (c->cycle.periods > 0)
+    if (c->cycle.periods > 0) {
         p->cycle = c->cycle.out;
-    else
+        memcpy(&p->cycle_def, &c->cycle.out_def, AFM_CYCLE_DEFERRED_SIZE(&c->cycle.out_def));
+    } else {
         memset(&p->cycle, 0, sizeof p->cycle);
+        p->cycle_def.n = p->cycle_def.n_energy = 0;
+    }
     afm_lockin_xy(&c->lockin, &p->lockin_x_m, &p->lockin_y_m);
     c->stats.periods++;
 }
@@ -395,8 +399,9 @@ static inline const afm_step_events *ev_used(const afm_chain *c, const afm_sampl
  * a sample with one goes through afm_cycle_push_ev, a run without through afm_cycle_push_n
  * (the same bits as afm_cycle_push). estimator_rejects
  * counts, per run, the most samples any one estimator refused. */
-static void estimators(afm_chain *c, const afm_sample *s, const double *obd, const double *f,
-                       const afm_step_events *const *ev, int n) {
+AFM_CLONES static void estimators(afm_chain *c, const afm_sample *s, const double *obd,
+                                  const double *f, const double *q,
+                                  const afm_step_events *const *ev, int n) {
     double th[CHUNK];
     if (afm_phase_gen_run(&c->phase, c->drive, s, n, th) == AFM_PHASE_STEP) retune(c, th);
     for (int i = 0; i < n;) {
@@ -415,7 +420,7 @@ static void estimators(afm_chain *c, const afm_sample *s, const double *obd, con
             while (ev && j + m < k && !ev_used(c, s, a + m, ev[a + m]))
                 m++;
             if (!ev) m = k - j;
-            j += afm_cycle_push_n(&c->cycle, s + a, th + a, m, &dc, &rc);
+            j += afm_cycle_push_n_split(&c->cycle, s + a, th + a, f + a, q + a, m, &dc, &rc);
         }
         rl = afm_lockin_push_n(&c->lockin, obd + i, th + i, k);
         long long r = rh > rc ? rh : rc;
@@ -426,7 +431,7 @@ static void estimators(afm_chain *c, const afm_sample *s, const double *obd, con
 }
 
 int afm_chain_push_ev(afm_chain *c, const afm_sample *s, const afm_step_events *const *ev, int n) {
-    double obd_buf[CHUNK], f_buf[CHUNK];
+    double obd_buf[CHUNK], f_buf[CHUNK], q_buf[CHUNK];
     for (int done = 0; done < n;) {
         int k = n - done < CHUNK ? n - done : CHUNK;
         const afm_sample *p = s + done;
@@ -438,12 +443,12 @@ int afm_chain_push_ev(afm_chain *c, const afm_sample *s, const afm_step_events *
            share is the cycle metrics' squeeze_dissipated_energy_j). Detached, the cycle's
            force law may be gone: the samples' force as it is. */
         if (c->attached) {
-            afm_cycle_tip_forces(&c->cycle, p, k, f_buf);
+            afm_cycle_split_forces(&c->cycle, p, k, f_buf, q_buf); /* and F_sq v */
         } else {
             for (int i = 0; i < k; i++)
                 f_buf[i] = p[i].f_n;
         }
-        if (c->attached) estimators(c, p, obd_buf, f_buf, ev ? ev + done : NULL, k);
+        if (c->attached) estimators(c, p, obd_buf, f_buf, q_buf, ev ? ev + done : NULL, k);
         run_streams(c, p, obd_buf, f_buf, k);
         c->stats.pushed += k;
         done += k;
@@ -489,6 +494,7 @@ int afm_chain_available(const afm_chain *c, int i) {
 void afm_chain_period_finish(const afm_chain *c, afm_chain_period *p) {
     afm_harm_polar(&c->harm, &p->harm);
     afm_lockin_polar_of(p->lockin_x_m, p->lockin_y_m, &p->lockin_amplitude_m, &p->lockin_phase_deg);
+    afm_cycle_finish(&p->cycle, &p->cycle_def);
 }
 
 int afm_chain_take_periods(afm_chain *c, afm_chain_period *out, int max) {
@@ -501,7 +507,10 @@ int afm_chain_take_periods(afm_chain *c, afm_chain_period *out, int max) {
 int afm_chain_take_periods_raw(afm_chain *c, afm_chain_period *out, int max) {
     int n = 0;
     while (n < max && c->p_count > 0) {
-        out[n++] = c->periods[c->p_head];
+        const afm_chain_period *p = &c->periods[c->p_head];
+        /* the used part of the deferred steps only */
+        memcpy(&out[n++], p,
+               offsetof(afm_chain_period, cycle_def) + AFM_CYCLE_DEFERRED_SIZE(&p->cycle_def));
         c->p_head = (c->p_head + 1) % PERIOD_RING;
         c->p_count--;
     }

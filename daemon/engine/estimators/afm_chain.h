@@ -7,7 +7,7 @@
  * afm_lockin, afm_cycle). Per full-rate sample s (afm_sample, sample rate cfg.sim.sample_rate_hz):
  *   obd_m = afm_obd_read(s)    (calibrated slope + noise + ADC; x when obd is disabled)
  *   f_ts  = the tip-sample force: f_n less the squeeze film on the beam (attached, with a
- *           squeeze film in the force law: afm_cycle_tip_forces; f_n as it is otherwise)
+ *           squeeze film in the force law: afm_cycle_split_forces; f_n as it is otherwise)
  *   frame = (x_m, obd_m, f_ts, base_m) -> decimator of each stream -> ring of the stream
  * computed a block at a time (afm_obd_read_block; the frames go straight into the first
  * decimator's input), with the same results however the samples are split into pushes.
@@ -27,7 +27,11 @@
  * are kept in Cartesian form (the harmonics' sums, the lock-in's X and Y); the amplitudes and
  * phases are computed when a record is taken with afm_chain_take_periods, or only for the
  * records a caller publishes (afm_chain_take_periods_raw, then afm_chain_period_finish):
- * a daemon that publishes one period in hundreds skips the others' arctangents.
+ * a daemon that publishes one period in hundreds skips the others' arctangents. So do the
+ * cycle metrics' continuous-path figures (peak force in contact, the contact steps' work:
+ * afm_cycle_set_defer; ~107 of the chain's ~350 instructions a sample on default.conf, issue
+ * 29): the record keeps the steps, and finishing it computes them, bit for bit what the
+ * eager path gives.
  *
  * Rings never block: when one is full the oldest entries are dropped and counted
  * (afm_chain_stats). create allocates everything; push, take, reset never allocate. */
@@ -68,8 +72,8 @@ typedef struct {
 #define AFM_CHAIN_PERIOD_RING 1024
 
 /* One drive period's estimates. The polar fields (harm.h[], lockin_amplitude_m,
- * lockin_phase_deg) are valid once finished (afm_chain_period_finish; records from
- * afm_chain_take_periods are). */
+ * lockin_phase_deg) and the cycle metrics' peak_force_n and dissipated_energy_j are valid once
+ * finished (afm_chain_period_finish; records from afm_chain_take_periods are). */
 typedef struct {
     afm_harm_result harm;      /* harmonics of the OBD signal (x fields) and force (f) */
     afm_cycle_metrics cycle;   /* tapping metrics of the true tip motion */
@@ -77,6 +81,10 @@ typedef struct {
     double lockin_y_m;         /* (afm_lockin_xy) */
     double lockin_amplitude_m; /* lock-in R = hypot(X, Y) */
     double lockin_phase_deg;   /* lag behind the drive, atan2(-Y, X) in degrees */
+    /* the cycle metrics' deferred steps (afm_cycle_set_defer): cycle.peak_force_n and
+     * cycle.dissipated_energy_j are final once finished. Last: the copies take its used
+     * part only. */
+    afm_cycle_deferred cycle_def;
 } afm_chain_period;
 
 typedef struct {
@@ -128,10 +136,13 @@ int afm_chain_available(const afm_chain *c, int stream);
 /* Copy up to max completed-period records (oldest first) into out, finished; returns the
  * count. */
 int afm_chain_take_periods(afm_chain *c, afm_chain_period *out, int max);
-/* The same, not finished: the polar fields are undefined until afm_chain_period_finish. */
+/* The same, not finished: the polar fields are undefined, cycle.peak_force_n a lower bound and
+ * cycle.dissipated_energy_j NaN (when it waits for deferred steps) until
+ * afm_chain_period_finish. */
 int afm_chain_take_periods_raw(afm_chain *c, afm_chain_period *out, int max);
-/* Fill p's polar fields from its sums and X, Y (p taken from c). The same values as
- * afm_harm_push and afm_lockin_polar give at that period's end, bit for bit. */
+/* Fill p's polar fields from its sums and X, Y (p taken from c), and finish its cycle metrics
+ * (afm_cycle_finish). The same values as afm_harm_push, afm_lockin_polar and the eager
+ * afm_cycle give at that period's end, bit for bit. Finishing twice changes nothing. */
 void afm_chain_period_finish(const afm_chain *c, afm_chain_period *p);
 
 /* Clear filters, estimators and rings (after a simulator reset). Stats are kept. */

@@ -10,10 +10,8 @@
 
 #if defined(__GNUC__)
 #define CYCLE_INLINE inline __attribute__((always_inline))
-#define CYCLE_NOINLINE __attribute__((noinline))
 #else
 #define CYCLE_INLINE inline
-#define CYCLE_NOINLINE
 #endif
 
 /* *d = *s (afm_sample: 6 doubles) without the string copy the compiler picks. */
@@ -54,10 +52,18 @@ int afm_cycle_set_contact(afm_cycle *c, double x_contact_m) {
 }
 
 static CYCLE_INLINE double squeeze_force(const afm_cycle *c, double x, double v);
+static void def_resolve(afm_cycle *c, double *ec, double *pk);
 
 int afm_cycle_set_forces(afm_cycle *c, const afm_force_params *f, double z_m) {
-    if (!f || !isfinite(z_m) || afm_cycle_set_contact(c, afm_force_contact_x(f, z_m)) != 0)
-        return -1;
+    if (!f || !isfinite(z_m)) return -1;
+    const double xc = afm_force_contact_x(f, z_m);
+    if (isnan(xc) || xc == HUGE_VAL) return -1;
+    /* the pending entries under the law they were flagged under (f may be that law's
+     * storage, changed already: the copy) */
+    if (c->pend.n > 0 && memcmp(&c->fsnap, f, sizeof *f) != 0)
+        def_resolve(c, &c->e_corr, &c->cur.peak_force_n);
+    c->fsnap = *f;
+    afm_cycle_set_contact(c, xc);
     bool was_split = c->split;
     c->forces = f;
     c->z_m = z_m;
@@ -84,8 +90,9 @@ int afm_cycle_set_forces(afm_cycle *c, const afm_force_params *f, double z_m) {
 void afm_cycle_reset(afm_cycle *c) {
     double xc = c->x_contact_m, ca = c->cos_alpha, z = c->z_m, key[5];
     const afm_force_params *f = c->forces;
-    bool split = c->split;
+    bool split = c->split, defer = c->defer;
     afm_rt_starr st = c->starr;
+    afm_force_params fsnap = c->fsnap;
     memcpy(key, c->starr_key, sizeof key);
     memset(c, 0, sizeof *c);
     c->x_contact_m = xc;
@@ -96,6 +103,8 @@ void afm_cycle_reset(afm_cycle *c) {
     c->split = split;
     c->starr = st;
     memcpy(c->starr_key, key, sizeof key);
+    c->defer = defer;
+    c->fsnap = fsnap;
     afm_track_init(&c->trk, true);
 }
 
@@ -133,8 +142,8 @@ static CYCLE_INLINE void split_sample(const afm_cycle *c, const afm_sample *s, a
 }
 
 /* split_sample of s[0 .. m-1] into d (a run's samples). */
-static void split_run(const afm_cycle *c, const afm_sample *restrict s, afm_sample *restrict d,
-                      int m) {
+static AFM_CLONES_NOINLINE void split_run(const afm_cycle *c, const afm_sample *restrict s,
+                                          afm_sample *restrict d, int m) {
     const afm_force_params *f = c->forces;
     if (f->squeeze == AFM_SQUEEZE_LINEAR) { /* squeeze_force's, the constants hoisted */
         const double p1 = f->p1, p2 = f->p2, z = c->z_m;
@@ -169,6 +178,42 @@ AFM_CLONES void afm_cycle_tip_forces(const afm_cycle *c, const afm_sample *restr
     }
     for (int j = 0; j < n; j++)
         f_ts[j] = s[j].f_n - squeeze_force(c, s[j].x_m, s[j].v_m_s);
+}
+
+AFM_CLONES void afm_cycle_split_forces(const afm_cycle *c, const afm_sample *restrict s, int n,
+                                       double *restrict f_ts, double *restrict p_sq) {
+    if (!c->split) {
+        for (int j = 0; j < n; j++)
+            f_ts[j] = s[j].f_n;
+        return;
+    }
+    const afm_force_params *f = c->forces;
+    if (f->squeeze == AFM_SQUEEZE_LINEAR) { /* split_run's, the same bits */
+        const double p1 = f->p1, p2 = f->p2, z = c->z_m;
+        for (int j = 0; j < n; j++) {
+            double cq = p1 * (z + s[j].x_m) + p2, v = s[j].v_m_s;
+            double fs = cq > 0.0 ? -cq * v : 0.0;
+            f_ts[j] = s[j].f_n - fs;
+            p_sq[j] = fs * v;
+        }
+        return;
+    }
+    for (int j = 0; j < n; j++) { /* split_sample's */
+        double fs = squeeze_force(c, s[j].x_m, s[j].v_m_s);
+        f_ts[j] = s[j].f_n - fs;
+        p_sq[j] = fs * s[j].v_m_s;
+    }
+}
+
+/* The force law a step is taken under: the cycle's (eager), or a deferred step's own (its
+ * record's copy of the law, its separation and contact line). */
+typedef struct {
+    const afm_force_params *forces;
+    double z_m, x_contact_m;
+} cycle_law;
+
+static inline cycle_law law_of(const afm_cycle *c) {
+    return (cycle_law){c->forces, c->z_m, c->x_contact_m};
 }
 
 /* Length of [a, b] inside [lo, hi]. */
@@ -303,7 +348,7 @@ static inline void hermite_at(const afm_sample *p, const afm_sample *q, double s
 
 /* The tip-sample force (every term but the squeeze film) at (x, v): afm_force_tip less
  * afm_force_squeeze_term (the same bits as afm_force_tip without a squeeze film). */
-static inline double ts_force(const afm_cycle *c, double x, double v) {
+static inline double ts_force(const cycle_law *c, double x, double v) {
     const afm_force_params *f = c->forces;
     double fc, fv, jx, jv;
     return afm_force_near_terms(f, fma(x, f->cos_alpha, c->z_m), v, &fc, &fv, &jx, &jv);
@@ -316,7 +361,7 @@ static inline double ts_force(const afm_cycle *c, double x, double v) {
  * law sees its shape where the samples' parabola cannot (afm_cycle.h). (Midpoints first and
  * quarter steps only beside the larger: 4 evaluations, but the viscoelastic term's steep
  * rise after the contact starts then misleads the first stage: 1 % scatter on thesis-1dof.) */
-static AFM_CLONES_NOINLINE double local_peak(const afm_cycle *c, const afm_sample *m,
+static AFM_CLONES_NOINLINE double local_peak(const cycle_law *c, const afm_sample *m,
                                              const afm_sample *p, const afm_sample *q) {
     if (!c->forces || !(p->x_m < c->x_contact_m)) return afm_parabola_peak(m->f_n, p->f_n, q->f_n);
     double g[9], x, v;
@@ -337,7 +382,7 @@ static AFM_CLONES_NOINLINE double local_peak(const afm_cycle *c, const afm_sampl
 
 /* The tip-sample velocity term's power (viscoelastic; the squeeze film is split off) on the
  * step's Hermite cubic at u (W). */
-static CYCLE_INLINE double vel_power(const afm_cycle *c, const afm_sample *p, const afm_sample *q,
+static CYCLE_INLINE double vel_power(const cycle_law *c, const afm_sample *p, const afm_sample *q,
                                      double u) {
     const afm_force_params *f = c->forces;
     double x, v, fc, fv, jx, jv;
@@ -353,7 +398,7 @@ static CYCLE_INLINE double vel_power(const afm_cycle *c, const afm_sample *p, co
  * smooth there), 4 in contact, where the viscoelastic term grows as sqrt(indentation) from
  * the crossing: the side that starts or ends there in t = fr +- s^2 (smooth in s). (Plain
  * 2-point rule in contact: +1.4 % of thesis-1dof's dissipated energy; 4 points: +0.1 %.) */
-static CYCLE_INLINE double path_work(const afm_cycle *c, const afm_sample *p, const afm_sample *q,
+static CYCLE_INLINE double path_work(const cycle_law *c, const afm_sample *p, const afm_sample *q,
                                      double lo, double hi, double fr) {
     static const double g2[2] = {-0.57735026918962576451, 0.57735026918962576451};
     static const double w2[2] = {1.0, 1.0};
@@ -397,7 +442,7 @@ static CYCLE_INLINE double path_work(const afm_cycle *c, const afm_sample *p, co
  * (afm_cycle.h). Above the contact with velocity terms only the conservative part is
  * corrected (exact work less its own trapezoid); the smooth squeeze film stays with the
  * trapezoid. Without them the sample's own force is the conservative one. */
-static AFM_CLONES_NOINLINE double contact_work_corr(const afm_cycle *c, const afm_sample *p,
+static AFM_CLONES_NOINLINE double contact_work_corr(const cycle_law *c, const afm_sample *p,
                                                     const afm_sample *q) {
     double h = q->t_s - p->t_s, fr = -1.0, v, xc = c->x_contact_m;
     if (c->forces->viscoelastic && !(p->x_m < xc) && !(q->x_m < xc)) { /* above the contact:
@@ -409,6 +454,132 @@ static AFM_CLONES_NOINLINE double contact_work_corr(const afm_cycle *c, const af
     }
     if ((p->x_m < xc) != (q->x_m < xc)) crossing(p, q, h, xc, &fr, &v);
     return path_work(c, p, q, 0.0, 1.0, fr) - 0.5 * h * (p->f_n * p->v_m_s + q->f_n * q->v_m_s);
+}
+
+/* ---- deferred steps (afm_cycle_set_defer) ----
+ *
+ * With defer, local_peak in contact, the force at the period's minimum and contact_work_corr
+ * are not computed when their step is met: an entry records the step (the samples' t, x, v,
+ * f and the law's Z and contact line) in c->pend, in the order of the stream, and the
+ * period's record takes them (c->out_def) for afm_cycle_finish. The work corrections are a
+ * sum in stream order: a correction already known (the integrator's, afm_cycle_push_ev) is
+ * added at once while no computed one waits, else kept as an entry in its place. When
+ * c->pend is full or the force law changes, the pending entries are finished at once (into
+ * the running sums) under the law they were flagged under (c->fsnap). */
+
+static inline void pt_of(afm_cycle_pt *d, const afm_sample *s) {
+    *d = (afm_cycle_pt){s->t_s, s->x_m, s->v_m_s, s->f_n};
+}
+static inline void sample_of(afm_sample *d, const afm_cycle_pt *p) {
+    *d = (afm_sample){.t_s = p->t_s, .x_m = p->x_m, .v_m_s = p->v_m_s, .f_n = p->f_n};
+}
+
+/* Entry e's figure under the law f: into the work corrections *ec or the peak *pk. */
+static void def_take(const afm_force_params *f, const afm_cycle_step *e, double *ec, double *pk) {
+    const cycle_law law = {f, e->z_m, e->x_contact_m};
+    afm_sample a[3];
+    double v;
+    switch (e->kind) {
+    case AFM_CYCLE_DEF_PEAK:
+        for (int i = 0; i < 3; i++)
+            sample_of(&a[i], &e->p[i]);
+        v = local_peak(&law, &a[0], &a[1], &a[2]);
+        if (v > *pk) *pk = v;
+        break;
+    case AFM_CYCLE_DEF_TIP:
+        v = afm_force_tip(f, e->z_m, e->p[0].x_m, 0.0, NULL, NULL);
+        if (v > *pk) *pk = v;
+        break;
+    case AFM_CYCLE_DEF_WORK:
+        sample_of(&a[0], &e->p[0]);
+        sample_of(&a[1], &e->p[1]);
+        *ec += contact_work_corr(&law, &a[0], &a[1]);
+        break;
+    default:
+        *ec += e->p[0].f_n;
+        break;
+    }
+}
+
+/* The pending entries, in order, into *ec and *pk (the running sums of the period). */
+static void def_resolve(afm_cycle *c, double *ec, double *pk) {
+    for (int i = 0; i < c->pend.n; i++)
+        def_take(&c->fsnap, &c->pend.st[i], ec, pk);
+    c->pend.n = c->pend.n_energy = 0;
+}
+
+/* A new entry of kind (room made by finishing the pending ones into *ec, *pk). */
+static afm_cycle_step *def_new(afm_cycle *c, int kind, double *ec, double *pk) {
+    if (c->pend.n == AFM_CYCLE_DEFER_MAX) {
+        def_resolve(c, ec, pk);
+        c->def_overflows++;
+    }
+    afm_cycle_step *e = &c->pend.st[c->pend.n++];
+    e->kind = kind;
+    e->z_m = c->z_m;
+    e->x_contact_m = c->x_contact_m;
+    if (kind == AFM_CYCLE_DEF_WORK || kind == AFM_CYCLE_DEF_VALUE) c->pend.n_energy++;
+    return e;
+}
+
+/* The peak around a local maximum of f at p (m -> p -> q) into *pk: local_peak, deferred
+ * when it needs the force law. */
+static void peak_add(afm_cycle *c, const afm_sample *m, const afm_sample *p, const afm_sample *q,
+                     double *ec, double *pk) {
+    if (c->defer && c->forces && p->x_m < c->x_contact_m) {
+        afm_cycle_step *e = def_new(c, AFM_CYCLE_DEF_PEAK, ec, pk);
+        pt_of(&e->p[0], m);
+        pt_of(&e->p[1], p);
+        pt_of(&e->p[2], q);
+        return;
+    }
+    const cycle_law law = law_of(c);
+    double v = local_peak(&law, m, p, q);
+    if (v > *pk) *pk = v;
+}
+
+/* A near-contact step's work correction (contact_work_corr, or the integrator's work of the
+ * step during afm_cycle_push_ev) into *ec, in stream order. */
+static void work_add(afm_cycle *c, const afm_sample *p, const afm_sample *q, double *ec,
+                     double *pk) {
+    const bool known = c->ev && isfinite(c->ev->work_ts_j);
+    double w = 0.0;
+    if (known)
+        w = c->ev->work_ts_j - 0.5 * (q->t_s - p->t_s) * (p->f_n * p->v_m_s + q->f_n * q->v_m_s);
+    if (!c->defer || (known && c->pend.n_energy == 0)) {
+        if (!known) {
+            const cycle_law law = law_of(c);
+            w = contact_work_corr(&law, p, q);
+        }
+        *ec += w;
+        return;
+    }
+    afm_cycle_step *e = def_new(c, known ? AFM_CYCLE_DEF_VALUE : AFM_CYCLE_DEF_WORK, ec, pk);
+    if (known) {
+        e->p[0].f_n = w;
+    } else {
+        pt_of(&e->p[0], p);
+        pt_of(&e->p[1], q);
+    }
+}
+
+void afm_cycle_set_defer(afm_cycle *c, bool on) {
+    if (!on && c->pend.n > 0) def_resolve(c, &c->e_corr, &c->cur.peak_force_n);
+    c->defer = on;
+    if (c->forces) c->fsnap = *c->forces;
+}
+
+void afm_cycle_finish(afm_cycle_metrics *m, afm_cycle_deferred *d) {
+    if (d->n > 0) {
+        double ec = d->e_corr, pk = m->peak_force_n;
+        for (int i = 0; i < d->n; i++)
+            def_take(&d->f, &d->st[i], &ec, &pk);
+        m->peak_force_n = pk;
+        if (d->n_energy > 0) m->dissipated_energy_j = d->e_part - ec;
+    }
+    /* all of it: a finished record is the same bytes however it was copied (the copies take
+     * the used entries only) */
+    memset(d, 0, sizeof *d);
 }
 
 /* A step from c->prev to s inside the active period (no boundary): the previous sample's
@@ -466,12 +637,6 @@ static void ev_contact(const afm_step_events *ev, const afm_sample *p, const afm
     }
 }
 
-/* contact_work_corr with the integrator's work of the step. */
-static inline double ev_work_corr(const afm_cycle *c, const afm_sample *p, const afm_sample *q) {
-    if (!(c->ev && isfinite(c->ev->work_ts_j))) return contact_work_corr(c, p, q);
-    return c->ev->work_ts_j - 0.5 * (q->t_s - p->t_s) * (p->f_n * p->v_m_s + q->f_n * q->v_m_s);
-}
-
 static void step_plain(afm_cycle *c, const afm_sample *s) {
     afm_cycle_metrics *m = &c->cur;
     const afm_sample *p = &c->prev;
@@ -488,10 +653,8 @@ static void step_plain(afm_cycle *c, const afm_sample *s) {
     } else if ((b1 < b2 ? b1 : b2) < (p->x_m < s->x_m ? p->x_m : s->x_m)) {
         m->min_deflection_m = step_min(p, s, m->min_deflection_m);
     }
-    if (c->n_prev >= 2 && p->f_n >= c->prev2.f_n && p->f_n >= s->f_n) {
-        double pk = local_peak(c, &c->prev2, p, s);
-        if (pk > m->peak_force_n) m->peak_force_n = pk;
-    }
+    if (c->n_prev >= 2 && p->f_n >= c->prev2.f_n && p->f_n >= s->f_n)
+        peak_add(c, &c->prev2, p, s, &c->e_corr, &m->peak_force_n);
     if (s->f_n > m->peak_force_n) m->peak_force_n = s->f_n;
     double xc = c->x_contact_m;
     bool in0 = p->x_m < xc, in1 = s->x_m < xc;
@@ -502,7 +665,7 @@ static void step_plain(afm_cycle *c, const afm_sample *s) {
         cross_step(p, s, h, xc, &m->contact_time_s, &c->t_in, &m->n_contacts,
                    &m->pre_contact_velocity_m_s);
     if (c->forces && (p->x_m < c->x_near_m || s->x_m < c->x_near_m))
-        c->e_corr += ev_work_corr(c, p, s);
+        work_add(c, p, s, &c->e_corr, &m->peak_force_n);
     copy_sample(&c->prev2, p);
     c->t_before = p->t_s;
     c->k++;
@@ -513,7 +676,8 @@ static void step_plain(afm_cycle *c, const afm_sample *s) {
  * a boundary: no step, h = 0): the ending period, if one is active, gets the first part of
  * the step and is finished into c->out; the new one starts at s with the rest. Returns 1
  * when a period was completed. */
-static int step_boundary(afm_cycle *c, const afm_sample *s, double frac, bool has_step) {
+static AFM_CLONES_NOINLINE int step_boundary(afm_cycle *c, const afm_sample *s, double frac,
+                                             bool has_step) {
     afm_cycle_metrics *m = &c->cur, *o = &c->out;
     const afm_sample *p = &c->prev;
     bool finishing = c->active && has_step;
@@ -559,8 +723,9 @@ static int step_boundary(afm_cycle *c, const afm_sample *s, double frac, bool ha
     double eb = h * (wb0 * e0 + wb1 * e1), ea = h * (wa0 * e0 + wa1 * e1);
     if (has_step && c->forces && (p->x_m < c->x_near_m || s->x_m < c->x_near_m)) {
         double fr = r_in >= 0.0 ? r_in : (in0 != in1 ? cb : -1.0);
-        eb = -path_work(c, p, s, 0.0, frac, fr);
-        ea = -path_work(c, p, s, frac, 1.0, fr);
+        const cycle_law law = law_of(c);
+        eb = -path_work(&law, p, s, 0.0, frac, fr);
+        ea = -path_work(&law, p, s, frac, 1.0, fr);
         if (ev && isfinite(ev->work_ts_j)) { /* the integrator's total, split as the path's */
             double dw = ev->work_ts_j + (eb + ea);
             eb -= frac * dw;
@@ -579,10 +744,12 @@ static int step_boundary(afm_cycle *c, const afm_sample *s, double frac, bool ha
         double rx = (c->sum_x[0] + c->sum_x[1]) + (c->sum_x[2] + c->sum_x[3]);
         double peak = m->peak_force_n;
         if (c->n_prev >= 2) {
-            double pk = p->f_n >= c->prev2.f_n && p->f_n >= s->f_n
-                            ? local_peak(c, &c->prev2, p, s)
-                            : afm_parabola_peak(c->prev2.f_n, p->f_n, s->f_n);
-            if (pk > peak) peak = pk;
+            if (p->f_n >= c->prev2.f_n && p->f_n >= s->f_n) {
+                peak_add(c, &c->prev2, p, s, &c->e_corr, &peak);
+            } else {
+                double pk = afm_parabola_peak(c->prev2.f_n, p->f_n, s->f_n);
+                if (pk > peak) peak = pk;
+            }
         }
         double xmin = m->min_deflection_m < c->smin ? m->min_deflection_m : c->smin;
         if (xmin_b < xmin) xmin = xmin_b;
@@ -597,8 +764,12 @@ static int step_boundary(afm_cycle *c, const afm_sample *s, double frac, bool ha
             if (s->f_n > peak) peak = s->f_n;
         }
         if (c->forces && xmin < xc) { /* the contact's peak between the samples */
-            double fk = afm_force_tip(c->forces, c->z_m, xmin, 0.0, NULL, NULL);
-            if (fk > peak) peak = fk;
+            if (c->defer) {
+                def_new(c, AFM_CYCLE_DEF_TIP, &c->e_corr, &peak)->p[0].x_m = xmin;
+            } else {
+                double fk = afm_force_tip(c->forces, c->z_m, xmin, 0.0, NULL, NULL);
+                if (fk > peak) peak = fk;
+            }
         }
         double dur = (m->duration_s + (p->t_s - c->t_first)) + h * frac;
         double xint = (c->x_int + 0.5 * rx) + h * (wb0 * p->x_m + wb1 * s->x_m);
@@ -612,11 +783,22 @@ static int step_boundary(afm_cycle *c, const afm_sample *s, double frac, bool ha
         o->contact_time_s = ct + h * overlap(ca, cb, 0.0, frac);
         o->n_contacts = nc;
         o->pre_contact_velocity_m_s = vpre;
-        o->dissipated_energy_j = ((m->dissipated_energy_j + -0.5 * rfv) + eb) - c->e_corr;
+        const double e_part = (m->dissipated_energy_j + -0.5 * rfv) + eb;
+        o->dissipated_energy_j = c->pend.n_energy > 0 ? NAN : e_part - c->e_corr;
         o->mean_deflection_m = dur > 0 ? xint / dur : xmin;
         o->squeeze_dissipated_energy_j =
             c->split ? (m->squeeze_dissipated_energy_j + -0.5 * rsq) + qb : 0.0;
         c->periods++;
+        if (c->defer) { /* the pending entries go with the record (afm_cycle_finish) */
+            c->pend.e_part = e_part;
+            c->pend.e_corr = c->e_corr;
+            memcpy(&c->out_def, &c->pend, offsetof(afm_cycle_deferred, f));
+            if (c->pend.n > 0) {
+                c->out_def.f = c->fsnap;
+                memcpy(c->out_def.st, c->pend.st, (size_t)c->pend.n * sizeof c->pend.st[0]);
+            }
+            c->pend.n = c->pend.n_energy = 0;
+        }
     }
     /* the new period: the rest of the step */
     m->period = c->periods;
@@ -733,7 +915,7 @@ static inline int lowest_bit(unsigned m) {
 
 typedef struct {
     const afm_sample *s; /* the run's samples; sample -1 is *p0 */
-    const afm_cycle *c;
+    afm_cycle *c;
     const afm_sample *p0; /* the sample before the run (c->prev) */
     const afm_sample *m2; /* the sample before p0 (c->prev2) */
     double f_m2;          /* its f */
@@ -758,7 +940,7 @@ typedef struct {
  * record e, bit l of lm / cr / mn flags step k0 + l. lm: f has a local maximum at p (>= both
  * neighbours): the parabola; cr: p and q lie on opposite sides of the contact line; mn: a
  * Bernstein control point below both p and q: step_min. As step_plain. */
-static CYCLE_NOINLINE void run_events(run_state *r, const run_flags *fl) {
+static AFM_CLONES_NOINLINE void run_events(run_state *r, const run_flags *fl) {
     const afm_sample *s = r->s;
     for (int e = 0; e < fl->n_ev; e++) {
         unsigned ev = fl->ev[e];
@@ -767,8 +949,7 @@ static CYCLE_NOINLINE void run_events(run_state *r, const run_flags *fl) {
             int k = k0 + lowest_bit(lm);
             const afm_sample *sm = k >= 2 ? s + k - 2 : k ? r->p0 : r->m2;
             const afm_sample *s0 = k >= 1 ? s + k - 1 : r->p0;
-            double pk = local_peak(r->c, sm, s0, s + k);
-            if (pk > r->pk) r->pk = pk;
+            peak_add(r->c, sm, s0, s + k, &r->ec, &r->pk);
         }
         for (unsigned cr = ev >> 4 & 15u; cr; cr &= cr - 1) {
             int k = k0 + lowest_bit(cr);
@@ -781,7 +962,7 @@ static CYCLE_NOINLINE void run_events(run_state *r, const run_flags *fl) {
         }
         for (unsigned ct = ev >> 12 & 15u; ct; ct &= ct - 1) {
             int k = k0 + lowest_bit(ct);
-            r->ec += contact_work_corr(r->c, k ? s + k - 1 : r->p0, s + k);
+            work_add(r->c, k ? s + k - 1 : r->p0, s + k, &r->ec, &r->pk);
         }
     }
 }
@@ -1025,6 +1206,12 @@ static CYCLE_INLINE int push_exact(afm_cycle *c, const afm_sample *q, double th)
 
 int afm_cycle_push_n(afm_cycle *c, const afm_sample *s, const double *th, int n, int *done,
                      long long *rejects) {
+    return afm_cycle_push_n_split(c, s, th, NULL, NULL, n, done, rejects);
+}
+
+AFM_CLONES int afm_cycle_push_n_split(afm_cycle *c, const afm_sample *s, const double *th,
+                                      const double *f_ts, const double *p_sq, int n, int *done,
+                                      long long *rejects) {
     *done = 0;
     int i = 0, one_by_one = 0;
     while (i < n) {
@@ -1038,7 +1225,14 @@ int afm_cycle_push_n(afm_cycle *c, const afm_sample *s, const double *th, int n,
             if (m >= RUN_MIN) {
                 const afm_sample *rs = s + i;
                 afm_sample sp[SPLIT_MAX];
-                if (c->split) { /* the run on the split samples */
+                if (c->split && f_ts) { /* the run on the split samples, split already */
+                    for (int j = 0; j < m; j++) {
+                        copy_sample(sp + j, s + i + j);
+                        sp[j].f_n = f_ts[i + j];
+                        sp[j].theta_rad = p_sq[i + j];
+                    }
+                    rs = sp;
+                } else if (c->split) { /* the run on the split samples */
                     split_run(c, s + i, sp, m);
                     rs = sp;
                 }

@@ -70,6 +70,8 @@
 #include "integrators/afm_rt_coef.h"
 #include "integrators/afm_rt_events.h"
 
+#include <stddef.h>
+
 /* Gap above a0 (m) within which a step's tip-sample work is taken on the continuous path
  * (dissipated_energy_j; with the force law). */
 #define AFM_CYCLE_NEAR_GAP_M 1e-9
@@ -89,6 +91,41 @@ typedef struct {
     double squeeze_dissipated_energy_j; /* the squeeze film's own, beside it */
 } afm_cycle_metrics;
 
+/* Deferred steps (afm_cycle_set_defer): the per-period work that only the continuous path
+ * needs, kept for the period's record and finished (afm_cycle_finish) only for the records
+ * someone reads (issue 29: ~28 % of the output chain's instructions went into the figures of
+ * periods the daemon never publishes). A step's entry holds the samples' (t, x, v, f) and the
+ * law's separation and contact line at the step; the record holds the force law itself (a
+ * copy, so that a record finished after a change of the forces gives what it would have at
+ * the period's end). */
+#define AFM_CYCLE_DEFER_MAX 16 /* entries per period; more: the pending ones are finished */
+enum {
+    AFM_CYCLE_DEF_PEAK,  /* local_peak at a local maximum of f in contact (p[0..2]) */
+    AFM_CYCLE_DEF_TIP,   /* the force at the period's minimum p[0].x_m (v = 0) */
+    AFM_CYCLE_DEF_WORK,  /* contact_work_corr of the step p[0] -> p[1] */
+    AFM_CYCLE_DEF_VALUE, /* a work correction already known (p[0].f_n, J): kept in order */
+};
+typedef struct {
+    double t_s, x_m, v_m_s, f_n;
+} afm_cycle_pt;
+typedef struct {
+    int kind;
+    double z_m, x_contact_m;
+    afm_cycle_pt p[3];
+} afm_cycle_step;
+typedef struct {
+    int n;         /* entries (0: the metrics are final) */
+    int n_energy;  /* of them WORK and VALUE: dissipated_energy_j waits for them (NaN) */
+    double e_part; /* the period's energy before the work corrections (J) */
+    double e_corr; /* the corrections taken before the first deferred one (J) */
+    afm_force_params f;
+    afm_cycle_step st[AFM_CYCLE_DEFER_MAX]; /* the used ones only are copied (keep last) */
+} afm_cycle_deferred;
+
+/* Bytes of d that are in use (its entries only). */
+#define AFM_CYCLE_DEFERRED_SIZE(d)                                                                 \
+    (offsetof(afm_cycle_deferred, st) + (size_t)(d)->n * sizeof(afm_cycle_step))
+
 /* The integrals are accumulated in an order fixed by the sample stream alone (not by how it
  * is cut into calls), so that afm_cycle_push and afm_cycle_push_n give the same bits: each
  * sample of the period adds w f v, w x and w F_sq v, w = t_next - t_before (twice its
@@ -101,27 +138,33 @@ typedef struct {
     double z_m;                     /* its separation Z */
     afm_phase_track trk;
     bool active;
-    afm_sample prev;       /* last sample */
-    afm_sample prev2;      /* the sample before prev (for the peak at a local maximum) */
-    int n_prev;            /* samples seen, capped at 2 */
-    long k;                /* index of prev in the current period (0: its first sample) */
-    double t_before;       /* time of the sample before prev (prev's own when k = 0) */
-    double t_first;        /* time of the period's first sample */
-    double t_in;           /* while prev is in contact: the contact's whole steps start here */
-    double sum_fv[4];      /* sums of w f v by sample index mod 4 */
-    double sum_x[4];       /* sums of w x by sample index mod 4 */
-    double sum_sq[4];      /* sums of w F_sq v by sample index mod 4 (with split) */
-    bool split;            /* forces with a squeeze film: samples are split (afm_cycle.c) */
-    afm_rt_starr starr;    /* Starr's c(h) interpolant at z_m (with split, Starr film) */
-    double starr_key[5];   /* the force parameters starr was built from */
-    double smin;           /* minimum of x over the period's samples so far */
-    afm_cycle_metrics cur; /* accumulating: duration, energy: the start step's part; peak,
-                            * minimum (first sample, Hermite minima), contacts so far */
-    double x_int;          /* int x dt over the start step's part */
-    double e_corr;         /* with the force law: the period's contact steps' work on the
-                              continuous path less their trapezoids (J) */
-    long periods;          /* completed periods since init/reset */
-    afm_cycle_metrics out; /* last completed period (valid if periods > 0) */
+    afm_sample prev;            /* last sample */
+    afm_sample prev2;           /* the sample before prev (for the peak at a local maximum) */
+    int n_prev;                 /* samples seen, capped at 2 */
+    long k;                     /* index of prev in the current period (0: its first sample) */
+    double t_before;            /* time of the sample before prev (prev's own when k = 0) */
+    double t_first;             /* time of the period's first sample */
+    double t_in;                /* while prev is in contact: the contact's whole steps start here */
+    double sum_fv[4];           /* sums of w f v by sample index mod 4 */
+    double sum_x[4];            /* sums of w x by sample index mod 4 */
+    double sum_sq[4];           /* sums of w F_sq v by sample index mod 4 (with split) */
+    bool split;                 /* forces with a squeeze film: samples are split (afm_cycle.c) */
+    afm_rt_starr starr;         /* Starr's c(h) interpolant at z_m (with split, Starr film) */
+    double starr_key[5];        /* the force parameters starr was built from */
+    double smin;                /* minimum of x over the period's samples so far */
+    afm_cycle_metrics cur;      /* accumulating: duration, energy: the start step's part; peak,
+                                 * minimum (first sample, Hermite minima), contacts so far */
+    double x_int;               /* int x dt over the start step's part */
+    double e_corr;              /* with the force law: the period's contact steps' work on the
+                                   continuous path less their trapezoids (J) */
+    long periods;               /* completed periods since init/reset */
+    afm_cycle_metrics out;      /* last completed period (valid if periods > 0; with defer, final
+                                   once afm_cycle_finish(&out, &out_def) ran) */
+    bool defer;                 /* afm_cycle_set_defer */
+    afm_force_params fsnap;     /* the force law the pending entries were flagged under */
+    afm_cycle_deferred pend;    /* the current period's deferred steps (pend.f unused) */
+    afm_cycle_deferred out_def; /* out's */
+    long def_overflows;         /* times pend was full (its entries finished at once) */
 
     /* during afm_cycle_push_ev: the integrator's record of the step to the sample being
      * pushed (else NULL) */
@@ -150,7 +193,27 @@ int afm_cycle_set_forces(afm_cycle *c, const afm_force_params *f, double z_m);
 void afm_cycle_tip_forces(const afm_cycle *c, const afm_sample *restrict s, int n,
                           double *restrict f_ts);
 
-/* Forget the partial period and the history (keeps the contact line and the force law). */
+/* on: from now on the steps that need the force law on the continuous path (peak_force_n's
+ * refinement in contact and at the minimum, dissipated_energy_j's contact-step work) are
+ * kept with the period (c->out_def) instead of computed: out.peak_force_n is then a lower
+ * bound and out.dissipated_energy_j NaN until afm_cycle_finish(&c->out, &c->out_def) (or the
+ * same on copies of both). Finished, the figures are those of the eager path bit for bit
+ * (the energy's sum in the same order; the peak a maximum, whose order does not matter but
+ * for the sign of a zero). off (the default): computed as the samples come (pending ones
+ * first). */
+void afm_cycle_set_defer(afm_cycle *c, bool on);
+
+/* m's deferred figures from d (afm_cycle_set_defer); then d is all zero (m final). */
+void afm_cycle_finish(afm_cycle_metrics *m, afm_cycle_deferred *d);
+
+/* afm_cycle_tip_forces, and with a squeeze film p_sq[i] = F_sq v of s[i] (W; p_sq untouched
+ * without): the split of the samples (afm_cycle.c, split_sample), the same bits, for
+ * afm_cycle_push_n_split. */
+void afm_cycle_split_forces(const afm_cycle *c, const afm_sample *restrict s, int n,
+                            double *restrict f_ts, double *restrict p_sq);
+
+/* Forget the partial period and the history (keeps the contact line, the force law and
+ * the defer setting). */
 void afm_cycle_reset(afm_cycle *c);
 
 /* One sample. 1 when it completed a period (c->out), 0 otherwise, -1 (nothing changed) if a
@@ -180,5 +243,11 @@ int afm_cycle_push_ev(afm_cycle *c, const afm_sample *s, double theta_rad,
  * flagged steps in order. */
 int afm_cycle_push_n(afm_cycle *c, const afm_sample *s, const double *theta_rad, int n, int *done,
                      long long *rejects);
+/* afm_cycle_push_n with the samples' split from afm_cycle_split_forces (f_ts[i], p_sq[i] of
+ * s[i], under the law in force now; NULL: split here): the vector runs take them instead of
+ * evaluating the squeeze film again (the output chain has them for its streams). Same bits. */
+int afm_cycle_push_n_split(afm_cycle *c, const afm_sample *s, const double *theta_rad,
+                           const double *f_ts, const double *p_sq, int n, int *done,
+                           long long *rejects);
 
 #endif
