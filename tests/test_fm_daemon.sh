@@ -29,16 +29,7 @@ cd "$(dirname "$0")/.." || exit 1
 . tests/lib_daemon.sh
 [ "${2:-}" = "--inside" ] || netns_reexec test_fm_daemon.sh "$0" "$BUILD"
 daemon_test_init "$BUILD"
-T=$(mktemp -d /tmp/afmtwin-fmd.XXXXXX)
-DPID=""
-LOGPIDS=""
-cleanup() {
-  [ -n "$DPID" ] && kill -KILL "$DPID" 2>/dev/null
-  for p in $LOGPIDS; do kill -KILL "$p" 2>/dev/null; done
-  rm -rf "$T"
-}
-trap cleanup EXIT
-Z=6e-9
+. tests/lib_fm.sh # T, Z, DPID, LPID, LOGPIDS, fm_conf, jget, fm_daemon_up
 RATE=${FM_RATE:-1000}
 AFTER=${FM_AFTER:-5} # wall seconds fm_pll streams after its lock (make soak: 60 at 10 kHz)
 SPEED=${FM_SPEED:-$RT_SPEED} # (b): the daemon's --speed (lib_daemon.sh: make test 0.5, soak 1)
@@ -47,26 +38,8 @@ EVERY=${FM_REPLAY_EVERY:-30} # (b): replay --harmonics-every
 url="$LCM_DEFAULT_URL"; out_url=${url/:7667/:7668}
 run=(); chrt -f 90 true 2>/dev/null && run=(chrt -f 90)
 
-# the probe of lumped-vdw-fold.conf at Z 6 nm, tone 0 off resonance (the loops find it)
-conf() { # CONTROL
-  cat <<EOF
-model = { kind = "lumped"; lumped = { stiffness_n_m = 2.0; resonance_hz = 300e3; };
-          quality_factor = [2000.0]; };
-forces = { inclination_deg = 0.0; radius_m = 1e-8;
-           vdw_contact = { hamaker_j = 1.29e-19; a0_m = 2.4e-10; reduced_modulus_pa = 7e10; }; };
-drive = { separation_m = $Z; tones = ( { amplitude_m = 6e-13; frequency_hz = 298e3; } ); };
-sim = { sample_rate_hz = 14.06e6; integrator = "rt"; };
-fm = { control = "$1"; amplitude_setpoint_m = 1.0e-9; };
-EOF
-}
-conf internal > "$T/fm.conf"
-conf none > "$T/out.conf"
-
-# JSON field K of the last line of FILE
-jget() { python3 -c "import json,sys
-L=[l for l in open('$1') if l.strip()]
-v=json.loads(L[-1]).get('$2') if L else None
-print('' if v is None else v)"; }
+fm_conf internal > "$T/fm.conf" # the PLL (fm.drive's default)
+fm_conf none > "$T/out.conf"
 
 # ---- (a) internal control ------------------------------------------------------------
 "$A" approach --config "$T/fm.conf" --mode fm --from $Z --to $Z --step 1e-9 --json \
@@ -152,10 +125,7 @@ kill -TERM "$DPID"; wait "$DPID"; drc=$?; DPID=""
 # (>= 0.99 in every second, no resync) is printed, not counted.
 sed 's/amplitude_setpoint_m = 1.0e-9;/amplitude_setpoint_m = 1.0e-9; update_samples = 64;/' \
   "$T/fm.conf" > "$T/fm64.conf"
-"$D" --config "$T/fm64.conf" --scheme fast --quiet 2> "$T/d3.err" & DPID=$!
-rt_others "$T/others3" "$DPID" &
-listen --channels status --json --count 1 --timeout 5 > /dev/null 2>&1 # up
-sleep 1.2 # a whole second of running: realtime_factor_1s valid from here
+fm_daemon_up "$T/d3.err" "$T/others3" --config "$T/fm64.conf" --scheme fast
 listen --channels status --json --count 40 --timeout 10 > "$T/st3.jsonl" 2>/dev/null
 kill -TERM "$DPID"; wait "$DPID"; drc=$?; DPID=""
 python3 - "$T/st3.jsonl" > "$T/rt3.out" <<'EOF'
@@ -189,10 +159,7 @@ if cc -std=c11 -O2 -Wall -Wextra -Werror -D_POSIX_C_SOURCE=200809L -I"$BUILD/gen
 else
   bad "fm_pll build: $(head -3 "$T/cc.err")"; echo "$pass passed, $fail failed"; exit 1
 fi
-"$D" --config "$T/out.conf" --scheme fast --speed "$SPEED" --quiet 2> "$T/d2.err" & DPID=$!
-rt_others "$T/others" "$DPID" &
-listen --channels status --json --count 1 --timeout 5 > /dev/null 2>&1 # up
-sleep 1.2 # a whole second of running: realtime_factor_1s valid from here
+fm_daemon_up "$T/d2.err" "$T/others" --config "$T/out.conf" --scheme fast --speed "$SPEED"
 listen --channels status --json --timeout $((AFTER + 10)) > "$T/st.jsonl" 2>/dev/null & LPID=$!
 if [ "$REPLAY" = 1 ]; then # LCM's logger: the commands as the daemon receives them, and its harmonics
   "${run[@]}" lcm-logger -q -f --lcm-url "$url" "$T/cmd.lcmlog" & LOGPIDS="$!"
@@ -203,7 +170,7 @@ timeout $((AFTER + 15)) "${run[@]}" "$T/fm_pll" --lcm-url "$url" --lcm-out-url "
   --f0 300e3 --q 2000 --amplitude 1e-9 --rate "$RATE" --seconds 2 --after "$AFTER" \
   > "$T/pll.out" 2>&1; prc=$?
 sleep 0.5
-kill -TERM "$LPID" 2>/dev/null; wait "$LPID" 2>/dev/null
+kill -TERM "$LPID" 2>/dev/null; wait "$LPID" 2>/dev/null; LPID=""
 for p in $LOGPIDS; do kill -INT "$p" 2>/dev/null; wait "$p" 2>/dev/null; done; LOGPIDS=""
 sed 's/^/     /' "$T/pll.out" | cut -c1-200
 lk=$(grep '^locked after' "$T/pll.out")
