@@ -16,10 +16,10 @@
 #      to the twin's shifted resonance (the same shift within 0.5 Hz: the daemon runs the fast
 #      scheme in real time), and while it streams the daemon applies every command it sent
 #      (none rejected, refused or dropped); with FM_RT_CHECK=1 also no resync and a real-time
-#      factor >= 0.99 in every status under the stream. Not by default: on this 2-core VM the
-#      daemon does not hold real time under a stream of tone-0 frequency changes (measured
-#      0.22-1.0 at 1 kHz, 0.06-0.32 at 10 kHz, depending on the other load; README, FM), so the
-#      check is reported as "info" and not counted until that is fixed. Then (FM_REPLAY=0:
+#      factor (of the speed) >= 0.99 in every status under the stream. Not by default: on
+#      this shared 2-core VM it depends on the other load (1 kHz at --speed 0.5: min 0.990-1.000
+#      in 4 of 6 runs, 5 and 51 resyncs in two at load 13-16; 10 kHz at --speed 1 not held at
+#      load 12-24; README, FM), so the check is reported as "info". Then (FM_REPLAY=0:
 #      not) `afmtwin replay` of the commands lcm-logger recorded reproduces the daemon's
 #      harmonics records of the stream: the same drive's lock-in amplitude and lag within
 #      1e-8 and 1e-6 deg (counted when real time held, or with FM_RT_CHECK=1).
