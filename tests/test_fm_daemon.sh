@@ -18,8 +18,8 @@
 #      (none rejected, refused or dropped); with FM_RT_CHECK=1 also no resync and a real-time
 #      factor (of the speed) >= 0.99 in every status under the stream. Not by default: on
 #      this shared 2-core VM it depends on the other load (1 kHz at --speed 0.5: min 0.990-1.000
-#      in 4 of 6 runs, 5 and 51 resyncs in two at load 13-16; 10 kHz at --speed 1 not held at
-#      load 12-24; README, FM), so the check is reported as "info". Then (FM_REPLAY=0:
+#      in 6 of 8 runs, 5 and 51 resyncs in two at load 13-16; 10 kHz at --speed 1 not held at
+#      load 8-20; README, FM), so the check is reported as "info". Then (FM_REPLAY=0:
 #      not) `afmtwin replay` of the commands lcm-logger recorded reproduces the daemon's
 #      harmonics records of the stream: the same drive's lock-in amplitude and lag within
 #      1e-8 and 1e-6 deg (counted when real time held, or with FM_RT_CHECK=1).
