@@ -279,7 +279,7 @@ bench: deps
 soak: deps
 	$(MAKE) $(BUILD)/bin/afmtwin $(BUILD)/bin/afmtwind
 	AFMTWIN_SOAK_S=300 AFMTWIN_SOAK_CHECK_S=60 AFMTWIN_SOAK_MIN_RTF=0.99 AFMTWIN_RT_SPEED=1 bash tests/test_soak.sh $(BUILD)
-	FM_RATE=10000 FM_AFTER=60 FM_RT_CHECK=1 bash tests/test_fm_daemon.sh $(BUILD)
+	FM_RATE=10000 FM_AFTER=60 FM_SPEED=1 FM_REPLAY_EVERY=100 FM_RT_CHECK=1 bash tests/test_fm_daemon.sh $(BUILD)
 
 clean:
 	rm -rf $(BUILD)

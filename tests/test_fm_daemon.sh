@@ -11,50 +11,35 @@
 #      >= 0.5 in every second (counted; the strict 0.99 printed), the loops locked;
 #  (b) an outside FM controller (examples/fm_pll.c, a PLL and an amplitude PI over LCM,
 #      dither commands at $FM_RATE per second, default 1000, for $FM_AFTER wall seconds after
-#      its lock, default 5; `make soak` runs 10 kHz for 60 s with FM_RT_CHECK=1) locks within 2 s of model time
+#      its lock, default 5, the daemon at --speed $FM_SPEED, default RT_SPEED of lib_daemon.sh;
+#      `make soak` runs 10 kHz for 60 s at --speed 1 with FM_RT_CHECK=1) locks within 2 s of model time
 #      to the twin's shifted resonance (the same shift within 0.5 Hz: the daemon runs the fast
 #      scheme in real time), and while it streams the daemon applies every command it sent
 #      (none rejected, refused or dropped); with FM_RT_CHECK=1 also no resync and a real-time
-#      factor >= 0.99 in every status under the stream. Not by default: on this 2-core VM the
-#      daemon does not hold real time under a stream of tone-0 frequency changes (measured
-#      0.22-1.0 at 1 kHz, 0.06-0.32 at 10 kHz, depending on the other load; README, FM), so the
-#      check is reported as "info" and not counted until that is fixed.
+#      factor (of the speed) >= 0.99 in every status under the stream. Not by default: on
+#      this shared 2-core VM it depends on the other load (1 kHz at --speed 0.5: min 0.990-1.000
+#      in 6 of 8 runs, 5 and 51 resyncs in two at load 13-16; 10 kHz at --speed 1 not held at
+#      load 8-20; README, FM), so the check is reported as "info". Then (FM_REPLAY=0:
+#      not) `afmtwin replay` of the commands lcm-logger recorded reproduces the daemon's
+#      harmonics records of the stream: the same drive's lock-in amplitude and lag within
+#      1e-8 and 1e-6 deg (counted when real time held, or with FM_RT_CHECK=1).
 # Prints "N passed, N failed".
 BUILD=${1:-build}
 cd "$(dirname "$0")/.." || exit 1
 . tests/lib_daemon.sh
 [ "${2:-}" = "--inside" ] || netns_reexec test_fm_daemon.sh "$0" "$BUILD"
 daemon_test_init "$BUILD"
-T=$(mktemp -d /tmp/afmtwin-fmd.XXXXXX)
-DPID=""
-cleanup() { [ -n "$DPID" ] && kill -KILL "$DPID" 2>/dev/null; rm -rf "$T"; }
-trap cleanup EXIT
-Z=6e-9
+. tests/lib_fm.sh # T, Z, DPID, LPID, LOGPIDS, fm_conf, jget, fm_daemon_up
 RATE=${FM_RATE:-1000}
 AFTER=${FM_AFTER:-5} # wall seconds fm_pll streams after its lock (make soak: 60 at 10 kHz)
+SPEED=${FM_SPEED:-$RT_SPEED} # (b): the daemon's --speed (lib_daemon.sh: make test 0.5, soak 1)
+REPLAY=${FM_REPLAY:-1} # (b): log the commands and replay them (0: not)
+EVERY=${FM_REPLAY_EVERY:-30} # (b): replay --harmonics-every
 url="$LCM_DEFAULT_URL"; out_url=${url/:7667/:7668}
 run=(); chrt -f 90 true 2>/dev/null && run=(chrt -f 90)
 
-# the probe of lumped-vdw-fold.conf at Z 6 nm, tone 0 off resonance (the loops find it)
-conf() { # CONTROL
-  cat <<EOF
-model = { kind = "lumped"; lumped = { stiffness_n_m = 2.0; resonance_hz = 300e3; };
-          quality_factor = [2000.0]; };
-forces = { inclination_deg = 0.0; radius_m = 1e-8;
-           vdw_contact = { hamaker_j = 1.29e-19; a0_m = 2.4e-10; reduced_modulus_pa = 7e10; }; };
-drive = { separation_m = $Z; tones = ( { amplitude_m = 6e-13; frequency_hz = 298e3; } ); };
-sim = { sample_rate_hz = 14.06e6; integrator = "rt"; };
-fm = { control = "$1"; amplitude_setpoint_m = 1.0e-9; };
-EOF
-}
-conf internal > "$T/fm.conf"
-conf none > "$T/out.conf"
-
-# JSON field K of the last line of FILE
-jget() { python3 -c "import json,sys
-L=[l for l in open('$1') if l.strip()]
-v=json.loads(L[-1]).get('$2') if L else None
-print('' if v is None else v)"; }
+fm_conf internal > "$T/fm.conf" # the PLL (fm.drive's default)
+fm_conf none > "$T/out.conf"
 
 # ---- (a) internal control ------------------------------------------------------------
 "$A" approach --config "$T/fm.conf" --mode fm --from $Z --to $Z --step 1e-9 --json \
@@ -140,10 +125,7 @@ kill -TERM "$DPID"; wait "$DPID"; drc=$?; DPID=""
 # (>= 0.99 in every second, no resync) is printed, not counted.
 sed 's/amplitude_setpoint_m = 1.0e-9;/amplitude_setpoint_m = 1.0e-9; update_samples = 64;/' \
   "$T/fm.conf" > "$T/fm64.conf"
-"$D" --config "$T/fm64.conf" --scheme fast --quiet 2> "$T/d3.err" & DPID=$!
-rt_others "$T/others3" "$DPID" &
-listen --channels status --json --count 1 --timeout 5 > /dev/null 2>&1 # up
-sleep 1.2 # a whole second of running: realtime_factor_1s valid from here
+fm_daemon_up "$T/d3.err" "$T/others3" --config "$T/fm64.conf" --scheme fast
 listen --channels status --json --count 40 --timeout 10 > "$T/st3.jsonl" 2>/dev/null
 kill -TERM "$DPID"; wait "$DPID"; drc=$?; DPID=""
 python3 - "$T/st3.jsonl" > "$T/rt3.out" <<'EOF'
@@ -177,17 +159,27 @@ if cc -std=c11 -O2 -Wall -Wextra -Werror -D_POSIX_C_SOURCE=200809L -I"$BUILD/gen
 else
   bad "fm_pll build: $(head -3 "$T/cc.err")"; echo "$pass passed, $fail failed"; exit 1
 fi
-"$D" --config "$T/out.conf" --scheme fast --quiet 2> "$T/d2.err" & DPID=$!
-rt_others "$T/others" "$DPID" &
-listen --channels status --json --count 1 --timeout 5 > /dev/null 2>&1 # up
-sleep 1.2 # a whole second of running: realtime_factor_1s valid from here
+fm_daemon_up "$T/d2.err" "$T/others" --config "$T/out.conf" --scheme fast --speed "$SPEED"
 listen --channels status --json --timeout $((AFTER + 10)) > "$T/st.jsonl" 2>/dev/null & LPID=$!
+# LCM's logger: the commands as the daemon receives them, and its harmonics, at SCHED_FIFO 1:
+# below every thread of the daemon (at 90 the command logger took 25 % of a core above it at
+# 10 000 commands/s), above the other sessions' work (a plain logger kept 140 000 of 600 800
+# commands at 10 kHz under load), its socket buffer (recv_buf_size, 4 MB) holding the rest.
+# Enough at 1000 commands/s (all logged); at 10 000/s, with the daemon behind and taking 1.3
+# cores, it kept 344 485 of 584 947 (README, FM).
+logrt=(); chrt -f 1 true 2>/dev/null && logrt=(chrt -f 1)
+if [ "$REPLAY" = 1 ]; then
+  "${logrt[@]}" lcm-logger -q -f --lcm-url "$url" "$T/cmd.lcmlog" & LOGPIDS="$!"
+  "${logrt[@]}" lcm-logger -q -f -c AFMTWIN_HARMONICS --lcm-url "$out_url" "$T/harm.lcmlog" &
+  LOGPIDS="$LOGPIDS $!"
+fi
 sleep 0.3
 timeout $((AFTER + 15)) "${run[@]}" "$T/fm_pll" --lcm-url "$url" --lcm-out-url "$out_url" \
   --f0 300e3 --q 2000 --amplitude 1e-9 --rate "$RATE" --seconds 2 --after "$AFTER" \
   > "$T/pll.out" 2>&1; prc=$?
 sleep 0.5
-kill -TERM "$LPID" 2>/dev/null; wait "$LPID" 2>/dev/null
+kill -TERM "$LPID" 2>/dev/null; wait "$LPID" 2>/dev/null; LPID=""
+for p in $LOGPIDS; do kill -INT "$p" 2>/dev/null; wait "$p" 2>/dev/null; done; LOGPIDS=""
 sed 's/^/     /' "$T/pll.out" | cut -c1-200
 lk=$(grep '^locked after' "$T/pll.out")
 tl=$(echo "$lk" | sed -n 's/^locked after \([0-9.]*\) s.*/\1/p')
@@ -197,10 +189,11 @@ sh=$(echo "$lk" | sed -n 's/.*(\([-+0-9.]*\) Hz from f0).*/\1/p')
   ok "fm_pll locks over LCM after $tl s of model time, shift $sh Hz (approach $sa Hz, 0.5 Hz)" ||
   bad "fm_pll: exit $prc, '$lk' (approach shift $sa Hz)"
 sent=$(sed -n 's/^sent \([0-9]*\) commands.*/\1/p' "$T/pll.out")
-python3 - "$T/st.jsonl" "${sent:-0}" "${FM_RT_CHECK:-0}" > "$T/acc.out" <<'EOF'
+python3 - "$T/st.jsonl" "${sent:-0}" "${FM_RT_CHECK:-0}" "$SPEED" "$T/held" > "$T/acc.out" <<'EOF'
 import json, sys
 L = [json.loads(l) for l in open(sys.argv[1]) if l.strip()]
 sent = int(sys.argv[2])
+speed = float(sys.argv[4])
 SEQ0 = 6000000
 # the window under the controller: from the first status after its first command was applied
 # to the first that shows its last one
@@ -210,20 +203,24 @@ if not w or end is None:
     print("FAIL no status shows the controller's last command (seq %d)" % (SEQ0 + sent - 1)); sys.exit()
 w = w[:end + 1]
 last = w[-1]
-rtf = [d['realtime_factor_1s'] for d in w]
+rtf = [d['realtime_factor_1s'] / speed for d in w] # of the speed asked for
+rs = sorted(rtf)
 res = last['resyncs'] - w[0]['resyncs']
 acc = (last['applied'], last['received'], last['rejected'], last['refused'], last['dropped'])
 okc = acc[0] == sent and acc[1] == sent and acc[2:] == (0, 0, 0) and \
     (last['fm_control'], last['fm_drive']) == ('none', 'none')
 okr = res == 0 and min(rtf) >= 0.99
+open(sys.argv[5], "w").write("1" if okr else "0")
 if not okr and sys.argv[3] != "1":
     okr = None
 print("%s applied %d of %d sent (received %d, rejected %d, refused %d, dropped %d; fm_control "
       "%s, fm_drive %s)" % ("ok  " if okc else "FAIL", acc[0], sent, acc[1], acc[2], acc[3],
       acc[4], last['fm_control'], last['fm_drive']))
 tag = {True: "ok  ", False: "FAIL", None: "info"}[okr]
-print("%s under the stream (%d statuses, %.1f s of model time): resyncs %d, realtime_factor_1s min %.4f" %
-      (tag, len(w), w[-1]['model_time_s'] - w[0]['model_time_s'], res, min(rtf)))
+print("%s under the stream at --speed %g (%d statuses, %.1f s of model time): resyncs %d, "
+      "realtime_factor_1s / speed min %.4f median %.4f" %
+      (tag, speed, len(w), w[-1]['model_time_s'] - w[0]['model_time_s'], res, min(rtf),
+       rs[len(rs) // 2]))
 EOF
 while read -r tag rest; do
   if [ "$tag" = ok ]; then ok "$rest"; elif [ "$tag" = info ]; then
@@ -233,5 +230,75 @@ done < "$T/acc.out"
 [ -s "$T/acc.out" ] || bad "no statuses under the stream"
 kill -TERM "$DPID"; wait "$DPID"; drc=$?; DPID=""
 [ "$drc" -eq 0 ] && ok "daemon (outside FM) stopped cleanly" || bad "daemon exit $drc"
+
+# ---- (b) replayed: the commands the daemon received, through `afmtwin replay` ------------
+# lcm-logger's time stamps are wall time at reception; replay applies each command that long
+# (x --speed) after the first, on the fast scheme the daemon ran. What the daemon published
+# under the stream must be the model's answer to those commands at those times: for each of
+# its harmonics records after the lock (from 0.5 s of the stream on), the replay's records
+# of the same drive (tone 0 to the bit: the same command applied) labelled with its
+# seq_applied or one of the 10 before (a record carries the last command applied when it was
+# handed out, which can be newer than its period's drive: fm_pll answers every record with a
+# command, and commands that arrive together apply together) have the daemon's lock-in
+# amplitude and lag within 1e-8 and 1e-6 deg; at least 100 and a tenth of the daemon's
+# records must find such a record (the replay writes every $EVERY-th period, and a drive
+# can last fewer: 98 % found at 1000 commands/s and every 30th, a third at 10 000/s and
+# every 100th, `make soak`; a replay of other drives finds none). Measured: 6e-12 and 5e-10
+# deg (1000 commands/s; the records compared are up to 1 ms apart, the drive at lock moving
+# by ~1e-7 Hz a command; replayed at --speed 1 instead of 0.5, 5e-12 and 6e-10: at lock the
+# timing does not show); the accurate scheme instead of the daemon's fast one is 4.8e-6 and
+# 0.18 deg off, Z 10 pm off 5.7e-5 and 0.61 deg. Counted only while the daemon held real
+# time under the stream: behind, it applies the commands later than the log says, and while
+# the loop is not locked that shows (0.17 and 19 deg off at 0.1-0.2x with 51 resyncs), so
+# then it is info unless FM_RT_CHECK=1, as the real-time check.
+if [ "$REPLAY" = 1 ]; then
+  sed 's/integrator = "rt";/integrator = "rt"; rt_scheme = "fast";/' "$T/out.conf" > "$T/rp.conf"
+  "$A" replay --config "$T/rp.conf" --in "$T/cmd.lcmlog" --out "$T/rp.lcmlog" --speed "$SPEED" \
+    --tail 0.01 --channels harmonics --harmonics-every "$EVERY" 2> "$T/rp.err" ||
+    bad "replay of the command log: $(tail -2 "$T/rp.err")"
+  "$A" listen --log "$T/harm.lcmlog" --channels harmonics --json > "$T/dh.jsonl" 2>/dev/null
+  "$A" listen --log "$T/rp.lcmlog" --channels harmonics --json > "$T/rh.jsonl" 2>/dev/null
+  logged=$(sed -n 's/.*: \([0-9]*\) commands applied.*/\1/p' "$T/rp.err")
+  python3 - "$T/dh.jsonl" "$T/rh.jsonl" "$RATE" "${sent:-0}" "$(cat "$T/held" 2>/dev/null)" \
+    "${FM_RT_CHECK:-0}" "${logged:-0}" > "$T/rp.out" <<'EOF'
+import json, statistics, sys
+SEQ0 = 6000000
+rate, sent = float(sys.argv[3]), int(sys.argv[4])
+held, strict = sys.argv[5] == "1", sys.argv[6] == "1"
+logged = int(sys.argv[7])
+def load(f):
+    for l in open(f):
+        if l.strip():
+            r = json.loads(l)
+            yield r["seq_applied"], r["tones"][0]["frequency_hz"], r["tones"][0]["amplitude_m"], \
+                r["lockin_amplitude_m"], r["lockin_phase_deg"]
+lo = SEQ0 + int(0.5 * rate)
+d = [r for r in load(sys.argv[1]) if lo <= r[0] < SEQ0 + sent]
+by = {} # the replay's records by drive
+for r in load(sys.argv[2]):
+    if r[0] >= lo - 10: by.setdefault((r[1], r[2]), []).append(r)
+da, dl = [], []
+for s, f, a, A, lag in d:
+    rs = [r for r in by.get((f, a), []) if s - 10 <= r[0] <= s]
+    if not rs: continue
+    da.append(min(abs(r[3] - A) for r in rs) / A)
+    dl.append(min(abs(r[4] - lag) for r in rs))
+if len(da) < 100 or len(da) < 0.1 * len(d):
+    print("%s replay identity: %d daemon records after 0.5 s of the stream, %d with a replayed "
+          "record of the same drive" % ("FAIL" if held or strict else "info", len(d), len(da)))
+    sys.exit()
+ok = max(da) <= 1e-8 and max(dl) <= 1e-6
+tag = "ok  " if ok else "FAIL" if held or strict else "info"
+print("%s replay of the %d logged commands (of %d sent): %d of %d daemon harmonics records "
+      "(after 0.5 s) have replayed records of the same drive (tone 0 bits); lock-in amplitude "
+      "within %.1e (median %.1e; 1e-8), lag within %.1e deg (median %.1e; 1e-6)" %
+      (tag, logged, sent, len(da), len(d), max(da), statistics.median(da),
+       max(dl), statistics.median(dl)))
+EOF
+  read -r tag rest < "$T/rp.out"
+  if [ "$tag" = ok ]; then ok "$rest"; elif [ "$tag" = info ]; then
+    echo "info $rest (not counted: the daemon fell behind under the stream, see above; FM_RT_CHECK=1 counts it)"
+  else bad "$rest"; fi
+fi
 echo "$pass passed, $fail failed"
 [ "$fail" -eq 0 ]

@@ -20,42 +20,12 @@ cd "$(dirname "$0")/.." || exit 1
 . tests/lib_daemon.sh
 [ "${2:-}" = "--inside" ] || netns_reexec test_fm_self_daemon.sh "$0" "$BUILD"
 daemon_test_init "$BUILD"
-T=$(mktemp -d /tmp/afmtwin-fms.XXXXXX)
-DPID=""
-LPID=""
-cleanup() {
-  [ -n "$DPID" ] && kill -KILL "$DPID" 2>/dev/null
-  [ -n "$LPID" ] && kill -KILL "$LPID" 2>/dev/null
-  rm -rf "$T"
-}
-trap cleanup EXIT
-Z=6e-9
+. tests/lib_fm.sh # T, Z, DPID, LPID, fm_conf, jget, fm_self_reference, fm_daemon_up
 run=(); chrt -f 90 true 2>/dev/null && run=(chrt -f 90)
-
-cat > "$T/self.conf" <<EOF
-model = { kind = "lumped"; lumped = { stiffness_n_m = 2.0; resonance_hz = 300e3; };
-          quality_factor = [2000.0]; };
-forces = { inclination_deg = 0.0; radius_m = 1e-8;
-           vdw_contact = { hamaker_j = 1.29e-19; a0_m = 2.4e-10; reduced_modulus_pa = 7e10; }; };
-drive = { separation_m = $Z; tones = ( { amplitude_m = 6e-13; frequency_hz = 298e3; } ); };
-sim = { sample_rate_hz = 14.06e6; integrator = "rt"; };
-fm = { control = "internal"; drive = "self"; amplitude_setpoint_m = 1.0e-9; };
-EOF
-
-# JSON field K of the last line of FILE
-jget() { python3 -c "import json,sys
-L=[l for l in open('$1') if l.strip()]
-v=json.loads(L[-1]).get('$2') if L else None
-print('' if v is None else v)"; }
+fm_conf internal self > "$T/self.conf"
 
 # ---- the offline reference ---------------------------------------------------------------
-"$A" approach --config "$T/self.conf" --mode fm --fm-drive self --from $Z --to $Z --step 1e-9 \
-  --json > "$T/approach.json" 2> "$T/approach.err"
-sa=$(jget "$T/approach.json" frequency_shift_hz)
-[ -n "$sa" ] && [ "$(jget "$T/approach.json" lock_state)" = locked ] &&
-  [ "$(jget "$T/approach.json" fm_drive)" = self ] &&
-  ok "approach --mode fm --fm-drive self at Z 6 nm: locked, shift $sa Hz" ||
-  bad "approach --fm-drive self: $(tail -2 "$T/approach.err")"
+fm_self_reference "$T/self.conf"
 
 # ---- (a) lockstep: the same samples as approach ------------------------------------------
 "$D" --config "$T/self.conf" --mode lockstep --scheme accurate --quiet 2> "$T/d1.err" & DPID=$!
@@ -121,10 +91,7 @@ then ok "harmonics records under the self drive: $(cat "$T/h.out"); shift = tone
 else bad "harmonics records under the self drive: $(tail -2 "$T/h.out") $(head -c 300 "$T/h1.jsonl")"; fi
 
 # ---- (b) real time, tone 0 re-synthesised every update --------------------------------------
-"$D" --config "$T/self.conf" --speed "$RT_SPEED" --quiet 2> "$T/d2.err" & DPID=$!
-rt_others "$T/others" "$DPID" &
-listen --channels status --json --count 1 --timeout 5 > /dev/null 2>&1 # up
-sleep 1.2 # a whole second of running: realtime_factor_1s valid from here
+fm_daemon_up "$T/d2.err" "$T/others" --config "$T/self.conf" --speed "$RT_SPEED"
 listen --channels status --json --count 20 --timeout 10 > "$T/st2.jsonl" 2>/dev/null
 python3 - "$T/st2.jsonl" "$RT_SPEED" > "$T/rt.out" <<'PY'
 import json, sys

@@ -23,33 +23,11 @@ cd "$(dirname "$0")/.." || exit 1
 . tests/lib_daemon.sh
 [ "${2:-}" = "--inside" ] || netns_reexec test_fm_self_replay.sh "$0" "$BUILD"
 daemon_test_init "$BUILD"
-T=$(mktemp -d /tmp/afmtwin-fmsr.XXXXXX)
-trap 'rm -rf "$T"' EXIT
-Z=6e-9
-cat > "$T/self.conf" <<EOF
-model = { kind = "lumped"; lumped = { stiffness_n_m = 2.0; resonance_hz = 300e3; };
-          quality_factor = [2000.0]; };
-forces = { inclination_deg = 0.0; radius_m = 1e-8;
-           vdw_contact = { hamaker_j = 1.29e-19; a0_m = 2.4e-10; reduced_modulus_pa = 7e10; }; };
-drive = { separation_m = $Z; tones = ( { amplitude_m = 6e-13; frequency_hz = 298e3; } ); };
-sim = { sample_rate_hz = 14.06e6; integrator = "rt"; };
-fm = { control = "internal"; drive = "self"; amplitude_setpoint_m = 1.0e-9; };
-EOF
-
-# JSON field K of the last line of FILE
-jget() { python3 -c "import json,sys
-L=[l for l in open('$1') if l.strip()]
-v=json.loads(L[-1]).get('$2') if L else None
-print('' if v is None else v)"; }
+. tests/lib_fm.sh # T, Z, fm_conf, jget, fm_self_reference
+fm_conf internal self > "$T/self.conf"
 
 # ---- the offline reference ----------------------------------------------------------------
-"$A" approach --config "$T/self.conf" --mode fm --fm-drive self --from $Z --to $Z --step 1e-9 \
-  --json > "$T/approach.json" 2> "$T/approach.err"
-sa=$(jget "$T/approach.json" frequency_shift_hz)
-[ -n "$sa" ] && [ "$(jget "$T/approach.json" lock_state)" = locked ] &&
-  [ "$(jget "$T/approach.json" fm_drive)" = self ] &&
-  ok "approach --mode fm --fm-drive self at Z 6 nm: locked, shift $sa Hz" ||
-  { bad "approach --fm-drive self: $(tail -2 "$T/approach.err")"; sa=0; }
+fm_self_reference "$T/self.conf" || sa=0
 
 # ---- replay: the runner in model time -------------------------------------------------------
 "$A" send control run --config "$T/self.conf" --seq 1 --log "$T/in.log" --log-time 0 --quiet &&

@@ -4,9 +4,10 @@
  * harmonics, status) to an LCM log, bit-identical on every run.
  *
  * Time: a command logged at time t applies when the twin has run
- * ceil_B(round((t - t_first) * rate)) samples since the start, ceil_B rounding up to a
- * multiple of the block size B (commands apply at block boundaries, as in the daemon);
- * t_first is the time of the first command in the log. While the twin is paused (control
+ * ceil_B(round((t - t_first) * speed * rate)) samples since the start, ceil_B rounding up to
+ * a multiple of the block size B (commands apply at block boundaries, as in the daemon);
+ * t_first is the time of the first command in the log, speed --speed (1: a log of wall time
+ * by a daemon at --speed 1). While the twin is paused (control
  * pause) model time stands still and commands apply in log order without advancing it.
  * With --lockstep the twin advances only by the log's tick commands and log times do not
  * matter. Output events carry model time (us) as their time stamp and utime: nothing from
@@ -57,6 +58,7 @@ typedef struct {
     int harmonics_every;     /* write every k-th period's harmonics; 0: automatic */
     double harmonics_max_hz; /* the automatic k: at most this many records a second */
     double tail_s;
+    double speed; /* model seconds per logged second (the daemon's --speed) */
     bool lockstep, quiet;
     bool want[N_OUT];
 } replay_opts;
@@ -90,7 +92,8 @@ typedef struct {
 static void replay_usage(FILE *f) {
     fprintf(f,
             "usage: afmtwin replay --config FILE --in LOG --out LOG [--prefix NAME_]\n"
-            "                      [--block N] [--tail S] [--lockstep] [--channels LIST]\n"
+            "                      [--block N] [--tail S] [--speed X] [--lockstep]\n"
+            "                      [--channels LIST]\n"
             "                      [--harmonics-every K | --harmonics-max-hz F] [--quiet]\n\n"
             "Runs the commands recorded in an LCM log (lcm-logger's format, e.g. a logged\n"
             "sweep, or one written with `afmtwin send --log`) through the twin of --config in\n"
@@ -98,10 +101,11 @@ static void replay_usage(FILE *f) {
             "publish (samples, harmonics, status) to another LCM log. The output is\n"
             "bit-identical on every run: its time stamps are model time, never the wall clock.\n\n"
             "Timing: a command logged at time t applies once the twin has run\n"
-            "round((t - t_first) x sample rate) samples, rounded up to a whole block; t_first is\n"
-            "the first command's time. Paused (control pause), model time stands still and\n"
-            "commands apply in log order. Events on other channels are skipped; commands the\n"
-            "daemon would reject are counted and reported in status, as the daemon does.\n\n"
+            "round((t - t_first) x speed x sample rate) samples, rounded up to a whole block;\n"
+            "t_first is the first command's time, speed --speed. Paused (control pause), model\n"
+            "time stands still and commands apply in log order. Events on other channels are\n"
+            "skipped; commands the daemon would reject are counted and reported in status, as\n"
+            "the daemon does.\n\n"
             "options:\n"
             "  --config FILE    the twin's config (libconfig; see config/README.md)\n"
             "  --in LOG         input log: commands on PREFIX + DITHER, SETPOINT, PARAM,\n"
@@ -111,6 +115,8 @@ static void replay_usage(FILE *f) {
             "  --block N        samples per block, 1..1048576 (default %d): commands apply and\n"
             "                   outputs are taken at block boundaries\n"
             "  --tail S         model seconds to run after the last command (default 0.01)\n"
+            "  --speed X        model seconds per second of log time, 1e-3..1e3 (default 1): X\n"
+            "                   for a log of the commands a daemon at --speed X received\n"
             "  --lockstep       the twin advances only by the log's tick commands (applied in\n"
             "                   log order; log times are ignored)\n"
             "  --channels LIST  outputs to write, comma-separated subset of\n"
@@ -424,6 +430,7 @@ static int parse_opts(int argc, char **argv, replay_opts *o) {
         AFMT_FN_UNIT("--harmonics-max-hz", parse_max_hz, o,
                      "1..1e9 Hz (or with a suffix: kHz, MHz, GHz)", AFMT_UNIT_HZ),
         AFMT_DOUBLE("--tail", &o->tail_s, 0, 1e4, "seconds in 0..1e4"),
+        AFMT_DOUBLE("--speed", &o->speed, 1e-3, 1e3, "a number in 1e-3..1e3"),
         AFMT_FN("--channels", afmt_opt_channels, o->want, AFMT_OPT_CHANNELS_WANTS),
         AFMT_OPTS_END,
     };
@@ -449,6 +456,7 @@ int afm_cmd_replay(int argc, char **argv) {
                         .harmonics_every = 0,
                         .harmonics_max_hz = AFM_IO_HARMONICS_MAX_HZ,
                         .tail_s = 0.01,
+                        .speed = 1.0,
                         .want = {true, true, true, true}};
     afm_lcm_digest_init(&x.dg);
     x.a0_dirty = true;
@@ -520,7 +528,7 @@ int afm_cmd_replay(int argc, char **argv) {
                 break;
             }
             if (gap_us < 0) backwards++; /* applies now, in log order */
-            double n_d = gap_us > 0 ? (double)gap_us * 1e-6 * rate : 0.0; /* < 1e15 */
+            double n_d = gap_us > 0 ? (double)gap_us * 1e-6 * x.o.speed * rate : 0.0; /* < 1e18 */
             long long k = n_d < 9e18 ? llround(n_d) : LLONG_MAX - x.o.block;
             k = (k + x.o.block - 1) / x.o.block * x.o.block;
             if (k > last_target) last_target = k;

@@ -55,17 +55,24 @@ void afm_drive_set_grid(afm_drive *d, double t_start_s, double dt_s) {
         place(d, j);
 }
 
-void afm_drive_set_tone_phase(afm_drive *d, double t_s, int j, double amp_m, double freq_hz,
-                              double theta_rad) {
-    if (j < 0 || j >= AFM_MAX_TONES) return;
-    double ph = fmod(theta_rad, two_pi);
-    d->phase_rad[j] = ph < 0 ? ph + two_pi : ph;
+/* Tone j (0 <= j < AFM_MAX_TONES) from t_s on: amp_m, freq_hz, phase phase_rad in [0, 2 pi)
+ * at t_s; the one body of set_tone (phase-continuous) and set_tone_phase (a jump). */
+static void set_tone_at(afm_drive *d, double t_s, int j, double amp_m, double freq_hz,
+                        double phase_rad) {
+    d->phase_rad[j] = phase_rad;
     d->t0_s[j] = t_s;
     d->amp_m[j] = amp_m;
     d->freq_hz[j] = freq_hz;
     d->omega_rad_s[j] = two_pi * freq_hz;
     if (j >= d->n) d->n = j + 1;
     place(d, j);
+}
+
+void afm_drive_set_tone_phase(afm_drive *d, double t_s, int j, double amp_m, double freq_hz,
+                              double theta_rad) {
+    if (j < 0 || j >= AFM_MAX_TONES) return;
+    double ph = fmod(theta_rad, two_pi);
+    set_tone_at(d, t_s, j, amp_m, freq_hz, ph < 0 ? ph + two_pi : ph);
 }
 
 void afm_drive_retime(afm_drive *d, double t_from_s, double t_to_s) {
@@ -113,11 +120,5 @@ double afm_drive_x(const afm_drive *d, double t_s, double *acc) {
 
 void afm_drive_set_tone(afm_drive *d, double t_s, int j, double amp_m, double freq_hz) {
     if (j < 0 || j >= AFM_MAX_TONES) return;
-    d->phase_rad[j] = (j < d->n) ? afm_drive_phase_mod(d, j, t_s) : 0.0;
-    d->t0_s[j] = t_s;
-    d->amp_m[j] = amp_m;
-    d->freq_hz[j] = freq_hz;
-    d->omega_rad_s[j] = two_pi * freq_hz;
-    if (j >= d->n) d->n = j + 1;
-    place(d, j);
+    set_tone_at(d, t_s, j, amp_m, freq_hz, j < d->n ? afm_drive_phase_mod(d, j, t_s) : 0.0);
 }
