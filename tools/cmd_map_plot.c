@@ -424,7 +424,7 @@ static int write_script(FILE *sf, const mplot_opts *o, const afmt_map_data *m, i
                 *pd ? "" : "NaN NaN\n");
         ol += snprintf(over + ol, sizeof over - ol,
                        ", $lpc using 1:2 with lines lw 2.5 lc rgb 'black' notitle, $lpc2 using "
-                       "1:2 with lines lw 2.5 dt (8,4,2,4) lc rgb 'black' notitle, $pd using "
+                       "1:2 with lines lw 3 dt (6,3,2,3) lc rgb 'black' notitle, $pd using "
                        "1:2 with lines lw 2 dt 2 lc rgb '#ff00ff' notitle");
     }
     if (!isnan(o->contour_n)) {
