@@ -32,12 +32,16 @@ case $edge in lower | upper) ;; *)
 esac
 T=$(mktemp /tmp/afmtwin-map-edges.XXXXXX)
 trap 'rm -f "$T"' EXIT
-# one line per LPC curve point: F file index, curve, side, period, fe (Hz), y (SI)
+# one line per LPC curve point: run (file index and the summary records before it in the
+# file: the outputs of several runs concatenated, as plot map --curves reads them), curve,
+# side, period, fe (Hz), y (SI)
 i=0
 for f in "$@"; do
-  jq -r --argjson i $i 'select(.type == "curve_point" and .kind == "LPC") |
-      [$i, .curve, .side, .period, (if .param_name == "fe" then .param else .param2 end),
-       (if .param_name == "fe" then .param2 else .param end)] | @tsv' "$f" >> "$T"
+  jq -r -s --argjson i $i 'foreach .[] as $r (0; if $r.type == "summary" then . + 1 else . end;
+      . as $n | $r | select(.type == "curve_point" and .kind == "LPC") |
+      ["\($i).\($n)", .curve, .side, .period,
+       (if .param_name == "fe" then .param else .param2 end),
+       (if .param_name == "fe" then .param2 else .param end)]) | @tsv' "$f" >> "$T"
   i=$((i + 1))
 done
 awk -v edge="$edge" -v curves="$T" '
