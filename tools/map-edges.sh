@@ -8,7 +8,9 @@
 #          that is (the map's B records), the down pass leaving the low branch;
 #   upper: the midpoint of the two points across which the up pass's amplitude drops most
 #          (the J record of direction u with the largest relative drop): it leaves the high
-#          branch at the fold of the branch it is on.
+#          branch at the fold of the branch it is on;
+#   pd:    the midpoint of the up pass's first step from a period-1 to a period-2 point, the
+#          period doubling, against the PD curves instead of the LPC curves.
 #
 # The curve's fe at the row: every crossing of the row's y by a curve's segments (the sides
 # joined at the curve's start, interpolated linearly), of the LPC curves in all the files;
@@ -16,29 +18,31 @@
 # LPC, p2: the fold of a period-2 branch). "-" where the map has no edge or no curve
 # crosses the row.
 #
-# Usage: sh tools/map-edges.sh MAP lower|upper CURVES.jsonl...   (needs jq)
+# Usage: sh tools/map-edges.sh MAP lower|upper|pd CURVES.jsonl...   (needs jq)
 set -e
 [ $# -ge 3 ] || {
-  echo "usage: sh tools/map-edges.sh MAP lower|upper CURVES.jsonl..." >&2
+  echo "usage: sh tools/map-edges.sh MAP lower|upper|pd CURVES.jsonl..." >&2
   exit 2
 }
 map=$1
 edge=$2
 shift 2
-case $edge in lower | upper) ;; *)
-  echo "map-edges.sh: the edge is lower or upper, not $edge" >&2
+case $edge in lower | upper | pd) ;; *)
+  echo "map-edges.sh: the edge is lower, upper or pd, not $edge" >&2
   exit 2
   ;;
 esac
 T=$(mktemp /tmp/afmtwin-map-edges.XXXXXX)
 trap 'rm -f "$T"' EXIT
-# one line per LPC curve point: run (file index and the summary records before it in the
+kind=LPC
+[ "$edge" = pd ] && kind=PD
+# one line per curve point of that kind: run (file index and the summary records before it in the
 # file: the outputs of several runs concatenated, as plot map --curves reads them), curve,
 # side, period, fe (Hz), y (SI)
 i=0
 for f in "$@"; do
-  jq -r -s --argjson i $i 'foreach .[] as $r (0; if $r.type == "summary" then . + 1 else . end;
-      . as $n | $r | select(.type == "curve_point" and .kind == "LPC") |
+  jq -r -s --argjson i $i --arg kind $kind 'foreach .[] as $r (0; if $r.type == "summary" then . + 1 else . end;
+      . as $n | $r | select(.type == "curve_point" and .kind == $kind) |
       ["\($i).\($n)", .curve, .side, .period,
        (if .param_name == "fe" then .param else .param2 end),
        (if .param_name == "fe" then .param2 else .param end)]) | @tsv' "$f" >> "$T"
@@ -60,7 +64,11 @@ awk -v edge="$edge" -v curves="$T" '
   }
   $1 == "x" && $2 != "fe" { print "map-edges.sh: the map x axis is " $2 ", not fe" > "/dev/stderr"; exit 2 }
   $1 == "y" { yname = $2 }
-  $1 == "P" && $3 == "u" { x[$4] = $5; yv[$2] = $6; amp[$2, $4] = $7 }
+  $1 == "P" && $3 == "u" {
+    x[$4] = $5; yv[$2] = $6; amp[$2, $4] = $7
+    if ($4 > 0 && $15 == 2 && prevper == 1 && !(($2) in firstpd)) firstpd[$2] = $4
+    prevper = $15
+  }
   $1 == "B" { if (!(($2) in firstb) || $3 < firstb[$2]) firstb[$2] = $3 }
   $1 == "J" && $3 == "u" && $7 < $6 {
     d = 1 - $7 / $6
@@ -77,6 +85,8 @@ awk -v edge="$edge" -v curves="$T" '
         m = (x[firstb[r] - 1] + x[firstb[r]]) / 2
       if (edge == "upper" && (r in drop))
         m = (x[jb[r]] + x[ja[r]]) / 2
+      if (edge == "pd" && (r in firstpd))
+        m = (x[firstpd[r] - 1] + x[firstpd[r]]) / 2
       best = ""; bp = ""
       for (j = 1; j < n; j++) {
         if (k[j] != k[j - 1]) continue
