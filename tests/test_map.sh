@@ -332,6 +332,20 @@ sed -e 's/"param_name": "fe", "param": \([0-9]*\), "param2_name": "z", "param2":
 [ $rc -eq 0 ] && grep -q '"param_name": "z"' "$T/curves-swap.json" && [ "$(block lpc "$T/swap.gp")" = "$want_lpc" ] \
   && ok "plot map --curves in (z, fe) on an (fe, z) map: the same curves" \
   || bad "plot map --curves swapped: exit $rc [$(block lpc "$T/swap.gp" | tr '\n' '|')]"
+# a second run's output appended: its curve 0 (a fold of a period-2 branch) is a curve of
+# its own in $lpc2 (not joined to the first run's curve 0 at its start), $lpc unchanged
+{
+  cat "$T/curves.json"
+  echo '{"type": "curve_point", "curve": 0, "kind": "LPC", "side": 0, "period": 2, "param_name": "fe", "param": 85000, "param2_name": "z", "param2": 2.4e-8}'
+  echo '{"type": "curve_point", "curve": 0, "kind": "LPC", "side": 1, "period": 2, "param_name": "fe", "param": 85500, "param2_name": "z", "param2": 2.1e-8}'
+  echo '{"type": "summary", "points": 2}'
+} > "$T/curves-two.json"
+"$A" plot map "$T/single.map" --out "$T/two.png" --curves "$T/curves-two.json" --script "$T/two.gp" 2> /dev/null; rc=$?
+want_lpc2=$(printf '\n85 24\n\n85 24\n85.5 21')
+[ $rc -eq 0 ] && [ "$(block lpc "$T/two.gp")" = "$want_lpc" ] && [ "$(block lpc2 "$T/two.gp")" = "$want_lpc2" ] \
+  && [ "$(block pd "$T/two.gp")" = "$want_pd" ] && grep -q "\$lpc2 using 1:2 with lines" "$T/two.gp" \
+  && ok "plot map --curves of two runs concatenated: the second run's period-2 fold a curve of its own (\$lpc2), drawn" \
+  || bad "plot map --curves of two runs: exit $rc lpc [$(block lpc "$T/two.gp" | tr '\n' '|')] lpc2 [$(block lpc2 "$T/two.gp" | tr '\n' '|')]"
 sed 's/"param2_name": "z"/"param2_name": "ae"/' "$T/curves.json" > "$T/curves-ae.json"
 "$A" plot map "$T/single.map" --out "$T/x.png" --curves "$T/curves-ae.json" > /dev/null 2> "$T/e.txt"; rc=$?
 [ $rc -eq 2 ] && grep -q "the map is in (fe, z)" "$T/e.txt" && [ ! -e "$T/x.png" ] \

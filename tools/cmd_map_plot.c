@@ -45,12 +45,14 @@ static void mplot_usage(FILE *f) {
             "  --direction D    which sweep direction the heat maps show\n"
             "  --size WxH       picture size in pixels (default 1200x900)\n"
             "  --script FILE    the gnuplot script as run (its data blocks: $map, $bist, $lpc,\n"
-            "                   $pd, $cont)\n"
+            "                   $lpc2, $pd, $cont)\n"
             "  --curves FILE    overlay the LPC curves (solid black: the edges of the bistable\n"
-            "                   windows) and PD curves (dashed magenta: of the period-doubled\n"
+            "                   windows; dash-dot black: the folds of period-2 and longer\n"
+            "                   branches) and PD curves (dashed magenta: of the period-doubled\n"
             "                   regions) of `afmtwin continue --param2 ... --json` on every\n"
             "                   panel; its two parameters must be the map's x and y (either\n"
-            "                   order)\n"
+            "                   order); several runs' outputs concatenated (each ends with its\n"
+            "                   summary record) draw as separate curves\n"
             "  --contour-force F  draw the contour where the shown direction's peak force is F\n"
             "                   (N) on every panel (white; linear interpolation in each grid\n"
             "                   cell, cells with a missing value left out)\n"
@@ -191,26 +193,35 @@ static const char *axis_label(const afmt_map_axis *a, char *buf, size_t len) {
 
 /* The LPC and PD curves of a `continue --param2 --json` file as gnuplot data (x y, in the
  * map's plotting units), one block per curve side separated by blank lines; side 1 starts
- * again at the curve's start point so that the two sides draw as one line. *lpc and *pd are
- * malloc'd text (the caller frees them), *np the curve points read. 0, or -1 with err (cannot
- * read the file, a bad record, curves in other parameters than the map's). */
-static int read_curves(const char *path, const afmt_map_data *m, char **lpc, char **pd, int *np,
-                       char *err, size_t errlen) {
-    *lpc = *pd = NULL;
+ * again at the curve's start point so that the two sides draw as one line. blk[CV_LPC]: the
+ * LPC curves of period-1 orbits (or of no stated period), blk[CV_LPC2]: those of longer
+ * periods (the folds of period-doubled branches, another line style), blk[CV_PD]: the PD
+ * curves. A summary record (the end of one run's output) ends the curve, so that the outputs
+ * of several runs concatenated read as their curves, not joined. blk[] is malloc'd text (the
+ * caller frees it), *np the curve points read. 0, or -1 with err (cannot read the file, a bad
+ * record, curves in other parameters than the map's). */
+enum { CV_LPC, CV_LPC2, CV_PD, CV_N };
+static int read_curves(const char *path, const afmt_map_data *m, char **blk, int *np, char *err,
+                       size_t errlen) {
+    for (int k = 0; k < CV_N; k++)
+        blk[k] = NULL;
     *np = 0;
     FILE *f = fopen(path, "r");
     if (!f) {
         snprintf(err, errlen, "cannot read %s", path);
         return -1;
     }
-    size_t ll = 0, pl = 0;
-    FILE *out[2] = {open_memstream(lpc, &ll), open_memstream(pd, &pl)};
+    size_t bl[CV_N];
+    FILE *out[CV_N];
+    for (int k = 0; k < CV_N; k++)
+        out[k] = open_memstream(&blk[k], &bl[k]);
     char *line = NULL;
     size_t cap = 0;
     int rc = 0, lineno = 0, cur = -1, side = -1;
     double start[2] = {NAN, NAN};
     const double sx = axis_scale(&m->x), sy = axis_scale(&m->y);
-    if (!out[0] || !out[1]) rc = -1;
+    for (int k = 0; k < CV_N; k++)
+        if (!out[k]) rc = -1;
     while (!rc && getline(&line, &cap, f) > 0) {
         lineno++;
         if (strspn(line, " \t\r\n") == strlen(line)) continue;
@@ -219,6 +230,8 @@ static int read_curves(const char *path, const afmt_map_data *m, char **lpc, cha
         if (!cJSON_IsString(t)) {
             snprintf(err, errlen, "%s:%d: not a record of `afmtwin continue --json`", path, lineno);
             rc = -1;
+        } else if (!strcmp(t->valuestring, "summary")) {
+            cur = side = -1;
         } else if (!strcmp(t->valuestring, "curve_point")) {
             const cJSON *n1 = cJSON_GetObjectItemCaseSensitive(o, "param_name"),
                         *n2 = cJSON_GetObjectItemCaseSensitive(o, "param2_name"),
@@ -226,7 +239,8 @@ static int read_curves(const char *path, const afmt_map_data *m, char **lpc, cha
                         *v2 = cJSON_GetObjectItemCaseSensitive(o, "param2"),
                         *kd = cJSON_GetObjectItemCaseSensitive(o, "kind"),
                         *cv = cJSON_GetObjectItemCaseSensitive(o, "curve"),
-                        *sd = cJSON_GetObjectItemCaseSensitive(o, "side");
+                        *sd = cJSON_GetObjectItemCaseSensitive(o, "side"),
+                        *pe = cJSON_GetObjectItemCaseSensitive(o, "period");
             const char *xn = afmt_map_axis_name(&m->x), *yn = afmt_map_axis_name(&m->y);
             /* a curve's names as continue writes them: fe, z, ae or the table's name */
             int p1 = !cJSON_IsString(n1)            ? -1
@@ -252,7 +266,9 @@ static int read_curves(const char *path, const afmt_map_data *m, char **lpc, cha
                 bool swap = p1 != 0;
                 double x = (swap ? v2 : v1)->valuedouble * sx,
                        y = (swap ? v1 : v2)->valuedouble * sy;
-                FILE *g = out[!strcmp(kd->valuestring, "PD")];
+                FILE *g = out[!strcmp(kd->valuestring, "PD")                ? CV_PD
+                              : cJSON_IsNumber(pe) && pe->valuedouble > 1.5 ? CV_LPC2
+                                                                            : CV_LPC];
                 if (cv->valueint != cur) {
                     fprintf(g, "\n");
                     start[0] = x;
@@ -270,7 +286,7 @@ static int read_curves(const char *path, const afmt_map_data *m, char **lpc, cha
     }
     free(line);
     fclose(f);
-    for (int k = 0; k < 2; k++)
+    for (int k = 0; k < CV_N; k++)
         if (out[k] && fclose(out[k])) rc = -1;
     if (!rc && *np == 0) {
         snprintf(err, errlen, "%s has no curve_point record (afmtwin continue --param2 --json)",
@@ -279,9 +295,10 @@ static int read_curves(const char *path, const afmt_map_data *m, char **lpc, cha
     }
     if (rc) {
         if (!err[0]) snprintf(err, errlen, "out of memory reading %s", path);
-        free(*lpc);
-        free(*pd);
-        *lpc = *pd = NULL;
+        for (int k = 0; k < CV_N; k++) {
+            free(blk[k]);
+            blk[k] = NULL;
+        }
     }
     return rc;
 }
@@ -366,7 +383,8 @@ static void map_info_line(const afmt_map_data *m, char *out, size_t n) {
 }
 
 static int write_script(FILE *sf, const mplot_opts *o, const afmt_map_data *m, int d,
-                        const char *lpc, const char *pd) {
+                        char *const *blk) {
+    const char *lpc = blk[CV_LPC], *lpc2 = blk[CV_LPC2], *pd = blk[CV_PD];
     const double sx = axis_scale(&m->x), sy = axis_scale(&m->y);
     bool svg = o->out && strlen(o->out) > 4 && !strcmp(o->out + strlen(o->out) - 4, ".svg");
     fprintf(sf, "set terminal %s size %d,%d noenhanced\nset output '%s'\n",
@@ -401,11 +419,13 @@ static int write_script(FILE *sf, const mplot_opts *o, const afmt_map_data *m, i
     char over[1024] = "";
     size_t ol = 0;
     if (lpc) {
-        fprintf(sf, "$lpc << EOD\n%s%sEOD\n$pd << EOD\n%s%sEOD\n", lpc, *lpc ? "" : "NaN NaN\n", pd,
+        fprintf(sf, "$lpc << EOD\n%s%sEOD\n$lpc2 << EOD\n%s%sEOD\n$pd << EOD\n%s%sEOD\n", lpc,
+                *lpc ? "" : "NaN NaN\n", lpc2, *lpc2 ? "" : "NaN NaN\n", pd,
                 *pd ? "" : "NaN NaN\n");
         ol += snprintf(over + ol, sizeof over - ol,
-                       ", $lpc using 1:2 with lines lw 2.5 lc rgb 'black' notitle, $pd using 1:2 "
-                       "with lines lw 2 dt 2 lc rgb '#ff00ff' notitle");
+                       ", $lpc using 1:2 with lines lw 2.5 lc rgb 'black' notitle, $lpc2 using "
+                       "1:2 with lines lw 3 dt (6,3,2,3) lc rgb 'black' notitle, $pd using "
+                       "1:2 with lines lw 2 dt 2 lc rgb '#ff00ff' notitle");
     }
     if (!isnan(o->contour_n)) {
         size_t np = (size_t)m->x.n * m->lines;
@@ -431,6 +451,7 @@ static int write_script(FILE *sf, const mplot_opts *o, const afmt_map_data *m, i
             m->config, d ? "down" : "up", m->x.n, m->y.n, m->lines < m->y.n ? ", partial" : "",
             info[0] ? "'" : "", info, info[0] ? "'.\"\\n\"." : "");
     if (lpc && *lpc) fprintf(sf, "; black lines: LPC curves");
+    if (lpc2 && *lpc2) fprintf(sf, "; dash-dot black: folds of period-2+ branches");
     if (pd && *pd) fprintf(sf, "; dashed magenta: PD curves");
     if (!isnan(o->contour_n)) fprintf(sf, "; white line: peak force %.4g nN", o->contour_n * 1e9);
     fprintf(sf, "'\n");
@@ -513,19 +534,19 @@ int afm_cmd_plot_map(int argc, char **argv) {
             afmt_map_data_destroy(&m);
             return 2;
         }
-        char *script = NULL, *lpc = NULL, *pd = NULL;
+        char *script = NULL, *blk[CV_N] = {NULL, NULL, NULL};
         size_t len = 0;
         if (o.curves) {
             int np;
             err[0] = 0;
-            if (read_curves(o.curves, &m, &lpc, &pd, &np, err, sizeof err)) {
+            if (read_curves(o.curves, &m, blk, &np, err, sizeof err)) {
                 fprintf(stderr, "afmtwin plot map: %s\n", err);
                 afmt_map_data_destroy(&m);
                 return 2;
             }
         }
         FILE *sf = open_memstream(&script, &len);
-        if (!sf || write_script(sf, &o, &m, d, lpc, pd) || fclose(sf)) status = 1;
+        if (!sf || write_script(sf, &o, &m, d, blk) || fclose(sf)) status = 1;
         if (!status && o.script) {
             FILE *f = fopen(o.script, "w");
             if (!f || fwrite(script, 1, len, f) != len || fclose(f)) {
@@ -546,8 +567,8 @@ int afm_cmd_plot_map(int argc, char **argv) {
             status = 1;
         }
         free(script);
-        free(lpc);
-        free(pd);
+        for (int k = 0; k < CV_N; k++)
+            free(blk[k]);
     }
     afmt_map_data_destroy(&m);
     return status;

@@ -57,7 +57,8 @@ typedef struct {
     double t[UMAX];             /* unit tangent (scaled) */
     double mre[NMAX], mim[NMAX];
     double residual;
-    int iterations;
+    int iterations; /* evaluations of the corrector, the predictor's included */
+    int iters_tol;  /* the first of them within CURVE_TOL and CURVE_GTOL (the step control's) */
 } curve_pt;
 
 typedef struct {
@@ -227,6 +228,7 @@ static int correct(curve_run *R, const double *y_pred, const double *lam_pred, c
     memcpy(y, y_pred, sizeof(double) * (size_t)N);
     bool have_grad = false;
     double last = HUGE_VAL, r_min = HUGE_VAL, g_min = HUGE_VAL;
+    out->iters_tol = 0;
     for (int it = 1; it <= CURVE_MAX_ITER; it++) {
         double G[NMAX], A[NMAX * NMAX];
         if (it == 1 && G0)
@@ -244,6 +246,7 @@ static int correct(curve_run *R, const double *y_pred, const double *lam_pred, c
         out->residual = r;
         out->iterations = it;
         const double ag = fabs(out->g);
+        if (!out->iters_tol && r < CURVE_TOL && ag < CURVE_GTOL) out->iters_tol = it;
         /* stagnant: not 3x below the best iterate so far (at the noise floor r and g
          * scatter, 5e-10..3e-8 and +-1e-6 on fig 4-2's period-1 LPC: a comparison with the
          * last iterate alone missed it for 12 steps) */
@@ -506,9 +509,18 @@ static int follow(curve_run *R, int side) {
             snprintf(why, sizeof why, "closed curve: back at its start");
             break;
         }
-        if (R->a.iterations <= 4) /* one more than afm_cont's: always one Newton step */
+        /* By the evaluations it took to come within the coarse tolerances, the predictor's
+         * error: those spent after that, waiting for the noise floor to show (r and g
+         * scattering, a stagnation test that needs at least one more step and in hard
+         * contact took 5-10 in all), say nothing about the step. Grown unless that took
+         * more than 5 (4 Newton steps: in hard contact, where g_u comes from differences,
+         * Newton converges linearly and takes 4-5 at any step), shrunk from 7: counted over
+         * all of them, or grown only up to 4, fig 4-2's period-1 LPC curve kept its first
+         * step (0.02 scaled, 0.02-0.2 nm of Z a point) in the dead band between. */
+        const int effort = R->a.iters_tol > 0 ? R->a.iters_tol : R->a.iterations;
+        if (effort <= 5)
             h = fmin(1.5 * h, h_max);
-        else if (R->a.iterations >= 7)
+        else if (effort >= 7)
             h *= 0.7;
     }
     return emit_end(R, side, points, why);
