@@ -197,21 +197,21 @@ static void near_case(const char *conf, double z) {
                    z * 1e9));
     check_true(same,
                WHAT("%s, Z %g nm: afm_cycle_push_n = afm_cycle_push, bit for bit", conf, z * 1e9));
-    /* what the output chain publishes (afm_cycle_tip_forces: force harmonics, sample stream)
+    /* what the output chain publishes (afm_cycle_split_forces: force harmonics, sample stream)
      * is the same tip-sample force, within Starr's interpolant (1e-8 of F_sq) */
-    static double fts[NBUF];
-    afm_cycle_tip_forces(&cn, buf, n, fts);
+    static double fts[NBUF], psq[NBUF];
+    afm_cycle_split_forces(&cn, buf, n, fts, psq);
     double dmax = 0, sqmax = 0;
     for (int i = 0; i < n; i++) {
         dmax = fmax(dmax, fabs(fts[i] - tsb[i].f_n));
         sqmax = fmax(sqmax, fabs(buf[i].f_n - tsb[i].f_n));
     }
-    printf("  %s, Z %g nm: afm_cycle_tip_forces less f_n - F_sq (exact): %.3g N, F_sq up to "
+    printf("  %s, Z %g nm: afm_cycle_split_forces less f_n - F_sq (exact): %.3g N, F_sq up to "
            "%.3g N\n",
            conf, z * 1e9, dmax, sqmax);
     check_true(
         sqmax > 0 && dmax <= 1e-8 * sqmax,
-        WHAT("%s, Z %g nm: afm_cycle_tip_forces = f_n less the squeeze film", conf, z * 1e9));
+        WHAT("%s, Z %g nm: afm_cycle_split_forces = f_n less the squeeze film", conf, z * 1e9));
 done:
     afm_sim_destroy(&s);
 }

@@ -160,26 +160,6 @@ static AFM_CLONES_NOINLINE void split_run(const afm_cycle *c, const afm_sample *
         split_sample(c, s + j, d + j);
 }
 
-AFM_CLONES void afm_cycle_tip_forces(const afm_cycle *c, const afm_sample *restrict s, int n,
-                                     double *restrict f_ts) {
-    if (!c->split) {
-        for (int j = 0; j < n; j++)
-            f_ts[j] = s[j].f_n;
-        return;
-    }
-    const afm_force_params *f = c->forces;
-    if (f->squeeze == AFM_SQUEEZE_LINEAR) { /* split_run's, the same bits */
-        const double p1 = f->p1, p2 = f->p2, z = c->z_m;
-        for (int j = 0; j < n; j++) {
-            double cq = p1 * (z + s[j].x_m) + p2;
-            f_ts[j] = s[j].f_n - (cq > 0.0 ? -cq * s[j].v_m_s : 0.0);
-        }
-        return;
-    }
-    for (int j = 0; j < n; j++)
-        f_ts[j] = s[j].f_n - squeeze_force(c, s[j].x_m, s[j].v_m_s);
-}
-
 AFM_CLONES void afm_cycle_split_forces(const afm_cycle *c, const afm_sample *restrict s, int n,
                                        double *restrict f_ts, double *restrict p_sq) {
     if (!c->split) {

@@ -186,13 +186,6 @@ int afm_cycle_set_contact(afm_cycle *c, double x_contact_m);
  * window, as the rt integrator does). -1 if f is NULL or z_m not finite (nothing changed). */
 int afm_cycle_set_forces(afm_cycle *c, const afm_force_params *f, double z_m);
 
-/* f_ts[i] = the tip-sample force of s[i], i < n: s[i].f_n less the squeeze film's force at
- * (x, v) under the law of the last afm_cycle_set_forces, the same bits as the split samples'
- * (so the output chain's force harmonics and sample stream carry the force the metrics use);
- * s[i].f_n as it is without a squeeze film or before any afm_cycle_set_forces. */
-void afm_cycle_tip_forces(const afm_cycle *c, const afm_sample *restrict s, int n,
-                          double *restrict f_ts);
-
 /* on: from now on the steps that need the force law on the continuous path (peak_force_n's
  * refinement in contact and at the minimum, dissipated_energy_j's contact-step work) are
  * kept with the period (c->out_def) instead of computed: out.peak_force_n is then a lower
@@ -206,9 +199,12 @@ void afm_cycle_set_defer(afm_cycle *c, bool on);
 /* m's deferred figures from d (afm_cycle_set_defer); then d is all zero (m final). */
 void afm_cycle_finish(afm_cycle_metrics *m, afm_cycle_deferred *d);
 
-/* afm_cycle_tip_forces, and with a squeeze film p_sq[i] = F_sq v of s[i] (W; p_sq untouched
- * without): the split of the samples (afm_cycle.c, split_sample), the same bits, for
- * afm_cycle_push_n_split. */
+/* f_ts[i] = the tip-sample force of s[i], i < n: s[i].f_n less the squeeze film's force at
+ * (x, v) under the law of the last afm_cycle_set_forces, the same bits as the split samples'
+ * (so the output chain's force harmonics and sample stream carry the force the metrics use);
+ * s[i].f_n as it is without a squeeze film or before any afm_cycle_set_forces. With a
+ * squeeze film also p_sq[i] = F_sq v of s[i] (W; p_sq untouched without): the split of the
+ * samples (afm_cycle.c, split_sample), the same bits, for afm_cycle_push_n_split. */
 void afm_cycle_split_forces(const afm_cycle *c, const afm_sample *restrict s, int n,
                             double *restrict f_ts, double *restrict p_sq);
 
