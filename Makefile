@@ -72,8 +72,9 @@ WIRE_OBJ   := $(patsubst $(BUILD)/gen/%.c,$(BUILD)/obj/gen/%.o,$(WIRE_C))
 # The message library: the generated types only, static and shared (for clients, installed
 # with the headers, afmtwin.pc, the .lcm files and a Java jar for lcm-spy: mk/client.mk).
 MSG_LIB    := $(BUILD)/lib/libafmtwin_msg.a
-# Transports (LCM, CAN) and the daemon's own modules; afmtwind.c holds main().
-IO_SRC     := $(wildcard daemon/transport/*.c)
+# Transports (LCM, CAN), the command line both programs share (daemon/cli: the option
+# tables) and the daemon's own modules; afmtwind.c holds main().
+IO_SRC     := $(wildcard daemon/transport/*.c daemon/cli/*.c)
 IO_OBJ     := $(patsubst %.c,$(BUILD)/obj/%.o,$(IO_SRC))
 IO_LIB     := $(BUILD)/lib/libafmtwin_io.a
 DAEMON_SRC := $(wildcard daemon/*.c)
@@ -285,7 +286,7 @@ clean:
 	rm -rf $(BUILD)
 
 FORMAT_SRC = $(wildcard daemon/*.[ch] $(foreach l,$(ENGINE_LAYERS),daemon/engine/$(l)/*.[ch]) \
-             daemon/transport/*.[ch] tools/*.[ch] tests/*.[ch] fuzz/*.[ch] \
+             daemon/transport/*.[ch] daemon/cli/*.[ch] tools/*.[ch] tests/*.[ch] fuzz/*.[ch] \
              examples/*.[ch] msgtypes/*.h)
 format:
 	clang-format -i $(FORMAT_SRC)

@@ -1,11 +1,12 @@
 /* SPDX-License-Identifier: MIT */
-/* twind_opts.c -- the daemon's command line: its --help text and the parser that fills
- * twind_opts, each value range-checked with a message naming the option (exit 2 on a bad
- * one). Kept apart from afmtwind.c's start-up so that main reads as the start-up order. */
+/* twind_opts.c -- the daemon's command line: its --help text and its option table, parsed
+ * by the parser afmtwin's tools use (cli/afm_opts.h), so that a bad value is refused in the
+ * same words (exit 2). Kept apart from afmtwind.c's start-up so that main reads as the
+ * start-up order. */
 #include "twind.h"
 
-#include <errno.h>
-#include <math.h>
+#include "cli/afm_opts.h"
+
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -72,16 +73,31 @@ static void usage(FILE *f) {
             "  --version              the version\n");
 }
 
-static int parse_num(const char *opt, const char *s, double lo, double hi, double *out) {
-    char *end;
-    errno = 0;
-    double v = s ? strtod(s, &end) : NAN;
-    if (!s || errno || end == s || *end || !(v >= lo && v <= hi)) {
-        fprintf(stderr, "afmtwind: %s needs a number in [%g, %g], got '%s'\n", opt, lo, hi,
-                s ? s : "(nothing)");
+static int parse_mode(const char *v, void *dest) {
+    twind_mode *m = dest;
+    if (!strcmp(v, "realtime"))
+        *m = TWIND_REALTIME;
+    else if (!strcmp(v, "freerun"))
+        *m = TWIND_FREERUN;
+    else if (!strcmp(v, "lockstep"))
+        *m = TWIND_LOCKSTEP;
+    else
         return -1;
-    }
-    *out = v;
+    return 0;
+}
+
+static int parse_scheme(const char *v, void *dest) {
+    twind_scheme *sc = dest;
+    if (!strcmp(v, "auto"))
+        *sc = TWIND_SCHEME_AUTO;
+    else if (!strcmp(v, "adaptive"))
+        *sc = TWIND_SCHEME_ADAPTIVE;
+    else if (!strcmp(v, "accurate"))
+        *sc = TWIND_SCHEME_ACCURATE;
+    else if (!strcmp(v, "fast"))
+        *sc = TWIND_SCHEME_FAST;
+    else
+        return -1;
     return 0;
 }
 
@@ -97,103 +113,49 @@ int twind_parse_args(int argc, char **argv, twind_opts *o) {
                       .speed = 1.0,
                       .max_lag_s = 0.1,
                       .ring_s = 5e-3};
-    for (int i = 1; i < argc; i++) {
-        const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
-        double x;
-        if (!strcmp(a, "--help")) {
-            usage(stdout);
-            exit(0);
-        } else if (!strcmp(a, "--version")) {
-            printf("afmtwind %s\n", AFMTWIN_VERSION);
-            exit(0);
-        } else if (!strcmp(a, "--quiet")) {
-            o->quiet = 1;
-            continue;
-        } else if (!strcmp(a, "--a0-track")) {
-            o->a0_track = 1;
-            continue;
-        } else if (!v) {
-            fprintf(stderr, "afmtwind: unknown option or missing value: %s\n", a);
-            return -1;
-        } else if (!strcmp(a, "--config")) {
-            o->config_path = v;
-        } else if (!strcmp(a, "--lcm-url")) {
-            o->lcm_url = v;
-        } else if (!strcmp(a, "--lcm-out-url")) {
-            o->lcm_out_url = v;
-        } else if (!strcmp(a, "--lcm-samples-url")) {
-            o->lcm_samples_url = v;
-        } else if (!strcmp(a, "--aux-cpu")) {
-            if (parse_num(a, v, 0, 1023, &x) || x != floor(x)) return -1;
-            o->aux_cpu = (int)x;
-        } else if (!strcmp(a, "--chain-cpu")) {
-            if (parse_num(a, v, 0, 1023, &x) || x != floor(x)) return -1;
-            o->chain_cpu = (int)x;
-        } else if (!strcmp(a, "--speed")) {
-            if (parse_num(a, v, 1e-3, 1e3, &x)) return -1;
-            o->speed = x;
-        } else if (!strcmp(a, "--max-lag-ms")) {
-            if (parse_num(a, v, 1, 1e6, &x)) return -1;
-            o->max_lag_s = x * 1e-3;
-        } else if (!strcmp(a, "--ring-us")) {
-            if (parse_num(a, v, 100, 1e6, &x)) return -1;
-            o->ring_s = x * 1e-6;
-        } else if (!strcmp(a, "--prefix")) {
-            o->prefix = v;
-        } else if (!strcmp(a, "--mode")) {
-            if (!strcmp(v, "realtime"))
-                o->mode = TWIND_REALTIME;
-            else if (!strcmp(v, "freerun"))
-                o->mode = TWIND_FREERUN;
-            else if (!strcmp(v, "lockstep"))
-                o->mode = TWIND_LOCKSTEP;
-            else {
-                fprintf(stderr,
-                        "afmtwind: --mode must be realtime, freerun or lockstep, got '%s'\n", v);
-                return -1;
-            }
-        } else if (!strcmp(a, "--scheme")) {
-            if (!strcmp(v, "auto"))
-                o->scheme = TWIND_SCHEME_AUTO;
-            else if (!strcmp(v, "adaptive"))
-                o->scheme = TWIND_SCHEME_ADAPTIVE;
-            else if (!strcmp(v, "accurate"))
-                o->scheme = TWIND_SCHEME_ACCURATE;
-            else if (!strcmp(v, "fast"))
-                o->scheme = TWIND_SCHEME_FAST;
-            else {
-                fprintf(stderr,
-                        "afmtwind: --scheme must be auto, adaptive, accurate or fast, got '%s'\n",
-                        v);
-                return -1;
-            }
-        } else if (!strcmp(a, "--cpu")) {
-            if (parse_num(a, v, 0, 1023, &x) || x != floor(x)) return -1;
-            o->cpu = (int)x;
-        } else if (!strcmp(a, "--rt-priority")) {
-            if (parse_num(a, v, 1, 99, &x) || x != floor(x)) return -1;
-            o->rt_priority = (int)x;
-        } else if (!strcmp(a, "--block-us")) {
-            if (parse_num(a, v, 10, 1e6, &x)) return -1;
-            o->block_s = x * 1e-6;
-        } else if (!strcmp(a, "--harmonics-every")) {
-            if (parse_num(a, v, 1, 1e9, &x) || x != floor(x)) return -1;
-            o->harmonics_every = (int)x;
-        } else if (!strcmp(a, "--harmonics-max-hz")) {
-            if (parse_num(a, v, 1e-3, 1e9, &x)) return -1;
-            o->harmonics_max_hz = x;
-        } else if (!strcmp(a, "--start-time")) {
-            if (parse_num(a, v, 0, 1e9, &x)) return -1;
-            o->start_s = x;
-        } else if (!strcmp(a, "--exit-after")) {
-            if (parse_num(a, v, 0, 1e9, &x)) return -1;
-            o->exit_after_s = x;
-        } else {
-            fprintf(stderr, "afmtwind: unknown option %s (see --help)\n", a);
-            return -1;
-        }
-        i++;
+    /* the options given in other units than the fields' (ms, us), and the flags as bools */
+    double max_lag_ms = o->max_lag_s * 1e3, ring_us = o->ring_s * 1e6, block_us = o->block_s * 1e6;
+    bool quiet = false, a0_track = false, version = false;
+    const afmt_opt opts[] = {
+        AFMT_STRING("--config", &o->config_path),
+        AFMT_STRING("--lcm-url", &o->lcm_url),
+        AFMT_STRING("--lcm-out-url", &o->lcm_out_url),
+        AFMT_STRING("--lcm-samples-url", &o->lcm_samples_url),
+        AFMT_STRING("--prefix", &o->prefix),
+        AFMT_FN("--mode", parse_mode, &o->mode, "realtime, freerun or lockstep"),
+        AFMT_FN("--scheme", parse_scheme, &o->scheme, "auto, adaptive, accurate or fast"),
+        AFMT_INT("--cpu", &o->cpu, 0, 1023, NULL),
+        AFMT_INT("--chain-cpu", &o->chain_cpu, 0, 1023, NULL),
+        AFMT_INT("--aux-cpu", &o->aux_cpu, 0, 1023, NULL),
+        AFMT_INT("--rt-priority", &o->rt_priority, 1, 99, NULL),
+        AFMT_DOUBLE("--block-us", &block_us, 10, 1e6, NULL),
+        AFMT_DOUBLE("--speed", &o->speed, 1e-3, 1e3, NULL),
+        AFMT_DOUBLE("--max-lag-ms", &max_lag_ms, 1, 1e6, NULL),
+        AFMT_DOUBLE("--ring-us", &ring_us, 100, 1e6, NULL),
+        AFMT_INT("--harmonics-every", &o->harmonics_every, 1, 1e9, NULL),
+        AFMT_DOUBLE("--harmonics-max-hz", &o->harmonics_max_hz, 1e-3, 1e9, NULL),
+        AFMT_DOUBLE("--start-time", &o->start_s, 0, 1e9, NULL),
+        AFMT_DOUBLE("--exit-after", &o->exit_after_s, 0, 1e9, NULL),
+        AFMT_FLAG("--quiet", &quiet),
+        AFMT_FLAG("--a0-track", &a0_track),
+        AFMT_FLAG("--version", &version),
+        AFMT_OPTS_END,
+    };
+    int rc = afm_opts_parse("afmtwind", opts, argc, argv, 1);
+    if (rc == AFMT_OPTS_HELP) {
+        usage(stdout);
+        exit(0);
     }
+    if (rc != AFMT_OPTS_OK) return -1;
+    if (version) {
+        printf("afmtwind %s\n", AFMTWIN_VERSION);
+        exit(0);
+    }
+    o->quiet = quiet;
+    o->a0_track = a0_track;
+    o->max_lag_s = max_lag_ms * 1e-3;
+    o->ring_s = ring_us * 1e-6;
+    o->block_s = block_us * 1e-6;
     if (!o->config_path) {
         fprintf(stderr, "afmtwind: --config FILE is required (see --help)\n");
         return -1;

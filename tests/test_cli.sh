@@ -79,6 +79,25 @@ opt_bad "thermal --modes 1.5" "--modes wants" thermal --modes 1.5
 opt_bad "modes unknown option" "unknown or incomplete option '--frobnicate' (see --help)" modes --frobnicate
 opt_bad "listen missing value" "unknown or incomplete option '--timeout'" listen --timeout
 expect_rc 0 "flood --help" "$A" flood --help
+# the daemon's options go through the same table parser (daemon/cli/afm_opts.c): the same
+# words, exit 2, nothing started
+D=${A%/afmtwin}/afmtwind
+dopt_bad() { # DESCRIPTION PATTERN ARGS...
+  local what=$1 pat=$2; shift 2
+  msg=$("$D" "$@" 2>&1 >/dev/null); rc=$?
+  if [ "$rc" -eq 2 ] && echo "$msg" | grep -q -- "$pat"; then ok "afmtwind $what: $(echo "$msg" | head -1)"
+  else bad "afmtwind $what: exit $rc, message '$msg'"; fi
+}
+if [ -x "$D" ]; then
+  dopt_bad "--speed 0" "afmtwind: --speed wants a number in 0.001..1000, got '0'" --config config/default.conf --speed 0
+  dopt_bad "--speed not a number" "afmtwind: --speed wants a number, got 'x'" --config config/default.conf --speed x
+  dopt_bad "--cpu 1.5" "afmtwind: --cpu wants an integer in 0..1023, got '1.5'" --config config/default.conf --cpu 1.5
+  dopt_bad "--mode bogus" "afmtwind: --mode wants realtime, freerun or lockstep, got 'bogus'" --config config/default.conf --mode bogus
+  dopt_bad "unknown option" "afmtwind: unknown or incomplete option '--frob' (see --help)" --frob 1
+  dopt_bad "missing value" "afmtwind: unknown or incomplete option '--exit-after'" --config config/default.conf --exit-after
+  dopt_bad "no --config" "afmtwind: --config FILE is required" --quiet
+  expect_rc 0 "afmtwind --help" "$D" --help
+fi
 
 # SI suffixes on lengths and frequencies (tools/opts.c, afmt_parse_si): the same message as
 # the plain SI number (send --log writes it byte for byte), the value echoed in SI on stderr

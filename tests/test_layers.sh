@@ -4,7 +4,8 @@
 # estimators, runner, analysis) include only their own layer and those below, always as
 # "layer/afm_x.h"; the engine includes no transport, daemon, tool or generated LCM header
 # (nor LCM itself); the transports (daemon/transport/) include the engine and each other but
-# not the daemon or the tools; the daemon and the tools include neither each other's files;
+# not the daemon or the tools; the command line both programs share (daemon/cli/) includes
+# nothing of the project's but its own; the daemon and the tools include neither each other's files;
 # no engine header includes itself back through others (no cycles). One check per file,
 # plus the cycle check. ROOT (default: the repository) is where the sources are read, so
 # that the check can be tried on a copy. Prints "N passed, N failed".
@@ -66,6 +67,10 @@ why() {
             afmtwin_cmds.h | lcm_tool.h) echo "$n: \"$inc\": a transport includes the tools" ;;
             esac
             ;;
+        daemon/cli/*)
+            [ $sys -eq 1 ] && continue
+            case $inc in cli/*) ;; *) echo "$n: \"$inc\": the shared command line includes only its own files" ;; esac
+            ;;
         daemon/*)
             [ $sys -eq 1 ] && continue
             case $inc in afmtwin_cmds.h | lcm_tool.h) echo "$n: \"$inc\": the daemon includes the tools" ;; esac
@@ -78,7 +83,7 @@ why() {
     done < <(grep -n '^[[:space:]]*#[[:space:]]*include' "$f")
 }
 
-files=$(ls daemon/engine/*/*.[ch] daemon/transport/*.[ch] daemon/*.[ch] tools/*.[ch] 2>/dev/null)
+files=$(ls daemon/engine/*/*.[ch] daemon/transport/*.[ch] daemon/cli/*.[ch] daemon/*.[ch] tools/*.[ch] 2>/dev/null)
 stray=$(ls daemon/engine/*.[ch] 2>/dev/null)
 for f in $stray; do
     echo "FAIL $f: an engine file outside the layer folders"
