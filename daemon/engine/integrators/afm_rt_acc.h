@@ -437,32 +437,38 @@ static inline __attribute__((always_inline)) int rt_run_acc_t(afm_sim *s, rt_sta
                                                               const int nt, const bool noise,
                                                               const bool evs) {
     int rc = AFM_SIM_OK;
-    long step = s->step;
+    /* the clock, the resync count and what the tests read of r in registers over the block
+     * (stores through the snapshots may alias r, so they would be reloaded every sample) */
+    long step = s->step, since = r->since_sync;
+    double stepd = (double)step; /* the step count as a double (exact below 2^53) */
     const double t0 = s->t_start_s, dt = s->dt_s;
-    rt_snap *a = &r->buf[r->cur];
+    const bool kinked = r->kinked;
+    const double xc = r->xc, sure_k = r->sure_k, clear_k = r->clear_k;
+    rt_snap *a = &r->buf[r->cur], *const b0 = &r->buf[0], *const b1 = &r->buf[1];
     rt_evacc eacc, *ea = evs ? &eacc : NULL;
     if (evs) rt_ev_start(ea, s, r, a, np, nt);
     rt_acc_tip ta = rt_acc_tip_of(r, a, np, nt), tb; /* the tip at a and at b, in registers */
     for (int k = 0; k < n; k++) {
-        if (__builtin_expect(++r->since_sync >= RT_RESYNC, 0)) {
+        if (__builtin_expect(++since >= RT_RESYNC, 0)) {
             s->step = step;
-            s->t_s = t0 + (double)step * dt;
+            s->t_s = t0 + stepd * dt;
             rt_sync_phasors(s, r, a);
+            since = r->since_sync;
             a->fdot_n_s = rt_fdot(r, a, np, nt);
             a->acc_free = false;
             ta = rt_acc_tip_of(r, a, np, nt);
             if (evs) rt_ev_start(ea, s, r, a, np, nt);
         }
         if (evs) rt_ev_step_begin(ea);
-        rt_snap *b = a == &r->buf[0] ? &r->buf[1] : &r->buf[0];
-        const bool at_once = r->kinked && ta.x_m < r->xc;
+        rt_snap *b = a == b0 ? b1 : b0;
+        const bool at_once = kinked && ta.x_m < xc;
         /* Without noise, a start so close to the line that the free step's low bound (below)
          * is certainly in the band: no trial step (its result would be discarded). The path's
          * low bound is at most x0 - clear_k |v0| and the band at least NEAR_TRAVELS |v0| dt;
          * the margin RT_ACC_SURE keeps a rounding at the edge from taking a sample the trial
          * would have kept. */
         bool contact =
-            at_once || (!noise && r->kinked && ta.x_m - r->xc < r->sure_k * fabs(ta.v_m_s));
+            at_once || (!noise && kinked && ta.x_m - xc < sure_k * fabs(ta.v_m_s));
         if (!contact) {
             if (noise) { /* rt_piece_acc_t draws the increment before its solve */
                 rt_piece_acc_t(s, r, a, b, r->ncell, true, np, nt, true, false);
@@ -470,12 +476,12 @@ static inline __attribute__((always_inline)) int rt_run_acc_t(afm_sim *s, rt_sta
             } else {
                 rt_free_acc_t(s, r, a, b, np, nt, evs, &ta, &tb);
             }
-            if (r->kinked) {
+            if (kinked) {
                 /* the path's low bound; within one travel of the contact line the steep
                  * van der Waals pulse needs the substeps even where it does not cross */
                 const double sp = fabs(ta.v_m_s) + fabs(tb.v_m_s);
-                const double low = (ta.x_m < tb.x_m ? ta.x_m : tb.x_m) - r->clear_k * sp;
-                contact = low < r->xc + RT_ACC_NEAR_TRAVELS * sp * dt;
+                const double low = (ta.x_m < tb.x_m ? ta.x_m : tb.x_m) - clear_k * sp;
+                contact = low < xc + RT_ACC_NEAR_TRAVELS * sp * dt;
             }
         }
         if (contact && !noise && r->m % RT_ACC_NEAR_PIECES == 0)
@@ -486,13 +492,14 @@ static inline __attribute__((always_inline)) int rt_run_acc_t(afm_sim *s, rt_sta
             b = rt_contact_acc(s, r, a, b, noise && !at_once, ea); /* noise: trial taken */
         if (contact)
             tb = rt_acc_tip_of(r, b, np, nt);
-        else if (evs && r->kinked) /* kept whole: clear of the contact line */
+        else if (evs && kinked) /* kept whole: clear of the contact line */
             rt_ev_free(ea, s, r, b);
         else if (evs)
             rt_ev_piece(ea, s, r, b, 1.0, true);
         a = b;
         ta = tb;
         step++;
+        stepd += 1.0;
         if (evs) rt_ev_step_end(ea, s, step, contact);
         if (!(fabs(ta.x_m) < 1e-3) || !(fabs(ta.v_m_s) < HUGE_VAL && fabs(ta.f_n) < HUGE_VAL)) {
             rc = AFM_SIM_EBLOWUP;
@@ -510,7 +517,7 @@ static inline __attribute__((always_inline)) int rt_run_acc_t(afm_sim *s, rt_sta
             else
                 for (int jt = 0; jt < nt; jt++)
                     u += r->amp_m[jt] * a->z_im[jt];
-            o->t_s = t0 + (double)step * dt;
+            o->t_s = t0 + stepd * dt;
             o->x_m = ta.x_m;
             o->v_m_s = ta.v_m_s;
             o->f_n = ta.f_n;
@@ -520,7 +527,8 @@ static inline __attribute__((always_inline)) int rt_run_acc_t(afm_sim *s, rt_sta
     }
     s->step = step;
     s->t_s = t0 + (double)step * dt;
-    r->cur = a == &r->buf[0] ? 0 : 1;
+    r->since_sync = since;
+    r->cur = a == b0 ? 0 : 1;
     rt_publish(s, r, a);
     return rc;
 }
