@@ -446,7 +446,10 @@ static inline __attribute__((always_inline)) int rt_run_acc_t(afm_sim *s, rt_sta
     const double xc = r->xc, sure_k = r->sure_k, clear_k = r->clear_k;
     rt_snap *a = &r->buf[r->cur], *const b0 = &r->buf[0], *const b1 = &r->buf[1];
     rt_evacc eacc, *ea = evs ? &eacc : NULL;
-    if (evs) rt_ev_start(ea, s, r, a, np, nt);
+    if (evs) {
+        rt_ev_start(ea, s, r, a, np, nt);
+        ea->slot = (step + 1) % s->ev_cap; /* the first step ends at step + 1 */
+    }
     rt_acc_tip ta = rt_acc_tip_of(r, a, np, nt), tb; /* the tip at a and at b, in registers */
     for (int k = 0; k < n; k++) {
         if (__builtin_expect(++since >= RT_RESYNC, 0)) {
@@ -467,8 +470,7 @@ static inline __attribute__((always_inline)) int rt_run_acc_t(afm_sim *s, rt_sta
          * low bound is at most x0 - clear_k |v0| and the band at least NEAR_TRAVELS |v0| dt;
          * the margin RT_ACC_SURE keeps a rounding at the edge from taking a sample the trial
          * would have kept. */
-        bool contact =
-            at_once || (!noise && kinked && ta.x_m - xc < sure_k * fabs(ta.v_m_s));
+        bool contact = at_once || (!noise && kinked && ta.x_m - xc < sure_k * fabs(ta.v_m_s));
         if (!contact) {
             if (noise) { /* rt_piece_acc_t draws the increment before its solve */
                 rt_piece_acc_t(s, r, a, b, r->ncell, true, np, nt, true, false);
