@@ -366,6 +366,25 @@ static int rt_init(afm_sim *s, char *err, size_t errlen) {
         for (int k = 0; k < t->ncell; k++)
             afm_rt_coef_chain(&t->prop[k], &t->prop[t->ncell - 1], r->np);
     }
+    { /* rt_free_acc_t's chain: the full step's tip rows and acceleration on its K1, Gd1 rows */
+        const afm_rt_prop *PF = &r->tab[1].prop[r->tab[1].ncell - 1];
+        const int np = r->np;
+        const double *c = PF->c, *k1 = c + AFM_RT_ROW_K1 * np, *d1 = c + (AFM_RT_ROW_GC + 4) * np;
+        r->fa_xf = PF->hx0;
+        r->fa_xd = PF->hd0x;
+        r->fa_vf = PF->hv0;
+        r->fa_vd = PF->hd0v;
+        r->fa_af = r->tip2;
+        r->fa_ad = 0.0;
+        for (int i = 0; i < np; i++) {
+            r->fa_xf += c[8 * np + i] * k1[i] + c[9 * np + i] * k1[np + i];
+            r->fa_xd += c[8 * np + i] * d1[i] + c[9 * np + i] * d1[np + i];
+            r->fa_vf += c[10 * np + i] * k1[i] + c[11 * np + i] * k1[np + i];
+            r->fa_vd += c[10 * np + i] * d1[i] + c[11 * np + i] * d1[np + i];
+            r->fa_af += r->aq[i] * k1[i] + r->av[i] * k1[np + i];
+            r->fa_ad += r->aq[i] * d1[i] + r->av[i] * d1[np + i];
+        }
+    }
     r->cos_alpha = s->f.cos_alpha;
     rt_tables_use(r, acc);
     r->kinked = s->f.vdw_contact || s->f.capillary || s->f.electrostatic;

@@ -131,6 +131,7 @@ rt_piece_acc_t(const afm_sim *s, const rt_state *r, const rt_snap *in, rt_snap *
         if (rec) o->acc_m_s2 = rt_hsum(e4) + r->tip2 * F1 + tones_a;
     }
     o->slope_cells = 0;
+    o->acc_free = false;
     o->df_per_cell_n = (F1 - F0) * r->inv_cells[k];
     o->tip.x_m = x1;
     o->tip.v_m_s = v1;
@@ -174,6 +175,151 @@ static inline void rt_piece_acc(const afm_sim *s, const rt_state *r, const rt_sn
         rt_piece_acc_rec(s, r, in, o, k, herm);
     else
         rt_piece_acc_n(s, r, in, o, k, herm);
+}
+
+/* ---- the free step (issue 29, fourth round) ----
+ *
+ * A sample clear of the contact line is one full Hermite step, rt_piece_acc_t's arithmetic
+ * rearranged as the fast scheme's free step is (rt_piece_t): the tip values the next step
+ * starts from are carried in registers from sample to sample (rt_acc_tip), and the next
+ * step's x*, v* are chained from this one's end force F1 and end slope D1 = tau dF/dt: the part
+ * of the modal update that does not wait for them (Phi q + (G0 + Gc) F0 + Gd0 D0) is formed
+ * beside the force solve, together with its tip rows and its acceleration, and what waits is
+ * per model (rt_state.fa_*: the K1 and Gd1 rows seen through the full step's tip rows and the
+ * acceleration). So the chain from one force to the next is the force, the chord update,
+ * dF/dt and a few multiply-adds, and the modal state is written once. The same scheme as
+ * rt_piece_acc_t's full Hermite step up to rounding. */
+
+/* The tip after a free step and what the next full step needs of it. */
+typedef struct {
+    double x_m, v_m_s, f_n;      /* tip displacement (m), velocity (m/s), force (N) */
+    double fdot_n_s;             /* dF/dt (N/s) */
+    double fx, fv;               /* df/dx (N/m), df/dv (N s/m) at the last force evaluation */
+    double df_per_cell_n;        /* force change per cell over the last piece (N): the guess */
+    double inv_slope;            /* 1 / max(1 - fx hx1 - fv hv1, 1/4) of the full step */
+    double x_free_m, v_free_m_s; /* the full step's x*, v* (F0, D0 terms and tones in) */
+} rt_acc_tip;
+
+/* rt_acc_tip of st for a following full step: its carried x*, v* (acc_free), else from its
+ * modal state as rt_piece_acc_t forms them. */
+static inline __attribute__((always_inline)) rt_acc_tip
+rt_acc_tip_of(const rt_state *r, const rt_snap *st, const int np, const int nt) {
+    const afm_rt_prop *P = &r->prop[r->ncell - 1];
+    rt_acc_tip t = {.x_m = st->tip.x_m,
+                    .v_m_s = st->tip.v_m_s,
+                    .f_n = st->tip.f_n,
+                    .fdot_n_s = st->fdot_n_s,
+                    .fx = st->dfdx_n_m,
+                    .fv = st->dfdv_n_s_m,
+                    .df_per_cell_n = st->df_per_cell_n};
+    double jj = 1.0 - st->dfdx_n_m * P->hx1 - st->dfdv_n_s_m * P->hv1;
+    t.inv_slope = 1.0 / (jj > 0.25 ? jj : 0.25);
+    if (st->acc_free) {
+        t.x_free_m = st->tip.x_free_m;
+        t.v_free_m_s = st->tip.v_free_m_s;
+        return t;
+    }
+    const double *c = P->c, F0 = st->tip.f_n, D0 = P->tau_s * st->fdot_n_s;
+    double xs, vs;
+    rt_v4 xs4 = rt_splat(0.0), vs4 = rt_splat(0.0);
+    for (int i = 0; i < np; i += 4) {
+        rt_v4 q = RT_V4(st->q + i), v = RT_V4(st->v + i);
+        xs4 = rt_fma4(RT_V4(c + 8 * np + i), q, rt_fma4(RT_V4(c + 9 * np + i), v, xs4));
+        vs4 = rt_fma4(RT_V4(c + 10 * np + i), q, rt_fma4(RT_V4(c + 11 * np + i), v, vs4));
+    }
+    rt_hsum2(xs4, vs4, &xs, &vs);
+    xs = fma(P->hx0, F0, fma(P->hd0x, D0, xs));
+    vs = fma(P->hv0, F0, fma(P->hd0v, D0, vs));
+    t.x_free_m = xs + rt_tones_im(P->dx_re, P->dx_im, st->z_re, st->z_im, nt);
+    t.v_free_m_s = vs + rt_tones_im(P->dv_re, P->dv_im, st->z_re, st->z_im, nt);
+    return t;
+}
+
+/* One free step from in (its tip *ti) into o (and *to); rec: o->acc_m_s2 for the step record. */
+static inline __attribute__((always_inline)) void
+rt_free_acc_t(const afm_sim *s, const rt_state *r, const rt_snap *in, rt_snap *o, const int np,
+              const int nt, const bool rec, const rt_acc_tip *ti, rt_acc_tip *to) {
+    const afm_rt_prop *P = &r->prop[r->ncell - 1];
+    const double *c = P->c, *k0 = c + AFM_RT_ROW_K0 * np, *k1 = c + AFM_RT_ROW_K1 * np;
+    const double *gd0 = c + (AFM_RT_ROW_GC + 2) * np, *gd1 = c + (AFM_RT_ROW_GC + 4) * np;
+    const double F0 = ti->f_n, tau = P->tau_s, D0 = tau * ti->fdot_n_s;
+    const double xs = ti->x_free_m, vs = ti->v_free_m_s, gx = P->hx1, gv = P->hv1;
+    /* the force first (the critical path), from the guess extrapolated along the last piece */
+    const double Fg = fma(ti->df_per_cell_n, (double)r->ncell, F0);
+    const double xg = fma(gx, Fg, xs);
+    const double F1 = rt_solve_fast(s, r, xs, vs, gx, gv, Fg, ti->inv_slope, xg, fma(gv, Fg, vs),
+                                    rt_gap(r, xg), o);
+    const double fx = o->dfdx_n_m, fv = o->dfdv_n_s_m, rj = o->tip.inv_slope;
+    /* the modal update's part that does not wait for F1, D1, its tip rows and acceleration */
+    double zr1[AFM_MAX_TONES], zi1[AFM_MAX_TONES];
+    rt_tones_rotate(in->z_re, in->z_im, P->rot_re, P->rot_im, zr1, zi1, nt);
+    const rt_v4 f0 = rt_splat(F0), d0 = rt_splat(D0);
+    rt_v4 pq[AFM_MAX_MODES / 4], pv[AFM_MAX_MODES / 4];
+    rt_v4 xn4 = rt_splat(0.0), vn4 = rt_splat(0.0), a4 = rt_splat(0.0);
+    for (int i = 0; i < np; i += 4) {
+        rt_v4 q = RT_V4(in->q + i), v = RT_V4(in->v + i);
+        rt_v4 a =
+            rt_fma4(RT_V4(c + i), q,
+                    rt_fma4(RT_V4(c + np + i), v, rt_fma4(RT_V4(k0 + i), f0, RT_V4(gd0 + i) * d0)));
+        rt_v4 w = rt_fma4(RT_V4(c + 2 * np + i), q,
+                          rt_fma4(RT_V4(c + 3 * np + i), v,
+                                  rt_fma4(RT_V4(k0 + np + i), f0, RT_V4(gd0 + np + i) * d0)));
+        xn4 = rt_fma4(RT_V4(c + 8 * np + i), a, rt_fma4(RT_V4(c + 9 * np + i), w, xn4));
+        vn4 = rt_fma4(RT_V4(c + 10 * np + i), a, rt_fma4(RT_V4(c + 11 * np + i), w, vn4));
+        a4 = rt_fma4(RT_V4(r->aq + i), a, rt_fma4(RT_V4(r->av + i), w, a4));
+        pq[i / 4] = a;
+        pv[i / 4] = w;
+    }
+    double xh, vh;
+    rt_hsum2(xn4, vn4, &xh, &vh);
+    const double xr = xh + rt_tones_im(P->dx_re, P->dx_im, zr1, zi1, nt);
+    const double vr = vh + rt_tones_im(P->dv_re, P->dv_im, zr1, zi1, nt);
+    const double aa =
+        fma(r->fa_ad, D0, rt_hsum(a4) + rt_tones_im(r->ax_re, r->ax_im, zr1, zi1, nt));
+    /* the end: the tip, dF/dt there (D1 held at D0 in the acceleration, as rt_piece_acc_t),
+     * the state with Gd1 D1 */
+    double x1 = fma(gx, F1, xs), v1 = fma(gv, F1, vs);
+    const double acc = fma(r->fa_af, F1, aa);
+    const double fdot = fma(fx, v1, fv * acc);
+    const double D1 = tau * fdot, dd = fma(tau, fdot, -D0);
+    x1 = fma(P->gd1x, dd, x1);
+    v1 = fma(P->gd1v, dd, v1);
+    const rt_v4 f1 = rt_splat(F1), d1 = rt_splat(D1);
+    for (int i = 0; i < np; i += 4) {
+        RT_V4W(o->q + i) = rt_fma4(RT_V4(k1 + i), f1, rt_fma4(RT_V4(gd1 + i), d1, pq[i / 4]));
+        RT_V4W(o->v + i) =
+            rt_fma4(RT_V4(k1 + np + i), f1, rt_fma4(RT_V4(gd1 + np + i), d1, pv[i / 4]));
+    }
+    if (nt == RT_TONES_V4) {
+        RT_V4W(o->z_re) = RT_V4(zr1);
+        RT_V4W(o->z_im) = RT_V4(zi1);
+    } else {
+        for (int j = 0; j < nt; j++) {
+            o->z_re[j] = zr1[j];
+            o->z_im[j] = zi1[j];
+        }
+    }
+    const rt_acc_tip t = {.x_m = x1,
+                          .v_m_s = v1,
+                          .f_n = F1,
+                          .fdot_n_s = fdot,
+                          .fx = fx,
+                          .fv = fv,
+                          .df_per_cell_n = (F1 - F0) * r->inv_cells[r->ncell],
+                          .inv_slope = rj,
+                          .x_free_m = fma(r->fa_xd, D1, fma(r->fa_xf, F1, xr)),
+                          .v_free_m_s = fma(r->fa_vd, D1, fma(r->fa_vf, F1, vr))};
+    if (rec) o->acc_m_s2 = fma(r->fa_ad, dd, acc); /* the state's own, Gd1 (D1 - D0) in */
+    o->slope_cells = 0;
+    o->df_per_cell_n = t.df_per_cell_n;
+    o->tip.x_m = x1;
+    o->tip.v_m_s = v1;
+    o->tip.f_n = F1;
+    o->tip.x_free_m = t.x_free_m;
+    o->tip.v_free_m_s = t.v_free_m_s;
+    o->acc_free = true;
+    o->fdot_n_s = fdot;
+    *to = t;
 }
 
 /* One contact substep of RT_GRID cells from a into b: Hermite, or, where its path crosses
@@ -291,38 +437,53 @@ static inline __attribute__((always_inline)) int rt_run_acc_t(afm_sim *s, rt_sta
                                                               const int nt, const bool noise,
                                                               const bool evs) {
     int rc = AFM_SIM_OK;
-    long step = s->step;
+    /* the clock, the resync count and what the tests read of r in registers over the block
+     * (stores through the snapshots may alias r, so they would be reloaded every sample) */
+    long step = s->step, since = r->since_sync;
+    double stepd = (double)step; /* the step count as a double (exact below 2^53) */
     const double t0 = s->t_start_s, dt = s->dt_s;
-    rt_snap *a = &r->buf[r->cur];
+    const bool kinked = r->kinked;
+    const double xc = r->xc, sure_k = r->sure_k, clear_k = r->clear_k;
+    rt_snap *a = &r->buf[r->cur], *const b0 = &r->buf[0], *const b1 = &r->buf[1];
     rt_evacc eacc, *ea = evs ? &eacc : NULL;
-    if (evs) rt_ev_start(ea, s, r, a, np, nt);
+    if (evs) {
+        rt_ev_start(ea, s, r, a, np, nt);
+        ea->slot = (step + 1) % s->ev_cap; /* the first step ends at step + 1 */
+    }
+    rt_acc_tip ta = rt_acc_tip_of(r, a, np, nt), tb; /* the tip at a and at b, in registers */
     for (int k = 0; k < n; k++) {
-        if (__builtin_expect(++r->since_sync >= RT_RESYNC, 0)) {
+        if (__builtin_expect(++since >= RT_RESYNC, 0)) {
             s->step = step;
-            s->t_s = t0 + (double)step * dt;
+            s->t_s = t0 + stepd * dt;
             rt_sync_phasors(s, r, a);
+            since = r->since_sync;
             a->fdot_n_s = rt_fdot(r, a, np, nt);
+            a->acc_free = false;
+            ta = rt_acc_tip_of(r, a, np, nt);
             if (evs) rt_ev_start(ea, s, r, a, np, nt);
         }
         if (evs) rt_ev_step_begin(ea);
-        rt_snap *b = a == &r->buf[0] ? &r->buf[1] : &r->buf[0];
-        const bool at_once = r->kinked && a->tip.x_m < r->xc;
+        rt_snap *b = a == b0 ? b1 : b0;
+        const bool at_once = kinked && ta.x_m < xc;
         /* Without noise, a start so close to the line that the free step's low bound (below)
          * is certainly in the band: no trial step (its result would be discarded). The path's
          * low bound is at most x0 - clear_k |v0| and the band at least NEAR_TRAVELS |v0| dt;
          * the margin RT_ACC_SURE keeps a rounding at the edge from taking a sample the trial
          * would have kept. */
-        bool contact =
-            at_once || (!noise && r->kinked && a->tip.x_m - r->xc < r->sure_k * fabs(a->tip.v_m_s));
+        bool contact = at_once || (!noise && kinked && ta.x_m - xc < sure_k * fabs(ta.v_m_s));
         if (!contact) {
-            rt_piece_acc_t(s, r, a, b, r->ncell, true, np, nt, noise, evs);
-            if (r->kinked) {
+            if (noise) { /* rt_piece_acc_t draws the increment before its solve */
+                rt_piece_acc_t(s, r, a, b, r->ncell, true, np, nt, true, false);
+                tb = rt_acc_tip_of(r, b, np, nt);
+            } else {
+                rt_free_acc_t(s, r, a, b, np, nt, evs, &ta, &tb);
+            }
+            if (kinked) {
                 /* the path's low bound; within one travel of the contact line the steep
                  * van der Waals pulse needs the substeps even where it does not cross */
-                const double sp = fabs(a->tip.v_m_s) + fabs(b->tip.v_m_s);
-                const double low =
-                    (a->tip.x_m < b->tip.x_m ? a->tip.x_m : b->tip.x_m) - r->clear_k * sp;
-                contact = low < r->xc + RT_ACC_NEAR_TRAVELS * sp * dt;
+                const double sp = fabs(ta.v_m_s) + fabs(tb.v_m_s);
+                const double low = (ta.x_m < tb.x_m ? ta.x_m : tb.x_m) - clear_k * sp;
+                contact = low < xc + RT_ACC_NEAR_TRAVELS * sp * dt;
             }
         }
         if (contact && !noise && r->m % RT_ACC_NEAR_PIECES == 0)
@@ -331,15 +492,18 @@ static inline __attribute__((always_inline)) int rt_run_acc_t(afm_sim *s, rt_sta
             rt_graded_acc(s, r, a, b, np, nt, evs, ea);
         else if (contact)
             b = rt_contact_acc(s, r, a, b, noise && !at_once, ea); /* noise: trial taken */
-        else if (evs && r->kinked) /* kept whole: clear of the contact line */
+        if (contact)
+            tb = rt_acc_tip_of(r, b, np, nt);
+        else if (evs && kinked) /* kept whole: clear of the contact line */
             rt_ev_free(ea, s, r, b);
         else if (evs)
             rt_ev_piece(ea, s, r, b, 1.0, true);
         a = b;
+        ta = tb;
         step++;
+        stepd += 1.0;
         if (evs) rt_ev_step_end(ea, s, step, contact);
-        if (!(fabs(a->tip.x_m) < 1e-3) ||
-            !(fabs(a->tip.v_m_s) < HUGE_VAL && fabs(a->tip.f_n) < HUGE_VAL)) {
+        if (!(fabs(ta.x_m) < 1e-3) || !(fabs(ta.v_m_s) < HUGE_VAL && fabs(ta.f_n) < HUGE_VAL)) {
             rc = AFM_SIM_EBLOWUP;
             break;
         }
@@ -355,17 +519,18 @@ static inline __attribute__((always_inline)) int rt_run_acc_t(afm_sim *s, rt_sta
             else
                 for (int jt = 0; jt < nt; jt++)
                     u += r->amp_m[jt] * a->z_im[jt];
-            o->t_s = t0 + (double)step * dt;
-            o->x_m = a->tip.x_m;
-            o->v_m_s = a->tip.v_m_s;
-            o->f_n = a->tip.f_n;
+            o->t_s = t0 + stepd * dt;
+            o->x_m = ta.x_m;
+            o->v_m_s = ta.v_m_s;
+            o->f_n = ta.f_n;
             o->theta_rad = th;
             o->base_m = u;
         }
     }
     s->step = step;
     s->t_s = t0 + (double)step * dt;
-    r->cur = a == &r->buf[0] ? 0 : 1;
+    r->since_sync = since;
+    r->cur = a == b0 ? 0 : 1;
     rt_publish(s, r, a);
     return rc;
 }

@@ -140,6 +140,11 @@ void afm_rt_coef_hermite(afm_rt_prop *p, int n, int np, const double *w, const d
         p->gd1v += tip[i] * c[5 * np + i];
         c[(AFM_RT_ROW_GD01 - AFM_RT_ROW_GC) * np + i] = c[2 * np + i] + c[4 * np + i];
         c[(AFM_RT_ROW_GD01 - AFM_RT_ROW_GC + 1) * np + i] = c[3 * np + i] + c[5 * np + i];
+        double *c0 = p->c;
+        c0[AFM_RT_ROW_K0 * np + i] = c0[4 * np + i] + c[i];
+        c0[(AFM_RT_ROW_K0 + 1) * np + i] = c0[5 * np + i] + c[np + i];
+        c0[AFM_RT_ROW_K1 * np + i] = c0[6 * np + i] - c[i];
+        c0[(AFM_RT_ROW_K1 + 1) * np + i] = c0[7 * np + i] - c[np + i];
     }
     p->hx0 = p->gx0 + p->gcx;
     p->hd0x = p->gd0x + p->gd1x;

@@ -27,17 +27,20 @@
  * (p11, p12, p21, p22, g0q, g0v, g1q, g1v, then tip_i times p11, p12, p21, p22: the rows
  * that give x and x' directly; then the accurate scheme's Hermite rows gcq, gcv, gd0q, gd0v,
  * gd1q, gd1v (afm_rt_coef_hermite; zero until it is called), then gd0q + gd1q, gd0v + gd1v (the
- * response to D0 while D1 is held at D0: the accurate scheme's solve, summed once here); np
- * each).
+ * response to D0 while D1 is held at D0: the accurate scheme's solve, summed once here), then
+ * g0q + gcq, g0v + gcv and g1q - gcq, g1v - gcv (the responses to F0 and F1 with the Hermite
+ * correction folded in: the accurate scheme's free step, issue 29); np each).
  *
  * The accurate scheme takes the force over a step as the cubic Hermite interpolant of F0,
  * F1 and D0 = tau F'(0), D1 = tau F'(tau): in sigma = s / tau,
  *   F(sigma) = F0 (1 - sigma) + F1 sigma + (F0 - F1) c(sigma) + D0 h10(sigma) + D1 h11(sigma),
  *   c = sigma - 3 sigma^2 + 2 sigma^3, h10 = sigma - 2 sigma^2 + sigma^3, h11 = sigma^3 - sigma^2,
  * so its response is the linear one (G0, G1) plus Gc (F0 - F1) + Gd0 D0 + Gd1 D1. */
-#define AFM_RT_COEF_ROWS 20
+#define AFM_RT_COEF_ROWS 24
 #define AFM_RT_ROW_GC 12   /* first Hermite row: gcq; gcv, gd0q, gd0v, gd1q, gd1v follow */
 #define AFM_RT_ROW_GD01 18 /* gd0q + gd1q; gd0v + gd1v follows */
+#define AFM_RT_ROW_K0 20   /* g0q + gcq; g0v + gcv follows */
+#define AFM_RT_ROW_K1 22   /* g1q - gcq; g1v - gcv follows */
 typedef struct {
     double tau_s;
     double gx, gv;                                       /* sum_i tip_i G1_i: d(x, v)(tau) / dF1 */

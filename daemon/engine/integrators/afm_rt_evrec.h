@@ -24,6 +24,8 @@ typedef struct rt_evacc {
     double frac0; /* its time in the step (fraction of dt) */
     double xmin;  /* min of x over the kept path so far */
     afm_step_events rec;
+    long slot; /* the ring entry of the step being gathered: its step count % ev_cap, carried
+                * (rt_ev_step_end; a division per sample otherwise) */
 } rt_evacc;
 
 /* The tip's acceleration at st (rt_fdot's sum). */
@@ -153,7 +155,8 @@ static AFM_CLONES_NOINLINE void rt_ev_piece(rt_evacc *ea, const afm_sim *s, cons
 /* The step is done (its kept pieces all taken): its record into the caller's ring.
  * piecewise: it was taken in pieces (x_min_m known), else one free piece. */
 static inline void rt_ev_step_end(rt_evacc *ea, afm_sim *s, long step, bool piecewise) {
-    afm_step_events *o = &s->ev_ring[step % s->ev_cap];
+    afm_step_events *o = &s->ev_ring[ea->slot];
+    ea->slot = ea->slot + 1 < s->ev_cap ? ea->slot + 1 : 0;
     ea->rec.step = step;
     ea->rec.x_min_m = piecewise ? ea->xmin : NAN;
     *o = ea->rec;

@@ -33,6 +33,7 @@ static void rt_predict(const rt_state *r, rt_snap *st) {
     st->tip.x_guess_m = fma(P->gx, st->tip.f_n, xs);
     st->tip.v_guess_m_s = fma(P->gv, st->tip.f_n, vs);
     st->tip.gap_guess_m = rt_gap(r, st->tip.x_guess_m);
+    st->acc_free = false;
 }
 
 /* The reciprocal slope of a piece with coefficients P that starts where the force's partials
@@ -172,6 +173,7 @@ static inline __attribute__((always_inline)) void rt_piece_t(const afm_sim *s, c
                           .v_guess_m_s = fma(r->guess_v_per_n, F1, vr),
                           .gap_guess_m = fma(r->guess_gap_per_n, F1, rt_gap(r, xr))};
         o->tip = t;
+        o->acc_free = false;
         if (kind.free_step) *to = t;
     } else {
         o->tip.x_m = x1;

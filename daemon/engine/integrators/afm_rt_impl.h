@@ -80,6 +80,10 @@ typedef struct {
     /* the tip's acceleration here (m/s^2), from the state as it ends (rt_ev_acc's sum): kept
      * only by the accurate scheme's pieces taken for the step record (rt_piece_acc_t, rec) */
     double acc_m_s2;
+    /* tip.x_free_m, tip.v_free_m_s hold the accurate scheme's next full step's x*, v* (its
+     * F0, D0 terms and tones in), as rt_free_acc_t left them: that step chains them from here
+     * (block ends do not change the results); every other writer of tip clears it */
+    bool acc_free;
 } rt_snap;
 
 /* The step tables of one scheme: contact substeps m, ncell = m RT_GRID cells, the
@@ -136,6 +140,12 @@ typedef struct {
      * ax_j = -wd_j^2 cx_j (m/s^2; zero past ntones) */
     double aq[AFM_MAX_MODES], av[AFM_MAX_MODES], tip2;
     double ax_re[AFM_MAX_TONES], ax_im[AFM_MAX_TONES];
+    /* The accurate scheme's free step chained to the next (rt_free_acc_t): the next full step's
+     * x*, v* and the tip acceleration its end slope takes, per unit end force F1 and end
+     * slope D1 = tau dF/dt of this one, over the part of the modal update that waits for them
+     * (afm_rt_coef.h's K1 and Gd1 rows, tab[1]'s full step): x* (m/N, m/N), v* (m/s/N, m/s/N),
+     * the acceleration (1/kg, 1/kg) */
+    double fa_xf, fa_xd, fa_vf, fa_vd, fa_af, fa_ad;
     /* the tones' steady tip responses cx_j (m), for the drive rows of the tables not in
      * force, which rt_changed leaves stale (drive_stale) until a hand-over needs them */
     double cx_re[AFM_MAX_TONES], cx_im[AFM_MAX_TONES];
