@@ -15,7 +15,10 @@
 #include <string.h>
 #include <time.h>
 
-#define CMD_Q_LEN 256
+/* 0.8 s of a 10 kHz command stream (2.6 MB): a burst after a model build, an RT thread
+ * that fell behind by max_lag_s and the 50 ms a throttled SCHED_FIFO thread can lose all
+ * fit; was 256 (25 ms), which refused 2705 of a 10 kHz stream's 600 000 commands */
+#define CMD_Q_LEN 8192
 #define TRASH_Q_LEN 64
 #define RTREJ_Q_LEN 64
 #define SAMPLES_Q_LEN 256 /* records of up to AFM_IO_MAX_BLOCK samples (~8 MB in all) */
@@ -318,6 +321,7 @@ static void run_until_stopped(twind *d, const sigset_t *sigs, twind_watch *w) {
 
 /* Everything start-up made, in reverse order (each destroy accepts what was never made). */
 static void release(twind *d) {
+    twind_a0b_stop(d);
     twind_a0_stop(d);
     afm_io_destroy(&d->io);
     afm_spsc_destroy(&d->done_q);
@@ -377,8 +381,8 @@ int main(int argc, char **argv) {
         release(&d);
         return 1;
     }
-    if (twind_a0_start(&d, &cfg, a0_scheme(&d, &cfg), &a0)) {
-        fprintf(stderr, "afmtwind: cannot start the A0 thread\n");
+    if (twind_a0_start(&d, &cfg, a0_scheme(&d, &cfg), &a0) || twind_a0b_start(&d)) {
+        fprintf(stderr, "afmtwind: cannot start the A0 threads\n");
         release(&d);
         return 1;
     }

@@ -51,6 +51,10 @@ static void usage(FILE *f) {
             "                         --aux-cpu 0, the controller on CPU 0: README)\n"
             "  --rt-priority N        SCHED_FIFO priority 1..99 (default 80)\n"
             "  --block-us N           real-time block length in microseconds (default 1000)\n"
+            "  --batch-us N           realtime and freerun: while messages keep coming, the\n"
+            "                         receive thread takes them in batches, waking at most\n"
+            "                         every N us (default 250; 0: each as it arrives, one\n"
+            "                         wake-up per message; lockstep: always 0)\n"
             "  --speed X              realtime: model seconds per wall second (default 1)\n"
             "  --max-lag-ms N         realtime: when the lag passes N ms the backlog is\n"
             "                         dropped and counted as a resync (default 100)\n"
@@ -96,7 +100,8 @@ int twind_parse_args(int argc, char **argv, twind_opts *o) {
                       .harmonics_max_hz = 1000.0,
                       .speed = 1.0,
                       .max_lag_s = 0.1,
-                      .ring_s = 5e-3};
+                      .ring_s = 5e-3,
+                      .batch_s = 250e-6};
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
         double x;
@@ -176,6 +181,9 @@ int twind_parse_args(int argc, char **argv, twind_opts *o) {
         } else if (!strcmp(a, "--block-us")) {
             if (parse_num(a, v, 10, 1e6, &x)) return -1;
             o->block_s = x * 1e-6;
+        } else if (!strcmp(a, "--batch-us")) {
+            if (parse_num(a, v, 0, 1e5, &x)) return -1;
+            o->batch_s = x * 1e-6;
         } else if (!strcmp(a, "--harmonics-every")) {
             if (parse_num(a, v, 1, 1e9, &x) || x != floor(x)) return -1;
             o->harmonics_every = (int)x;
