@@ -115,12 +115,19 @@ static int start_queues(twind *d, char *err, size_t errlen) {
  * with err. */
 static int start_transports(twind *d, const afm_config *cfg, const afm_io_sink *sink, char *err,
                             size_t errlen) {
-    /* The transports may start threads of their own (LCM's receive thread): they inherit the
-     * receive thread's real-time priority from here, or a busy integrator and chain would
-     * keep them off the CPU and delay commands by up to a block (measured: p99 ~1 ms). */
-    twind_rt_setup_aux(d->opt.rt_priority - 10, d->opt.aux_cpu);
+    /* The transports may start threads of their own (LCM's receive thread, which wakes for
+     * every datagram): they inherit a real-time priority from here (--lcm-priority, default
+     * the receive thread's), or a busy integrator and chain would keep them off the CPU for
+     * whole blocks (at SCHED_OTHER, measured: commands p99 ~1 ms late). Below the output
+     * chain it would not preempt the chain for each datagram of a stream, but it starves
+     * whenever the chain is behind, and the socket drops commands (docs/realtime.md,
+     * "Command intake": 91 724 of 589 142 dropped at 55). Main goes back to the receive
+     * thread's priority after. */
+    int lcm_prio = d->opt.lcm_priority > 0 ? d->opt.lcm_priority : d->opt.rt_priority - 10;
+    twind_rt_setup_aux(lcm_prio, d->opt.aux_cpu);
     d->io = afm_lcm_io_create(d->opt.lcm_url, d->opt.lcm_out_url, d->opt.lcm_samples_url,
                               d->opt.prefix, sink, err, errlen);
+    twind_rt_setup_aux(d->opt.rt_priority - 10, d->opt.aux_cpu);
     if (!d->io) return -1;
     if (!cfg->can.enabled) return 0;
     afm_io *both[2] = {d->io, afm_can_io_create(&cfg->can, &cfg->drive, sink, err, errlen)};

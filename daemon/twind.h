@@ -77,6 +77,7 @@ typedef struct {
     double max_lag_s;    /* realtime: lag beyond which the backlog is dropped (resync) */
     double ring_s;       /* runner ring between the two stages, model seconds */
     int rt_priority;     /* SCHED_FIFO priority 1..99 */
+    int lcm_priority;    /* LCM's receive thread; 0: rt_priority - 10 (the receive thread's) */
     double block_s;      /* real-time block length (s) */
     double batch_s;      /* receive thread: at most one wake-up per batch_s under a stream */
     double exit_after_s; /* > 0: stop after this long (tests) */

@@ -50,6 +50,12 @@ static void usage(FILE *f) {
             "                         (lockstep co-simulation on two cores: --cpu 0 --chain-cpu 1\n"
             "                         --aux-cpu 0, the controller on CPU 0: README)\n"
             "  --rt-priority N        SCHED_FIFO priority 1..99 (default 80)\n"
+            "  --lcm-priority N       SCHED_FIFO priority of LCM's receive thread, which wakes\n"
+            "                         for every datagram (default --rt-priority - 10, the\n"
+            "                         receive thread's; below the output chain's (- 20) it\n"
+            "                         preempts the chain less under a command stream but\n"
+            "                         starves, and the socket drops commands, whenever the\n"
+            "                         chain is behind)\n"
             "  --block-us N           real-time block length in microseconds (default 1000)\n"
             "  --batch-us N           realtime and freerun: while messages keep coming, the\n"
             "                         receive thread takes them in batches, waking at most\n"
@@ -178,6 +184,9 @@ int twind_parse_args(int argc, char **argv, twind_opts *o) {
         } else if (!strcmp(a, "--rt-priority")) {
             if (parse_num(a, v, 1, 99, &x) || x != floor(x)) return -1;
             o->rt_priority = (int)x;
+        } else if (!strcmp(a, "--lcm-priority")) {
+            if (parse_num(a, v, 1, 99, &x) || x != floor(x)) return -1;
+            o->lcm_priority = (int)x;
         } else if (!strcmp(a, "--block-us")) {
             if (parse_num(a, v, 10, 1e6, &x)) return -1;
             o->block_s = x * 1e-6;
