@@ -12,7 +12,8 @@
 #  (b) an outside FM controller (examples/fm_pll.c, a PLL and an amplitude PI over LCM,
 #      dither commands at $FM_RATE per second, default 1000, for $FM_AFTER wall seconds after
 #      its lock, default 5, the daemon at --speed $FM_SPEED, default RT_SPEED of lib_daemon.sh;
-#      `make soak` runs 10 kHz for 60 s at --speed 1 with FM_RT_CHECK=1) locks within 2 s of model time
+#      `make soak` and `make fm-stream` run 10 kHz for 60 s at --speed 1 with FM_RT_CHECK=1; the
+#      controller at SCHED_FIFO $FM_CLIENT_PRIO, default 50, below the daemon) locks within 2 s of model time
 #      to the twin's shifted resonance (the same shift within 0.5 Hz: the daemon runs the fast
 #      scheme in real time), and while it streams the daemon applies every command it sent
 #      (none rejected, refused or dropped); with FM_RT_CHECK=1 also no resync and a real-time
