@@ -24,6 +24,11 @@
  * time) and after streaming --after more wall seconds; 1 if not locked within --seconds of
  * model time (or nothing heard within --timeout wall seconds); 2 on bad usage or LCM failure.
  *
+ * Scheduling on the daemon's machine: SCHED_FIFO below the daemon's threads and above ordinary
+ * work (chrt -f 50): above them, each of 10 000 sends a second preempts the integrator or the
+ * output chain; below, commands go out in bursts in the cores' idle time, and a burst costs
+ * the daemon one wake-up (docs/realtime.md, "Command intake under a 10 kHz controller").
+ *
  * Built only from installed files: cc fm_pll.c $(pkg-config --cflags --libs afmtwin). */
 #include "afmtwin_dither_t.h"
 #include "afmtwin_harmonics_t.h"
