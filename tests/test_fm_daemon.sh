@@ -13,7 +13,7 @@
 #      dither commands at $FM_RATE per second, default 1000, for $FM_AFTER wall seconds after
 #      its lock, default 5, the daemon at --speed $FM_SPEED, default RT_SPEED of lib_daemon.sh;
 #      `make soak` and `make fm-stream` run 10 kHz for 60 s at --speed 1 with FM_RT_CHECK=1; the
-#      controller at SCHED_FIFO $FM_CLIENT_PRIO, default 50, below the daemon) locks within 2 s of model time
+#      controller at SCHED_FIFO $FM_CLIENT_PRIO, default 75, below the integrator) locks within 2 s of model time
 #      to the twin's shifted resonance (the same shift within 0.5 Hz: the daemon runs the fast
 #      scheme in real time), and while it streams the daemon applies every command it sent
 #      (none rejected, refused or dropped); with FM_RT_CHECK=1 also no resync and a real-time
@@ -41,12 +41,13 @@ run=(); chrt -f 90 true 2>/dev/null && run=(chrt -f 90)
 PARTS=${FM_PARTS:-acb} # which of (a), (c), (b) to run (make fm-stream: b only; (a)'s offline
                        # approach, which (b) compares with, always runs)
 PLL_SRC=${FM_PLL_SRC:-examples/fm_pll.c} # (b)'s controller (another build's, to compare)
-# (b)'s controller runs SCHED_FIFO $FM_CLIENT_PRIO (default 50): below every thread of the
-# daemon (integrator 80, receive/publish/LCM 70, output chain 60 at the default
-# --rt-priority), above ordinary processes. At 90, above the twin, its sends preempted the
-# integrator and the chain on two cores (README, FM: "on a small machine"). "" runs it
-# without chrt.
-CLIENT_PRIO=${FM_CLIENT_PRIO-50}
+# (b)'s controller runs SCHED_FIFO $FM_CLIENT_PRIO (default 75): below the integrator (80),
+# above the daemon's receive, publish and LCM threads (70) and the output chain (60) at the
+# default --rt-priority. Its 1 ms bursts of sends then end before LCM's thread reads them
+# all in one wake-up (~1300 a second at 10 kHz; at 50, below LCM's thread, every send woke
+# it: ~4700 a second, and the controller starved whenever the twin was behind); at 90 it
+# preempted the integrator too (docs/realtime.md, "Command intake"). "" runs it without chrt.
+CLIENT_PRIO=${FM_CLIENT_PRIO-75}
 client=(); [ -n "$CLIENT_PRIO" ] && chrt -f "$CLIENT_PRIO" true 2>/dev/null &&
   client=(chrt -f "$CLIENT_PRIO")
 
