@@ -184,7 +184,10 @@ listen --channels status --json --timeout $((AFTER + 10)) > "$T/st.jsonl" 2>/dev
 # commands at 10 kHz under load), its socket buffer (recv_buf_size, 4 MB) holding the rest.
 # Enough at 1000 commands/s (all logged); at 10 000/s, with the daemon behind and taking 1.3
 # cores, it kept 344 485 of 584 947 (README, FM).
-logrt=(); chrt -f 1 true 2>/dev/null && logrt=(chrt -f 1)
+# FM_LOGGER_PRIO sets another priority (docs/realtime.md, "Command intake": 74, just below the
+# controller, tried at 10 kHz).
+LOGGER_PRIO=${FM_LOGGER_PRIO:-1}
+logrt=(); chrt -f "$LOGGER_PRIO" true 2>/dev/null && logrt=(chrt -f "$LOGGER_PRIO")
 if [ "$REPLAY" = 1 ]; then
   "${logrt[@]}" lcm-logger -q -f --lcm-url "$url" "$T/cmd.lcmlog" & LOGPIDS="$!"
   "${logrt[@]}" lcm-logger -q -f -c AFMTWIN_HARMONICS --lcm-url "$out_url" "$T/harm.lcmlog" &
