@@ -85,7 +85,7 @@ TEST_SRC   := $(wildcard tests/test_*.c)
 TEST_BIN   := $(patsubst tests/%.c,$(BUILD)/tests/%,$(TEST_SRC))
 TEST_COMMON := $(BUILD)/obj/tests/check.o $(BUILD)/obj/tests/fixtures.o $(BUILD)/obj/tests/msg_examples.o
 
-.PHONY: all deps run test validate bench soak doc-plots install clean format format-check can-probe \
+.PHONY: all deps run test validate bench soak fm-stream doc-plots install clean format format-check can-probe \
         sanitize sanitize-build fuzz fuzzers flood man deb dist core cross-deps cross-arm64
 
 LIBS_ALL   := $(if $(IO_OBJ),$(IO_LIB)) $(MSG_LIB) $(ENGINE_LIB)
@@ -281,6 +281,14 @@ soak: deps
 	$(MAKE) $(BUILD)/bin/afmtwin $(BUILD)/bin/afmtwind
 	AFMTWIN_SOAK_S=300 AFMTWIN_SOAK_CHECK_S=60 AFMTWIN_SOAK_MIN_RTF=0.99 AFMTWIN_RT_SPEED=1 bash tests/test_soak.sh $(BUILD)
 	FM_RATE=10000 FM_AFTER=60 FM_SPEED=1 FM_REPLAY_EVERY=100 FM_RT_CHECK=1 bash tests/test_fm_daemon.sh $(BUILD)
+
+# The outside FM controller's 10 kHz stream for 60 s at --speed 1 against the realtime
+# daemon, strict (tests/test_fm_daemon.sh part (b) only, FM_RT_CHECK=1: every command
+# applied, no resync, real-time factor >= 0.99 in every status, the logged commands
+# replayed; ~2 minutes; make soak runs it after the command soaks). Not in make test.
+fm-stream: deps
+	$(MAKE) $(BUILD)/bin/afmtwin $(BUILD)/bin/afmtwind
+	FM_PARTS=b FM_RATE=10000 FM_AFTER=60 FM_SPEED=1 FM_REPLAY_EVERY=100 FM_RT_CHECK=1 bash tests/test_fm_daemon.sh $(BUILD)
 
 clean:
 	rm -rf $(BUILD)

@@ -10,11 +10,11 @@
  * (scheme.c; their steady amplitudes differ by ~2e-4) asks again too (twind_a0_scheme, from
  * the status). Until the newest is done the status
  * says NaN (not known), never the A0 of a drive no longer in force. The worker runs at
- * normal priority (SCHED_OTHER): it takes only the time the real-time, chain, receive and
- * publish threads (all SCHED_FIFO when permitted) leave. Even so one computation costs the
- * real-time threads ~5 % of real time in the second it runs on this 2-core VM (test_collapse:
- * real-time factor min 0.92-0.95 against 0.999 without; once 0.88, below its 0.9), so the
- * recomputation is opt-in (afmtwind --a0-track). Without it no worker is started: the
+ * SCHED_FIFO 1 (it inherited main's 70, above the output chain, until 2026-12-06): it takes
+ * only the time the real-time, chain, receive and publish threads leave. Even so one computation
+ * costs the real-time threads ~5 % of real time in the second it runs on this 2-core VM
+ * (test_collapse: real-time factor min 0.92-0.95 against 0.999 without; once 0.88, below its 0.9),
+ * so the recomputation is opt-in (afmtwind --a0-track). Without it no worker is started: the
  * start-up (first) A0 stands until the drive or the model changes, then the status says NaN. */
 #include "twind.h"
 
@@ -57,6 +57,10 @@ static double now_s(clockid_t clk) {
 }
 
 static void *a0_main(void *arg) {
+    twind_thread_name("afm-a0");
+    /* SCHED_FIFO 1, not the receive thread's priority that main had when it created this
+     * thread (start_transports): below every thread of the daemon, above ordinary work */
+    twind_rt_setup_build(1, true);
     twind *d = arg;
     twind_a0 *a = &d->a0;
     char err[AFM_ERR_LEN];

@@ -15,7 +15,10 @@
 #include <string.h>
 #include <time.h>
 
-#define CMD_Q_LEN 256
+/* 0.8 s of a 10 kHz command stream (2.6 MB): a burst after a model build, an RT thread
+ * that fell behind by max_lag_s and the 50 ms a throttled SCHED_FIFO thread can lose all
+ * fit; was 256 (25 ms), which refused 2705 of a 10 kHz stream's 600 000 commands */
+#define CMD_Q_LEN 8192
 #define TRASH_Q_LEN 64
 #define RTREJ_Q_LEN 64
 #define SAMPLES_Q_LEN 256 /* records of up to AFM_IO_MAX_BLOCK samples (~8 MB in all) */
@@ -112,12 +115,19 @@ static int start_queues(twind *d, char *err, size_t errlen) {
  * with err. */
 static int start_transports(twind *d, const afm_config *cfg, const afm_io_sink *sink, char *err,
                             size_t errlen) {
-    /* The transports may start threads of their own (LCM's receive thread): they inherit the
-     * receive thread's real-time priority from here, or a busy integrator and chain would
-     * keep them off the CPU and delay commands by up to a block (measured: p99 ~1 ms). */
-    twind_rt_setup_aux(d->opt.rt_priority - 10, d->opt.aux_cpu);
+    /* The transports may start threads of their own (LCM's receive thread, which wakes for
+     * every datagram): they inherit a real-time priority from here (--lcm-priority, default
+     * the receive thread's), or a busy integrator and chain would keep them off the CPU for
+     * whole blocks (at SCHED_OTHER, measured: commands p99 ~1 ms late). Below the output
+     * chain it would not preempt the chain for each datagram of a stream, but it starves
+     * whenever the chain is behind, and the socket drops commands (docs/realtime.md,
+     * "Command intake": 91 724 of 589 142 dropped at 55). Main goes back to the receive
+     * thread's priority after. */
+    int lcm_prio = d->opt.lcm_priority > 0 ? d->opt.lcm_priority : d->opt.rt_priority - 10;
+    twind_rt_setup_aux(lcm_prio, d->opt.aux_cpu);
     d->io = afm_lcm_io_create(d->opt.lcm_url, d->opt.lcm_out_url, d->opt.lcm_samples_url,
                               d->opt.prefix, sink, err, errlen);
+    twind_rt_setup_aux(d->opt.rt_priority - 10, d->opt.aux_cpu);
     if (!d->io) return -1;
     if (!cfg->can.enabled) return 0;
     afm_io *both[2] = {d->io, afm_can_io_create(&cfg->can, &cfg->drive, sink, err, errlen)};
@@ -318,6 +328,7 @@ static void run_until_stopped(twind *d, const sigset_t *sigs, twind_watch *w) {
 
 /* Everything start-up made, in reverse order (each destroy accepts what was never made). */
 static void release(twind *d) {
+    twind_a0b_stop(d);
     twind_a0_stop(d);
     afm_io_destroy(&d->io);
     afm_spsc_destroy(&d->done_q);
@@ -377,8 +388,8 @@ int main(int argc, char **argv) {
         release(&d);
         return 1;
     }
-    if (twind_a0_start(&d, &cfg, a0_scheme(&d, &cfg), &a0)) {
-        fprintf(stderr, "afmtwind: cannot start the A0 thread\n");
+    if (twind_a0_start(&d, &cfg, a0_scheme(&d, &cfg), &a0) || twind_a0b_start(&d)) {
+        fprintf(stderr, "afmtwind: cannot start the A0 threads\n");
         release(&d);
         return 1;
     }

@@ -127,6 +127,7 @@ static void busy_account(chain_ctx *c, double busy, double now) {
 }
 
 void *twind_chain_main(void *arg) {
+    twind_thread_name("afm-chain");
     twind *d = arg;
     chain_ctx c = {.d = d, .r = d->runner, .pushed_seq = -1};
     char warn[256] = "";

@@ -9,12 +9,12 @@
 
 #include <stdio.h>
 #include <string.h>
+#include <math.h>
 #include <time.h>
 
-#define MODEL_WAIT_MS 20     /* longest wait for the model change in flight before the next */
-#define FLOOD_RATE 2000.0    /* messages a second above which the receive thread naps */
-#define FLOOD_WINDOW_S 0.01  /* ... measured over this window */
-#define FLOOD_NAP_NS 500000L /* the nap: 0.5 ms */
+#define MODEL_WAIT_MS 20 /* longest wait for the model change in flight before the next */
+#define QUEUE_WAIT_MS 50 /* longest wait for room in a full cmd_q before a refusal */
+#define IDLE_POLL_MS 50  /* no stream: block in the transport's poll this long at most */
 
 /* Count one reason (counter may be NULL: counted elsewhere) and print it, at most
  * TWIND_REASON_LINES_PER_S lines a second; the rest are summed up by main. */
@@ -64,7 +64,7 @@ static const char *tag_seq(char *buf, size_t len, const char *reason, int64_t se
 
 static void reject_cmd(twind *d, const afm_cmd *c, const char *reason) {
     char b[AFM_IO_REASON_LEN];
-    twind_reject(d, tag_seq(b, sizeof b, reason, c->seq));
+    twind_reject_order(d, tag_seq(b, sizeof b, reason, c->seq), d->cmd_order);
 }
 
 static void refuse_cmd(twind *d, const afm_cmd *c, const char *reason) {
@@ -79,11 +79,21 @@ static void count_received(twind *d) {
     d->order++;
 }
 
-/* Push a command (and its model) to the RT thread; the queue never blocks: a full queue
- * is a refusal (the RT thread is far behind). */
+/* Push a command (and its model) to the RT thread. The queue holds CMD_Q_LEN commands
+ * (afmtwind.c: 0.8 s of a 10 kHz stream, far more than the lag a resync drops); full, the
+ * receive thread waits up to QUEUE_WAIT_MS for room (the commands behind wait in the
+ * transport), then refuses (the RT thread is stopped or far behind). The RT thread never
+ * waits on it. */
 static int enqueue(twind *d, const afm_cmd *c, afm_runner_model *m, const char *what) {
-    twind_cmd_item it = {.cmd = *c, .model = m, .order = d->order};
-    if (!afm_spsc_push(&d->cmd_q, &it)) {
+    twind_cmd_item it = {.cmd = *c, .model = m, .order = d->cmd_order};
+    bool in = afm_spsc_push(&d->cmd_q, &it);
+    for (int i = 0; !in && i < QUEUE_WAIT_MS * 10; i++) {
+        if (atomic_load_explicit(&d->stop, memory_order_acquire)) break;
+        struct timespec ts = {0, 100000L};
+        nanosleep(&ts, NULL);
+        in = afm_spsc_push(&d->cmd_q, &it);
+    }
+    if (!in) {
         char why[AFM_IO_REASON_LEN];
         snprintf(why, sizeof why, "%s: command queue full (%zu waiting); not applied", what,
                  afm_spsc_capacity(&d->cmd_q));
@@ -171,10 +181,19 @@ static afm_runner_model *build(twind *d, const afm_config *cfg, bool new_chain,
     return m;
 }
 
-static int on_cmd(void *ctx, const afm_cmd *c) {
-    twind *d = ctx;
+/* A dither applied: the receive thread's copy of the drive follows, and A0 is asked for
+ * anew if tone 0 changed (a0_track.c). */
+static void dither_queued(twind *d, const afm_cmd *c) {
+    follow_dither(d, &c->u.dither);
+    twind_a0_request(d, &d->shadow, &d->drive_now, false);
+}
+
+/* One command, in arrival order (d->cmd_order its order): checked against the shadow, its
+ * model built if it needs one, queued for the RT thread; a dither that moves the internal
+ * AM loop's A0 goes to the A0 worker (a0_build.c) and waits there, and the commands after
+ * it wait in the hold ring (held_resume). */
+static int handle_cmd(twind *d, const afm_cmd *c) {
     char err[AFM_ERR_LEN], why[AFM_IO_REASON_LEN];
-    count_received(d);
     const char *kind = afm_cmd_kind_name(c->kind);
     if (c->kind == AFM_CMD_TICK && d->opt.mode != TWIND_LOCKSTEP) {
         snprintf(why, sizeof why, "tick: the daemon runs in %s mode, not lockstep",
@@ -184,23 +203,15 @@ static int on_cmd(void *ctx, const afm_cmd *c) {
     }
     if (c->kind != AFM_CMD_PARAM) {
         /* A dither that moves tone 0 under the internal AM Z loop brings the new free
-         * amplitude A0 (the loop's reference), computed here, off the real-time threads. */
-        afm_runner_model *m = NULL;
+         * amplitude A0 (the loop's reference), computed off the real-time threads and off
+         * this one: on the A0 worker, the dither and what follows it waiting meanwhile. */
         if (afm_runner_dither_moves_a0(&d->shadow, &d->drive_now, c)) {
-            twind_rt_setup_build(d->opt.rt_priority - 10, true); /* as build() */
-            m = afm_runner_model_a0(&d->shadow, &c->u.dither, err, sizeof err);
-            twind_rt_setup_build(d->opt.rt_priority - 10, false);
-            if (!m) {
-                snprintf(why, sizeof why, "dither: cannot compute the new A0: %.200s", err);
-                reject_cmd(d, c, why);
-                return -1;
-            }
+            d->a0b.waiting = (twind_held){.cmd = *c, .order = d->cmd_order};
+            twind_a0b_submit(d, &d->shadow, &c->u.dither);
+            return 0;
         }
-        if (enqueue(d, c, m, kind)) return -1;
-        if (c->kind == AFM_CMD_DITHER) {
-            follow_dither(d, &c->u.dither);
-            twind_a0_request(d, &d->shadow, &d->drive_now, false); /* if tone 0 changed */
-        }
+        if (enqueue(d, c, NULL, kind)) return -1;
+        if (c->kind == AFM_CMD_DITHER) dither_queued(d, c);
         return 0;
     }
     if (!model_changes_settled(d, MODEL_WAIT_MS)) {
@@ -229,6 +240,76 @@ static int on_cmd(void *ctx, const afm_cmd *c) {
     if (eff != AFM_PARAM_SEPARATION) /* A0 is at Z = 1 um whatever the set-point */
         twind_a0_request(d, &d->shadow, &d->drive_now, true);
     return 0;
+}
+
+/* The A0 build in flight: once done (waiting up to wait_ms), its dither goes to the RT
+ * thread with the A0 (or is rejected with the reason), then the held commands in order,
+ * until the ring is empty or one of them starts another build. */
+static void held_resume(twind *d, int wait_ms) {
+    twind_a0b *b = &d->a0b;
+    while (b->busy) {
+        afm_runner_model *m = NULL;
+        char err[AFM_ERR_LEN], why[AFM_IO_REASON_LEN];
+        if (!twind_a0b_take(d, wait_ms, &m, err, sizeof err)) return;
+        const afm_cmd *c = &b->waiting.cmd;
+        d->cmd_order = b->waiting.order;
+        if (!m) {
+            snprintf(why, sizeof why, "dither: cannot compute the new A0: %.200s", err);
+            reject_cmd(d, c, why);
+        } else if (enqueue(d, c, m, afm_cmd_kind_name(c->kind)) == 0) {
+            dither_queued(d, c);
+        }
+        while (!b->busy && b->held_n > 0) {
+            twind_held h = b->held[b->held_head];
+            b->held_head = (b->held_head + 1) % TWIND_HELD_LEN;
+            b->held_n--;
+            d->cmd_order = h.order;
+            handle_cmd(d, &h.cmd);
+        }
+    }
+}
+
+/* At shutdown: the build in flight and the commands behind it are refused (counted: the
+ * accounting stays whole). */
+static void held_drop(twind *d) {
+    twind_a0b *b = &d->a0b;
+    if (!b->busy) return;
+    afm_runner_model *m = NULL;
+    char err[AFM_ERR_LEN];
+    while (!twind_a0b_take(d, 100, &m, err, sizeof err)) {
+    }
+    afm_runner_model_destroy(&m);
+    d->cmd_order = b->waiting.order;
+    refuse_cmd(d, &b->waiting.cmd, "dither: the daemon stopped before its A0 was computed");
+    for (; b->held_n > 0; b->held_n--) {
+        twind_held *h = &b->held[b->held_head];
+        b->held_head = (b->held_head + 1) % TWIND_HELD_LEN;
+        refuse_cmd(d, &h->cmd, "the daemon stopped while the command waited for an A0");
+    }
+}
+
+static int on_cmd(void *ctx, const afm_cmd *c) {
+    twind *d = ctx;
+    twind_a0b *b = &d->a0b;
+    count_received(d);
+    /* Behind an A0 build in flight: in order, in the hold ring; a full ring waits for the
+     * build (as every command did before the worker). */
+    while (b->busy && b->held_n == TWIND_HELD_LEN &&
+           !atomic_load_explicit(&d->stop, memory_order_acquire))
+        held_resume(d, 100);
+    if (b->busy) {
+        if (b->held_n == TWIND_HELD_LEN) { /* stopping */
+            d->cmd_order = d->order;
+            refuse_cmd(d, c, "the daemon stopped while the command waited for an A0");
+            return -1;
+        }
+        b->held[(b->held_head + b->held_n) % TWIND_HELD_LEN] =
+            (twind_held){.cmd = *c, .order = d->order};
+        b->held_n++;
+        return 0;
+    }
+    d->cmd_order = d->order;
+    return handle_cmd(d, c);
 }
 
 static void on_reject(void *ctx, const char *channel, const char *reason) {
@@ -264,6 +345,7 @@ static void do_reload(twind *d) {
     static afm_config next; /* receive thread only; large for a stack frame */
     char err[AFM_ERR_LEN], why[AFM_IO_REASON_LEN];
     d->order++;
+    d->cmd_order = d->order;
     if (afm_config_load(d->opt.config_path, &next, err, sizeof err)) {
         snprintf(why, sizeof why, "reload: %.200s; keeping the running config", err);
         twind_reject(d, why);
@@ -304,43 +386,55 @@ static void drain_side_queues(twind *d) {
     model_changes_settled(d, 0); /* a refused model change: the shadow goes back now */
 }
 
-static long long received_now(twind *d) {
-    pthread_mutex_lock(&d->lock);
-    long long n = d->received;
-    pthread_mutex_unlock(&d->lock);
-    return n;
-}
-
+/* The receive thread. With no stream it blocks in the transport's poll and takes each
+ * message as it arrives. While messages keep coming (some came in the last turn) it sleeps
+ * to the next batch instant (every opt.batch_s, absolute, so that handling does not
+ * stretch the period) and takes all that came meanwhile with a zero timeout: a 10 kHz
+ * stream then costs 1 / batch_s wake-ups a second (4000 at the default 250 us) instead of
+ * one per message, each a context switch on a core the integrator or the output chain
+ * needs (tens of us on a virtual machine). A command waits at most batch_s longer; the RT
+ * thread applies what is queued at its next ring item as before, so the rule that places
+ * commands in model time is unchanged. Lockstep never batches: a tick's round trip is its
+ * throughput. */
 void *twind_recv_main(void *arg) {
+    twind_thread_name("afm-recv");
     twind *d = arg;
     twind_rt_setup_aux(d->opt.rt_priority - 10, d->opt.aux_cpu);
-    double win_t0 = twind_mono_now();
-    long long win_n0 = 0;
-    bool flood = false;
+    long batch_ns = d->opt.mode == TWIND_LOCKSTEP ? 0 : (long)llround(d->opt.batch_s * 1e9);
+    struct timespec next;
+    clock_gettime(CLOCK_MONOTONIC, &next);
+    bool stream = false;
+    int64_t order0 = d->order;
     while (!atomic_load_explicit(&d->stop, memory_order_acquire)) {
-        /* Under a flood (more than FLOOD_RATE messages a second over the last window), nap
-         * FLOOD_NAP_NS before each poll and take what came meanwhile in one go: a wakeup
-         * and a context switch per message (tens of us each on a virtual machine) would
-         * otherwise eat the core the output-chain thread needs. Commands then wait at most
-         * the nap longer; below the rate, each is taken as it arrives. */
-        if (flood) {
-            struct timespec nap = {0, FLOOD_NAP_NS};
-            nanosleep(&nap, NULL);
+        if (stream) {
+            struct timespec now;
+            clock_gettime(CLOCK_MONOTONIC, &now);
+            next.tv_nsec += batch_ns;
+            while (next.tv_nsec >= 1000000000L) {
+                next.tv_nsec -= 1000000000L;
+                next.tv_sec++;
+            }
+            if (next.tv_sec < now.tv_sec ||
+                (next.tv_sec == now.tv_sec && next.tv_nsec < now.tv_nsec))
+                next = now; /* behind (handling took longer): no catching up in a burst */
+            else
+                clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &next, NULL);
         }
-        if (d->io->ops->poll(d->io, flood ? 0 : 50) < 0) {
+        /* an A0 build in flight: look for its end every millisecond at least */
+        int idle_ms = d->a0b.busy ? 1 : IDLE_POLL_MS;
+        if (d->io->ops->poll(d->io, stream ? 0 : idle_ms) < 0) {
             struct timespec ts = {0, 50000000L}; /* transport trouble: do not spin */
             nanosleep(&ts, NULL);
         }
-        double now = twind_mono_now();
-        if (now - win_t0 >= FLOOD_WINDOW_S) {
-            long long n = received_now(d);
-            flood = (double)(n - win_n0) > FLOOD_RATE * (now - win_t0);
-            win_t0 = now;
-            win_n0 = n;
-        }
-        if (atomic_exchange(&d->reload, 0)) do_reload(d);
+        if (!stream) clock_gettime(CLOCK_MONOTONIC, &next); /* the first of a stream */
+        stream = batch_ns > 0 && d->order != order0;
+        order0 = d->order;
+        held_resume(d, 0);
+        /* a reload waits for the build in flight: the dither's A0 is of the config before */
+        if (!d->a0b.busy && atomic_exchange(&d->reload, 0)) do_reload(d);
         drain_side_queues(d);
     }
+    held_drop(d);
     /* After the RT and chain threads have stopped: whatever they left behind. */
     while (!atomic_load_explicit(&d->rt_done, memory_order_acquire) ||
            !atomic_load_explicit(&d->chain_done, memory_order_acquire)) {

@@ -167,6 +167,7 @@ static void drain(twind *d, pub_state *p) {
 }
 
 void *twind_pub_main(void *arg) {
+    twind_thread_name("afm-pub");
     twind *d = arg;
     twind_rt_setup_aux(d->opt.rt_priority - 10, d->opt.aux_cpu);
     twind_rtf_state rs = {0, 0, 0};

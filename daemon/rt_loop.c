@@ -139,6 +139,7 @@ static void apply_commands(rt_ctx *c) {
 }
 
 void *twind_rt_main(void *arg) {
+    twind_thread_name("afm-rt");
     twind *d = arg;
     rt_ctx c = {.d = d, .r = d->runner};
     c.snap.scheme_accurate = d->scheme.accurate;

@@ -63,3 +63,7 @@ void twind_rt_setup_build(int priority, bool building) {
         (void)pthread_setschedparam(pthread_self(), SCHED_OTHER, &sp);
     }
 }
+
+void twind_thread_name(const char *name) {
+    (void)pthread_setname_np(pthread_self(), name); /* 15 characters at most; diagnostics */
+}

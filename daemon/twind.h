@@ -77,7 +77,9 @@ typedef struct {
     double max_lag_s;    /* realtime: lag beyond which the backlog is dropped (resync) */
     double ring_s;       /* runner ring between the two stages, model seconds */
     int rt_priority;     /* SCHED_FIFO priority 1..99 */
+    int lcm_priority;    /* LCM's receive thread; 0: rt_priority - 10 (the receive thread's) */
     double block_s;      /* real-time block length (s) */
+    double batch_s;      /* receive thread: at most one wake-up per batch_s under a stream */
     double exit_after_s; /* > 0: stop after this long (tests) */
     double start_s;      /* model time at start (tests of a twin up that long; default 0) */
     int harmonics_every; /* publish every k-th period; 0: auto (at most harmonics_max_hz) */
@@ -175,6 +177,31 @@ typedef struct {
     double lag_deg;
 } twind_a0;
 
+/* a0_build.c's state: one job at a time (the receive thread submits and takes, the worker
+ * computes; under mu), and the receive thread's hold ring of the commands that came after
+ * the dither in flight (the receive thread's alone). */
+#define TWIND_HELD_LEN 4096 /* commands held behind an A0 build (0.4 s of a 10 kHz stream) */
+typedef struct {
+    afm_cmd cmd;
+    int64_t order; /* its twind_cmd_item.order: when it arrived */
+} twind_held;
+typedef struct {
+    pthread_t th;
+    pthread_mutex_t mu;
+    pthread_cond_t cv;
+    bool started, stop;
+    bool busy;             /* receive thread: a job submitted and not taken */
+    bool queued, done;     /* under mu: waiting for the worker; its result ready */
+    afm_config *cfg;       /* the job: the config the dither applies to ... */
+    afm_cmd_dither dither; /* ... and the dither */
+    afm_runner_model *model;
+    char err[AFM_ERR_LEN];
+    /* receive thread only: the dither in flight and the commands behind it */
+    twind_held waiting;
+    twind_held *held;
+    int held_head, held_n;
+} twind_a0b;
+
 typedef struct {
     twind_opts opt;
     afm_runner *runner; /* the RT thread's after start */
@@ -213,6 +240,8 @@ typedef struct {
     atomic_int mc_last_ok;          /* rt: 1 if the last one was applied */
     twind_scheme_state scheme;      /* main thread, then the rt thread only */
     twind_a0 a0;                    /* a0_track.c */
+    twind_a0b a0b;                  /* a0_build.c */
+    int64_t cmd_order;              /* receive thread: order of the command being handled */
     /* RT scheduling result, for the start-up report */
     char rt_warn[512];
 } twind;
@@ -237,6 +266,9 @@ void twind_rt_setup_aux(int priority, int cpu);
  * takes only the time the integrator and chain threads leave but no ordinary process delays
  * it; back to SCHED_FIFO priority after. */
 void twind_rt_setup_build(int priority, bool building);
+/* The calling thread's name (top -H, ps -L, /proc/PID/task/TID/comm): afm-rt, afm-chain,
+ * afm-recv, afm-pub, afm-a0; LCM's receive thread keeps the process's name. */
+void twind_thread_name(const char *name);
 
 /* scheme.c: resolve d->opt.scheme for cfg (measuring both schemes for auto, main thread,
  * before the threads start) into d->scheme and cfg->sim.rt_scheme. 0, or -1 with err. */
@@ -288,6 +320,17 @@ double twind_a0_now(twind *d);
  * a hand-over. */
 void twind_a0_scheme(twind *d, bool accurate);
 void twind_a0_stop(twind *d);
+
+/* a0_build.c: the A0 builds of dithers under am.control internal on a worker thread.
+ * twind_a0b_start (main, before the threads; allocates the job and the hold ring): -1 if it
+ * cannot start. twind_a0b_submit (receive thread, no job in flight): build the A0 model of
+ * dither applied to cfg. twind_a0b_take (receive thread): true once the job is done (waiting
+ * up to wait_ms), with *m the model or NULL and err the reason. twind_a0b_stop (main, after
+ * the threads). */
+int twind_a0b_start(twind *d);
+void twind_a0b_submit(twind *d, const afm_config *cfg, const afm_cmd_dither *dither);
+bool twind_a0b_take(twind *d, int wait_ms, afm_runner_model **m, char *err, size_t errlen);
+void twind_a0b_stop(twind *d);
 
 /* notify.c: sd_notify wrappers (no-ops outside systemd). */
 void twind_notify_ready(void);

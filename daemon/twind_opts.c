@@ -51,7 +51,17 @@ static void usage(FILE *f) {
             "                         (lockstep co-simulation on two cores: --cpu 0 --chain-cpu 1\n"
             "                         --aux-cpu 0, the controller on CPU 0: README)\n"
             "  --rt-priority N        SCHED_FIFO priority 1..99 (default 80)\n"
+            "  --lcm-priority N       SCHED_FIFO priority of LCM's receive thread, which wakes\n"
+            "                         for every datagram (default --rt-priority - 10, the\n"
+            "                         receive thread's; below the output chain's (- 20) it\n"
+            "                         preempts the chain less under a command stream but\n"
+            "                         starves, and the socket drops commands, whenever the\n"
+            "                         chain is behind)\n"
             "  --block-us N           real-time block length in microseconds (default 1000)\n"
+            "  --batch-us N           realtime and freerun: while messages keep coming, the\n"
+            "                         receive thread takes them in batches, waking at most\n"
+            "                         every N us (default 250; 0: each as it arrives, one\n"
+            "                         wake-up per message; lockstep: always 0)\n"
             "  --speed X              realtime: model seconds per wall second (default 1)\n"
             "  --max-lag-ms N         realtime: when the lag passes N ms the backlog is\n"
             "                         dropped and counted as a resync (default 100)\n"
@@ -112,9 +122,11 @@ int twind_parse_args(int argc, char **argv, twind_opts *o) {
                       .harmonics_max_hz = 1000.0,
                       .speed = 1.0,
                       .max_lag_s = 0.1,
-                      .ring_s = 5e-3};
+                      .ring_s = 5e-3,
+                      .batch_s = 250e-6};
     /* the options given in other units than the fields' (ms, us), and the flags as bools */
-    double max_lag_ms = o->max_lag_s * 1e3, ring_us = o->ring_s * 1e6, block_us = o->block_s * 1e6;
+    double max_lag_ms = o->max_lag_s * 1e3, ring_us = o->ring_s * 1e6, block_us = o->block_s * 1e6,
+           batch_us = o->batch_s * 1e6;
     bool quiet = false, a0_track = false, version = false;
     const afmt_opt opts[] = {
         AFMT_STRING("--config", &o->config_path),
@@ -128,7 +140,9 @@ int twind_parse_args(int argc, char **argv, twind_opts *o) {
         AFMT_INT("--chain-cpu", &o->chain_cpu, 0, 1023, NULL),
         AFMT_INT("--aux-cpu", &o->aux_cpu, 0, 1023, NULL),
         AFMT_INT("--rt-priority", &o->rt_priority, 1, 99, NULL),
+        AFMT_INT("--lcm-priority", &o->lcm_priority, 1, 99, NULL),
         AFMT_DOUBLE("--block-us", &block_us, 10, 1e6, NULL),
+        AFMT_DOUBLE("--batch-us", &batch_us, 0, 1e5, NULL),
         AFMT_DOUBLE("--speed", &o->speed, 1e-3, 1e3, NULL),
         AFMT_DOUBLE("--max-lag-ms", &max_lag_ms, 1, 1e6, NULL),
         AFMT_DOUBLE("--ring-us", &ring_us, 100, 1e6, NULL),
@@ -156,6 +170,7 @@ int twind_parse_args(int argc, char **argv, twind_opts *o) {
     o->max_lag_s = max_lag_ms * 1e-3;
     o->ring_s = ring_us * 1e-6;
     o->block_s = block_us * 1e-6;
+    o->batch_s = batch_us * 1e-6;
     if (!o->config_path) {
         fprintf(stderr, "afmtwind: --config FILE is required (see --help)\n");
         return -1;

@@ -24,6 +24,12 @@
  * time) and after streaming --after more wall seconds; 1 if not locked within --seconds of
  * model time (or nothing heard within --timeout wall seconds); 2 on bad usage or LCM failure.
  *
+ * Scheduling on the daemon's machine: SCHED_FIFO just below the daemon's integrator thread and
+ * above its other threads (chrt -f 75 at afmtwind's default --rt-priority 80): the commands go
+ * out in 1 ms bursts that end before the daemon's LCM thread (70) reads them, one wake-up a
+ * burst; above the integrator every burst preempts it, below the LCM thread every send wakes
+ * it (docs/realtime.md, "Command intake under a 10 kHz controller").
+ *
  * Built only from installed files: cc fm_pll.c $(pkg-config --cflags --libs afmtwin). */
 #include "afmtwin_dither_t.h"
 #include "afmtwin_harmonics_t.h"

@@ -12,7 +12,8 @@
 #  (b) an outside FM controller (examples/fm_pll.c, a PLL and an amplitude PI over LCM,
 #      dither commands at $FM_RATE per second, default 1000, for $FM_AFTER wall seconds after
 #      its lock, default 5, the daemon at --speed $FM_SPEED, default RT_SPEED of lib_daemon.sh;
-#      `make soak` runs 10 kHz for 60 s at --speed 1 with FM_RT_CHECK=1) locks within 2 s of model time
+#      `make soak` and `make fm-stream` run 10 kHz for 60 s at --speed 1 with FM_RT_CHECK=1; the
+#      controller at SCHED_FIFO $FM_CLIENT_PRIO, default 75, below the integrator) locks within 2 s of model time
 #      to the twin's shifted resonance (the same shift within 0.5 Hz: the daemon runs the fast
 #      scheme in real time), and while it streams the daemon applies every command it sent
 #      (none rejected, refused or dropped); with FM_RT_CHECK=1 also no resync and a real-time
@@ -37,6 +38,18 @@ REPLAY=${FM_REPLAY:-1} # (b): log the commands and replay them (0: not)
 EVERY=${FM_REPLAY_EVERY:-30} # (b): replay --harmonics-every
 url="$LCM_DEFAULT_URL"; out_url=${url/:7667/:7668}
 run=(); chrt -f 90 true 2>/dev/null && run=(chrt -f 90)
+PARTS=${FM_PARTS:-acb} # which of (a), (c), (b) to run (make fm-stream: b only; (a)'s offline
+                       # approach, which (b) compares with, always runs)
+PLL_SRC=${FM_PLL_SRC:-examples/fm_pll.c} # (b)'s controller (another build's, to compare)
+# (b)'s controller runs SCHED_FIFO $FM_CLIENT_PRIO (default 75): below the integrator (80),
+# above the daemon's receive, publish and LCM threads (70) and the output chain (60) at the
+# default --rt-priority. Its 1 ms bursts of sends then end before LCM's thread reads them
+# all in one wake-up (~1300 a second at 10 kHz; at 50, below LCM's thread, every send woke
+# it: ~4700 a second, and the controller starved whenever the twin was behind); at 90 it
+# preempted the integrator too (docs/realtime.md, "Command intake"). "" runs it without chrt.
+CLIENT_PRIO=${FM_CLIENT_PRIO-75}
+client=(); [ -n "$CLIENT_PRIO" ] && chrt -f "$CLIENT_PRIO" true 2>/dev/null &&
+  client=(chrt -f "$CLIENT_PRIO")
 
 fm_conf internal > "$T/fm.conf" # the PLL (fm.drive's default)
 fm_conf none > "$T/out.conf"
@@ -49,6 +62,7 @@ fa=$(jget "$T/approach.json" frequency_hz); sa=$(jget "$T/approach.json" frequen
   ok "approach --mode fm at Z 6 nm: locked, f $fa Hz, shift $sa Hz" ||
   bad "approach --mode fm: $(tail -2 "$T/approach.err")"
 
+if [[ $PARTS == *a* ]]; then
 # realtime at a quarter speed: the accurate scheme (approach's) and the loops fit the budget
 # (freerun would keep both cores busy at SCHED_FIFO and starve this script)
 "$D" --config "$T/fm.conf" --speed 0.25 --scheme accurate --quiet 2> "$T/d1.err" & DPID=$!
@@ -111,7 +125,9 @@ fe2=$(jget "$T/s2.json" fe_hz)
   bad "dither under internal FM: exit $src, '$out', refused $rej0 -> $rej1, lock $fl2, fe $fe2"
 kill -TERM "$DPID"; wait "$DPID"; drc=$?; DPID=""
 [ "$drc" -eq 0 ] && ok "daemon (internal FM) stopped cleanly" || bad "daemon exit $drc"
+fi # (a)
 
+if [[ $PARTS == *c* ]]; then
 # ---- (c) real time under the internal loops, the NCO at its fastest ----------------------
 # update_samples = 64 (a controller update every 4.6 us of model time; tone 0 steps whenever
 # the loop's frequency leaves its 1 mHz quantum: thousands of steps a second), in real time
@@ -149,13 +165,14 @@ read -r tag rest < "$T/rt3.out"
 if [ "$tag" = ok ]; then ok "$rest"; else
   bad "$rest (other real-time processes: $(cat "$T/others3" 2>/dev/null)-- the FM collapse, or a loaded machine)"; fi
 [ "$drc" -eq 0 ] && ok "daemon (internal FM, update 64) stopped cleanly" || bad "daemon exit $drc"
+fi # (c)
 
 # ---- (b) the outside controller over LCM ----------------------------------------------
 # built as a client builds it, from the message library and headers (test_client.sh builds
 # every example from a staged install through pkg-config)
 if cc -std=c11 -O2 -Wall -Wextra -Werror -D_POSIX_C_SOURCE=200809L -I"$BUILD/gen" -Imsgtypes \
-     -o "$T/fm_pll" examples/fm_pll.c "$BUILD/lib/libafmtwin_msg.a" -llcm -lm 2> "$T/cc.err"; then
-  ok "examples/fm_pll.c builds"
+     -o "$T/fm_pll" "$PLL_SRC" "$BUILD/lib/libafmtwin_msg.a" -llcm -lm 2> "$T/cc.err"; then
+  ok "$PLL_SRC builds"
 else
   bad "fm_pll build: $(head -3 "$T/cc.err")"; echo "$pass passed, $fail failed"; exit 1
 fi
@@ -167,20 +184,28 @@ listen --channels status --json --timeout $((AFTER + 10)) > "$T/st.jsonl" 2>/dev
 # commands at 10 kHz under load), its socket buffer (recv_buf_size, 4 MB) holding the rest.
 # Enough at 1000 commands/s (all logged); at 10 000/s, with the daemon behind and taking 1.3
 # cores, it kept 344 485 of 584 947 (README, FM).
-logrt=(); chrt -f 1 true 2>/dev/null && logrt=(chrt -f 1)
+# FM_LOGGER_PRIO sets another priority (docs/realtime.md, "Command intake": 74, just below the
+# controller, tried at 10 kHz).
+LOGGER_PRIO=${FM_LOGGER_PRIO:-1}
+logrt=(); chrt -f "$LOGGER_PRIO" true 2>/dev/null && logrt=(chrt -f "$LOGGER_PRIO")
 if [ "$REPLAY" = 1 ]; then
   "${logrt[@]}" lcm-logger -q -f --lcm-url "$url" "$T/cmd.lcmlog" & LOGPIDS="$!"
   "${logrt[@]}" lcm-logger -q -f -c AFMTWIN_HARMONICS --lcm-url "$out_url" "$T/harm.lcmlog" &
   LOGPIDS="$LOGPIDS $!"
 fi
 sleep 0.3
-timeout $((AFTER + 15)) "${run[@]}" "$T/fm_pll" --lcm-url "$url" --lcm-out-url "$out_url" \
+timeout $((AFTER + 15)) "${client[@]}" "$T/fm_pll" --lcm-url "$url" --lcm-out-url "$out_url" \
   --f0 300e3 --q 2000 --amplitude 1e-9 --rate "$RATE" --seconds 2 --after "$AFTER" \
   > "$T/pll.out" 2>&1; prc=$?
+# the daemon's threads' context switches over its life (voluntary: wake-ups), for the record
+for f in /proc/"$DPID"/task/*/status; do
+  awk '/^Name:/{n=$2} /^voluntary_ctxt/{v=$2} /^nonvoluntary_ctxt/{w=$2} END{printf "%s %s/%s  ", n, v, w}' "$f" 2>/dev/null
+done > "$T/ctx.out"; echo >> "$T/ctx.out"
 sleep 0.5
 kill -TERM "$LPID" 2>/dev/null; wait "$LPID" 2>/dev/null; LPID=""
 for p in $LOGPIDS; do kill -INT "$p" 2>/dev/null; wait "$p" 2>/dev/null; done; LOGPIDS=""
 sed 's/^/     /' "$T/pll.out" | cut -c1-200
+echo "info daemon threads' context switches (voluntary/involuntary), client at ${client[*]:-no chrt}: $(cat "$T/ctx.out")"
 lk=$(grep '^locked after' "$T/pll.out")
 tl=$(echo "$lk" | sed -n 's/^locked after \([0-9.]*\) s.*/\1/p')
 sh=$(echo "$lk" | sed -n 's/.*(\([-+0-9.]*\) Hz from f0).*/\1/p')
@@ -215,7 +240,8 @@ if not okr and sys.argv[3] != "1":
     okr = None
 print("%s applied %d of %d sent (received %d, rejected %d, refused %d, dropped %d; fm_control "
       "%s, fm_drive %s)" % ("ok  " if okc else "FAIL", acc[0], sent, acc[1], acc[2], acc[3],
-      acc[4], last['fm_control'], last['fm_drive']))
+      acc[4], last['fm_control'], last['fm_drive']) +
+      ("; last refusal: %s" % last.get('last_refusal') if acc[3] else ""))
 tag = {True: "ok  ", False: "FAIL", None: "info"}[okr]
 print("%s under the stream at --speed %g (%d statuses, %.1f s of model time): resyncs %d, "
       "realtime_factor_1s / speed min %.4f median %.4f" %
