@@ -62,15 +62,20 @@ typedef struct {
     bool thermal;   /* add the thermal increment (afm_sim_set_thermal) */
     bool predict;   /* leave the predictor of a following full step in o (the free step
                      * does; contact pieces leave it to one rt_predict after the sample) */
+    /* A contact substep's first try (k = RT_GRID): return its crossing cell kc
+     * (rt_crossing_xv, -1 when none) once the end force is known; when 0 < kc < RT_GRID the
+     * substep is split there (rt_substep) and the modal update is skipped. */
+    bool test_split;
 } rt_piece_kind;
 
 /* Advance in by k cells (tau = k dt / ncell) into o; o may be in. A full step
  * (k = ncell) takes x*, v* from in's predictor; a shorter piece from its own tip-weighted
- * rows. */
-static inline __attribute__((always_inline)) void rt_piece_t(const afm_sim *s, const rt_state *r,
-                                                             const rt_snap *in, rt_snap *o, int k,
-                                                             const rt_piece_kind kind,
-                                                             const rt_tip *ti, rt_tip *to) {
+ * rows. Returns 0, or with kind.test_split its crossing cell (the piece is then left untaken
+ * where it is to be split: a result that would be discarded costs no modal update). */
+static inline __attribute__((always_inline)) int rt_piece_t(const afm_sim *s, const rt_state *r,
+                                                            const rt_snap *in, rt_snap *o, int k,
+                                                            const rt_piece_kind kind,
+                                                            const rt_tip *ti, rt_tip *to) {
     const int np = kind.np, nt = kind.ntones;
     const afm_rt_prop *P = &r->prop[k - 1], *PF = &r->prop[r->ncell - 1];
     const double *c = P->c, *cf = PF->c;
@@ -116,6 +121,12 @@ static inline __attribute__((always_inline)) void rt_piece_t(const afm_sim *s, c
                                                ti->v_guess_m_s, ti->gap_guess_m, o)
                                : rt_solve_in(s, r, xs, vs, P->gx, P->gv,
                                              fma(in->df_per_cell_n, (double)k, F0), rj, o);
+    const double x1 = fma(P->gx, F1, xs), v1 = fma(P->gv, F1, vs);
+    int ret = 0;
+    if (kind.test_split) {
+        ret = rt_crossing_xv(r, in->tip.x_m, in->tip.v_m_s, x1, v1, s->dt_s / r->m, true);
+        if (ret > 0 && ret < RT_GRID) return ret;
+    }
     const double dfc = (F1 - F0) * r->inv_cells[k];
     double zr1[AFM_MAX_TONES], zi1[AFM_MAX_TONES];
     double xn = 0.0, vn = 0.0;
@@ -155,7 +166,6 @@ static inline __attribute__((always_inline)) void rt_piece_t(const afm_sim *s, c
     }
     o->slope_cells = k;
     o->df_per_cell_n = dfc;
-    const double x1 = fma(P->gx, F1, xs), v1 = fma(P->gv, F1, vs);
     if (kind.predict) {
         double xh, vh;
         rt_hsum2(xn4, vn4, &xh, &vh);
@@ -178,34 +188,56 @@ static inline __attribute__((always_inline)) void rt_piece_t(const afm_sim *s, c
         o->tip.v_m_s = v1;
         o->tip.f_n = F1;
     }
+    return ret;
 }
 
 /* rt_piece_t for the pieces of contact samples (iterated solve), without the predictor of
- * a following full step: rt_contact computes it once, after the sample's last piece. */
+ * a following full step: rt_contact computes it once, after the sample's last piece.
+ * trial: a substep's first try (rt_piece_kind.test_split; the return value is its). */
+static inline __attribute__((always_inline)) int rt_piece_kinds(const afm_sim *s, const rt_state *r,
+                                                                const rt_snap *in, rt_snap *o,
+                                                                int k, const bool trial) {
+    if (r->noise)
+        return rt_piece_t(
+            s, r, in, o, k,
+            (rt_piece_kind){
+                .np = r->np, .ntones = rt_tones_kind(r), .thermal = true, .test_split = trial},
+            NULL, NULL);
+    if (r->ntones == 1 && r->np == 4)
+        return rt_piece_t(s, r, in, o, k,
+                          (rt_piece_kind){.np = 4, .ntones = 1, .test_split = trial}, NULL, NULL);
+    if (r->ntones == 1 && r->np == 8)
+        return rt_piece_t(s, r, in, o, k,
+                          (rt_piece_kind){.np = 8, .ntones = 1, .test_split = trial}, NULL, NULL);
+    if (r->ntones > 1 && r->np == 4)
+        return rt_piece_t(s, r, in, o, k,
+                          (rt_piece_kind){.np = 4, .ntones = RT_TONES_V4, .test_split = trial},
+                          NULL, NULL);
+    if (r->ntones > 1 && r->np == 8)
+        return rt_piece_t(s, r, in, o, k,
+                          (rt_piece_kind){.np = 8, .ntones = RT_TONES_V4, .test_split = trial},
+                          NULL, NULL);
+    return rt_piece_t(s, r, in, o, k,
+                      (rt_piece_kind){.np = r->np, .ntones = rt_tones_kind(r), .test_split = trial},
+                      NULL, NULL);
+}
+
+/* A contact piece of k cells from in into o (o may be in). */
 static AFM_CLONES_NOINLINE void rt_piece(const afm_sim *s, const rt_state *r, const rt_snap *in,
                                          rt_snap *o, int k) {
-    if (r->noise)
-        rt_piece_t(s, r, in, o, k,
-                   (rt_piece_kind){.np = r->np, .ntones = rt_tones_kind(r), .thermal = true}, NULL,
-                   NULL);
-    else if (r->ntones == 1 && r->np == 4)
-        rt_piece_t(s, r, in, o, k, (rt_piece_kind){.np = 4, .ntones = 1}, NULL, NULL);
-    else if (r->ntones == 1 && r->np == 8)
-        rt_piece_t(s, r, in, o, k, (rt_piece_kind){.np = 8, .ntones = 1}, NULL, NULL);
-    else if (r->ntones > 1 && r->np == 4)
-        rt_piece_t(s, r, in, o, k, (rt_piece_kind){.np = 4, .ntones = RT_TONES_V4}, NULL, NULL);
-    else if (r->ntones > 1 && r->np == 8)
-        rt_piece_t(s, r, in, o, k, (rt_piece_kind){.np = 8, .ntones = RT_TONES_V4}, NULL, NULL);
-    else
-        rt_piece_t(s, r, in, o, k, (rt_piece_kind){.np = r->np, .ntones = rt_tones_kind(r)}, NULL,
-                   NULL);
+    rt_piece_kinds(s, r, in, o, k, false);
+}
+
+/* A substep's first try, RT_GRID cells from in into o (o not in): its crossing cell
+ * (rt_crossing_xv), o taken unless 0 < kc < RT_GRID. */
+static AFM_CLONES_NOINLINE int rt_piece_trial(const afm_sim *s, const rt_state *r,
+                                              const rt_snap *in, rt_snap *o) {
+    return rt_piece_kinds(s, r, in, o, RT_GRID, true);
 }
 
 /* One contact substep of RT_GRID cells from a into b, split at a located crossing. */
-static void rt_substep(const afm_sim *s, const rt_state *r, const rt_snap *a, rt_snap *b,
-                       double tau) {
-    rt_piece(s, r, a, b, RT_GRID);
-    int kc = rt_crossing_cell(r, a, b, tau, true);
+static void rt_substep(const afm_sim *s, const rt_state *r, const rt_snap *a, rt_snap *b) {
+    int kc = rt_piece_trial(s, r, a, b);
     if (kc <= 0 || kc >= RT_GRID) return;
     rt_noise *z = r->nz;
     if (r->noise) { /* both parts from the substep's increment, drawn above */
@@ -227,11 +259,10 @@ static void rt_substep(const afm_sim *s, const rt_state *r, const rt_snap *a, rt
  * thermal increment drawn: the substeps' are drawn given it, rt_noise). */
 static AFM_CLONES_NOINLINE rt_snap *rt_contact(const afm_sim *s, const rt_state *r, rt_snap *a,
                                                rt_snap *b, bool redo) {
-    double tau = s->dt_s / r->m;
     if (r->noise) rt_noise_sample_begin(r, redo);
     for (int k = 0; k < r->m; k++) {
         if (r->noise) rt_noise_substep(r);
-        rt_substep(s, r, a, b, tau);
+        rt_substep(s, r, a, b);
         rt_snap *t = a;
         a = b;
         b = t;
