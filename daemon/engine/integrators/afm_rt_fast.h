@@ -64,7 +64,7 @@ typedef struct {
                      * does; contact pieces leave it to one rt_predict after the sample) */
     /* A contact substep's first try (k = RT_GRID): return its crossing cell kc
      * (rt_crossing_xv, -1 when none) once the end force is known; when 0 < kc < RT_GRID the
-     * substep is split there (rt_substep) and the modal update is skipped. */
+     * substep is split there (rt_contact_t) and the modal update is skipped. */
     bool test_split;
 } rt_piece_kind;
 
@@ -191,84 +191,62 @@ static inline __attribute__((always_inline)) int rt_piece_t(const afm_sim *s, co
     return ret;
 }
 
-/* rt_piece_t for the pieces of contact samples (iterated solve), without the predictor of
- * a following full step: rt_contact computes it once, after the sample's last piece.
- * trial: a substep's first try (rt_piece_kind.test_split; the return value is its). */
-static inline __attribute__((always_inline)) int rt_piece_kinds(const afm_sim *s, const rt_state *r,
-                                                                const rt_snap *in, rt_snap *o,
-                                                                int k, const bool trial) {
-    if (r->noise)
-        return rt_piece_t(
-            s, r, in, o, k,
-            (rt_piece_kind){
-                .np = r->np, .ntones = rt_tones_kind(r), .thermal = true, .test_split = trial},
-            NULL, NULL);
-    if (r->ntones == 1 && r->np == 4)
-        return rt_piece_t(s, r, in, o, k,
-                          (rt_piece_kind){.np = 4, .ntones = 1, .test_split = trial}, NULL, NULL);
-    if (r->ntones == 1 && r->np == 8)
-        return rt_piece_t(s, r, in, o, k,
-                          (rt_piece_kind){.np = 8, .ntones = 1, .test_split = trial}, NULL, NULL);
-    if (r->ntones > 1 && r->np == 4)
-        return rt_piece_t(s, r, in, o, k,
-                          (rt_piece_kind){.np = 4, .ntones = RT_TONES_V4, .test_split = trial},
-                          NULL, NULL);
-    if (r->ntones > 1 && r->np == 8)
-        return rt_piece_t(s, r, in, o, k,
-                          (rt_piece_kind){.np = 8, .ntones = RT_TONES_V4, .test_split = trial},
-                          NULL, NULL);
-    return rt_piece_t(s, r, in, o, k,
-                      (rt_piece_kind){.np = r->np, .ntones = rt_tones_kind(r), .test_split = trial},
-                      NULL, NULL);
-}
-
-/* A contact piece of k cells from in into o (o may be in). */
-static AFM_CLONES_NOINLINE void rt_piece(const afm_sim *s, const rt_state *r, const rt_snap *in,
-                                         rt_snap *o, int k) {
-    rt_piece_kinds(s, r, in, o, k, false);
-}
-
-/* A substep's first try, RT_GRID cells from in into o (o not in): its crossing cell
- * (rt_crossing_xv), o taken unless 0 < kc < RT_GRID. */
-static AFM_CLONES_NOINLINE int rt_piece_trial(const afm_sim *s, const rt_state *r,
-                                              const rt_snap *in, rt_snap *o) {
-    return rt_piece_kinds(s, r, in, o, RT_GRID, true);
-}
-
-/* One contact substep of RT_GRID cells from a into b, split at a located crossing. */
-static void rt_substep(const afm_sim *s, const rt_state *r, const rt_snap *a, rt_snap *b) {
-    int kc = rt_piece_trial(s, r, a, b);
-    if (kc <= 0 || kc >= RT_GRID) return;
+/* One sample that touches contact, from a: m substeps of RT_GRID cells, each first tried
+ * whole and split where its path crosses the contact line (at a located crossing cell
+ * 0 < kc < RT_GRID: kc cells, then the rest), with the pieces' kind as constants (the
+ * iterated solve, no predictor: one rt_predict after the sample's last piece). The result
+ * is in *a or *b; returns which. redo: the sample's free step was taken (and its thermal
+ * increment drawn: the substeps' are drawn given it, rt_noise). */
+static inline __attribute__((always_inline)) rt_snap *rt_contact_t(const afm_sim *s,
+                                                                   const rt_state *r, rt_snap *a,
+                                                                   rt_snap *b, bool redo,
+                                                                   const rt_piece_kind kind) {
     rt_noise *z = r->nz;
-    if (r->noise) { /* both parts from the substep's increment, drawn above */
-        memcpy(z->sq, z->lq, sizeof z->sq);
-        memcpy(z->sv, z->lv, sizeof z->sv);
-        rt_bridge_draw(r, kc, RT_GRID, z->sq, z->sv);
-    }
-    rt_piece(s, r, a, b, kc);
-    if (r->noise) {
-        memcpy(z->gq, z->sq, sizeof z->gq);
-        memcpy(z->gv, z->sv, sizeof z->gv);
-        z->given_cells = RT_GRID - kc;
-    }
-    rt_piece(s, r, b, b, RT_GRID - kc);
-}
-
-/* One sample that touches contact, from a: m substeps, each split at a crossing. The
- * result is in *a or *b; returns which. redo: the sample's free step was taken (and its
- * thermal increment drawn: the substeps' are drawn given it, rt_noise). */
-static AFM_CLONES_NOINLINE rt_snap *rt_contact(const afm_sim *s, const rt_state *r, rt_snap *a,
-                                               rt_snap *b, bool redo) {
-    if (r->noise) rt_noise_sample_begin(r, redo);
+    rt_piece_kind trial = kind;
+    trial.test_split = true;
+    if (kind.thermal) rt_noise_sample_begin(r, redo);
     for (int k = 0; k < r->m; k++) {
-        if (r->noise) rt_noise_substep(r);
-        rt_substep(s, r, a, b);
+        if (kind.thermal) rt_noise_substep(r);
+        const int kc = rt_piece_t(s, r, a, b, RT_GRID, trial, NULL, NULL);
+        if (kc > 0 && kc < RT_GRID) {
+            if (kind.thermal) { /* both parts from the substep's increment, drawn above */
+                memcpy(z->sq, z->lq, sizeof z->sq);
+                memcpy(z->sv, z->lv, sizeof z->sv);
+                rt_bridge_draw(r, kc, RT_GRID, z->sq, z->sv);
+            }
+            for (int part = 0; part < 2; part++) { /* a -> b (kc cells), then b -> b */
+                if (part && kind.thermal) {
+                    memcpy(z->gq, z->sq, sizeof z->gq);
+                    memcpy(z->gv, z->sv, sizeof z->gv);
+                    z->given_cells = RT_GRID - kc;
+                }
+                rt_piece_t(s, r, part ? b : a, b, part ? RT_GRID - kc : kc, kind, NULL, NULL);
+            }
+        }
         rt_snap *t = a;
         a = b;
         b = t;
     }
     rt_predict(r, a);
     return a;
+}
+
+/* rt_contact_t for r's kind of pieces: one dispatch per contact sample. */
+static AFM_CLONES_NOINLINE rt_snap *rt_contact(const afm_sim *s, const rt_state *r, rt_snap *a,
+                                               rt_snap *b, bool redo) {
+    if (r->noise)
+        return rt_contact_t(
+            s, r, a, b, redo,
+            (rt_piece_kind){.np = r->np, .ntones = rt_tones_kind(r), .thermal = true});
+    if (r->ntones == 1 && r->np == 4)
+        return rt_contact_t(s, r, a, b, redo, (rt_piece_kind){.np = 4, .ntones = 1});
+    if (r->ntones == 1 && r->np == 8)
+        return rt_contact_t(s, r, a, b, redo, (rt_piece_kind){.np = 8, .ntones = 1});
+    if (r->ntones > 1 && r->np == 4)
+        return rt_contact_t(s, r, a, b, redo, (rt_piece_kind){.np = 4, .ntones = RT_TONES_V4});
+    if (r->ntones > 1 && r->np == 8)
+        return rt_contact_t(s, r, a, b, redo, (rt_piece_kind){.np = 8, .ntones = RT_TONES_V4});
+    return rt_contact_t(s, r, a, b, redo, (rt_piece_kind){.np = r->np, .ntones = rt_tones_kind(r)});
 }
 
 /* n output steps (afm_sim_backend.run), with the common sizes (up to 8 modes, one tone)
