@@ -77,7 +77,8 @@ static inline __attribute__((always_inline)) int rt_piece_t(const afm_sim *s, co
                                                             const rt_piece_kind kind,
                                                             const rt_tip *ti, rt_tip *to) {
     const int np = kind.np, nt = kind.ntones;
-    const afm_rt_prop *P = &r->prop[k - 1], *PF = &r->prop[r->ncell - 1];
+    /* (the free step's k is ncell: PF is P, without reloading r->ncell after the stores) */
+    const afm_rt_prop *P = &r->prop[k - 1], *PF = kind.free_step ? P : &r->prop[r->ncell - 1];
     const double *c = P->c, *cf = PF->c;
     const double F0 = kind.free_step ? ti->f_n : in->tip.f_n;
     double xs, vs, rj;
@@ -266,6 +267,9 @@ static inline __attribute__((always_inline)) int rt_run_t(afm_sim *s, rt_state *
     const double t0 = s->t_start_s, dt = s->dt_s;
     int cur = r->cur;
     const double gx_full = r->prop[r->ncell - 1].gx;
+    /* loop invariants as locals: the modal stores (may_alias vectors) would reload them */
+    const int ncell = r->ncell;
+    const bool kinked = r->kinked;
     rt_tip ta = rt_tip_of(r, &r->buf[cur]), tb; /* the tip at a and at bb, in registers */
     for (int k = 0; k < n && rc == AFM_SIM_OK;) {
         if (__builtin_expect(++since >= RT_RESYNC, 0)) {
@@ -287,13 +291,13 @@ static inline __attribute__((always_inline)) int rt_run_t(afm_sim *s, rt_state *
             /* in contact at the start, or predicted to end there (the end's x with F held at
              * F0: a free step would be redone in substeps anyway) */
             const bool at_once =
-                r->kinked && (ta.x_m < r->xc || fma(gx_full, ta.f_n, ta.x_free_m) < r->xc);
+                kinked && (ta.x_m < r->xc || fma(gx_full, ta.f_n, ta.x_free_m) < r->xc);
             bool contact = at_once;
             if (!contact) {
                 const rt_piece_kind free_step = {
                     .np = np, .ntones = nt, .free_step = true, .thermal = noise, .predict = true};
-                rt_piece_t(s, r, a, bb, r->ncell, free_step, &ta, &tb);
-                if (r->kinked) {
+                rt_piece_t(s, r, a, bb, ncell, free_step, &ta, &tb);
+                if (kinked) {
                     double low = (ta.x_m < tb.x_m ? ta.x_m : tb.x_m) -
                                  r->clear_k * (fabs(ta.v_m_s) + fabs(tb.v_m_s));
                     contact = low < r->xc && rt_crossing_cell(r, a, bb, dt, false) >= 0;
