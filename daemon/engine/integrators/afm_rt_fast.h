@@ -125,8 +125,13 @@ static inline __attribute__((always_inline)) int rt_piece_t(const afm_sim *s, co
     const double x1 = fma(P->gx, F1, xs), v1 = fma(P->gv, F1, vs);
     int ret = 0;
     if (kind.test_split) {
-        ret = rt_crossing_xv(r, in->tip.x_m, in->tip.v_m_s, x1, v1, s->dt_s / r->m, true);
-        if (ret > 0 && ret < RT_GRID) return ret;
+        /* rt_crossing_xv's common answer inlined: no crossing (same side, no dip between) */
+        const bool in0 = in->tip.x_m < r->xc, in1 = x1 < r->xc;
+        ret = -1;
+        if (in0 != in1 || (!in0 && in->tip.v_m_s < 0 && v1 > 0)) {
+            ret = rt_crossing_xv(r, in->tip.x_m, in->tip.v_m_s, x1, v1, s->dt_s / r->m, true);
+            if (ret > 0 && ret < RT_GRID) return ret;
+        }
     }
     const double dfc = (F1 - F0) * r->inv_cells[k];
     double zr1[AFM_MAX_TONES], zi1[AFM_MAX_TONES];
