@@ -323,7 +323,7 @@ rt_free_acc_t(const afm_sim *s, const rt_state *r, const rt_snap *in, rt_snap *o
 }
 
 /* One contact substep of RT_GRID cells from a into b: Hermite, or, where its path crosses
- * the contact line, linear and split at the crossing (rt_substep's thermal bookkeeping).
+ * the contact line, linear and split at the crossing (rt_contact_t's thermal bookkeeping).
  * ea (NULL: none) gathers the pieces kept, the substep being the j0-th of the sample. */
 static void rt_substep_acc(const afm_sim *s, const rt_state *r, const rt_snap *a, rt_snap *b,
                            double tau, rt_evacc *ea, int j0) {

@@ -37,16 +37,17 @@ static double rt_cubic_root(const rt_cubic *p, double xc, double lo, double hi) 
     return sg;
 }
 
-/* Where the path from a to b (a piece of length tau) first crosses xc, rounded to the
+/* Where the path from (x0, v0) to (x1, v1) (the tip at a piece's ends, m and m/s; a piece of
+ * length tau) first crosses xc, rounded to the
  * piece's grid of RT_GRID cells: the crossing cell kc in 0..RT_GRID (lround(sigma RT_GRID)
  * of the crossing sigma in (0, 1)), or -1 if the path does not cross. locate = false only
  * asks whether it crosses (any value >= 0 then means yes). When the ends are on opposite
  * sides, lround(sigma RT_GRID) is the first cell midpoint (k + 1/2) / RT_GRID already on the
  * far side (for one crossing in the piece), so RT_GRID cubic evaluations replace a root
  * search; a dip between two ends out of contact is found by its stationary point first. */
-static int rt_crossing_cell(const rt_state *r, const rt_snap *a, const rt_snap *b, double tau,
-                            bool locate) {
-    double x0 = a->tip.x_m, v0 = a->tip.v_m_s, x1 = b->tip.x_m, v1 = b->tip.v_m_s, xc = r->xc;
+static int rt_crossing_xv(const rt_state *r, double x0, double v0, double x1, double v1, double tau,
+                          bool locate) {
+    const double xc = r->xc;
     bool in0 = x0 < xc, in1 = x1 < xc;
     bool dip = !in0 && !in1 && v0 < 0 && v1 > 0;
     if (in0 == in1 && !dip) return -1;
@@ -70,6 +71,12 @@ static int rt_crossing_cell(const rt_state *r, const rt_snap *a, const rt_snap *
     double sm = 0.5 * (lo + hi);
     if (!(rt_cubic_at(&p, sm) < xc)) return -1;
     return (int)lround(rt_cubic_root(&p, xc, 0.0, sm) * RT_GRID);
+}
+
+/* rt_crossing_xv between the tips of snapshots a and b. */
+static inline int rt_crossing_cell(const rt_state *r, const rt_snap *a, const rt_snap *b,
+                                   double tau, bool locate) {
+    return rt_crossing_xv(r, a->tip.x_m, a->tip.v_m_s, b->tip.x_m, b->tip.v_m_s, tau, locate);
 }
 
 /* rt_crossing_cell(r, a, b, tau, false) >= 0, with its common answers (the ends on opposite

@@ -63,17 +63,23 @@ typedef struct {
     bool thermal;   /* add the thermal increment (afm_sim_set_thermal) */
     bool predict;   /* leave the predictor of a following full step in o (the free step
                      * does; contact pieces leave it to one rt_predict after the sample) */
+    /* A contact substep's first try (k = RT_GRID): return its crossing cell kc
+     * (rt_crossing_xv, -1 when none) once the end force is known; when 0 < kc < RT_GRID the
+     * substep is split there (rt_contact_t) and the modal update is skipped. */
+    bool test_split;
 } rt_piece_kind;
 
 /* Advance in by k cells (tau = k dt / ncell) into o; o may be in. A full step
  * (k = ncell) takes x*, v* from in's predictor; a shorter piece from its own tip-weighted
- * rows. */
-static inline __attribute__((always_inline)) void rt_piece_t(const afm_sim *s, const rt_state *r,
-                                                             const rt_snap *in, rt_snap *o, int k,
-                                                             const rt_piece_kind kind,
-                                                             const rt_tip *ti, rt_tip *to) {
+ * rows. Returns 0, or with kind.test_split its crossing cell (the piece is then left untaken
+ * where it is to be split: a result that would be discarded costs no modal update). */
+static inline __attribute__((always_inline)) int rt_piece_t(const afm_sim *s, const rt_state *r,
+                                                            const rt_snap *in, rt_snap *o, int k,
+                                                            const rt_piece_kind kind,
+                                                            const rt_tip *ti, rt_tip *to) {
     const int np = kind.np, nt = kind.ntones;
-    const afm_rt_prop *P = &r->prop[k - 1], *PF = &r->prop[r->ncell - 1];
+    /* (the free step's k is ncell: PF is P, without reloading r->ncell after the stores) */
+    const afm_rt_prop *P = &r->prop[k - 1], *PF = kind.free_step ? P : &r->prop[r->ncell - 1];
     const double *c = P->c, *cf = PF->c;
     const double F0 = kind.free_step ? ti->f_n : in->tip.f_n;
     double xs, vs, rj;
@@ -117,6 +123,17 @@ static inline __attribute__((always_inline)) void rt_piece_t(const afm_sim *s, c
                                                ti->v_guess_m_s, ti->gap_guess_m, o)
                                : rt_solve_in(s, r, xs, vs, P->gx, P->gv,
                                              fma(in->df_per_cell_n, (double)k, F0), rj, o);
+    const double x1 = fma(P->gx, F1, xs), v1 = fma(P->gv, F1, vs);
+    int ret = 0;
+    if (kind.test_split) {
+        /* rt_crossing_xv's common answer inlined: no crossing (same side, no dip between) */
+        const bool in0 = in->tip.x_m < r->xc, in1 = x1 < r->xc;
+        ret = -1;
+        if (in0 != in1 || (!in0 && in->tip.v_m_s < 0 && v1 > 0)) {
+            ret = rt_crossing_xv(r, in->tip.x_m, in->tip.v_m_s, x1, v1, s->dt_s / r->m, true);
+            if (ret > 0 && ret < RT_GRID) return ret;
+        }
+    }
     const double dfc = (F1 - F0) * r->inv_cells[k];
     double zr1[AFM_MAX_TONES], zi1[AFM_MAX_TONES];
     double xn = 0.0, vn = 0.0;
@@ -156,7 +173,6 @@ static inline __attribute__((always_inline)) void rt_piece_t(const afm_sim *s, c
     }
     o->slope_cells = k;
     o->df_per_cell_n = dfc;
-    const double x1 = fma(P->gx, F1, xs), v1 = fma(P->gv, F1, vs);
     if (kind.predict) {
         double xh, vh;
         rt_hsum2(xn4, vn4, &xh, &vh);
@@ -180,66 +196,65 @@ static inline __attribute__((always_inline)) void rt_piece_t(const afm_sim *s, c
         o->tip.v_m_s = v1;
         o->tip.f_n = F1;
     }
+    return ret;
 }
 
-/* rt_piece_t for the pieces of contact samples (iterated solve), without the predictor of
- * a following full step: rt_contact computes it once, after the sample's last piece. */
-static AFM_CLONES_NOINLINE void rt_piece(const afm_sim *s, const rt_state *r, const rt_snap *in,
-                                         rt_snap *o, int k) {
-    if (r->noise)
-        rt_piece_t(s, r, in, o, k,
-                   (rt_piece_kind){.np = r->np, .ntones = rt_tones_kind(r), .thermal = true}, NULL,
-                   NULL);
-    else if (r->ntones == 1 && r->np == 4)
-        rt_piece_t(s, r, in, o, k, (rt_piece_kind){.np = 4, .ntones = 1}, NULL, NULL);
-    else if (r->ntones == 1 && r->np == 8)
-        rt_piece_t(s, r, in, o, k, (rt_piece_kind){.np = 8, .ntones = 1}, NULL, NULL);
-    else if (r->ntones > 1 && r->np == 4)
-        rt_piece_t(s, r, in, o, k, (rt_piece_kind){.np = 4, .ntones = RT_TONES_V4}, NULL, NULL);
-    else if (r->ntones > 1 && r->np == 8)
-        rt_piece_t(s, r, in, o, k, (rt_piece_kind){.np = 8, .ntones = RT_TONES_V4}, NULL, NULL);
-    else
-        rt_piece_t(s, r, in, o, k, (rt_piece_kind){.np = r->np, .ntones = rt_tones_kind(r)}, NULL,
-                   NULL);
-}
-
-/* One contact substep of RT_GRID cells from a into b, split at a located crossing. */
-static void rt_substep(const afm_sim *s, const rt_state *r, const rt_snap *a, rt_snap *b,
-                       double tau) {
-    rt_piece(s, r, a, b, RT_GRID);
-    int kc = rt_crossing_cell(r, a, b, tau, true);
-    if (kc <= 0 || kc >= RT_GRID) return;
+/* One sample that touches contact, from a: m substeps of RT_GRID cells, each first tried
+ * whole and split where its path crosses the contact line (at a located crossing cell
+ * 0 < kc < RT_GRID: kc cells, then the rest), with the pieces' kind as constants (the
+ * iterated solve, no predictor: one rt_predict after the sample's last piece). The result
+ * is in *a or *b; returns which. redo: the sample's free step was taken (and its thermal
+ * increment drawn: the substeps' are drawn given it, rt_noise). */
+static inline __attribute__((always_inline)) rt_snap *rt_contact_t(const afm_sim *s,
+                                                                   const rt_state *r, rt_snap *a,
+                                                                   rt_snap *b, bool redo,
+                                                                   const rt_piece_kind kind) {
     rt_noise *z = r->nz;
-    if (r->noise) { /* both parts from the substep's increment, drawn above */
-        memcpy(z->sq, z->lq, sizeof z->sq);
-        memcpy(z->sv, z->lv, sizeof z->sv);
-        rt_bridge_draw(r, kc, RT_GRID, z->sq, z->sv);
-    }
-    rt_piece(s, r, a, b, kc);
-    if (r->noise) {
-        memcpy(z->gq, z->sq, sizeof z->gq);
-        memcpy(z->gv, z->sv, sizeof z->gv);
-        z->given_cells = RT_GRID - kc;
-    }
-    rt_piece(s, r, b, b, RT_GRID - kc);
-}
-
-/* One sample that touches contact, from a: m substeps, each split at a crossing. The
- * result is in *a or *b; returns which. redo: the sample's free step was taken (and its
- * thermal increment drawn: the substeps' are drawn given it, rt_noise). */
-static AFM_CLONES_NOINLINE rt_snap *rt_contact(const afm_sim *s, const rt_state *r, rt_snap *a,
-                                               rt_snap *b, bool redo) {
-    double tau = s->dt_s / r->m;
-    if (r->noise) rt_noise_sample_begin(r, redo);
+    rt_piece_kind trial = kind;
+    trial.test_split = true;
+    if (kind.thermal) rt_noise_sample_begin(r, redo);
     for (int k = 0; k < r->m; k++) {
-        if (r->noise) rt_noise_substep(r);
-        rt_substep(s, r, a, b, tau);
+        if (kind.thermal) rt_noise_substep(r);
+        const int kc = rt_piece_t(s, r, a, b, RT_GRID, trial, NULL, NULL);
+        if (kc > 0 && kc < RT_GRID) {
+            if (kind.thermal) { /* both parts from the substep's increment, drawn above */
+                memcpy(z->sq, z->lq, sizeof z->sq);
+                memcpy(z->sv, z->lv, sizeof z->sv);
+                rt_bridge_draw(r, kc, RT_GRID, z->sq, z->sv);
+            }
+            for (int part = 0; part < 2; part++) { /* a -> b (kc cells), then b -> b */
+                if (part && kind.thermal) {
+                    memcpy(z->gq, z->sq, sizeof z->gq);
+                    memcpy(z->gv, z->sv, sizeof z->gv);
+                    z->given_cells = RT_GRID - kc;
+                }
+                rt_piece_t(s, r, part ? b : a, b, part ? RT_GRID - kc : kc, kind, NULL, NULL);
+            }
+        }
         rt_snap *t = a;
         a = b;
         b = t;
     }
     rt_predict(r, a);
     return a;
+}
+
+/* rt_contact_t for r's kind of pieces: one dispatch per contact sample. */
+static AFM_CLONES_NOINLINE rt_snap *rt_contact(const afm_sim *s, const rt_state *r, rt_snap *a,
+                                               rt_snap *b, bool redo) {
+    if (r->noise)
+        return rt_contact_t(
+            s, r, a, b, redo,
+            (rt_piece_kind){.np = r->np, .ntones = rt_tones_kind(r), .thermal = true});
+    if (r->ntones == 1 && r->np == 4)
+        return rt_contact_t(s, r, a, b, redo, (rt_piece_kind){.np = 4, .ntones = 1});
+    if (r->ntones == 1 && r->np == 8)
+        return rt_contact_t(s, r, a, b, redo, (rt_piece_kind){.np = 8, .ntones = 1});
+    if (r->ntones > 1 && r->np == 4)
+        return rt_contact_t(s, r, a, b, redo, (rt_piece_kind){.np = 4, .ntones = RT_TONES_V4});
+    if (r->ntones > 1 && r->np == 8)
+        return rt_contact_t(s, r, a, b, redo, (rt_piece_kind){.np = 8, .ntones = RT_TONES_V4});
+    return rt_contact_t(s, r, a, b, redo, (rt_piece_kind){.np = r->np, .ntones = rt_tones_kind(r)});
 }
 
 /* n output steps (afm_sim_backend.run), with the common sizes (up to 8 modes, one tone)
@@ -259,6 +274,9 @@ static inline __attribute__((always_inline)) int rt_run_t(afm_sim *s, rt_state *
     const double t0 = s->t_start_s, dt = s->dt_s;
     int cur = r->cur;
     const double gx_full = r->prop[r->ncell - 1].gx;
+    /* loop invariants as locals: the modal stores (may_alias vectors) would reload them */
+    const int ncell = r->ncell;
+    const bool kinked = r->kinked;
     rt_tip ta = rt_tip_of(r, &r->buf[cur]), tb; /* the tip at a and at bb, in registers */
     for (int k = 0; k < n && rc == AFM_SIM_OK;) {
         if (__builtin_expect(++since >= RT_RESYNC, 0)) {
@@ -280,13 +298,13 @@ static inline __attribute__((always_inline)) int rt_run_t(afm_sim *s, rt_state *
             /* in contact at the start, or predicted to end there (the end's x with F held at
              * F0: a free step would be redone in substeps anyway) */
             const bool at_once =
-                r->kinked && (ta.x_m < r->xc || fma(gx_full, ta.f_n, ta.x_free_m) < r->xc);
+                kinked && (ta.x_m < r->xc || fma(gx_full, ta.f_n, ta.x_free_m) < r->xc);
             bool contact = at_once;
             if (!contact) {
                 const rt_piece_kind free_step = {
                     .np = np, .ntones = nt, .free_step = true, .thermal = noise, .predict = true};
-                rt_piece_t(s, r, a, bb, r->ncell, free_step, &ta, &tb);
-                if (r->kinked) {
+                rt_piece_t(s, r, a, bb, ncell, free_step, &ta, &tb);
+                if (kinked) {
                     double low = (ta.x_m < tb.x_m ? ta.x_m : tb.x_m) -
                                  r->clear_k * (fabs(ta.v_m_s) + fabs(tb.v_m_s));
                     contact = low < r->xc && rt_crossing_cell(r, a, bb, dt, false) >= 0;
