@@ -15,7 +15,8 @@
 #  (c) tone 0 re-synthesised at every update (fm_tone_changes = the updates run; the PLL
 #      steps its NCO only on leaving the 1 mHz quantum);
 #  (d) the dither command is not applied, with the FM reason, and the loop stays locked;
-#  (e) replay --block 700 gives the same harmonics records byte for byte.
+#  (e) replay --block 700 gives the same harmonics records byte for byte;
+#  (f) `afmtwin plot fm` of the log draws the records' own shift and lock state.
 # Inside a private network namespace as the daemon tests (send and listen are LCM tools,
 # though here they only write and read logs). Prints "N passed, N failed".
 BUILD=${1:-build}
@@ -101,5 +102,36 @@ n1=$(wc -l < "$T/h.jsonl"); n2=$(wc -l < "$T/h700.jsonl"); n=$((n1 < n2 ? n1 : n
 [ "$n" -gt 1000 ] && cmp -s <(head -n "$n" "$T/h.jsonl") <(head -n "$n" "$T/h700.jsonl") &&
   ok "replay --block 700: the same $n harmonics records, byte for byte (of $n1 and $n2)" ||
   bad "replay --block 700: harmonics records differ ($n1 against $n2)"
+# (f) `afmtwin plot fm` of a replay's log under the PLL (the same commands, fm.drive pll):
+# one row per harmonics record with the loops' own shift, phase error (not the lock-in's
+# lag, ~90 deg here) and lock state, acquiring then locked; the picture drawn
+fm_conf internal > "$T/pll.conf"
+"$A" replay --config "$T/pll.conf" --in "$T/in.log" --out "$T/pll.log" --tail 0.03 \
+  --channels harmonics --harmonics-every 10 --quiet 2> "$T/replay_pll.err" ||
+  bad "replay (PLL): $(tail -2 "$T/replay_pll.err")"
+"$A" listen --log "$T/pll.log" --channels harmonics --json > "$T/hp.jsonl" 2>/dev/null
+"$A" plot fm "$T/pll.log" -o "$T/fm.png" --data "$T/fm.dat" 2> "$T/plot.err" ||
+  bad "plot fm: $(tail -2 "$T/plot.err")"
+python3 - "$T/hp.jsonl" "$T/fm.dat" > "$T/f.out" 2>&1 <<'PY'
+import json, sys
+h = [json.loads(l) for l in open(sys.argv[1]) if l.strip()]
+rows = [l.split() for l in open(sys.argv[2]) if l.strip() and not l.startswith("#")]
+head = open(sys.argv[2]).read()
+ok = len(rows) == len(h) and len(h) > 1000
+last = rows[-1] if rows else None
+st = {"acquiring": 0, "locked": 1, "lost": 2}
+same = ok and {0, 1} <= {int(float(r[5])) for r in rows} and all(abs(float(r[1]) - x["fm_frequency_shift_hz"]) <= 1e-6 * max(1, abs(x["fm_frequency_shift_hz"]))
+                  and abs(float(r[4]) - x["fm_phase_error_deg"]) <= 1e-6 * max(1, abs(x["fm_phase_error_deg"]))
+                  and int(float(r[5])) == st.get(x["fm_lock_state"], x["fm_lock_state"])
+                  for r, x in zip(rows, h))
+print(("ok   " if same and "internal loops" in head else "FAIL ") +
+      "plot fm: %d rows for %d harmonics records (acquiring, then locked), each the record's "
+      "shift, phase error and lock state; "
+      "the last %s Hz, state %s" % (len(rows), len(h), last[1] if last else "-", last[5] if last else "-"))
+PY
+while read -r tag rest; do
+  if [ "$tag" = ok ]; then ok "$rest"; else bad "$tag $rest"; fi
+done < "$T/f.out"
+[ -s "$T/fm.png" ] && ok "plot fm: the picture ($(stat -c %s "$T/fm.png") bytes)" || bad "plot fm: no picture"
 echo "$pass passed, $fail failed"
 [ "$fail" -eq 0 ]

@@ -25,6 +25,7 @@
 
 #include "transport/afm_lcm_log.h"
 #include "transport/afm_lcm_wire.h"
+#include "afmtwin_harmonics_t.h"
 #include "afmtwin_samples_t.h"
 #include "lcm_tool.h"
 
@@ -133,6 +134,16 @@ static void plot_usage(FILE *f) {
             "            harmonics records); under 10 samples per period the samples are\n"
             "            drawn as points, never joined; lost messages (jumps in msg_seq)\n"
             "            are shaded and named, and a window inside them says so\n"
+            "  fm        INPUT: an LCM log of the daemon's (or replay's) harmonics records\n"
+            "            under FM: the frequency shift, the drive amplitude (the dissipation\n"
+            "            channel), the lock-in amplitude and the phase error against model\n"
+            "            time (--from S --to S; default the whole log); with the internal\n"
+            "            loops (control = fm) their shift and phase error, acquiring and lost\n"
+            "            records marked; under an outside controller tone 0's frequency less\n"
+            "            its first record's and the lock-in lag (90 deg free at resonance).\n"
+            "            Columns: t[ms] frequency_shift[Hz] drive_amplitude[pm]\n"
+            "            amplitude[nm] phase[deg] lock_state[-1 none, 0 acquiring, 1\n"
+            "            locked, 2 lost] Z[nm] msg_seq\n"
             "  spectrum  INPUT: sweep or approach --json output; --index N: the record (step)\n"
             "            to draw, 0 the first (default), -1 the last: harmonic amplitudes\n"
             "  scan      INPUT: afmtwin scan --json output: images (trace) of the height,\n"
@@ -1649,6 +1660,126 @@ static int load_trace(const plot_opts *o, plot_data *d, FILE *gp) {
     return 0;
 }
 
+/* ---- fm: the daemon's FM channels over time ---- */
+
+/* Rows of the harmonics records of an LCM log (the daemon's or replay's), model time in
+ * --from..--to (default the whole log). With the internal loops (fm_lock_state >= 0) the
+ * shift is the loops' (tone 0 less the NCO's centre) and the phase error theirs; under an
+ * outside controller (no loops) tone 0's frequency less the first record's, and the
+ * lock-in's lag (90 deg free at resonance). */
+#define FM_TRACE_COLS 8
+#define FM_TRACE_HEADER                                                                            \
+    "t[ms] frequency_shift[Hz] drive_amplitude[pm] amplitude[nm] phase[deg] lock_state[-1..2] "    \
+    "Z[nm] msg_seq[index]"
+
+static int load_fm(const plot_opts *o, plot_data *d, FILE *gp) {
+    char err[256];
+    afm_lcm_log *lg = afm_lcm_log_open(o->in[0], 0, err, sizeof err);
+    if (!lg) return plot_err("cannot read the log: %s", err);
+    plot_set *s = curve_new(d, "F", "", FM_TRACE_HEADER, FM_TRACE_COLS);
+    if (!s) {
+        afm_lcm_log_close(&lg);
+        return -1;
+    }
+    const double a = isnan(o->t_from_s) ? -HUGE_VAL : o->t_from_s;
+    const double b = isnan(o->t_to_s) ? HUGE_VAL : o->t_to_s;
+    afm_lcm_log_event ev;
+    int rr, records = 0, internal = -1, n_acq = 0, n_lost = 0;
+    double f_first = NAN, ph_set = NAN;
+    while ((rr = afm_lcm_log_next(lg, &ev, err, sizeof err)) > 0) {
+        size_t cl = strlen(ev.channel);
+        if (cl < 9 || strcmp(ev.channel + cl - 9, "HARMONICS")) continue;
+        afmtwin_harmonics_t m;
+        if (afm_wire_decode(&afm_wire_harmonics_t, ev.data, (int)ev.datalen, &m, err, sizeof err))
+            continue; /* not a harmonics_t: skipped, as listen does */
+        records++;
+        if (internal < 0) internal = m.fm_lock_state >= 0;
+        double f0 = m.n_tones > 0 ? m.tone_frequency_hz[0] : NAN;
+        if (isnan(f_first)) f_first = f0;
+        if (m.t_s >= a && m.t_s <= b) {
+            double shift = internal ? m.fm_frequency_shift_hz : f0 - f_first;
+            double phase = internal ? m.fm_phase_error_deg : m.lockin_phase_deg;
+            if (internal && m.fm_lock_state == 1 && isfinite(m.fm_phase_error_deg))
+                ph_set = m.lockin_phase_deg - m.fm_phase_error_deg; /* the last locked one */
+            n_acq += internal && m.fm_lock_state == 0;
+            n_lost += internal && m.fm_lock_state == 2;
+            double row[FM_TRACE_COLS] = {m.t_s * 1e3,
+                                         shift,
+                                         m.n_tones > 0 ? m.tone_amplitude_m[0] * 1e12 : NAN,
+                                         m.lockin_amplitude_m * 1e9,
+                                         phase,
+                                         (double)m.fm_lock_state,
+                                         m.separation_m * 1e9,
+                                         (double)m.msg_seq};
+            if (set_row(s, row)) {
+                afm_wire_free(&afm_wire_harmonics_t, &m);
+                break;
+            }
+        }
+        afm_wire_free(&afm_wire_harmonics_t, &m);
+    }
+    afm_lcm_log_close(&lg);
+    if (rr < 0)
+        fprintf(stderr, "afmtwin plot: %s: %s (the records before it are drawn)\n", o->in[0], err);
+    if (s->n == 0) {
+        if (records == 0)
+            return plot_err("%s: no harmonics records in the log (log the daemon's outputs: "
+                            "lcm-logger on --lcm-out-url, or afmtwin replay --out)",
+                            o->in[0]);
+        fprintf(stderr, "afmtwin plot: %s: no harmonics record in the window (%d in the log)\n",
+                o->in[0], records);
+        return -1;
+    }
+    d->info.cfg_fe_hz = d->info.cfg_ae_m = NAN; /* the drive is the loops' or the commands' */
+    if (internal)
+        snprintf(d->note, sizeof d->note,
+                 "internal loops: shift = tone 0 - the NCO's centre; phase error = lock-in lag "
+                 "(90 deg free at resonance) - set-point%s",
+                 isfinite(ph_set) ? "" : " (no record locked)");
+    else
+        snprintf(d->note, sizeof d->note,
+                 "no internal loops (outside controller): tone 0 - its first record's %.9g Hz; "
+                 "lock-in lag behind the drive (90 deg free at resonance)",
+                 f_first);
+    if (internal && isfinite(ph_set))
+        snprintf(d->note2, sizeof d->note2, "phase set-point %.6g deg (lag)", ph_set);
+    fprintf(gp, "set style line 1 lc rgb '#0072b2' lw 1.5 pt 7 ps 0.5\nset style line 2 lc rgb "
+                "'#e69f00' lw 2 pt 6 ps 1.0\nset style line 3 lc rgb '#d55e00' lw 2 pt 2 ps "
+                "1.2\n");
+    plot_key k = {0};
+    key_add(&k, "with linespoints ls 1", internal ? "locked" : "harmonics records");
+    if (n_acq) key_add(&k, "with points ls 2", "acquiring");
+    if (n_lost) key_add(&k, "with points ls 3", "lost");
+    const double l = PX_LEFT / d->W, r = 1 - PX_RIGHT / d->W, b0 = PX_BOTTOM / d->H,
+                 g = PX_GAP / d->H;
+    double top = figure(gp, d, &k, l, r);
+    static const struct {
+        int col;
+        const char *label_int, *label_ext;
+    } panel[] = {{2, "shift (Hz)", "tone 0 - first (Hz)"},
+                 {3, "drive (pm)", "drive (pm)"},
+                 {4, "amplitude (nm)", "amplitude (nm)"},
+                 {5, "phase error (deg)", "lag (deg)"}};
+    const int n = 4;
+    const double px = ((top - b0) - (n - 1) * g) / n * d->H; /* a panel's height */
+    for (int i = 0; i < n; i++) {
+        stack(gp, i, n, l, r, b0, top, g);
+        shared_x(gp, i, n, "model time (ms)");
+        short_ytics(gp, &s, 1, panel[i].col - 1, px);
+        fprintf(gp, "set ylabel '%s'\nplot $F using 1:%d with linespoints ls 1 notitle",
+                internal ? panel[i].label_int : panel[i].label_ext, panel[i].col);
+        if (n_acq)
+            fprintf(gp, ", $F using 1:($6 == 0 ? $%d : 1/0) with points ls 2 notitle",
+                    panel[i].col);
+        if (n_lost)
+            fprintf(gp, ", $F using 1:($6 == 2 ? $%d : 1/0) with points ls 3 notitle",
+                    panel[i].col);
+        fputc('\n', gp);
+    }
+    fprintf(gp, "unset multiplot\n");
+    return 0;
+}
+
 /* ---- spectrum ---- */
 
 typedef struct {
@@ -1968,10 +2099,15 @@ static int load_scan(const plot_opts *o, plot_data *d, FILE *gp) {
 static const char *kind_title(const char *kind) {
     static const struct {
         const char *kind, *title;
-    } t[] = {{"sweep", "frequency sweep"},        {"approach", "approach curve"},
-             {"thermal", "thermal tune"},         {"trace", "time trace of the daemon outputs"},
-             {"spectrum", "harmonic spectrum"},   {"scan", "scan"},
-             {"continue", "bifurcation diagram"}, {"force-curve", "force-distance curve"}};
+    } t[] = {{"sweep", "frequency sweep"},
+             {"approach", "approach curve"},
+             {"thermal", "thermal tune"},
+             {"trace", "time trace of the daemon outputs"},
+             {"fm", "FM channels of the daemon outputs"},
+             {"spectrum", "harmonic spectrum"},
+             {"scan", "scan"},
+             {"continue", "bifurcation diagram"},
+             {"force-curve", "force-distance curve"}};
     for (size_t i = 0; i < sizeof t / sizeof t[0]; i++)
         if (!strcmp(kind, t[i].kind)) return t[i].title;
     return kind;
@@ -2019,16 +2155,16 @@ int afm_cmd_plot(int argc, char **argv) {
     static const struct {
         const char *kind;
         int (*load)(const plot_opts *, plot_data *, FILE *);
-    } kinds[] = {{"sweep", load_sweep},       {"approach", load_approach},
-                 {"thermal", load_thermal},   {"trace", load_trace},
-                 {"spectrum", load_spectrum}, {"scan", load_scan},
-                 {"continue", load_continue}, {"force-curve", load_force_curve}};
+    } kinds[] = {
+        {"sweep", load_sweep},       {"approach", load_approach},       {"thermal", load_thermal},
+        {"trace", load_trace},       {"spectrum", load_spectrum},       {"scan", load_scan},
+        {"continue", load_continue}, {"force-curve", load_force_curve}, {"fm", load_fm}};
     int k = -1;
     for (int i = 0; i < (int)(sizeof kinds / sizeof kinds[0]); i++)
         if (!strcmp(o.kind, kinds[i].kind)) k = i;
     if (k < 0) {
         fprintf(stderr,
-                "afmtwin plot: unknown kind '%s' (sweep, approach, thermal, trace, "
+                "afmtwin plot: unknown kind '%s' (sweep, approach, thermal, trace, fm, "
                 "spectrum, scan, continue, force-curve)\n",
                 o.kind);
         return 2;
