@@ -1,6 +1,8 @@
 /* SPDX-License-Identifier: MIT */
 /* lcm_tool.c -- helpers shared by the LCM subcommands (see lcm_tool.h). */
 #include "lcm_tool.h"
+
+#include "cli/afm_opts.h"
 #include "transport/afm_lcm_url.h"
 
 #include <ctype.h>
@@ -122,13 +124,7 @@ int afmt_log_write(lcm_eventlog_t *log, int64_t utime_us, const char *channel, c
 }
 
 int afmt_parse_double(const char *s, double *v) {
-    if (!s || !*s) return -1;
-    char *end;
-    errno = 0;
-    double x = strtod(s, &end);
-    if (*end || end == s || errno == ERANGE) return -1;
-    *v = x;
-    return 0;
+    return afm_opts_parse_double(s, v);
 }
 
 int afmt_parse_list(const char *s, double *v, int max) {

@@ -11,8 +11,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-/* A whole word as strtod reads it (no trailing text, no overflow). */
-static int parse_double(const char *s, double *v) {
+int afm_opts_parse_double(const char *s, double *v) {
     if (!s || !*s) return -1;
     char *end;
     errno = 0;
@@ -224,7 +223,7 @@ static int opt_store(const afmt_opt *o, const char *v) {
     case AFMT_OPT_LLONG:
     case AFMT_OPT_UINT:
     case AFMT_OPT_U64:
-        if (parse_double(v, &x) || !in_range(o, x) || x != floor(x)) return -1;
+        if (afm_opts_parse_double(v, &x) || !in_range(o, x) || x != floor(x)) return -1;
         if (o->kind == AFMT_OPT_INT)
             *(int *)o->dest = (int)x;
         else if (o->kind == AFMT_OPT_LONG)
@@ -291,7 +290,7 @@ int afm_opts_parse(const char *prog, const afmt_opt *opts, int argc, char **argv
                 si_bad(prog, a, v, o->unit, si_rc == AFMT_SI_WRONG_UNIT ? si_rc : AFMT_SI_BAD);
                 return AFMT_OPTS_BAD;
             }
-        } else if (number && (parse_double(v, &x) || !isfinite(x))) {
+        } else if (number && (afm_opts_parse_double(v, &x) || !isfinite(x))) {
             fprintf(stderr, "%s: %s wants a number, got '%s'\n", prog, a, v);
             return AFMT_OPTS_BAD;
         }

@@ -137,6 +137,9 @@ const char *afmt_unit_suffixes(afmt_unit u);
  * wants ..., got 'value'" on stderr. */
 int afm_opts_si_value(const char *prog, const char *opt, const char *value, afmt_unit u, double *v);
 
+/* A whole word as strtod reads it (no trailing text, no overflow): 0 with *v set, or -1. */
+int afm_opts_parse_double(const char *s, double *v);
+
 enum { AFMT_OPTS_OK = 0, AFMT_OPTS_HELP = 1, AFMT_OPTS_BAD = 2 };
 
 /* Parse argv[first..argc-1] against the table opts for the program named prog (its
