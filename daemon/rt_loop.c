@@ -17,7 +17,8 @@
  * moves to now), counted in resyncs and reported in status; so a twin that cannot keep up
  * runs as fast as it can with a bounded lag instead of a lag that grows without end.
  * When the chain thread is behind (the ring is full) the runner advances less than asked:
- * the loop sleeps CHAIN_WAIT_NS and tries again (counted in status.chain_stalls).
+ * the loop naps (an eighth of the ring, 20-200 us) and tries again (counted in
+ * status.chain_stalls); the naps do not count as busy.
  * Pausing (or waiting for ticks) re-anchors the origin, so nothing is "caught up" later;
  * then the thread waits on cmd_sem (posted with every command queued), so that a tick or a
  * run starts as soon as it arrives. The real-time factor of the status is model time over
@@ -32,7 +33,12 @@
 
 #define TRASH_PENDING 16
 #define IDLE_WAIT_NS 10000000L /* no budget: wait this long for a command at most (heartbeat) */
-#define CHAIN_WAIT_NS 20000L   /* ring full: let the chain thread work this long */
+/* Ring full: let the chain thread work an eighth of the ring's model time, within these
+ * bounds (issue 12: the 20 us nap of before woke this thread ~26 000 times a second while the
+ * chain was behind, and where the two shared a core each wake-up preempted the chain; the
+ * ring still holds 7/8 of its items for the chain when the nap ends). */
+#define CHAIN_WAIT_MIN_NS 20000L
+#define CHAIN_WAIT_MAX_NS 200000L
 #define RTF_BUCKETS 10
 #define RTF_BUCKET_S 0.1
 
@@ -42,7 +48,7 @@ typedef struct {
     twind_snapshot snap;
     afm_runner_model *trash[TRASH_PENDING];
     int n_trash;
-    double busy_acc, busy_t0;
+    double busy_acc, busy_t0; /* busy: the turns' wall time less the naps for the chain */
     /* real-time factor: wall and model seconds of running turns, per bucket */
     double rtf_wall[RTF_BUCKETS], rtf_model[RTF_BUCKETS], cur_wall, cur_model;
     int rtf_next, rtf_full;
@@ -149,6 +155,9 @@ void *twind_rt_main(void *arg) {
     long long origin_samples = 0;
     double speed = d->opt.speed > 0 ? d->opt.speed : 1.0;
     c.busy_t0 = c.last_end = ts_sec(&origin);
+    long chain_wait_ns = (long)(d->opt.ring_s / 8 * 1e9);
+    if (chain_wait_ns < CHAIN_WAIT_MIN_NS) chain_wait_ns = CHAIN_WAIT_MIN_NS;
+    if (chain_wait_ns > CHAIN_WAIT_MAX_NS) chain_wait_ns = CHAIN_WAIT_MAX_NS;
     while (!atomic_load_explicit(&d->stop, memory_order_acquire)) {
         apply_commands(&c);
         double dt = afm_sim_dt(afm_runner_sim(c.r)); /* a reload may change the rate */
@@ -185,6 +194,7 @@ void *twind_rt_main(void *arg) {
          * soon as it is made, and commands that arrive meanwhile apply at the next item
          * (73 us of model time at 14.06 MHz) instead of the next block. */
         long long left = block < budget ? block : budget;
+        double napped = 0; /* waiting for ring space is not busy */
         while (left > 0 && !atomic_load_explicit(&d->stop, memory_order_relaxed)) {
             long long piece = left < AFM_RUNNER_SLOT_SAMPLES ? left : AFM_RUNNER_SLOT_SAMPLES;
             long long adv = afm_runner_run(c.r, piece);
@@ -193,8 +203,11 @@ void *twind_rt_main(void *arg) {
             if (left <= 0) break;
             if (afm_runner_budget(c.r) <= 0) break; /* budget used up (step / tick) */
             if (adv < piece) {                      /* the chain thread is behind: let it work */
-                struct timespec w = {0, CHAIN_WAIT_NS};
+                struct timespec w = {0, chain_wait_ns}, n0, n1;
+                clock_gettime(CLOCK_MONOTONIC, &n0);
                 clock_nanosleep(CLOCK_MONOTONIC, 0, &w, NULL);
+                clock_gettime(CLOCK_MONOTONIC, &n1);
+                napped += ts_sec(&n1) - ts_sec(&n0);
                 continue;
             }
             apply_commands(&c);
@@ -205,7 +218,7 @@ void *twind_rt_main(void *arg) {
         long long before = c.snap.st.samples;
         afm_runner_status_get(c.r, &st);
         clock_gettime(CLOCK_MONOTONIC, &now);
-        double busy = ts_sec(&now) - ts_sec(&t_start);
+        double busy = ts_sec(&now) - ts_sec(&t_start) - napped;
         c.busy_acc += busy;
         if (ts_sec(&now) - c.busy_t0 >= 1.0) {
             c.snap.busy_fraction = c.busy_acc / (ts_sec(&now) - c.busy_t0);
