@@ -9,9 +9,10 @@
  * and drops results that a later request made stale. A hand-over between the rt schemes
  * (scheme.c; their steady amplitudes differ by ~2e-4) asks again too (twind_a0_scheme, from
  * the status). Until the newest is done the status
- * says NaN (not known), never the A0 of a drive no longer in force. The worker runs at
- * SCHED_FIFO 1 (it inherited main's 70, above the output chain, until 2026-12-06): it takes
- * only the time the real-time, chain, receive and publish threads leave. Even so one computation
+ * says NaN (not known), never the A0 of a drive no longer in force. The worker runs at the
+ * receive thread's SCHED_FIFO priority (main's when it starts the worker: above the output
+ * chain; at SCHED_FIFO 1 it starved whenever the chain was behind), at most A0_DUTY of the
+ * time (it waits after each computation). One computation
  * costs the real-time threads ~5 % of real time in the second it runs on this 2-core VM
  * (test_collapse: real-time factor min 0.92-0.95 against 0.999 without; once 0.88, below its 0.9),
  * so the recomputation is opt-in (afmtwind --a0-track). Without it no worker is started: the
@@ -58,9 +59,10 @@ static double now_s(clockid_t clk) {
 
 static void *a0_main(void *arg) {
     twind_thread_name("afm-a0");
-    /* SCHED_FIFO 1, not the receive thread's priority that main had when it created this
-     * thread (start_transports): below every thread of the daemon, above ordinary work */
-    twind_rt_setup_build(1, true);
+    /* the receive thread's priority, which main had when it created this thread
+     * (start_transports): at SCHED_FIFO 1 it starved while the chain was behind real time
+     * (test_a0 at load 4-6: A0 still NaN 10 s after a dither), and A0_DUTY already bounds
+     * what it takes from the chain */
     twind *d = arg;
     twind_a0 *a = &d->a0;
     char err[AFM_ERR_LEN];
