@@ -387,6 +387,66 @@ static void rt_substep_acc(const afm_sim *s, const rt_state *r, const rt_snap *a
     if (ea) rt_ev_piece(ea, s, r, b, f0 + 1.0 / r->m, false);
 }
 
+/* rt_substep_acc without noise, its pieces inlined with the sizes as constants (rec: ea set). */
+static inline __attribute__((always_inline)) void
+rt_substep_acc_t(const afm_sim *s, const rt_state *r, const rt_snap *a, rt_snap *b, double tau,
+                 rt_evacc *ea, int j0, const int np, const int nt, const bool rec) {
+    rt_piece_acc_t(s, r, a, b, RT_GRID, true, np, nt, false, rec);
+    int kc = rt_crossing_cell(r, a, b, tau, true);
+    const double f0 = rec ? (double)j0 / r->m : 0.0;
+    if (kc < 0) {
+        if (rec) rt_ev_piece(ea, s, r, b, f0 + 1.0 / r->m, true);
+        return;
+    }
+    if (kc == 0 || kc >= RT_GRID) { /* at an end: the whole substep linear */
+        rt_piece_acc_t(s, r, a, b, RT_GRID, false, np, nt, false, rec);
+        if (rec) rt_ev_piece(ea, s, r, b, f0 + 1.0 / r->m, false);
+        return;
+    }
+    rt_piece_acc_t(s, r, a, b, kc, false, np, nt, false, rec);
+    if (rec) rt_ev_piece(ea, s, r, b, f0 + (double)kc / (double)r->ncell, false);
+    rt_piece_acc_t(s, r, b, b, RT_GRID - kc, false, np, nt, false, rec);
+    if (rec) rt_ev_piece(ea, s, r, b, f0 + 1.0 / r->m, false);
+}
+
+/* The sub substeps of one graded piece from in into o (w: two scratch snapshots), the j0-th
+ * substep of the sample first: one call and one dispatch on the sizes per graded piece
+ * redone, not one per piece of its substeps (issue 29, fifth round). */
+static inline __attribute__((always_inline)) void
+rt_substeps_acc_t(const afm_sim *s, const rt_state *r, const rt_snap *in, rt_snap *o, rt_snap *w,
+                  int j0, int sub, double taus, rt_evacc *ea, const int np, const int nt,
+                  const bool rec) {
+    const rt_snap *x = in;
+    for (int j = 0; j < sub; j++) {
+        rt_snap *y = j == sub - 1 ? o : &w[j & 1];
+        rt_substep_acc_t(s, r, x, y, taus, ea, j0 + j, np, nt, rec);
+        x = y;
+    }
+}
+
+/* rt_substeps_acc_t out of line, the sizes picked once (as rt_piece_acc_n, rt_piece_acc_rec). */
+static AFM_CLONES_NOINLINE void rt_substeps_acc(const afm_sim *s, const rt_state *r,
+                                                const rt_snap *in, rt_snap *o, rt_snap *w, int j0,
+                                                int sub, double taus, rt_evacc *ea) {
+    if (ea) {
+        if (r->ntones == 1 && r->np == 4)
+            rt_substeps_acc_t(s, r, in, o, w, j0, sub, taus, ea, 4, 1, true);
+        else if (r->ntones == 1 && r->np == 8)
+            rt_substeps_acc_t(s, r, in, o, w, j0, sub, taus, ea, 8, 1, true);
+        else
+            rt_substeps_acc_t(s, r, in, o, w, j0, sub, taus, ea, r->np, rt_tones_kind(r), true);
+    } else if (r->ntones == 1 && r->np == 4)
+        rt_substeps_acc_t(s, r, in, o, w, j0, sub, taus, NULL, 4, 1, false);
+    else if (r->ntones == 1 && r->np == 8)
+        rt_substeps_acc_t(s, r, in, o, w, j0, sub, taus, NULL, 8, 1, false);
+    else if (r->ntones > 1 && r->np == 4)
+        rt_substeps_acc_t(s, r, in, o, w, j0, sub, taus, NULL, 4, RT_TONES_V4, false);
+    else if (r->ntones > 1 && r->np == 8)
+        rt_substeps_acc_t(s, r, in, o, w, j0, sub, taus, NULL, 8, RT_TONES_V4, false);
+    else
+        rt_substeps_acc_t(s, r, in, o, w, j0, sub, taus, NULL, r->np, rt_tones_kind(r), false);
+}
+
 /* rt_contact for the accurate scheme. */
 static AFM_CLONES_NOINLINE rt_snap *rt_contact_acc(const afm_sim *s, const rt_state *r, rt_snap *a,
                                                    rt_snap *b, bool redo, rt_evacc *ea) {
@@ -442,12 +502,7 @@ static inline __attribute__((always_inline)) void rt_graded_acc(const afm_sim *s
             near = o->tip.x_m < xc && xc - o->tip.x_m < close * fabs(o->tip.v_m_s);
         }
         if (near || rt_crosses(r, in, o, tau)) {
-            const rt_snap *x = in;
-            for (int j = 0; j < sub; j++) {
-                rt_snap *y = j == sub - 1 ? o : &w[j & 1];
-                rt_substep_acc(s, r, x, y, taus, ea, p * sub + j);
-                x = y;
-            }
+            rt_substeps_acc(s, r, in, o, w, p * sub, sub, taus, ea);
         } else if (ea) {
             rt_ev_piece(ea, s, r, o, (double)(p + 1) / K, true);
         }
