@@ -361,7 +361,20 @@ static int rt_init(afm_sim *s, char *err, size_t errlen) {
             P->c = t->block + (size_t)k * per;
             afm_rt_coef_modes(P, r->n, r->np, m->omega_rad_s, m->xi, m->tip,
                               s->dt_s * (double)(k + 1) / (double)t->ncell);
-            if (a) afm_rt_coef_hermite(P, r->n, r->np, m->omega_rad_s, m->xi, m->tip);
+            if (a) {
+                afm_rt_coef_hermite(P, r->n, r->np, m->omega_rad_s, m->xi, m->tip);
+                /* rt_piece_acc_t's Hermite piece: the tip acceleration per unit F1 through its
+                 * K1 rows (with sum tip^2) and per unit D1 through its Gd1 rows */
+                const int np = r->np;
+                const double *k1 = P->c + AFM_RT_ROW_K1 * np;
+                const double *d1 = P->c + (AFM_RT_ROW_GC + 4) * np;
+                P->acc_k1 = r->tip2;
+                P->acc_gd1 = 0.0;
+                for (int i = 0; i < np; i++) {
+                    P->acc_k1 += r->aq[i] * k1[i] + r->av[i] * k1[np + i];
+                    P->acc_gd1 += r->aq[i] * d1[i] + r->av[i] * d1[np + i];
+                }
+            }
         }
         for (int k = 0; k < t->ncell; k++)
             afm_rt_coef_chain(&t->prop[k], &t->prop[t->ncell - 1], r->np);

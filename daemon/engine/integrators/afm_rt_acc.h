@@ -44,7 +44,7 @@ static inline __attribute__((always_inline)) void
 rt_piece_acc_t(const afm_sim *s, const rt_state *r, const rt_snap *in, rt_snap *o, int k, bool herm,
                const int np, const int nt, const bool noise, const bool rec) {
     const afm_rt_prop *P = &r->prop[k - 1];
-    const double *c = P->c, *ch = P->c + AFM_RT_ROW_GC * np, *c01 = P->c + AFM_RT_ROW_GD01 * np;
+    const double *c = P->c;
     const double F0 = in->tip.f_n, tau = P->tau_s;
     const double D0 = herm ? tau * in->fdot_n_s : 0.0;
     double nq[AFM_MAX_MODES] __attribute__((aligned(32)));
@@ -75,31 +75,77 @@ rt_piece_acc_t(const afm_sim *s, const rt_state *r, const rt_snap *in, rt_snap *
     }
     double jj = 1.0 - in->dfdx_n_m * gxe - in->dfdv_n_s_m * gve;
     const double rj = 1.0 / (jj > 0.25 ? jj : 0.25);
-    const double F1 =
-        rt_solve_in(s, r, xs, vs, gxe, gve, fma(in->df_per_cell_n, (double)k, F0), rj, o);
     double zr1[AFM_MAX_TONES], zi1[AFM_MAX_TONES];
     rt_tones_rotate(in->z_re, in->z_im, P->rot_re, P->rot_im, zr1, zi1, nt);
-    const rt_v4 f0 = rt_splat(F0), f1 = rt_splat(F1), fc = rt_splat(F0 - F1), d0 = rt_splat(D0);
-    rt_v4 a4 = rt_splat(0.0);
-    for (int i = 0; i < np; i += 4) {
-        rt_v4 q = RT_V4(in->q + i), v = RT_V4(in->v + i);
-        rt_v4 a = rt_fma4(RT_V4(c + i), q,
-                          rt_fma4(RT_V4(c + np + i), v,
-                                  rt_fma4(RT_V4(c + 4 * np + i), f0, RT_V4(c + 6 * np + i) * f1)));
-        rt_v4 w = rt_fma4(RT_V4(c + 2 * np + i), q,
-                          rt_fma4(RT_V4(c + 3 * np + i), v,
-                                  rt_fma4(RT_V4(c + 5 * np + i), f0, RT_V4(c + 7 * np + i) * f1)));
-        if (herm) { /* D1 = D0 for now: Gd0 + Gd1 */
-            a = rt_fma4(RT_V4(ch + i), fc, rt_fma4(RT_V4(c01 + i), d0, a));
-            w = rt_fma4(RT_V4(ch + np + i), fc, rt_fma4(RT_V4(c01 + np + i), d0, w));
+    const double tones_a = rt_tones_im(r->ax_re, r->ax_im, zr1, zi1, nt);
+    double x1, v1, F1, fdot;
+    if (herm) {
+        /* the modal update's part that does not wait for F1, D1 (Phi q + K0 F0 + Gd0 D0) and
+         * its acceleration, formed beside the solve; then the state written once with
+         * K1 F1 + Gd1 D1 (rt_free_acc_t's arrangement; P->acc_k1, P->acc_gd1) */
+        const double *k0 = c + AFM_RT_ROW_K0 * np, *k1 = c + AFM_RT_ROW_K1 * np;
+        const double *gd0 = c + (AFM_RT_ROW_GC + 2) * np, *gd1 = c + (AFM_RT_ROW_GC + 4) * np;
+        const rt_v4 f0 = rt_splat(F0), d0 = rt_splat(D0);
+        rt_v4 pq[AFM_MAX_MODES / 4], pv[AFM_MAX_MODES / 4], a4 = rt_splat(0.0);
+        for (int i = 0; i < np; i += 4) {
+            rt_v4 q = RT_V4(in->q + i), v = RT_V4(in->v + i);
+            rt_v4 a = rt_fma4(
+                RT_V4(c + i), q,
+                rt_fma4(RT_V4(c + np + i), v, rt_fma4(RT_V4(k0 + i), f0, RT_V4(gd0 + i) * d0)));
+            rt_v4 w = rt_fma4(RT_V4(c + 2 * np + i), q,
+                              rt_fma4(RT_V4(c + 3 * np + i), v,
+                                      rt_fma4(RT_V4(k0 + np + i), f0, RT_V4(gd0 + np + i) * d0)));
+            if (noise) {
+                a += RT_V4(nq + i);
+                w += RT_V4(nv + i);
+            }
+            a4 = rt_fma4(RT_V4(r->aq + i), a, rt_fma4(RT_V4(r->av + i), w, a4));
+            pq[i / 4] = a;
+            pv[i / 4] = w;
         }
-        if (noise) {
-            a += RT_V4(nq + i);
-            w += RT_V4(nv + i);
+        const double aa = fma(P->acc_gd1, D0, rt_hsum(a4) + tones_a);
+        F1 = rt_solve_in(s, r, xs, vs, gxe, gve, fma(in->df_per_cell_n, (double)k, F0), rj, o);
+        x1 = fma(gxe, F1, xs);
+        v1 = fma(gve, F1, vs);
+        const double acc = fma(P->acc_k1, F1, aa); /* D1 held at D0, as the solve */
+        fdot = fma(o->dfdx_n_m, v1, o->dfdv_n_s_m * acc);
+        const double D1 = tau * fdot, dd = fma(tau, fdot, -D0);
+        x1 = fma(P->gd1x, dd, x1);
+        v1 = fma(P->gd1v, dd, v1);
+        const rt_v4 f1 = rt_splat(F1), d1 = rt_splat(D1);
+        for (int i = 0; i < np; i += 4) {
+            RT_V4W(o->q + i) = rt_fma4(RT_V4(k1 + i), f1, rt_fma4(RT_V4(gd1 + i), d1, pq[i / 4]));
+            RT_V4W(o->v + i) =
+                rt_fma4(RT_V4(k1 + np + i), f1, rt_fma4(RT_V4(gd1 + np + i), d1, pv[i / 4]));
         }
-        RT_V4W(o->q + i) = a;
-        RT_V4W(o->v + i) = w;
-        a4 = rt_fma4(RT_V4(r->aq + i), a, rt_fma4(RT_V4(r->av + i), w, a4));
+        if (rec) o->acc_m_s2 = fma(P->acc_gd1, dd, acc); /* the state's own */
+    } else {
+        F1 = rt_solve_in(s, r, xs, vs, gxe, gve, fma(in->df_per_cell_n, (double)k, F0), rj, o);
+        const rt_v4 f0 = rt_splat(F0), f1 = rt_splat(F1);
+        rt_v4 a4 = rt_splat(0.0);
+        for (int i = 0; i < np; i += 4) {
+            rt_v4 q = RT_V4(in->q + i), v = RT_V4(in->v + i);
+            rt_v4 a =
+                rt_fma4(RT_V4(c + i), q,
+                        rt_fma4(RT_V4(c + np + i), v,
+                                rt_fma4(RT_V4(c + 4 * np + i), f0, RT_V4(c + 6 * np + i) * f1)));
+            rt_v4 w =
+                rt_fma4(RT_V4(c + 2 * np + i), q,
+                        rt_fma4(RT_V4(c + 3 * np + i), v,
+                                rt_fma4(RT_V4(c + 5 * np + i), f0, RT_V4(c + 7 * np + i) * f1)));
+            if (noise) {
+                a += RT_V4(nq + i);
+                w += RT_V4(nv + i);
+            }
+            RT_V4W(o->q + i) = a;
+            RT_V4W(o->v + i) = w;
+            a4 = rt_fma4(RT_V4(r->aq + i), a, rt_fma4(RT_V4(r->av + i), w, a4));
+        }
+        x1 = fma(gxe, F1, xs);
+        v1 = fma(gve, F1, vs);
+        const double acc = rt_hsum(a4) + r->tip2 * F1 + tones_a;
+        fdot = fma(o->dfdx_n_m, v1, o->dfdv_n_s_m * acc);
+        if (rec) o->acc_m_s2 = acc; /* the state is final */
     }
     if (nt == RT_TONES_V4) {
         RT_V4W(o->z_re) = RT_V4(zr1);
@@ -109,26 +155,6 @@ rt_piece_acc_t(const afm_sim *s, const rt_state *r, const rt_snap *in, rt_snap *
             o->z_re[j] = zr1[j];
             o->z_im[j] = zi1[j];
         }
-    }
-    double x1 = fma(gxe, F1, xs), v1 = fma(gve, F1, vs);
-    const double tones_a = rt_tones_im(r->ax_re, r->ax_im, zr1, zi1, nt);
-    double acc = rt_hsum(a4) + r->tip2 * F1 + tones_a;
-    double fdot = fma(o->dfdx_n_m, v1, o->dfdv_n_s_m * acc);
-    if (rec && !herm) o->acc_m_s2 = acc; /* the state is final */
-    if (herm) {                          /* the end slope found: the state takes Gd1 (D1 - D0) */
-        const double dd = fma(tau, fdot, -D0);
-        const rt_v4 dd4 = rt_splat(dd);
-        rt_v4 e4 = rt_splat(0.0);
-        for (int i = 0; i < np; i += 4) {
-            const rt_v4 qf = rt_fma4(RT_V4(ch + 4 * np + i), dd4, RT_V4(o->q + i));
-            const rt_v4 vf = rt_fma4(RT_V4(ch + 5 * np + i), dd4, RT_V4(o->v + i));
-            RT_V4W(o->q + i) = qf;
-            RT_V4W(o->v + i) = vf;
-            if (rec) e4 = rt_fma4(RT_V4(r->aq + i), qf, rt_fma4(RT_V4(r->av + i), vf, e4));
-        }
-        x1 = fma(P->gd1x, dd, x1);
-        v1 = fma(P->gd1v, dd, v1);
-        if (rec) o->acc_m_s2 = rt_hsum(e4) + r->tip2 * F1 + tones_a;
     }
     o->slope_cells = 0;
     o->acc_free = false;
@@ -361,6 +387,66 @@ static void rt_substep_acc(const afm_sim *s, const rt_state *r, const rt_snap *a
     if (ea) rt_ev_piece(ea, s, r, b, f0 + 1.0 / r->m, false);
 }
 
+/* rt_substep_acc without noise, its pieces inlined with the sizes as constants (rec: ea set). */
+static inline __attribute__((always_inline)) void
+rt_substep_acc_t(const afm_sim *s, const rt_state *r, const rt_snap *a, rt_snap *b, double tau,
+                 rt_evacc *ea, int j0, const int np, const int nt, const bool rec) {
+    rt_piece_acc_t(s, r, a, b, RT_GRID, true, np, nt, false, rec);
+    int kc = rt_crossing_cell(r, a, b, tau, true);
+    const double f0 = rec ? (double)j0 / r->m : 0.0;
+    if (kc < 0) {
+        if (rec) rt_ev_piece(ea, s, r, b, f0 + 1.0 / r->m, true);
+        return;
+    }
+    if (kc == 0 || kc >= RT_GRID) { /* at an end: the whole substep linear */
+        rt_piece_acc_t(s, r, a, b, RT_GRID, false, np, nt, false, rec);
+        if (rec) rt_ev_piece(ea, s, r, b, f0 + 1.0 / r->m, false);
+        return;
+    }
+    rt_piece_acc_t(s, r, a, b, kc, false, np, nt, false, rec);
+    if (rec) rt_ev_piece(ea, s, r, b, f0 + (double)kc / (double)r->ncell, false);
+    rt_piece_acc_t(s, r, b, b, RT_GRID - kc, false, np, nt, false, rec);
+    if (rec) rt_ev_piece(ea, s, r, b, f0 + 1.0 / r->m, false);
+}
+
+/* The sub substeps of one graded piece from in into o (w: two scratch snapshots), the j0-th
+ * substep of the sample first: one call and one dispatch on the sizes per graded piece
+ * redone, not one per piece of its substeps (issue 29, fifth round). */
+static inline __attribute__((always_inline)) void
+rt_substeps_acc_t(const afm_sim *s, const rt_state *r, const rt_snap *in, rt_snap *o, rt_snap *w,
+                  int j0, int sub, double taus, rt_evacc *ea, const int np, const int nt,
+                  const bool rec) {
+    const rt_snap *x = in;
+    for (int j = 0; j < sub; j++) {
+        rt_snap *y = j == sub - 1 ? o : &w[j & 1];
+        rt_substep_acc_t(s, r, x, y, taus, ea, j0 + j, np, nt, rec);
+        x = y;
+    }
+}
+
+/* rt_substeps_acc_t out of line, the sizes picked once (as rt_piece_acc_n, rt_piece_acc_rec). */
+static AFM_CLONES_NOINLINE void rt_substeps_acc(const afm_sim *s, const rt_state *r,
+                                                const rt_snap *in, rt_snap *o, rt_snap *w, int j0,
+                                                int sub, double taus, rt_evacc *ea) {
+    if (ea) {
+        if (r->ntones == 1 && r->np == 4)
+            rt_substeps_acc_t(s, r, in, o, w, j0, sub, taus, ea, 4, 1, true);
+        else if (r->ntones == 1 && r->np == 8)
+            rt_substeps_acc_t(s, r, in, o, w, j0, sub, taus, ea, 8, 1, true);
+        else
+            rt_substeps_acc_t(s, r, in, o, w, j0, sub, taus, ea, r->np, rt_tones_kind(r), true);
+    } else if (r->ntones == 1 && r->np == 4)
+        rt_substeps_acc_t(s, r, in, o, w, j0, sub, taus, NULL, 4, 1, false);
+    else if (r->ntones == 1 && r->np == 8)
+        rt_substeps_acc_t(s, r, in, o, w, j0, sub, taus, NULL, 8, 1, false);
+    else if (r->ntones > 1 && r->np == 4)
+        rt_substeps_acc_t(s, r, in, o, w, j0, sub, taus, NULL, 4, RT_TONES_V4, false);
+    else if (r->ntones > 1 && r->np == 8)
+        rt_substeps_acc_t(s, r, in, o, w, j0, sub, taus, NULL, 8, RT_TONES_V4, false);
+    else
+        rt_substeps_acc_t(s, r, in, o, w, j0, sub, taus, NULL, r->np, rt_tones_kind(r), false);
+}
+
 /* rt_contact for the accurate scheme. */
 static AFM_CLONES_NOINLINE rt_snap *rt_contact_acc(const afm_sim *s, const rt_state *r, rt_snap *a,
                                                    rt_snap *b, bool redo, rt_evacc *ea) {
@@ -416,12 +502,7 @@ static inline __attribute__((always_inline)) void rt_graded_acc(const afm_sim *s
             near = o->tip.x_m < xc && xc - o->tip.x_m < close * fabs(o->tip.v_m_s);
         }
         if (near || rt_crosses(r, in, o, tau)) {
-            const rt_snap *x = in;
-            for (int j = 0; j < sub; j++) {
-                rt_snap *y = j == sub - 1 ? o : &w[j & 1];
-                rt_substep_acc(s, r, x, y, taus, ea, p * sub + j);
-                x = y;
-            }
+            rt_substeps_acc(s, r, in, o, w, p * sub, sub, taus, ea);
         } else if (ea) {
             rt_ev_piece(ea, s, r, o, (double)(p + 1) / K, true);
         }

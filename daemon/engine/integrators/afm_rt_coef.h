@@ -58,6 +58,10 @@ typedef struct {
      * Hermite correction): gx0 + gcx, gd0x + gd1x, gv0 + gcv, gd0v + gd1v, gx - gcx, gv - gcv
      * (afm_rt_coef_hermite; each rounded once, as the sum at run time was) */
     double hx0, hd0x, hv0, hd0v, hx1, hv1;
+    /* the tip acceleration per unit end force F1 through the K1 rows, sum tip^2 included
+     * (1/kg), and per unit end slope D1 through the Gd1 rows (1/kg): the accurate scheme's
+     * piece writes its modal state once (afm_rt_acc.h; set by afm_rt.c, not here) */
+    double acc_k1, acc_gd1;
     double *c;
 } afm_rt_prop;
 
