@@ -59,7 +59,73 @@ typedef struct {
     int64_t seq, samples;
     double t_s;
     uint64_t sd, hd;
+    long long h_end; /* harmonics messages received before it (ls_hrec index) */
 } ls_done;
+
+/* One harmonics message, as much of it as tells where a completion's digest came from when
+ * it differs from replay's (--check prints the first record and field that differ). */
+#define LS_HREC_K 4
+typedef struct {
+    int64_t seq_applied;
+    int n;
+    double v[13 + 4 * LS_HREC_K]; /* ls_hrec_names order */
+} ls_hrec;
+
+static const char *const ls_hrec_names[] = {"t_s",
+                                            "fe_hz",
+                                            "lockin_amplitude_m",
+                                            "lockin_phase_deg",
+                                            "peak_force_n",
+                                            "min_deflection_m",
+                                            "indentation_m",
+                                            "contact_time_s",
+                                            "pre_contact_velocity_m_s",
+                                            "dissipated_energy_j",
+                                            "mean_deflection_m",
+                                            "squeeze_dissipated_energy_j",
+                                            "separation_m",
+                                            "deflection_amplitude_m[0]",
+                                            "deflection_amplitude_m[1]",
+                                            "deflection_amplitude_m[2]",
+                                            "deflection_amplitude_m[3]",
+                                            "deflection_phase_deg[0]",
+                                            "deflection_phase_deg[1]",
+                                            "deflection_phase_deg[2]",
+                                            "deflection_phase_deg[3]",
+                                            "force_amplitude_n[0]",
+                                            "force_amplitude_n[1]",
+                                            "force_amplitude_n[2]",
+                                            "force_amplitude_n[3]",
+                                            "force_phase_deg[0]",
+                                            "force_phase_deg[1]",
+                                            "force_phase_deg[2]",
+                                            "force_phase_deg[3]"};
+
+static void ls_hrec_of(const afmtwin_harmonics_t *m, ls_hrec *r) {
+    memset(r, 0, sizeof *r);
+    r->seq_applied = m->seq_applied;
+    r->n = m->n;
+    const double head[] = {m->t_s,
+                           m->fe_hz,
+                           m->lockin_amplitude_m,
+                           m->lockin_phase_deg,
+                           m->peak_force_n,
+                           m->min_deflection_m,
+                           m->indentation_m,
+                           m->contact_time_s,
+                           m->pre_contact_velocity_m_s,
+                           m->dissipated_energy_j,
+                           m->mean_deflection_m,
+                           m->squeeze_dissipated_energy_j,
+                           m->separation_m};
+    memcpy(r->v, head, sizeof head);
+    for (int i = 0; i < m->n && i < LS_HREC_K; i++) {
+        r->v[13 + i] = m->deflection_amplitude_m[i];
+        r->v[13 + LS_HREC_K + i] = m->deflection_phase_deg[i];
+        r->v[13 + 2 * LS_HREC_K + i] = m->force_amplitude_n[i];
+        r->v[13 + 3 * LS_HREC_K + i] = m->force_phase_deg[i];
+    }
+}
 
 typedef struct {
     /* options */
@@ -79,6 +145,8 @@ typedef struct {
     long long n_samples_msgs, n_harm_msgs, n_dones, mismatched, bad_msgs;
     ls_done *dones;
     long long n_cap;
+    ls_hrec *hrecs; /* every harmonics message received (for --check's diagnosis) */
+    long long n_hrecs, hrec_cap;
     /* state of the twin as this client drives it */
     int64_t tick_seq;
     long long samples;      /* run by this client so far */
@@ -174,6 +242,12 @@ static void on_harmonics(const lcm_recv_buf_t *rb, const char *channel, void *us
     }
     afm_lcm_digest_harmonics(&c->dg, &m);
     c->n_harm_msgs++;
+    if (c->hrecs && c->n_hrecs == c->hrec_cap) { /* grown; the diagnosis only: lose it */
+        ls_hrec *g = realloc(c->hrecs, (size_t)(2 * c->hrec_cap) * sizeof *g);
+        if (g) c->hrecs = g;
+        if (g) c->hrec_cap *= 2;
+    }
+    if (c->hrecs && c->n_hrecs < c->hrec_cap) ls_hrec_of(&m, &c->hrecs[c->n_hrecs++]);
     afmtwin_harmonics_t_decode_cleanup(&m);
     log_out(c, rb, channel);
 }
@@ -213,8 +287,12 @@ static void on_done(const lcm_recv_buf_t *rb, const char *channel, void *user) {
     }
     afm_lcm_digest_init(&c->dg);
     if (c->n_dones < c->n_cap)
-        c->dones[c->n_dones] = (ls_done){m.seq, m.samples, m.model_time_s,
-                                         (uint64_t)m.samples_digest, (uint64_t)m.harmonics_digest};
+        c->dones[c->n_dones] = (ls_done){m.seq,
+                                         m.samples,
+                                         m.model_time_s,
+                                         (uint64_t)m.samples_digest,
+                                         (uint64_t)m.harmonics_digest,
+                                         c->n_hrecs};
     c->n_dones++;
     c->last = m;
     c->done_seen = true;
@@ -354,6 +432,36 @@ static int read_log(ls_ctx *c, ls_event **evs, long long *n, bool *has_ticks) {
 
 /* ---- --check: the same sequence through replay ----------------------------------------- */
 
+/* Completion i differs: the first of its harmonics records that differs from replay's (rep,
+ * n_rep of them), field by field; or the counts. */
+static void explain_harmonics(const ls_ctx *c, long long i, const ls_hrec *rep, long long n_rep) {
+    long long h0 = i > 0 ? c->dones[i - 1].h_end : 0, h1 = c->dones[i].h_end;
+    if (h1 > c->n_hrecs || h1 - h0 < 0) return; /* records beyond the kept ones */
+    if (h1 - h0 != n_rep)
+        fprintf(stderr, "afmtwin lockstep:   its harmonics messages: daemon %lld, replay %lld\n",
+                h1 - h0, n_rep);
+    for (long long j = 0; j < n_rep && j < h1 - h0; j++) {
+        const ls_hrec *a = &c->hrecs[h0 + j], *b = &rep[j];
+        bool shown = false;
+        if (a->seq_applied != b->seq_applied || a->n != b->n) {
+            fprintf(stderr,
+                    "afmtwin lockstep:   harmonics message %lld of it: seq_applied %lld/%lld, n "
+                    "%d/%d\n",
+                    j, (long long)a->seq_applied, (long long)b->seq_applied, a->n, b->n);
+            shown = true;
+        }
+        for (size_t f = 0; f < sizeof a->v / sizeof a->v[0]; f++) {
+            if (memcmp(&a->v[f], &b->v[f], sizeof a->v[f]) == 0) continue;
+            fprintf(stderr,
+                    "afmtwin lockstep:   harmonics message %lld of it (t_s %.9f): %s daemon "
+                    "%.17g, replay %.17g\n",
+                    j, a->v[0], ls_hrec_names[f], a->v[f], b->v[f]);
+            shown = true;
+        }
+        if (shown) return; /* the first that differs */
+    }
+}
+
 static int check_with_replay(ls_ctx *c, const char *seq_path) {
     char out[] = "/tmp/afmtwin-lockstep-replay.XXXXXX";
     int fd = mkstemp(out);
@@ -361,9 +469,21 @@ static int check_with_replay(ls_ctx *c, const char *seq_path) {
     close(fd);
     char k[32];
     snprintf(k, sizeof k, "%d", c->harmonics_every > 0 ? c->harmonics_every : 1);
-    char *argv[] = {"replay",     "--config",  (char *)c->config,   "--in",     (char *)seq_path,
-                    "--out",      out,         "--lockstep",        "--prefix", (char *)c->prefix,
-                    "--channels", "tick_done", "--harmonics-every", k,          "--quiet",
+    char *argv[] = {"replay",
+                    "--config",
+                    (char *)c->config,
+                    "--in",
+                    (char *)seq_path,
+                    "--out",
+                    out,
+                    "--lockstep",
+                    "--prefix",
+                    (char *)c->prefix,
+                    "--channels",
+                    "tick_done,harmonics",
+                    "--harmonics-every",
+                    k,
+                    "--quiet",
                     NULL};
     int rc = afm_cmd_replay((int)(sizeof argv / sizeof argv[0]) - 1, argv);
     if (rc != 0) {
@@ -372,18 +492,24 @@ static int check_with_replay(ls_ctx *c, const char *seq_path) {
         return -1;
     }
     lcm_eventlog_t *l = lcm_eventlog_create(out, "r");
-    long long i = 0, diff = 0;
+    long long i = 0, diff = 0, n_rep = 0, rep_cap = 4096;
+    ls_hrec *rep = malloc((size_t)rep_cap * sizeof *rep); /* replay's, since the last completion */
     lcm_eventlog_event_t *ev;
     while (l && (ev = lcm_eventlog_read_next_event(l)) != NULL) {
         afmtwin_tick_done_t m;
-        if (!strcmp(ev->channel, c->ch.out[AFMT_OUT_TICK_DONE]) &&
-            afmtwin_tick_done_t_decode(ev->data, 0, ev->datalen, &m) >= 0) {
+        afmtwin_harmonics_t h;
+        if (!strcmp(ev->channel, c->ch.out[AFMT_OUT_HARMONICS]) &&
+            afmtwin_harmonics_t_decode(ev->data, 0, ev->datalen, &h) >= 0) {
+            if (rep && n_rep < rep_cap) ls_hrec_of(&h, &rep[n_rep++]);
+            afmtwin_harmonics_t_decode_cleanup(&h);
+        } else if (!strcmp(ev->channel, c->ch.out[AFMT_OUT_TICK_DONE]) &&
+                   afmtwin_tick_done_t_decode(ev->data, 0, ev->datalen, &m) >= 0) {
             if (i < c->n_dones && i < c->n_cap) {
                 const ls_done *d = &c->dones[i];
                 bool same = d->seq == m.seq && d->samples == m.samples &&
                             d->t_s == m.model_time_s && d->sd == (uint64_t)m.samples_digest &&
                             (c->harmonics_every <= 0 || d->hd == (uint64_t)m.harmonics_digest);
-                if (!same && diff++ < 5)
+                if (!same && diff++ < 5) {
                     fprintf(stderr,
                             "afmtwin lockstep: completion %lld differs from replay: seq %lld/%lld "
                             "samples %lld/%lld t %.9f/%.9f digests %016llx/%016llx "
@@ -392,12 +518,17 @@ static int check_with_replay(ls_ctx *c, const char *seq_path) {
                             (long long)m.samples, d->t_s, m.model_time_s, (unsigned long long)d->sd,
                             (unsigned long long)m.samples_digest, (unsigned long long)d->hd,
                             (unsigned long long)m.harmonics_digest);
+                    if (c->harmonics_every > 0 && d->hd != (uint64_t)m.harmonics_digest && rep)
+                        explain_harmonics(c, i, rep, n_rep);
+                }
             }
             i++;
+            n_rep = 0;
             afmtwin_tick_done_t_decode_cleanup(&m);
         }
         lcm_eventlog_free_event(ev);
     }
+    free(rep);
     if (l) lcm_eventlog_destroy(l);
     unlink(out);
     if (i != c->n_dones) {
@@ -556,6 +687,11 @@ int afm_cmd_lockstep(int argc, char **argv) {
     c.n_cap = 1000000;
     c.dones = malloc((size_t)c.n_cap * sizeof *c.dones);
     if (!c.dones) return 1;
+    if (c.check) { /* --check's diagnosis of a differing completion (~250 B a message) */
+        c.hrec_cap = 65536;
+        c.hrecs = malloc((size_t)c.hrec_cap * sizeof *c.hrecs);
+        if (!c.hrecs) c.hrec_cap = 0;
+    }
     rc = open_lcm(&c, err, sizeof err);
     if (rc) {
         fprintf(stderr, "afmtwin lockstep: %s\n", err);
@@ -625,5 +761,6 @@ int afm_cmd_lockstep(int argc, char **argv) {
 out:
     afmt_lcm_close(&c.lcm);
     free(c.dones);
+    free(c.hrecs);
     return rc < 0 ? 1 : rc;
 }
