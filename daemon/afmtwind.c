@@ -328,7 +328,7 @@ static void run_until_stopped(twind *d, const sigset_t *sigs, twind_watch *w) {
 
 /* Everything start-up made, in reverse order (each destroy accepts what was never made). */
 static void release(twind *d) {
-    twind_a0b_stop(d);
+    twind_bw_stop(d);
     twind_a0_stop(d);
     afm_io_destroy(&d->io);
     afm_spsc_destroy(&d->done_q);
@@ -388,7 +388,7 @@ int main(int argc, char **argv) {
         release(&d);
         return 1;
     }
-    if (twind_a0_start(&d, &cfg, a0_scheme(&d, &cfg), &a0) || twind_a0b_start(&d)) {
+    if (twind_a0_start(&d, &cfg, a0_scheme(&d, &cfg), &a0) || twind_bw_start(&d)) {
         fprintf(stderr, "afmtwind: cannot start the A0 threads\n");
         release(&d);
         return 1;

@@ -1,10 +1,12 @@
 /* SPDX-License-Identifier: MIT */
 /* cmd_in.c -- the receive thread: commands from the transport are checked against the
- * daemon's copy of the config, models for damping/geometry changes and SIGHUP reloads are
- * built here (off the real-time thread), and everything goes to the RT thread in order
- * through cmd_q; each change of the config or of tone 0 of the drive asks for A0 anew
- * (a0_track.c). Also destroys what the RT thread swapped out, and counts every message
- * once (twind.h, "Accounting"). */
+ * daemon's copy of the config; the models that damping/geometry changes, SIGHUP reloads and
+ * dithers under the internal AM Z loop bring are built on the build worker
+ * (build_worker.c: off the real-time threads and off this one, the commands behind waiting
+ * in order in the hold ring); everything goes to the RT thread in order through cmd_q; each
+ * change of the config or of tone 0 of the drive asks for A0 anew (a0_track.c). Also
+ * destroys what the RT thread swapped out, and counts every message once (twind.h,
+ * "Accounting"). */
 #include "twind.h"
 
 #include <stdio.h>
@@ -172,15 +174,6 @@ static void drive_from_config(twind *d, const afm_cfg_drive *dr) {
     d->drive_gen++;
 }
 
-/* A model off the real-time threads, at normal priority (twind_rt_setup_build). */
-static afm_runner_model *build(twind *d, const afm_config *cfg, bool new_chain,
-                               const afm_cmd_dither *drive, char *err, size_t errlen) {
-    twind_rt_setup_build(d->opt.rt_priority - 10, true);
-    afm_runner_model *m = afm_runner_model_build_at(cfg, new_chain, drive, err, errlen);
-    twind_rt_setup_build(d->opt.rt_priority - 10, false);
-    return m;
-}
-
 /* A dither applied: the receive thread's copy of the drive follows, and A0 is asked for
  * anew if tone 0 changed (a0_track.c). */
 static void dither_queued(twind *d, const afm_cmd *c) {
@@ -188,10 +181,25 @@ static void dither_queued(twind *d, const afm_cmd *c) {
     twind_a0_request(d, &d->shadow, &d->drive_now, false);
 }
 
-/* One command, in arrival order (d->cmd_order its order): checked against the shadow, its
- * model built if it needs one, queued for the RT thread; a dither that moves the internal
- * AM loop's A0 goes to the A0 worker (a0_build.c) and waits there, and the commands after
- * it wait in the hold ring (held_resume). */
+/* A param applied: A0 is asked for anew unless only Z moved (A0 is at Z = 1 um whatever the
+ * set-point). */
+static void param_queued(twind *d, afm_param_effect eff) {
+    if (eff != AFM_PARAM_SEPARATION) twind_a0_request(d, &d->shadow, &d->drive_now, true);
+}
+
+/* Hand a command's model to the build worker: the command waits for it, and the commands
+ * after it in the hold ring (held_resume). */
+static void build_submit(twind *d, const afm_cmd *c, twind_build_kind kind, const afm_config *cfg,
+                         const afm_cmd_dither *drive, bool new_chain, afm_param_effect eff) {
+    d->bw.waiting = (twind_held){.cmd = *c, .order = d->cmd_order};
+    d->bw.eff = eff;
+    twind_bw_submit(d, kind, cfg, drive, new_chain);
+}
+
+/* One command, in arrival order (d->cmd_order its order): checked against the shadow and
+ * queued for the RT thread; one that needs a model (a param of damping or geometry, a dither
+ * that moves the internal AM loop's A0) goes to the build worker (build_worker.c) and waits
+ * there, and the commands after it wait in the hold ring (held_resume). */
 static int handle_cmd(twind *d, const afm_cmd *c) {
     char err[AFM_ERR_LEN], why[AFM_IO_REASON_LEN];
     const char *kind = afm_cmd_kind_name(c->kind);
@@ -206,8 +214,8 @@ static int handle_cmd(twind *d, const afm_cmd *c) {
          * amplitude A0 (the loop's reference), computed off the real-time threads and off
          * this one: on the A0 worker, the dither and what follows it waiting meanwhile. */
         if (afm_runner_dither_moves_a0(&d->shadow, &d->drive_now, c)) {
-            d->a0b.waiting = (twind_held){.cmd = *c, .order = d->cmd_order};
-            twind_a0b_submit(d, &d->shadow, &c->u.dither);
+            build_submit(d, c, TWIND_BUILD_A0, &d->shadow, &c->u.dither, false,
+                         AFM_PARAM_SEPARATION /* unused */);
             return 0;
         }
         if (enqueue(d, c, NULL, kind)) return -1;
@@ -226,39 +234,59 @@ static int handle_cmd(twind *d, const afm_cmd *c) {
         reject_cmd(d, c, err);
         return -1;
     }
-    afm_runner_model *m = NULL;
     bool new_chain = false;
     if (afm_runner_cmd_needs_model(&d->shadow, c, &new_chain)) {
-        m = build(d, &next, new_chain, &d->drive_now, err, sizeof err);
-        if (!m) {
-            snprintf(why, sizeof why, "param: cannot build the new model: %.200s", err);
-            reject_cmd(d, c, why);
-            return -1;
-        }
+        build_submit(d, c, TWIND_BUILD_MODEL, &next, &d->drive_now, new_chain, eff);
+        return 0;
     }
-    if (enqueue_model_change(d, c, m, &next, kind)) return -1;
-    if (eff != AFM_PARAM_SEPARATION) /* A0 is at Z = 1 um whatever the set-point */
-        twind_a0_request(d, &d->shadow, &d->drive_now, true);
+    if (enqueue_model_change(d, c, NULL, &next, kind)) return -1;
+    param_queued(d, eff);
     return 0;
 }
 
-/* The A0 build in flight: once done (waiting up to wait_ms), its dither goes to the RT
- * thread with the A0 (or is rejected with the reason), then the held commands in order,
- * until the ring is empty or one of them starts another build. */
-static void held_resume(twind *d, int wait_ms) {
-    twind_a0b *b = &d->a0b;
-    while (b->busy) {
-        afm_runner_model *m = NULL;
-        char err[AFM_ERR_LEN], why[AFM_IO_REASON_LEN];
-        if (!twind_a0b_take(d, wait_ms, &m, err, sizeof err)) return;
-        const afm_cmd *c = &b->waiting.cmd;
-        d->cmd_order = b->waiting.order;
+static void reload_built(twind *d, afm_runner_model *m, const char *err);
+
+/* The build in flight is done: its command goes to the RT thread with the model, or is
+ * rejected with the build's reason. */
+static void build_done(twind *d, afm_runner_model *m, const char *err) {
+    twind_bw *b = &d->bw;
+    const afm_cmd *c = &b->waiting.cmd;
+    const char *kind = afm_cmd_kind_name(c->kind);
+    char why[AFM_IO_REASON_LEN];
+    d->cmd_order = b->waiting.order;
+    switch (b->kind) {
+    case TWIND_BUILD_A0:
         if (!m) {
             snprintf(why, sizeof why, "dither: cannot compute the new A0: %.200s", err);
             reject_cmd(d, c, why);
-        } else if (enqueue(d, c, m, afm_cmd_kind_name(c->kind)) == 0) {
+        } else if (enqueue(d, c, m, kind) == 0) {
             dither_queued(d, c);
         }
+        break;
+    case TWIND_BUILD_MODEL:
+        if (!m) {
+            snprintf(why, sizeof why, "param: cannot build the new model: %.200s", err);
+            reject_cmd(d, c, why);
+        } else if (enqueue_model_change(d, c, m, b->cfg, kind) == 0) {
+            param_queued(d, b->eff);
+        }
+        break;
+    case TWIND_BUILD_RELOAD:
+        reload_built(d, m, err);
+        break;
+    }
+}
+
+/* The build in flight: once done (waiting up to wait_ms), its command goes to the RT thread
+ * (build_done), then the held commands in order, until the ring is empty or one of them
+ * starts another build. */
+static void held_resume(twind *d, int wait_ms) {
+    twind_bw *b = &d->bw;
+    while (b->busy) {
+        afm_runner_model *m = NULL;
+        char err[AFM_ERR_LEN];
+        if (!twind_bw_take(d, wait_ms, &m, err, sizeof err)) return;
+        build_done(d, m, err);
         while (!b->busy && b->held_n > 0) {
             twind_held h = b->held[b->held_head];
             b->held_head = (b->held_head + 1) % TWIND_HELD_LEN;
@@ -272,35 +300,40 @@ static void held_resume(twind *d, int wait_ms) {
 /* At shutdown: the build in flight and the commands behind it are refused (counted: the
  * accounting stays whole). */
 static void held_drop(twind *d) {
-    twind_a0b *b = &d->a0b;
+    twind_bw *b = &d->bw;
     if (!b->busy) return;
     afm_runner_model *m = NULL;
-    char err[AFM_ERR_LEN];
-    while (!twind_a0b_take(d, 100, &m, err, sizeof err)) {
+    char err[AFM_ERR_LEN], why[AFM_IO_REASON_LEN];
+    while (!twind_bw_take(d, 100, &m, err, sizeof err)) {
     }
     afm_runner_model_destroy(&m);
     d->cmd_order = b->waiting.order;
-    refuse_cmd(d, &b->waiting.cmd, "dither: the daemon stopped before its A0 was computed");
+    snprintf(why, sizeof why, "%s: the daemon stopped before its model was built",
+             b->kind == TWIND_BUILD_RELOAD ? "reload" : afm_cmd_kind_name(b->waiting.cmd.kind));
+    if (b->kind == TWIND_BUILD_RELOAD)
+        twind_refuse(d, why);
+    else
+        refuse_cmd(d, &b->waiting.cmd, why);
     for (; b->held_n > 0; b->held_n--) {
         twind_held *h = &b->held[b->held_head];
         b->held_head = (b->held_head + 1) % TWIND_HELD_LEN;
-        refuse_cmd(d, &h->cmd, "the daemon stopped while the command waited for an A0");
+        refuse_cmd(d, &h->cmd, "the daemon stopped while the command waited for a model build");
     }
 }
 
 static int on_cmd(void *ctx, const afm_cmd *c) {
     twind *d = ctx;
-    twind_a0b *b = &d->a0b;
+    twind_bw *b = &d->bw;
     count_received(d);
-    /* Behind an A0 build in flight: in order, in the hold ring; a full ring waits for the
-     * build (as every command did before the worker). */
+    /* Behind a build in flight: in order, in the hold ring; a full ring waits for the build
+     * (as every command did before the worker). */
     while (b->busy && b->held_n == TWIND_HELD_LEN &&
            !atomic_load_explicit(&d->stop, memory_order_acquire))
         held_resume(d, 100);
     if (b->busy) {
         if (b->held_n == TWIND_HELD_LEN) { /* stopping */
             d->cmd_order = d->order;
-            refuse_cmd(d, c, "the daemon stopped while the command waited for an A0");
+            refuse_cmd(d, c, "the daemon stopped while the command waited for a model build");
             return -1;
         }
         b->held[(b->held_head + b->held_n) % TWIND_HELD_LEN] =
@@ -339,8 +372,8 @@ afm_io_sink twind_sink(twind *d) {
         .ctx = d, .on_cmd = on_cmd, .on_reject = on_reject, .limits = limits, .drive = drive};
 }
 
-/* SIGHUP: load and check the file, build the twin off the RT thread, swap at a block
- * boundary. A bad config keeps the running one and says why. */
+/* SIGHUP: load and check the file, build the twin on the build worker (reload_built), swap
+ * at a block boundary. A bad config keeps the running one and says why. */
 static void do_reload(twind *d) {
     static afm_config next; /* receive thread only; large for a stack frame */
     char err[AFM_ERR_LEN], why[AFM_IO_REASON_LEN];
@@ -351,24 +384,28 @@ static void do_reload(twind *d) {
         twind_reject(d, why);
         return;
     }
-    afm_runner_model *m = build(d, &next, true, NULL, err, sizeof err); /* the file's drive */
-    if (m && afm_cmd_check_cfg_drive(afm_runner_model_modal(m), &next.drive, err, sizeof err))
-        afm_runner_model_destroy(&m);
-    if (!m) {
-        snprintf(why, sizeof why, "reload: %.60s: %.150s; keeping the running config",
-                 d->opt.config_path, err);
-        twind_reject(d, why);
-        return;
-    }
     if (!model_changes_settled(d, MODEL_WAIT_MS)) {
-        afm_runner_model_destroy(&m);
         twind_refuse(d, "reload: the twin is still applying the previous model change; "
                         "send SIGHUP again");
         return;
     }
     afm_cmd c = {.kind = AFM_CMD_RELOAD, .seq = -1}; /* a reload keeps seq_applied */
-    if (enqueue_model_change(d, &c, m, &next, "reload")) return;
-    drive_from_config(d, &next.drive);
+    build_submit(d, &c, TWIND_BUILD_RELOAD, &next, NULL, true,
+                 AFM_PARAM_SEPARATION /* unused */); /* its drive */
+}
+
+/* The reloaded config's model (or NULL, err why not): to the RT thread. */
+static void reload_built(twind *d, afm_runner_model *m, const char *err) {
+    char why[AFM_IO_REASON_LEN];
+    if (!m) {
+        snprintf(why, sizeof why, "reload: %.60s: %.150s; keeping the running config",
+                 d->opt.config_path, err);
+        twind_reject_order(d, why, d->cmd_order);
+        return;
+    }
+    const afm_config *next = d->bw.cfg;
+    if (enqueue_model_change(d, &d->bw.waiting.cmd, m, next, "reload")) return;
+    drive_from_config(d, &next->drive);
     twind_a0_request(d, &d->shadow, &d->drive_now, true);
     if (!d->opt.quiet) fprintf(stderr, "afmtwind: reloaded %s\n", d->opt.config_path);
 }
@@ -420,8 +457,8 @@ void *twind_recv_main(void *arg) {
             else
                 clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &next, NULL);
         }
-        /* an A0 build in flight: look for its end every millisecond at least */
-        int idle_ms = d->a0b.busy ? 1 : IDLE_POLL_MS;
+        /* a build in flight: look for its end every millisecond at least */
+        int idle_ms = d->bw.busy ? 1 : IDLE_POLL_MS;
         if (d->io->ops->poll(d->io, stream ? 0 : idle_ms) < 0) {
             struct timespec ts = {0, 50000000L}; /* transport trouble: do not spin */
             nanosleep(&ts, NULL);
@@ -430,8 +467,8 @@ void *twind_recv_main(void *arg) {
         stream = batch_ns > 0 && d->order != order0;
         order0 = d->order;
         held_resume(d, 0);
-        /* a reload waits for the build in flight: the dither's A0 is of the config before */
-        if (!d->a0b.busy && atomic_exchange(&d->reload, 0)) do_reload(d);
+        /* a reload waits for the build in flight (whose model is of the config before) */
+        if (!d->bw.busy && atomic_exchange(&d->reload, 0)) do_reload(d);
         drain_side_queues(d);
     }
     held_drop(d);

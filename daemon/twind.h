@@ -6,9 +6,12 @@
  *  - main (afmtwind.c): arguments, start-up and shutdown in order, signals (sigtimedwait),
  *    the status line on stderr once a second, sd_notify.
  *  - receive (cmd_in.c): transport poll; decoded commands checked against the daemon's copy
- *    of the config (shadow), models built for damping/geometry changes and SIGHUP reloads,
- *    all pushed into cmd_q (its only producer); destroys what the RT thread swapped out
- *    (trash_q) and counts the RT thread's rare rejections (rtrej_q).
+ *    of the config (shadow), all pushed into cmd_q (its only producer) in arrival order;
+ *    destroys what the RT thread swapped out (trash_q) and counts the RT thread's rare
+ *    rejections (rtrej_q).
+ *  - build (build_worker.c): the models that damping/geometry changes, SIGHUP reloads and
+ *    dithers under the internal AM Z loop bring, one at a time at SCHED_FIFO 1; the command
+ *    and those after it wait in the receive thread's hold ring meanwhile.
  *  - rt (rt_loop.c): the runner's integrator stage. Pops cmd_q at block boundaries,
  *    integrates a block into the runner's ring (afm_runner, pipelined), paces realtime
  *    mode, updates the snapshot (seqlock). Never blocks, locks or allocates.
@@ -177,30 +180,40 @@ typedef struct {
     double lag_deg;
 } twind_a0;
 
-/* a0_build.c's state: one job at a time (the receive thread submits and takes, the worker
- * computes; under mu), and the receive thread's hold ring of the commands that came after
- * the dither in flight (the receive thread's alone). */
-#define TWIND_HELD_LEN 4096 /* commands held behind an A0 build (0.4 s of a 10 kHz stream) */
+/* build_worker.c's state: one job at a time (the receive thread submits and takes, the
+ * worker builds; under mu), and the receive thread's hold ring of the commands that came
+ * after the one whose model is being built (the receive thread's alone). */
+#define TWIND_HELD_LEN 4096 /* commands held behind a build (0.4 s of a 10 kHz stream) */
 typedef struct {
     afm_cmd cmd;
     int64_t order; /* its twind_cmd_item.order: when it arrived */
 } twind_held;
+typedef enum {
+    TWIND_BUILD_A0,     /* a dither's A0 under the internal AM Z loop (afm_runner_model_a0) */
+    TWIND_BUILD_MODEL,  /* a damping / geometry param's model, at the drive in force */
+    TWIND_BUILD_RELOAD, /* a SIGHUP's config file, its own drive */
+} twind_build_kind;
 typedef struct {
     pthread_t th;
     pthread_mutex_t mu;
     pthread_cond_t cv;
     bool started, stop;
-    bool busy;             /* receive thread: a job submitted and not taken */
-    bool queued, done;     /* under mu: waiting for the worker; its result ready */
-    afm_config *cfg;       /* the job: the config the dither applies to ... */
-    afm_cmd_dither dither; /* ... and the dither */
+    bool busy;         /* receive thread: a job submitted and not taken */
+    bool queued, done; /* under mu: waiting for the worker; its result ready */
+    /* the job: */
+    twind_build_kind kind;
+    afm_config *cfg;      /* the config to build (after the command) */
+    afm_cmd_dither drive; /* the drive (A0: the dither; MODEL: the drive in force) */
+    bool has_drive;       /* false: the config's (RELOAD) */
+    bool new_chain;       /* MODEL: a new output chain (afm_runner_cmd_needs_model) */
     afm_runner_model *model;
     char err[AFM_ERR_LEN];
-    /* receive thread only: the dither in flight and the commands behind it */
+    /* receive thread only: the command in flight (with its param effect) and those behind */
     twind_held waiting;
+    afm_param_effect eff;
     twind_held *held;
     int held_head, held_n;
-} twind_a0b;
+} twind_bw;
 
 typedef struct {
     twind_opts opt;
@@ -240,7 +253,7 @@ typedef struct {
     atomic_int mc_last_ok;          /* rt: 1 if the last one was applied */
     twind_scheme_state scheme;      /* main thread, then the rt thread only */
     twind_a0 a0;                    /* a0_track.c */
-    twind_a0b a0b;                  /* a0_build.c */
+    twind_bw bw;                    /* build_worker.c */
     int64_t cmd_order;              /* receive thread: order of the command being handled */
     /* RT scheduling result, for the start-up report */
     char rt_warn[512];
@@ -261,13 +274,13 @@ void twind_rt_setup_thread(int priority, int cpu, char *warn, size_t len);
  * outputs and commands are not starved by ordinary processes, and pinned to cpu (>= 0);
  * silent (the RT thread warns). */
 void twind_rt_setup_aux(int priority, int cpu);
-/* Around a model build on the receive thread (FEM, reduction, filter design: ~20 ms for a
- * geometry change): the lowest real-time priority while building (building true), so that it
- * takes only the time the integrator and chain threads leave but no ordinary process delays
- * it; back to SCHED_FIFO priority after. */
+/* For model builds (FEM, reduction, filter design: ~20 ms for a geometry change; the build
+ * worker, build_worker.c, for good): the lowest real-time priority while building (building
+ * true), so that it takes only the time the integrator and chain threads leave but no
+ * ordinary process delays it; back to SCHED_FIFO priority after. */
 void twind_rt_setup_build(int priority, bool building);
 /* The calling thread's name (top -H, ps -L, /proc/PID/task/TID/comm): afm-rt, afm-chain,
- * afm-recv, afm-pub, afm-a0; LCM's receive thread keeps the process's name. */
+ * afm-recv, afm-pub, afm-a0, afm-build; LCM's receive thread keeps the process's name. */
 void twind_thread_name(const char *name);
 
 /* scheme.c: resolve d->opt.scheme for cfg (measuring both schemes for auto, main thread,
@@ -321,16 +334,18 @@ double twind_a0_now(twind *d);
 void twind_a0_scheme(twind *d, bool accurate);
 void twind_a0_stop(twind *d);
 
-/* a0_build.c: the A0 builds of dithers under am.control internal on a worker thread.
- * twind_a0b_start (main, before the threads; allocates the job and the hold ring): -1 if it
- * cannot start. twind_a0b_submit (receive thread, no job in flight): build the A0 model of
- * dither applied to cfg. twind_a0b_take (receive thread): true once the job is done (waiting
- * up to wait_ms), with *m the model or NULL and err the reason. twind_a0b_stop (main, after
- * the threads). */
-int twind_a0b_start(twind *d);
-void twind_a0b_submit(twind *d, const afm_config *cfg, const afm_cmd_dither *dither);
-bool twind_a0b_take(twind *d, int wait_ms, afm_runner_model **m, char *err, size_t errlen);
-void twind_a0b_stop(twind *d);
+/* build_worker.c: the models commands bring (A0 under the internal AM Z loop, damping and
+ * geometry params, SIGHUP reloads), built on a worker thread. twind_bw_start (main, before
+ * the threads; allocates the job and the hold ring): -1 if it cannot start. twind_bw_submit
+ * (receive thread, no job in flight): build a model of kind from cfg at drive (NULL: the
+ * config's), with a new output chain if new_chain (MODEL). twind_bw_take (receive thread):
+ * true once the job is done (waiting up to wait_ms), with *m the model or NULL and err the
+ * reason. twind_bw_stop (main, after the threads). */
+int twind_bw_start(twind *d);
+void twind_bw_submit(twind *d, twind_build_kind kind, const afm_config *cfg,
+                     const afm_cmd_dither *drive, bool new_chain);
+bool twind_bw_take(twind *d, int wait_ms, afm_runner_model **m, char *err, size_t errlen);
+void twind_bw_stop(twind *d);
 
 /* notify.c: sd_notify wrappers (no-ops outside systemd). */
 void twind_notify_ready(void);
