@@ -1672,6 +1672,18 @@ static int load_trace(const plot_opts *o, plot_data *d, FILE *gp) {
     "t[ms] frequency_shift[Hz] drive_amplitude[pm] amplitude[nm] phase[deg] lock_state[-1..2] "    \
     "Z[nm] msg_seq[index]"
 
+/* A log with no LCM event in it (text, JSON, an empty file): "FILE: not an LCM log (...)"
+ * with what the reader saw: the bytes it skipped looking for an event's sync word, or the
+ * first event's fault. -1. */
+static int not_lcm_log(const char *path, long long skipped, const char *fault) {
+    if (fault)
+        fprintf(stderr, "afmtwin plot: %s: not an LCM log (%s)\n", path, fault);
+    else
+        fprintf(stderr, "afmtwin plot: %s: not an LCM log (no LCM event in its %lld bytes)\n", path,
+                skipped);
+    return -1;
+}
+
 static int load_fm(const plot_opts *o, plot_data *d, FILE *gp) {
     char err[256];
     afm_lcm_log *lg = afm_lcm_log_open(o->in[0], 0, err, sizeof err);
@@ -1685,8 +1697,10 @@ static int load_fm(const plot_opts *o, plot_data *d, FILE *gp) {
     const double b = isnan(o->t_to_s) ? HUGE_VAL : o->t_to_s;
     afm_lcm_log_event ev;
     int rr, records = 0, internal = -1, n_acq = 0, n_lost = 0;
+    long events = 0; /* of any channel: none, and the file is no LCM log */
     double f_first = NAN, ph_set = NAN;
     while ((rr = afm_lcm_log_next(lg, &ev, err, sizeof err)) > 0) {
+        events++;
         size_t cl = strlen(ev.channel);
         if (cl < 9 || strcmp(ev.channel + cl - 9, "HARMONICS")) continue;
         afmtwin_harmonics_t m;
@@ -1718,7 +1732,9 @@ static int load_fm(const plot_opts *o, plot_data *d, FILE *gp) {
         }
         afm_wire_free(&afm_wire_harmonics_t, &m);
     }
+    long long skipped = afm_lcm_log_skipped(lg);
     afm_lcm_log_close(&lg);
+    if (events == 0) return not_lcm_log(o->in[0], skipped, rr < 0 ? err : NULL);
     if (rr < 0)
         fprintf(stderr, "afmtwin plot: %s: %s (the records before it are drawn)\n", o->in[0], err);
     if (s->n == 0) {
