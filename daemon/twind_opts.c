@@ -9,7 +9,6 @@
 
 #include <stdio.h>
 #include <stdlib.h>
-#include <string.h>
 
 #ifndef AFMTWIN_VERSION
 #define AFMTWIN_VERSION "unknown"
@@ -83,33 +82,18 @@ static void usage(FILE *f) {
             "  --version              the version\n");
 }
 
-static int parse_mode(const char *v, void *dest) {
-    twind_mode *m = dest;
-    if (!strcmp(v, "realtime"))
-        *m = TWIND_REALTIME;
-    else if (!strcmp(v, "freerun"))
-        *m = TWIND_FREERUN;
-    else if (!strcmp(v, "lockstep"))
-        *m = TWIND_LOCKSTEP;
-    else
-        return -1;
-    return 0;
-}
-
-static int parse_scheme(const char *v, void *dest) {
-    twind_scheme *sc = dest;
-    if (!strcmp(v, "auto"))
-        *sc = TWIND_SCHEME_AUTO;
-    else if (!strcmp(v, "adaptive"))
-        *sc = TWIND_SCHEME_ADAPTIVE;
-    else if (!strcmp(v, "accurate"))
-        *sc = TWIND_SCHEME_ACCURATE;
-    else if (!strcmp(v, "fast"))
-        *sc = TWIND_SCHEME_FAST;
-    else
-        return -1;
-    return 0;
-}
+/* --mode and --scheme: the words into the enums (AFMT_CHOICE stores an int). */
+_Static_assert(sizeof(twind_mode) == sizeof(int), "--mode is stored as an int");
+_Static_assert(sizeof(twind_scheme) == sizeof(int), "--scheme is stored as an int");
+static const afmt_choice mode_choices[] = {{"realtime", TWIND_REALTIME},
+                                           {"freerun", TWIND_FREERUN},
+                                           {"lockstep", TWIND_LOCKSTEP},
+                                           {NULL, 0}};
+static const afmt_choice scheme_choices[] = {{"auto", TWIND_SCHEME_AUTO},
+                                             {"adaptive", TWIND_SCHEME_ADAPTIVE},
+                                             {"accurate", TWIND_SCHEME_ACCURATE},
+                                             {"fast", TWIND_SCHEME_FAST},
+                                             {NULL, 0}};
 
 int twind_parse_args(int argc, char **argv, twind_opts *o) {
     *o = (twind_opts){.prefix = "AFMTWIN_",
@@ -134,8 +118,8 @@ int twind_parse_args(int argc, char **argv, twind_opts *o) {
         AFMT_STRING("--lcm-out-url", &o->lcm_out_url),
         AFMT_STRING("--lcm-samples-url", &o->lcm_samples_url),
         AFMT_STRING("--prefix", &o->prefix),
-        AFMT_FN("--mode", parse_mode, &o->mode, "realtime, freerun or lockstep"),
-        AFMT_FN("--scheme", parse_scheme, &o->scheme, "auto, adaptive, accurate or fast"),
+        AFMT_CHOICE("--mode", &o->mode, mode_choices),
+        AFMT_CHOICE("--scheme", &o->scheme, scheme_choices),
         AFMT_INT("--cpu", &o->cpu, 0, 1023, NULL),
         AFMT_INT("--chain-cpu", &o->chain_cpu, 0, 1023, NULL),
         AFMT_INT("--aux-cpu", &o->aux_cpu, 0, 1023, NULL),

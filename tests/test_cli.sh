@@ -92,12 +92,30 @@ if [ -x "$D" ]; then
   dopt_bad "--speed 0" "afmtwind: --speed wants a number in 0.001..1000, got '0'" --config config/default.conf --speed 0
   dopt_bad "--speed not a number" "afmtwind: --speed wants a number, got 'x'" --config config/default.conf --speed x
   dopt_bad "--cpu 1.5" "afmtwind: --cpu wants an integer in 0..1023, got '1.5'" --config config/default.conf --cpu 1.5
-  dopt_bad "--mode bogus" "afmtwind: --mode wants realtime, freerun or lockstep, got 'bogus'" --config config/default.conf --mode bogus
+  dopt_bad "--mode bogus" "afmtwind: --mode wants one of realtime, freerun, lockstep, got 'bogus'" --config config/default.conf --mode bogus
   dopt_bad "unknown option" "afmtwind: unknown or incomplete option '--frob' (see --help)" --frob 1
   dopt_bad "missing value" "afmtwind: unknown or incomplete option '--exit-after'" --config config/default.conf --exit-after
   dopt_bad "no --config" "afmtwind: --config FILE is required" --quiet
   expect_rc 0 "afmtwind --help" "$D" --help
+  # a choice: each word of its list taken (the line parsed to --help, exit 0)
+  expect_rc 0 "afmtwind --mode lockstep --scheme adaptive taken" "$D" --config config/default.conf \
+    --mode lockstep --scheme adaptive --help
 fi
+# a choice (AFMT_CHOICE, cli/afm_opts.h): a word of its list is stored (the run names what it
+# ran), any other word -- a prefix, another case -- is refused naming the option, the words and
+# the value given, exit 2
+opt_bad "sweep --integrator bogus" "afmtwin sweep: --integrator wants one of rt, reference, arkode-erk, got 'bogus'" \
+  sweep --config $C --from 3e5 --to 3e5 --integrator bogus
+opt_bad "sweep --scheme Fast (no case folding)" "afmtwin sweep: --scheme wants one of accurate, fast, got 'Fast'" \
+  sweep --config $C --from 3e5 --to 3e5 --scheme Fast
+opt_bad "map --direction u (no prefixes)" "afmtwin map: --direction wants one of up, down, both, got 'u'" \
+  map --direction u
+for sch in fast accurate; do
+  out=$("$A" sweep --config $C --from 3e5 --to 3e5 --integrator rt --scheme $sch 2>&1); rc=$?
+  [ $rc -eq 0 ] && echo "$out" | grep -q "integrator rt (scheme $sch)" &&
+    ok "sweep --integrator rt --scheme $sch taken: exit 0, the run names it" ||
+    bad "sweep --integrator rt --scheme $sch: exit $rc, $(echo "$out" | head -2)"
+done
 
 # SI suffixes on lengths and frequencies (tools/opts.c, afmt_parse_si): the same message as
 # the plain SI number (send --log writes it byte for byte), the value echoed in SI on stderr

@@ -108,7 +108,7 @@ refuse "--from2 without --param2" "needs --from2 and --to2" --config $C --param 
 refuse "--param2 = --param" "must differ from --param" --config $C --param fe --from 80000 --to 81000 --param2 fe --from2 1 --to2 2
 refuse "an unknown --param2" "unknown parameter" --config $C --param fe --from 80000 --to 81000 --param2 bogus --from2 1 --to2 2
 refuse "--param2's config value outside its range" "outside \[--from2, --to2\]" --config $C --param fe --from 80000 --to 81000 --param2 z --from2 1e-9 --to2 2e-9
-refuse "--curve-kinds bogus" "must be lpc, pd or all" --config $C --param fe --from 80000 --to 81000 --param2 z --from2 29e-9 --to2 31e-9 --curve-kinds bogus
+refuse "--curve-kinds bogus" "--curve-kinds wants one of lpc, pd, all, got 'bogus'" --config $C --param fe --from 80000 --to 81000 --param2 z --from2 29e-9 --to2 31e-9 --curve-kinds bogus
 refuse "--curve-kinds without --param2" "is for --param2" --config $C --param fe --from 80000 --to 81000 --curve-kinds lpc
 refuse "--curves 0" "--curves wants an integer in 1..32" --config $C --param fe --from 80000 --to 81000 --param2 z --from2 29e-9 --to2 31e-9 --curves 0
 refuse "--beyond out of 0..1" "--beyond wants" --config $C --param fe --from 80000 --to 81000 --beyond 2

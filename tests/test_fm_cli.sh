@@ -67,7 +67,7 @@ else bad "--fm-drive self: $(cat "$T/self.err") $(head -c 600 "$T/self.json")"; 
 "$A" approach --config "$T/fm.conf" --mode fm --fm-drive nco --from 4e-9 --to 4e-9 \
   > /dev/null 2> "$T/e4"
 rc=$?
-[ $rc -eq 2 ] && grep -q "pll or self" "$T/e4" && ok "an unknown --fm-drive: exit 2, said" \
+[ $rc -eq 2 ] && grep -q -- "--fm-drive wants one of pll, self, got 'nco'" "$T/e4" && ok "an unknown --fm-drive: exit 2, said" \
   || bad "an unknown --fm-drive: exit $rc, $(cat "$T/e4")"
 sed 's/amplitude_bandwidth_hz = 100.0;/amplitude_bandwidth_hz = 100.0; drive = "selfish";/' \
   "$T/fm.conf" > "$T/bad2.conf"
@@ -83,7 +83,7 @@ else bad "fm text table: $(cat "$T/fm.txt")"; fi
 
 "$A" approach --config "$T/fm.conf" --mode pm --from 4e-9 --to 4e-9 > /dev/null 2> "$T/e1"
 rc=$?
-[ $rc -eq 2 ] && grep -q "am or fm" "$T/e1" && ok "an unknown --mode: exit 2, said" \
+[ $rc -eq 2 ] && grep -q -- "--mode wants one of am, fm, got 'pm'" "$T/e1" && ok "an unknown --mode: exit 2, said" \
   || bad "an unknown --mode: exit $rc, $(cat "$T/e1")"
 "$A" approach --config "$T/fm.conf" --mode fm --rate 1e-6 --from 5e-9 --to 4e-9 --step 1e-9 \
   > /dev/null 2> "$T/e2"

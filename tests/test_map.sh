@@ -122,7 +122,7 @@ badarg "N 0" "integer in 1" --config $CONF --x fe 80kHz 88kHz 0 --y z 20nm 30nm 
 badarg "a length for fe" "wants" --config $CONF --x fe 80nm 88nm 3 --y z 20nm 30nm 2 "${O[@]}"
 badarg "--x with too few words" "wants NAME FROM TO N" --config $CONF --y z 20nm 30nm 2 "${O[@]}" --x fe 80kHz
 badarg "no --out" "required" --config $CONF --x fe 80kHz 88kHz 5 --y z 20nm 30nm 2
-badarg "--direction sideways" "up, down or both" --config $CONF --x fe 80kHz 88kHz 5 --y z 20nm 30nm 2 --direction sideways "${O[@]}"
+badarg "--direction sideways" "--direction wants one of up, down, both, got 'sideways'" --config $CONF --x fe 80kHz 88kHz 5 --y z 20nm 30nm 2 --direction sideways "${O[@]}"
 badarg "Z above 1 mm" "values must be in" --config $CONF --x fe 80kHz 88kHz 5 --y z 20nm 2mm 2 "${O[@]}"
 badarg "fe above half the sample rate" "half the sample rate" --config $CONF --x fe 80kHz 5MHz 5 --y z 20nm 30nm 2 "${O[@]}"
 badarg "a geometry parameter on --x" "put it on --y" --config $CONF --x model.beam.length_m 1e-4 2e-4 2 --y fe 80kHz 88kHz 3 "${O[@]}"

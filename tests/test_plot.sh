@@ -1,15 +1,16 @@
 #!/usr/bin/env bash
 # test_plot.sh BUILD -- every `afmtwin plot` kind drawn from the example runs of
 # tools/doc-plots.sh (the runs behind docs/img/): gnuplot succeeded, each output is a PNG of
-# the requested size (signature and IHDR), its columns file has data, and bad input is
-# refused with exit 2. Then what makes a picture fit for a paper (issue 30), read off the
-# gnuplot script each plot keeps (--script): no legend on the data, scan images at one
-# scale in x and y ending at the pixels' edges with few x tics and colour bars with units,
-# titles that name the config and the drive and not the input file, a CSV of each curve
-# with units in its header; and on small hand-written inputs: the approach's force peaks
-# clipped (repulsive >= 0, attractive <= 0) and its unsettled steps marked, its jump arrow
-# from z_before to z_after (none for a crossover), E_sq beside E_ts, a continuation's branches cut at each change of stability
-# (solid stable, dashed unstable). Needs no network. Prints "N passed, N failed".
+# the requested size (signature and IHDR), its columns file has data, and bad input is refused
+# with exit 2 (a file that is no LCM log given to `plot fm` named so). Then what makes a
+# picture fit for a paper (issue 30), read off the gnuplot script each plot keeps (--script):
+# no legend on the data, scan images at one scale in x and y ending at the pixels' edges with
+# few x tics and colour bars with units, titles that name the config and the drive and not the
+# input file, a CSV of each curve with units in its header; and on small hand-written inputs:
+# the approach's force peaks clipped (repulsive >= 0, attractive <= 0) and its unsettled steps
+# marked, its jump arrow from z_before to z_after (none for a crossover), E_sq beside E_ts, a
+# continuation's branches cut at each change of stability (solid stable, dashed unstable).
+# Needs no network. Prints "N passed, N failed".
 BUILD=${1:-build}
 . "$(dirname "$0")/lib_check.sh"
 check_init plot "$BUILD"
@@ -48,6 +49,13 @@ done
 [ $rc -eq 2 ] && grep -q "unknown kind" "$T/e3.txt" && ok "an unknown kind: exit 2" || bad "unknown kind: exit $rc"
 "$A" plot sweep "$T/approach.json" -o "$T/x.png" 2>"$T/e4.txt"; rc=$?
 [ $rc -eq 2 ] && grep -q "without fe_hz" "$T/e4.txt" && ok "approach JSON as a sweep: exit 2" || bad "approach JSON as a sweep: exit $rc, $(cat "$T/e4.txt")"
+"$A" plot fm "$T/approach.json" -o "$T/x.png" 2>"$T/e7.txt"; rc=$?
+[ $rc -eq 2 ] && grep -q "approach.json: not an LCM log (no LCM event in its [0-9]* bytes)" "$T/e7.txt" \
+  && ok "JSON given to plot fm: exit 2, 'not an LCM log'" || bad "JSON given to plot fm: exit $rc, $(cat "$T/e7.txt")"
+: > "$T/empty.log"
+"$A" plot fm "$T/empty.log" -o "$T/x.png" 2>"$T/e8.txt"; rc=$?
+[ $rc -eq 2 ] && grep -q "empty.log: not an LCM log (no LCM event in its 0 bytes)" "$T/e8.txt" \
+  && ok "an empty file given to plot fm: exit 2, 'not an LCM log'" || bad "an empty file given to plot fm: exit $rc, $(cat "$T/e8.txt")"
 "$A" plot continue "$T/continue.json" 2>"$T/e6.txt"; rc=$?
 [ $rc -eq 2 ] && grep -q "\-o FILE.png is required" "$T/e6.txt" && ok "no -o: exit 2, '-o FILE.png is required'" \
   || bad "no -o: exit $rc, $(cat "$T/e6.txt")"

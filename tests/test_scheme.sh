@@ -29,7 +29,7 @@ trap cleanup EXIT
 jkey() { tail -n 1 "$2" | grep -o "\"$1\":[^,}]*" | tail -n 1 | sed 's/^[^:]*://; s/"//g'; }
 
 "$D" --config config/default.conf --scheme bogus > "$T/o" 2>&1; rc=$?
-[ $rc -eq 2 ] && grep -q "afmtwind: --scheme wants auto, adaptive, accurate or fast, got 'bogus'" "$T/o" \
+[ $rc -eq 2 ] && grep -q "afmtwind: --scheme wants one of auto, adaptive, accurate, fast, got 'bogus'" "$T/o" \
   && ok "--scheme bogus: exit 2 with the choices" || bad "--scheme bogus: exit $rc: $(cat "$T/o")"
 "$D" --help | grep -q -- "--scheme S" && ok "--help describes --scheme" || bad "--help: no --scheme"
 

@@ -52,10 +52,9 @@ typedef struct {
     int max_periods, analyse, k_max, integrator, scheme;
     double tol;
     double rate_m_s;  /* > 0: Z ramped continuously at this speed instead of stepped */
-    const char *mode; /* "am" (default) or "fm" */
-    bool fm;
-    double fm_tol_hz;     /* fm: settled when the mean frequency moves less than this per window */
-    const char *fm_drive; /* fm: "pll" or "self" (NULL: the config's fm.drive) */
+    int fm;           /* --mode: 0 am (default), 1 fm */
+    double fm_tol_hz; /* fm: settled when the mean frequency moves less than this per window */
+    int fm_drive;     /* fm: AFM_FM_DRIVE_PLL or _SELF (-1: the config's fm.drive) */
 } approach_opts;
 
 static void approach_usage(FILE *f) {
@@ -177,8 +176,11 @@ static int parse_args(int argc, char **argv, approach_opts *o) {
                          .integrator = -1,
                          .scheme = -1,
                          .tol = DEFAULT_TOL,
-                         .mode = "am",
+                         .fm_drive = -1,
                          .fm_tol_hz = 1e-3};
+    static const afmt_choice mode_choices[] = {{"am", 0}, {"fm", 1}, {NULL, 0}};
+    static const afmt_choice fm_drive_choices[] = {
+        {"pll", AFM_FM_DRIVE_PLL}, {"self", AFM_FM_DRIVE_SELF}, {NULL, 0}};
     const afmt_opt opts[] = {
         AFMT_FLAG("--json", &o->json),
         AFMT_FLAG("--retract", &o->retract),
@@ -190,14 +192,14 @@ static int parse_args(int argc, char **argv, approach_opts *o) {
         AFMT_LENGTH("--ae", &o->ae_m, 0, 0, NULL),
         AFMT_DOUBLE("--tol", &o->tol, 0, 0, NULL),
         AFMT_DOUBLE_ABOVE("--rate", &o->rate_m_s, 0, 1.0, "(0, 1] m/s"),
-        AFMT_STRING("--mode", &o->mode),
+        AFMT_CHOICE("--mode", &o->fm, mode_choices),
         AFMT_DOUBLE_ABOVE("--fm-tol", &o->fm_tol_hz, 0, 1e6, "(0, 1e6] Hz"),
-        AFMT_STRING("--fm-drive", &o->fm_drive),
+        AFMT_CHOICE("--fm-drive", &o->fm_drive, fm_drive_choices),
         AFMT_INT("--periods", &o->max_periods, 2, 100000000, NULL),
         AFMT_INT("--analyse", &o->analyse, 1, MAX_ANALYSE, NULL),
         AFMT_INT("--harmonics", &o->k_max, 1, AFM_MAX_HARMONICS, NULL),
-        AFMT_FN("--integrator", afmt_opt_integrator, &o->integrator, AFMT_OPT_INTEGRATOR_WANTS),
-        AFMT_FN("--scheme", afmt_opt_scheme, &o->scheme, AFMT_OPT_SCHEME_WANTS),
+        AFMT_CHOICE("--integrator", &o->integrator, afmt_integrator_choices),
+        AFMT_CHOICE("--scheme", &o->scheme, afmt_scheme_choices),
         AFMT_OPTS_END,
     };
     int rc = afmt_opts_parse("approach", opts, argc, argv, 1);
@@ -224,16 +226,7 @@ static int parse_args(int argc, char **argv, approach_opts *o) {
         fprintf(stderr, "afmtwin approach: --fe must be > 0 Hz (got %g)\n", o->fe_hz);
         return -1;
     }
-    if (strcmp(o->mode, "am") != 0 && strcmp(o->mode, "fm") != 0) {
-        fprintf(stderr, "afmtwin approach: --mode must be am or fm (got %s)\n", o->mode);
-        return -1;
-    }
-    o->fm = strcmp(o->mode, "fm") == 0;
-    if (o->fm_drive && strcmp(o->fm_drive, "pll") != 0 && strcmp(o->fm_drive, "self") != 0) {
-        fprintf(stderr, "afmtwin approach: --fm-drive must be pll or self (got %s)\n", o->fm_drive);
-        return -1;
-    }
-    if (o->fm_drive && !o->fm) {
+    if (o->fm_drive >= 0 && !o->fm) {
         fprintf(stderr, "afmtwin approach: --fm-drive needs --mode fm\n");
         return -1;
     }
@@ -663,8 +656,7 @@ static int approach_fm(afm_sim *sim, const afm_modal *m, afm_config *cfg, approa
     afm_fm_plant p;
     afm_fm_plant_of(m, &p);
     const double f_start = isnan(o->fe_hz) ? p.f0_hz : o->fe_hz;
-    if (o->fm_drive)
-        cfg->fm.drive = strcmp(o->fm_drive, "self") ? AFM_FM_DRIVE_PLL : AFM_FM_DRIVE_SELF;
+    if (o->fm_drive >= 0) cfg->fm.drive = (afm_fm_drive)o->fm_drive;
     static afm_fm f;
     if (afm_fm_init(&f, &cfg->fm, lk, &p, cfg->sim.sample_rate_hz, f_start, f_start,
                     fmin(cfg->drive.tones[0].amplitude_m, cfg->fm.drive_max_m), err, sizeof err) ||

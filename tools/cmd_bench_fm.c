@@ -134,12 +134,14 @@ static int cmp_d(const void *a, const void *b) {
 }
 
 int afm_cmd_bench_fm(int argc, char **argv) {
-    const char *path = NULL, *only = NULL;
-    int rounds = 7;
+    const char *path = NULL;
+    int rounds = 7, only_st = -1; /* --only: one bench_state, -1 all */
+    static const afmt_choice only_choices[] = {
+        {"am", B_AM}, {"pll", B_PLL}, {"self", B_SELF}, {NULL, 0}};
     long updates = 200;
     const afmt_opt opts[] = {
         AFMT_STRING("--config", &path),
-        AFMT_STRING("--only", &only),
+        AFMT_CHOICE("--only", &only_st, only_choices),
         AFMT_INT("--rounds", &rounds, 1, MAX_ROUNDS, NULL),
         AFMT_LONG("--updates", &updates, 1, 1000000, NULL),
         AFMT_OPTS_END,
@@ -147,15 +149,6 @@ int afm_cmd_bench_fm(int argc, char **argv) {
     int prc = afmt_opts_parse("bench-fm", opts, argc, argv, 1);
     int rc = afmt_opts_done("bench-fm", prc == AFMT_OPTS_HELP ? 1 : prc ? -1 : 0, usage);
     if (rc >= 0) return rc;
-    int only_st = -1;
-    if (only) {
-        for (int s = 0; s < B_N; s++)
-            if (!strcmp(only, names[s])) only_st = s;
-        if (only_st < 0) {
-            fprintf(stderr, "afmtwin bench-fm: --only must be am, pll or self (got %s)\n", only);
-            return 2;
-        }
-    }
     static afm_config cfg;
     char err[AFM_ERR_LEN];
     if (path ? afmt_config_load("bench-fm", path, &cfg)

@@ -490,17 +490,14 @@ static int z_change_cost(const afm_config *cfg, double *z_ns, double *full_ns) {
     return 0;
 }
 
-/* cfg's rt scheme (and step record) as the daemon would run it at 1x: want "accurate" or
- * "fast" forced; "auto" the config's sim.rt_scheme when it names one, else daemon/scheme.c's
- * choice (both measured with afm_scheme_cost_measure; accurate when its worst state fits
- * AFM_SCHEME_FIT_SHARE of 1 / rate, without the step record if only that fits under
- * sim.step_events auto). *why says what was picked (stderr). 0, or -1 with why the error. */
-static int pick_scheme(afm_config *cfg, const char *want, char *why, size_t len) {
-    const bool acc = !strcmp(want, "accurate"), fast = !strcmp(want, "fast");
-    if (!acc && !fast && strcmp(want, "auto")) {
-        snprintf(why, len, "--scheme must be auto, accurate or fast, got '%s'", want);
-        return -1;
-    }
+/* cfg's rt scheme (and step record) as the daemon would run it at 1x: want
+ * AFM_RT_SCHEME_ACCURATE or _FAST forced; AFM_RT_SCHEME_AUTO the config's sim.rt_scheme when it
+ * names one, else daemon/scheme.c's choice (both measured with afm_scheme_cost_measure; accurate
+ * when its worst state fits AFM_SCHEME_FIT_SHARE of 1 / rate, without the step record if only that
+ * fits under sim.step_events auto). *why says what was picked (stderr). 0, or -1 with why the
+ * error. */
+static int pick_scheme(afm_config *cfg, int want, char *why, size_t len) {
+    const bool acc = want == AFM_RT_SCHEME_ACCURATE, fast = want == AFM_RT_SCHEME_FAST;
     if (cfg->sim.integrator != AFM_INTEGRATOR_RT) {
         snprintf(why, len, "scheme: - (not the rt integrator)");
     } else if (acc || fast || cfg->sim.rt_scheme != AFM_RT_SCHEME_AUTO) {
@@ -567,15 +564,19 @@ static void usage(FILE *f) {
 }
 
 int afm_cmd_bench_states(int argc, char **argv) {
-    const char *path = "config/default.conf", *only = NULL, *scheme = "auto";
+    const char *path = "config/default.conf", *only = NULL;
     double uptime = 20.0;
-    int runs = 3;
+    int runs = 3, scheme = AFM_RT_SCHEME_AUTO;
+    static const afmt_choice scheme_choices[] = {{"auto", AFM_RT_SCHEME_AUTO},
+                                                 {"accurate", AFM_RT_SCHEME_ACCURATE},
+                                                 {"fast", AFM_RT_SCHEME_FAST},
+                                                 {NULL, 0}};
     bool json = false;
     const afmt_opt opts[] = {
         AFMT_FLAG("--json", &json),
         AFMT_STRING("--config", &path),
         AFMT_STRING("--only", &only),
-        AFMT_STRING("--scheme", &scheme),
+        AFMT_CHOICE("--scheme", &scheme, scheme_choices),
         AFMT_DOUBLE("--uptime", &uptime, 0, 1e6, "0..1e6 s"),
         AFMT_INT("--runs", &runs, 1, MAX_RUNS, NULL),
         AFMT_OPTS_END,

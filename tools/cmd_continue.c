@@ -25,8 +25,12 @@
 #include <stdlib.h>
 #include <string.h>
 
+/* --curve-kinds: the curves of the two-parameter run it traces, as bits */
+enum { CURVES_LPC = 1, CURVES_PD = 2, CURVES_ALL = CURVES_LPC | CURVES_PD };
+
 typedef struct {
-    const char *config, *param, *start, *param2, *curve_kinds;
+    const char *config, *param, *start, *param2;
+    int curve_kinds; /* CURVES_*; -1: not given (all) */
     double from, to, from2, to2;
     const char *from_s, *to_s, *from2_s, *to2_s; /* in the unit of --param / --param2 */
     int max_points, period, settle, max_branches, curves, curve_points, join_points,
@@ -177,8 +181,16 @@ static afmt_unit param_unit(const char *name) {
 
 /* 0 ok, 1 --help, -1 bad usage (said). */
 static int cont_parse(int argc, char **argv, cont_cli *o) {
-    *o = (cont_cli){
-        .from = NAN, .to = NAN, .from2 = NAN, .to2 = NAN, .period = 1, .curves = 8, .beyond = NAN};
+    *o = (cont_cli){.from = NAN,
+                    .to = NAN,
+                    .from2 = NAN,
+                    .to2 = NAN,
+                    .period = 1,
+                    .curves = 8,
+                    .beyond = NAN,
+                    .curve_kinds = -1};
+    static const afmt_choice curve_kinds_choices[] = {
+        {"lpc", CURVES_LPC}, {"pd", CURVES_PD}, {"all", CURVES_ALL}, {NULL, 0}};
     const afmt_opt opts[] = {
         AFMT_FLAG("--json", &o->json),
         AFMT_FLAG("--no-switch", &o->no_switch),
@@ -194,7 +206,7 @@ static int cont_parse(int argc, char **argv, cont_cli *o) {
         AFMT_STRING("--to2", &o->to2_s),
         AFMT_INT("--curves", &o->curves, 1, CONT_MAX_CURVES, NULL),
         AFMT_INT("--curve-points", &o->curve_points, 1, 100000, NULL),
-        AFMT_STRING("--curve-kinds", &o->curve_kinds),
+        AFMT_CHOICE("--curve-kinds", &o->curve_kinds, curve_kinds_choices),
         AFMT_STRING("--from", &o->from_s),
         AFMT_STRING("--to", &o->to_s),
         AFMT_DOUBLE("--step", &o->h0, 0, 0, NULL),
@@ -232,13 +244,7 @@ static int cont_parse(int argc, char **argv, cont_cli *o) {
         fprintf(stderr, "afmtwin continue: --param2 needs --from2 and --to2 (and they need it)\n");
         return -1;
     }
-    if (o->curve_kinds && strcmp(o->curve_kinds, "lpc") && strcmp(o->curve_kinds, "pd") &&
-        strcmp(o->curve_kinds, "all")) {
-        fprintf(stderr, "afmtwin continue: --curve-kinds must be lpc, pd or all (got %s)\n",
-                o->curve_kinds);
-        return -1;
-    }
-    if (o->curve_kinds && !o->param2) {
+    if (o->curve_kinds >= 0 && !o->param2) {
         fprintf(stderr, "afmtwin continue: --curve-kinds is for --param2\n");
         return -1;
     }
@@ -599,8 +605,8 @@ int afm_cmd_continue(int argc, char **argv) {
                        .unit = unit,
                        .scale = is_fe ? 1e-3 : 1.0,
                        .max_ev = o.param2 ? o.curves : 0,
-                       .want_lpc = !o.curve_kinds || strcmp(o.curve_kinds, "pd"),
-                       .want_pd = !o.curve_kinds || strcmp(o.curve_kinds, "lpc")};
+                       .want_lpc = o.curve_kinds < 0 || (o.curve_kinds & CURVES_LPC),
+                       .want_pd = o.curve_kinds < 0 || (o.curve_kinds & CURVES_PD)};
     if (!o.json)
         printf("# %-3s %3s %2s %14s %-8s %12s %12s %10s %12s %8s\n", "kind", "br", "p", unit, "",
                "min x (nm)", "max x (nm)", "max F (nN)", "ampl (nm)", "lag (deg)");

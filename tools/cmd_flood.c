@@ -43,7 +43,7 @@ static const char *const kind_name[N_KINDS] = {"random", "truncated", "wrongtype
 typedef struct {
     double rate, seconds, valid_rate;
     bool want[N_KINDS];
-    bool valid_param; /* valid commands: beam-length params (a model build each), not Z */
+    int valid_param; /* valid commands: beam-length params (a model build each), not Z */
     const char *url, *prefix;
     unsigned seed;
     long long seq0;
@@ -249,12 +249,8 @@ static void sleep_until(double t) {
     nanosleep(&ts, NULL);
 }
 
-/* --valid-kind setpoint|param: what the valid commands are (true: param). */
-static int parse_valid_kind(const char *v, void *dest) {
-    if (strcmp(v, "setpoint") && strcmp(v, "param")) return -1;
-    *(bool *)dest = !strcmp(v, "param");
-    return 0;
-}
+/* --valid-kind setpoint|param: what the valid commands are (1: param). */
+static const afmt_choice valid_kind_choices[] = {{"setpoint", 0}, {"param", 1}, {NULL, 0}};
 
 static int parse_kinds(const char *v, void *dest) {
     return afmt_parse_subset(v, kind_name, N_KINDS, true, dest);
@@ -275,7 +271,7 @@ int afm_cmd_flood(int argc, char **argv) {
         AFMT_DOUBLE("--valid-rate", &o.valid_rate, 0, 10000, "0..10000 a second"),
         AFMT_NUMBER("--seq0", AFMT_OPT_LLONG, &o.seq0, 0, 9e15 - 1, "an integer in 0..9e15 - 1"),
         AFMT_NUMBER("--seed", AFMT_OPT_UINT, &o.seed, 0, 4e9 - 1, "an integer in 0..4e9 - 1"),
-        AFMT_FN("--valid-kind", parse_valid_kind, &o.valid_param, "setpoint or param"),
+        AFMT_CHOICE("--valid-kind", &o.valid_param, valid_kind_choices),
         AFMT_FN("--kinds", parse_kinds, o.want, "a comma-separated subset of the kinds (or all)"),
         AFMT_STRING("--lcm-url", &o.url),
         AFMT_STRING("--prefix", &o.prefix),

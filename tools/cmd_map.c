@@ -67,7 +67,8 @@ typedef int MPI_Status, MPI_Request;
 static const int default_harmonics[] = {1, 6, 17};
 
 typedef struct {
-    const char *config, *out, *dir_word;
+    const char *config, *out;
+    int dirs; /* --direction: AFMT_MAP_UP, AFMT_MAP_DOWN or AFMT_MAP_BOTH */
     afmt_map_axis x, y;
     bool have_x, have_y, resume;
     int integrator, scheme, max_periods, stop_after;
@@ -215,12 +216,8 @@ static int parse_axis(char **argv, int argc, int i, afmt_map_axis *a) {
     return 0;
 }
 
-static int parse_direction(const char *v, void *dest) {
-    const char **d = dest;
-    if (strcmp(v, "up") && strcmp(v, "down") && strcmp(v, "both")) return -1;
-    *d = v;
-    return 0;
-}
+static const afmt_choice direction_choices[] = {
+    {"up", AFMT_MAP_UP}, {"down", AFMT_MAP_DOWN}, {"both", AFMT_MAP_BOTH}, {NULL, 0}};
 
 /* 0 ok, 1 --help, -1 bad usage (said). */
 static int parse_args(int argc, char **argv, map_opts *o) {
@@ -232,7 +229,7 @@ static int parse_args(int argc, char **argv, map_opts *o) {
     o->bistable_tol = DEFAULT_BISTABLE_TOL;
     o->jump_deg = DEFAULT_JUMP_DEG;
     o->bistable_deg = DEFAULT_BISTABLE_DEG;
-    o->dir_word = "both";
+    o->dirs = AFMT_MAP_BOTH;
     /* the axes take four words each: taken out here, the rest to the table parser */
     char **rest = malloc((size_t)(argc + 1) * sizeof *rest);
     if (!rest) return -1;
@@ -265,9 +262,9 @@ static int parse_args(int argc, char **argv, map_opts *o) {
     const afmt_opt opts[] = {
         AFMT_STRING("--config", &o->config),
         AFMT_STRING("--out", &o->out),
-        AFMT_FN("--direction", parse_direction, &o->dir_word, "up, down or both"),
-        AFMT_FN("--integrator", afmt_opt_integrator, &o->integrator, AFMT_OPT_INTEGRATOR_WANTS),
-        AFMT_FN("--scheme", afmt_opt_scheme, &o->scheme, AFMT_OPT_SCHEME_WANTS),
+        AFMT_CHOICE("--direction", &o->dirs, direction_choices),
+        AFMT_CHOICE("--integrator", &o->integrator, afmt_integrator_choices),
+        AFMT_CHOICE("--scheme", &o->scheme, afmt_scheme_choices),
         AFMT_INT("--max-periods", &o->max_periods, 2, 100000000, NULL),
         AFMT_INT("--periods", &o->max_periods, 2, 100000000, NULL),
         AFMT_DOUBLE_ABOVE("--tol", &o->tol, 0, 1, "a number in (0, 1)"),
@@ -543,9 +540,7 @@ static int map_setup(const map_opts *o, map_ctx *c) {
     }
     c->spec.x = o->x;
     c->spec.y = o->y;
-    c->spec.dirs = !strcmp(o->dir_word, "both") ? AFMT_MAP_BOTH
-                   : !strcmp(o->dir_word, "up") ? AFMT_MAP_UP
-                                                : AFMT_MAP_DOWN;
+    c->spec.dirs = o->dirs;
     c->spec.tol = o->tol;
     c->spec.jump_tol = o->jump_tol;
     c->spec.bistable_tol = o->bistable_tol;

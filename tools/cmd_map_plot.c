@@ -17,7 +17,8 @@
 #include <string.h>
 
 typedef struct {
-    const char *in, *out, *gsf, *script, *dir_word, *curves;
+    const char *in, *out, *gsf, *script, *curves;
+    int dir;          /* --direction: 0 up, 1 down; -1: the map's first sweep */
     double contour_n; /* --contour-force, N; NaN: none */
     int width, height;
 } mplot_opts;
@@ -70,11 +71,7 @@ static int parse_size(const char *v, void *dest) {
     return 0;
 }
 
-static int parse_dir(const char *v, void *dest) {
-    if (strcmp(v, "up") && strcmp(v, "down")) return -1;
-    *(const char **)dest = v;
-    return 0;
-}
+static const afmt_choice dir_choices[] = {{"up", 0}, {"down", 1}, {NULL, 0}};
 
 /* A quantity of a point, and its GSF name and unit. */
 typedef struct {
@@ -495,14 +492,14 @@ static int write_script(FILE *sf, const mplot_opts *o, const afmt_map_data *m, i
 }
 
 int afm_cmd_plot_map(int argc, char **argv) {
-    mplot_opts o = {.width = 1200, .height = 900, .contour_n = NAN};
+    mplot_opts o = {.width = 1200, .height = 900, .contour_n = NAN, .dir = -1};
     const afmt_opt opts[] = {
         AFMT_STRING("--out", &o.out),
         AFMT_STRING("--gsf", &o.gsf),
         AFMT_STRING("--script", &o.script),
         AFMT_STRING("--curves", &o.curves),
         AFMT_DOUBLE_ABOVE("--contour-force", &o.contour_n, 0, 1, "a force in N, 0 < F <= 1"),
-        AFMT_FN("--direction", parse_dir, &o.dir_word, "up or down"),
+        AFMT_CHOICE("--direction", &o.dir, dir_choices),
         AFMT_FN("--size", parse_size, &o, "WxH, 200..10000 pixels each"),
         AFMT_ARG("MAPFILE", &o.in),
         AFMT_OPTS_END,
@@ -523,7 +520,7 @@ int afm_cmd_plot_map(int argc, char **argv) {
     int status = 0;
     if (o.gsf && write_all_gsf(o.gsf, &m)) status = 1;
     if (!status && o.out) {
-        int d = o.dir_word ? !strcmp(o.dir_word, "down") : !m.pts[0];
+        int d = o.dir >= 0 ? o.dir : !m.pts[0];
         if (!m.pts[d]) {
             fprintf(stderr, "afmtwin plot map: %s has no %s sweep\n", o.in, d ? "down" : "up");
             afmt_map_data_destroy(&m);

@@ -12,7 +12,10 @@
  * (afmtwin thermal --psd, with its --json fit), trace (an LCM log of the daemon's outputs),
  * spectrum (the harmonics of one sweep or approach record), scan (afmtwin scan --json),
  * continue (afmtwin continue --json). Phases are the lag of the deflection behind the drive
- * (90 deg free at resonance), as the tools print them.
+ * (90 deg free at resonance), as the tools print them. This file holds the command, the
+ * helpers every kind shares (cmd_plot.h) and the smaller kinds; continue, trace and fm,
+ * each a reader of its own input, are in cmd_plot_continue.c, cmd_plot_trace.c and
+ * cmd_plot_fm.c.
  *
  * Every picture is laid out the same way, for a paper: the title (--title, else what the
  * kind draws) and under it the config and the drive (plot_info.h); one legend for all
@@ -20,72 +23,15 @@
  * legend covers data; the panels at fixed places under it, those that share an axis with
  * its tic labels once. Scan images keep x and y at one scale and end at the pixels' edges. */
 #include "afmtwin_cmds.h"
+#include "cmd_plot.h"
 #include "opts.h"
 #include "plot_info.h"
-
-#include "transport/afm_lcm_log.h"
-#include "transport/afm_lcm_wire.h"
-#include "afmtwin_harmonics_t.h"
-#include "afmtwin_samples_t.h"
-#include "lcm_tool.h"
 
 #include <cjson/cJSON.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-
-#define PLOT_MAX_INPUTS 8
-#define PLOT_MAX_COLS 16
-#define PLOT_MAX_SETS 24
-#define PLOT_MAX_KEYS 40
-#define PLOT_LINE_MAX (1 << 20)
-#define PLOT_EV 1.602176634e-19 /* J per eV */
-
-/* Text in pixels (pngcairo's default font): a line, and a character of a legend entry
- * (generous: a legend that needs more rows than planned would run into the panels). */
-#define PX_LINE 19.0
-#define PX_CHAR 9.0
-/* The panels' margins in pixels: left (tic labels and the y label), right, bottom (tic
- * labels and the x label), and between panels that share x (one set of tic labels). */
-#define PX_LEFT 85.0
-#define PX_RIGHT 25.0
-#define PX_BOTTOM 55.0
-#define PX_GAP 18.0
-
-typedef struct {
-    const char *kind, *out, *data, *csv, *script, *fit, *title, *config;
-    const char *in[PLOT_MAX_INPUTS];
-    int n_in, index, stream, width, height;
-    double t_from_s, t_to_s, z_m, fe_hz, ae_m;
-} plot_opts;
-
-/* A data set: rows of ncol numbers (NAN prints as "NaN", which gnuplot skips). The header
- * names the columns as NAME[UNIT]; a set with seg_col >= 0 is cut into line segments (a
- * blank line for gnuplot) where that column changes. The sets marked csv are the curves
- * --csv writes, label naming each in the CSV's first column. */
-typedef struct {
-    char name[16], label[48], header[320];
-    int ncol, seg_col;
-    bool csv;
-    size_t n, cap;
-    double *v;
-} plot_set;
-
-typedef struct {
-    plot_set set[PLOT_MAX_SETS];
-    int nset;
-    char title[512], sub[512];  /* the title's two lines (sub may be empty) */
-    char note[256], note2[256]; /* more lines under them (may be empty; no quotes) */
-    plot_info info;
-    double W, H; /* the picture, pixels */
-} plot_data;
-
-/* Legend entries: a gnuplot style ("with linespoints ls 1") and a title. */
-typedef struct {
-    int n;
-    char with[PLOT_MAX_KEYS][128], title[PLOT_MAX_KEYS][96];
-} plot_key;
 
 static void plot_usage(FILE *f) {
     fprintf(f,
@@ -195,7 +141,7 @@ static void plot_usage(FILE *f) {
             "Exit status 0 ok, 1 gnuplot or a file failed, 2 bad usage or bad input.\n");
 }
 
-static int plot_err(const char *fmt, const char *a) {
+int plot_err(const char *fmt, const char *a) {
     fprintf(stderr, "afmtwin plot: ");
     fprintf(stderr, fmt, a);
     fprintf(stderr, "\n");
@@ -277,7 +223,7 @@ static int parse_args(int argc, char **argv, plot_opts *o) {
 
 /* ---- data sets ---- */
 
-static plot_set *set_new(plot_data *d, const char *name, const char *header, int ncol) {
+plot_set *plot_set_new(plot_data *d, const char *name, const char *header, int ncol) {
     if (d->nset == PLOT_MAX_SETS || ncol > PLOT_MAX_COLS) return NULL;
     plot_set *s = &d->set[d->nset++];
     memset(s, 0, sizeof *s);
@@ -289,9 +235,9 @@ static plot_set *set_new(plot_data *d, const char *name, const char *header, int
 }
 
 /* A curve of the CSV, named label there. */
-static plot_set *curve_new(plot_data *d, const char *name, const char *label, const char *header,
-                           int ncol) {
-    plot_set *s = set_new(d, name, header, ncol);
+plot_set *plot_curve_new(plot_data *d, const char *name, const char *label, const char *header,
+                         int ncol) {
+    plot_set *s = plot_set_new(d, name, header, ncol);
     if (s) {
         s->csv = true;
         snprintf(s->label, sizeof s->label, "%s", label);
@@ -299,7 +245,7 @@ static plot_set *curve_new(plot_data *d, const char *name, const char *label, co
     return s;
 }
 
-static int set_row(plot_set *s, const double *row) {
+int plot_set_row(plot_set *s, const double *row) {
     if (s->n == s->cap) {
         size_t cap = s->cap ? 2 * s->cap : 256;
         double *v = realloc(s->v, cap * (size_t)s->ncol * sizeof *v);
@@ -312,7 +258,7 @@ static int set_row(plot_set *s, const double *row) {
     return 0;
 }
 
-static double cell(const plot_set *s, size_t r, int c) {
+double plot_cell(const plot_set *s, size_t r, int c) {
     return s->v[r * (size_t)s->ncol + c];
 }
 
@@ -326,11 +272,11 @@ static void data_free(plot_data *d) {
 static void set_write(FILE *f, const plot_set *s, const char *sep, bool csv) {
     for (size_t r = 0; r < s->n; r++) {
         if (!csv && s->seg_col >= 0 && r > 0 &&
-            cell(s, r, s->seg_col) != cell(s, r - 1, s->seg_col))
+            plot_cell(s, r, s->seg_col) != plot_cell(s, r - 1, s->seg_col))
             fputc('\n', f);
         if (csv && s->label[0]) fprintf(f, "%s%s", s->label, sep);
         for (int c = 0; c < s->ncol; c++)
-            fprintf(f, "%s%.10g", c ? sep : "", cell(s, r, c));
+            fprintf(f, "%s%.10g", c ? sep : "", plot_cell(s, r, c));
         fputc('\n', f);
     }
 }
@@ -369,12 +315,12 @@ static int csv_write(FILE *f, const plot_data *d) {
 
 /* ---- JSON input ---- */
 
-static double num(const cJSON *o, const char *key) {
+double plot_num(const cJSON *o, const char *key) {
     const cJSON *v = cJSON_GetObjectItemCaseSensitive(o, key);
     return cJSON_IsNumber(v) ? v->valuedouble : NAN;
 }
 
-static bool is_true(const cJSON *o, const char *key) {
+bool plot_is_true(const cJSON *o, const char *key) {
     return cJSON_IsTrue(cJSON_GetObjectItemCaseSensitive(o, key));
 }
 
@@ -384,7 +330,7 @@ static bool str_is(const cJSON *o, const char *key, const char *want) {
 }
 
 /* Each JSON line of path into fn (objects only; a line that is no JSON is an error). */
-static int each_json(const char *path, int (*fn)(const cJSON *, void *), void *ctx) {
+int plot_each_json(const char *path, int (*fn)(const cJSON *, void *), void *ctx) {
     FILE *f = fopen(path, "r");
     if (!f) return plot_err("cannot open %s", path);
     static char line[PLOT_LINE_MAX];
@@ -423,7 +369,7 @@ static void clean(char *s) {
         if (*p == '\'' || *p == '"' || *p == '\\' || *p == '\n') *p = ' ';
 }
 
-static void key_add(plot_key *k, const char *with, const char *title) {
+void plot_key_add(plot_key *k, const char *with, const char *title) {
     if (k->n == PLOT_MAX_KEYS) return;
     snprintf(k->with[k->n], sizeof k->with[0], "%s", with);
     snprintf(k->title[k->n], sizeof k->title[0], "%s", title);
@@ -432,7 +378,7 @@ static void key_add(plot_key *k, const char *with, const char *title) {
 }
 
 /* The plot area of the next panel, screen fractions. */
-static void area(FILE *gp, double l, double r, double b, double t) {
+void plot_area(FILE *gp, double l, double r, double b, double t) {
     fprintf(gp,
             "set lmargin at screen %.4f\nset rmargin at screen %.4f\nset bmargin at screen "
             "%.4f\nset tmargin at screen %.4f\n",
@@ -441,7 +387,7 @@ static void area(FILE *gp, double l, double r, double b, double t) {
 
 /* The title and, in a strip under it from l to r, the legend k: an empty plot of its
  * entries. Returns the top of the panels (screen); the panels have no key of their own. */
-static double figure(FILE *gp, plot_data *d, const plot_key *k, double l, double r) {
+double plot_figure(FILE *gp, plot_data *d, const plot_key *k, double l, double r) {
     plot_info_line(&d->info, d->sub, sizeof d->sub);
     clean(d->sub);
     fprintf(gp, "set multiplot title \"%s%s%s%s%s%s%s\"\n", d->title, d->sub[0] ? "\\n" : "",
@@ -456,7 +402,7 @@ static double figure(FILE *gp, plot_data *d, const plot_key *k, double l, double
         cols = cols < 1 ? 1 : cols > k->n ? k->n : cols;
         int rows = (k->n + cols - 1) / cols;
         double h = (rows * PX_LINE + 10) / d->H;
-        area(gp, l, r, y - h, y);
+        plot_area(gp, l, r, y - h, y);
         fprintf(gp,
                 "unset border\nunset xtics\nunset ytics\nunset xlabel\nunset ylabel\nset xrange "
                 "[0:1]\nset yrange [0:1]\nset key at screen %.4f,%.4f center top vertical maxrows "
@@ -473,15 +419,14 @@ static double figure(FILE *gp, plot_data *d, const plot_key *k, double l, double
 }
 
 /* Panel i of n stacked from top to bottom (screen), gap between them. */
-static void stack(FILE *gp, int i, int n, double l, double r, double bottom, double top,
-                  double gap) {
+void plot_stack(FILE *gp, int i, int n, double l, double r, double bottom, double top, double gap) {
     double h = (top - bottom - (n - 1) * gap) / n;
     double t = top - i * (h + gap);
-    area(gp, l, r, t - h, t);
+    plot_area(gp, l, r, t - h, t);
 }
 
 /* Panels sharing x: tic labels and the x label only under the last. */
-static void shared_x(FILE *gp, int i, int n, const char *xlabel) {
+void plot_shared_x(FILE *gp, int i, int n, const char *xlabel) {
     if (i < n - 1)
         fprintf(gp, "set format x ''\nunset xlabel\n");
     else
@@ -490,11 +435,11 @@ static void shared_x(FILE *gp, int i, int n, const char *xlabel) {
 
 /* y tics for a short panel of column col of the sets: 2 to 5 labels over px pixels (the
  * default would crowd them); the default where the column has no span. */
-static void short_ytics(FILE *gp, plot_set *const *sets, int n, int col, double px) {
+void plot_short_ytics(FILE *gp, plot_set *const *sets, int n, int col, double px) {
     double lo = INFINITY, hi = -INFINITY;
     for (int i = 0; i < n; i++)
         for (size_t r = 0; sets[i] && r < sets[i]->n; r++) {
-            double v = cell(sets[i], r, col);
+            double v = plot_cell(sets[i], r, col);
             if (isfinite(v)) lo = fmin(lo, v), hi = fmax(hi, v);
         }
     if (!(hi > lo)) return;
@@ -521,13 +466,13 @@ static double grid_cell(FILE *gp, const plot_data *d, int p, bool split, double 
     const int cx = p < 4 ? p % 2 : 1;
     double pl = cx ? 0.5 + (PX_LEFT + 15) / d->W : l, pr = cx ? r : 0.5 - 30 / d->W;
     if (split && p >= 3) {
-        area(gp, pl, pr, p == 3 ? bottom + cell_h - half : bottom,
-             p == 3 ? bottom + cell_h : bottom + half);
-        shared_x(gp, p - 3, 2, xlabel);
+        plot_area(gp, pl, pr, p == 3 ? bottom + cell_h - half : bottom,
+                  p == 3 ? bottom + cell_h : bottom + half);
+        plot_shared_x(gp, p - 3, 2, xlabel);
         return half * d->H;
     }
-    stack(gp, p / 2, 2, pl, pr, bottom, top, gap);
-    shared_x(gp, p / 2, 2, xlabel);
+    plot_stack(gp, p / 2, 2, pl, pr, bottom, top, gap);
+    plot_shared_x(gp, p / 2, 2, xlabel);
     return cell_h * d->H;
 }
 
@@ -554,40 +499,40 @@ static bool sweep_have_ets;
 
 static int sweep_row(const cJSON *o, void *vctx) {
     sweep_ctx *c = vctx;
-    double fe = num(o, "fe_hz"),
-           amp = 0.5 * (num(o, "max_deflection_m") - num(o, "min_deflection_m"));
+    double fe = plot_num(o, "fe_hz"),
+           amp = 0.5 * (plot_num(o, "max_deflection_m") - plot_num(o, "min_deflection_m"));
     const cJSON *lk = cJSON_GetObjectItemCaseSensitive(o, "lockin");
-    double lag = num(lk, "phase_deg"), p = num(o, "periodicity");
+    double lag = plot_num(lk, "phase_deg"), p = plot_num(o, "periodicity");
     if (isnan(fe)) return plot_err("%s", "a sweep record without fe_hz (is it sweep --json?)");
-    bool settled = is_true(o, "settled");
+    bool settled = plot_is_true(o, "settled");
     /* the last period's energies (cycle is null before a whole period was seen) */
     const cJSON *cy = cJSON_GetObjectItemCaseSensitive(o, "cycle");
-    double ets = num(cy, "dissipated_energy_j") / PLOT_EV,
-           esq = num(cy, "squeeze_dissipated_energy_j") / PLOT_EV;
+    double ets = plot_num(cy, "dissipated_energy_j") / PLOT_EV,
+           esq = plot_num(cy, "squeeze_dissipated_energy_j") / PLOT_EV;
     if (isfinite(esq) && esq != 0.0) *c->squeeze = true;
     if (isfinite(ets)) sweep_have_ets = true;
-    double row[SWEEP_COLS] = {fe * 1e-3, amp * 1e9,       lag, num(o, "max_force_n") * 1e9,
+    double row[SWEEP_COLS] = {fe * 1e-3, amp * 1e9,       lag, plot_num(o, "max_force_n") * 1e9,
                               p,         settled ? 1 : 0, ets, esq};
-    if (set_row(c->all, row)) return -1;
+    if (plot_set_row(c->all, row)) return -1;
     if (c->n++ == 0) c->first = fe;
     c->last = fe;
     plot_info_fe(c->pi, fe);
-    if (settled && p > 1 && set_row(c->pm, row)) return -1;
-    if ((!settled || p == 0) && set_row(c->um, row)) return -1;
+    if (settled && p > 1 && plot_set_row(c->pm, row)) return -1;
+    if ((!settled || p == 0) && plot_set_row(c->um, row)) return -1;
     return 0;
 }
 
 static int load_sweep(const plot_opts *o, plot_data *d, FILE *gp) {
     sweep_have_ets = false;
-    plot_set *pm = set_new(d, "PM", SWEEP_HEADER, SWEEP_COLS),
-             *um = set_new(d, "UM", SWEEP_HEADER, SWEEP_COLS);
+    plot_set *pm = plot_set_new(d, "PM", SWEEP_HEADER, SWEEP_COLS),
+             *um = plot_set_new(d, "UM", SWEEP_HEADER, SWEEP_COLS);
     plot_set *s[PLOT_MAX_INPUTS];
     bool squeeze = false;
     if (!pm || !um) return -1;
     for (int i = 0; i < o->n_in; i++) {
         char name[16];
         snprintf(name, sizeof name, "S%d", i);
-        sweep_ctx c = {s[i] = curve_new(d, name, "", SWEEP_HEADER, SWEEP_COLS),
+        sweep_ctx c = {s[i] = plot_curve_new(d, name, "", SWEEP_HEADER, SWEEP_COLS),
                        pm,
                        um,
                        &d->info,
@@ -595,7 +540,7 @@ static int load_sweep(const plot_opts *o, plot_data *d, FILE *gp) {
                        NAN,
                        0,
                        &squeeze};
-        if (!c.all || each_json(o->in[i], sweep_row, &c)) return -1;
+        if (!c.all || plot_each_json(o->in[i], sweep_row, &c)) return -1;
         snprintf(s[i]->label, sizeof s[i]->label, "%s",
                  c.n < 2            ? "one step"
                  : c.last > c.first ? "forward (fe up)"
@@ -614,18 +559,18 @@ static int load_sweep(const plot_opts *o, plot_data *d, FILE *gp) {
         char with[64];
         fprintf(gp, "set style line %d lc rgb '%s' lw 1.5 pt 7 ps 0.6\n", i + 1, plot_colour[i]);
         snprintf(with, sizeof with, "with linespoints ls %d", i + 1);
-        key_add(&k, with, s[i]->label);
+        plot_key_add(&k, with, s[i]->label);
     }
     fprintf(gp, "set style line 11 lc rgb 'red' lw 1.5 pt 6 ps 1.8\n"
                 "set style line 12 lc rgb 'black' lw 1.5 pt 2 ps 1.6\n");
-    if (pm->n) key_add(&k, "with points ls 11", "period p > 1 (p labelled)");
-    if (um->n) key_add(&k, "with points ls 12", "not settled (or periodicity 0)");
+    if (pm->n) plot_key_add(&k, "with points ls 11", "period p > 1 (p labelled)");
+    if (um->n) plot_key_add(&k, "with points ls 12", "not settled (or periodicity 0)");
     snprintf(d->note, sizeof d->note, "%s",
              squeeze ? "energy dissipated per period in the last period: E_ts by the tip-sample "
                        "forces, E_sq by the squeeze film (air under the beam)"
                      : "E_ts: the energy the tip-sample forces dissipate in the last period");
     const double l = PX_LEFT / d->W, r = 1 - PX_RIGHT / d->W;
-    double top = figure(gp, d, &k, l, r);
+    double top = plot_figure(gp, d, &k, l, r);
     /* the energies per period in panels of their own: E_ts (tip-sample) and, where a
      * record has it, E_sq (the squeeze film on the beam), often 10^3 times larger */
     static const struct {
@@ -640,7 +585,7 @@ static int load_sweep(const plot_opts *o, plot_data *d, FILE *gp) {
         const int col = panel[p].col;
         double px = grid_cell(gp, d, p, squeeze, l, r, top, "drive frequency fe (kHz)");
         fprintf(gp, "set ytics autofreq\n");
-        if (squeeze && p >= 3) short_ytics(gp, s, o->n_in, col - 1, px);
+        if (squeeze && p >= 3) plot_short_ytics(gp, s, o->n_in, col - 1, px);
         /* room over the top points for their p labels */
         fprintf(gp, "set offsets 0, 0, graph %g, 0\nset ylabel '%s'\n",
                 p == 0 && pm->n ? 0.12 : 0.0, squeeze && p == 3 ? "E_ts (eV)" : panel[p].ylab);
@@ -691,45 +636,46 @@ static int approach_row(const cJSON *o, void *vctx) {
         bool ret = str_is(j, "direction", "retract");
         /* a change of regime with no jump of the branch (a crossover) gets no arrow; files
          * from before the key existed had only jumps */
-        bool sharp = !cJSON_GetObjectItemCaseSensitive(j, "sharp") || is_true(j, "sharp");
-        double row[8] = {num(j, "z_before_m") * 1e9,
-                         num(j, "z_after_m") * 1e9,
-                         num(j, "amplitude_before_m") * 1e9,
-                         num(j, "amplitude_after_m") * 1e9,
-                         num(j, "phase_before_deg"),
-                         num(j, "phase_after_deg"),
+        bool sharp = !cJSON_GetObjectItemCaseSensitive(j, "sharp") || plot_is_true(j, "sharp");
+        double row[8] = {plot_num(j, "z_before_m") * 1e9,
+                         plot_num(j, "z_after_m") * 1e9,
+                         plot_num(j, "amplitude_before_m") * 1e9,
+                         plot_num(j, "amplitude_after_m") * 1e9,
+                         plot_num(j, "phase_before_deg"),
+                         plot_num(j, "phase_after_deg"),
                          ret ? 1 : 0,
                          sharp ? 1 : 0};
         c->jumps[ret] += sharp;
-        return set_row(c->jump, row);
+        return plot_set_row(c->jump, row);
     }
-    double z = num(o, "z_m");
+    double z = plot_num(o, "z_m");
     if (isnan(z)) return plot_err("%s", "an approach record without z_m (approach --json?)");
     plot_info_z(c->pi, z);
     if (!isfinite(c->pi->a0_m)) {
-        c->pi->a0_m = num(o, "free_amplitude_m");
-        c->pi->a0_lag_deg = num(o, "free_phase_lag_deg");
+        c->pi->a0_m = plot_num(o, "free_amplitude_m");
+        c->pi->a0_lag_deg = plot_num(o, "free_phase_lag_deg");
     }
-    bool ret = str_is(o, "direction", "retract"), settled = is_true(o, "settled");
-    double fmax = num(o, "peak_force_n") * 1e9, fmin = num(o, "attractive_force_n") * 1e9,
-           p = num(o, "periodicity"), esq = num(o, "squeeze_dissipated_energy_j") / PLOT_EV;
+    bool ret = str_is(o, "direction", "retract"), settled = plot_is_true(o, "settled");
+    double fmax = plot_num(o, "peak_force_n") * 1e9, fmin = plot_num(o, "attractive_force_n") * 1e9,
+           p = plot_num(o, "periodicity"),
+           esq = plot_num(o, "squeeze_dissipated_energy_j") / PLOT_EV;
     if (isfinite(esq) && esq != 0.0) c->squeeze = true;
     double row[APPROACH_COLS] = {z * 1e9,
-                                 num(o, "amplitude_m") * 1e9,
-                                 num(o, "phase_lag_deg"),
+                                 plot_num(o, "amplitude_m") * 1e9,
+                                 plot_num(o, "phase_lag_deg"),
                                  clip_pos(fmax),
                                  clip_neg(fmin),
-                                 num(o, "dissipated_energy_j") / PLOT_EV,
-                                 num(o, "indentation_m") * 1e9,
+                                 plot_num(o, "dissipated_energy_j") / PLOT_EV,
+                                 plot_num(o, "indentation_m") * 1e9,
                                  fmax,
                                  fmin,
-                                 num(o, "virial_j") / PLOT_EV,
+                                 plot_num(o, "virial_j") / PLOT_EV,
                                  p,
                                  settled ? 1 : 0,
                                  esq};
-    if (settled && p > 1 && set_row(c->pm, row)) return -1;
-    if ((!settled || p == 0) && set_row(c->um, row)) return -1;
-    return set_row(ret ? c->ret : c->app, row);
+    if (settled && p > 1 && plot_set_row(c->pm, row)) return -1;
+    if ((!settled || p == 0) && plot_set_row(c->um, row)) return -1;
+    return plot_set_row(ret ? c->ret : c->app, row);
 }
 
 /* ---- approach --mode fm ---- */
@@ -748,25 +694,25 @@ typedef struct {
 static int fm_row(const cJSON *o, void *vctx) {
     fm_ctx *c = vctx;
     if (cJSON_GetObjectItemCaseSensitive(o, "jump")) return 0; /* FM approach has none */
-    double z = num(o, "z_m");
+    double z = plot_num(o, "z_m");
     if (isnan(z)) return plot_err("%s", "an approach record without z_m (approach --json?)");
     if (!str_is(o, "mode", "fm"))
         return plot_err("%s", "an am record among fm records: one approach --json output");
     plot_info_z(c->pi, z);
-    bool locked = is_true(o, "locked"), settled = is_true(o, "settled");
-    double drive = num(o, "drive_amplitude_m");
+    bool locked = plot_is_true(o, "locked"), settled = plot_is_true(o, "settled");
+    double drive = plot_num(o, "drive_amplitude_m");
     if (isnan(c->z_far_m) || z > c->z_far_m) {
         c->z_far_m = z;
         c->drive_far_m = drive;
     }
-    c->f_free_hz = num(o, "free_frequency_hz");
-    c->a_set_m = num(o, "amplitude_setpoint_m");
-    double row[FM_COLS] = {z * 1e9,          num(o, "frequency_shift_hz"),
-                           drive * 1e12,     num(o, "amplitude_m") * 1e9,
-                           c->a_set_m * 1e9, num(o, "dissipated_energy_j") / PLOT_EV,
+    c->f_free_hz = plot_num(o, "free_frequency_hz");
+    c->a_set_m = plot_num(o, "amplitude_setpoint_m");
+    double row[FM_COLS] = {z * 1e9,          plot_num(o, "frequency_shift_hz"),
+                           drive * 1e12,     plot_num(o, "amplitude_m") * 1e9,
+                           c->a_set_m * 1e9, plot_num(o, "dissipated_energy_j") / PLOT_EV,
                            locked ? 1 : 0,   settled ? 1 : 0};
-    if ((!locked || !settled) && set_row(c->un, row)) return -1;
-    return set_row(str_is(o, "direction", "retract") ? c->ret : c->app, row);
+    if ((!locked || !settled) && plot_set_row(c->un, row)) return -1;
+    return plot_set_row(str_is(o, "direction", "retract") ? c->ret : c->app, row);
 }
 
 /* An FM approach (afmtwin approach --mode fm): the PLL holds the lag at its set-point and the
@@ -774,15 +720,15 @@ static int fm_row(const cJSON *o, void *vctx) {
  * force gradient), the drive the amplitude needs (the dissipation channel) and E_ts; the held
  * amplitude is drawn against its set-point as the check that the loops held. */
 static int load_approach_fm(const plot_opts *o, plot_data *d, FILE *gp) {
-    fm_ctx c = {curve_new(d, "A", "approach", FM_HEADER, FM_COLS),
-                curve_new(d, "R", "retract", FM_HEADER, FM_COLS),
-                set_new(d, "U", FM_HEADER, FM_COLS),
+    fm_ctx c = {plot_curve_new(d, "A", "approach", FM_HEADER, FM_COLS),
+                plot_curve_new(d, "R", "retract", FM_HEADER, FM_COLS),
+                plot_set_new(d, "U", FM_HEADER, FM_COLS),
                 &d->info,
                 NAN,
                 NAN,
                 NAN,
                 NAN};
-    if (!c.app || !c.ret || !c.un || each_json(o->in[0], fm_row, &c)) return -1;
+    if (!c.app || !c.ret || !c.un || plot_each_json(o->in[0], fm_row, &c)) return -1;
     if (c.app->n + c.ret->n == 0) return plot_err("%s: no approach records", o->in[0]);
     d->info.no_drive = true; /* tone 0 is the PLL's: the note says where it started */
     snprintf(d->note, sizeof d->note,
@@ -794,12 +740,12 @@ static int load_approach_fm(const plot_opts *o, plot_data *d, FILE *gp) {
                 "set style line 3 lc rgb 'black' lw 1 dt 2\n"
                 "set style line 12 lc rgb 'black' lw 1.5 pt 2 ps 1.6\n");
     plot_key k = {0};
-    if (c.app->n) key_add(&k, "with linespoints ls 1", "approach");
-    if (c.ret->n) key_add(&k, "with linespoints ls 2", "retract");
-    if (c.un->n) key_add(&k, "with points ls 12", "not locked or not settled");
-    key_add(&k, "with lines ls 3", "amplitude set-point");
+    if (c.app->n) plot_key_add(&k, "with linespoints ls 1", "approach");
+    if (c.ret->n) plot_key_add(&k, "with linespoints ls 2", "retract");
+    if (c.un->n) plot_key_add(&k, "with points ls 12", "not locked or not settled");
+    plot_key_add(&k, "with lines ls 3", "amplitude set-point");
     const double l = PX_LEFT / d->W, r = 1 - PX_RIGHT / d->W;
-    double top = figure(gp, d, &k, l, r);
+    double top = plot_figure(gp, d, &k, l, r);
     /* the drive against the drive at the largest Z (its change is the dissipation channel),
      * and the amplitude against its set-point (did the loop hold?), both in ppm: in pm and nm
      * the changes are below the tick labels' digits */
@@ -846,20 +792,21 @@ static int first_mode(const cJSON *o, void *vctx) {
 
 static int load_approach(const plot_opts *o, plot_data *d, FILE *gp) {
     bool fm = false;
-    if (each_json(o->in[0], first_mode, &fm) < 0) return -1;
+    if (plot_each_json(o->in[0], first_mode, &fm) < 0) return -1;
     if (fm) return load_approach_fm(o, d, gp);
-    approach_ctx c = {curve_new(d, "A", "approach", APPROACH_HEADER, APPROACH_COLS),
-                      curve_new(d, "R", "retract", APPROACH_HEADER, APPROACH_COLS),
-                      set_new(d, "J",
-                              "Z_before[nm] Z_after[nm] amplitude_before[nm] amplitude_after[nm] "
-                              "lag_before[deg] lag_after[deg] retract[0/1] sharp[0/1]",
-                              8),
-                      set_new(d, "PM", APPROACH_HEADER, APPROACH_COLS),
-                      set_new(d, "UM", APPROACH_HEADER, APPROACH_COLS),
-                      &d->info,
-                      {0, 0},
-                      false};
-    if (!c.app || !c.ret || !c.jump || !c.pm || !c.um || each_json(o->in[0], approach_row, &c))
+    approach_ctx c = {
+        plot_curve_new(d, "A", "approach", APPROACH_HEADER, APPROACH_COLS),
+        plot_curve_new(d, "R", "retract", APPROACH_HEADER, APPROACH_COLS),
+        plot_set_new(d, "J",
+                     "Z_before[nm] Z_after[nm] amplitude_before[nm] amplitude_after[nm] "
+                     "lag_before[deg] lag_after[deg] retract[0/1] sharp[0/1]",
+                     8),
+        plot_set_new(d, "PM", APPROACH_HEADER, APPROACH_COLS),
+        plot_set_new(d, "UM", APPROACH_HEADER, APPROACH_COLS),
+        &d->info,
+        {0, 0},
+        false};
+    if (!c.app || !c.ret || !c.jump || !c.pm || !c.um || plot_each_json(o->in[0], approach_row, &c))
         return -1;
     if (c.app->n + c.ret->n == 0) return plot_err("%s: no approach records", o->in[0]);
     fprintf(gp, "set style line 1 lc rgb '#0072b2' lw 1.5 pt 7 ps 0.6\n"
@@ -873,21 +820,21 @@ static int load_approach(const plot_opts *o, plot_data *d, FILE *gp) {
                 "set style arrow 1 head filled size screen 0.012,20 ls 5\n"
                 "set style arrow 2 head filled size screen 0.012,20 ls 6\n");
     plot_key k = {0};
-    if (c.app->n) key_add(&k, "with linespoints ls 1", "approach");
-    if (c.ret->n) key_add(&k, "with linespoints ls 2", "retract");
-    if (c.jumps[0]) key_add(&k, "with vectors arrowstyle 1", "jump on approach");
-    if (c.jumps[1]) key_add(&k, "with vectors arrowstyle 2", "jump on retract");
-    if (c.pm->n) key_add(&k, "with points ls 11", "period p > 1");
-    if (c.um->n) key_add(&k, "with points ls 12", "not settled (or periodicity 0)");
-    key_add(&k, "with lines lw 1.5 lc rgb 'black'", "force: repulsive peak max(F, 0)");
-    key_add(&k, "with lines lw 1.5 dt 2 lc rgb 'black'", "force: attractive peak min(F, 0)");
+    if (c.app->n) plot_key_add(&k, "with linespoints ls 1", "approach");
+    if (c.ret->n) plot_key_add(&k, "with linespoints ls 2", "retract");
+    if (c.jumps[0]) plot_key_add(&k, "with vectors arrowstyle 1", "jump on approach");
+    if (c.jumps[1]) plot_key_add(&k, "with vectors arrowstyle 2", "jump on retract");
+    if (c.pm->n) plot_key_add(&k, "with points ls 11", "period p > 1");
+    if (c.um->n) plot_key_add(&k, "with points ls 12", "not settled (or periodicity 0)");
+    plot_key_add(&k, "with lines lw 1.5 lc rgb 'black'", "force: repulsive peak max(F, 0)");
+    plot_key_add(&k, "with lines lw 1.5 dt 2 lc rgb 'black'", "force: attractive peak min(F, 0)");
     snprintf(d->note, sizeof d->note, "%s",
              c.squeeze ? "energy dissipated per period: E_ts by the tip-sample forces (0 if "
                          "conservative), E_sq by the squeeze film (air under the beam)"
                        : "E_ts: the energy the tip-sample forces dissipate per period (0 for "
                          "conservative forces, but for the integration's noise)");
     const double l = PX_LEFT / d->W, r = 1 - PX_RIGHT / d->W;
-    double top = figure(gp, d, &k, l, r);
+    double top = plot_figure(gp, d, &k, l, r);
     /* 2 x 2 panels; with a squeeze film the last cell holds E_ts over E_sq */
     static const struct {
         const char *ylab;
@@ -903,7 +850,7 @@ static int load_approach(const plot_opts *o, plot_data *d, FILE *gp) {
         fprintf(gp, "set ytics autofreq\n");
         if (c.squeeze && p >= 3) {
             plot_set *const all[2] = {c.app, c.ret};
-            short_ytics(gp, all, 2, panel[p].col - 1, px);
+            plot_short_ytics(gp, all, 2, panel[p].col - 1, px);
         }
         /* room for the jump arrows' heads over and under the curves */
         fprintf(gp, "set offsets 0, 0, graph %g, graph %g\n", p < 2 ? 0.06 : 0.0,
@@ -940,446 +887,12 @@ static int load_approach(const plot_opts *o, plot_data *d, FILE *gp) {
     return 0;
 }
 
-/* ---- continue ---- */
-
-#define CONT_PLOT_BRANCHES 32 /* continue --max-branches' bound */
-
-/* A point or a bifurcation of a branch, in the order of the file. */
-typedef struct {
-    int branch, period, event; /* event: 0 a point, 1 LPC, 2 PD, 3 NS */
-    bool stable;
-    double x, mn, am, mu; /* mu: the largest |multiplier| (NAN unknown) */
-} cont_rec;
-
-typedef struct {
-    plot_set *ev, *cv;
-    cont_rec *rec;
-    size_t n, cap;
-    int count[4];  /* events so far per type, for their labels */
-    double scale;  /* of the parameter: 1e-3 for fe (kHz), 1e9 for z and ae (nm) */
-    char name[32]; /* the parameter */
-    double scale2; /* of the second parameter (--param2) */
-    char name2[64];
-    int curve, side; /* of the previous curve point (-1: none) */
-    double start[4]; /* the row of the current curve's first point (its start) */
-    int ncurve[3];   /* curve points per kind (1 LPC, 2 PD) */
-    int max_period;
-    plot_info *pi;
-    /* how each branch was reached (its "branch" record) and what it ran onto ("end") */
-    struct {
-        bool have;
-        char via[8];
-        int parent, period, joined;
-        double via_param;
-    } br[CONT_PLOT_BRANCHES];
-    int n_branch; /* 1 + the largest branch index seen */
-} cont_ctx;
-
-static double param_scale(const char *name) {
-    return !strcmp(name, "fe") ? 1e-3 : !strcmp(name, "z") || !strcmp(name, "ae") ? 1e9 : 1.0;
-}
-
-static const char *scale_unit(double scale) {
-    return scale == 1e-3 ? "kHz" : scale == 1e9 ? "nm" : scale == 1e12 ? "pm" : "SI";
-}
-
-/* Columns of a curve_point: param, param2 (scaled), kind (1 LPC, 2 PD), curve index. A NaN
- * row between curves and sides; side 1 starts again at the curve's start point, so that the
- * two sides draw as one line. */
-static int curve_row(cont_ctx *c, const cJSON *o) {
-    const cJSON *n2 = cJSON_GetObjectItemCaseSensitive(o, "param2_name");
-    if (cJSON_IsString(n2)) {
-        snprintf(c->name2, sizeof c->name2, "%s", n2->valuestring);
-        c->scale2 = param_scale(n2->valuestring);
-    }
-    const cJSON *kd = cJSON_GetObjectItemCaseSensitive(o, "kind");
-    double x = num(o, "param") * c->scale, y = num(o, "param2") * c->scale2;
-    int cv = (int)num(o, "curve"), side = (int)num(o, "side");
-    if (isnan(x) || isnan(y) || !cJSON_IsString(kd))
-        return plot_err("%s", "a curve_point record without param, param2 or kind");
-    int k = !strcmp(kd->valuestring, "PD") ? 2 : 1;
-    static const double gap[4] = {NAN, NAN, NAN, NAN};
-    double row[4] = {x, y, k, cv};
-    if (cv != c->curve) {
-        if (c->curve >= 0 && set_row(c->cv, gap)) return -1;
-        memcpy(c->start, row, sizeof row);
-    } else if (side != c->side && (set_row(c->cv, gap) || set_row(c->cv, c->start))) {
-        return -1;
-    }
-    c->curve = cv;
-    c->side = side;
-    c->ncurve[k]++;
-    return set_row(c->cv, row);
-}
-
-/* The largest modulus of a point's multipliers ([[re, im], ...]). */
-static double max_multiplier(const cJSON *o) {
-    const cJSON *ms = cJSON_GetObjectItemCaseSensitive(o, "multipliers"), *m;
-    double best = NAN;
-    cJSON_ArrayForEach(m, ms) {
-        const cJSON *re = cJSON_GetArrayItem(m, 0), *im = cJSON_GetArrayItem(m, 1);
-        if (!cJSON_IsNumber(re) || !cJSON_IsNumber(im)) continue;
-        double a = hypot(re->valuedouble, im->valuedouble);
-        if (!(best >= a)) best = a;
-    }
-    return best;
-}
-
-static int continue_row(const cJSON *o, void *vctx) {
-    cont_ctx *c = vctx;
-    const cJSON *t = cJSON_GetObjectItemCaseSensitive(o, "type");
-    if (!cJSON_IsString(t)) return plot_err("%s", "a record without type (continue --json?)");
-    const cJSON *pn = cJSON_GetObjectItemCaseSensitive(o, "param_name");
-    if (cJSON_IsString(pn)) {
-        snprintf(c->name, sizeof c->name, "%s", pn->valuestring);
-        c->scale = param_scale(pn->valuestring);
-    }
-    const char *ty = t->valuestring;
-    double bn = num(o, "branch");
-    int bi = isfinite(bn) && bn >= 0 && bn < CONT_PLOT_BRANCHES ? (int)bn : -1;
-    if (bi >= 0 && !strcmp(ty, "branch")) { /* how the branch was reached: its legend */
-        const cJSON *via = cJSON_GetObjectItemCaseSensitive(o, "via");
-        c->br[bi].have = true;
-        snprintf(c->br[bi].via, sizeof c->br[bi].via, "%s",
-                 cJSON_IsString(via) ? via->valuestring : "?");
-        c->br[bi].parent = (int)num(o, "parent");
-        c->br[bi].via_param = num(o, "via_param");
-        c->br[bi].joined = -1;
-        return 0;
-    }
-    if (bi >= 0 && !strcmp(ty, "end")) {
-        double j = num(o, "joined");
-        if (isfinite(j)) c->br[bi].joined = (int)j;
-        return 0;
-    }
-    if (!strcmp(ty, "summary") || !strcmp(ty, "end") || !strcmp(ty, "curve_end") ||
-        !strcmp(ty, "branch"))
-        return 0;
-    if (!strcmp(ty, "curve_point")) return curve_row(c, o);
-    double x = num(o, "param"), mn = num(o, "min_deflection_m") * 1e9,
-           am = num(o, "amplitude_m") * 1e9;
-    if (isnan(x) || isnan(mn)) return plot_err("%s", "a continue record without param");
-    plot_info_param(c->pi, c->name[0] ? c->name : "param", x);
-    x *= c->scale;
-    int ev = !strcmp(ty, "point") ? 0 : !strcmp(ty, "LPC") ? 1 : !strcmp(ty, "PD") ? 2 : 3;
-    if (ev) {
-        double row[6] = {x, mn, am, ev, ++c->count[ev], 0};
-        if (set_row(c->ev, row)) return -1;
-    }
-    if (c->n == c->cap) {
-        size_t cap = c->cap ? 2 * c->cap : 256;
-        cont_rec *r = realloc(c->rec, cap * sizeof *r);
-        if (!r) return -1;
-        c->rec = r;
-        c->cap = cap;
-    }
-    double per = num(o, "period");
-    int period = isfinite(per) && per >= 1 ? (int)per : 1;
-    if (period > c->max_period) c->max_period = period;
-    if (bi >= 0) {
-        c->br[bi].period = period;
-        if (bi + 1 > c->n_branch) c->n_branch = bi + 1;
-    }
-    c->rec[c->n++] = (cont_rec){.branch = (int)num(o, "branch"),
-                                .period = period,
-                                .event = ev,
-                                .stable = is_true(o, "stable"),
-                                .x = x,
-                                .mn = mn,
-                                .am = am,
-                                .mu = ev ? NAN : max_multiplier(o)};
-    return 0;
-}
-
-/* One row of the branch set: param, min_x, amplitude, stable, branch, period, segment. */
-static int branch_row(plot_set *s, const cont_rec *r, bool stable, int seg) {
-    double row[7] = {r->x, r->mn, r->am, stable ? 1 : 0, r->branch, r->period, seg};
-    return set_row(s, row);
-}
-
-/* The branches cut into segments of one stability each. Where the stability of two
- * consecutive points of a branch differs, the segments meet at the bifurcation found
- * between them (the first, if several), else where the largest multiplier modulus crosses
- * 1 on the straight line between them (half way if unknown); that point ends the one
- * segment and starts the next. A bifurcation where the stability does not change is a
- * point of its segment. */
-static int continue_segments(const cont_ctx *c, plot_set *b) {
-    int seg = 0;
-    for (size_t i = 0; i < c->n; i++) {
-        int br = c->rec[i].branch;
-        bool seen = false; /* an earlier record of this branch: done with it */
-        for (size_t j = 0; j < i && !seen; j++)
-            seen = c->rec[j].branch == br;
-        if (seen) continue;
-        int st = -1;             /* the segment's stability (-1: no point yet) */
-        size_t pend[64], np = 0; /* events since the last point */
-        const cont_rec *last = NULL;
-        for (size_t j = i; j < c->n; j++) {
-            const cont_rec *r = &c->rec[j];
-            if (r->branch != br) continue;
-            if (r->event) {
-                if (np < sizeof pend / sizeof pend[0]) pend[np++] = j;
-                continue;
-            }
-            size_t e0 = 0;
-            if (st >= 0 && last && r->stable != (st == 1)) {
-                cont_rec cut;
-                if (np > 0) {
-                    cut = c->rec[pend[0]];
-                    e0 = 1;
-                } else {
-                    double u = 0.5;
-                    if (isfinite(last->mu) && isfinite(r->mu) && (last->mu - 1) * (r->mu - 1) < 0)
-                        u = (1 - last->mu) / (r->mu - last->mu);
-                    cut = *r;
-                    cut.x = last->x + u * (r->x - last->x);
-                    cut.mn = last->mn + u * (r->mn - last->mn);
-                    cut.am = last->am + u * (r->am - last->am);
-                }
-                cut.branch = br;
-                cut.period = r->period;
-                if (branch_row(b, &cut, st == 1, seg) || branch_row(b, &cut, r->stable, ++seg))
-                    return -1;
-                st = r->stable;
-            }
-            if (st < 0) st = r->stable;
-            for (size_t e = e0; e < np; e++)
-                if (branch_row(b, &c->rec[pend[e]], st == 1, seg)) return -1;
-            np = 0;
-            if (branch_row(b, r, st == 1, seg)) return -1;
-            last = r;
-        }
-        for (size_t e = 0; e < np && st >= 0; e++) /* events after the last point */
-            if (branch_row(b, &c->rec[pend[e]], st == 1, seg)) return -1;
-        seg++;
-    }
-    return 0;
-}
-
-/* The rows of the bifurcation labels (ev's column 6): each label ("L7": type letter and
- * count, drawn 1 character right of and 1 line over its point, row steps of 0.09 of the
- * panel's y span higher) takes the lowest row where, in both panels, it overlaps no label
- * placed before it and no event's marker; boxes estimated from PX_CHAR and PX_LINE on a
- * panel w_px wide, with half a character to spare (issue 30: "P2P6" ran together, and a
- * column of labels stood over a cluster of points at no distance one could read). */
-static void continue_label_rows(plot_set *ev, double xlo, double xhi, const double ylo[2],
-                                const double yhi[2], double w_px) {
-    double cw = w_px > 0 && xhi > xlo ? PX_CHAR / w_px * (xhi - xlo) : 0.0;
-    for (size_t i = 0; i < ev->n; i++) {
-        double xi = cell(ev, i, 0), wi = (cell(ev, i, 4) >= 10 ? 3.0 : 2.0) * cw;
-        int row = 0;
-        for (; row < 40; row++) {
-            bool clash = false;
-            for (int p = 0; p < 2 && !clash; p++) {
-                double step = yhi[p] > ylo[p] ? 0.09 * (yhi[p] - ylo[p]) : 1.0;
-                double yi = cell(ev, i, 1 + p) / step + row + 0.5; /* the box: [yi, yi + 1] */
-                for (size_t j = 0; j < ev->n && !clash; j++) {
-                    double xj = cell(ev, j, 0), yj = cell(ev, j, 1 + p) / step;
-                    /* j's marker, a character square about its point */
-                    if (j != i && xi + cw - 0.5 * cw < xj + 0.6 * cw &&
-                        xj - 0.6 * cw < xi + cw + wi + 0.5 * cw && yi < yj + 0.5 &&
-                        yj - 0.5 < yi + 1)
-                        clash = true;
-                    if (j >= i) continue;
-                    /* j's label, placed */
-                    double wj = (cell(ev, j, 4) >= 10 ? 3.0 : 2.0) * cw,
-                           yl = yj + cell(ev, j, 5) + 0.5;
-                    if (xi + cw < xj + cw + wj + 0.5 * cw && xj + cw < xi + cw + wi + 0.5 * cw &&
-                        yi < yl + 1 && yl < yi + 1)
-                        clash = true;
-                }
-            }
-            if (!clash) break;
-        }
-        ev->v[i * 6 + 5] = row;
-    }
-}
-
-/* The legend of branch b: "b1 (period 2): PD of b0 at 82.243 kHz, joins b2". */
-static void cont_branch_label(const cont_ctx *c, int b, char *t, size_t n) {
-    const char *u = scale_unit(c->scale);
-    double v = c->br[b].via_param * c->scale;
-    int parent = c->br[b].parent, w = snprintf(t, n, "b%d (period %d)", b, c->br[b].period);
-    if (w < 0 || (size_t)w >= n) return;
-    const char *via = c->br[b].have ? c->br[b].via : "";
-    if (!strcmp(via, "start"))
-        w += snprintf(t + w, n - (size_t)w, ": start at %.6g %s", v, u);
-    else if (!strcmp(via, "PD"))
-        w += snprintf(t + w, n - (size_t)w, ": PD of b%d at %.6g %s", parent, v, u);
-    else if (!strcmp(via, "end"))
-        w += snprintf(t + w, n - (size_t)w, ": from the end of b%d (PD, %.6g %s)", parent, v, u);
-    else if (!strcmp(via, "fold"))
-        w += snprintf(t + w, n - (size_t)w, ": b%d past its fold at %.6g %s", parent, v, u);
-    if (c->br[b].have && c->br[b].joined >= 0 && w > 0 && (size_t)w < n)
-        snprintf(t + w, n - (size_t)w, ", joins b%d", c->br[b].joined);
-}
-
-static int load_continue(const plot_opts *o, plot_data *d, FILE *gp) {
-    cont_ctx c = {.ev = set_new(d, "E", "", 6),
-                  .cv = set_new(d, "C", "", 4),
-                  .scale = 1.0,
-                  .scale2 = 1.0,
-                  .curve = -1,
-                  .side = -1,
-                  .max_period = 1,
-                  .pi = &d->info};
-    int rc = (!c.ev || !c.cv) ? -1 : each_json(o->in[0], continue_row, &c);
-    size_t points = 0;
-    for (size_t i = 0; i < c.n; i++)
-        points += c.rec[i].event == 0;
-    if (rc == 0 && points == 0) rc = plot_err("%s: no point records", o->in[0]);
-    const char *pname = c.name[0] ? c.name : "param", *u = scale_unit(c.scale);
-    char hdr[200];
-    snprintf(hdr, sizeof hdr,
-             "%s[%s] min_x[nm] amplitude[nm] stable[0/1] branch[index] period[periods] "
-             "segment[index]",
-             pname, u);
-    plot_set *b = rc ? NULL : curve_new(d, "B", "", hdr, 7);
-    if (b) b->seg_col = 6;
-    if (rc == 0 && (!b || continue_segments(&c, b))) rc = -1;
-    free(c.rec);
-    if (rc) return -1;
-    snprintf(c.ev->header, sizeof c.ev->header,
-             "%s[%s] min_x[nm] amplitude[nm] type[1_LPC_2_PD_3_NS] index[count] "
-             "label_row[count]",
-             pname, u);
-    /* labels that would overlap one over the other: the row of each (continue_label_rows),
-     * a thin leader from the point up to a label above the first row */
-    double xlo = INFINITY, xhi = -INFINITY, ylo[2] = {INFINITY, INFINITY},
-           yhi[2] = {-INFINITY, -INFINITY};
-    for (size_t i = 0; i < b->n; i++) {
-        xlo = fmin(xlo, cell(b, i, 0));
-        xhi = fmax(xhi, cell(b, i, 0));
-        for (int p = 0; p < 2; p++) {
-            ylo[p] = fmin(ylo[p], cell(b, i, 1 + p));
-            yhi[p] = fmax(yhi[p], cell(b, i, 1 + p));
-        }
-    }
-    continue_label_rows(c.ev, xlo, xhi, ylo, yhi, d->W - PX_LEFT - PX_RIGHT);
-    const char *xl = !strcmp(c.name, "fe")   ? "drive frequency fe (kHz)"
-                     : !strcmp(c.name, "z")  ? "separation Z (nm)"
-                     : !strcmp(c.name, "ae") ? "drive amplitude Ae (nm)"
-                                             : pname;
-    const bool curves = c.cv->n > 0;
-    /* a colour per branch (8, then again); stable solid, unstable dashed and thin */
-    static const char *const pc[8] = {"#0072b2", "#cc79a7", "#009e73", "#d55e00",
-                                      "#56b4e9", "#e69f00", "#000000", "#999933"};
-    for (int q = 0; q < c.n_branch; q++)
-        fprintf(gp,
-                "set style line %d lc rgb '%s' lw 2\nset style line %d lc rgb '%s' lw 1.2 dt "
-                "2\n",
-                21 + 2 * q, pc[q % 8], 22 + 2 * q, pc[q % 8]);
-    static const char *const ev[3][3] = {{"LPC (fold)", "7", "red"},
-                                         {"PD (period doubling)", "5", "dark-green"},
-                                         {"NS (torus)", "9", "orange"}};
-    for (int k = 0; k < 3; k++)
-        fprintf(gp, "set style line %d lc rgb '%s' pt %s ps 1.3\n", 11 + k, ev[k][2], ev[k][1]);
-    plot_key k = {0};
-    key_add(&k, "with lines lw 2 lc rgb 'black'", "stable");
-    key_add(&k, "with lines lw 1.2 dt 2 lc rgb 'black'", "unstable");
-    /* each branch: its period and how it was reached (parent, event) */
-    for (int q = 0; q < c.n_branch && c.n_branch > 1; q++) {
-        char with[64], t[96];
-        snprintf(with, sizeof with, "with lines ls %d", 21 + 2 * q);
-        cont_branch_label(&c, q, t, sizeof t);
-        key_add(&k, with, t);
-    }
-    for (int e = 0; e < 3; e++)
-        if (c.count[e + 1] > 0) {
-            char with[32];
-            snprintf(with, sizeof with, "with points ls %d", 11 + e);
-            key_add(&k, with, ev[e][0]);
-        }
-    if (c.ncurve[1]) key_add(&k, "with linespoints lw 2 pt 7 ps 0.5 lc rgb 'red'", "LPC curve");
-    if (c.ncurve[2])
-        key_add(&k, "with linespoints lw 2 pt 7 ps 0.5 lc rgb 'dark-green'", "PD curve");
-    const double l = PX_LEFT / d->W, r = 1 - PX_RIGHT / d->W;
-    double top = figure(gp, d, &k, l, r);
-    /* the diagram's two panels share x; the parameter plane under them has its own */
-    double bottom = PX_BOTTOM / d->H;
-    if (curves) bottom += 0.36 * (top - bottom);
-    const char *ylab[2] = {"minimum of xr (nm)", "amplitude at fe (nm)"};
-    for (int p = 0; p < 2; p++) {
-        stack(gp, p, 2, l, r, bottom, top, PX_GAP / d->H);
-        shared_x(gp, p, 2, xl);
-        /* y: the branches, and over them room for the stacked labels */
-        double span = yhi[p] - ylo[p], ytop = yhi[p];
-        for (size_t i = 0; i < c.ev->n; i++)
-            ytop = fmax(ytop, cell(c.ev, i, 1 + p) + (cell(c.ev, i, 5) + 2.2) * 0.09 * span);
-        if (span > 0) fprintf(gp, "set yrange [%g:%g]\n", ylo[p] - 0.04 * span, ytop + 0.02 * span);
-        fprintf(gp, "set ylabel '%s'\nplot ", ylab[p]);
-        const char *sep = "";
-        for (int q = 0; q < c.n_branch; q++)
-            for (int s = 1; s >= 0; s--) {
-                fprintf(gp,
-                        "%s$B using 1:($4 == %d && $5 == %d ? $%d : 1/0) with lines ls %d notitle",
-                        sep, s, q, 2 + p, 21 + 2 * q + (1 - s));
-                sep = ", ";
-            }
-        if (c.ev->n > 0) /* leaders: from each point up to its label's row */
-            fprintf(gp,
-                    ", $E using 1:%d:(0):($6 * %g) with vectors nohead lw 0.6 lc rgb 'gray50' "
-                    "notitle",
-                    2 + p, 0.09 * (yhi[p] - ylo[p]));
-        for (int e = 0; e < 3; e++) /* gnuplot's sprintf fails on an empty set's NaN */
-            if (c.count[e + 1] > 0)
-                fprintf(gp,
-                        ", $E using ($4 == %d ? $1 : 1/0):%d with points ls %d notitle, $E using "
-                        "($4 == %d ? $1 : 1/0):($%d + $6 * %g):(sprintf('%c%%d', $5)) with labels "
-                        "offset 1,1 notitle",
-                        e + 1, 2 + p, 11 + e, e + 1, 2 + p, 0.09 * (yhi[p] - ylo[p]), ev[e][0][0]);
-        fprintf(gp, "\n");
-    }
-    double s2 = c.scale2;
-    if (curves) { /* the parameter plane: the LPC and PD curves through the events */
-        double big = 0.0;
-        for (size_t i = 0; i < c.cv->n; i++)
-            if (isfinite(c.cv->v[4 * i + 1])) big = fmax(big, fabs(c.cv->v[4 * i + 1]));
-        if (s2 == 1e9 && big < 0.1) { /* sub-0.1 nm drive amplitudes: in pm */
-            for (size_t i = 0; i < c.cv->n; i++)
-                c.cv->v[4 * i + 1] *= 1e3;
-            s2 = 1e12;
-        }
-        char yl[128];
-        /* short: the panel is low, a long label would run past its ends */
-        const char *n2 = !strcmp(c.name2, "fe")   ? "fe"
-                         : !strcmp(c.name2, "z")  ? "Z"
-                         : !strcmp(c.name2, "ae") ? "drive Ae"
-                         : c.name2[0]             ? c.name2
-                                                  : "param2";
-        snprintf(yl, sizeof yl, "%s (%s)", n2, scale_unit(s2));
-        area(gp, l, r, PX_BOTTOM / d->H, bottom - (PX_BOTTOM + 2.5 * PX_LINE) / d->H);
-        fprintf(gp,
-                "set autoscale y\nset offsets 0, 0, graph 0.08, graph 0.08\nset format x\nset "
-                "xlabel '%s'\nset title 'the bifurcation curves "
-                "in the plane "
-                "of the two parameters (own scales)'\nset ylabel '%s'\nplot ",
-                xl, yl);
-        static const char *const kc[2] = {"red", "dark-green"};
-        const char *sep = "";
-        for (int kind = 1; kind <= 2; kind++)
-            if (c.ncurve[kind] > 0) {
-                fprintf(gp,
-                        "%s$C using 1:($3 == %d || $3 != $3 ? $2 : 1/0) with linespoints lw 2 "
-                        "pt 7 ps 0.5 lc rgb '%s' notitle",
-                        sep, kind, kc[kind - 1]);
-                sep = ", ";
-            }
-        /* the margin above and below: a cusp at the range's end is not drawn on the axis */
-        fprintf(gp, "\nunset title\nset offsets 0, 0, 0, 0\n");
-    }
-    snprintf(c.cv->header, sizeof c.cv->header, "%s[%s] %s[%s] kind[1_LPC_2_PD] curve[index]",
-             pname, u, c.name2[0] ? c.name2 : "param2", scale_unit(s2));
-    fprintf(gp, "unset multiplot\n");
-    return 0;
-}
-
 /* ---- thermal ---- */
 
 static int load_thermal(const plot_opts *o, plot_data *d, FILE *gp) {
     FILE *f = fopen(o->in[0], "r");
     if (!f) return plot_err("cannot open %s", o->in[0]);
-    plot_set *s = curve_new(d, "P", "", "f[Hz] psd[m^2/Hz]", 2);
+    plot_set *s = plot_curve_new(d, "P", "", "f[Hz] psd[m^2/Hz]", 2);
     char line[256];
     int bad = 0;
     while (s && fgets(line, sizeof line, f)) {
@@ -1389,13 +902,13 @@ static int load_thermal(const plot_opts *o, plot_data *d, FILE *gp) {
             bad = 1;
             break;
         }
-        if (row[0] > 0 && set_row(s, row)) break;
+        if (row[0] > 0 && plot_set_row(s, row)) break;
     }
     fclose(f);
     if (!s || bad || s->n == 0) return plot_err("%s is no PSD (afmtwin thermal --psd)", o->in[0]);
     d->info.no_drive = true;
     plot_key k = {0};
-    key_add(&k, "with lines lc rgb 'gray40'", "deflection PSD (Welch)");
+    plot_key_add(&k, "with lines lc rgb 'gray40'", "deflection PSD (Welch)");
     char *fit = NULL;
     size_t fit_len = 0;
     FILE *ff = open_memstream(&fit, &fit_len);
@@ -1408,7 +921,7 @@ static int load_thermal(const plot_opts *o, plot_data *d, FILE *gp) {
         buf[n] = 0;
         cJSON *j = cJSON_Parse(buf);
         const cJSON *ms = cJSON_GetObjectItemCaseSensitive(j, "modes"), *m;
-        double T = num(j, "temperature_k");
+        double T = plot_num(j, "temperature_k");
         if (!cJSON_IsArray(ms) || isnan(T)) {
             cJSON_Delete(j);
             fclose(ff);
@@ -1416,7 +929,7 @@ static int load_thermal(const plot_opts *o, plot_data *d, FILE *gp) {
             return plot_err("--fit %s is no afmtwin thermal --json output", o->fit);
         }
         d->info.temperature_k = T;
-        d->info.seconds = num(j, "seconds");
+        d->info.seconds = plot_num(j, "seconds");
         const cJSON *cf = cJSON_GetObjectItemCaseSensitive(j, "config");
         if (!o->config && cJSON_IsString(cf)) { /* the model too where the file is there */
             FILE *t = fopen(cf->valuestring, "r");
@@ -1430,13 +943,13 @@ static int load_thermal(const plot_opts *o, plot_data *d, FILE *gp) {
         static const char *const fc[4] = {"#d55e00", "#009e73", "#0072b2", "#cc79a7"};
         int i = 0;
         cJSON_ArrayForEach(m, ms) {
-            double fn = num(m, "f_hz"), q = num(m, "q"), kk = num(m, "k_n_per_m");
-            double fl = num(m, "floor_m_rthz");
+            double fn = plot_num(m, "f_hz"), q = plot_num(m, "q"), kk = plot_num(m, "k_n_per_m");
+            double fl = plot_num(m, "floor_m_rthz");
             char with[64], t[96];
             snprintf(with, sizeof with, "with lines lw 2 lc rgb '%s'", fc[i % 4]);
             snprintf(t, sizeof t, "eq. 5.1 fit, mode %d: f %.6g kHz, Q %.4g, k %.4g N/m", i + 1,
                      fn * 1e-3, q, kk);
-            key_add(&k, with, t);
+            plot_key_add(&k, with, t);
             /* eq. 5.1 */
             fprintf(ff,
                     ", [%g:%g] 2*1.380649e-23*%g/(pi*%g*%g*%g)/((x**2/%g**2-1)**2+(x/(%g*%g))**2)"
@@ -1448,335 +961,14 @@ static int load_thermal(const plot_opts *o, plot_data *d, FILE *gp) {
     }
     fclose(ff);
     const double l = PX_LEFT / d->W, r = 1 - PX_RIGHT / d->W;
-    double top = figure(gp, d, &k, l, r);
-    area(gp, l, r, PX_BOTTOM / d->H, top);
+    double top = plot_figure(gp, d, &k, l, r);
+    plot_area(gp, l, r, PX_BOTTOM / d->H, top);
     fprintf(gp,
             "set logscale xy\nset format y '%%.0e'\nset format x '%%.0s%%c'\nset autoscale xfix\n"
             "set xlabel 'frequency (Hz)'\nset ylabel 'deflection PSD (m^2/Hz)'\n"
             "plot $P using 1:2 with lines lc rgb 'gray40' notitle%s\nunset multiplot\n",
             fit ? fit : "");
     free(fit);
-    return 0;
-}
-
-/* ---- trace ---- */
-
-/* Samples-channel messages that never arrived (a jump in msg_seq, msg_seq lo..hi) while the
- * stream had no samples from t_lo to t_hi (model time, s; t_hi NAN: the log ended first). */
-typedef struct {
-    long long lo, hi;
-    double t_lo, t_hi;
-} trace_gap;
-#define TRACE_MAX_GAPS 256
-
-typedef struct {
-    int blocks, decimation;
-    double rate_hz, pass_hz, stop_hz, fe_hz; /* the last block's (fe: tone 0, NAN: none) */
-    double t_first, t_end;                   /* the stream's first and last sample + 1 */
-    long long lost;                          /* messages lost in the whole log */
-    int n_gaps;
-    trace_gap gap[TRACE_MAX_GAPS];
-} trace_ctx;
-
-/* The stream's rate and filter as two lines of the title (and of the data files); sparse:
- * drawn as points. */
-static void trace_note(const trace_ctx *c, int stream, bool sparse, char *l1, char *l2, size_t n) {
-    int k = snprintf(l1, n, "stream %d: %.6g kHz (decimation %d)", stream, c->rate_hz / 1e3,
-                     c->decimation);
-    if (c->fe_hz > 0 && k > 0 && (size_t)k < n)
-        k += snprintf(l1 + k, n - (size_t)k, ", %.3g samples per drive period",
-                      c->rate_hz / c->fe_hz);
-    if (sparse && k > 0 && (size_t)k < n)
-        snprintf(l1 + k, n - (size_t)k, ": points, too few for the waveform");
-    if (c->pass_hz > 0)
-        snprintf(l2, n,
-                 "every channel (force too) low-pass %.6g kHz, -80 dB from %.6g kHz: force "
-                 "peaks are in the harmonics",
-                 c->pass_hz / 1e3, c->stop_hz / 1e3);
-    else
-        snprintf(l2, n, "not filtered (decimation %d)", c->decimation);
-}
-
-static int load_trace(const plot_opts *o, plot_data *d, FILE *gp) {
-    char err[256];
-    afm_lcm_log *lg = afm_lcm_log_open(o->in[0], 0, err, sizeof err);
-    if (!lg) return plot_err("cannot read the log: %s", err);
-    plot_set *s = curve_new(d, "T", "",
-                            "t[ms] deflection[nm] obd[nm] force[nN] gap[nm] msg_seq[index] "
-                            "run[index] rate[Hz] passband[Hz]",
-                            9);
-    if (!s) return -1;
-    s->seg_col = 6; /* a run of samples with no lost message inside: never joined across */
-    static trace_ctx c;
-    memset(&c, 0, sizeof c);
-    c.t_first = c.t_end = c.fe_hz = NAN;
-    double t0 = isnan(o->t_from_s) ? -HUGE_VAL : o->t_from_s;
-    double t1 = isnan(o->t_to_s) ? HUGE_VAL : o->t_to_s;
-    afm_lcm_log_event ev;
-    long long prev_seq = -1, lost_lo = -1, lost_hi = -1; /* lost since the stream's last block */
-    int rr, run = 0;
-    while ((rr = afm_lcm_log_next(lg, &ev, err, sizeof err)) > 0) {
-        size_t cl = strlen(ev.channel);
-        if (cl < 7 || strcmp(ev.channel + cl - 7, "SAMPLES")) continue;
-        afmtwin_samples_t m;
-        if (afm_wire_decode(&afm_wire_samples_t, ev.data, (int)ev.datalen, &m, err, sizeof err))
-            continue; /* not a samples_t: skipped, as listen does */
-        if (prev_seq >= 0 && m.msg_seq > prev_seq + 1) {
-            c.lost += m.msg_seq - prev_seq - 1;
-            if (lost_lo < 0) lost_lo = prev_seq + 1;
-            lost_hi = m.msg_seq - 1;
-        }
-        if (m.msg_seq > prev_seq) prev_seq = m.msg_seq;
-        if (m.stream == o->stream && m.n > 0 && m.rate_hz > 0) {
-            if (lost_lo >= 0 && isfinite(c.t_end) && m.t0_s > c.t_end + 0.5 / m.rate_hz) {
-                if (c.n_gaps < TRACE_MAX_GAPS)
-                    c.gap[c.n_gaps++] = (trace_gap){lost_lo, lost_hi, c.t_end, m.t0_s};
-                run++;
-            }
-            lost_lo = lost_hi = -1;
-            if (isnan(c.t_first)) c.t_first = m.t0_s;
-            c.t_end = m.t0_s + m.n / m.rate_hz;
-            c.rate_hz = m.rate_hz;
-            c.decimation = m.decimation;
-            c.pass_hz = m.passband_hz;
-            c.stop_hz = m.stopband_hz;
-            double a = isnan(o->t_from_s) ? c.t_first : t0;
-            double b = isnan(o->t_to_s) ? a + 2e-3 : t1;
-            for (int i = 0; i < m.n; i++) {
-                double t = m.t0_s + i / m.rate_hz;
-                if (t < a || t > b) continue;
-                if (m.n_tones > 0) c.fe_hz = m.tone_frequency_hz[0];
-                double row[9] = {t * 1e3,
-                                 m.deflection_m[i] * 1e9,
-                                 m.obd_m[i] * 1e9,
-                                 m.force_n[i] * 1e9,
-                                 isnan(o->z_m) ? NAN : (m.deflection_m[i] + o->z_m) * 1e9,
-                                 (double)m.msg_seq,
-                                 run,
-                                 m.rate_hz,
-                                 m.passband_hz};
-                if (set_row(s, row)) break;
-            }
-            c.blocks++;
-        }
-        afm_wire_free(&afm_wire_samples_t, &m);
-    }
-    afm_lcm_log_close(&lg);
-    if (lost_lo >= 0 && c.n_gaps < TRACE_MAX_GAPS) /* lost after the stream's last block */
-        c.gap[c.n_gaps++] = (trace_gap){lost_lo, lost_hi, c.t_end, NAN};
-    const double a = isnan(o->t_from_s) ? c.t_first : t0;
-    const double b = isnan(o->t_to_s) ? a + 2e-3 : t1;
-    if (s->n == 0) {
-        for (int g = 0; g < c.n_gaps; g++) {
-            const trace_gap *q = &c.gap[g];
-            if (q->t_lo <= b && (isnan(q->t_hi) || q->t_hi >= a)) {
-                fprintf(stderr,
-                        "afmtwin plot: %s: the window %.6f..%.6f ms falls in a gap of lost "
-                        "messages: %lld samples messages (msg_seq %lld to %lld) never reached "
-                        "the log, and stream %d has no samples from %.6f ms to ",
-                        o->in[0], a * 1e3, b * 1e3, q->hi - q->lo + 1, q->lo, q->hi, o->stream,
-                        q->t_lo * 1e3);
-                if (isnan(q->t_hi))
-                    fprintf(stderr, "the end of the log\n");
-                else
-                    fprintf(stderr, "%.6f ms\n", q->t_hi * 1e3);
-                return -1;
-            }
-        }
-        if (c.blocks == 0)
-            fprintf(stderr, "afmtwin plot: %s: no samples of stream %d in the log\n", o->in[0],
-                    o->stream);
-        else
-            fprintf(stderr,
-                    "afmtwin plot: %s: no samples of stream %d in the window %.6f..%.6f ms (%d "
-                    "blocks from %.6f to %.6f ms, %lld messages lost)\n",
-                    o->in[0], o->stream, a * 1e3, b * 1e3, c.blocks, c.t_first * 1e3, c.t_end * 1e3,
-                    c.lost);
-        return -1;
-    }
-    /* the daemon's drive is what it was sent, not the config's: only --fe and --ae */
-    d->info.cfg_fe_hz = d->info.cfg_ae_m = NAN;
-    if (isnan(c.fe_hz) && o->fe_hz > 0) c.fe_hz = o->fe_hz;
-    /* a waveform only where the stream resolves the drive's period; else its points */
-    const bool sparse = !(c.fe_hz > 0) || c.rate_hz / c.fe_hz < 10;
-    trace_note(&c, o->stream, sparse, d->note, d->note2, sizeof d->note);
-    const char *with = sparse ? "with points" : "with linespoints";
-    fprintf(gp, "set style line 1 lc rgb '#0072b2' lw 1.5 pt 7 ps 0.8\nset style line 2 lc rgb "
-                "'#e69f00' lw 1.5 dt 2 pt 6 ps 1.0\nset style line 3 lc rgb '#009e73' lw 1.5 pt 7 "
-                "ps 0.8\nset style line 4 lc rgb '#d55e00' lw 1.5 pt 7 ps 0.8\n");
-    const bool gap = !isnan(o->z_m);
-    plot_key k = {0};
-    char w[128], lab[96];
-    snprintf(w, sizeof w, "%s ls 1", with);
-    key_add(&k, w, "tip deflection xr");
-    snprintf(w, sizeof w, "%s ls 2", with);
-    key_add(&k, w, "OBD signal");
-    if (gap) {
-        snprintf(w, sizeof w, "%s ls 3", with);
-        key_add(&k, w, "gap xr + Z");
-    }
-    snprintf(w, sizeof w, "%s ls 4", with);
-    if (c.pass_hz > 0)
-        snprintf(lab, sizeof lab, "tip-sample force, low-pass %.4g kHz", c.pass_hz / 1e3);
-    else
-        snprintf(lab, sizeof lab, "tip-sample force");
-    key_add(&k, w, lab);
-    /* lost messages inside the window: shaded, named in the legend */
-    int shown = 0;
-    for (int g = 0; g < c.n_gaps; g++) {
-        const trace_gap *q = &c.gap[g];
-        double hi = isnan(q->t_hi) ? b : q->t_hi;
-        if (q->t_lo > b || hi < a) continue;
-        fprintf(gp,
-                "set object %d rect from %.9g, graph 0 to %.9g, graph 1 fc rgb '#cccccc' fs "
-                "solid 0.5 noborder behind\n",
-                100 + g, fmax(q->t_lo, a) * 1e3, fmin(hi, b) * 1e3);
-        if (shown++ == 0) {
-            snprintf(lab, sizeof lab, "lost messages (msg_seq %lld to %lld%s)", q->lo, q->hi,
-                     c.n_gaps > g + 1 ? ", ..." : "");
-            key_add(&k, "with boxes fc rgb '#cccccc' fs solid 0.5 noborder", lab);
-        }
-    }
-    const double l = PX_LEFT / d->W, r = 1 - PX_RIGHT / d->W, b0 = PX_BOTTOM / d->H,
-                 g = PX_GAP / d->H;
-    double top = figure(gp, d, &k, l, r);
-    const int n = gap ? 3 : 2;
-    int i = 0;
-    stack(gp, i, n, l, r, b0, top, g);
-    shared_x(gp, i++, n, "model time (ms)");
-    fprintf(gp,
-            "set ylabel 'deflection (nm)'\nplot $T using 1:2 %s ls 1 notitle, $T using 1:3 %s "
-            "ls 2 notitle\n",
-            with, with);
-    if (gap) {
-        stack(gp, i, n, l, r, b0, top, g);
-        shared_x(gp, i++, n, "model time (ms)");
-        fprintf(gp, "set ylabel 'gap (nm)'\nplot $T using 1:5 %s ls 3 notitle\n", with);
-    }
-    stack(gp, i, n, l, r, b0, top, g);
-    shared_x(gp, i, n, "model time (ms)");
-    fprintf(gp, "set ylabel 'force (nN)'\nplot $T using 1:4 %s ls 4 notitle\nunset multiplot\n",
-            with);
-    return 0;
-}
-
-/* ---- fm: the daemon's FM channels over time ---- */
-
-/* Rows of the harmonics records of an LCM log (the daemon's or replay's), model time in
- * --from..--to (default the whole log). With the internal loops (fm_lock_state >= 0) the
- * shift is the loops' (tone 0 less the NCO's centre) and the phase error theirs; under an
- * outside controller (no loops) tone 0's frequency less the first record's, and the
- * lock-in's lag (90 deg free at resonance). */
-#define FM_TRACE_COLS 8
-#define FM_TRACE_HEADER                                                                            \
-    "t[ms] frequency_shift[Hz] drive_amplitude[pm] amplitude[nm] phase[deg] lock_state[-1..2] "    \
-    "Z[nm] msg_seq[index]"
-
-static int load_fm(const plot_opts *o, plot_data *d, FILE *gp) {
-    char err[256];
-    afm_lcm_log *lg = afm_lcm_log_open(o->in[0], 0, err, sizeof err);
-    if (!lg) return plot_err("cannot read the log: %s", err);
-    plot_set *s = curve_new(d, "F", "", FM_TRACE_HEADER, FM_TRACE_COLS);
-    if (!s) {
-        afm_lcm_log_close(&lg);
-        return -1;
-    }
-    const double a = isnan(o->t_from_s) ? -HUGE_VAL : o->t_from_s;
-    const double b = isnan(o->t_to_s) ? HUGE_VAL : o->t_to_s;
-    afm_lcm_log_event ev;
-    int rr, records = 0, internal = -1, n_acq = 0, n_lost = 0;
-    double f_first = NAN, ph_set = NAN;
-    while ((rr = afm_lcm_log_next(lg, &ev, err, sizeof err)) > 0) {
-        size_t cl = strlen(ev.channel);
-        if (cl < 9 || strcmp(ev.channel + cl - 9, "HARMONICS")) continue;
-        afmtwin_harmonics_t m;
-        if (afm_wire_decode(&afm_wire_harmonics_t, ev.data, (int)ev.datalen, &m, err, sizeof err))
-            continue; /* not a harmonics_t: skipped, as listen does */
-        records++;
-        if (internal < 0) internal = m.fm_lock_state >= 0;
-        double f0 = m.n_tones > 0 ? m.tone_frequency_hz[0] : NAN;
-        if (isnan(f_first)) f_first = f0;
-        if (m.t_s >= a && m.t_s <= b) {
-            double shift = internal ? m.fm_frequency_shift_hz : f0 - f_first;
-            double phase = internal ? m.fm_phase_error_deg : m.lockin_phase_deg;
-            if (internal && m.fm_lock_state == 1 && isfinite(m.fm_phase_error_deg))
-                ph_set = m.lockin_phase_deg - m.fm_phase_error_deg; /* the last locked one */
-            n_acq += internal && m.fm_lock_state == 0;
-            n_lost += internal && m.fm_lock_state == 2;
-            double row[FM_TRACE_COLS] = {m.t_s * 1e3,
-                                         shift,
-                                         m.n_tones > 0 ? m.tone_amplitude_m[0] * 1e12 : NAN,
-                                         m.lockin_amplitude_m * 1e9,
-                                         phase,
-                                         (double)m.fm_lock_state,
-                                         m.separation_m * 1e9,
-                                         (double)m.msg_seq};
-            if (set_row(s, row)) {
-                afm_wire_free(&afm_wire_harmonics_t, &m);
-                break;
-            }
-        }
-        afm_wire_free(&afm_wire_harmonics_t, &m);
-    }
-    afm_lcm_log_close(&lg);
-    if (rr < 0)
-        fprintf(stderr, "afmtwin plot: %s: %s (the records before it are drawn)\n", o->in[0], err);
-    if (s->n == 0) {
-        if (records == 0)
-            return plot_err("%s: no harmonics records in the log (log the daemon's outputs: "
-                            "lcm-logger on --lcm-out-url, or afmtwin replay --out)",
-                            o->in[0]);
-        fprintf(stderr, "afmtwin plot: %s: no harmonics record in the window (%d in the log)\n",
-                o->in[0], records);
-        return -1;
-    }
-    d->info.cfg_fe_hz = d->info.cfg_ae_m = NAN; /* the drive is the loops' or the commands' */
-    if (internal)
-        snprintf(d->note, sizeof d->note,
-                 "internal loops: shift = tone 0 - the NCO's centre; phase error = lock-in lag "
-                 "(90 deg free at resonance) - set-point%s",
-                 isfinite(ph_set) ? "" : " (no record locked)");
-    else
-        snprintf(d->note, sizeof d->note,
-                 "no internal loops (outside controller): tone 0 - its first record's %.9g Hz; "
-                 "lock-in lag behind the drive (90 deg free at resonance)",
-                 f_first);
-    if (internal && isfinite(ph_set))
-        snprintf(d->note2, sizeof d->note2, "phase set-point %.6g deg (lag)", ph_set);
-    fprintf(gp, "set style line 1 lc rgb '#0072b2' lw 1.5 pt 7 ps 0.5\nset style line 2 lc rgb "
-                "'#e69f00' lw 2 pt 6 ps 1.0\nset style line 3 lc rgb '#d55e00' lw 2 pt 2 ps "
-                "1.2\n");
-    plot_key k = {0};
-    key_add(&k, "with linespoints ls 1", internal ? "locked" : "harmonics records");
-    if (n_acq) key_add(&k, "with points ls 2", "acquiring");
-    if (n_lost) key_add(&k, "with points ls 3", "lost");
-    const double l = PX_LEFT / d->W, r = 1 - PX_RIGHT / d->W, b0 = PX_BOTTOM / d->H,
-                 g = PX_GAP / d->H;
-    double top = figure(gp, d, &k, l, r);
-    static const struct {
-        int col;
-        const char *label_int, *label_ext;
-    } panel[] = {{2, "shift (Hz)", "tone 0 - first (Hz)"},
-                 {3, "drive (pm)", "drive (pm)"},
-                 {4, "amplitude (nm)", "amplitude (nm)"},
-                 {5, "phase error (deg)", "lag (deg)"}};
-    const int n = 4;
-    const double px = ((top - b0) - (n - 1) * g) / n * d->H; /* a panel's height */
-    for (int i = 0; i < n; i++) {
-        stack(gp, i, n, l, r, b0, top, g);
-        shared_x(gp, i, n, "model time (ms)");
-        short_ytics(gp, &s, 1, panel[i].col - 1, px);
-        fprintf(gp, "set ylabel '%s'\nplot $F using 1:%d with linespoints ls 1 notitle",
-                internal ? panel[i].label_int : panel[i].label_ext, panel[i].col);
-        if (n_acq)
-            fprintf(gp, ", $F using 1:($6 == 0 ? $%d : 1/0) with points ls 2 notitle",
-                    panel[i].col);
-        if (n_lost)
-            fprintf(gp, ", $F using 1:($6 == 2 ? $%d : 1/0) with points ls 3 notitle",
-                    panel[i].col);
-        fputc('\n', gp);
-    }
-    fprintf(gp, "unset multiplot\n");
     return 0;
 }
 
@@ -1794,22 +986,23 @@ static int spectrum_row(const cJSON *o, void *vctx) {
     if (!cJSON_IsArray(hs)) return 0; /* a jump record */
     if (c->want >= 0 && c->seen++ != c->want) return 0;
     c->s->n = 0; /* -1: the last one wins */
-    c->z = num(o, "z_m");
-    c->fe = num(o, "fe_hz");
-    c->a0 = num(o, "free_amplitude_m");
-    c->lag0 = num(o, "free_phase_lag_deg");
+    c->z = plot_num(o, "z_m");
+    c->fe = plot_num(o, "fe_hz");
+    c->a0 = plot_num(o, "free_amplitude_m");
+    c->lag0 = plot_num(o, "free_phase_lag_deg");
     cJSON_ArrayForEach(h, hs) {
-        double a = num(h, "amplitude_m");
-        if (isnan(a)) a = num(h, "deflection_amplitude_m");
-        double row[2] = {num(h, "k"), a * 1e9};
-        if (set_row(c->s, row)) return -1;
+        double a = plot_num(h, "amplitude_m");
+        if (isnan(a)) a = plot_num(h, "deflection_amplitude_m");
+        double row[2] = {plot_num(h, "k"), a * 1e9};
+        if (plot_set_row(c->s, row)) return -1;
     }
     return 0;
 }
 
 static int load_spectrum(const plot_opts *o, plot_data *d, FILE *gp) {
-    spectrum_ctx c = {.want = o->index, .s = curve_new(d, "H", "", "k[harmonic] amplitude[nm]", 2)};
-    if (!c.s || each_json(o->in[0], spectrum_row, &c)) return -1;
+    spectrum_ctx c = {.want = o->index,
+                      .s = plot_curve_new(d, "H", "", "k[harmonic] amplitude[nm]", 2)};
+    if (!c.s || plot_each_json(o->in[0], spectrum_row, &c)) return -1;
     if (c.s->n == 0) return plot_err("%s: no record with harmonics at that --index", o->in[0]);
     plot_info_z(&d->info, c.z);
     plot_info_fe(&d->info, c.fe);
@@ -1817,13 +1010,13 @@ static int load_spectrum(const plot_opts *o, plot_data *d, FILE *gp) {
     d->info.a0_lag_deg = c.lag0;
     double kmax = 1;
     for (size_t i = 0; i < c.s->n; i++)
-        kmax = fmax(kmax, cell(c.s, i, 0));
+        kmax = fmax(kmax, plot_cell(c.s, i, 0));
     plot_key k = {0};
-    key_add(&k, "with boxes fill solid 0.6 lc rgb '#0072b2'",
-            "harmonic amplitudes A_k of the deflection");
+    plot_key_add(&k, "with boxes fill solid 0.6 lc rgb '#0072b2'",
+                 "harmonic amplitudes A_k of the deflection");
     const double l = PX_LEFT / d->W, r = 1 - PX_RIGHT / d->W;
-    double top = figure(gp, d, &k, l, r);
-    area(gp, l, r, PX_BOTTOM / d->H, top);
+    double top = plot_figure(gp, d, &k, l, r);
+    plot_area(gp, l, r, PX_BOTTOM / d->H, top);
     fprintf(gp,
             "set logscale y\nset format y '%%.0e'\nset boxwidth 0.6\nset style fill solid 0.6\n"
             "set xlabel 'harmonic k'\nset ylabel 'deflection amplitude (nm)'\nset xtics 1\n"
@@ -1846,9 +1039,9 @@ static int fc_row(const cJSON *o, void *vctx) {
     fc_ctx *c = vctx;
     const cJSON *sum = cJSON_GetObjectItemCaseSensitive(o, "summary");
     if (cJSON_IsObject(sum)) {
-        c->k_n_m = num(sum, "spring_constant_n_m");
-        c->adhesion_n = num(sum, "adhesion_force_n");
-        c->speed_m_s = num(sum, "speed_m_s");
+        c->k_n_m = plot_num(sum, "spring_constant_n_m");
+        c->adhesion_n = plot_num(sum, "adhesion_force_n");
+        c->speed_m_s = plot_num(sum, "speed_m_s");
         return 0;
     }
     const cJSON *ev = cJSON_GetObjectItemCaseSensitive(o, "event");
@@ -1857,32 +1050,32 @@ static int fc_row(const cJSON *o, void *vctx) {
                       : !strcmp(ev->valuestring, "pull_off") ? 2
                                                              : 0;
         if (kind == 0) return 0;
-        double row[3] = {num(o, "z_m") * 1e9, num(o, "force_n") * 1e9, kind};
-        return set_row(c->ev, row);
+        double row[3] = {plot_num(o, "z_m") * 1e9, plot_num(o, "force_n") * 1e9, kind};
+        return plot_set_row(c->ev, row);
     }
     const cJSON *dir = cJSON_GetObjectItemCaseSensitive(o, "direction");
-    double z = num(o, "z_m"), f = num(o, "force_n");
+    double z = plot_num(o, "z_m"), f = plot_num(o, "force_n");
     if (isnan(z) || isnan(f) || !cJSON_IsString(dir))
         return plot_err("%s", "a record without z_m, force_n or direction (afmtwin force-curve "
                               "--json?)");
-    double row[3] = {z * 1e9, f * 1e9, num(o, "deflection_m") * 1e9};
-    return set_row(strcmp(dir->valuestring, "retract") ? c->ap : c->re, row);
+    double row[3] = {z * 1e9, f * 1e9, plot_num(o, "deflection_m") * 1e9};
+    return plot_set_row(strcmp(dir->valuestring, "retract") ? c->ap : c->re, row);
 }
 
 /* The quasi-static force-distance curve: the force k x on the lever against the base Z,
  * approach and retract, snap-in and pull-off marked where the run found them, the adhesion
  * (the force at pull-off) stated in the title; the drive is off (no A0). */
 static int load_force_curve(const plot_opts *o, plot_data *d, FILE *gp) {
-    fc_ctx c = {.ap = curve_new(d, "A", "approach", "Z[nm] force[nN] deflection[nm]", 3),
-                .re = curve_new(d, "R", "retract", "Z[nm] force[nN] deflection[nm]", 3),
-                .ev = set_new(d, "E", "Z[nm] force[nN] event[1_snap_in_2_pull_off]", 3),
+    fc_ctx c = {.ap = plot_curve_new(d, "A", "approach", "Z[nm] force[nN] deflection[nm]", 3),
+                .re = plot_curve_new(d, "R", "retract", "Z[nm] force[nN] deflection[nm]", 3),
+                .ev = plot_set_new(d, "E", "Z[nm] force[nN] event[1_snap_in_2_pull_off]", 3),
                 .k_n_m = NAN,
                 .adhesion_n = NAN,
                 .speed_m_s = NAN};
-    if (!c.ap || !c.re || !c.ev || each_json(o->in[0], fc_row, &c)) return -1;
+    if (!c.ap || !c.re || !c.ev || plot_each_json(o->in[0], fc_row, &c)) return -1;
     if (c.ap->n == 0) return plot_err("%s: no approach points", o->in[0]);
     for (size_t i = 0; i < c.ap->n; i++)
-        plot_info_z(&d->info, cell(c.ap, i, 0) * 1e-9);
+        plot_info_z(&d->info, plot_cell(c.ap, i, 0) * 1e-9);
     d->info.no_drive = true;
     snprintf(d->note, sizeof d->note,
              "drive off, Z ramped at %.3g m/s; spring k %.4g N/m; adhesion (force at pull-off) "
@@ -1891,17 +1084,17 @@ static int load_force_curve(const plot_opts *o, plot_data *d, FILE *gp) {
     if (isnan(c.adhesion_n)) snprintf(d->note, sizeof d->note, "drive off; no pull-off found");
     bool snap = false, pull = false;
     for (size_t i = 0; i < c.ev->n; i++) {
-        if (cell(c.ev, i, 2) == 1) snap = true;
-        if (cell(c.ev, i, 2) == 2) pull = true;
+        if (plot_cell(c.ev, i, 2) == 1) snap = true;
+        if (plot_cell(c.ev, i, 2) == 2) pull = true;
     }
     plot_key k = {0};
-    key_add(&k, "with lines lw 2 lc rgb '#0072b2'", "approach");
-    key_add(&k, "with lines lw 2 lc rgb '#d55e00'", "retract");
-    if (snap) key_add(&k, "with points pt 7 ps 1.5 lc rgb '#009e73'", "snap-in");
-    if (pull) key_add(&k, "with points pt 5 ps 1.5 lc rgb 'black'", "pull-off (adhesion)");
+    plot_key_add(&k, "with lines lw 2 lc rgb '#0072b2'", "approach");
+    plot_key_add(&k, "with lines lw 2 lc rgb '#d55e00'", "retract");
+    if (snap) plot_key_add(&k, "with points pt 7 ps 1.5 lc rgb '#009e73'", "snap-in");
+    if (pull) plot_key_add(&k, "with points pt 5 ps 1.5 lc rgb 'black'", "pull-off (adhesion)");
     const double l = PX_LEFT / d->W, r = 1 - PX_RIGHT / d->W;
-    double top = figure(gp, d, &k, l, r);
-    area(gp, l, r, PX_BOTTOM / d->H, top);
+    double top = plot_figure(gp, d, &k, l, r);
+    plot_area(gp, l, r, PX_BOTTOM / d->H, top);
     fprintf(gp, "set xlabel 'base separation Z (nm)'\nset ylabel 'force on the lever k x (nN)'\n"
                 "set xzeroaxis lt -1 lw 0.5\nset offsets 0, 0, graph 0.05, graph 0.05\n"
                 "plot $A using 1:2 with lines lw 2 lc rgb '#0072b2' notitle, "
@@ -1927,21 +1120,21 @@ typedef struct {
 
 static int scan_row(const cJSON *o, void *vctx) {
     scan_ctx *c = vctx;
-    double line = num(o, "line");
-    if (isnan(line) || isnan(num(o, "height_m")))
+    double line = plot_num(o, "line");
+    if (isnan(line) || isnan(plot_num(o, "height_m")))
         return plot_err("%s", "a record without line or height_m (afmtwin scan --json?)");
     if (line + 1 > c->lines) c->lines = (int)line + 1;
-    if (!isfinite(c->pi->a0_m)) c->pi->a0_m = num(o, "free_amplitude_m");
-    double row[SCAN_COLS] = {num(o, "x_m") * 1e9,
-                             num(o, "y_m") * 1e9,
+    if (!isfinite(c->pi->a0_m)) c->pi->a0_m = plot_num(o, "free_amplitude_m");
+    double row[SCAN_COLS] = {plot_num(o, "x_m") * 1e9,
+                             plot_num(o, "y_m") * 1e9,
                              line,
-                             num(o, "height_m") * 1e9,
-                             num(o, "true_height_m") * 1e9,
-                             num(o, "phase_lag_deg"),
-                             num(o, "error_m") * 1e9,
-                             num(o, "peak_force_n") * 1e9,
-                             num(o, "dissipated_energy_j") / PLOT_EV};
-    return set_row(is_true(o, "retrace") ? c->re : c->tr, row);
+                             plot_num(o, "height_m") * 1e9,
+                             plot_num(o, "true_height_m") * 1e9,
+                             plot_num(o, "phase_lag_deg"),
+                             plot_num(o, "error_m") * 1e9,
+                             plot_num(o, "peak_force_n") * 1e9,
+                             plot_num(o, "dissipated_energy_j") / PLOT_EV};
+    return plot_set_row(plot_is_true(o, "retrace") ? c->re : c->tr, row);
 }
 
 /* Each line's y: the mean of its pixels' (the slow axis moves during a line), so that the
@@ -1991,25 +1184,27 @@ static void aspect_area(FILE *gp, const plot_data *d, double l, double r, double
     *al = l + 0.5 * ((r - l) - w / d->W);
     *ar = *al + w / d->W;
     *ab = t - h / d->H;
-    area(gp, *al, *ar, *ab, t);
+    plot_area(gp, *al, *ar, *ab, t);
 }
 
 static int load_scan(const plot_opts *o, plot_data *d, FILE *gp) {
-    scan_ctx c = {curve_new(d, "T", "trace", SCAN_HEADER, SCAN_COLS),
-                  curve_new(d, "R", "retrace", SCAN_HEADER, SCAN_COLS), 0, &d->info};
-    if (!c.tr || !c.re || each_json(o->in[0], scan_row, &c)) return -1;
+    scan_ctx c = {plot_curve_new(d, "T", "trace", SCAN_HEADER, SCAN_COLS),
+                  plot_curve_new(d, "R", "retrace", SCAN_HEADER, SCAN_COLS), 0, &d->info};
+    if (!c.tr || !c.re || plot_each_json(o->in[0], scan_row, &c)) return -1;
     if (c.tr->n == 0) return plot_err("%s: no trace pixels", o->in[0]);
     d->info.no_z = true;
     scan_line_y(c.tr, c.lines);
     /* the profile: the middle line's trace and retrace against the truth */
     int mid = c.lines / 2;
-    plot_set *pt = set_new(d, "PT", SCAN_HEADER, SCAN_COLS),
-             *pr = set_new(d, "PR", SCAN_HEADER, SCAN_COLS);
+    plot_set *pt = plot_set_new(d, "PT", SCAN_HEADER, SCAN_COLS),
+             *pr = plot_set_new(d, "PR", SCAN_HEADER, SCAN_COLS);
     if (!pt || !pr) return -1;
     for (size_t i = 0; i < c.tr->n; i++)
-        if (c.tr->v[i * SCAN_COLS + 2] == mid && set_row(pt, c.tr->v + i * SCAN_COLS)) return -1;
+        if (c.tr->v[i * SCAN_COLS + 2] == mid && plot_set_row(pt, c.tr->v + i * SCAN_COLS))
+            return -1;
     for (size_t i = 0; i < c.re->n; i++)
-        if (c.re->v[i * SCAN_COLS + 2] == mid && set_row(pr, c.re->v + i * SCAN_COLS)) return -1;
+        if (c.re->v[i * SCAN_COLS + 2] == mid && plot_set_row(pr, c.re->v + i * SCAN_COLS))
+            return -1;
     static const struct {
         const char *title, *unit;
         int col;
@@ -2034,7 +1229,7 @@ static int load_scan(const plot_opts *o, plot_data *d, FILE *gp) {
                 "pt 7 ps 0.5\nset style line 3 lc rgb '#d55e00' lw 1.5 pt 6 ps 0.6\n");
     plot_key none = {0};
     const double W = d->W, H = d->H;
-    const double top = figure(gp, d, &none, 0, 1);
+    const double top = plot_figure(gp, d, &none, 0, 1);
     char xr[96];
     snprintf(xr, sizeof xr, "set xrange [%.6g:%.6g]\n", x0, x1);
     /* the profile's legend: right of it */
@@ -2045,7 +1240,7 @@ static int load_scan(const plot_opts *o, plot_data *d, FILE *gp) {
         for (int p = 0; p < 4; p++) {
             double cl = p % 2 ? 0.5 + 60 / W : PX_LEFT / W, cr = p % 2 ? kr : 0.5 - 40 / W;
             double t = top - (p / 2) * (h + PX_LINE / H);
-            area(gp, cl, cr, t - h + (p < 2 ? (PX_BOTTOM - 10) / H : 0), t);
+            plot_area(gp, cl, cr, t - h + (p < 2 ? (PX_BOTTOM - 10) / H : 0), t);
             fprintf(gp, "%sset xlabel 'x (nm)'\nset ylabel '%s'\n", xr, img[p].unit);
             if (p == 0) fprintf(gp, key, kr + 12 / W, top);
             fprintf(gp,
@@ -2072,7 +1267,7 @@ static int load_scan(const plot_opts *o, plot_data *d, FILE *gp) {
         aspect_area(gp, d, l, r, t - img_h, t, aspect, &al, &ar, &ab);
         double xs = tic_step(x1 - x0, (ar - al) * W, label_chars(x0, x1) * PX_CHAR + 12);
         double ys = tic_step(y1 - y0, (t - ab) * H, PX_LINE + 8);
-        shared_x(gp, p / 2, 2, "x (nm)");
+        plot_shared_x(gp, p / 2, 2, "x (nm)");
         fprintf(gp,
                 "set size ratio -1\nset autoscale fix\n%sset yrange [%.6g:%.6g]\nset xtics %g\n"
                 "set ytics %g\nset ylabel 'y (nm)'\nset title '%s (trace)'\nset cblabel '%s'\n"
@@ -2082,7 +1277,7 @@ static int load_scan(const plot_opts *o, plot_data *d, FILE *gp) {
                 img[p].col);
     }
     const double pl = 70 / W, prr = 1 - 190 / W, ptop = PX_BOTTOM / H + prof_h - (PX_LINE + 8) / H;
-    area(gp, pl, prr, PX_BOTTOM / H, ptop);
+    plot_area(gp, pl, prr, PX_BOTTOM / H, ptop);
     fprintf(gp,
             "set autoscale y\nset xtics auto\nset ytics auto\n%sset xlabel 'x (nm)'\nset ylabel "
             "'height (nm)'\nset title 'line %d: height against the truth'\n",

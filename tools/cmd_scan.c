@@ -96,13 +96,8 @@ static void scan_usage(FILE *f) {
 }
 
 /* --integrator: rt or reference into an int (AFM_INTEGRATOR_*). */
-static int opt_scan_integrator(const char *v, void *dest) {
-    int *k = dest;
-    *k = !strcmp(v, "rt")          ? AFM_INTEGRATOR_RT
-         : !strcmp(v, "reference") ? AFM_INTEGRATOR_REFERENCE
-                                   : -1;
-    return *k < 0 ? -1 : 0;
-}
+static const afmt_choice scan_integrator_choices[] = {
+    {"rt", AFM_INTEGRATOR_RT}, {"reference", AFM_INTEGRATOR_REFERENCE}, {NULL, 0}};
 
 /* 1 help, 0 ok, -1 bad usage (said). The ranges are afm_scan's (AFM_SCAN_*, AFM_PI_*). */
 static int parse_args(int argc, char **argv, scan_opts *o) {
@@ -137,7 +132,7 @@ static int parse_args(int argc, char **argv, scan_opts *o) {
         AFMT_DOUBLE("--kp", &o->pc.kp, 0, AFM_PI_KP_MAX, NULL),
         AFMT_DOUBLE_ABOVE("--ki", &o->pc.ki_hz, 0, AFM_PI_KI_MAX_HZ, NULL),
         AFMT_DOUBLE_ABOVE("--z-rate", &o->pc.z_rate_max_m_s, 0, AFM_PI_Z_RATE_MAX_M_S, NULL),
-        AFMT_FN("--integrator", opt_scan_integrator, &o->integrator, "rt or reference"),
+        AFMT_CHOICE("--integrator", &o->integrator, scan_integrator_choices),
         AFMT_OPTS_END,
     };
     int rc = afmt_opts_parse("scan", opts, argc, argv, 1);

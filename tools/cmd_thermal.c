@@ -33,7 +33,8 @@ typedef struct {
     const char *config, *psd_path;
     double seconds, segment_s; /* segment_s NAN: default */
     int modes;
-    bool json, obd;
+    bool json;
+    int obd; /* --signal: 1 the OBD reading, 0 the tip displacement */
 } thermal_opts;
 
 typedef afm_thermfit_mode_result mode_result;
@@ -71,12 +72,8 @@ static void thermal_usage(FILE *f) {
         MAX_SECONDS, DEFAULT_MODES, DEFAULT_SEGMENT_S, MIN_SEGMENTS);
 }
 
-/* --signal x|obd: what the PSD is of (true: the OBD reading). */
-static int parse_signal(const char *v, void *obd) {
-    if (strcmp(v, "x") && strcmp(v, "obd")) return -1;
-    *(bool *)obd = !strcmp(v, "obd");
-    return 0;
-}
+/* --signal x|obd: what the PSD is of (1: the OBD reading). */
+static const afmt_choice signal_choices[] = {{"x", 0}, {"obd", 1}, {NULL, 0}};
 
 static int parse_args(int argc, char **argv, thermal_opts *o) {
     *o = (thermal_opts){.seconds = NAN, .segment_s = NAN, .modes = DEFAULT_MODES};
@@ -87,7 +84,7 @@ static int parse_args(int argc, char **argv, thermal_opts *o) {
         AFMT_DOUBLE_ABOVE("--seconds", &o->seconds, 0, MAX_SECONDS, NULL),
         AFMT_DOUBLE_ABOVE("--segment-s", &o->segment_s, 0, HUGE_VAL, "seconds > 0"),
         AFMT_INT("--modes", &o->modes, 1, AFM_MAX_MODES, NULL),
-        AFMT_FN("--signal", parse_signal, &o->obd, "x or obd"),
+        AFMT_CHOICE("--signal", &o->obd, signal_choices),
         AFMT_OPTS_END,
     };
     int rc = afmt_opts_parse("thermal", opts, argc, argv, 1);

@@ -32,29 +32,13 @@ int afmt_opt_channels(const char *value, void *want) {
     return afmt_parse_outputs(value, false, want);
 }
 
-int afmt_opt_integrator(const char *value, void *integrator) {
-    int *it = integrator;
-    if (!strcmp(value, "rt"))
-        *it = AFM_INTEGRATOR_RT;
-    else if (!strcmp(value, "reference"))
-        *it = AFM_INTEGRATOR_REFERENCE;
-    else if (!strcmp(value, "arkode-erk"))
-        *it = AFM_INTEGRATOR_ARKODE_ERK;
-    else
-        return -1;
-    return 0;
-}
+const afmt_choice afmt_integrator_choices[] = {{"rt", AFM_INTEGRATOR_RT},
+                                               {"reference", AFM_INTEGRATOR_REFERENCE},
+                                               {"arkode-erk", AFM_INTEGRATOR_ARKODE_ERK},
+                                               {NULL, 0}};
 
-int afmt_opt_scheme(const char *value, void *scheme) {
-    int *it = scheme;
-    if (!strcmp(value, "accurate"))
-        *it = AFM_RT_SCHEME_ACCURATE;
-    else if (!strcmp(value, "fast"))
-        *it = AFM_RT_SCHEME_FAST;
-    else
-        return -1;
-    return 0;
-}
+const afmt_choice afmt_scheme_choices[] = {
+    {"accurate", AFM_RT_SCHEME_ACCURATE}, {"fast", AFM_RT_SCHEME_FAST}, {NULL, 0}};
 
 int afmt_opt_any_number(const char *value, void *number) {
     char *end;

@@ -43,9 +43,9 @@ int afmt_opt_any_freq(const char *value, void *number);
  * reason" and return -1 (the tool exits 2). */
 int afmt_config_load(const char *tool, const char *path, afm_config *cfg);
 
-/* --integrator of sweep and approach: rt, reference or arkode-erk into an int
- * (AFM_INTEGRATOR_*). */
-int afmt_opt_integrator(const char *value, void *integrator);
+/* --integrator of sweep, approach and map (AFMT_CHOICE): rt, reference or arkode-erk into an
+ * int (AFM_INTEGRATOR_*). */
+extern const afmt_choice afmt_integrator_choices[];
 /* What a tool does with its parse_args result (1: --help was asked, -1: bad usage, already
  * said, 0: go on): the usage on stdout for --help, the hint "(afmtwin TOOL --help describes
  * every option)" on stderr for bad usage. Returns the exit code (0 or 2), or -1 to go on:
@@ -53,12 +53,9 @@ int afmt_opt_integrator(const char *value, void *integrator);
  *     if (rc >= 0) return rc; */
 int afmt_opts_done(const char *tool, int parse_rc, void (*usage)(FILE *));
 
-#define AFMT_OPT_INTEGRATOR_WANTS "rt, reference or arkode-erk"
-
-/* --scheme of the offline tools: the rt integrator's scheme, accurate or fast, into an int
- * (AFM_RT_SCHEME_*). Offline the default (auto) is accurate. */
-int afmt_opt_scheme(const char *value, void *scheme);
-#define AFMT_OPT_SCHEME_WANTS "accurate or fast"
+/* --scheme of the offline tools (AFMT_CHOICE): the rt integrator's scheme, accurate or fast,
+ * into an int (AFM_RT_SCHEME_*). Offline the default (auto) is accurate. */
+extern const afmt_choice afmt_scheme_choices[];
 #define AFMT_OPT_SCHEME_HELP                                                                       \
     "  --scheme NAME      the rt integrator's scheme: accurate (the default offline: the tip\n"    \
     "                     force cubic Hermite in time, CVODE's steady state) or fast (the\n"       \

@@ -235,11 +235,27 @@ static int opt_store(const afmt_opt *o, const char *v) {
         else
             *(uint64_t *)o->dest = (uint64_t)x;
         return 0;
+    case AFMT_OPT_CHOICE:
+        for (const afmt_choice *c = o->choices; c->name; c++)
+            if (!strcmp(c->name, v)) {
+                *(int *)o->dest = c->value;
+                return 0;
+            }
+        return -1;
     case AFMT_OPT_FLAG:
     case AFMT_OPT_ARG:
         break;
     }
     return -1;
+}
+
+/* "PROG: OPT wants one of NAME1, NAME2, got 'v'" */
+static void choice_bad(const char *prog, const char *opt, const afmt_choice *choices,
+                       const char *v) {
+    fprintf(stderr, "%s: %s wants one of ", prog, opt);
+    for (const afmt_choice *c = choices; c->name; c++)
+        fprintf(stderr, "%s%s", c == choices ? "" : ", ", c->name);
+    fprintf(stderr, ", got '%s'\n", v);
 }
 
 int afm_opts_parse(const char *prog, const afmt_opt *opts, int argc, char **argv, int first) {
@@ -296,6 +312,10 @@ int afm_opts_parse(const char *prog, const afmt_opt *opts, int argc, char **argv
         }
         int rc = opt_store(o, v);
         if (rc == AFMT_OPT_REPORTED) return AFMT_OPTS_BAD;
+        if (rc && o->kind == AFMT_OPT_CHOICE) {
+            choice_bad(prog, a, o->choices, v);
+            return AFMT_OPTS_BAD;
+        }
         if (rc) {
             if (o->wants)
                 fprintf(stderr, "%s: %s wants %s, got '%s'", prog, a, o->wants, v);

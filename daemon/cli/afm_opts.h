@@ -8,7 +8,8 @@
  * asks for the usage, a flag sets its bool, any other option takes the next word, checks it
  * against its kind and range and stores it. A value that is no number where one is wanted
  * prints "PROG: --opt wants a number, got 'v'", one out of range (or no value of a parse
- * function's) "PROG: --opt wants WANTS, got 'v'", an unknown option or a missing value
+ * function's) "PROG: --opt wants WANTS, got 'v'", a word that names none of a choice's values
+ * "PROG: --opt wants one of NAME1, NAME2, got 'v'", an unknown option or a missing value
  * "PROG: unknown or incomplete option '--x' (see --help)", a word that is no option where
  * the table has no (further) AFMT_ARG row "PROG: unknown option or extra argument 'x' (see
  * --help)"; each makes the program exit 2 and store nothing more. PROG is "afmtwin TOOL" or
@@ -29,6 +30,7 @@ typedef enum {
     AFMT_OPT_UINT,   /* unsigned * (a range within 0..UINT_MAX) */
     AFMT_OPT_U64,    /* uint64_t * (a range within 0..1.8e19) */
     AFMT_OPT_FN,     /* parse(value, dest) returns 0 for a good value */
+    AFMT_OPT_CHOICE, /* int * (or an enum's): the value of the choice the word names */
     AFMT_OPT_ARG,    /* a word that is no option (a file name; "-" too): into the
                       * const char ** once, or through parse as often as it accepts */
 } afmt_opt_kind;
@@ -40,6 +42,13 @@ typedef enum {
     AFMT_UNIT_M,  /* m, mm, um (µm), nm, pm, fm */
     AFMT_UNIT_HZ, /* Hz, kHz, MHz, GHz */
 } afmt_unit;
+
+/* One word an AFMT_OPT_CHOICE option takes and the value it stores; a list of them ends
+ * with {NULL, 0}. */
+typedef struct {
+    const char *name;
+    int value;
+} afmt_choice;
 
 typedef struct {
     const char *name; /* "--count" (NULL ends the table) */
@@ -57,6 +66,7 @@ typedef struct {
      * other unit is refused (and a suffix given is echoed) before parse is called, which
      * takes the suffix with afmt_parse_si / afmt_parse_si_list */
     afmt_unit unit;
+    const afmt_choice *choices; /* AFMT_OPT_CHOICE: the words it takes, {NULL, 0} last */
 } afmt_opt;
 
 /* One table row each (designated, so that -Wextra sees every field set). */
@@ -106,6 +116,10 @@ typedef struct {
         .name = name_, .kind = AFMT_OPT_FN, .dest = dest_, .wants = wants_, .parse = parse_,       \
         .unit = unit_                                                                              \
     }
+/* A word of a list into an int (or an enum whose size is an int's): dest_ = the value
+ * of the list's entry that names it. */
+#define AFMT_CHOICE(name_, dest_, choices_)                                                        \
+    { .name = name_, .kind = AFMT_OPT_CHOICE, .dest = dest_, .choices = choices_ }
 #define AFMT_ARG(name_, dest_)                                                                     \
     { .name = name_, .kind = AFMT_OPT_ARG, .dest = dest_ }
 #define AFMT_ARG_FN(name_, parse_, dest_, wants_)                                                  \
