@@ -104,7 +104,8 @@ rt_piece_acc_t(const afm_sim *s, const rt_state *r, const rt_snap *in, rt_snap *
             pv[i / 4] = w;
         }
         const double aa = fma(P->acc_gd1, D0, rt_hsum(a4) + tones_a);
-        F1 = rt_solve_in(s, r, xs, vs, gxe, gve, fma(in->df_per_cell_n, (double)k, F0), rj, o);
+        F1 = rt_solve_in_t(s, r, xs, vs, gxe, gve, fma(in->df_per_cell_n, (double)k, F0), rj, o,
+                           true);
         x1 = fma(gxe, F1, xs);
         v1 = fma(gve, F1, vs);
         const double acc = fma(P->acc_k1, F1, aa); /* D1 held at D0, as the solve */
@@ -120,7 +121,8 @@ rt_piece_acc_t(const afm_sim *s, const rt_state *r, const rt_snap *in, rt_snap *
         }
         if (rec) o->acc_m_s2 = fma(P->acc_gd1, dd, acc); /* the state's own */
     } else {
-        F1 = rt_solve_in(s, r, xs, vs, gxe, gve, fma(in->df_per_cell_n, (double)k, F0), rj, o);
+        F1 = rt_solve_in_t(s, r, xs, vs, gxe, gve, fma(in->df_per_cell_n, (double)k, F0), rj, o,
+                           true);
         const rt_v4 f0 = rt_splat(F0), f1 = rt_splat(F1);
         rt_v4 a4 = rt_splat(0.0);
         for (int i = 0; i < np; i += 4) {

@@ -27,8 +27,8 @@ static inline double rt_squeeze(const afm_sim *s, const rt_state *r, double x, d
 }
 
 /* Total tip force at (x, v) and its partials: afm_force_tip, inlined. */
-AFM_CLONES static inline double rt_force(const afm_sim *s, const rt_state *r, double x, double v,
-                                         double *fx, double *fv) {
+static inline __attribute__((always_inline)) double
+rt_force_in(const afm_sim *s, const rt_state *r, double x, double v, double *fx, double *fv) {
     const afm_force_params *p = &s->f;
     double fc, fvi, kx, kv;
     double f = afm_force_near_terms(p, fma(x, p->cos_alpha, s->z_m), v, &fc, &fvi, &kx, &kv);
@@ -48,6 +48,12 @@ AFM_CLONES static inline double rt_force(const afm_sim *s, const rt_state *r, do
     *fx = kx;
     *fv = kv;
     return f;
+}
+
+/* rt_force_in out of line (the fast scheme's contact pieces, a state's first force). */
+AFM_CLONES static inline double rt_force(const afm_sim *s, const rt_state *r, double x, double v,
+                                         double *fx, double *fv) {
+    return rt_force_in(s, r, x, v, fx, fv);
 }
 
 /* ---- one implicit piece ---- */
@@ -77,24 +83,25 @@ static inline __attribute__((always_inline)) double rt_force_out(const afm_sim *
 }
 
 /* rt_force with the evaluation out of contact (most of them) inlined: the same values (there
- * afm_force_near_terms is afm_force_out_terms), the contact branch a call. */
-static inline __attribute__((always_inline)) double
-rt_force_at(const afm_sim *s, const rt_state *r, double x, double v, double *fx, double *fv) {
+ * afm_force_near_terms is afm_force_out_terms), the contact branch a call, or with inl
+ * inlined too (the accurate scheme's pieces, issue 29, sixth round). */
+static inline __attribute__((always_inline)) double rt_force_at(const afm_sim *s, const rt_state *r,
+                                                                double x, double v, double *fx,
+                                                                double *fv, const bool inl) {
     const double d = fma(x, s->f.cos_alpha, s->z_m);
     if (__builtin_expect(d >= s->f.a0_m, 1)) return rt_force_out(s, r, x, v, d, fx, fv);
-    return rt_force(s, r, x, v, fx, fv);
+    return inl ? rt_force_in(s, r, x, v, fx, fv) : rt_force(s, r, x, v, fx, fv);
 }
 
 /* Solve F = f(xs + gx F, vs + gv F) from the guess F. Each iteration corrects with the
  * newest reciprocal slope rj = 1 / g'(F) known before it (a chord step: out of contact g'
  * is 1 to 1e-5, so this is Newton there), which keeps the division off the critical path;
  * a bracket turns a step that leaves it into bisection. Leaves f's partials and rj in o. */
-static inline __attribute__((always_inline)) double rt_solve_in(const afm_sim *s, const rt_state *r,
-                                                                double xs, double vs, double gx,
-                                                                double gv, double F, double rj,
-                                                                rt_snap *o) {
+static inline __attribute__((always_inline)) double
+rt_solve_in_t(const afm_sim *s, const rt_state *r, double xs, double vs, double gx, double gv,
+              double F, double rj, rt_snap *o, const bool inl) {
     double fx, fv;
-    double f = rt_force_at(s, r, fma(gx, F, xs), fma(gv, F, vs), &fx, &fv);
+    double f = rt_force_at(s, r, fma(gx, F, xs), fma(gv, F, vs), &fx, &fv, inl);
     double res = F - f, fn = fma(-res, rj, F);
     /* g'(F) = 1 - fx gx - fv gv is >= 1 in contact (fx, fv <= 0); the floor guards the
      * attractive branch, where it stays near 1 for any real cantilever. */
@@ -110,7 +117,7 @@ static inline __attribute__((always_inline)) double rt_solve_in(const afm_sim *s
         double lo = res > 0 ? -HUGE_VAL : F, hi = res > 0 ? F : HUGE_VAL;
         F = fn;
         for (int it = 1; it < RT_NEWTON_MAX; it++) {
-            f = rt_force_at(s, r, fma(gx, F, xs), fma(gv, F, vs), &fx, &fv);
+            f = rt_force_at(s, r, fma(gx, F, xs), fma(gv, F, vs), &fx, &fv, inl);
             res = F - f;
             if (res > 0)
                 hi = F;
@@ -133,6 +140,14 @@ static inline __attribute__((always_inline)) double rt_solve_in(const afm_sim *s
     o->dfdv_n_s_m = fv;
     o->tip.inv_slope = rj;
     return fn;
+}
+
+/* rt_solve_in_t with the contact force a call. */
+static inline __attribute__((always_inline)) double rt_solve_in(const afm_sim *s, const rt_state *r,
+                                                                double xs, double vs, double gx,
+                                                                double gv, double F, double rj,
+                                                                rt_snap *o) {
+    return rt_solve_in_t(s, r, xs, vs, gx, gv, F, rj, o, false);
 }
 
 /* rt_solve_in out of line: the rare fallback of the free step (rt_solve_fast). The
