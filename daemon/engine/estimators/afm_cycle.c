@@ -170,7 +170,29 @@ AFM_CLONES void afm_cycle_split_forces(const afm_cycle *c, const afm_sample *res
     const afm_force_params *f = c->forces;
     if (f->squeeze == AFM_SQUEEZE_LINEAR) { /* split_run's, the same bits */
         const double p1 = f->p1, p2 = f->p2, z = c->z_m;
-        for (int j = 0; j < n; j++) {
+        int j = 0;
+        /* 4 samples at a time: (x, v) and (f, theta) of samples 0, 2 and 1, 3 side by side,
+         * then transposed; the scalar loop's operations lane by lane (issue 12: 17 -> ~6
+         * instructions a sample) */
+        const afm_v4 vp1 = AFM_V4_SET1(p1), vp2 = AFM_V4_SET1(p2), vz = AFM_V4_SET1(z);
+        for (; j + 4 <= n; j += 4) {
+#define XV(i) (*(const cycle_v2 *)(const void *)&s[j + (i)].x_m)
+#define FT(i) (*(const cycle_v2 *)(const void *)&s[j + (i)].f_n)
+            afm_v4 u0 = __builtin_shufflevector(XV(0), XV(2), 0, 1, 2, 3);
+            afm_v4 u1 = __builtin_shufflevector(XV(1), XV(3), 0, 1, 2, 3);
+            afm_v4 w0 = __builtin_shufflevector(FT(0), FT(2), 0, 1, 2, 3);
+            afm_v4 w1 = __builtin_shufflevector(FT(1), FT(3), 0, 1, 2, 3);
+#undef XV
+#undef FT
+            afm_v4 X = __builtin_shufflevector(u0, u1, 0, 4, 2, 6);
+            afm_v4 V = __builtin_shufflevector(u0, u1, 1, 5, 3, 7);
+            afm_v4 F = __builtin_shufflevector(w0, w1, 0, 4, 2, 6);
+            afm_v4 cq = vp1 * (vz + X) + vp2;
+            afm_v4 fs = (afm_v4)((afm_v4i)(cq > 0.0) & (afm_v4i)(-cq * V));
+            AFM_V4_ST(f_ts + j, F - fs);
+            AFM_V4_ST(p_sq + j, fs * V);
+        }
+        for (; j < n; j++) {
             double cq = p1 * (z + s[j].x_m) + p2, v = s[j].v_m_s;
             double fs = cq > 0.0 ? -cq * v : 0.0;
             f_ts[j] = s[j].f_n - fs;
