@@ -946,10 +946,19 @@ typedef struct {
  * given apart (r->fs) a copy in *buf with its f_n and theta_rad from there. */
 static inline const afm_sample *run_at(const run_state *r, int k, afm_sample *buf) {
     if (!r->fs) return r->s + k;
-    copy_sample(buf, r->s + k);
+    AFM_V4_ST(&buf->t_s, AFM_V4_LD(&r->s[k].t_s)); /* t, x, v, f; base_m: none reads it */
     buf->f_n = r->fs[k];
     buf->theta_rad = r->qs[k];
     return buf;
+}
+
+/* *d = sample k >= 0 of the run as afm_cycle_push keeps it (every field). */
+static inline void run_keep(const run_state *r, int k, afm_sample *d) {
+    copy_sample(d, r->s + k);
+    if (r->fs) {
+        d->f_n = r->fs[k];
+        d->theta_rad = r->qs[k];
+    }
 }
 
 /* The flagged steps, in order: step k joins sample k - 1 (p) to sample k (q); in block
@@ -1237,14 +1246,12 @@ AFM_CLONES static int run(afm_cycle *c, const afm_sample *s, const double *th, i
     c->t_in = r.t_in;
     c->t_before = m >= 2 ? s[m - 2].t_s : p0->t_s;
     if (m >= 2) {
-        afm_sample b;
-        copy_sample(&c->prev2, run_at(&r, m - 2, &b));
+        run_keep(&r, m - 2, &c->prev2);
     } else {
         copy_sample(&c->prev2, p0);
     }
     c->k += m;
-    afm_sample b;
-    copy_sample(&c->prev, run_at(&r, m - 1, &b));
+    run_keep(&r, m - 1, &c->prev);
     c->trk.n += m;
     c->trk.th_prev = th[m - 1];
     return m;
