@@ -517,6 +517,18 @@ int afm_chain_take_periods_raw(afm_chain *c, afm_chain_period *out, int max) {
     return n;
 }
 
+int afm_chain_periods_waiting(const afm_chain *c) {
+    return c->p_count;
+}
+
+int afm_chain_skip_periods(afm_chain *c, int n) {
+    if (n > c->p_count) n = c->p_count;
+    if (n <= 0) return 0;
+    c->p_head = (c->p_head + n) % PERIOD_RING;
+    c->p_count -= n;
+    return n;
+}
+
 void afm_chain_reset(afm_chain *c) {
     for (int i = 0; i < c->n_streams; i++) {
         afm_decim_reset(c->st[i].dec);
