@@ -503,8 +503,9 @@ static void def_take(const afm_force_params *f, const afm_cycle_step *e, double 
     }
 }
 
-/* The pending entries, in order, into *ec and *pk (the running sums of the period). */
-static void def_resolve(afm_cycle *c, double *ec, double *pk) {
+/* The pending entries, in order, into *ec and *pk (the running sums of the period). Out of
+ * line: def_new, on every deferred step, then saves its registers only when full. */
+AFM_EST_COLD static void def_resolve(afm_cycle *c, double *ec, double *pk) {
     for (int i = 0; i < c->pend.n; i++)
         def_take(&c->fsnap, &c->pend.st[i], ec, pk);
     c->pend.n = c->pend.n_energy = 0;
