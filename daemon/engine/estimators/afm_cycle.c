@@ -1102,11 +1102,38 @@ static CYCLE_INLINE int run_block(run_vec *w, unsigned *ev, int *n_ev, const run
 /* (a[o & 3], a[(o + 1) & 3], a[(o + 2) & 3], a[(o + 3) & 3]) as lanes 0..3, and back
  * (o = 0 mod 4 after a boundary: a plain load). */
 static inline void lanes_from(const double *a, long o, afm_v4 *v) {
-    *v = (afm_v4){a[o & 3], a[(o + 1) & 3], a[(o + 2) & 3], a[(o + 3) & 3]};
+    const afm_v4 x = AFM_V4_LD(a); /* one load and a rotation (issue 12) */
+    switch (o & 3) {
+    case 0:
+        *v = x;
+        break;
+    case 1:
+        *v = __builtin_shufflevector(x, x, 1, 2, 3, 0);
+        break;
+    case 2:
+        *v = __builtin_shufflevector(x, x, 2, 3, 0, 1);
+        break;
+    default:
+        *v = __builtin_shufflevector(x, x, 3, 0, 1, 2);
+        break;
+    }
 }
 static inline void lanes_to(double *a, long o, const afm_v4 *v) {
-    for (int l = 0; l < 4; l++)
-        a[(o + l) & 3] = (*v)[l];
+    const afm_v4 x = *v;
+    switch (o & 3) {
+    case 0:
+        AFM_V4_ST(a, x);
+        break;
+    case 1:
+        AFM_V4_ST(a, __builtin_shufflevector(x, x, 3, 0, 1, 2));
+        break;
+    case 2:
+        AFM_V4_ST(a, __builtin_shufflevector(x, x, 2, 3, 0, 1));
+        break;
+    default:
+        AFM_V4_ST(a, __builtin_shufflevector(x, x, 1, 2, 3, 0));
+        break;
+    }
 }
 
 /* The sums over the first samples of s[0 .. m-1] that pass the fast-path test (theta on
