@@ -1004,6 +1004,14 @@ static AFM_CLONES_NOINLINE void run_events(run_state *r, const run_flags *fl) {
 #define MASK4(m)                                                                                   \
     ((unsigned)((m)[0] & 1) | (unsigned)((m)[1] & 1) << 1 | (unsigned)((m)[2] & 1) << 2 |          \
      (unsigned)((m)[3] & 1) << 3)
+/* any lane of a lane mask set: two shuffles and ors, then lane 0 (MASK4 moves every lane to
+ * an integer register: ~16 instructions; issue 12) */
+#define ANY4(m)                                                                                    \
+    __extension__({                                                                                \
+        afm_v4i o_ = (m) | __builtin_shufflevector((m), (m), 2, 3, 0, 1);                          \
+        o_ = o_ | __builtin_shufflevector(o_, o_, 1, 0, 3, 2);                                     \
+        o_[0] != 0;                                                                                \
+    })
 #define SEL4(m, x, y) ((afm_v4)(((m) & (afm_v4i)(x)) | (~(m) & (afm_v4i)(y))))
 #define MIN4(a, b) SEL4((afm_v4i)((a) < (b)), (a), (b))
 
@@ -1056,7 +1064,9 @@ static CYCLE_INLINE int run_block(run_vec *w, unsigned *ev, int *n_ev, const run
     /* the fast path: theta on the tracker's line, a positive step */
     afm_v4 Tpp = LAG2(w->t, T), H = T - LAG1(Tpp, T);
     afm_v4 err = AFM_V4_FNMA(w->n, k->dphi, AFM_V4_LD(th4) - k->ref);
-    afm_v4i bad = ~((afm_v4i)(err <= k->tol) & (afm_v4i)(err >= -k->tol)) | ~(afm_v4i)(H > 0.0);
+    /* |err| <= tol (the sign bit cleared): err <= tol and err >= -tol, NaN neither */
+    afm_v4 aerr = (afm_v4)((afm_v4i)err & ~(afm_v4i)AFM_V4_SET1(-0.0));
+    afm_v4i bad = ~(afm_v4i)(aerr <= k->tol) | ~(afm_v4i)(H > 0.0);
     afm_v4 Xq = X, W = T - Tpp; /* w of the previous samples (Xp, Fp Vp) */
     if (nv < 4) {               /* the repeated lanes, and the last valid sample's own weight */
         afm_v4i keep = (afm_v4i)((afm_v4){0.0, 1.0, 2.0, 3.0} < (double)nv);
@@ -1079,7 +1089,7 @@ static CYCLE_INLINE int run_block(run_vec *w, unsigned *ev, int *n_ev, const run
     afm_v4i ct = ((afm_v4i)(X < k->xn) | (afm_v4i)(Xp < k->xn)) & k->ctm;
     afm_v4i any = ((bad | mn) | (cr | lm)) | ct;
     unsigned valid = nv < 4 ? (1u << nv) - 1u : 15u;
-    if (MASK4(any) & valid) {
+    if (nv < 4 ? (MASK4(any) & valid) != 0 : ANY4(any)) {
         unsigned b = MASK4(bad) & valid;
         if (b) return lowest_bit(b);
         unsigned e = MASK4(ct) << 12 | MASK4(mn) << 8 | MASK4(cr) << 4 | MASK4(lm);
