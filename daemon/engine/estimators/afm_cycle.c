@@ -308,8 +308,8 @@ static inline bool hermite_monotone(double b0, double b1, double b2, double b3) 
  * (lo, hi) of [0, 1]: the roots of the derivative 3 a s^2 + 2 b s + h v0 (stable form), the
  * cubic ((a s + b) s + h v0) s + x0 by Horner. Its coefficients come from x1 - x0 (not
  * from x0, x1 apart as afm_hermite's, which cancel ~1e-16 |x|). */
-static double hermite_min(const afm_sample *p, const afm_sample *q, double h, double lo, double hi,
-                          double xmin) {
+static CYCLE_INLINE double hermite_min(const afm_sample *p, const afm_sample *q, double h,
+                                       double lo, double hi, double xmin) {
     double hv0 = h * p->v_m_s, hv1 = h * q->v_m_s, dx = q->x_m - p->x_m;
     double a = hv0 + hv1 - 2.0 * dx, b = 3.0 * dx - 2.0 * hv0 - hv1;
     double A = 3.0 * a, B = 2.0 * b, r[2];
@@ -335,7 +335,7 @@ static double hermite_min(const afm_sample *p, const afm_sample *q, double h, do
 /* Minimum of xmin and the step's Hermite cubic at its stationary points inside (0, 1), for
  * a step with a Bernstein control point (x0 + h v0 / 3 or x1 - h v1 / 3) below both ends:
  * the control polygon then changes direction, so the cubic is not monotone (no test). */
-static double step_min(const afm_sample *p, const afm_sample *q, double xmin) {
+static CYCLE_INLINE double step_min(const afm_sample *p, const afm_sample *q, double xmin) {
     return hermite_min(p, q, q->t_s - p->t_s, 0.0, 1.0, xmin);
 }
 
