@@ -140,6 +140,12 @@ int afm_chain_take_periods(afm_chain *c, afm_chain_period *out, int max);
  * cycle.dissipated_energy_j NaN (when it waits for deferred steps) until
  * afm_chain_period_finish. */
 int afm_chain_take_periods_raw(afm_chain *c, afm_chain_period *out, int max);
+/* Records waiting to be taken. */
+int afm_chain_periods_waiting(const afm_chain *c);
+/* Drop up to n of the oldest waiting records unread, without copying them (a reader that
+ * publishes one record in hundreds: issue 12, ~7 instructions a sample of copies on
+ * default.conf). Returns the count dropped. */
+int afm_chain_skip_periods(afm_chain *c, int n);
 /* Fill p's polar fields from its sums and X, Y (p taken from c), and finish its cycle metrics
  * (afm_cycle_finish). The same values as afm_harm_push, afm_lockin_polar and the eager
  * afm_cycle give at that period's end, bit for bit. Finishing twice changes nothing. */

@@ -170,7 +170,29 @@ AFM_CLONES void afm_cycle_split_forces(const afm_cycle *c, const afm_sample *res
     const afm_force_params *f = c->forces;
     if (f->squeeze == AFM_SQUEEZE_LINEAR) { /* split_run's, the same bits */
         const double p1 = f->p1, p2 = f->p2, z = c->z_m;
-        for (int j = 0; j < n; j++) {
+        int j = 0;
+        /* 4 samples at a time: (x, v) and (f, theta) of samples 0, 2 and 1, 3 side by side,
+         * then transposed; the scalar loop's operations lane by lane (issue 12: 17 -> ~6
+         * instructions a sample) */
+        const afm_v4 vp1 = AFM_V4_SET1(p1), vp2 = AFM_V4_SET1(p2), vz = AFM_V4_SET1(z);
+        for (; j + 4 <= n; j += 4) {
+#define XV(i) (*(const cycle_v2 *)(const void *)&s[j + (i)].x_m)
+#define FT(i) (*(const cycle_v2 *)(const void *)&s[j + (i)].f_n)
+            afm_v4 u0 = __builtin_shufflevector(XV(0), XV(2), 0, 1, 2, 3);
+            afm_v4 u1 = __builtin_shufflevector(XV(1), XV(3), 0, 1, 2, 3);
+            afm_v4 w0 = __builtin_shufflevector(FT(0), FT(2), 0, 1, 2, 3);
+            afm_v4 w1 = __builtin_shufflevector(FT(1), FT(3), 0, 1, 2, 3);
+#undef XV
+#undef FT
+            afm_v4 X = __builtin_shufflevector(u0, u1, 0, 4, 2, 6);
+            afm_v4 V = __builtin_shufflevector(u0, u1, 1, 5, 3, 7);
+            afm_v4 F = __builtin_shufflevector(w0, w1, 0, 4, 2, 6);
+            afm_v4 cq = vp1 * (vz + X) + vp2;
+            afm_v4 fs = (afm_v4)((afm_v4i)(cq > 0.0) & (afm_v4i)(-cq * V));
+            AFM_V4_ST(f_ts + j, F - fs);
+            AFM_V4_ST(p_sq + j, fs * V);
+        }
+        for (; j < n; j++) {
             double cq = p1 * (z + s[j].x_m) + p2, v = s[j].v_m_s;
             double fs = cq > 0.0 ? -cq * v : 0.0;
             f_ts[j] = s[j].f_n - fs;
@@ -286,8 +308,8 @@ static inline bool hermite_monotone(double b0, double b1, double b2, double b3) 
  * (lo, hi) of [0, 1]: the roots of the derivative 3 a s^2 + 2 b s + h v0 (stable form), the
  * cubic ((a s + b) s + h v0) s + x0 by Horner. Its coefficients come from x1 - x0 (not
  * from x0, x1 apart as afm_hermite's, which cancel ~1e-16 |x|). */
-static double hermite_min(const afm_sample *p, const afm_sample *q, double h, double lo, double hi,
-                          double xmin) {
+static CYCLE_INLINE double hermite_min(const afm_sample *p, const afm_sample *q, double h,
+                                       double lo, double hi, double xmin) {
     double hv0 = h * p->v_m_s, hv1 = h * q->v_m_s, dx = q->x_m - p->x_m;
     double a = hv0 + hv1 - 2.0 * dx, b = 3.0 * dx - 2.0 * hv0 - hv1;
     double A = 3.0 * a, B = 2.0 * b, r[2];
@@ -313,7 +335,7 @@ static double hermite_min(const afm_sample *p, const afm_sample *q, double h, do
 /* Minimum of xmin and the step's Hermite cubic at its stationary points inside (0, 1), for
  * a step with a Bernstein control point (x0 + h v0 / 3 or x1 - h v1 / 3) below both ends:
  * the control polygon then changes direction, so the cubic is not monotone (no test). */
-static double step_min(const afm_sample *p, const afm_sample *q, double xmin) {
+static CYCLE_INLINE double step_min(const afm_sample *p, const afm_sample *q, double xmin) {
     return hermite_min(p, q, q->t_s - p->t_s, 0.0, 1.0, xmin);
 }
 
@@ -481,8 +503,9 @@ static void def_take(const afm_force_params *f, const afm_cycle_step *e, double 
     }
 }
 
-/* The pending entries, in order, into *ec and *pk (the running sums of the period). */
-static void def_resolve(afm_cycle *c, double *ec, double *pk) {
+/* The pending entries, in order, into *ec and *pk (the running sums of the period). Out of
+ * line: def_new, on every deferred step, then saves its registers only when full. */
+AFM_EST_COLD static void def_resolve(afm_cycle *c, double *ec, double *pk) {
     for (int i = 0; i < c->pend.n; i++)
         def_take(&c->fsnap, &c->pend.st[i], ec, pk);
     c->pend.n = c->pend.n_energy = 0;
@@ -895,6 +918,10 @@ static inline int lowest_bit(unsigned m) {
 
 typedef struct {
     const afm_sample *s; /* the run's samples; sample -1 is *p0 */
+    const double *fs;    /* with the split given apart (afm_cycle_push_n_split): the
+                            tip-sample force and squeeze power of s[k] (NULL: s[k]'s own f_n,
+                            theta_rad, split already or without a film) */
+    const double *qs;
     afm_cycle *c;
     const afm_sample *p0; /* the sample before the run (c->prev) */
     const afm_sample *m2; /* the sample before p0 (c->prev2) */
@@ -916,20 +943,41 @@ typedef struct {
     unsigned ev[RUN_MAX / 4 + 1]; /* first step << 16 | ct << 12 | mn << 8 | cr << 4 | lm */
 } run_flags;
 
+/* Sample k >= 0 of the run as afm_cycle_push sees it (split): s[k], or with the split
+ * given apart (r->fs) a copy in *buf with its f_n and theta_rad from there. */
+static inline const afm_sample *run_at(const run_state *r, int k, afm_sample *buf) {
+    if (!r->fs) return r->s + k;
+    AFM_V4_ST(&buf->t_s, AFM_V4_LD(&r->s[k].t_s)); /* t, x, v, f; base_m: none reads it */
+    buf->f_n = r->fs[k];
+    buf->theta_rad = r->qs[k];
+    return buf;
+}
+
+/* *d = sample k >= 0 of the run as afm_cycle_push keeps it (every field). */
+static inline void run_keep(const run_state *r, int k, afm_sample *d) {
+    copy_sample(d, r->s + k);
+    if (r->fs) {
+        d->f_n = r->fs[k];
+        d->theta_rad = r->qs[k];
+    }
+}
+
 /* The flagged steps, in order: step k joins sample k - 1 (p) to sample k (q); in block
  * record e, bit l of lm / cr / mn flags step k0 + l. lm: f has a local maximum at p (>= both
  * neighbours): the parabola; cr: p and q lie on opposite sides of the contact line; mn: a
- * Bernstein control point below both p and q: step_min. As step_plain. */
+ * Bernstein control point below both p and q: step_min. As step_plain. (cross_step and
+ * step_min read t, x and v alone: the samples as they are.) */
 static AFM_CLONES_NOINLINE void run_events(run_state *r, const run_flags *fl) {
     const afm_sample *s = r->s;
+    afm_sample b0, b1, b2;
     for (int e = 0; e < fl->n_ev; e++) {
         unsigned ev = fl->ev[e];
         int k0 = (int)(ev >> 16);
         for (unsigned lm = ev & 15u; lm; lm &= lm - 1) {
             int k = k0 + lowest_bit(lm);
-            const afm_sample *sm = k >= 2 ? s + k - 2 : k ? r->p0 : r->m2;
-            const afm_sample *s0 = k >= 1 ? s + k - 1 : r->p0;
-            peak_add(r->c, sm, s0, s + k, &r->ec, &r->pk);
+            const afm_sample *sm = k >= 2 ? run_at(r, k - 2, &b0) : k ? r->p0 : r->m2;
+            const afm_sample *s0 = k >= 1 ? run_at(r, k - 1, &b1) : r->p0;
+            peak_add(r->c, sm, s0, run_at(r, k, &b2), &r->ec, &r->pk);
         }
         for (unsigned cr = ev >> 4 & 15u; cr; cr &= cr - 1) {
             int k = k0 + lowest_bit(cr);
@@ -942,7 +990,7 @@ static AFM_CLONES_NOINLINE void run_events(run_state *r, const run_flags *fl) {
         }
         for (unsigned ct = ev >> 12 & 15u; ct; ct &= ct - 1) {
             int k = k0 + lowest_bit(ct);
-            work_add(r->c, k ? s + k - 1 : r->p0, s + k, &r->ec, &r->pk);
+            work_add(r->c, k ? run_at(r, k - 1, &b0) : r->p0, run_at(r, k, &b1), &r->ec, &r->pk);
         }
     }
 }
@@ -956,6 +1004,14 @@ static AFM_CLONES_NOINLINE void run_events(run_state *r, const run_flags *fl) {
 #define MASK4(m)                                                                                   \
     ((unsigned)((m)[0] & 1) | (unsigned)((m)[1] & 1) << 1 | (unsigned)((m)[2] & 1) << 2 |          \
      (unsigned)((m)[3] & 1) << 3)
+/* any lane of a lane mask set: two shuffles and ors, then lane 0 (MASK4 moves every lane to
+ * an integer register: ~16 instructions; issue 12) */
+#define ANY4(m)                                                                                    \
+    __extension__({                                                                                \
+        afm_v4i o_ = (m) | __builtin_shufflevector((m), (m), 2, 3, 0, 1);                          \
+        o_ = o_ | __builtin_shufflevector(o_, o_, 1, 0, 3, 2);                                     \
+        o_[0] != 0;                                                                                \
+    })
 #define SEL4(m, x, y) ((afm_v4)(((m) & (afm_v4i)(x)) | (~(m) & (afm_v4i)(y))))
 #define MIN4(a, b) SEL4((afm_v4i)((a) < (b)), (a), (b))
 
@@ -973,35 +1029,44 @@ static inline double hmin4(const afm_v4 *a) {
 }
 
 typedef struct {
-    afm_v4 ref, dphi, tol, xc, third, xn;
+    afm_v4 ref, dphi, tol, xc, third, xn, z0;
     afm_v4i ctm; /* all ones when the force law is set (contact steps are flagged), else 0 */
 } run_consts;
 
 /* One block of 4 samples a[0..3] (steps k0 .. k0 + 3, theta th4); lanes >= nv repeat the
  * last valid one (they add nothing: weights and flags masked, x not in the minima; the last
- * valid sample's own weight waits for its next step, as in step_plain). Returns 4 when
- * taken, else the first lane off the fast path (theta off the tracker's line, a step not
+ * valid sample's own weight waits for its next step, as in step_plain). f4, q4: the 4
+ * samples' split force and squeeze power (NULL: the samples' f_n and theta_rad). Returns 4
+ * when taken, else the first lane off the fast path (theta off the tracker's line, a step not
  * positive): nothing added. */
 static CYCLE_INLINE int run_block(run_vec *w, unsigned *ev, int *n_ev, const run_consts *k,
-                                  const afm_sample *const a[4], const double *th4, int k0, int nv) {
+                                  const afm_sample *const a[4], const double *th4, int k0, int nv,
+                                  const double *f4, const double *q4) {
     /* (t, x) and (v, f) of samples 0, 2 and 1, 3 side by side, then transposed */
 #define TX(i, fld) (*(const cycle_v2 *)(const void *)&a[i]->fld)
     afm_v4 u0 = __builtin_shufflevector(TX(0, t_s), TX(2, t_s), 0, 1, 2, 3);
     afm_v4 u1 = __builtin_shufflevector(TX(1, t_s), TX(3, t_s), 0, 1, 2, 3);
     afm_v4 u2 = __builtin_shufflevector(TX(0, v_m_s), TX(2, v_m_s), 0, 1, 2, 3);
     afm_v4 u3 = __builtin_shufflevector(TX(1, v_m_s), TX(3, v_m_s), 0, 1, 2, 3);
-    afm_v4 u4 = __builtin_shufflevector(TX(0, theta_rad), TX(2, theta_rad), 0, 1, 2, 3);
-    afm_v4 u5 = __builtin_shufflevector(TX(1, theta_rad), TX(3, theta_rad), 0, 1, 2, 3);
-#undef TX
     afm_v4 T = __builtin_shufflevector(u0, u1, 0, 4, 2, 6),
            X = __builtin_shufflevector(u0, u1, 1, 5, 3, 7);
-    afm_v4 V = __builtin_shufflevector(u2, u3, 0, 4, 2, 6),
-           F = __builtin_shufflevector(u2, u3, 1, 5, 3, 7);
-    afm_v4 Q = __builtin_shufflevector(u4, u5, 0, 4, 2, 6);
+    afm_v4 V = __builtin_shufflevector(u2, u3, 0, 4, 2, 6), F, Q;
+    if (f4) {
+        F = AFM_V4_LD(f4);
+        Q = AFM_V4_LD(q4);
+    } else {
+        afm_v4 u4 = __builtin_shufflevector(TX(0, theta_rad), TX(2, theta_rad), 0, 1, 2, 3);
+        afm_v4 u5 = __builtin_shufflevector(TX(1, theta_rad), TX(3, theta_rad), 0, 1, 2, 3);
+        F = __builtin_shufflevector(u2, u3, 1, 5, 3, 7);
+        Q = __builtin_shufflevector(u4, u5, 0, 4, 2, 6);
+    }
+#undef TX
     /* the fast path: theta on the tracker's line, a positive step */
     afm_v4 Tpp = LAG2(w->t, T), H = T - LAG1(Tpp, T);
     afm_v4 err = AFM_V4_FNMA(w->n, k->dphi, AFM_V4_LD(th4) - k->ref);
-    afm_v4i bad = ~((afm_v4i)(err <= k->tol) & (afm_v4i)(err >= -k->tol)) | ~(afm_v4i)(H > 0.0);
+    /* |err| <= tol (the sign bit cleared): err <= tol and err >= -tol, NaN neither */
+    afm_v4 aerr = (afm_v4)((afm_v4i)err & ~(afm_v4i)AFM_V4_SET1(-0.0));
+    afm_v4i bad = ~(afm_v4i)(aerr <= k->tol) | ~(afm_v4i)(H > 0.0);
     afm_v4 Xq = X, W = T - Tpp; /* w of the previous samples (Xp, Fp Vp) */
     if (nv < 4) {               /* the repeated lanes, and the last valid sample's own weight */
         afm_v4i keep = (afm_v4i)((afm_v4){0.0, 1.0, 2.0, 3.0} < (double)nv);
@@ -1015,13 +1080,16 @@ static CYCLE_INLINE int run_block(run_vec *w, unsigned *ev, int *n_ev, const run
     afm_v4 Fpp = LAG2(w->f, F), Fp = LAG1(Fpp, F);
     afm_v4i lm = (afm_v4i)(Fp >= Fpp) & (afm_v4i)(Fp >= F);
     afm_v4 H3 = H * k->third, XM = MIN4(w->xm, Xq);
-    afm_v4 b1 = AFM_V4_FMA(H3, Vp, Xp), b2 = AFM_V4_FNMA(H3, V, X);
+    /* + z0 (+0.0, not known to the compiler): vector values, so that the fmas below are
+     * vfmadds and not 8 scalar ones on the samples' loads (issue 12); it changes at most the
+     * sign of a zero, which the comparisons below do not see */
+    afm_v4 b1 = AFM_V4_FMA(H3, Vp + k->z0, Xp + k->z0), b2 = AFM_V4_FNMA(H3, V + k->z0, X + k->z0);
     afm_v4 bmin = MIN4(b1, b2), xpm = MIN4(Xp, X);
     afm_v4i mn = (afm_v4i)(bmin < xpm);
     afm_v4i ct = ((afm_v4i)(X < k->xn) | (afm_v4i)(Xp < k->xn)) & k->ctm;
     afm_v4i any = ((bad | mn) | (cr | lm)) | ct;
     unsigned valid = nv < 4 ? (1u << nv) - 1u : 15u;
-    if (MASK4(any) & valid) {
+    if (nv < 4 ? (MASK4(any) & valid) != 0 : ANY4(any)) {
         unsigned b = MASK4(bad) & valid;
         if (b) return lowest_bit(b);
         unsigned e = MASK4(ct) << 12 | MASK4(mn) << 8 | MASK4(cr) << 4 | MASK4(lm);
@@ -1044,17 +1112,49 @@ static CYCLE_INLINE int run_block(run_vec *w, unsigned *ev, int *n_ev, const run
 /* (a[o & 3], a[(o + 1) & 3], a[(o + 2) & 3], a[(o + 3) & 3]) as lanes 0..3, and back
  * (o = 0 mod 4 after a boundary: a plain load). */
 static inline void lanes_from(const double *a, long o, afm_v4 *v) {
-    *v = (afm_v4){a[o & 3], a[(o + 1) & 3], a[(o + 2) & 3], a[(o + 3) & 3]};
+    const afm_v4 x = AFM_V4_LD(a); /* one load and a rotation (issue 12) */
+    switch (o & 3) {
+    case 0:
+        *v = x;
+        break;
+    case 1:
+        *v = __builtin_shufflevector(x, x, 1, 2, 3, 0);
+        break;
+    case 2:
+        *v = __builtin_shufflevector(x, x, 2, 3, 0, 1);
+        break;
+    default:
+        *v = __builtin_shufflevector(x, x, 3, 0, 1, 2);
+        break;
+    }
 }
 static inline void lanes_to(double *a, long o, const afm_v4 *v) {
-    for (int l = 0; l < 4; l++)
-        a[(o + l) & 3] = (*v)[l];
+    const afm_v4 x = *v;
+    switch (o & 3) {
+    case 0:
+        AFM_V4_ST(a, x);
+        break;
+    case 1:
+        AFM_V4_ST(a, __builtin_shufflevector(x, x, 3, 0, 1, 2));
+        break;
+    case 2:
+        AFM_V4_ST(a, __builtin_shufflevector(x, x, 2, 3, 0, 1));
+        break;
+    default:
+        AFM_V4_ST(a, __builtin_shufflevector(x, x, 1, 2, 3, 0));
+        break;
+    }
 }
 
 /* The sums over the first samples of s[0 .. m-1] that pass the fast-path test (theta on
- * the tracker's line, a positive step): returns how many; the lanes in w. */
+ * the tracker's line, a positive step): returns how many; the lanes in w. fs, qs: the split
+ * given apart (r->fs, r->qs; NULL: the samples' own), a parameter so that each case inlines
+ * on its own. */
 static CYCLE_INLINE int run_sums_of(const run_state *r, const afm_cycle *c, const afm_sample *s,
-                                    const double *th, int m, run_vec *wo, run_flags *out) {
+                                    const double *th, int m, run_vec *wo, run_flags *out,
+                                    const double *fs, const double *qs) {
+#define RUN_F(i) (fs ? fs[i] : s[i].f_n)
+#define RUN_Q(i) (fs ? qs[i] : s[i].theta_rad)
     const afm_sample *p0 = r->p0;
     const afm_phase_track *tk = &c->trk;
     double n0 = tk->n;
@@ -1065,6 +1165,7 @@ static CYCLE_INLINE int run_sums_of(const run_state *r, const afm_cycle *c, cons
     k.xc = AFM_V4_SET1(r->xc);
     k.third = AFM_V4_SET1(1.0 / 3.0);
     k.xn = AFM_V4_SET1(c->x_near_m);
+    k.z0 = AFM_V4_SET1(0.0 * c->cos_alpha); /* +0.0: cos_alpha is in (0, 1] */
     k.ctm = (afm_v4i)AFM_V4_SET1(0.0) - (c->forces ? 1 : 0);
     run_vec w;
     w.t = (afm_v4){0.0, 0.0, r->t_m2, p0->t_s};
@@ -1080,10 +1181,12 @@ static CYCLE_INLINE int run_sums_of(const run_state *r, const afm_cycle *c, cons
     int n_ev = 0, j = 0, l = 4;
     for (; j + 8 <= m; j += 8) { /* two blocks a step (no register moves) */
         const afm_sample *a[4] = {s + j, s + j + 1, s + j + 2, s + j + 3};
-        l = run_block(&w, out->ev, &n_ev, &k, a, th + j, j, 4);
+        l = run_block(&w, out->ev, &n_ev, &k, a, th + j, j, 4, fs ? fs + j : NULL,
+                      fs ? qs + j : NULL);
         if (l < 4) break;
         const afm_sample *b[4] = {s + j + 4, s + j + 5, s + j + 6, s + j + 7};
-        l = run_block(&w, out->ev, &n_ev, &k, b, th + j + 4, j + 4, 4);
+        l = run_block(&w, out->ev, &n_ev, &k, b, th + j + 4, j + 4, 4, fs ? fs + j + 4 : NULL,
+                      fs ? qs + j + 4 : NULL);
         if (l < 4) {
             j += 4;
             break;
@@ -1091,7 +1194,8 @@ static CYCLE_INLINE int run_sums_of(const run_state *r, const afm_cycle *c, cons
     }
     for (; l == 4 && j + 4 <= m; j += 4) {
         const afm_sample *a[4] = {s + j, s + j + 1, s + j + 2, s + j + 3};
-        l = run_block(&w, out->ev, &n_ev, &k, a, th + j, j, 4);
+        l = run_block(&w, out->ev, &n_ev, &k, a, th + j, j, 4, fs ? fs + j : NULL,
+                      fs ? qs + j : NULL);
         if (l < 4) break;
     }
     if (l < 4) { /* w as before the block, from the samples (not kept in registers) */
@@ -1101,31 +1205,46 @@ static CYCLE_INLINE int run_sums_of(const run_state *r, const afm_cycle *c, cons
         w.t = (afm_v4){0.0, 0.0, t2, q1->t_s};
         w.x = AFM_V4_SET1(q1->x_m);
         w.v = AFM_V4_SET1(q1->v_m_s);
-        w.f = (afm_v4){0.0, 0.0, j > 1 ? s[j - 2].f_n : j > 0 ? p0->f_n : r->f_m2, q1->f_n};
-        w.q = AFM_V4_SET1(q1->theta_rad);
+        w.f = (afm_v4){0.0, 0.0,
+                       j > 1   ? RUN_F(j - 2)
+                       : j > 0 ? p0->f_n
+                               : r->f_m2,
+                       j > 0 ? RUN_F(j - 1) : p0->f_n};
+        w.q = AFM_V4_SET1(j > 0 ? RUN_Q(j - 1) : p0->theta_rad);
         w.n = (afm_v4){n0 + j + 1.0, n0 + j + 2.0, n0 + j + 3.0, n0 + j + 4.0};
     }
     while (j < m) { /* the last 1-3 samples, the last one repeated */
         int v = m - j, l1 = v > 1 ? j + 1 : m - 1, l2 = v > 2 ? j + 2 : m - 1;
         const afm_sample *a[4] = {s + j, s + l1, s + l2, s + m - 1};
         double t4[4] = {th[j], th[l1], th[l2], th[m - 1]};
-        l = run_block(&w, out->ev, &n_ev, &k, a, t4, j, v);
+        double f4[4], q4[4];
+        if (fs) {
+            f4[0] = fs[j], f4[1] = fs[l1], f4[2] = fs[l2], f4[3] = fs[m - 1];
+            q4[0] = qs[j], q4[1] = qs[l1], q4[2] = qs[l2], q4[3] = qs[m - 1];
+        }
+        l = run_block(&w, out->ev, &n_ev, &k, a, t4, j, v, fs ? f4 : NULL, fs ? q4 : NULL);
         if (l == 4) break;
         m = j + l;
     }
     out->n_ev = n_ev;
     *wo = w;
     return m;
+#undef RUN_F
+#undef RUN_Q
 }
 
 /* A run over s[0 .. m-1] (m <= RUN_MAX, fast-path room for m samples, period active, full
- * history). Returns the samples taken (0: none, the caller pushes the next one), or -k: the
- * first k samples hold a value that is not finite; nothing changed (the caller pushes them
- * one at a time). */
-AFM_CLONES static int run(afm_cycle *c, const afm_sample *s, const double *th, int m) {
+ * history), split (fs NULL) or with its split in fs[0 .. m-1], qs[0 .. m-1] (force and
+ * squeeze power, afm_cycle_split_forces). Returns the samples taken (0: none, the caller
+ * pushes the next one), or -k: the first k samples hold a value that is not finite; nothing
+ * changed (the caller pushes them one at a time). */
+AFM_CLONES static int run(afm_cycle *c, const afm_sample *s, const double *th, int m,
+                          const double *fs, const double *qs) {
     const afm_sample *p0 = &c->prev;
     afm_cycle_metrics *cm = &c->cur;
     run_state r = {.s = s,
+                   .fs = fs,
+                   .qs = qs,
                    .c = c,
                    .p0 = p0,
                    .m2 = &c->prev2,
@@ -1141,7 +1260,8 @@ AFM_CLONES static int run(afm_cycle *c, const afm_sample *s, const double *th, i
                    .nc = 0};
     run_flags fl;
     run_vec w;
-    m = run_sums_of(&r, c, s, th, m, &w, &fl);
+    m = fs ? run_sums_of(&r, c, s, th, m, &w, &fl, fs, qs)
+           : run_sums_of(&r, c, s, th, m, &w, &fl, NULL, NULL);
     if (m == 0) return 0;
     /* a value that is not finite makes the sums not finite */
     afm_v4 z = (w.fv + w.xs) * 0.0;
@@ -1159,12 +1279,17 @@ AFM_CLONES static int run(afm_cycle *c, const afm_sample *s, const double *th, i
     }
     cm->min_deflection_m = r.xmin;
     c->e_corr = r.ec;
-    cm->peak_force_n = q->f_n > r.pk ? q->f_n : r.pk;
+    const double qf = fs ? fs[m - 1] : q->f_n;
+    cm->peak_force_n = qf > r.pk ? qf : r.pk;
     c->t_in = r.t_in;
     c->t_before = m >= 2 ? s[m - 2].t_s : p0->t_s;
-    copy_sample(&c->prev2, m >= 2 ? &s[m - 2] : p0);
+    if (m >= 2) {
+        run_keep(&r, m - 2, &c->prev2);
+    } else {
+        copy_sample(&c->prev2, p0);
+    }
     c->k += m;
-    copy_sample(&c->prev, q);
+    run_keep(&r, m - 1, &c->prev);
     c->trk.n += m;
     c->trk.th_prev = th[m - 1];
     return m;
@@ -1205,18 +1330,13 @@ AFM_CLONES int afm_cycle_push_n_split(afm_cycle *c, const afm_sample *s, const d
             if (m >= RUN_MIN) {
                 const afm_sample *rs = s + i;
                 afm_sample sp[SPLIT_MAX];
-                if (c->split && f_ts) { /* the run on the split samples, split already */
-                    for (int j = 0; j < m; j++) {
-                        copy_sample(sp + j, s + i + j);
-                        sp[j].f_n = f_ts[i + j];
-                        sp[j].theta_rad = p_sq[i + j];
-                    }
-                    rs = sp;
-                } else if (c->split) { /* the run on the split samples */
+                const bool apart = c->split && f_ts; /* split already: read from there */
+                if (c->split && !f_ts) {             /* the run on the split samples */
                     split_run(c, s + i, sp, m);
                     rs = sp;
                 }
-                int k = run(c, rs, th + i, m);
+                int k = apart ? run(c, rs, th + i, m, f_ts + i, p_sq + i)
+                              : run(c, rs, th + i, m, NULL, NULL);
                 if (k > 0) {
                     i += k;
                     /* a run that took the whole room: the next sample is off the fast path */

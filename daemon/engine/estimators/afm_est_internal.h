@@ -300,6 +300,14 @@ typedef double afm_v4u __attribute__((vector_size(32), aligned(8), may_alias));
         e_ = e_ + (a)*0.0 + (b)*0.0;                                                               \
         (afm_v4i)((e_ <= (tol)) & (e_ >= -(tol)));                                                 \
     })
+/* Every lane of a lane mask set: two shuffles and ands, then lane 0 (lane by lane it moves
+ * every lane to an integer register; issue 12). */
+#define AFM_V4I_ALL(m)                                                                             \
+    __extension__({                                                                                \
+        afm_v4i a_ = (m)&__builtin_shufflevector((m), (m), 2, 3, 0, 1);                            \
+        a_ = a_ & __builtin_shufflevector(a_, a_, 1, 0, 3, 2);                                     \
+        a_[0] != 0;                                                                                \
+    })
 static inline AFM_EST_INLINE int afm_track_run_v4(const afm_phase_track *t, const double *th,
                                                   const double *a, const double *b, int nmax,
                                                   const bool use_b) {
@@ -316,7 +324,7 @@ static inline AFM_EST_INLINE int afm_track_run_v4(const afm_phase_track *t, cons
         afm_v4i ok1 = AFM_TRACK_OK4(AFM_V4_LD(th + i + 4), AFM_V4_LD(a + i + 4),
                                     use_b ? AFM_V4_LD(b + i + 4) : zero, nn + 4.0, ref, dp, tol);
         afm_v4i ok = ok0 & ok1;
-        if (!((ok[0] & ok[1]) & (ok[2] & ok[3]))) break;
+        if (!AFM_V4I_ALL(ok)) break;
         nn = nn + 8.0;
     }
     for (;; i += 4) { /* the rest, or the step of 8 that failed: 4 at a time */

@@ -5,6 +5,17 @@
  * per-sample loops only the inline fast path (afm_track_fast, afm_track_run). */
 #include "estimators/afm_est_internal.h"
 
+#include "config/afm_clones.h"
+
+/* afm_track_advance and afm_track_step (twice a period in the output chain, issue 12) are
+ * multiversioned with their helpers inlined: the x86-64-v3 copy has its fmas and roundings
+ * inline, not libm calls; the same bits. */
+#if defined(__GNUC__)
+#define TRACK_INLINE inline __attribute__((always_inline))
+#else
+#define TRACK_INLINE inline
+#endif
+
 void afm_track_init(afm_phase_track *t, bool clock) {
     t->clock = clock;
     t->started = t->locked = false;
@@ -16,7 +27,7 @@ void afm_track_init(afm_phase_track *t, bool clock) {
 
 /* a - 2 pi m for the integer m nearest a / 2 pi: the deviation of a step from the rate up to
  * whole turns (the fma is exact: the remainder is representable). */
-static double afm_track_off_turns(double a) {
+static TRACK_INLINE double afm_track_off_turns(double a) {
     double m = nearbyint(a * (1.0 / AFM_EST_TWO_PI));
     return fma(-m, AFM_EST_TWO_PI, a);
 }
@@ -38,7 +49,7 @@ int afm_track_check(const afm_phase_track *t, double th, double *p) {
 
 /* n_end of a tracker just resynchronised at p (theta mod 2 pi for a clock) with tolerance
  * tol: the fast path's room (0 while unlocked). */
-static void track_window(afm_phase_track *t, double p, double tol) {
+static TRACK_INLINE void track_window(afm_phase_track *t, double p, double tol) {
     t->n_end = 0.0;
     if (t->locked && !t->clock) {
         t->n_end = AFM_TRACK_WINDOW_FREE;
@@ -55,7 +66,8 @@ static void track_window(afm_phase_track *t, double p, double tol) {
 /* The common end of afm_track_advance and afm_track_step: the rate estimate, the lock and
  * the resynchronisation at theta (p = theta mod 2 pi for a clock, else 0); *rate_changed as
  * for afm_track_advance. */
-static void afm_track_resync(afm_phase_track *t, double th, double p, bool *rate_changed) {
+static TRACK_INLINE void afm_track_resync(afm_phase_track *t, double th, double p,
+                                          bool *rate_changed) {
     double n = t->n + 1.0;
     *rate_changed = false;
     double err = (th - t->th_ref) - n * t->dphi;
@@ -132,7 +144,8 @@ bool afm_track_rebase(afm_phase_track *t, double th, double dphi) {
  * Returns AFM_CLOCK_NONE/CROSS/START (always NONE for a non-clock); *frac as for CROSS;
  * *rate_changed set when dphi took a new value (the caller's per-step rotation must be
  * recomputed from it; only meaningful while t->locked). */
-int afm_track_advance(afm_phase_track *t, double th, double p, double *frac, bool *rate_changed) {
+AFM_CLONES int afm_track_advance(afm_phase_track *t, double th, double p, double *frac,
+                                 bool *rate_changed) {
     int rc = AFM_CLOCK_NONE;
     if (t->clock) {
         if (!t->started) {
@@ -153,7 +166,7 @@ int afm_track_advance(afm_phase_track *t, double th, double p, double *frac, boo
 /* afm_track_check then afm_track_advance for a clock tracker, in one: the same checks, result and
  * tracker state, with theta_prev reduced mod 2 pi once. AFM_CLOCK_BAD (nothing changed), else as
  * afm_track_advance (*frac for a boundary). */
-int afm_track_step(afm_phase_track *t, double th, double *frac) {
+AFM_CLONES int afm_track_step(afm_phase_track *t, double th, double *frac) {
     if (!isfinite(th)) return AFM_CLOCK_BAD;
     double p = afm_clock_wrap(th), pp = 0.0;
     int rc = AFM_CLOCK_NONE;

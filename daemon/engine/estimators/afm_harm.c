@@ -295,7 +295,8 @@ typedef struct {
  * tracker advanced, and whether the phasors rotate one more step (standing then for imp,
  * within tol of theta) or are computed exactly into pex. -1 (rejected, nothing changed) or
  * 0. */
-static int harm_slow_clock(afm_harm *h, double theta_rad, harm_slow_step *s, double *pex) {
+static inline ALWAYS_INLINE int harm_slow_clock(afm_harm *h, double theta_rad, harm_slow_step *s,
+                                                double *pex) {
     double phi;
     const afm_phase_track *t = &h->trk;
     const double n1 = t->n + 1.0, imp = h->imp_ref + n1 * t->dphi, tol = t->tol;
@@ -333,7 +334,8 @@ static int harm_slow_clock(afm_harm *h, double theta_rad, harm_slow_step *s, dou
  * taken: this sample gets the after-boundary weight plus 0.5 from the next step, the
  * previous one wa[0]. Also the new chunk's weights of x (m) and f (N): 1, nothing before
  * the first boundary. */
-static void harm_slow_weights(afm_harm *h, double x, double f, harm_slow_step *s) {
+static inline ALWAYS_INLINE void harm_slow_weights(afm_harm *h, double x, double f,
+                                                   harm_slow_step *s) {
     s->cross = s->had_prev && s->active && s->ev == AFM_CLOCK_CROSS;
     s->start = s->ev == AFM_CLOCK_START || (s->ev == AFM_CLOCK_CROSS && s->had_prev);
     s->wb[0] = s->wb[1] = s->wa[0] = s->wa[1] = 0.0;

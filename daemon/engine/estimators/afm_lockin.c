@@ -134,7 +134,9 @@ static inline ALWAYS_INLINE void current_nv(const afm_lockin *l, double *x, doub
     *y = q[1] + q[3];
 }
 
-static void current(const afm_lockin *l, double *x, double *y) {
+/* Multiversioned: its afm_v4 fmas are vfmadds in the x86-64-v3 copy, not 12 calls of libm's
+ * fma (the chain takes X, Y once a period: 235 -> ~50 instructions, issue 12). */
+AFM_CLONES_NOINLINE static void current(const afm_lockin *l, double *x, double *y) {
     switch ((l->order + 1) / 2) {
     case 1:
         current_nv(l, x, y, 1);

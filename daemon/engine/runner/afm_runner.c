@@ -1582,6 +1582,16 @@ int afm_runner_take_periods_raw_op(afm_runner *r, afm_chain_period *out, afm_run
     return n;
 }
 
+int afm_runner_periods_waiting(const afm_runner *r) {
+    return afm_chain_periods_waiting(r->chain);
+}
+
+int afm_runner_skip_periods(afm_runner *r, int n) {
+    n = afm_chain_skip_periods(r->chain, n);
+    back_pop_take(r, n, NULL);
+    return n;
+}
+
 int afm_runner_take_periods(afm_runner *r, afm_chain_period *out, int max) {
     return afm_runner_take_periods_op(r, out, NULL, max);
 }

@@ -291,6 +291,10 @@ int afm_runner_take_periods(afm_runner *r, afm_chain_period *out, int max);
 /* afm_chain_take_periods_raw and afm_chain_period_finish on the runner's chain: take every
  * record, finish the ones to publish. */
 int afm_runner_take_periods_raw(afm_runner *r, afm_chain_period *out, int max);
+/* afm_chain_periods_waiting, afm_chain_skip_periods on the runner's chain (the skipped
+ * records' operating points go with them). */
+int afm_runner_periods_waiting(const afm_runner *r);
+int afm_runner_skip_periods(afm_runner *r, int n);
 void afm_runner_period_finish(const afm_runner *r, afm_chain_period *p);
 
 typedef struct {
