@@ -52,8 +52,10 @@ typedef struct {
     uint8_t *data;
 } ls_event;
 
-/* longest wait for the samples a completion counts (they come on another socket) */
-#define LS_SAMPLES_WAIT_S 0.5
+/* longest wait for the samples a completion counts (they come on another socket, read by
+ * another LCM thread: late when that thread is not scheduled; 0.5 s was seen to fall short
+ * once on a loaded machine, with no datagram dropped by the kernel) */
+#define LS_SAMPLES_WAIT_S 2.0
 /* A tick whose completion has not come is sent again (same seq: afmtwind runs it if it never
  * got it, or publishes its completion again) after LS_RESEND0_S, then at doubling intervals
  * of at most LS_RESEND_MAX_S, until --timeout. */
@@ -332,12 +334,14 @@ static void on_done(const lcm_recv_buf_t *rb, const char *channel, void *user) {
         if (c->mismatched++ < 5)
             fprintf(stderr,
                     "afmtwin lockstep: completion seq %lld: the daemon published %lld samples "
-                    "and %lld harmonics messages, %lld and %lld arrived (digests %s)\n",
+                    "and %lld harmonics messages, %lld and %lld arrived (digests %s; missing by "
+                    "msg_seq so far: %lld samples, %lld harmonics messages)\n",
                     (long long)m.seq, (long long)m.n_samples_msgs, (long long)m.n_harmonics_msgs,
                     (long long)c->dg.n_samples_msgs, (long long)c->dg.n_harmonics_msgs,
                     (uint64_t)m.samples_digest == sd && (uint64_t)m.harmonics_digest == hd
                         ? "equal"
-                        : "differ");
+                        : "differ",
+                    c->msg_gaps[LS_CH_SAMPLES], c->msg_gaps[LS_CH_HARMONICS]);
     }
     afm_lcm_digest_init(&c->dg);
     if (c->n_dones < c->n_cap)
