@@ -321,10 +321,29 @@ static void held_drop(twind *d) {
     }
 }
 
+/* Lockstep: a tick whose seq is that of the last tick received is the client's re-send
+ * (its completion did not come in time: lost, or late): never run again (a duplicate must not
+ * change the model), counted, and the publisher asked to publish that completion again
+ * (publish.c: if it was published; otherwise it is still to come). true if c is one. */
+static bool tick_resent(twind *d, const afm_cmd *c) {
+    if (c->kind != AFM_CMD_TICK || d->opt.mode != TWIND_LOCKSTEP) return false;
+    if (!d->tick_seen || c->seq != d->last_tick_seq) {
+        d->tick_seen = true;
+        d->last_tick_seq = c->seq;
+        return false;
+    }
+    atomic_fetch_add_explicit(&d->tick_resends, 1, memory_order_relaxed);
+    atomic_store_explicit(&d->republish_seq, c->seq, memory_order_relaxed);
+    atomic_fetch_add_explicit(&d->republish_req, 1, memory_order_release);
+    sem_post(&d->out_sem); /* wakes the publisher; never blocks */
+    return true;
+}
+
 static int on_cmd(void *ctx, const afm_cmd *c) {
     twind *d = ctx;
     twind_bw *b = &d->bw;
     count_received(d);
+    if (tick_resent(d, c)) return 0;
     /* Behind a build in flight: in order, in the hold ring; a full ring waits for the build
      * (as every command did before the worker). */
     while (b->busy && b->held_n == TWIND_HELD_LEN &&

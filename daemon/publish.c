@@ -2,7 +2,8 @@
 /* publish.c -- the publish thread: samples and harmonics records from the RT thread's rings
  * out through the transport, the completions of ticks and steps right after the outputs
  * committed before them (with the digest of the messages since the previous completion,
- * afm_lcm_digest), and the status at 10 Hz (and once more at shutdown). */
+ * afm_lcm_digest), and the status at 10 Hz (and once more at shutdown). The last completion
+ * is kept: a lockstep client's re-sent tick (cmd_in.c) asks for it again. */
 #include "twind.h"
 
 #include "runner/afm_fm.h"
@@ -52,6 +53,8 @@ void twind_status_fill(twind *d, afm_io_status *o, twind_rtf_state *rs) {
     o->fe_hz = s.st.fe_hz;
     o->amplitude_m = s.st.amplitude_m;
     o->applied = s.st.applied;
+    o->tick_resends = atomic_load_explicit(&d->tick_resends, memory_order_relaxed);
+    o->republished = atomic_load_explicit(&d->republished, memory_order_relaxed);
     o->resyncs = s.resyncs;
     o->chain_stalls = s.st.stalls;
     double lag = s.st.t_s - cs.st.t_s; /* model time integrated but not yet through the chain */
@@ -114,7 +117,27 @@ void twind_status_fill(twind *d, afm_io_status *o, twind_rtf_state *rs) {
 typedef struct {
     long long samples_recs, harm_recs;
     afm_lcm_digest dg;
+    bool have_last;
+    afm_io_tick_done last;   /* the last completion published */
+    long long republish_req; /* the receive thread's requests seen */
 } pub_state;
+
+/* A re-sent tick (cmd_in.c) asks for the completion of its seq again: published again, as it
+ * was (counts and digests of the outputs before it; a new utime and message number), if it
+ * is the last one published; otherwise that completion is still to come (the tick is
+ * running, or the outputs before it are) and comes once, or the seq is not the last one
+ * (the client moved on): nothing. */
+static void republish(twind *d, pub_state *p) {
+    long long req = atomic_load_explicit(&d->republish_req, memory_order_acquire);
+    if (req == p->republish_req) return;
+    p->republish_req = req;
+    int64_t seq = atomic_load_explicit(&d->republish_seq, memory_order_relaxed);
+    if (!p->have_last || p->last.seq != seq) return;
+    afm_io_tick_done td = p->last;
+    td.utime = twind_utime_now();
+    if (d->io->ops->publish_tick_done) d->io->ops->publish_tick_done(d->io, &td);
+    atomic_fetch_add_explicit(&d->republished, 1, memory_order_relaxed);
+}
 
 /* Every waiting record and completion, in the order the chain thread committed them: a
  * record only while no completion committed before it waits, a completion once the records
@@ -159,6 +182,8 @@ static void drain(twind *d, pub_state *p) {
                                    .samples_digest = afm_lcm_digest_samples_final(&p->dg),
                                    .harmonics_digest = p->dg.harmonics};
             if (d->io->ops->publish_tick_done) d->io->ops->publish_tick_done(d->io, &td);
+            p->last = td;
+            p->have_last = true;
             afm_lcm_digest_init(&p->dg);
             afm_spsc_release(&d->done_q);
             progress = true;
@@ -180,6 +205,7 @@ void *twind_pub_main(void *arg) {
         while (sem_timedwait(&d->out_sem, &ts) != 0 && errno == EINTR) {
         }
         drain(d, &ps);
+        republish(d, &ps);
         double now = twind_mono_now();
         if (now >= next_status) {
             twind_status_fill(d, &st, &rs);

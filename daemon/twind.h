@@ -31,9 +31,11 @@
  * and ends in exactly one of applied (by the twin), rejected (malformed or invalid: the
  * receive thread), refused (valid, but not taken: the command queue full, or the twin
  * refusing it: rt thread) or dropped (lost before any handler: LCM's queues, the socket;
- * the transport counts those) -- so received = applied + rejected + refused + dropped once
- * the queue has drained. The rt thread never refuses for back-pressure: a command that does
- * not fit the ring now stays at the head of cmd_q and is applied a ring item later.
+ * the transport counts those), or, in lockstep, tick_resends (a tick with the last tick's
+ * seq: a client's re-send, never run twice) -- so received = applied + rejected + refused +
+ * dropped + tick_resends once the queue has drained. The rt thread never refuses for back-pressure:
+ * a command that does not fit the ring now stays at the head of cmd_q and is applied a ring item
+ * later.
  *
  * Model changes (param, reload) go one at a time: the receive thread folds each into its
  * shadow config only after the rt thread has taken or refused the one before (mc_sent /
@@ -255,6 +257,15 @@ typedef struct {
     twind_a0 a0;                    /* a0_track.c */
     twind_bw bw;                    /* build_worker.c */
     int64_t cmd_order;              /* receive thread: order of the command being handled */
+    /* Lockstep re-sends (cmd_in.c on_cmd): a tick whose seq is that of the last tick received
+     * is a client's re-send after a lost or late completion: never run again; the publisher
+     * publishes the last completion again if it names that seq (publish.c). */
+    bool tick_seen;             /* receive thread: a tick was received */
+    int64_t last_tick_seq;      /* receive thread: its seq */
+    atomic_llong tick_resends;  /* re-sent ticks received (status) */
+    atomic_llong republish_req; /* receive -> publisher: +1 per re-send, seq below */
+    atomic_llong republish_seq; /* the seq whose completion is asked for again */
+    atomic_llong republished;   /* completions published again (status) */
     /* RT scheduling result, for the start-up report */
     char rt_warn[512];
 } twind;

@@ -40,8 +40,12 @@ lockstep_once() {
   sleep 1
   local until="" rc
   [ "$CHECK_S" != "all" ] && until="--until $CHECK_S"
+  # --timeout 30: a lost tick or completion is re-sent after 0.2 s (docs/realtime.md), but a
+  # completion can also be late for seconds: another process's SCHED_FIFO threads (a
+  # real-time twin at capacity) leave no CPU to the daemon's output chain (FIFO 60 on CPU 1;
+  # seen: a tick applied, chain_lag_s = the whole tick after 10 s, no datagram dropped)
   "$A" lockstep --in "$T/soak.log" --config "$1" --check --harmonics-every 64 --cpu 0 $until \
-    > "$T/ls.txt" 2> "$T/ls.err"
+    --timeout 30 > "$T/ls.txt" 2> "$T/ls.err"
   rc=$?
   kill -TERM "$DPID"; wait "$DPID"; DPID=""
   sed 's/^/     /' "$T/ls.txt"; head -8 "$T/ls.err" | sed 's/^/     /'

@@ -355,6 +355,8 @@ static void print_status(const listen_ctx *c, const char *channel, const afmtwin
         json_str(o, "last_refusal", m->last_refusal);
         json_int(o, "dropped", m->dropped);
         json_str(o, "last_drop", m->last_drop);
+        json_int(o, "tick_resends", m->tick_resends); /* lockstep re-sends */
+        json_int(o, "republished", m->republished);
         cJSON_AddNumberToObject(o, "auto_paused", m->auto_paused);
         json_str(o, "pause_reason", m->pause_reason);
         json_num(o, "realtime_factor_1s", m->realtime_factor_1s);
@@ -427,6 +429,9 @@ static void print_status(const listen_ctx *c, const char *channel, const afmtwin
     if (lr[0])
         printf(" (last rejected %.1f s ago%s: %s)", m->last_reject_age_s,
                m->last_reject_old ? ", old: later commands applied" : "", lr);
+    if (m->tick_resends > 0)
+        printf(" | lockstep: %lld ticks re-sent, %lld completions published again",
+               (long long)m->tick_resends, (long long)m->republished);
     if (m->rt_scheme && m->rt_scheme[0]) /* one line per message: the reason is in --json */
         printf(" | rt scheme %s, %lld handovers", m->rt_scheme, (long long)m->scheme_handovers);
     if (m->fm_control && strcmp(m->fm_control, "internal") == 0) {

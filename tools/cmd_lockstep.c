@@ -52,8 +52,19 @@ typedef struct {
     uint8_t *data;
 } ls_event;
 
-/* longest wait for the samples a completion counts (they come on another socket) */
-#define LS_SAMPLES_WAIT_S 0.5
+/* longest wait for the samples a completion counts (they come on another socket, read by
+ * another LCM thread: late when that thread is not scheduled; 0.5 s was seen to fall short
+ * once on a loaded machine, with no datagram dropped by the kernel) */
+#define LS_SAMPLES_WAIT_S 2.0
+/* A tick whose completion has not come is sent again (same seq: afmtwind runs it if it never
+ * got it, or publishes its completion again) after LS_RESEND0_S, then at doubling intervals
+ * of at most LS_RESEND_MAX_S, until --timeout. */
+#define LS_RESEND0_S 0.2
+#define LS_RESEND_MAX_S 1.6
+
+/* Output channels whose msg_seq (per-channel message number) is followed: a gap is that
+ * many messages lost on the way (or still to come, out of order). */
+enum { LS_CH_SAMPLES, LS_CH_HARMONICS, LS_CH_DONE, LS_N_CH };
 
 typedef struct {
     int64_t seq, samples;
@@ -140,13 +151,25 @@ typedef struct {
     /* what came back */
     bool status_seen; /* the daemon is up */
     afm_lcm_digest dg;
-    bool done_seen;
+    bool done_seen, done_seen_ever;
     afmtwin_tick_done_t last;
     long long n_samples_msgs, n_harm_msgs, n_dones, mismatched, bad_msgs;
     ls_done *dones;
     long long n_cap;
     ls_hrec *hrecs; /* every harmonics message received (for --check's diagnosis) */
     long long n_hrecs, hrec_cap;
+    /* lost, late and re-sent */
+    int64_t next_msg_seq[LS_N_CH]; /* the msg_seq expected next (-1: none seen yet) */
+    long long msg_gaps[LS_N_CH];   /* messages missing in the msg_seq of each channel */
+    long long msg_behind[LS_N_CH]; /* messages that came after a later one */
+    uint8_t last_tick[64];         /* the last tick sent, as sent (re-sent as it is) */
+    int last_tick_len;
+    int64_t last_tick_seq;
+    long long resends;      /* ticks sent again */
+    long long resent_waits; /* waits that needed a re-send */
+    long long dones_again;  /* completions of a seq already completed: ignored */
+    int64_t again_seq;      /* the seq of the last of them */
+    long long log_resends;  /* ticks in the log with the last tick's seq */
     /* state of the twin as this client drives it */
     int64_t tick_seq;
     long long samples;      /* run by this client so far */
@@ -175,6 +198,16 @@ static void ls_usage(FILE *f) {
         "command, ticks of at most --tick-us up to the sample count of its log time,\n"
         "round((t - t_first) x rate); paused, model time stands still; a step is waited for.\n"
         "Ticks made here have seq 1e12, 1e12 + 1, ...\n\n"
+        "Lost or late datagrams: a tick whose completion has not come within 0.2 s is sent\n"
+        "again with the SAME seq, then at doubling intervals (at most 1.6 s) until\n"
+        "--timeout. afmtwind takes a tick whose seq is that of the last tick it received as\n"
+        "such a re-send: it never runs it again (the model does not move), and publishes\n"
+        "that tick's completion again if it was already published (it was lost, or is late).\n"
+        "A completion that repeats the last one (seq, samples, model time) is ignored here.\n"
+        "Re-sends are not written to --sequence (replay --lockstep absorbs a repeated tick\n"
+        "too); a tick in the log with the last tick's seq is sent and its completion awaited\n"
+        "again. Commands other than ticks are not re-sent. The summary counts re-sends and\n"
+        "the messages missing per output channel (gaps in msg_seq).\n\n"
         "options:\n"
         "  --in LOG          the commands (lcm-logger format; channels PREFIX + DITHER,\n"
         "                    SETPOINT, PARAM, CONTROL, TICK, SCAN)\n"
@@ -220,6 +253,18 @@ static void log_out(ls_ctx *c, const lcm_recv_buf_t *rb, const char *channel) {
     afmt_log_write(c->out_log, rb->recv_utime, channel, rb->data, (int)rb->data_size);
 }
 
+/* msg_seq of a message on channel ch: a jump forward is messages missing, one behind came
+ * late (after a later one). */
+static void follow_msg_seq(ls_ctx *c, int ch, int64_t msg_seq) {
+    int64_t *next = &c->next_msg_seq[ch];
+    if (*next >= 0 && msg_seq > *next) c->msg_gaps[ch] += msg_seq - *next;
+    if (*next >= 0 && msg_seq < *next) {
+        c->msg_behind[ch]++;
+        return;
+    }
+    *next = msg_seq + 1;
+}
+
 static void on_samples(const lcm_recv_buf_t *rb, const char *channel, void *user) {
     ls_ctx *c = user;
     afmtwin_samples_t m;
@@ -227,6 +272,7 @@ static void on_samples(const lcm_recv_buf_t *rb, const char *channel, void *user
         c->bad_msgs++;
         return;
     }
+    follow_msg_seq(c, LS_CH_SAMPLES, m.msg_seq);
     afm_lcm_digest_samples(&c->dg, &m);
     c->n_samples_msgs++;
     afmtwin_samples_t_decode_cleanup(&m);
@@ -240,6 +286,7 @@ static void on_harmonics(const lcm_recv_buf_t *rb, const char *channel, void *us
         c->bad_msgs++;
         return;
     }
+    follow_msg_seq(c, LS_CH_HARMONICS, m.msg_seq);
     afm_lcm_digest_harmonics(&c->dg, &m);
     c->n_harm_msgs++;
     if (c->hrecs && c->n_hrecs == c->hrec_cap) { /* grown; the diagnosis only: lose it */
@@ -258,12 +305,21 @@ static void on_status(const lcm_recv_buf_t *rb, const char *channel, void *user)
     ((ls_ctx *)user)->status_seen = true;
 }
 
-/* A completion: what came since the previous one must be what it says was published. */
+/* A completion: what came since the previous one must be what it says was published. One
+ * that names the last completion's seq, samples and model time again is that completion
+ * again (published again for a re-sent tick, after the first came late): counted, ignored. */
 static void on_done(const lcm_recv_buf_t *rb, const char *channel, void *user) {
     ls_ctx *c = user;
     afmtwin_tick_done_t m;
     if (afmtwin_tick_done_t_decode(rb->data, 0, (int)rb->data_size, &m) < 0) {
         c->bad_msgs++;
+        return;
+    }
+    follow_msg_seq(c, LS_CH_DONE, m.msg_seq);
+    if (c->n_dones > 0 && m.seq == c->last.seq && m.samples == c->last.samples &&
+        m.model_time_s == c->last.model_time_s) {
+        c->dones_again++;
+        c->again_seq = m.seq;
         return;
     }
     /* The samples come on their own socket: those published before this completion may
@@ -278,12 +334,14 @@ static void on_done(const lcm_recv_buf_t *rb, const char *channel, void *user) {
         if (c->mismatched++ < 5)
             fprintf(stderr,
                     "afmtwin lockstep: completion seq %lld: the daemon published %lld samples "
-                    "and %lld harmonics messages, %lld and %lld arrived (digests %s)\n",
+                    "and %lld harmonics messages, %lld and %lld arrived (digests %s; missing by "
+                    "msg_seq so far: %lld samples, %lld harmonics messages)\n",
                     (long long)m.seq, (long long)m.n_samples_msgs, (long long)m.n_harmonics_msgs,
                     (long long)c->dg.n_samples_msgs, (long long)c->dg.n_harmonics_msgs,
                     (uint64_t)m.samples_digest == sd && (uint64_t)m.harmonics_digest == hd
                         ? "equal"
-                        : "differ");
+                        : "differ",
+                    c->msg_gaps[LS_CH_SAMPLES], c->msg_gaps[LS_CH_HARMONICS]);
     }
     afm_lcm_digest_init(&c->dg);
     if (c->n_dones < c->n_cap)
@@ -295,7 +353,7 @@ static void on_done(const lcm_recv_buf_t *rb, const char *channel, void *user) {
                                          c->n_hrecs};
     c->n_dones++;
     c->last = m;
-    c->done_seen = true;
+    c->done_seen = c->done_seen_ever = true;
     log_out(c, rb, channel);
 }
 
@@ -306,27 +364,65 @@ static void seq_log_write(ls_ctx *c, const char *channel, const void *data, int 
     afmt_log_write(c->seq_log, llround((double)c->samples / c->rate_hz * 1e6), channel, data, len);
 }
 
+/* Send a command (and write it to the sequence); a tick is kept, with its seq, for re-sends. */
 static int publish(ls_ctx *c, int kind, const void *data, int len) {
     seq_log_write(c, c->ch.cmd[kind], data, len);
+    if (kind == AFM_CMD_TICK && len <= (int)sizeof c->last_tick) {
+        afmtwin_tick_t t;
+        if (afmtwin_tick_t_decode(data, 0, len, &t) >= 0) {
+            memcpy(c->last_tick, data, (size_t)len);
+            c->last_tick_len = len;
+            c->last_tick_seq = t.seq;
+        }
+    }
     return lcm_publish(c->lcm.cmd, c->ch.cmd[kind], data, (unsigned)len) < 0 ? -1 : 0;
+}
+
+/* The last tick once more, as it was sent (not into the sequence: the twin runs it once). */
+static void resend_tick(ls_ctx *c) {
+    if (lcm_publish(c->lcm.cmd, c->ch.cmd[AFM_CMD_TICK], c->last_tick,
+                    (unsigned)c->last_tick_len) == 0)
+        c->resends++;
+}
+
+/* Wait for a completion of seq: a new one, or (again) that completion published again for a
+ * re-sent tick. While seq is the last tick sent, the tick is re-sent after LS_RESEND0_S, then
+ * at doubling intervals (a lost tick then runs; a lost completion comes again). 0, or -1 on
+ * timeout or LCM failure. */
+static int await_done(ls_ctx *c, int64_t seq, bool again) {
+    double t0 = afmt_mono_s(), gap = LS_RESEND0_S, next = t0 + gap;
+    long long again0 = c->dones_again;
+    bool resent = false;
+    for (;;) {
+        if (!again && c->done_seen && c->last.seq == seq) break;
+        if (again && c->dones_again > again0 && c->again_seq == seq) break;
+        double now = afmt_mono_s(), left = c->timeout_s - (now - t0);
+        if (left <= 0) {
+            fprintf(stderr,
+                    "afmtwin lockstep: no completion of seq %lld within %g s%s (is afmtwind "
+                    "running in lockstep mode on these URLs, with this prefix?)\n",
+                    (long long)seq, c->timeout_s, resent ? ", the tick re-sent" : "");
+            return -1;
+        }
+        bool may_resend = c->last_tick_len > 0 && c->last_tick_seq == seq;
+        if (may_resend && now >= next) {
+            resend_tick(c);
+            resent = true;
+            gap = fmin(2 * gap, LS_RESEND_MAX_S);
+            next = now + gap;
+        }
+        double wait_s = fmin(left, may_resend ? next - now : 0.2);
+        if (afmt_lcm_handle(&c->lcm, (int)ceil(fmax(wait_s, 1e-3) * 1e3)) < 0) return -1;
+    }
+    c->resent_waits += resent;
+    c->wall_waiting += afmt_mono_s() - t0;
+    return 0;
 }
 
 /* Wait for the completion of seq (the last one sent), which runs n samples. 0, or -1 on
  * timeout. */
 static int wait_done(ls_ctx *c, int64_t seq, long long n) {
-    double t0 = afmt_mono_s();
-    while (!(c->done_seen && c->last.seq == seq)) {
-        double left = c->timeout_s - (afmt_mono_s() - t0);
-        if (left <= 0) {
-            fprintf(stderr,
-                    "afmtwin lockstep: no completion of seq %lld within %g s (is afmtwind running "
-                    "in lockstep mode on these URLs, with this prefix?)\n",
-                    (long long)seq, c->timeout_s);
-            return -1;
-        }
-        if (afmt_lcm_handle(&c->lcm, (int)ceil(fmin(left, 0.2) * 1e3)) < 0) return -1;
-    }
-    c->wall_waiting += afmt_mono_s() - t0;
+    if (await_done(c, seq, false)) return -1;
     c->done_seen = false;
     if (c->abs_samples >= 0 && c->last.samples != c->abs_samples + n) {
         fprintf(stderr, "afmtwin lockstep: completion of seq %lld at %lld samples, expected %lld\n",
@@ -365,8 +461,16 @@ static int send_event(ls_ctx *c, const ls_event *e) {
     afm_cmd_limits lim = {.sample_rate_hz = c->rate_hz};
     bool ok = afm_cmd_decode((afm_cmd_kind)e->kind, e->data, (size_t)e->len, &lim, &cmd, err,
                              sizeof err) == 0;
+    /* a tick with the last tick's seq: a re-send (afmtwind runs it once); once that tick
+     * has completed, its completion comes again */
+    bool resend =
+        ok && cmd.kind == AFM_CMD_TICK && c->last_tick_len > 0 && cmd.seq == c->last_tick_seq;
     if (publish(c, e->kind, e->data, e->len)) return -1;
     if (!ok) return 0; /* the daemon rejects it too */
+    if (resend) {
+        c->log_resends++;
+        return c->done_seen_ever && c->last.seq == cmd.seq ? await_done(c, cmd.seq, true) : 0;
+    }
     if (cmd.kind == AFM_CMD_CONTROL) {
         switch (cmd.u.control.action) {
         case AFM_CTL_RUN:
@@ -551,6 +655,18 @@ static int check_with_replay(ls_ctx *c, const char *seq_path) {
 
 /* ---- driver ---------------------------------------------------------------------------- */
 
+/* What was lost, late or sent again (after the summary; the daemon's status has its side:
+ * tick_resends, republished, dropped). */
+static void print_resends(const ls_ctx *c) {
+    printf("afmtwin lockstep: %lld ticks re-sent (%lld waits needed it), %lld completions came "
+           "again (ignored), %lld re-sent ticks in the log; messages missing by msg_seq: "
+           "samples %lld, harmonics %lld, completions %lld; after a later one: %lld, %lld, "
+           "%lld\n",
+           c->resends, c->resent_waits, c->dones_again, c->log_resends, c->msg_gaps[LS_CH_SAMPLES],
+           c->msg_gaps[LS_CH_HARMONICS], c->msg_gaps[LS_CH_DONE], c->msg_behind[LS_CH_SAMPLES],
+           c->msg_behind[LS_CH_HARMONICS], c->msg_behind[LS_CH_DONE]);
+}
+
 /* --bench S: the benchmark mode, for S seconds. */
 static int parse_bench(const char *v, void *dest) {
     ls_ctx *c = dest;
@@ -677,6 +793,8 @@ int afm_cmd_lockstep(int argc, char **argv) {
     c.tick_seq = LS_TICK_SEQ0;
     c.running = true;
     c.abs_samples = -1;
+    for (int i = 0; i < LS_N_CH; i++)
+        c.next_msg_seq[i] = -1;
     int rc = parse_opts(&c, argc, argv);
     if (rc) return rc == 1 ? 0 : rc;
     static afm_config cfg;
@@ -755,6 +873,7 @@ int afm_cmd_lockstep(int argc, char **argv) {
                wall > 0 ? 100 * c.wall_waiting / wall : 0, c.n_samples_msgs, c.n_harm_msgs,
                c.mismatched || c.bad_msgs ? "SOME NOT MATCHING their completions"
                                           : "all matching their completions");
+    if (!c.quiet) print_resends(&c);
     if (rc == 0 && (c.mismatched || c.bad_msgs)) rc = 1;
     if (rc == 0 && c.check && check_with_replay(&c, seq_path)) rc = 1;
     if (seq_path == seq_tmp) unlink(seq_tmp);

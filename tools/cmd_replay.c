@@ -70,6 +70,9 @@ typedef struct {
     afmt_channels ch;
     long long status_every, next_status; /* samples */
     long long received, rejected, applied, skipped, written;
+    bool tick_seen;         /* --lockstep: a tick was received, */
+    int64_t last_tick_seq;  /* ... with this seq */
+    long long tick_resends; /* ticks with the last tick's seq: absorbed, as afmtwind does */
     char last_reject[AFM_IO_REASON_LEN];
     long long period_count; /* periods seen (harmonics_every) */
     int64_t msg_seq[N_OUT]; /* next msg_seq per output channel, as the daemon numbers them */
@@ -118,7 +121,9 @@ static void replay_usage(FILE *f) {
             "  --speed X        model seconds per second of log time, 1e-3..1e3 (default 1): X\n"
             "                   for a log of the commands a daemon at --speed X received\n"
             "  --lockstep       the twin advances only by the log's tick commands (applied in\n"
-            "                   log order; log times are ignored)\n"
+            "                   log order; log times are ignored). A tick whose seq is that\n"
+            "                   of the last tick is a client's re-send: not run again, no\n"
+            "                   completion (afmtwind publishes the last one again)\n"
             "  --channels LIST  outputs to write, comma-separated subset of\n"
             "                   samples,harmonics,status,tick_done (default all)\n"
             "  --harmonics-every K  write every K-th period's harmonics (1: all, ~185 MB per\n"
@@ -254,6 +259,7 @@ static void emit_status(replay_ctx *x, const afm_runner_status *st) {
     s.model_time_s = st->t_s;
     s.received = x->received;
     s.rejected = x->rejected;
+    s.tick_resends = x->tick_resends;
     snprintf(s.last_reject, sizeof s.last_reject, "%s", x->last_reject);
     s.blowups = st->blowups;
     s.mode = x->o.lockstep ? "lockstep" : "replay";
@@ -363,6 +369,19 @@ static void reject(replay_ctx *x, const char *channel, const char *why) {
     snprintf(x->last_reject, sizeof x->last_reject, "%.60s: %.190s", channel, why);
 }
 
+/* --lockstep: a tick whose seq is that of the last tick is a client's re-send (afmtwind's
+ * rule, daemon/cmd_in.c): absorbed, counted; the twin does not move. true if c is one. */
+static bool tick_resent(replay_ctx *x, const afm_cmd *c) {
+    if (!x->o.lockstep || c->kind != AFM_CMD_TICK) return false;
+    if (x->tick_seen && c->seq == x->last_tick_seq) {
+        x->tick_resends++;
+        return true;
+    }
+    x->tick_seen = true;
+    x->last_tick_seq = c->seq;
+    return false;
+}
+
 static void apply_event(replay_ctx *x, afm_cmd_kind kind, const afm_lcm_log_event *ev) {
     const afm_config *cfg = afm_runner_config(x->r);
     afm_cmd_limits lim = {.sample_rate_hz = cfg->sim.sample_rate_hz,
@@ -374,6 +393,7 @@ static void apply_event(replay_ctx *x, afm_cmd_kind kind, const afm_lcm_log_even
         reject(x, ev->channel, err);
         return;
     }
+    if (tick_resent(x, &c)) return;
     afm_runner_model *model = NULL;
     bool new_chain = false;
     /* the drive in force (tone 0 as given), as the daemon follows it (cmd_in.c drive_now) */
@@ -581,12 +601,13 @@ int afm_cmd_replay(int argc, char **argv) {
     if (!x.o.quiet) {
         double wall = afmt_mono_s() - wall0;
         fprintf(stderr,
-                "afmtwin replay: %lld events: %lld commands applied, %lld rejected%s%s%s, %lld on "
-                "other channels skipped; model time %.6f s in %.3f s (%.3gx real time), %lld "
+                "afmtwin replay: %lld events: %lld commands applied, %lld rejected%s%s%s, %lld "
+                "re-sent ticks absorbed, %lld on other channels skipped; model time %.6f s in %.3f "
+                "s (%.3gx real time), %lld "
                 "output events, %lld blow-ups\n",
                 events, x.applied, x.rejected, x.rejected ? " (last: " : "",
-                x.rejected ? x.last_reject : "", x.rejected ? ")" : "", x.skipped, st.t_s, wall,
-                wall > 0 ? st.t_s / wall : 0.0, x.written, st.blowups);
+                x.rejected ? x.last_reject : "", x.rejected ? ")" : "", x.tick_resends, x.skipped,
+                st.t_s, wall, wall > 0 ? st.t_s / wall : 0.0, x.written, st.blowups);
     }
     return 0;
 usage_err:

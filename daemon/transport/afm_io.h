@@ -91,6 +91,10 @@ typedef struct {
     char last_refusal[AFM_IO_REASON_LEN];
     int64_t dropped;
     char last_drop[AFM_IO_REASON_LEN];
+    /* Lockstep re-sends: ticks received again with the last tick's seq (never run again;
+     * received = applied + rejected + refused + dropped + tick_resends), and the completions
+     * published again for them. */
+    int64_t tick_resends, republished;
     int auto_paused; /* 1: paused itself after recurring blow-ups (pause_reason) */
     char pause_reason[AFM_IO_REASON_LEN * 2];
     /* Issue 12: what the twin does, and whether it keeps up. */

@@ -154,6 +154,8 @@ void afm_lcm_status_msg(const afm_io_status *s, afmtwin_status_t *m) {
         .am_amplitude_m = s->am_amplitude_m,
         .free_amplitude_m = s->free_amplitude_m, /* issue 30 */
         .amplitude_ratio = s->amplitude_ratio,
+        .tick_resends = s->tick_resends, /* lockstep re-sends */
+        .republished = s->republished,
     };
 }
 
