@@ -96,9 +96,10 @@ static AFM_CLONES_NOINLINE int rt_run_acc_ev(afm_sim *s, rt_state *r, int n, afm
 
 AFM_CLONES static int rt_run(afm_sim *s, int n, afm_sample *out) {
     rt_state *r = s->be_state;
+    if (r->acc && !r->noise && s->ev_ring) return rt_run_acc_ev(s, r, n, out);
+    r->ev_a_ok = false; /* the state moves on without the step record (rt_ev_start) */
     if (r->acc) {
         if (r->noise) return rt_run_acc_t(s, r, n, out, r->np, rt_tones_kind(r), true, false);
-        if (s->ev_ring) return rt_run_acc_ev(s, r, n, out);
         if (r->ntones == 1 && r->np == 4) return rt_run_acc_t(s, r, n, out, 4, 1, false, false);
         if (r->ntones == 1 && r->np == 8) return rt_run_acc_t(s, r, n, out, 8, 1, false, false);
         if (r->ntones > 1 && r->np == 4)
@@ -143,6 +144,7 @@ static void rt_tables_drive(rt_tables *t, const rt_state *r) {
 /* Recompute the drive tables and reload the state from s->q, s->qd at s->t_s. */
 static void rt_changed(afm_sim *s) {
     rt_state *r = s->be_state;
+    r->ev_a_ok = false;
     const afm_modal *m = &s->m;
     double *cx_re = r->cx_re, *cx_im = r->cx_im;
     r->ntones = s->drive.n;
@@ -209,6 +211,7 @@ static void rt_changed(afm_sim *s) {
  * schemes' tables), and the generator seeded. */
 static int rt_thermal(afm_sim *s, const afm_cfg_thermal *t, char *err, size_t errlen) {
     rt_state *r = s->be_state;
+    r->ev_a_ok = false;
     if (!t->enabled) {
         r->noise = false;
         return 0;
@@ -271,6 +274,7 @@ static int rt_thermal(afm_sim *s, const afm_cfg_thermal *t, char *err, size_t er
 static void rt_set_scheme(afm_sim *s, bool accurate) {
     rt_state *r = s->be_state;
     if (r->acc == accurate) return;
+    r->ev_a_ok = false;
     if (r->drive_stale[accurate]) { /* bounded: one table set's drive rows */
         rt_tables_drive(&r->tab[accurate], r);
         r->drive_stale[accurate] = false;
@@ -420,6 +424,7 @@ static int rt_init(afm_sim *s, char *err, size_t errlen) {
  * phasors and the homogeneous state are untouched (rt_changed recomputes all of them). */
 static void rt_changed_z(afm_sim *s) {
     rt_state *r = s->be_state;
+    r->ev_a_ok = false;
     r->xc = afm_force_contact_x(&s->f, s->z_m);
     r->z_m = s->z_m;
     if (s->f.squeeze == AFM_SQUEEZE_STARR &&

@@ -530,7 +530,7 @@ static inline __attribute__((always_inline)) int rt_run_acc_t(afm_sim *s, rt_sta
     rt_snap *a = &r->buf[r->cur], *const b0 = &r->buf[0], *const b1 = &r->buf[1];
     rt_evacc eacc, *ea = evs ? &eacc : NULL;
     if (evs) {
-        rt_ev_start(ea, s, r, a, np, nt);
+        rt_ev_start(ea, s, r, a, np, nt, true);
         ea->slot = (step + 1) % s->ev_cap; /* the first step ends at step + 1 */
     }
     rt_acc_tip ta = rt_acc_tip_of(r, a, np, nt), tb; /* the tip at a and at b, in registers */
@@ -543,7 +543,7 @@ static inline __attribute__((always_inline)) int rt_run_acc_t(afm_sim *s, rt_sta
             a->fdot_n_s = rt_fdot(r, a, np, nt);
             a->acc_free = false;
             ta = rt_acc_tip_of(r, a, np, nt);
-            if (evs) rt_ev_start(ea, s, r, a, np, nt);
+            if (evs) rt_ev_start(ea, s, r, a, np, nt, false);
         }
         if (evs) rt_ev_step_begin(ea);
         rt_snap *b = a == b0 ? b1 : b0;
@@ -614,6 +614,7 @@ static inline __attribute__((always_inline)) int rt_run_acc_t(afm_sim *s, rt_sta
     s->t_s = t0 + (double)step * dt;
     r->since_sync = since;
     r->cur = a == b0 ? 0 : 1;
+    if (evs) rt_ev_finish(ea, r, rc == AFM_SIM_OK);
     rt_publish(s, r, a);
     return rc;
 }

@@ -61,10 +61,23 @@ rt_ev_end_of(const afm_sim *s, const rt_state *r, const rt_snap *st, double a, r
     }
 }
 
-/* A new run of samples from st (the first sample's start, or after a phasor resync). */
+/* A new run of samples from st (the first sample's start, or after a phasor resync). carry:
+ * the first sample of a call, whose start is the last run's end when nothing touched the
+ * state since (rt_state.ev_a_ok): that end's acceleration, as one run would have had it. */
 static inline void rt_ev_start(rt_evacc *ea, const afm_sim *s, const rt_state *r, const rt_snap *st,
-                               int np, int nt) {
-    rt_ev_end_of(s, r, st, rt_ev_acc(r, st, np, nt), &ea->e0);
+                               int np, int nt, bool carry) {
+    const bool same = carry && r->ev_a_ok && st->tip.x_m == r->ev_x_m &&
+                      st->tip.v_m_s == r->ev_v_m_s && st->tip.f_n == r->ev_f_n;
+    rt_ev_end_of(s, r, st, same ? r->ev_a_m_s2 : rt_ev_acc(r, st, np, nt), &ea->e0);
+}
+
+/* The run ends (ok: without a blow-up): its last kept end for the next run (rt_ev_start). */
+static inline void rt_ev_finish(const rt_evacc *ea, rt_state *r, bool ok) {
+    r->ev_a_ok = ok;
+    r->ev_a_m_s2 = ea->e0.a;
+    r->ev_x_m = ea->e0.x;
+    r->ev_v_m_s = ea->e0.v;
+    r->ev_f_n = ea->e0.f;
 }
 
 /* A new output step: nothing gathered yet. */

@@ -150,6 +150,16 @@ typedef struct {
      * force, which rt_changed leaves stale (drive_stale) until a hand-over needs them */
     double cx_re[AFM_MAX_TONES], cx_im[AFM_MAX_TONES];
     bool drive_stale[2];
+    /* The step record's last kept end as the last run with the record left it (rt_run_acc_t,
+     * evs): the tip acceleration its last piece formed (m/s^2) at the tip it ended on (m, m/s,
+     * N). The next run's first step starts its work from it, as one longer run would have:
+     * rt_ev_start's own sum differs in the last bits, and the per-period dissipated energy
+     * then depended on where the caller split its runs (replay --block, the daemon's ring
+     * items; issue 12: lockstep against replay). ev_a_ok is cleared by everything else that
+     * moves or changes the state (rt_run without the record, rt_changed, rt_changed_z,
+     * rt_set_scheme, rt_thermal). */
+    bool ev_a_ok;
+    double ev_a_m_s2, ev_x_m, ev_v_m_s, ev_f_n;
 } rt_state;
 
 /* A redone piece takes the noise already drawn for its interval (issue 11): the increment
