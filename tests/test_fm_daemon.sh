@@ -176,7 +176,14 @@ if cc -std=c11 -O2 -Wall -Wextra -Werror -D_POSIX_C_SOURCE=200809L -I"$BUILD/gen
 else
   bad "fm_pll build: $(head -3 "$T/cc.err")"; echo "$pass passed, $fail failed"; exit 1
 fi
-fm_daemon_up "$T/d2.err" "$T/others" --config "$T/out.conf" --scheme fast --speed "$SPEED"
+# FM_DAEMON_ARGS: more daemon options (the CPU plan, e.g. "--cpu 1 --chain-cpu 0 --aux-cpu 1");
+# FM_SIDE_CPU: the CPUs the controller, the loggers and the status listener run on (this
+# shell's affinity, which they inherit, until the stream's part ends)
+read -r -a dargs <<< "${FM_DAEMON_ARGS:-}"
+fm_daemon_up "$T/d2.err" "$T/others" --config "$T/out.conf" --scheme fast --speed "$SPEED" \
+  "${dargs[@]}"
+allcpu=$(taskset -p $$ | sed 's/.*: //')
+if [ -n "${FM_SIDE_CPU:-}" ]; then taskset -p -c "$FM_SIDE_CPU" $$ > /dev/null; fi
 listen --channels status --json --timeout $((AFTER + 10)) > "$T/st.jsonl" 2>/dev/null & LPID=$!
 # LCM's logger: the commands as the daemon receives them, and its harmonics, at SCHED_FIFO 1:
 # below every thread of the daemon (at 90 the command logger took 25 % of a core above it at
@@ -188,6 +195,8 @@ listen --channels status --json --timeout $((AFTER + 10)) > "$T/st.jsonl" 2>/dev
 # controller, tried at 10 kHz).
 LOGGER_PRIO=${FM_LOGGER_PRIO:-1}
 logrt=(); chrt -f "$LOGGER_PRIO" true 2>/dev/null && logrt=(chrt -f "$LOGGER_PRIO")
+# FM_LOGGER_CPU: the CPUs of the loggers (default: this shell's)
+[ -n "${FM_LOGGER_CPU:-}" ] && logrt=(taskset -c "$FM_LOGGER_CPU" "${logrt[@]}")
 if [ "$REPLAY" = 1 ]; then
   "${logrt[@]}" lcm-logger -q -f --lcm-url "$url" "$T/cmd.lcmlog" & LOGPIDS="$!"
   "${logrt[@]}" lcm-logger -q -f -c AFMTWIN_HARMONICS --lcm-url "$out_url" "$T/harm.lcmlog" &
@@ -254,6 +263,7 @@ while read -r tag rest; do
   else bad "$rest (other real-time processes: $(cat "$T/others" 2>/dev/null))"; fi
 done < "$T/acc.out"
 [ -s "$T/acc.out" ] || bad "no statuses under the stream"
+taskset -p "$allcpu" $$ > /dev/null
 kill -TERM "$DPID"; wait "$DPID"; drc=$?; DPID=""
 [ "$drc" -eq 0 ] && ok "daemon (outside FM) stopped cleanly" || bad "daemon exit $drc"
 

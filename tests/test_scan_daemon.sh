@@ -83,7 +83,11 @@ wait_for() { # K V FILE
 
 # at a quarter of real time: the daemon's SCHED_FIFO threads then leave this script (and the
 # client) the CPU they need on two shared cores (test_fm_daemon.sh does the same)
-"$D" --config "$T/step.conf" --scheme fast --speed "$SPEED" --quiet 2> "$T/d1.err" & DPID=$!
+# SCAN_DAEMON_ARGS: more daemon options (the CPU plan: "--cpu 0 --chain-cpu 1 --aux-cpu 0");
+# SCAN_SIDE_CPU: the CPUs this script, the listeners and the client run on after the start
+read -r -a dargs <<< "${SCAN_DAEMON_ARGS:-}"
+"$D" --config "$T/step.conf" --scheme fast --speed "$SPEED" --quiet "${dargs[@]}" 2> "$T/d1.err" & DPID=$!
+if [ -n "${SCAN_SIDE_CPU:-}" ]; then taskset -p -c "$SCAN_SIDE_CPU" $$ > /dev/null; fi
 status "$T/s0.json"; sleep 0.3; status "$T/s0.json"
 s_on=$(jget "$T/s0.json" sample_on); x0=$(jget "$T/s0.json" tip_x_m); h0=$(jget "$T/s0.json" true_height_m)
 z0=$(jget "$T/s0.json" separation_m); m0=$(jget "$T/s0.json" scan_mode)
