@@ -56,6 +56,12 @@ done
 "$A" plot fm "$T/empty.log" -o "$T/x.png" 2>"$T/e8.txt"; rc=$?
 [ $rc -eq 2 ] && grep -q "empty.log: not an LCM log (no LCM event in its 0 bytes)" "$T/e8.txt" \
   && ok "an empty file given to plot fm: exit 2, 'not an LCM log'" || bad "an empty file given to plot fm: exit $rc, $(cat "$T/e8.txt")"
+"$A" plot trace "$T/approach.json" -o "$T/x.png" 2>"$T/e9.txt"; rc=$?
+[ $rc -eq 2 ] && grep -q "approach.json: not an LCM log (no LCM event in its [0-9]* bytes)" "$T/e9.txt" \
+  && ok "JSON given to plot trace: exit 2, 'not an LCM log'" || bad "JSON given to plot trace: exit $rc, $(cat "$T/e9.txt")"
+"$A" plot trace "$T/empty.log" -o "$T/x.png" 2>"$T/e10.txt"; rc=$?
+[ $rc -eq 2 ] && grep -q "empty.log: not an LCM log (no LCM event in its 0 bytes)" "$T/e10.txt" \
+  && ok "an empty file given to plot trace: exit 2, 'not an LCM log'" || bad "an empty file given to plot trace: exit $rc, $(cat "$T/e10.txt")"
 "$A" plot continue "$T/continue.json" 2>"$T/e6.txt"; rc=$?
 [ $rc -eq 2 ] && grep -q "\-o FILE.png is required" "$T/e6.txt" && ok "no -o: exit 2, '-o FILE.png is required'" \
   || bad "no -o: exit $rc, $(cat "$T/e6.txt")"

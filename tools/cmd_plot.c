@@ -148,6 +148,15 @@ int plot_err(const char *fmt, const char *a) {
     return -1;
 }
 
+int plot_not_lcm_log(const char *path, long long skipped, const char *fault) {
+    if (fault)
+        fprintf(stderr, "afmtwin plot: %s: not an LCM log (%s)\n", path, fault);
+    else
+        fprintf(stderr, "afmtwin plot: %s: not an LCM log (no LCM event in its %lld bytes)\n", path,
+                skipped);
+    return -1;
+}
+
 /* The words after KIND: up to PLOT_MAX_INPUTS input files. */
 static int add_input(const char *v, void *dest) {
     plot_opts *o = dest;

@@ -70,6 +70,10 @@ typedef struct {
 
 /* "afmtwin plot: " fmt (with a) on stderr; -1. */
 int plot_err(const char *fmt, const char *a);
+/* A log with no LCM event in it (text, JSON, an empty file): "FILE: not an LCM log (...)"
+ * with what the reader saw: the bytes it skipped looking for an event's sync word, or the
+ * first event's fault (NULL: none). -1. */
+int plot_not_lcm_log(const char *path, long long skipped, const char *fault);
 
 /* ---- data sets ---- */
 

@@ -25,18 +25,6 @@
     "t[ms] frequency_shift[Hz] drive_amplitude[pm] amplitude[nm] phase[deg] lock_state[-1..2] "    \
     "Z[nm] msg_seq[index]"
 
-/* A log with no LCM event in it (text, JSON, an empty file): "FILE: not an LCM log (...)"
- * with what the reader saw: the bytes it skipped looking for an event's sync word, or the
- * first event's fault. -1. */
-static int not_lcm_log(const char *path, long long skipped, const char *fault) {
-    if (fault)
-        fprintf(stderr, "afmtwin plot: %s: not an LCM log (%s)\n", path, fault);
-    else
-        fprintf(stderr, "afmtwin plot: %s: not an LCM log (no LCM event in its %lld bytes)\n", path,
-                skipped);
-    return -1;
-}
-
 int load_fm(const plot_opts *o, plot_data *d, FILE *gp) {
     char err[256];
     afm_lcm_log *lg = afm_lcm_log_open(o->in[0], 0, err, sizeof err);
@@ -87,7 +75,7 @@ int load_fm(const plot_opts *o, plot_data *d, FILE *gp) {
     }
     long long skipped = afm_lcm_log_skipped(lg);
     afm_lcm_log_close(&lg);
-    if (events == 0) return not_lcm_log(o->in[0], skipped, rr < 0 ? err : NULL);
+    if (events == 0) return plot_not_lcm_log(o->in[0], skipped, rr < 0 ? err : NULL);
     if (rr < 0)
         fprintf(stderr, "afmtwin plot: %s: %s (the records before it are drawn)\n", o->in[0], err);
     if (s->n == 0) {

@@ -69,7 +69,9 @@ int load_trace(const plot_opts *o, plot_data *d, FILE *gp) {
     afm_lcm_log_event ev;
     long long prev_seq = -1, lost_lo = -1, lost_hi = -1; /* lost since the stream's last block */
     int rr, run = 0;
+    long events = 0; /* of any channel: none, and the file is no LCM log */
     while ((rr = afm_lcm_log_next(lg, &ev, err, sizeof err)) > 0) {
+        events++;
         size_t cl = strlen(ev.channel);
         if (cl < 7 || strcmp(ev.channel + cl - 7, "SAMPLES")) continue;
         afmtwin_samples_t m;
@@ -115,7 +117,9 @@ int load_trace(const plot_opts *o, plot_data *d, FILE *gp) {
         }
         afm_wire_free(&afm_wire_samples_t, &m);
     }
+    long long skipped = afm_lcm_log_skipped(lg);
     afm_lcm_log_close(&lg);
+    if (events == 0) return plot_not_lcm_log(o->in[0], skipped, rr < 0 ? err : NULL);
     if (lost_lo >= 0 && c.n_gaps < TRACE_MAX_GAPS) /* lost after the stream's last block */
         c.gap[c.n_gaps++] = (trace_gap){lost_lo, lost_hi, c.t_end, NAN};
     const double a = isnan(o->t_from_s) ? c.t_first : t0;
