@@ -23,6 +23,23 @@ cleanup() { [ -n "$DPID" ] && kill -KILL "$DPID" 2>/dev/null; rm -rf "$T"; }
 trap cleanup EXIT
 
 S() { "$A" send "$@" --quiet || bad "send $*"; }
+
+# lockstep_check CONF WHAT LOG N [ALSO]: a lockstep daemon on CONF runs LOG with --check; N of
+# N completions identical to replay (and the client's report has ALSO, when given); the
+# daemon exits 0 on TERM
+lockstep_check() {
+  "$D" --config "$1" --mode lockstep --harmonics-every 10 --quiet 2> "$T/d-${2// /_}.err" &
+  DPID=$!
+  out=$("$A" lockstep --in "$3" --config "$1" --check --harmonics-every 10 2>&1); rc=$?
+  echo "$out" | sed 's/^/     /'
+  [ $rc -eq 0 ] && echo "$out" | grep -q "$4 of $4 completions identical" &&
+    { [ -z "${5:-}" ] || echo "$out" | grep -q -- "$5"; } \
+    && ok "$2 in lockstep: $4 completions identical to replay${5:+ ($5)}" \
+    || bad "$2 in lockstep (exit $rc)"
+  kill -TERM "$DPID"; wait "$DPID"; rc=$?; DPID=""
+  [ $rc -eq 0 ] && ok "lockstep daemon ($2) exited 0" || bad "daemon ($2) exit $rc"
+}
+
 L="$T/ticks.log"
 S dither --freq 338112 --amp 0.087e-9 --seq 1 --log "$L" --log-time 0
 S tick --n 14060 --seq 2 --log "$L" --log-time 0.1
@@ -109,16 +126,7 @@ S tick --n 2000 --seq 76 --log "$R" --log-time 0.5
 S tick --n 2000 --seq 76 --log "$R" --log-time 0.51
 S control run --seq 77 --log "$R" --log-time 0.6
 S tick --n 3000 --seq 78 --log "$R" --log-time 0.7
-"$D" --config config/default.conf --mode lockstep --harmonics-every 10 --quiet 2> "$T/d-r.err" &
-DPID=$!
-out=$("$A" lockstep --in "$R" --check --harmonics-every 10 2>&1); rc=$?
-echo "$out" | sed 's/^/     /'
-[ $rc -eq 0 ] && echo "$out" | grep -q "4 of 4 completions identical" &&
-  echo "$out" | grep -q " 3 re-sent ticks in the log" &&
-  ok "a log with re-sent ticks: 4 completions, identical to replay (which absorbs them too)" ||
-  bad "log with re-sent ticks (exit $rc)"
-kill -TERM "$DPID"; wait "$DPID"; rc=$?; DPID=""
-[ $rc -eq 0 ] && ok "lockstep daemon (re-sent ticks) exited 0" || bad "daemon (re-sent ticks) exit $rc"
+lockstep_check config/default.conf "a log with re-sent ticks" "$R" 4 " 3 re-sent ticks in the log"
 
 # A daemon that stops answering for a while (SIGSTOP for 1 s in the middle of a run: the
 # ticks and re-sends wait in its socket, as when its threads get no CPU): the client re-sends
@@ -161,24 +169,10 @@ S scan raster --x 150nm --size-x 100nm --pixels 16 --line-rate 50 --seq 42 --log
 S tick --n 70300 --seq 43 --log "$SC" --log-time 0.2 --config "$T/step.conf"
 S scan move --x 180nm --y 5nm --speed 1e-5 --seq 44 --log "$SC" --log-time 0.3 --config "$T/step.conf"
 S tick --n 42180 --seq 45 --log "$SC" --log-time 0.4 --config "$T/step.conf"
-# scan_lockstep CONF WHAT [LOG N]: a lockstep daemon on CONF runs LOG ($SC); N (3) of N
-# completions identical
-scan_lockstep() {
-  local log=${3:-$SC} n=${4:-3}
-  "$D" --config "$1" --mode lockstep --harmonics-every 10 --quiet 2> "$T/d-$2.err" &
-  DPID=$!
-  out=$("$A" lockstep --in "$log" --config "$1" --check --harmonics-every 10 2>&1); rc=$?
-  echo "$out" | sed 's/^/     /'
-  [ $rc -eq 0 ] && echo "$out" | grep -q "$n of $n completions identical" \
-    && ok "$2 in lockstep: $n completions identical to replay" \
-    || bad "$2 in lockstep (exit $rc)"
-  kill -TERM "$DPID"; wait "$DPID"; rc=$?; DPID=""
-  [ $rc -eq 0 ] && ok "lockstep daemon ($2) exited 0" || bad "daemon ($2) exit $rc"
-}
-scan_lockstep "$T/step.conf" "scan commands"
+lockstep_check "$T/step.conf" "scan commands" "$SC" 3
 { cat tests/step-3nm.conf
   echo 'am = { control = "internal"; setpoint_ratio = 0.8; ki_hz = 2000.0; };'; } > "$T/am.conf"
-scan_lockstep "$T/am.conf" "internal Z loop"
+lockstep_check "$T/am.conf" "internal Z loop" "$SC" 3
 # The internal Z loop under the commands that move its reference or its lock-in: a dither
 # that moves tone 0 (its A0 computed off the real-time thread by the daemon and by replay
 # alike), a tip-sample force param (no new A0), a squeeze-film and a damping param (new A0
@@ -201,7 +195,7 @@ C control pause --seq 61 --log-time 0.85
 C control step --n 3000 --seq 62 --log-time 0.9
 C control run --seq 63 --log-time 0.95
 C tick --n 2000 --seq 64 --log-time 1.0
-scan_lockstep "$T/amsq.conf" "internal Z loop under dither, force, squeeze, damping, reset, step" "$AM" 7
+lockstep_check "$T/amsq.conf" "internal Z loop under dither, force, squeeze, damping, reset, step" "$AM" 7
 for b in 1024 700; do
   "$A" replay --config "$T/am.conf" --in "$SC" --out "$T/r$b.log" --lockstep --block "$b" \
     --harmonics-every 10 --channels harmonics --quiet || bad "replay --block $b"
