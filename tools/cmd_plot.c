@@ -15,7 +15,8 @@
  * (90 deg free at resonance), as the tools print them. This file holds the command, the
  * helpers every kind shares (cmd_plot.h) and the smaller kinds; continue, trace and fm,
  * each a reader of its own input, are in cmd_plot_continue.c, cmd_plot_trace.c and
- * cmd_plot_fm.c.
+ * cmd_plot_fm.c; approach (the largest) in cmd_plot_approach.c and scan (an image layout
+ * of its own) in cmd_plot_scan.c.
  *
  * Every picture is laid out the same way, for a paper: the title (--title, else what the
  * kind draws) and under it the config and the drive (plot_info.h); one legend for all
@@ -333,7 +334,7 @@ bool plot_is_true(const cJSON *o, const char *key) {
     return cJSON_IsTrue(cJSON_GetObjectItemCaseSensitive(o, key));
 }
 
-static bool str_is(const cJSON *o, const char *key, const char *want) {
+bool plot_str_is(const cJSON *o, const char *key, const char *want) {
     const cJSON *v = cJSON_GetObjectItemCaseSensitive(o, key);
     return cJSON_IsString(v) && !strcmp(v->valuestring, want);
 }
@@ -363,10 +364,10 @@ int plot_each_json(const char *path, int (*fn)(const cJSON *, void *), void *ctx
 }
 
 /* max(v, 0) and min(v, 0), NAN kept */
-static double clip_pos(double v) {
+double plot_clip_pos(double v) {
     return isnan(v) ? v : v > 0 ? v : 0.0;
 }
-static double clip_neg(double v) {
+double plot_clip_neg(double v) {
     return isnan(v) ? v : v < 0 ? v : 0.0;
 }
 
@@ -467,8 +468,8 @@ void plot_short_ytics(FILE *gp, plot_set *const *sets, int n, int col, double px
 /* Panel p of a 2 x 2 grid (0 top left, 1 top right, 2, 3 below), or with split the last
  * cell cut into two panels sharing x, p 3 over p 4 (the energies, E_ts over E_sq). Sets
  * the x tic labels and xlabel as shared_x; returns the panel's height in pixels. */
-static double grid_cell(FILE *gp, const plot_data *d, int p, bool split, double l, double r,
-                        double top, const char *xlabel) {
+double plot_grid_cell(FILE *gp, const plot_data *d, int p, bool split, double l, double r,
+                      double top, const char *xlabel) {
     /* rows apart by more than shared x needs: each has its x tics' marks */
     const double bottom = PX_BOTTOM / d->H, gap = (PX_GAP + 12) / d->H;
     const double cell_h = (top - bottom - gap) / 2, half = (cell_h - PX_GAP / d->H) / 2;
@@ -592,7 +593,7 @@ static int load_sweep(const plot_opts *o, plot_data *d, FILE *gp) {
                   {"E_sq (eV)", 8}};
     for (int p = 0; p < (squeeze ? 5 : 4); p++) {
         const int col = panel[p].col;
-        double px = grid_cell(gp, d, p, squeeze, l, r, top, "drive frequency fe (kHz)");
+        double px = plot_grid_cell(gp, d, p, squeeze, l, r, top, "drive frequency fe (kHz)");
         fprintf(gp, "set ytics autofreq\n");
         if (squeeze && p >= 3) plot_short_ytics(gp, s, o->n_in, col - 1, px);
         /* room over the top points for their p labels */
@@ -617,279 +618,6 @@ static int load_sweep(const plot_opts *o, plot_data *d, FILE *gp) {
                         col);
         }
         if (um->n) fprintf(gp, ", $UM using 1:%d with points ls 12 notitle", col);
-        fprintf(gp, "\n");
-    }
-    fprintf(gp, "unset multiplot\n");
-    return 0;
-}
-
-/* ---- approach ---- */
-
-#define APPROACH_COLS 13
-#define APPROACH_HEADER                                                                            \
-    "Z[nm] amplitude[nm] lag[deg] repulsive_peak[nN] attractive_peak[nN] "                         \
-    "dissipated[eV] indentation[nm] max_force[nN] min_force[nN] virial[eV] "                       \
-    "periodicity[periods] settled[0/1] squeeze_dissipated[eV]"
-
-typedef struct {
-    plot_set *app, *ret, *jump, *pm, *um;
-    plot_info *pi;
-    int jumps[2]; /* approach, retract */
-    bool squeeze; /* a record with squeeze film dissipation (E_sq is drawn) */
-} approach_ctx;
-
-static int approach_row(const cJSON *o, void *vctx) {
-    approach_ctx *c = vctx;
-    const cJSON *j = cJSON_GetObjectItemCaseSensitive(o, "jump");
-    if (j) {
-        bool ret = str_is(j, "direction", "retract");
-        /* a change of regime with no jump of the branch (a crossover) gets no arrow; files
-         * from before the key existed had only jumps */
-        bool sharp = !cJSON_GetObjectItemCaseSensitive(j, "sharp") || plot_is_true(j, "sharp");
-        double row[8] = {plot_num(j, "z_before_m") * 1e9,
-                         plot_num(j, "z_after_m") * 1e9,
-                         plot_num(j, "amplitude_before_m") * 1e9,
-                         plot_num(j, "amplitude_after_m") * 1e9,
-                         plot_num(j, "phase_before_deg"),
-                         plot_num(j, "phase_after_deg"),
-                         ret ? 1 : 0,
-                         sharp ? 1 : 0};
-        c->jumps[ret] += sharp;
-        return plot_set_row(c->jump, row);
-    }
-    double z = plot_num(o, "z_m");
-    if (isnan(z)) return plot_err("%s", "an approach record without z_m (approach --json?)");
-    plot_info_z(c->pi, z);
-    if (!isfinite(c->pi->a0_m)) {
-        c->pi->a0_m = plot_num(o, "free_amplitude_m");
-        c->pi->a0_lag_deg = plot_num(o, "free_phase_lag_deg");
-    }
-    bool ret = str_is(o, "direction", "retract"), settled = plot_is_true(o, "settled");
-    double fmax = plot_num(o, "peak_force_n") * 1e9, fmin = plot_num(o, "attractive_force_n") * 1e9,
-           p = plot_num(o, "periodicity"),
-           esq = plot_num(o, "squeeze_dissipated_energy_j") / PLOT_EV;
-    if (isfinite(esq) && esq != 0.0) c->squeeze = true;
-    double row[APPROACH_COLS] = {z * 1e9,
-                                 plot_num(o, "amplitude_m") * 1e9,
-                                 plot_num(o, "phase_lag_deg"),
-                                 clip_pos(fmax),
-                                 clip_neg(fmin),
-                                 plot_num(o, "dissipated_energy_j") / PLOT_EV,
-                                 plot_num(o, "indentation_m") * 1e9,
-                                 fmax,
-                                 fmin,
-                                 plot_num(o, "virial_j") / PLOT_EV,
-                                 p,
-                                 settled ? 1 : 0,
-                                 esq};
-    if (settled && p > 1 && plot_set_row(c->pm, row)) return -1;
-    if ((!settled || p == 0) && plot_set_row(c->um, row)) return -1;
-    return plot_set_row(ret ? c->ret : c->app, row);
-}
-
-/* ---- approach --mode fm ---- */
-
-#define FM_COLS 8
-#define FM_HEADER                                                                                  \
-    "Z[nm] frequency_shift[Hz] drive_amplitude[pm] amplitude[nm] amplitude_setpoint[nm] "          \
-    "dissipated[eV] locked[0/1] settled[0/1]"
-
-typedef struct {
-    plot_set *app, *ret, *un;
-    plot_info *pi;
-    double f_free_hz, a_set_m, drive_far_m, z_far_m; /* drive_far: at the largest Z */
-} fm_ctx;
-
-static int fm_row(const cJSON *o, void *vctx) {
-    fm_ctx *c = vctx;
-    if (cJSON_GetObjectItemCaseSensitive(o, "jump")) return 0; /* FM approach has none */
-    double z = plot_num(o, "z_m");
-    if (isnan(z)) return plot_err("%s", "an approach record without z_m (approach --json?)");
-    if (!str_is(o, "mode", "fm"))
-        return plot_err("%s", "an am record among fm records: one approach --json output");
-    plot_info_z(c->pi, z);
-    bool locked = plot_is_true(o, "locked"), settled = plot_is_true(o, "settled");
-    double drive = plot_num(o, "drive_amplitude_m");
-    if (isnan(c->z_far_m) || z > c->z_far_m) {
-        c->z_far_m = z;
-        c->drive_far_m = drive;
-    }
-    c->f_free_hz = plot_num(o, "free_frequency_hz");
-    c->a_set_m = plot_num(o, "amplitude_setpoint_m");
-    double row[FM_COLS] = {z * 1e9,          plot_num(o, "frequency_shift_hz"),
-                           drive * 1e12,     plot_num(o, "amplitude_m") * 1e9,
-                           c->a_set_m * 1e9, plot_num(o, "dissipated_energy_j") / PLOT_EV,
-                           locked ? 1 : 0,   settled ? 1 : 0};
-    if ((!locked || !settled) && plot_set_row(c->un, row)) return -1;
-    return plot_set_row(str_is(o, "direction", "retract") ? c->ret : c->app, row);
-}
-
-/* An FM approach (afmtwin approach --mode fm): the PLL holds the lag at its set-point and the
- * amplitude controller the amplitude, so what changes with Z is the frequency shift (the
- * force gradient), the drive the amplitude needs (the dissipation channel) and E_ts; the held
- * amplitude is drawn against its set-point as the check that the loops held. */
-static int load_approach_fm(const plot_opts *o, plot_data *d, FILE *gp) {
-    fm_ctx c = {plot_curve_new(d, "A", "approach", FM_HEADER, FM_COLS),
-                plot_curve_new(d, "R", "retract", FM_HEADER, FM_COLS),
-                plot_set_new(d, "U", FM_HEADER, FM_COLS),
-                &d->info,
-                NAN,
-                NAN,
-                NAN,
-                NAN};
-    if (!c.app || !c.ret || !c.un || plot_each_json(o->in[0], fm_row, &c)) return -1;
-    if (c.app->n + c.ret->n == 0) return plot_err("%s: no approach records", o->in[0]);
-    d->info.no_drive = true; /* tone 0 is the PLL's: the note says where it started */
-    snprintf(d->note, sizeof d->note,
-             "FM: lag held by the PLL, amplitude %.4g nm by the amplitude loop; f_free %.1f Hz; "
-             "drive %.4g pm at Z %.3g nm",
-             c.a_set_m * 1e9, c.f_free_hz, c.drive_far_m * 1e12, c.z_far_m * 1e9);
-    fprintf(gp, "set style line 1 lc rgb '#0072b2' lw 1.5 pt 7 ps 0.6\n"
-                "set style line 2 lc rgb '#009e73' lw 1.5 pt 6 ps 0.7\n"
-                "set style line 3 lc rgb 'black' lw 1 dt 2\n"
-                "set style line 12 lc rgb 'black' lw 1.5 pt 2 ps 1.6\n");
-    plot_key k = {0};
-    if (c.app->n) plot_key_add(&k, "with linespoints ls 1", "approach");
-    if (c.ret->n) plot_key_add(&k, "with linespoints ls 2", "retract");
-    if (c.un->n) plot_key_add(&k, "with points ls 12", "not locked or not settled");
-    plot_key_add(&k, "with lines ls 3", "amplitude set-point");
-    const double l = PX_LEFT / d->W, r = 1 - PX_RIGHT / d->W;
-    double top = plot_figure(gp, d, &k, l, r);
-    /* the drive against the drive at the largest Z (its change is the dissipation channel),
-     * and the amplitude against its set-point (did the loop hold?), both in ppm: in pm and nm
-     * the changes are below the tick labels' digits */
-    char drive_rel[64];
-    snprintf(drive_rel, sizeof drive_rel, "(($3 / %.17g - 1) * 1e6)", c.drive_far_m * 1e12);
-    static const struct {
-        const char *ylab;
-        const char *using;
-    } panel[4] = {{"frequency shift f - f_free (Hz)", "2"},
-                  {"drive change (ppm)", NULL},
-                  {"amplitude / set-point - 1 (ppm)", "(($4 / $5 - 1) * 1e6)"},
-                  {"E_ts tip-sample (eV)", "6"}};
-    for (int p = 0; p < 4; p++) {
-        grid_cell(gp, d, p, false, l, r, top, "separation Z (nm)");
-        fprintf(gp, "set ytics autofreq\nset offsets 0, 0, graph 0.05, graph 0.05\n");
-        fprintf(gp, "set ylabel '%s'\n%s", panel[p].ylab,
-                p != 2 ? "set xzeroaxis lt -1 lw 0.5\n" : "unset xzeroaxis\n");
-        const char *sep = "plot ", *u = panel[p].using ? panel[p].using : drive_rel;
-        if (c.app->n) {
-            fprintf(gp, "%s$A using 1:%s with linespoints ls 1 notitle", sep, u);
-            sep = ", ";
-        }
-        if (c.ret->n) {
-            fprintf(gp, "%s$R using 1:%s with linespoints ls 2 notitle", sep, u);
-            sep = ", ";
-        }
-        if (p == 2) fprintf(gp, ", 0 with lines ls 3 notitle");
-        if (c.un->n) fprintf(gp, ", $U using 1:%s with points ls 12 notitle", u);
-        fprintf(gp, "\n");
-    }
-    fprintf(gp, "unset multiplot\n");
-    return 0;
-}
-
-/* The first record's mode: an FM approach is drawn by load_approach_fm. */
-static int first_mode(const cJSON *o, void *vctx) {
-    bool *fm = vctx;
-    if (cJSON_GetObjectItemCaseSensitive(o, "z_m")) {
-        *fm = str_is(o, "mode", "fm");
-        return 1; /* stop */
-    }
-    return 0;
-}
-
-static int load_approach(const plot_opts *o, plot_data *d, FILE *gp) {
-    bool fm = false;
-    if (plot_each_json(o->in[0], first_mode, &fm) < 0) return -1;
-    if (fm) return load_approach_fm(o, d, gp);
-    approach_ctx c = {
-        plot_curve_new(d, "A", "approach", APPROACH_HEADER, APPROACH_COLS),
-        plot_curve_new(d, "R", "retract", APPROACH_HEADER, APPROACH_COLS),
-        plot_set_new(d, "J",
-                     "Z_before[nm] Z_after[nm] amplitude_before[nm] amplitude_after[nm] "
-                     "lag_before[deg] lag_after[deg] retract[0/1] sharp[0/1]",
-                     8),
-        plot_set_new(d, "PM", APPROACH_HEADER, APPROACH_COLS),
-        plot_set_new(d, "UM", APPROACH_HEADER, APPROACH_COLS),
-        &d->info,
-        {0, 0},
-        false};
-    if (!c.app || !c.ret || !c.jump || !c.pm || !c.um || plot_each_json(o->in[0], approach_row, &c))
-        return -1;
-    if (c.app->n + c.ret->n == 0) return plot_err("%s: no approach records", o->in[0]);
-    fprintf(gp, "set style line 1 lc rgb '#0072b2' lw 1.5 pt 7 ps 0.6\n"
-                "set style line 2 lc rgb '#009e73' lw 1.5 pt 6 ps 0.7\n"
-                "set style line 3 lc rgb '#0072b2' lw 1.5 pt 7 ps 0.6 dt 2\n"
-                "set style line 4 lc rgb '#009e73' lw 1.5 pt 6 ps 0.7 dt 2\n"
-                "set style line 5 lc rgb 'red' lw 2.5\n"
-                "set style line 6 lc rgb '#e69f00' lw 2.5\n"
-                "set style line 11 lc rgb 'red' lw 1.5 pt 6 ps 1.8\n"
-                "set style line 12 lc rgb 'black' lw 1.5 pt 2 ps 1.6\n"
-                "set style arrow 1 head filled size screen 0.012,20 ls 5\n"
-                "set style arrow 2 head filled size screen 0.012,20 ls 6\n");
-    plot_key k = {0};
-    if (c.app->n) plot_key_add(&k, "with linespoints ls 1", "approach");
-    if (c.ret->n) plot_key_add(&k, "with linespoints ls 2", "retract");
-    if (c.jumps[0]) plot_key_add(&k, "with vectors arrowstyle 1", "jump on approach");
-    if (c.jumps[1]) plot_key_add(&k, "with vectors arrowstyle 2", "jump on retract");
-    if (c.pm->n) plot_key_add(&k, "with points ls 11", "period p > 1");
-    if (c.um->n) plot_key_add(&k, "with points ls 12", "not settled (or periodicity 0)");
-    plot_key_add(&k, "with lines lw 1.5 lc rgb 'black'", "force: repulsive peak max(F, 0)");
-    plot_key_add(&k, "with lines lw 1.5 dt 2 lc rgb 'black'", "force: attractive peak min(F, 0)");
-    snprintf(d->note, sizeof d->note, "%s",
-             c.squeeze ? "energy dissipated per period: E_ts by the tip-sample forces (0 if "
-                         "conservative), E_sq by the squeeze film (air under the beam)"
-                       : "E_ts: the energy the tip-sample forces dissipate per period (0 for "
-                         "conservative forces, but for the integration's noise)");
-    const double l = PX_LEFT / d->W, r = 1 - PX_RIGHT / d->W;
-    double top = plot_figure(gp, d, &k, l, r);
-    /* 2 x 2 panels; with a squeeze film the last cell holds E_ts over E_sq */
-    static const struct {
-        const char *ylab;
-        int col, col2; /* a second column, drawn dashed (0: none) */
-    } panel[5] = {{"amplitude (nm)", 2, 0},
-                  {"phase lag (deg)", 3, 0},
-                  {"tip-sample force peaks (nN)", 4, 5},
-                  {"E_ts tip-sample (eV)", 6, 0},
-                  {"E_sq (eV)", 13, 0}};
-    for (int p = 0; p < (c.squeeze ? 5 : 4); p++) {
-        double px = grid_cell(gp, d, p, c.squeeze, l, r, top, "separation Z (nm)");
-        const char *ylab = c.squeeze && p == 3 ? "E_ts (eV)" : panel[p].ylab;
-        fprintf(gp, "set ytics autofreq\n");
-        if (c.squeeze && p >= 3) {
-            plot_set *const all[2] = {c.app, c.ret};
-            plot_short_ytics(gp, all, 2, panel[p].col - 1, px);
-        }
-        /* room for the jump arrows' heads over and under the curves */
-        fprintf(gp, "set offsets 0, 0, graph %g, graph %g\n", p < 2 ? 0.06 : 0.0,
-                p < 2 ? 0.06 : 0.0);
-        fprintf(gp, "set ylabel '%s'\n%s", ylab,
-                p >= 2 ? "set xzeroaxis lt -1 lw 0.5\n" : "unset xzeroaxis\n");
-        const char *sep = "plot ";
-        for (int pass = 0; pass < (panel[p].col2 ? 2 : 1); pass++) {
-            int col = pass ? panel[p].col2 : panel[p].col;
-            if (c.app->n) {
-                fprintf(gp, "%s$A using 1:%d with linespoints ls %d notitle", sep, col,
-                        1 + 2 * pass);
-                sep = ", ";
-            }
-            if (c.ret->n) {
-                fprintf(gp, "%s$R using 1:%d with linespoints ls %d notitle", sep, col,
-                        2 + 2 * pass);
-                sep = ", ";
-            }
-            if (c.pm->n) fprintf(gp, ", $PM using 1:%d with points ls 11 notitle", col);
-            if (c.um->n) fprintf(gp, ", $UM using 1:%d with points ls 12 notitle", col);
-        }
-        /* the jumps: from the last point on the old branch to the first on the new one */
-        for (int dir = 0; dir < 2 && p < 2; dir++)
-            if (c.jumps[dir])
-                fprintf(gp,
-                        ", $J using 1:($7 == %d && $8 == 1 ? $%d : 1/0):($2 - $1):($%d - $%d) "
-                        "with vectors "
-                        "arrowstyle %d notitle",
-                        dir, 3 + 2 * p, 4 + 2 * p, 3 + 2 * p, dir + 1);
         fprintf(gp, "\n");
     }
     fprintf(gp, "unset multiplot\n");
@@ -1111,190 +839,6 @@ static int load_force_curve(const plot_opts *o, plot_data *d, FILE *gp) {
                 "$E using 1:($3 == 1 ? $2 : 1/0) with points pt 7 ps 1.5 lc rgb '#009e73' notitle, "
                 "$E using 1:($3 == 2 ? $2 : 1/0) with points pt 5 ps 1.5 lc rgb 'black' notitle\n"
                 "unset multiplot\n");
-    return 0;
-}
-
-/* ---- scan ---- */
-
-#define SCAN_COLS 9
-#define SCAN_HEADER                                                                                \
-    "x[nm] y[nm] line[index] height[nm] true_height[nm] lag[deg] error[nm] peak_force[nN] "        \
-    "dissipated[eV]"
-
-typedef struct {
-    plot_set *tr, *re;
-    int lines;
-    plot_info *pi;
-} scan_ctx;
-
-static int scan_row(const cJSON *o, void *vctx) {
-    scan_ctx *c = vctx;
-    double line = plot_num(o, "line");
-    if (isnan(line) || isnan(plot_num(o, "height_m")))
-        return plot_err("%s", "a record without line or height_m (afmtwin scan --json?)");
-    if (line + 1 > c->lines) c->lines = (int)line + 1;
-    if (!isfinite(c->pi->a0_m)) c->pi->a0_m = plot_num(o, "free_amplitude_m");
-    double row[SCAN_COLS] = {plot_num(o, "x_m") * 1e9,
-                             plot_num(o, "y_m") * 1e9,
-                             line,
-                             plot_num(o, "height_m") * 1e9,
-                             plot_num(o, "true_height_m") * 1e9,
-                             plot_num(o, "phase_lag_deg"),
-                             plot_num(o, "error_m") * 1e9,
-                             plot_num(o, "peak_force_n") * 1e9,
-                             plot_num(o, "dissipated_energy_j") / PLOT_EV};
-    return plot_set_row(plot_is_true(o, "retrace") ? c->re : c->tr, row);
-}
-
-/* Each line's y: the mean of its pixels' (the slow axis moves during a line), so that the
- * trace is a regular grid for gnuplot's image. */
-static void scan_line_y(plot_set *s, int lines) {
-    for (int l = 0; l < lines; l++) {
-        double sum = 0;
-        int n = 0;
-        for (size_t r = 0; r < s->n; r++)
-            if (s->v[r * SCAN_COLS + 2] == l) sum += s->v[r * SCAN_COLS + 1], n++;
-        for (size_t r = 0; r < s->n && n; r++)
-            if (s->v[r * SCAN_COLS + 2] == l) s->v[r * SCAN_COLS + 1] = sum / n;
-    }
-}
-
-/* A 1-2-5 tic step for an axis of span (data units) drawn px pixels long, each label and
- * the room to the next lab pixels: at most 5 labels, and as many as fit apart (two at
- * least: then the step is the span). */
-static double tic_step(double span, double px, double lab) {
-    if (!(span > 0)) return 1;
-    int most = (int)(px / lab); /* labels */
-    most = most < 2 ? 2 : most > 5 ? 5 : most;
-    double step = pow(10, floor(log10(span / most)));
-    static const double m[4] = {1, 2, 5, 10};
-    for (int i = 0; i < 4; i++)
-        if (span / (step * m[i]) <= most - 1 + 1e-9) return step * m[i] > span ? span : step * m[i];
-    return span;
-}
-
-/* Characters of the longer %g label of a and b. */
-static int label_chars(double a, double b) {
-    char s[2][32];
-    int na = snprintf(s[0], sizeof s[0], "%g", a), nb = snprintf(s[1], sizeof s[1], "%g", b);
-    return na > nb ? na : nb;
-}
-
-/* The largest rectangle of aspect (height / width) in the box l..r x b..t (screen), at its
- * top, centred across (shift: what it moved right): the plot area of an image with square
- * nm. Its left, right and bottom edges out. */
-static void aspect_area(FILE *gp, const plot_data *d, double l, double r, double b, double t,
-                        double aspect, double *al, double *ar, double *ab) {
-    double w = (r - l) * d->W, h = (t - b) * d->H;
-    if (h > w * aspect)
-        h = w * aspect;
-    else
-        w = h / aspect;
-    *al = l + 0.5 * ((r - l) - w / d->W);
-    *ar = *al + w / d->W;
-    *ab = t - h / d->H;
-    plot_area(gp, *al, *ar, *ab, t);
-}
-
-static int load_scan(const plot_opts *o, plot_data *d, FILE *gp) {
-    scan_ctx c = {plot_curve_new(d, "T", "trace", SCAN_HEADER, SCAN_COLS),
-                  plot_curve_new(d, "R", "retrace", SCAN_HEADER, SCAN_COLS), 0, &d->info};
-    if (!c.tr || !c.re || plot_each_json(o->in[0], scan_row, &c)) return -1;
-    if (c.tr->n == 0) return plot_err("%s: no trace pixels", o->in[0]);
-    d->info.no_z = true;
-    scan_line_y(c.tr, c.lines);
-    /* the profile: the middle line's trace and retrace against the truth */
-    int mid = c.lines / 2;
-    plot_set *pt = plot_set_new(d, "PT", SCAN_HEADER, SCAN_COLS),
-             *pr = plot_set_new(d, "PR", SCAN_HEADER, SCAN_COLS);
-    if (!pt || !pr) return -1;
-    for (size_t i = 0; i < c.tr->n; i++)
-        if (c.tr->v[i * SCAN_COLS + 2] == mid && plot_set_row(pt, c.tr->v + i * SCAN_COLS))
-            return -1;
-    for (size_t i = 0; i < c.re->n; i++)
-        if (c.re->v[i * SCAN_COLS + 2] == mid && plot_set_row(pr, c.re->v + i * SCAN_COLS))
-            return -1;
-    static const struct {
-        const char *title, *unit;
-        int col;
-    } img[4] = {{"height", "height (nm)", 4},
-                {"phase lag", "phase lag (deg)", 6},
-                {"amplitude error", "amplitude error (nm)", 7},
-                {"peak force", "peak force (nN)", 8}};
-    /* the pixels' edges: half a pixel pitch (line pitch in y) beyond the outer centres */
-    double x0 = INFINITY, x1 = -INFINITY, y0 = INFINITY, y1 = -INFINITY;
-    for (size_t i = 0; i < c.tr->n; i++) {
-        x0 = fmin(x0, c.tr->v[i * SCAN_COLS]);
-        x1 = fmax(x1, c.tr->v[i * SCAN_COLS]);
-        y0 = fmin(y0, c.tr->v[i * SCAN_COLS + 1]);
-        y1 = fmax(y1, c.tr->v[i * SCAN_COLS + 1]);
-    }
-    double dx = x1 > x0 && pt->n > 1 ? (x1 - x0) / (double)(pt->n - 1) : 1;
-    double dy = c.lines > 1 ? (y1 - y0) / (c.lines - 1) : dx;
-    x0 -= dx / 2, x1 += dx / 2, y0 -= dy / 2, y1 += dy / 2;
-    if (fabs(x0) < 1e-6 * (x1 - x0)) x0 = 0; /* rounding: an edge at 0 is 0 */
-    if (fabs(y0) < 1e-6 * (y1 - y0)) y0 = 0;
-    fprintf(gp, "set style line 1 lc rgb 'black' lw 2\nset style line 2 lc rgb '#0072b2' lw 1.5 "
-                "pt 7 ps 0.5\nset style line 3 lc rgb '#d55e00' lw 1.5 pt 6 ps 0.6\n");
-    plot_key none = {0};
-    const double W = d->W, H = d->H;
-    const double top = plot_figure(gp, d, &none, 0, 1);
-    char xr[96];
-    snprintf(xr, sizeof xr, "set xrange [%.6g:%.6g]\n", x0, x1);
-    /* the profile's legend: right of it */
-    static const char key[] =
-        "set key at screen %.4f,%.4f left top vertical Left reverse box samplen 2.5\n";
-    if (c.lines == 1) { /* profiles only, two by two */
-        const double kr = 1 - 190 / W, h = (top - PX_BOTTOM / H - PX_LINE / H) / 2;
-        for (int p = 0; p < 4; p++) {
-            double cl = p % 2 ? 0.5 + 60 / W : PX_LEFT / W, cr = p % 2 ? kr : 0.5 - 40 / W;
-            double t = top - (p / 2) * (h + PX_LINE / H);
-            plot_area(gp, cl, cr, t - h + (p < 2 ? (PX_BOTTOM - 10) / H : 0), t);
-            fprintf(gp, "%sset xlabel 'x (nm)'\nset ylabel '%s'\n", xr, img[p].unit);
-            if (p == 0) fprintf(gp, key, kr + 12 / W, top);
-            fprintf(gp,
-                    "plot $PT using 1:%d with linespoints ls 2 %s, $PR using 1:%d with "
-                    "linespoints ls 3 %s%s\nunset key\n",
-                    img[p].col, p ? "notitle" : "title 'trace'", img[p].col,
-                    p ? "notitle" : "title 'retrace'",
-                    p ? "" : ", $PT using 1:5 with lines ls 1 title 'true height'");
-        }
-        fprintf(gp, "unset multiplot\n");
-        return 0;
-    }
-    /* the images two by two, the two in a column sharing the x tic labels, the profile
-     * under them */
-    const double aspect = (y1 - y0) / (x1 - x0);
-    const double prof_h = 0.2 * top, img_bot = PX_BOTTOM / H + prof_h + 12 / H;
-    const double title = (PX_LINE + 8) / H, xlab = (PX_BOTTOM + 6) / H;
-    const double img_h = (top - img_bot - 2 * title - 12 / H - xlab) / 2;
-    for (int p = 0; p < 4; p++) {
-        /* the plot area: under the panel's title, right of its y labels, left of its
-         * colour bar */
-        double cl = (p % 2) * 0.5, t = top - title - (p / 2) * (img_h + 12 / H + title);
-        double l = cl + 70 / W, r = cl + 0.5 - 110 / W, al, ar, ab;
-        aspect_area(gp, d, l, r, t - img_h, t, aspect, &al, &ar, &ab);
-        double xs = tic_step(x1 - x0, (ar - al) * W, label_chars(x0, x1) * PX_CHAR + 12);
-        double ys = tic_step(y1 - y0, (t - ab) * H, PX_LINE + 8);
-        plot_shared_x(gp, p / 2, 2, "x (nm)");
-        fprintf(gp,
-                "set size ratio -1\nset autoscale fix\n%sset yrange [%.6g:%.6g]\nset xtics %g\n"
-                "set ytics %g\nset ylabel 'y (nm)'\nset title '%s (trace)'\nset cblabel '%s'\n"
-                "set colorbox user origin screen %.4f,%.4f size screen %.4f,%.4f\nplot $T using "
-                "1:2:%d with image notitle\nset size noratio\n",
-                xr, y0, y1, xs, ys, img[p].title, img[p].unit, ar + 10 / W, ab, 18 / W, t - ab,
-                img[p].col);
-    }
-    const double pl = 70 / W, prr = 1 - 190 / W, ptop = PX_BOTTOM / H + prof_h - (PX_LINE + 8) / H;
-    plot_area(gp, pl, prr, PX_BOTTOM / H, ptop);
-    fprintf(gp,
-            "set autoscale y\nset xtics auto\nset ytics auto\n%sset xlabel 'x (nm)'\nset ylabel "
-            "'height (nm)'\nset title 'line %d: height against the truth'\n",
-            xr, mid);
-    fprintf(gp, key, prr + 12 / W, ptop);
-    fprintf(gp, "plot $PT using 1:5 with lines ls 1 title 'true height', $PT using 1:4 with "
-                "linespoints ls 2 title 'trace', $PR using 1:4 with linespoints ls 3 title "
-                "'retrace'\nunset key\nunset multiplot\n");
     return 0;
 }
 

@@ -74,6 +74,16 @@ int plot_err(const char *fmt, const char *a);
  * with what the reader saw: the bytes it skipped looking for an event's sync word, or the
  * first event's fault (NULL: none). -1. */
 int plot_not_lcm_log(const char *path, long long skipped, const char *fault);
+/* o's string key is want */
+bool plot_str_is(const cJSON *o, const char *key, const char *want);
+/* max(v, 0) and min(v, 0), NAN kept */
+double plot_clip_pos(double v);
+double plot_clip_neg(double v);
+/* Panel p of a 2 x 2 grid (0 top left, 1 top right, 2, 3 below), or with split the last
+ * cell cut into two panels sharing x, p 3 over p 4; sets the x tic labels and xlabel as
+ * plot_shared_x; returns the panel's height in pixels. */
+double plot_grid_cell(FILE *gp, const plot_data *d, int p, bool split, double l, double r,
+                      double top, const char *xlabel);
 
 /* ---- data sets ---- */
 
@@ -118,5 +128,7 @@ void plot_short_ytics(FILE *gp, plot_set *const *sets, int n, int col, double px
 int load_continue(const plot_opts *o, plot_data *d, FILE *gp); /* cmd_plot_continue.c */
 int load_trace(const plot_opts *o, plot_data *d, FILE *gp);    /* cmd_plot_trace.c */
 int load_fm(const plot_opts *o, plot_data *d, FILE *gp);       /* cmd_plot_fm.c */
+int load_scan(const plot_opts *o, plot_data *d, FILE *gp);     /* cmd_plot_scan.c */
+int load_approach(const plot_opts *o, plot_data *d, FILE *gp); /* cmd_plot_approach.c */
 
 #endif
