@@ -999,19 +999,27 @@ static AFM_CLONES_NOINLINE void run_events(run_state *r, const run_flags *fl) {
  * (a3, b0, b1, b2), a the previous block. */
 #define LAG2(a, b) __builtin_shufflevector((a), (b), 2, 3, 4, 5)
 #define LAG1(l2, b) __builtin_shufflevector((l2), (b), 1, 4, 3, 6)
-/* Lane masks (0 or -1 per lane): bit l set for lane l; a ? x : y lane by lane; min as
- * vminpd (a < b ? a : b, so b where either is NaN). */
-#define MASK4(m)                                                                                   \
-    ((unsigned)((m)[0] & 1) | (unsigned)((m)[1] & 1) << 1 | (unsigned)((m)[2] & 1) << 2 |          \
-     (unsigned)((m)[3] & 1) << 3)
-/* any lane of a lane mask set: two shuffles and ors, then lane 0 (MASK4 moves every lane to
- * an integer register: ~16 instructions; issue 12) */
+/* Lane masks (0 or -1 per lane). Any lane set: two shuffles and ors, then lane 0 (moving
+ * every lane to an integer register took ~16 instructions; issue 12). */
 #define ANY4(m)                                                                                    \
     __extension__({                                                                                \
         afm_v4i o_ = (m) | __builtin_shufflevector((m), (m), 2, 3, 0, 1);                          \
         o_ = o_ | __builtin_shufflevector(o_, o_, 1, 0, 3, 2);                                     \
         o_[0] != 0;                                                                                \
     })
+/* The block's lane masks as one word: lane l of lm, cr, mn, ct, bad at bits l, 4 + l, 8 + l,
+ * 12 + l, 16 + l (each mask and-ed with its lanes' bits, then or-ed across the lanes by two
+ * shuffles: ~13 instructions where the four masks lane by lane to integer registers took
+ * ~60; issue 12). */
+static inline unsigned flag_bits(afm_v4i lm, afm_v4i cr, afm_v4i mn, afm_v4i ct, afm_v4i bad) {
+    const afm_v4i b0 = {1, 2, 4, 8};
+    afm_v4i o = ((lm & b0) | (cr & (b0 << 4))) | ((mn & (b0 << 8)) | (ct & (b0 << 12)));
+    o = o | (bad & (b0 << 16));
+    o = o | __builtin_shufflevector(o, o, 2, 3, 0, 1);
+    o = o | __builtin_shufflevector(o, o, 1, 0, 3, 2);
+    return (unsigned)o[0];
+}
+/* a ? x : y lane by lane; min as vminpd (a < b ? a : b, so b where either is NaN). */
 #define SEL4(m, x, y) ((afm_v4)(((m) & (afm_v4i)(x)) | (~(m) & (afm_v4i)(y))))
 #define MIN4(a, b) SEL4((afm_v4i)((a) < (b)), (a), (b))
 
@@ -1088,13 +1096,14 @@ static CYCLE_INLINE int run_block(run_vec *w, unsigned *ev, int *n_ev, const run
     afm_v4i mn = (afm_v4i)(bmin < xpm);
     afm_v4i ct = ((afm_v4i)(X < k->xn) | (afm_v4i)(Xp < k->xn)) & k->ctm;
     afm_v4i any = ((bad | mn) | (cr | lm)) | ct;
-    unsigned valid = nv < 4 ? (1u << nv) - 1u : 15u;
-    if (nv < 4 ? (MASK4(any) & valid) != 0 : ANY4(any)) {
-        unsigned b = MASK4(bad) & valid;
-        if (b) return lowest_bit(b);
-        unsigned e = MASK4(ct) << 12 | MASK4(mn) << 8 | MASK4(cr) << 4 | MASK4(lm);
-        if (nv < 4) e &= valid * 0x1111u;
-        if (e) ev[(*n_ev)++] = (unsigned)k0 << 16 | e;
+    unsigned fb = 0; /* the flags, bad lanes at bits 16..19 (flag_bits) */
+    if (nv < 4)
+        fb = flag_bits(lm, cr, mn, ct, bad) & ((1u << nv) - 1u) * 0x11111u;
+    else if (ANY4(any))
+        fb = flag_bits(lm, cr, mn, ct, bad);
+    if (fb) {
+        if (fb >> 16) return lowest_bit(fb >> 16);
+        ev[(*n_ev)++] = (unsigned)k0 << 16 | fb;
     }
     w->fv = AFM_V4_FMA(W, Fp * Vp, w->fv);
     w->xs = AFM_V4_FMA(W, Xp, w->xs);
@@ -1265,7 +1274,7 @@ AFM_CLONES static int run(afm_cycle *c, const afm_sample *s, const double *th, i
     if (m == 0) return 0;
     /* a value that is not finite makes the sums not finite */
     afm_v4 z = (w.fv + w.xs) * 0.0;
-    if (MASK4((afm_v4i)(z != z))) return -m;
+    if (ANY4((afm_v4i)(z != z))) return -m;
     if (fl.n_ev) run_events(&r, &fl);
     lanes_to(c->sum_fv, c->k, &w.fv);
     lanes_to(c->sum_x, c->k, &w.xs);
