@@ -962,6 +962,15 @@ static inline void run_keep(const run_state *r, int k, afm_sample *d) {
     }
 }
 
+/* *d = the point (t, x, v, f as afm_cycle_push has it) of sample k >= -2 of the run (-1: *p0,
+ * -2: *m2): one load, the split force put in (no copy of the sample first; issue 12). */
+static inline void run_pt(const run_state *r, int k, afm_cycle_pt *d) {
+    const afm_sample *q = k >= 0 ? r->s + k : k == -1 ? r->p0 : r->m2;
+    afm_v4 v = AFM_V4_LD(&q->t_s);
+    if (k >= 0 && r->fs) v[3] = r->fs[k];
+    AFM_V4_ST(&d->t_s, v);
+}
+
 /* The flagged steps, in order: step k joins sample k - 1 (p) to sample k (q); in block
  * record e, bit l of lm / cr / mn flags step k0 + l. lm: f has a local maximum at p (>= both
  * neighbours): the parabola; cr: p and q lie on opposite sides of the contact line; mn: a
@@ -969,12 +978,24 @@ static inline void run_keep(const run_state *r, int k, afm_sample *d) {
  * step_min read t, x and v alone: the samples as they are.) */
 static AFM_CLONES_NOINLINE void run_events(run_state *r, const run_flags *fl) {
     const afm_sample *s = r->s;
+    afm_cycle *c = r->c;
+    /* deferred entries (peak_add, work_add with defer: no record of the step in a run) are
+     * written from the samples and the split forces; the figures computed at once need the
+     * samples as afm_cycle_push has them (run_at) */
+    const bool dfr = c->defer && !c->ev;
     afm_sample b0, b1, b2;
     for (int e = 0; e < fl->n_ev; e++) {
         unsigned ev = fl->ev[e];
         int k0 = (int)(ev >> 16);
         for (unsigned lm = ev & 15u; lm; lm &= lm - 1) {
             int k = k0 + lowest_bit(lm);
+            if (dfr && c->forces && (k ? s[k - 1].x_m : r->p0->x_m) < c->x_contact_m) {
+                afm_cycle_step *st = def_new(c, AFM_CYCLE_DEF_PEAK, &r->ec, &r->pk);
+                run_pt(r, k - 2, &st->p[0]);
+                run_pt(r, k - 1, &st->p[1]);
+                run_pt(r, k, &st->p[2]);
+                continue;
+            }
             const afm_sample *sm = k >= 2 ? run_at(r, k - 2, &b0) : k ? r->p0 : r->m2;
             const afm_sample *s0 = k >= 1 ? run_at(r, k - 1, &b1) : r->p0;
             peak_add(r->c, sm, s0, run_at(r, k, &b2), &r->ec, &r->pk);
@@ -990,6 +1011,12 @@ static AFM_CLONES_NOINLINE void run_events(run_state *r, const run_flags *fl) {
         }
         for (unsigned ct = ev >> 12 & 15u; ct; ct &= ct - 1) {
             int k = k0 + lowest_bit(ct);
+            if (dfr) {
+                afm_cycle_step *st = def_new(c, AFM_CYCLE_DEF_WORK, &r->ec, &r->pk);
+                run_pt(r, k - 1, &st->p[0]);
+                run_pt(r, k, &st->p[1]);
+                continue;
+            }
             work_add(r->c, k ? run_at(r, k - 1, &b0) : r->p0, run_at(r, k, &b1), &r->ec, &r->pk);
         }
     }
