@@ -1052,7 +1052,8 @@ static inline unsigned flag_bits(afm_v4i lm, afm_v4i cr, afm_v4i mn, afm_v4i ct,
 
 typedef struct {
     afm_v4 t, x, v, f, q;  /* the previous block (t, x, v, f, theta: F_sq v with split) */
-    afm_v4 n;              /* tracker steps of the block's lanes */
+    afm_v4 nn;             /* minus the tracker steps of the block's lanes (the fma
+                              err = th - ref - n dphi without a negation per block) */
     afm_v4 fv, xs, xm, sq; /* sums of w f v, w x of the previous samples, minima of x, sums
                               of w F_sq v */
 } run_vec;
@@ -1098,7 +1099,7 @@ static CYCLE_INLINE int run_block(run_vec *w, unsigned *ev, int *n_ev, const run
 #undef TX
     /* the fast path: theta on the tracker's line, a positive step */
     afm_v4 Tpp = LAG2(w->t, T), H = T - LAG1(Tpp, T);
-    afm_v4 err = AFM_V4_FNMA(w->n, k->dphi, AFM_V4_LD(th4) - k->ref);
+    afm_v4 err = AFM_V4_FMA(w->nn, k->dphi, AFM_V4_LD(th4) - k->ref);
     /* |err| <= tol (the sign bit cleared): err <= tol and err >= -tol, NaN neither */
     afm_v4 aerr = (afm_v4)((afm_v4i)err & ~(afm_v4i)AFM_V4_SET1(-0.0));
     afm_v4i bad = ~(afm_v4i)(aerr <= k->tol) | ~(afm_v4i)(H > 0.0);
@@ -1113,6 +1114,10 @@ static CYCLE_INLINE int run_block(run_vec *w, unsigned *ev, int *n_ev, const run
     afm_v4 Xp = LAG1(LAG2(w->x, X), X), Vp = LAG1(LAG2(w->v, V), V);
     afm_v4i cr = (afm_v4i)(X < k->xc) ^ (afm_v4i)(Xp < k->xc);
     afm_v4 Fpp = LAG2(w->f, F), Fp = LAG1(Fpp, F);
+    /* the sums at once, while Xp, Vp, Fp are in registers (put in w only when the block is
+     * taken): later, gcc rebuilt Xp lane by lane from spilled halves of the loads (issue 12) */
+    const afm_v4 fv = AFM_V4_FMA(W, Fp * Vp, w->fv), xs = AFM_V4_FMA(W, Xp, w->xs);
+    const afm_v4 sq = AFM_V4_FMA(W, LAG1(LAG2(w->q, Q), Q), w->sq);
     afm_v4i lm = (afm_v4i)(Fp >= Fpp) & (afm_v4i)(Fp >= F);
     afm_v4 H3 = H * k->third, XM = MIN4(w->xm, Xq);
     /* + z0 (+0.0, not known to the compiler): vector values, so that the fmas below are
@@ -1132,16 +1137,16 @@ static CYCLE_INLINE int run_block(run_vec *w, unsigned *ev, int *n_ev, const run
         if (fb >> 16) return lowest_bit(fb >> 16);
         ev[(*n_ev)++] = (unsigned)k0 << 16 | fb;
     }
-    w->fv = AFM_V4_FMA(W, Fp * Vp, w->fv);
-    w->xs = AFM_V4_FMA(W, Xp, w->xs);
-    w->sq = AFM_V4_FMA(W, LAG1(LAG2(w->q, Q), Q), w->sq);
+    w->fv = fv;
+    w->xs = xs;
+    w->sq = sq;
     w->xm = XM;
     w->t = T;
     w->x = X;
     w->v = V;
     w->f = F;
     w->q = Q;
-    w->n = w->n + 4.0;
+    w->nn = w->nn - 4.0;
     return 4;
 }
 
@@ -1209,7 +1214,7 @@ static CYCLE_INLINE int run_sums_of(const run_state *r, const afm_cycle *c, cons
     w.v = AFM_V4_SET1(p0->v_m_s);
     w.f = (afm_v4){0.0, 0.0, r->f_m2, p0->f_n};
     w.q = AFM_V4_SET1(p0->theta_rad);
-    w.n = (afm_v4){n0 + 1.0, n0 + 2.0, n0 + 3.0, n0 + 4.0};
+    w.nn = -(afm_v4){n0 + 1.0, n0 + 2.0, n0 + 3.0, n0 + 4.0};
     lanes_from(c->sum_fv, c->k, &w.fv); /* lane l: the sample k + l (p0 is lane 0) */
     lanes_from(c->sum_x, c->k, &w.xs);
     lanes_from(c->sum_sq, c->k, &w.sq);
@@ -1247,7 +1252,7 @@ static CYCLE_INLINE int run_sums_of(const run_state *r, const afm_cycle *c, cons
                                : r->f_m2,
                        j > 0 ? RUN_F(j - 1) : p0->f_n};
         w.q = AFM_V4_SET1(j > 0 ? RUN_Q(j - 1) : p0->theta_rad);
-        w.n = (afm_v4){n0 + j + 1.0, n0 + j + 2.0, n0 + j + 3.0, n0 + j + 4.0};
+        w.nn = -(afm_v4){n0 + j + 1.0, n0 + j + 2.0, n0 + j + 3.0, n0 + j + 4.0};
     }
     while (j < m) { /* the last 1-3 samples, the last one repeated */
         int v = m - j, l1 = v > 1 ? j + 1 : m - 1, l2 = v > 2 ? j + 2 : m - 1;
