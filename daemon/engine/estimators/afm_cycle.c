@@ -962,6 +962,15 @@ static inline void run_keep(const run_state *r, int k, afm_sample *d) {
     }
 }
 
+/* *d = the point (t, x, v, f as afm_cycle_push has it) of sample k >= -2 of the run (-1: *p0,
+ * -2: *m2): one load, the split force put in (no copy of the sample first; issue 12). */
+static inline void run_pt(const run_state *r, int k, afm_cycle_pt *d) {
+    const afm_sample *q = k >= 0 ? r->s + k : k == -1 ? r->p0 : r->m2;
+    afm_v4 v = AFM_V4_LD(&q->t_s);
+    if (k >= 0 && r->fs) v[3] = r->fs[k];
+    AFM_V4_ST(&d->t_s, v);
+}
+
 /* The flagged steps, in order: step k joins sample k - 1 (p) to sample k (q); in block
  * record e, bit l of lm / cr / mn flags step k0 + l. lm: f has a local maximum at p (>= both
  * neighbours): the parabola; cr: p and q lie on opposite sides of the contact line; mn: a
@@ -969,12 +978,24 @@ static inline void run_keep(const run_state *r, int k, afm_sample *d) {
  * step_min read t, x and v alone: the samples as they are.) */
 static AFM_CLONES_NOINLINE void run_events(run_state *r, const run_flags *fl) {
     const afm_sample *s = r->s;
+    afm_cycle *c = r->c;
+    /* deferred entries (peak_add, work_add with defer: no record of the step in a run) are
+     * written from the samples and the split forces; the figures computed at once need the
+     * samples as afm_cycle_push has them (run_at) */
+    const bool dfr = c->defer && !c->ev;
     afm_sample b0, b1, b2;
     for (int e = 0; e < fl->n_ev; e++) {
         unsigned ev = fl->ev[e];
         int k0 = (int)(ev >> 16);
         for (unsigned lm = ev & 15u; lm; lm &= lm - 1) {
             int k = k0 + lowest_bit(lm);
+            if (dfr && c->forces && (k ? s[k - 1].x_m : r->p0->x_m) < c->x_contact_m) {
+                afm_cycle_step *st = def_new(c, AFM_CYCLE_DEF_PEAK, &r->ec, &r->pk);
+                run_pt(r, k - 2, &st->p[0]);
+                run_pt(r, k - 1, &st->p[1]);
+                run_pt(r, k, &st->p[2]);
+                continue;
+            }
             const afm_sample *sm = k >= 2 ? run_at(r, k - 2, &b0) : k ? r->p0 : r->m2;
             const afm_sample *s0 = k >= 1 ? run_at(r, k - 1, &b1) : r->p0;
             peak_add(r->c, sm, s0, run_at(r, k, &b2), &r->ec, &r->pk);
@@ -990,6 +1011,12 @@ static AFM_CLONES_NOINLINE void run_events(run_state *r, const run_flags *fl) {
         }
         for (unsigned ct = ev >> 12 & 15u; ct; ct &= ct - 1) {
             int k = k0 + lowest_bit(ct);
+            if (dfr) {
+                afm_cycle_step *st = def_new(c, AFM_CYCLE_DEF_WORK, &r->ec, &r->pk);
+                run_pt(r, k - 1, &st->p[0]);
+                run_pt(r, k, &st->p[1]);
+                continue;
+            }
             work_add(r->c, k ? run_at(r, k - 1, &b0) : r->p0, run_at(r, k, &b1), &r->ec, &r->pk);
         }
     }
@@ -999,25 +1026,34 @@ static AFM_CLONES_NOINLINE void run_events(run_state *r, const run_flags *fl) {
  * (a3, b0, b1, b2), a the previous block. */
 #define LAG2(a, b) __builtin_shufflevector((a), (b), 2, 3, 4, 5)
 #define LAG1(l2, b) __builtin_shufflevector((l2), (b), 1, 4, 3, 6)
-/* Lane masks (0 or -1 per lane): bit l set for lane l; a ? x : y lane by lane; min as
- * vminpd (a < b ? a : b, so b where either is NaN). */
-#define MASK4(m)                                                                                   \
-    ((unsigned)((m)[0] & 1) | (unsigned)((m)[1] & 1) << 1 | (unsigned)((m)[2] & 1) << 2 |          \
-     (unsigned)((m)[3] & 1) << 3)
-/* any lane of a lane mask set: two shuffles and ors, then lane 0 (MASK4 moves every lane to
- * an integer register: ~16 instructions; issue 12) */
+/* Lane masks (0 or -1 per lane). Any lane set: two shuffles and ors, then lane 0 (moving
+ * every lane to an integer register took ~16 instructions; issue 12). */
 #define ANY4(m)                                                                                    \
     __extension__({                                                                                \
         afm_v4i o_ = (m) | __builtin_shufflevector((m), (m), 2, 3, 0, 1);                          \
         o_ = o_ | __builtin_shufflevector(o_, o_, 1, 0, 3, 2);                                     \
         o_[0] != 0;                                                                                \
     })
+/* The block's lane masks as one word: lane l of lm, cr, mn, ct, bad at bits l, 4 + l, 8 + l,
+ * 12 + l, 16 + l (each mask and-ed with its lanes' bits, then or-ed across the lanes by two
+ * shuffles: ~13 instructions where the four masks lane by lane to integer registers took
+ * ~60; issue 12). */
+static inline unsigned flag_bits(afm_v4i lm, afm_v4i cr, afm_v4i mn, afm_v4i ct, afm_v4i bad) {
+    const afm_v4i b0 = {1, 2, 4, 8};
+    afm_v4i o = ((lm & b0) | (cr & (b0 << 4))) | ((mn & (b0 << 8)) | (ct & (b0 << 12)));
+    o = o | (bad & (b0 << 16));
+    o = o | __builtin_shufflevector(o, o, 2, 3, 0, 1);
+    o = o | __builtin_shufflevector(o, o, 1, 0, 3, 2);
+    return (unsigned)o[0];
+}
+/* a ? x : y lane by lane; min as vminpd (a < b ? a : b, so b where either is NaN). */
 #define SEL4(m, x, y) ((afm_v4)(((m) & (afm_v4i)(x)) | (~(m) & (afm_v4i)(y))))
 #define MIN4(a, b) SEL4((afm_v4i)((a) < (b)), (a), (b))
 
 typedef struct {
     afm_v4 t, x, v, f, q;  /* the previous block (t, x, v, f, theta: F_sq v with split) */
-    afm_v4 n;              /* tracker steps of the block's lanes */
+    afm_v4 nn;             /* minus the tracker steps of the block's lanes (the fma
+                              err = th - ref - n dphi without a negation per block) */
     afm_v4 fv, xs, xm, sq; /* sums of w f v, w x of the previous samples, minima of x, sums
                               of w F_sq v */
 } run_vec;
@@ -1063,7 +1099,7 @@ static CYCLE_INLINE int run_block(run_vec *w, unsigned *ev, int *n_ev, const run
 #undef TX
     /* the fast path: theta on the tracker's line, a positive step */
     afm_v4 Tpp = LAG2(w->t, T), H = T - LAG1(Tpp, T);
-    afm_v4 err = AFM_V4_FNMA(w->n, k->dphi, AFM_V4_LD(th4) - k->ref);
+    afm_v4 err = AFM_V4_FMA(w->nn, k->dphi, AFM_V4_LD(th4) - k->ref);
     /* |err| <= tol (the sign bit cleared): err <= tol and err >= -tol, NaN neither */
     afm_v4 aerr = (afm_v4)((afm_v4i)err & ~(afm_v4i)AFM_V4_SET1(-0.0));
     afm_v4i bad = ~(afm_v4i)(aerr <= k->tol) | ~(afm_v4i)(H > 0.0);
@@ -1078,6 +1114,10 @@ static CYCLE_INLINE int run_block(run_vec *w, unsigned *ev, int *n_ev, const run
     afm_v4 Xp = LAG1(LAG2(w->x, X), X), Vp = LAG1(LAG2(w->v, V), V);
     afm_v4i cr = (afm_v4i)(X < k->xc) ^ (afm_v4i)(Xp < k->xc);
     afm_v4 Fpp = LAG2(w->f, F), Fp = LAG1(Fpp, F);
+    /* the sums at once, while Xp, Vp, Fp are in registers (put in w only when the block is
+     * taken): later, gcc rebuilt Xp lane by lane from spilled halves of the loads (issue 12) */
+    const afm_v4 fv = AFM_V4_FMA(W, Fp * Vp, w->fv), xs = AFM_V4_FMA(W, Xp, w->xs);
+    const afm_v4 sq = AFM_V4_FMA(W, LAG1(LAG2(w->q, Q), Q), w->sq);
     afm_v4i lm = (afm_v4i)(Fp >= Fpp) & (afm_v4i)(Fp >= F);
     afm_v4 H3 = H * k->third, XM = MIN4(w->xm, Xq);
     /* + z0 (+0.0, not known to the compiler): vector values, so that the fmas below are
@@ -1088,24 +1128,25 @@ static CYCLE_INLINE int run_block(run_vec *w, unsigned *ev, int *n_ev, const run
     afm_v4i mn = (afm_v4i)(bmin < xpm);
     afm_v4i ct = ((afm_v4i)(X < k->xn) | (afm_v4i)(Xp < k->xn)) & k->ctm;
     afm_v4i any = ((bad | mn) | (cr | lm)) | ct;
-    unsigned valid = nv < 4 ? (1u << nv) - 1u : 15u;
-    if (nv < 4 ? (MASK4(any) & valid) != 0 : ANY4(any)) {
-        unsigned b = MASK4(bad) & valid;
-        if (b) return lowest_bit(b);
-        unsigned e = MASK4(ct) << 12 | MASK4(mn) << 8 | MASK4(cr) << 4 | MASK4(lm);
-        if (nv < 4) e &= valid * 0x1111u;
-        if (e) ev[(*n_ev)++] = (unsigned)k0 << 16 | e;
+    unsigned fb = 0; /* the flags, bad lanes at bits 16..19 (flag_bits) */
+    if (nv < 4)
+        fb = flag_bits(lm, cr, mn, ct, bad) & ((1u << nv) - 1u) * 0x11111u;
+    else if (ANY4(any))
+        fb = flag_bits(lm, cr, mn, ct, bad);
+    if (fb) {
+        if (fb >> 16) return lowest_bit(fb >> 16);
+        ev[(*n_ev)++] = (unsigned)k0 << 16 | fb;
     }
-    w->fv = AFM_V4_FMA(W, Fp * Vp, w->fv);
-    w->xs = AFM_V4_FMA(W, Xp, w->xs);
-    w->sq = AFM_V4_FMA(W, LAG1(LAG2(w->q, Q), Q), w->sq);
+    w->fv = fv;
+    w->xs = xs;
+    w->sq = sq;
     w->xm = XM;
     w->t = T;
     w->x = X;
     w->v = V;
     w->f = F;
     w->q = Q;
-    w->n = w->n + 4.0;
+    w->nn = w->nn - 4.0;
     return 4;
 }
 
@@ -1173,7 +1214,7 @@ static CYCLE_INLINE int run_sums_of(const run_state *r, const afm_cycle *c, cons
     w.v = AFM_V4_SET1(p0->v_m_s);
     w.f = (afm_v4){0.0, 0.0, r->f_m2, p0->f_n};
     w.q = AFM_V4_SET1(p0->theta_rad);
-    w.n = (afm_v4){n0 + 1.0, n0 + 2.0, n0 + 3.0, n0 + 4.0};
+    w.nn = -(afm_v4){n0 + 1.0, n0 + 2.0, n0 + 3.0, n0 + 4.0};
     lanes_from(c->sum_fv, c->k, &w.fv); /* lane l: the sample k + l (p0 is lane 0) */
     lanes_from(c->sum_x, c->k, &w.xs);
     lanes_from(c->sum_sq, c->k, &w.sq);
@@ -1211,7 +1252,7 @@ static CYCLE_INLINE int run_sums_of(const run_state *r, const afm_cycle *c, cons
                                : r->f_m2,
                        j > 0 ? RUN_F(j - 1) : p0->f_n};
         w.q = AFM_V4_SET1(j > 0 ? RUN_Q(j - 1) : p0->theta_rad);
-        w.n = (afm_v4){n0 + j + 1.0, n0 + j + 2.0, n0 + j + 3.0, n0 + j + 4.0};
+        w.nn = -(afm_v4){n0 + j + 1.0, n0 + j + 2.0, n0 + j + 3.0, n0 + j + 4.0};
     }
     while (j < m) { /* the last 1-3 samples, the last one repeated */
         int v = m - j, l1 = v > 1 ? j + 1 : m - 1, l2 = v > 2 ? j + 2 : m - 1;
@@ -1265,7 +1306,7 @@ AFM_CLONES static int run(afm_cycle *c, const afm_sample *s, const double *th, i
     if (m == 0) return 0;
     /* a value that is not finite makes the sums not finite */
     afm_v4 z = (w.fv + w.xs) * 0.0;
-    if (MASK4((afm_v4i)(z != z))) return -m;
+    if (ANY4((afm_v4i)(z != z))) return -m;
     if (fl.n_ev) run_events(&r, &fl);
     lanes_to(c->sum_fv, c->k, &w.fv);
     lanes_to(c->sum_x, c->k, &w.xs);
