@@ -331,7 +331,10 @@ static inline AFM_EST_INLINE int afm_track_run_v4(const afm_phase_track *t, cons
         int left = lim - i;
         if (left <= 0) return lim;
         afm_v4 x, y, z = zero;
-        if (left >= 4) {
+        /* 4 loads whenever the arrays (nmax long) have 4 more samples, even past lim: a lane
+         * at or past lim never decides the count (issue 12: a clock's run ends at n_end, a
+         * few samples before the caller's end, once a period; lane by lane cost ~20) */
+        if (left >= 4 || nmax - i >= 4) {
             x = AFM_V4_LD(th + i);
             y = AFM_V4_LD(a + i);
             if (use_b) z = AFM_V4_LD(b + i);
