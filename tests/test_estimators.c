@@ -397,6 +397,57 @@ static void test_lockin_short_tau(int order, double tau_dt) {
     check_true(memcmp(&l1, &l2, sizeof l1) == 0, what);
 }
 
+/* afm_lockin_push_marks (the output chain's one pass per push) against a call of
+ * afm_lockin_push_n per mark followed by afm_lockin_xy: the same X, Y, rejects and state bit for
+ * bit, over marks 1..60 samples apart, a rejected sample, a phase jump and pushes of 512. */
+static void test_lockin_marks(int order, double tau_dt) {
+    const double dt = 1e-6;
+    afm_cfg_lockin c = {.time_constant_s = tau_dt * dt, .order = order};
+    afm_lockin a, b;
+    afm_lockin_init(&a, &c, dt, NULL, 0);
+    afm_lockin_init(&b, &c, dt, NULL, 0);
+    enum { N = 3000 };
+    static double u[N], th[N];
+    for (int n = 0; n < N; n++) {
+        th[n] = 0.37 * n + (n >= 1700 ? 2.5 : 0.0);
+        u[n] = cos(th[n] - 0.3) + 0.01 * sin(0.05 * n);
+    }
+    u[900] = NAN;
+    double xa[N], ya[N], xb[N], yb[N];
+    int ra[N], rb[N], nmk = 0, rej_a = 0, rej_b = 0;
+    for (int n0 = 0, s = 0; n0 < N; n0 += 512) {
+        int n = N - n0 < 512 ? N - n0 : 512;
+        afm_lockin_mark mk[512];
+        int m = 0;
+        for (int e = 0; e < n; s++) {
+            e += 1 + (s * 29) % 60;
+            if (e > n) e = n;
+            mk[m] = (afm_lockin_mark){.end = e, .rejects = -1};
+            if (s % 2) mk[m].x_m = &xa[nmk + m], mk[m].y_m = &ya[nmk + m];
+            m++;
+        }
+        rej_a += afm_lockin_push_marks(&a, u + n0, th + n0, n, mk, m);
+        for (int q = 0, e0 = 0; q < m; q++) {
+            rb[nmk + q] = afm_lockin_push_n(&b, u + n0 + e0, th + n0 + e0, mk[q].end - e0);
+            rej_b += rb[nmk + q];
+            afm_lockin_xy(&b, &xb[nmk + q], &yb[nmk + q]);
+            ra[nmk + q] = mk[q].rejects;
+            if (!mk[q].x_m) xa[nmk + q] = xb[nmk + q], ya[nmk + q] = yb[nmk + q];
+            e0 = mk[q].end;
+        }
+        nmk += m;
+    }
+    char what[128];
+    snprintf(what, sizeof what,
+             "lock-in order %d, tau %g dt: push_marks = push_n per mark (%d marks, bits)", order,
+             tau_dt, nmk);
+    check_true(memcmp(xa, xb, (size_t)nmk * sizeof xa[0]) == 0 &&
+                   memcmp(ya, yb, (size_t)nmk * sizeof ya[0]) == 0 &&
+                   memcmp(ra, rb, (size_t)nmk * sizeof ra[0]) == 0 && rej_a == 1 && rej_b == 1 &&
+                   memcmp(&a, &b, sizeof a) == 0,
+               what);
+}
+
 /* Linear 1-mode oscillator (lumped, Q = 100, f0 = 300 kHz, base excitation) at r = fe/f0,
  * started on its steady state; the lock-in (tau = 10 periods, order 4) must read the
  * analytic amplitude A / sqrt((1 - r^2)^2 + (2 xi r)^2) and lag atan2(2 xi r, 1 - r^2). */
@@ -933,6 +984,9 @@ int main(void) {
     test_lockin_filter(4);
     test_lockin_short_tau(4, 20.0);
     test_lockin_short_tau(3, 2.0);
+    test_lockin_marks(4, 1000.0);
+    test_lockin_marks(3, 2.0);
+    test_lockin_marks(1, 40.0);
     test_lockin_oscillator(1.0, "at resonance");
     test_lockin_oscillator(0.99, "below resonance");
     test_lockin_oscillator(1.01, "above resonance");

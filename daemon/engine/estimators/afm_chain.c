@@ -21,6 +21,7 @@
 #define RING_MIN 1024     /* ...but at least this many samples... */
 #define RING_MAX 131072   /* ...and at most this many */
 #define PERIOD_RING AFM_CHAIN_PERIOD_RING
+_Static_assert(CHUNK <= PERIOD_RING, "a push's records stay in the ring until its lock-in pass");
 
 enum { CH_X, CH_OBD, CH_F, CH_BASE };
 
@@ -276,8 +277,10 @@ static void stamp_cascade(stream *s, const double *t_src, int ph) {
 
 /* Frames (x, obd, f, base) of n samples into dst (AFM_DECIM_CH doubles each, 32-byte
  * aligned), f the tip-sample force fts[i] (afm_cycle_split_forces). Returns 1 when every
- * channel of every frame is finite (x 0 is 0 for finite x and NaN for inf and NaN: the sum
- * of those over the frames is 0 exactly when all are finite). */
+ * channel of every frame is finite: the sum of all of them is then finite, or overflowed to
+ * an infinity (0 then: afm_decim_commit looks for the first non-finite frame, finds none and
+ * gives the same output), and an infinity or a NaN anywhere makes it inf or NaN (issue 12:
+ * a sum, not the sum of x 0, saves an instruction a sample). */
 AFM_CLONES static int pack_frames(double *dst, const afm_sample *p, const double *obd,
                                   const double *fts, int n) {
     enum { S = sizeof(afm_sample) / sizeof(double) };
@@ -291,7 +294,7 @@ AFM_CLONES static int pack_frames(double *dst, const afm_sample *p, const double
         f_[1] = obd[i];                                                                            \
         f_[2] = fts[i];                                                                            \
         AFM_V4_ST(dst + (size_t)(i)*AFM_DECIM_CH, f_);                                             \
-        z = z + f_ * 0.0;                                                                          \
+        z = z + f_;                                                                                \
     } while (0)
     int i = 0;
     /* 4 samples at a time (issue 12: 11 -> ~8 instructions a sample): (t, x) and (theta,
@@ -319,14 +322,15 @@ AFM_CLONES static int pack_frames(double *dst, const afm_sample *p, const double
         AFM_V4_ST(d + AFM_DECIM_CH, __builtin_shufflevector(t1, t3, 0, 1, 4, 5));
         AFM_V4_ST(d + 2 * AFM_DECIM_CH, __builtin_shufflevector(t0, t2, 2, 3, 6, 7));
         AFM_V4_ST(d + 3 * AFM_DECIM_CH, __builtin_shufflevector(t1, t3, 2, 3, 6, 7));
-        z0 = z0 + X * 0.0 + O * 0.0;
-        z1 = z1 + F * 0.0 + B * 0.0;
+        z0 = z0 + (X + O);
+        z1 = z1 + (F + B);
     }
     for (; i < n; i++)
         PACK(i, z0);
 #undef PACK
     z0 = z0 + z1;
-    return (z0[0] + z0[1]) + (z0[2] + z0[3]) == 0.0;
+    const double sum = (z0[0] + z0[1]) + (z0[2] + z0[3]);
+    return sum - sum == 0.0;
 }
 
 /* The decimators and rings over n samples (their OBD readings obd): the frames go straight
@@ -360,8 +364,9 @@ static void run_streams(afm_chain *c, const afm_sample *p, const double *obd, co
         ring_put(c, c->order[q]);
 }
 
-/* Append the current estimates as a period record. */
-static void put_period(afm_chain *c) {
+/* Append the current estimates as a period record (its lock-in X and Y are the caller's:
+ * estimators reads them at the period's end in its one lock-in pass). */
+static afm_chain_period *put_period(afm_chain *c) {
     int w = (c->p_head + c->p_count) % PERIOD_RING;
     if (c->p_count == PERIOD_RING) {
         c->p_head = (c->p_head + 1) % PERIOD_RING;
@@ -381,8 +386,8 @@ static void put_period(afm_chain *c) {
         memset(&p->cycle, 0, sizeof p->cycle);
         p->cycle_def.n = p->cycle_def.n_energy = 0;
     }
-    afm_lockin_xy(&c->lockin, &p->lockin_x_m, &p->lockin_y_m);
     c->stats.periods++;
+    return p;
 }
 
 /* Tone 0 changed (an NCO step of the FM loops, a dither command) right before s[0]: when the
@@ -418,18 +423,21 @@ static inline const afm_step_events *ev_used(const afm_chain *c, const afm_sampl
 
 /* The estimators over n samples (f their tip-sample forces), with tone 0's phase from
  * afm_phase_gen. harm and cycle share the period clock: each run ends at a sample where harm
- * completed a period, and cycle and lockin are brought to the same sample before the record
- * is written. ev (NULL: none) the integrator's records of the samples (afm_chain_push_ev):
- * a sample with one goes through afm_cycle_push_ev, a run without through afm_cycle_push_n
- * (the same bits as afm_cycle_push). estimator_rejects
- * counts, per run, the most samples any one estimator refused. */
+ * completed a period, and cycle is brought to the same sample before the record is written;
+ * the lock-in then runs over all n samples, its X and Y read at the same ends. ev (NULL: none) the
+ * integrator's records of the samples (afm_chain_push_ev): a sample with one goes through
+ * afm_cycle_push_ev, a run without through afm_cycle_push_n (the same bits as afm_cycle_push).
+ * estimator_rejects counts, per run, the most samples any one estimator refused. */
 AFM_CLONES static void estimators(afm_chain *c, const afm_sample *s, const double *obd,
                                   const double *f, const double *q,
                                   const afm_step_events *const *ev, int n) {
     double th[CHUNK];
+    afm_lockin_mark mk[CHUNK]; /* the ends of harm's runs, the records' X and Y */
+    long long rhc[CHUNK];      /* rejects of harm and cycle per run */
+    int nm = 0;
     if (afm_phase_gen_run(&c->phase, c->drive, s, n, th) == AFM_PHASE_STEP) retune(c, th);
     for (int i = 0; i < n;) {
-        long long rh = 0, rc = 0, rl;
+        long long rh = 0, rc = 0;
         int done, dc;
         int k = afm_harm_push_n(&c->harm, obd + i, f + i, th + i, n - i, &done, &rh);
         for (int j = 0; j < k;) {
@@ -446,11 +454,22 @@ AFM_CLONES static void estimators(afm_chain *c, const afm_sample *s, const doubl
             if (!ev) m = k - j;
             j += afm_cycle_push_n_split(&c->cycle, s + a, th + a, f + a, q + a, m, &dc, &rc);
         }
-        rl = afm_lockin_push_n(&c->lockin, obd + i, th + i, k);
-        long long r = rh > rc ? rh : rc;
-        c->stats.estimator_rejects += r > rl ? r : rl;
-        if (done) put_period(c);
+        rhc[nm] = rh > rc ? rh : rc;
+        mk[nm].x_m = mk[nm].y_m = NULL;
+        if (done) {
+            afm_chain_period *p = put_period(c);
+            mk[nm].x_m = &p->lockin_x_m;
+            mk[nm].y_m = &p->lockin_y_m;
+        }
         i += k;
+        mk[nm++].end = i;
+    }
+    /* The lock-in over the whole push in one pass, X and Y read at the periods' ends (the
+     * records of this push are still in the ring: at most CHUNK < PERIOD_RING of them) */
+    afm_lockin_push_marks(&c->lockin, obd, th, n, mk, nm);
+    for (int u = 0; u < nm; u++) {
+        long long rl = mk[u].rejects;
+        c->stats.estimator_rejects += rhc[u] > rl ? rhc[u] : rl;
     }
 }
 

@@ -285,19 +285,21 @@ typedef double afm_v4u __attribute__((vector_size(32), aligned(8), may_alias));
 /* How many of th[0..nmax) take the tracker's fast path in a row (afm_track_fast's test,
  * (theta - th_ref) - n dphi within tol and n <= n_end, evaluated with the same roundings),
  * with a[i] and, if b is not NULL, b[i] finite. Nothing changes: the caller then advances
- * t->n by the count and sets t->th_prev. 8 samples per step (afm_v4 lanes). */
+ * t->n by the count and sets t->th_prev. 16, then 8 samples per step (afm_v4 lanes). */
 #if defined(__GNUC__)
 #define AFM_EST_INLINE __attribute__((always_inline))
 #else
 #define AFM_EST_INLINE
 #endif
-/* |theta - prediction| <= tol on 4 lanes (a lane mask), false where a or b is not finite
- * (a 0 is NaN then). The error as (th_ref - theta) + n dphi: exactly -((theta - th_ref) - n
- * dphi) (rounding to nearest is symmetric). */
-#define AFM_TRACK_OK4(th, a, b, nn, ref, dp, tol)                                                  \
+/* |theta - prediction| <= tol on 4 lanes (a lane mask), false where a or (use_b) b is not
+ * finite (a 0 is NaN then). The error as (th_ref - theta) + n dphi: exactly -((theta - th_ref)
+ * - n dphi) (rounding to nearest is symmetric); without b nothing is added for it (the sign of
+ * a zero error is all that could change, and the test does not see it). */
+#define AFM_TRACK_OK4(th, a, b, nn, ref, dp, tol, use_b)                                           \
     __extension__({                                                                                \
         afm_v4 e_ = ((ref) - (th)) + (nn) * (dp);                                                  \
-        e_ = e_ + (a)*0.0 + (b)*0.0;                                                               \
+        e_ = e_ + (a)*0.0;                                                                         \
+        if (use_b) e_ = e_ + (b)*0.0;                                                              \
         (afm_v4i)((e_ <= (tol)) & (e_ >= -(tol)));                                                 \
     })
 /* Every lane of a lane mask set: two shuffles and ands, then lane 0 (lane by lane it moves
@@ -318,20 +320,31 @@ static inline AFM_EST_INLINE int afm_track_run_v4(const afm_phase_track *t, cons
     const afm_v4 tol = AFM_V4_SET1(t->tol), zero = AFM_V4_SET1(0.0);
     afm_v4 nn = AFM_V4_SET1(t->n) + (afm_v4){1.0, 2.0, 3.0, 4.0};
     int i = 0;
+#define AFM_TRACK_OK4_AT(o) /* the 4 samples from i + o */                                         \
+    AFM_TRACK_OK4(AFM_V4_LD(th + i + (o)), AFM_V4_LD(a + i + (o)),                                 \
+                  use_b ? AFM_V4_LD(b + i + (o)) : zero, (o) ? nn + (double)(o) : nn, ref, dp,     \
+                  tol, use_b)
+    /* 16 samples a step (one test of the lanes for 16: issue 12), then 8 */
+    for (; i + 16 <= lim; i += 16) {
+        afm_v4i ok = (AFM_TRACK_OK4_AT(0) & AFM_TRACK_OK4_AT(4)) &
+                     (AFM_TRACK_OK4_AT(8) & AFM_TRACK_OK4_AT(12));
+        if (!AFM_V4I_ALL(ok)) break;
+        nn = nn + 16.0;
+    }
     for (; i + 8 <= lim; i += 8) {
-        afm_v4i ok0 = AFM_TRACK_OK4(AFM_V4_LD(th + i), AFM_V4_LD(a + i),
-                                    use_b ? AFM_V4_LD(b + i) : zero, nn, ref, dp, tol);
-        afm_v4i ok1 = AFM_TRACK_OK4(AFM_V4_LD(th + i + 4), AFM_V4_LD(a + i + 4),
-                                    use_b ? AFM_V4_LD(b + i + 4) : zero, nn + 4.0, ref, dp, tol);
-        afm_v4i ok = ok0 & ok1;
+        afm_v4i ok = AFM_TRACK_OK4_AT(0) & AFM_TRACK_OK4_AT(4);
         if (!AFM_V4I_ALL(ok)) break;
         nn = nn + 8.0;
     }
+#undef AFM_TRACK_OK4_AT
     for (;; i += 4) { /* the rest, or the step of 8 that failed: 4 at a time */
         int left = lim - i;
         if (left <= 0) return lim;
         afm_v4 x, y, z = zero;
-        if (left >= 4) {
+        /* 4 loads whenever the arrays (nmax long) have 4 more samples, even past lim: a lane
+         * at or past lim never decides the count (issue 12: a clock's run ends at n_end, a
+         * few samples before the caller's end, once a period; lane by lane cost ~20) */
+        if (left >= 4 || nmax - i >= 4) {
             x = AFM_V4_LD(th + i);
             y = AFM_V4_LD(a + i);
             if (use_b) z = AFM_V4_LD(b + i);
@@ -343,7 +356,7 @@ static inline AFM_EST_INLINE int afm_track_run_v4(const afm_phase_track *t, cons
                 if (use_b) z[l] = b[i + l];
             }
         }
-        afm_v4i ok = AFM_TRACK_OK4(x, y, z, nn, ref, dp, tol);
+        afm_v4i ok = AFM_TRACK_OK4(x, y, z, nn, ref, dp, tol, use_b);
         for (int l = 0; l < 4; l++)
             if (!ok[l]) return i + (l < left ? l : left);
         nn = nn + 4.0;

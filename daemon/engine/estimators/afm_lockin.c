@@ -313,46 +313,87 @@ static inline ALWAYS_INLINE void block_add(afm_lockin *l, const double *u, int k
     l->m += k;
 }
 
-/* afm_lockin_push_n for NV = (order + 1) / 2 */
+/* The marks at sample count i (NV vectors of 2 stages): X and Y read as afm_lockin_xy would,
+ * the rejects since the last one. Returns the next mark's end (n after the last). */
+static inline ALWAYS_INLINE int marks_at(const afm_lockin *l, afm_lockin_mark *mk, int nm, int *j,
+                                         int i, int n, int *rej, const int NV) {
+    for (; *j < nm && mk[*j].end <= i; (*j)++) {
+        if (mk[*j].x_m) current_nv(l, mk[*j].x_m, mk[*j].y_m, NV);
+        mk[*j].rejects = *rej;
+        *rej = 0;
+    }
+    return *j < nm && mk[*j].end < n ? mk[*j].end : n;
+}
+
+/* afm_lockin_push_marks for NV = (order + 1) / 2 (no marks: afm_lockin_push_n). The tracker's
+ * runs go over all that is left, the blocks stop at the marks: the fast path's test of a
+ * sample does not depend on where the runs start, so the state is the same as with a call
+ * per mark. */
 static inline ALWAYS_INLINE int push_n(afm_lockin *l, const double *u, const double *th, int n,
-                                       const int NV) {
-    int rej = 0, i = 0;
+                                       afm_lockin_mark *mk, int nm, const int NV) {
+    int rej = 0, total = 0, i = 0, j = 0;
+    int stop = marks_at(l, mk, nm, &j, 0, n, &rej, NV);
     while (i < n) {
         int k = afm_track_run(&l->trk, th + i, u + i, NULL, n - i);
         l->trk.n += (double)k; /* integer-valued: exact */
         l->n += k;
-        for (int e = i + k; i < e;) { /* in blocks of at most m_max */
+        for (int e = i + k; i < e;) { /* in blocks of at most m_max, up to the next mark */
             int b = l->m_max - l->m < e - i ? l->m_max - l->m : e - i;
+            if (stop - i < b) b = stop - i;
             if (l->m + b > l->built) extend_tables(l, l->m + b);
             block_add(l, u + i, b, NV);
             i += b;
             l->trk.th_prev = th[i - 1];
             if (l->m == l->m_max) flush_nv(l, NV);
+            if (i == stop) stop = marks_at(l, mk, nm, &j, i, n, &rej, NV);
         }
         if (i == n) break;
-        if (push_one(l, u[i], th[i])) rej++; /* off the prediction, or rejected */
+        if (push_one(l, u[i], th[i])) { /* off the prediction, or rejected */
+            rej++;
+            total++;
+        }
         i++;
+        if (i == stop) stop = marks_at(l, mk, nm, &j, i, n, &rej, NV);
     }
-    return rej;
+    marks_at(l, mk, nm, &j, n, n + 1, &rej, NV); /* those at n */
+    return total;
 }
 
-AFM_CLONES int afm_lockin_push_n(afm_lockin *l, const double *u, const double *th, int n) {
-    if (l->m_max == 0) {
-        int rej = 0;
-        for (int i = 0; i < n; i++)
-            rej += push_one(l, u[i], th[i]) != 0;
-        return rej;
+/* The per-sample recursion (m_max 0), with the marks. */
+static int push_each(afm_lockin *l, const double *u, const double *th, int n, afm_lockin_mark *mk,
+                     int nm) {
+    int rej = 0, total = 0, j = 0;
+    for (int i = 0; i <= n; i++) {
+        for (; j < nm && mk[j].end <= i; j++) {
+            if (mk[j].x_m) afm_lockin_xy(l, mk[j].x_m, mk[j].y_m);
+            mk[j].rejects = rej;
+            rej = 0;
+        }
+        if (i < n && push_one(l, u[i], th[i])) {
+            rej++;
+            total++;
+        }
     }
+    return total;
+}
+
+AFM_CLONES int afm_lockin_push_marks(afm_lockin *l, const double *u, const double *th, int n,
+                                     afm_lockin_mark *marks, int n_marks) {
+    if (l->m_max == 0) return push_each(l, u, th, n, marks, n_marks);
     switch ((l->order + 1) / 2) {
     case 1:
-        return push_n(l, u, th, n, 1);
+        return push_n(l, u, th, n, marks, n_marks, 1);
     case 2:
-        return push_n(l, u, th, n, 2);
+        return push_n(l, u, th, n, marks, n_marks, 2);
     case 3:
-        return push_n(l, u, th, n, 3);
+        return push_n(l, u, th, n, marks, n_marks, 3);
     default:
-        return push_n(l, u, th, n, 4);
+        return push_n(l, u, th, n, marks, n_marks, 4);
     }
+}
+
+int afm_lockin_push_n(afm_lockin *l, const double *u, const double *th, int n) {
+    return afm_lockin_push_marks(l, u, th, n, NULL, 0);
 }
 
 int afm_lockin_push(afm_lockin *l, double u_m, double theta_rad) {

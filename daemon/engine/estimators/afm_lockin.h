@@ -101,6 +101,21 @@ int afm_lockin_push(afm_lockin *l, double u_m, double theta_rad);
  * samples. */
 int afm_lockin_push_n(afm_lockin *l, const double *u_m, const double *theta_rad, int n);
 
+/* A mark of afm_lockin_push_marks: after the sample u[end - 1], X and Y into *x_m, *y_m
+ * (unless x_m is NULL) and the rejects of the samples since the previous mark into rejects. */
+typedef struct {
+    int end; /* 1..n, ascending */
+    int rejects;
+    double *x_m, *y_m;
+} afm_lockin_mark;
+
+/* afm_lockin_push_n with the outputs read at the marks, as calls of afm_lockin_push_n for
+ * the samples between the marks, each followed by afm_lockin_xy, would give them (the same
+ * bits): one pass for the output chain's records of a whole push (its periods' ends) instead
+ * of a call per period (issue 12). Returns the count of rejected samples. */
+int afm_lockin_push_marks(afm_lockin *l, const double *u_m, const double *theta_rad, int n,
+                          afm_lockin_mark *marks, int n_marks);
+
 /* In-phase X (with sin theta) and quadrature Y (with cos theta), m, after the last sample
  * (computed from the base and the sums: O(order)). */
 double afm_lockin_x(const afm_lockin *l);
