@@ -205,5 +205,15 @@ progress_check force-curve "force-curve: approach  *[0-9]* %, Z " "$A" force-cur
   bad "send setpoint --log"
 progress_check replay "replay: model time [0-9.]* s, 1 commands" "$A" replay --config config/default.conf \
   --in "$T/p.log" --out "$T/po.log" --tail 2.5
+# bench-states --no-fifo: the caller's scheduling (for profilers), said in the header; the
+# run's own policy read from /proc while it runs (0: SCHED_OTHER)
+out=$("$A" bench-states --only "tapping, Z 40" --runs 1 --no-fifo --scheme fast 2>&1); rc=$?
+[ $rc -eq 0 ] && echo "$out" | grep -q "normal priority: --no-fifo" &&
+  ok "bench-states --no-fifo: runs at normal priority, says so" ||
+  bad "bench-states --no-fifo: exit $rc, $(echo "$out" | head -1)"
+"$A" bench-states --only "tapping, Z 40" --runs 20 --no-fifo --scheme fast > /dev/null 2>&1 & bp=$!
+sleep 0.5; pol=$(awk '{print $41}' /proc/$bp/stat 2>/dev/null); wait $bp
+[ "${pol:-x}" = 0 ] && ok "bench-states --no-fifo: its policy while it runs is SCHED_OTHER" ||
+  bad "bench-states --no-fifo: policy '${pol:-?}' while it runs"
 echo "$pass passed, $fail failed"
 [ "$fail" -eq 0 ]

@@ -564,6 +564,11 @@ static void usage(FILE *f) {
             "                 measured on this machine as the daemon's --scheme auto does),\n"
             "                 accurate or fast (forced; other integrators have no schemes)\n"
             "  --json         one JSON object on stdout\n"
+            "  --no-fifo      keep the caller's scheduling (default: SCHED_FIFO 70 when\n"
+            "                 permitted, as the daemon's stages). For profilers: under\n"
+            "                 callgrind a run takes minutes, and at SCHED_FIFO it holds a\n"
+            "                 CPU from everything below it for all of them, for nothing\n"
+            "                 (callgrind's counts do not depend on scheduling)\n"
             "  --help         this text\n",
             MAX_RUNS);
 }
@@ -576,9 +581,10 @@ int afm_cmd_bench_states(int argc, char **argv) {
                                                  {"accurate", AFM_RT_SCHEME_ACCURATE},
                                                  {"fast", AFM_RT_SCHEME_FAST},
                                                  {NULL, 0}};
-    bool json = false;
+    bool json = false, no_fifo = false;
     const afmt_opt opts[] = {
         AFMT_FLAG("--json", &json),
+        AFMT_FLAG("--no-fifo", &no_fifo),
         AFMT_STRING("--config", &path),
         AFMT_STRING("--only", &only),
         AFMT_CHOICE("--scheme", &scheme, scheme_choices),
@@ -599,7 +605,7 @@ int afm_cmd_bench_states(int argc, char **argv) {
     /* SCHED_FIFO as the daemon's threads: otherwise a 4 ms time slice of another process
      * lands in a window now and then (seen as a worst item of ~4000 ns/sample) */
     struct sched_param prio = {.sched_priority = BENCH_PRIO};
-    bool fifo = sched_setscheduler(0, SCHED_FIFO | BENCH_RESET_ON_FORK, &prio) == 0;
+    bool fifo = !no_fifo && sched_setscheduler(0, SCHED_FIFO | BENCH_RESET_ON_FORK, &prio) == 0;
     state_result res[N_STATES];
     double v[4][MAX_RUNS];
     int failed = 0;
@@ -661,9 +667,9 @@ int afm_cmd_bench_states(int argc, char **argv) {
            "stages timed apart, 1024 samples at a time, %s); median of %d runs; real time: %.1f "
            "ns per sample\n",
            path, uptime,
-           fifo ? "SCHED_FIFO "
-                  "70"
-                : "normal priority: SCHED_FIFO refused",
+           fifo      ? "SCHED_FIFO 70"
+           : no_fifo ? "normal priority: --no-fifo"
+                     : "normal priority: SCHED_FIFO refused",
            runs, budget);
     printf("  %s\n", why);
     printf("  %-52s %21s %21s %8s %9s\n", "state", "integrator ns/sample", "chain ns/sample",
