@@ -120,16 +120,22 @@ static inline ALWAYS_INLINE void stages_w(const afm_lockin *l, afm_v4 *w, const 
 }
 
 /* The last stage now: z = sum_d a_d(m) w_{last - d} (A^m is Toeplitz), as the lanes of w
- * times a(m) reversed onto the stages (apl), summed by channel. */
+ * times a(m) reversed onto the stages (apl), summed by channel. The fmas a loop over the lanes
+ * in memory: gcc makes it vfmadds in the x86-64-v3 copy (AFM_V4_FMA here stayed scalar
+ * vfmadds and shuffles; issue 12), the same bits. */
 static inline ALWAYS_INLINE void current_nv(const afm_lockin *l, double *x, double *y,
                                             const int NV) {
     afm_v4 w[4];
     stages_w(l, w, NV);
-    afm_v4 t = AFM_V4_MUL(w[0], AFM_V4_LD(l->apl[l->m]));
+    const double *ap = l->apl[l->m];
+    double q[4] __attribute__((aligned(32))), wv[16] __attribute__((aligned(32)));
+    for (int v = 0; v < NV; v++)
+        AFM_V4_ST(wv + 4 * v, w[v]);
+    for (int k = 0; k < 4; k++)
+        q[k] = wv[k] * ap[k];
     for (int v = 1; v < NV; v++)
-        t = AFM_V4_FMA(w[v], AFM_V4_LD(l->apl[l->m] + 4 * v), t);
-    double q[4];
-    AFM_V4_ST(q, t);
+        for (int k = 0; k < 4; k++)
+            q[k] = fma(wv[4 * v + k], ap[4 * v + k], q[k]);
     *x = q[0] + q[2];
     *y = q[1] + q[3];
 }
@@ -154,7 +160,7 @@ AFM_CLONES_NOINLINE static void current(const afm_lockin *l, double *x, double *
 }
 
 /* Move the base to the last sample: z_b = z (every stage: sum_d a_d w_{i - d}), theta_b +=
- * m dphi, sums 0. */
+ * m dphi, sums 0. The fmas a loop over the lanes in memory, as in current_nv. */
 static inline ALWAYS_INLINE void flush_nv(afm_lockin *l, const int NV) {
     afm_v4 w[4];
     stages_w(l, w, NV);
@@ -168,11 +174,15 @@ static inline ALWAYS_INLINE void flush_nv(afm_lockin *l, const int NV) {
     const double *a = l->ap[l->m];
 #pragma GCC unroll 4
     for (int v = 0; v < NV; v++) {
-        afm_v4 z = AFM_V4_MUL(AFM_V4_SET1(a[0]), w[v]);
+        const double *zv = zp + 4 * NV - 2 + 4 * v; /* w[v] */
+        double z[4] __attribute__((aligned(32)));
+        for (int k = 0; k < 4; k++)
+            z[k] = a[0] * zv[k];
 #pragma GCC unroll 8
         for (int d = 1; d < 2 * NV; d++)
-            z = AFM_V4_FMA(AFM_V4_SET1(a[d]), AFM_V4_LD(zp + 4 * NV - 2 + 4 * v - 2 * d), z);
-        AFM_V4_ST(&l->xy[2 * v][0], z);
+            for (int k = 0; k < 4; k++)
+                z[k] = fma(a[d], zv[k - 2 * d], z[k]);
+        AFM_V4_ST(&l->xy[2 * v][0], AFM_V4_LD(z));
     }
     if (l->order & 1) l->xy[l->order][0] = l->xy[l->order][1] = 0.0; /* the pad stage */
     double pc = l->pr[l->m][0], ps = l->pr[l->m][1];
