@@ -746,8 +746,8 @@ static AFM_CLONES_NOINLINE int step_boundary(afm_cycle *c, const afm_sample *s, 
         double rsq = (c->sum_sq[0] + c->sum_sq[1]) + (c->sum_sq[2] + c->sum_sq[3]);
         double rx = (c->sum_x[0] + c->sum_x[1]) + (c->sum_x[2] + c->sum_x[3]);
         double peak = m->peak_force_n;
-        if (c->n_prev >= 2) {
-            if (p->f_n >= c->prev2.f_n && p->f_n >= s->f_n) {
+        if (c->n_prev >= 2) { /* the parabola, but at a local maximum in contact */
+            if (c->forces && p->x_m < xc && p->f_n >= c->prev2.f_n && p->f_n >= s->f_n) {
                 peak_add(c, &c->prev2, p, s, &c->e_corr, &peak);
             } else {
                 double pk = afm_parabola_peak(c->prev2.f_n, p->f_n, s->f_n);
@@ -971,6 +971,11 @@ static inline void run_pt(const run_state *r, int k, afm_cycle_pt *d) {
     AFM_V4_ST(&d->t_s, v);
 }
 
+/* f of sample k >= -2 of the run as afm_cycle_push has it (-1: *p0, -2: *m2). */
+static inline double run_f(const run_state *r, int k) {
+    return k >= 0 ? (r->fs ? r->fs[k] : r->s[k].f_n) : k == -1 ? r->p0->f_n : r->m2->f_n;
+}
+
 /* The flagged steps, in order: step k joins sample k - 1 (p) to sample k (q); in block
  * record e, bit l of lm / cr / mn flags step k0 + l. lm: f has a local maximum at p (>= both
  * neighbours): the parabola; cr: p and q lie on opposite sides of the contact line; mn: a
@@ -989,7 +994,13 @@ static AFM_CLONES_NOINLINE void run_events(run_state *r, const run_flags *fl) {
         int k0 = (int)(ev >> 16);
         for (unsigned lm = ev & 15u; lm; lm &= lm - 1) {
             int k = k0 + lowest_bit(lm);
-            if (dfr && c->forces && (k ? s[k - 1].x_m : r->p0->x_m) < c->x_contact_m) {
+            const bool in = c->forces && (k ? s[k - 1].x_m : r->p0->x_m) < c->x_contact_m;
+            if (!in) { /* local_peak's parabola, at once (no copies, no call) */
+                double v = afm_parabola_peak(run_f(r, k - 2), run_f(r, k - 1), run_f(r, k));
+                if (v > r->pk) r->pk = v;
+                continue;
+            }
+            if (dfr) {
                 afm_cycle_step *st = def_new(c, AFM_CYCLE_DEF_PEAK, &r->ec, &r->pk);
                 run_pt(r, k - 2, &st->p[0]);
                 run_pt(r, k - 1, &st->p[1]);
@@ -1337,14 +1348,22 @@ AFM_CLONES static int run(afm_cycle *c, const afm_sample *s, const double *th, i
 }
 
 /* afm_cycle_push for a sample known to be off the tracker's fast path (afm_track_fast
- * would fail): its checks, then the exact clock. */
-static CYCLE_INLINE int push_exact(afm_cycle *c, const afm_sample *q, double th) {
+ * would fail): its checks, then the exact clock. f, qs (NULL: none): its split force and
+ * squeeze power given apart (afm_cycle_split_forces, as the runs read them). */
+static CYCLE_INLINE int push_exact(afm_cycle *c, const afm_sample *q, double th, const double *f,
+                                   const double *qs) {
     /* all finite: the products with 0 are all +-0 (NaN otherwise) */
     double z = (q->t_s * 0.0 + q->x_m * 0.0) + (q->v_m_s * 0.0 + q->f_n * 0.0);
     if (!(z == 0.0 && !(c->n_prev > 0 && !(q->t_s > c->prev.t_s)))) return -1;
     afm_sample sp;
     if (c->split) {
-        split_sample(c, q, &sp);
+        if (f) {
+            copy_sample(&sp, q);
+            sp.f_n = *f;
+            sp.theta_rad = *qs;
+        } else {
+            split_sample(c, q, &sp);
+        }
         q = &sp;
     }
     return push_slow(c, q, th);
@@ -1388,7 +1407,9 @@ AFM_CLONES int afm_cycle_push_n_split(afm_cycle *c, const afm_sample *s, const d
                 }
             }
         }
-        int rc = off ? push_exact(c, &s[i], th[i]) : afm_cycle_push(c, &s[i], th[i]);
+        int rc = !off   ? afm_cycle_push(c, &s[i], th[i])
+                 : f_ts ? push_exact(c, &s[i], th[i], f_ts + i, p_sq + i)
+                        : push_exact(c, &s[i], th[i], NULL, NULL);
         i++;
         if (one_by_one > 0) one_by_one--;
         if (rc < 0) (*rejects)++;
