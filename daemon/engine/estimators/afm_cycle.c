@@ -585,6 +585,21 @@ void afm_cycle_finish(afm_cycle_metrics *m, afm_cycle_deferred *d) {
     memset(d, 0, sizeof *d);
 }
 
+/* d[0 .. n-1] = s[0 .. n-1] by vector moves, 120 bytes an entry (a memcpy call took ~100
+ * instructions a period; issue 12). */
+static CYCLE_INLINE void copy_steps(afm_cycle_step *restrict d, const afm_cycle_step *restrict s,
+                                    int n) {
+    _Static_assert(sizeof(afm_cycle_step) == 15 * sizeof(double), "afm_cycle_step: 120 bytes");
+    for (int i = 0; i < n; i++) {
+        const char *a = (const char *)(const void *)(s + i);
+        char *b = (char *)(void *)(d + i);
+        AFM_V4_ST(b, AFM_V4_LD(a));
+        AFM_V4_ST(b + 32, AFM_V4_LD(a + 32));
+        AFM_V4_ST(b + 64, AFM_V4_LD(a + 64));
+        AFM_V4_ST(b + 88, AFM_V4_LD(a + 88)); /* bytes 88 .. 119 (88 .. 95 twice) */
+    }
+}
+
 /* A step from c->prev to s inside the active period (no boundary): the previous sample's
  * trapezoid weight into the sums of its index, s's x into the samples' minimum, and the
  * step's flags: the parabola at a local maximum of f at prev, a Bernstein control point
@@ -746,8 +761,8 @@ static AFM_CLONES_NOINLINE int step_boundary(afm_cycle *c, const afm_sample *s, 
         double rsq = (c->sum_sq[0] + c->sum_sq[1]) + (c->sum_sq[2] + c->sum_sq[3]);
         double rx = (c->sum_x[0] + c->sum_x[1]) + (c->sum_x[2] + c->sum_x[3]);
         double peak = m->peak_force_n;
-        if (c->n_prev >= 2) {
-            if (p->f_n >= c->prev2.f_n && p->f_n >= s->f_n) {
+        if (c->n_prev >= 2) { /* the parabola, but at a local maximum in contact */
+            if (c->forces && p->x_m < xc && p->f_n >= c->prev2.f_n && p->f_n >= s->f_n) {
                 peak_add(c, &c->prev2, p, s, &c->e_corr, &peak);
             } else {
                 double pk = afm_parabola_peak(c->prev2.f_n, p->f_n, s->f_n);
@@ -798,7 +813,7 @@ static AFM_CLONES_NOINLINE int step_boundary(afm_cycle *c, const afm_sample *s, 
             memcpy(&c->out_def, &c->pend, offsetof(afm_cycle_deferred, f));
             if (c->pend.n > 0) {
                 c->out_def.f = c->fsnap;
-                memcpy(c->out_def.st, c->pend.st, (size_t)c->pend.n * sizeof c->pend.st[0]);
+                copy_steps(c->out_def.st, c->pend.st, c->pend.n);
             }
             c->pend.n = c->pend.n_energy = 0;
         }
@@ -971,6 +986,11 @@ static inline void run_pt(const run_state *r, int k, afm_cycle_pt *d) {
     AFM_V4_ST(&d->t_s, v);
 }
 
+/* f of sample k >= -2 of the run as afm_cycle_push has it (-1: *p0, -2: *m2). */
+static inline double run_f(const run_state *r, int k) {
+    return k >= 0 ? (r->fs ? r->fs[k] : r->s[k].f_n) : k == -1 ? r->p0->f_n : r->m2->f_n;
+}
+
 /* The flagged steps, in order: step k joins sample k - 1 (p) to sample k (q); in block
  * record e, bit l of lm / cr / mn flags step k0 + l. lm: f has a local maximum at p (>= both
  * neighbours): the parabola; cr: p and q lie on opposite sides of the contact line; mn: a
@@ -989,7 +1009,13 @@ static AFM_CLONES_NOINLINE void run_events(run_state *r, const run_flags *fl) {
         int k0 = (int)(ev >> 16);
         for (unsigned lm = ev & 15u; lm; lm &= lm - 1) {
             int k = k0 + lowest_bit(lm);
-            if (dfr && c->forces && (k ? s[k - 1].x_m : r->p0->x_m) < c->x_contact_m) {
+            const bool in = c->forces && (k ? s[k - 1].x_m : r->p0->x_m) < c->x_contact_m;
+            if (!in) { /* local_peak's parabola, at once (no copies, no call) */
+                double v = afm_parabola_peak(run_f(r, k - 2), run_f(r, k - 1), run_f(r, k));
+                if (v > r->pk) r->pk = v;
+                continue;
+            }
+            if (dfr) {
                 afm_cycle_step *st = def_new(c, AFM_CYCLE_DEF_PEAK, &r->ec, &r->pk);
                 run_pt(r, k - 2, &st->p[0]);
                 run_pt(r, k - 1, &st->p[1]);
@@ -1337,14 +1363,22 @@ AFM_CLONES static int run(afm_cycle *c, const afm_sample *s, const double *th, i
 }
 
 /* afm_cycle_push for a sample known to be off the tracker's fast path (afm_track_fast
- * would fail): its checks, then the exact clock. */
-static CYCLE_INLINE int push_exact(afm_cycle *c, const afm_sample *q, double th) {
+ * would fail): its checks, then the exact clock. f, qs (NULL: none): its split force and
+ * squeeze power given apart (afm_cycle_split_forces, as the runs read them). */
+static CYCLE_INLINE int push_exact(afm_cycle *c, const afm_sample *q, double th, const double *f,
+                                   const double *qs) {
     /* all finite: the products with 0 are all +-0 (NaN otherwise) */
     double z = (q->t_s * 0.0 + q->x_m * 0.0) + (q->v_m_s * 0.0 + q->f_n * 0.0);
     if (!(z == 0.0 && !(c->n_prev > 0 && !(q->t_s > c->prev.t_s)))) return -1;
     afm_sample sp;
     if (c->split) {
-        split_sample(c, q, &sp);
+        if (f) {
+            copy_sample(&sp, q);
+            sp.f_n = *f;
+            sp.theta_rad = *qs;
+        } else {
+            split_sample(c, q, &sp);
+        }
         q = &sp;
     }
     return push_slow(c, q, th);
@@ -1388,7 +1422,9 @@ AFM_CLONES int afm_cycle_push_n_split(afm_cycle *c, const afm_sample *s, const d
                 }
             }
         }
-        int rc = off ? push_exact(c, &s[i], th[i]) : afm_cycle_push(c, &s[i], th[i]);
+        int rc = !off   ? afm_cycle_push(c, &s[i], th[i])
+                 : f_ts ? push_exact(c, &s[i], th[i], f_ts + i, p_sq + i)
+                        : push_exact(c, &s[i], th[i], NULL, NULL);
         i++;
         if (one_by_one > 0) one_by_one--;
         if (rc < 0) (*rejects)++;
