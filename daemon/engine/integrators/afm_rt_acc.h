@@ -464,6 +464,25 @@ static AFM_CLONES_NOINLINE rt_snap *rt_contact_acc(const afm_sim *s, const rt_st
     return a;
 }
 
+/* The embedded error estimate of a Hermite piece of length T in contact from in to o (o's
+ * acc_m_s2 set; a0 the tip's acceleration at in): the tip at the midpoint from the ends' x,
+ * v, a (quintic Hermite: its error is ~T^6 x^(6) / 46080, far below the force's), the force
+ * law there against the Hermite interpolant's midpoint value (F0 + F1) / 2 + (D0 - D1) / 8
+ * (its error ~T^4 F^(4) / 384). True where the two agree within tol (N). */
+static inline __attribute__((always_inline)) bool rt_merge_ok_t(const afm_sim *s, const rt_state *r,
+                                                                const rt_snap *in, const rt_snap *o,
+                                                                double T, double a0, double tol) {
+    const double x0 = in->tip.x_m, v0 = in->tip.v_m_s, x1 = o->tip.x_m, v1 = o->tip.v_m_s;
+    const double a1 = o->acc_m_s2;
+    const double xm = 0.5 * (x0 + x1) + T * (5.0 / 32.0) * (v0 - v1) + T * T * (a0 + a1) / 64.0;
+    const double vm =
+        (15.0 / 8.0) * (x1 - x0) / T - (7.0 / 16.0) * (v0 + v1) + T * (a1 - a0) / 32.0;
+    double fx, fv;
+    const double fl = rt_force_in(s, r, xm, vm, &fx, &fv);
+    const double fh = 0.5 * (in->tip.f_n + o->tip.f_n) + T * (in->fdot_n_s - o->fdot_n_s) / 8.0;
+    return fabs(fl - fh) <= tol;
+}
+
 /* A sample near or in contact, without thermal noise, from a into b: RT_ACC_NEAR_PIECES whole
  * Hermite pieces, a piece whose path crosses the contact line or has an end in contact close
  * to it (RT_ACC_CLOSE_TRAVELS) redone in its share of the m contact substeps (rt_substep_acc:
@@ -478,6 +497,7 @@ static inline __attribute__((always_inline)) void rt_graded_acc(const afm_sim *s
     const double tau = s->dt_s / K, taus = s->dt_s / r->m, xc = r->xc;
     const double close = RT_ACC_CLOSE_TRAVELS * tau;
     const double far2 = RT_ACC_MERGE_TRAVELS * 2.0 * tau;
+    const double close2 = RT_ACC_CLOSE_TRAVELS * 2.0 * tau, mtol = RT_ACC_MERGE_TOL * r->ftol;
     rt_snap t[2], w[2];
     const rt_snap *in = a;
     for (int p = 0; p < K; p++) {
@@ -490,6 +510,21 @@ static inline __attribute__((always_inline)) void rt_graded_acc(const afm_sim *s
             rt_piece_acc_t(s, r, in, o2, 2 * k, true, np, nt, false, evs);
             if (o2->tip.x_m - xc > far2 * fabs(o2->tip.v_m_s) &&
                 !rt_crosses(r, in, o2, 2.0 * tau)) {
+                if (ea) rt_ev_piece(ea, s, r, o2, (double)(p + 2) / K, true);
+                in = o2;
+                p++;
+                continue;
+            }
+        }
+        /* in contact, clear of the line at both ends (RT_ACC_CLOSE_TRAVELS of the long
+         * piece's travel) and the embedded estimate small (RT_ACC_MERGE_TOL): two in one */
+        if (RT_ACC_MERGE_TOL > 0 && (p & 1) == 0 && in->tip.x_m < xc &&
+            xc - in->tip.x_m >= close2 * fabs(in->tip.v_m_s)) {
+            rt_snap *o2 = p + 2 == K ? b : o;
+            const double a0 = rt_ev_acc(r, in, np, nt);
+            rt_piece_acc_t(s, r, in, o2, 2 * k, true, np, nt, false, true);
+            if (o2->tip.x_m < xc && xc - o2->tip.x_m >= close2 * fabs(o2->tip.v_m_s) &&
+                rt_merge_ok_t(s, r, in, o2, 2.0 * tau, a0, mtol)) {
                 if (ea) rt_ev_piece(ea, s, r, o2, (double)(p + 2) / K, true);
                 in = o2;
                 p++;
