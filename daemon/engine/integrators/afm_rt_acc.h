@@ -464,23 +464,45 @@ static AFM_CLONES_NOINLINE rt_snap *rt_contact_acc(const afm_sim *s, const rt_st
     return a;
 }
 
+/* The tip at a merged piece's midpoint (rt_merge_ok_t): what the step record's end needs. */
+typedef struct {
+    double x_m, v_m_s, a_m_s2; /* quintic Hermite of the ends' x, v, a */
+    double f_n, fdot_n_s;      /* the force law there and its dF/dt (f_x v + f_v a) */
+} rt_mid;
+
 /* The embedded error estimate of a Hermite piece of length T in contact from in to o (o's
  * acc_m_s2 set; a0 the tip's acceleration at in): the tip at the midpoint from the ends' x,
  * v, a (quintic Hermite: its error is ~T^6 x^(6) / 46080, far below the force's), the force
  * law there against the Hermite interpolant's midpoint value (F0 + F1) / 2 + (D0 - D1) / 8
- * (its error ~T^4 F^(4) / 384). True where the two agree within tol (N). */
+ * (its error ~T^4 F^(4) / 384). True where the two agree within tol (N); *m the midpoint. */
 static inline __attribute__((always_inline)) bool rt_merge_ok_t(const afm_sim *s, const rt_state *r,
                                                                 const rt_snap *in, const rt_snap *o,
-                                                                double T, double a0, double tol) {
+                                                                double T, double a0, double tol,
+                                                                rt_mid *m) {
     const double x0 = in->tip.x_m, v0 = in->tip.v_m_s, x1 = o->tip.x_m, v1 = o->tip.v_m_s;
     const double a1 = o->acc_m_s2;
-    const double xm = 0.5 * (x0 + x1) + T * (5.0 / 32.0) * (v0 - v1) + T * T * (a0 + a1) / 64.0;
-    const double vm =
-        (15.0 / 8.0) * (x1 - x0) / T - (7.0 / 16.0) * (v0 + v1) + T * (a1 - a0) / 32.0;
+    m->x_m = 0.5 * (x0 + x1) + T * (5.0 / 32.0) * (v0 - v1) + T * T * (a0 + a1) / 64.0;
+    m->v_m_s = (15.0 / 8.0) * (x1 - x0) / T - (7.0 / 16.0) * (v0 + v1) + T * (a1 - a0) / 32.0;
+    m->a_m_s2 = 1.5 * (v1 - v0) / T - 0.25 * (a0 + a1);
     double fx, fv;
-    const double fl = rt_force_in(s, r, xm, vm, &fx, &fv);
+    m->f_n = rt_force_in(s, r, m->x_m, m->v_m_s, &fx, &fv);
+    m->fdot_n_s = fma(fx, m->v_m_s, fv * m->a_m_s2);
     const double fh = 0.5 * (in->tip.f_n + o->tip.f_n) + T * (in->fdot_n_s - o->fdot_n_s) / 8.0;
-    return fabs(fl - fh) <= tol;
+    return fabs(m->f_n - fh) <= tol;
+}
+
+/* A merged piece's record in two halves around its midpoint m (the end-corrected trapezoid
+ * over the long piece errs 16 times the halves'): the midpoint as a kept end at frac_m. */
+static inline void rt_ev_merged(rt_evacc *ea, const afm_sim *s, const rt_state *r, const rt_snap *o,
+                                const rt_mid *m, double frac_m, double frac1) {
+    rt_snap hs, *h = &hs; /* only the tip fields rt_ev_end_of reads */
+    h->tip.x_m = m->x_m;
+    h->tip.v_m_s = m->v_m_s;
+    h->tip.f_n = m->f_n;
+    h->fdot_n_s = m->fdot_n_s;
+    h->acc_m_s2 = m->a_m_s2;
+    rt_ev_piece(ea, s, r, h, frac_m, true);
+    rt_ev_piece(ea, s, r, o, frac1, true);
 }
 
 /* A sample near or in contact, without thermal noise, from a into b: RT_ACC_NEAR_PIECES whole
@@ -522,10 +544,11 @@ static inline __attribute__((always_inline)) void rt_graded_acc(const afm_sim *s
             xc - in->tip.x_m >= close2 * fabs(in->tip.v_m_s)) {
             rt_snap *o2 = p + 2 == K ? b : o;
             const double a0 = rt_ev_acc(r, in, np, nt);
+            rt_mid mid;
             rt_piece_acc_t(s, r, in, o2, 2 * k, true, np, nt, false, true);
             if (o2->tip.x_m < xc && xc - o2->tip.x_m >= close2 * fabs(o2->tip.v_m_s) &&
-                rt_merge_ok_t(s, r, in, o2, 2.0 * tau, a0, mtol)) {
-                if (ea) rt_ev_piece(ea, s, r, o2, (double)(p + 2) / K, true);
+                rt_merge_ok_t(s, r, in, o2, 2.0 * tau, a0, mtol, &mid)) {
+                if (ea) rt_ev_merged(ea, s, r, o2, &mid, (double)(p + 1) / K, (double)(p + 2) / K);
                 in = o2;
                 p++;
                 continue;

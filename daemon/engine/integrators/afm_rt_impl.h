@@ -51,7 +51,10 @@
  * tip there from its ends' x, v, a: quintic Hermite) against the Hermite force's midpoint
  * value, within this many of the Newton tolerance (rt_state.ftol: the force that bends the
  * cantilever by 1 pm). 0: never. Both ends in contact, not close to the line (as
- * RT_ACC_CLOSE_TRAVELS, with the long piece's travel), no crossing. */
+ * RT_ACC_CLOSE_TRAVELS, with the long piece's travel), no crossing; its step record in two
+ * halves around that midpoint (rt_ev_merged). At 1: default.conf 1019.5 -> 1034.3 instructions
+ * per sample, test_rt_steady 148/0 but NCHV's energy 0.031 -> 0.040 eV (docs/numerics.md,
+ * seventh round): dearer, so off. */
 #ifndef RT_ACC_MERGE_TOL
 #define RT_ACC_MERGE_TOL 0.0
 #endif
