@@ -51,10 +51,11 @@
  * tip there from its ends' x, v, a: quintic Hermite) against the Hermite force's midpoint
  * value, within this many of the Newton tolerance (rt_state.ftol: the force that bends the
  * cantilever by 1 pm). 0: never. Both ends in contact, not close to the line (as
- * RT_ACC_CLOSE_TRAVELS, with the long piece's travel), no crossing; its step record in two
- * halves around that midpoint (rt_ev_merged). At 1: default.conf 1019.5 -> 1034.3 instructions
- * per sample, test_rt_steady 148/0 but NCHV's energy 0.031 -> 0.040 eV (docs/numerics.md,
- * seventh round): dearer, so off. */
+ * RT_ACC_CLOSE_TRAVELS, with the long piece's travel; no trial where the end predicted from
+ * the start is), no crossing; its step record's work corrected with that midpoint
+ * (rt_ev_merged). At 1: default.conf 1019.5 -> 1023.2 instructions per sample, nchv.conf
+ * 1145.9 -> 1178.9, test_rt_steady 148/0 with NCHV's energy 0.031 -> 0.038 eV
+ * (docs/numerics.md, seventh round): dearer, so off. */
 #ifndef RT_ACC_MERGE_TOL
 #define RT_ACC_MERGE_TOL 0.0
 #endif
