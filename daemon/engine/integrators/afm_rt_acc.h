@@ -464,6 +464,62 @@ static AFM_CLONES_NOINLINE rt_snap *rt_contact_acc(const afm_sim *s, const rt_st
     return a;
 }
 
+/* The tip at a merged piece's midpoint (rt_merge_ok_t): what the step record's end needs. */
+typedef struct {
+    double x_m, v_m_s, a_m_s2; /* quintic Hermite of the ends' x, v, a */
+    double f_n, fdot_n_s;      /* the force law there and its dF/dt (f_x v + f_v a) */
+} rt_mid;
+
+/* The embedded error estimate of a Hermite piece of length T in contact from in to o (o's
+ * acc_m_s2 set; a0 the tip's acceleration at in): the tip at the midpoint from the ends' x,
+ * v, a (quintic Hermite: its error is ~T^6 x^(6) / 46080, far below the force's), the force
+ * law there against the Hermite interpolant's midpoint value (F0 + F1) / 2 + (D0 - D1) / 8
+ * (its error ~T^4 F^(4) / 384). True where the two agree within tol (N); *m the midpoint. */
+static inline __attribute__((always_inline)) bool rt_merge_ok_t(const afm_sim *s, const rt_state *r,
+                                                                const rt_snap *in, const rt_snap *o,
+                                                                double T, double a0, double tol,
+                                                                rt_mid *m) {
+    const double x0 = in->tip.x_m, v0 = in->tip.v_m_s, x1 = o->tip.x_m, v1 = o->tip.v_m_s;
+    const double a1 = o->acc_m_s2;
+    m->x_m = 0.5 * (x0 + x1) + T * (5.0 / 32.0) * (v0 - v1) + T * T * (a0 + a1) / 64.0;
+    m->v_m_s = (15.0 / 8.0) * (x1 - x0) / T - (7.0 / 16.0) * (v0 + v1) + T * (a1 - a0) / 32.0;
+    m->a_m_s2 = 1.5 * (v1 - v0) / T - 0.25 * (a0 + a1);
+    double fx, fv;
+    m->f_n = rt_force_in(s, r, m->x_m, m->v_m_s, &fx, &fv);
+    m->fdot_n_s = fma(fx, m->v_m_s, fv * m->a_m_s2);
+    const double fh = 0.5 * (in->tip.f_n + o->tip.f_n) + T * (in->fdot_n_s - o->fdot_n_s) / 8.0;
+    return fabs(m->f_n - fh) <= tol;
+}
+
+/* The end-corrected trapezoid's g = (F - F_sq) v and its slope at e (rt_ev_work's, Hermite). */
+static inline void rt_ev_g(const rt_ev_end *e, double *g, double *d) {
+    const double t = e->f - e->fsq;
+    *g = t * e->v;
+    *d = (e->fdot - e->sqd) * e->v + t * e->a;
+}
+
+/* A merged piece's record from the last kept end to o (frac1; the piece T = 2 tau long): one
+ * record update, its work corrected with the midpoint m from the end-corrected trapezoid to
+ * T [7/30 (g0 + g1) + 8/15 gm] + T^2/60 (g0' - g1') (exact to degree 5; the trapezoid over
+ * the long piece errs 16 times its halves'). */
+static inline void rt_ev_merged(rt_evacc *ea, const afm_sim *s, const rt_state *r, const rt_snap *o,
+                                const rt_mid *m, double T, double frac1) {
+    const rt_ev_end e0 = ea->e0;
+    rt_ev_piece(ea, s, r, o, frac1, true);
+    rt_snap hs, *h = &hs; /* only the tip fields rt_ev_end_of reads */
+    h->tip.x_m = m->x_m;
+    h->tip.v_m_s = m->v_m_s;
+    h->tip.f_n = m->f_n;
+    h->fdot_n_s = m->fdot_n_s;
+    rt_ev_end em;
+    rt_ev_end_of(s, r, h, m->a_m_s2, &em);
+    double g0, d0, g1, d1, gm, dm;
+    rt_ev_g(&e0, &g0, &d0);
+    rt_ev_g(&ea->e0, &g1, &d1);
+    rt_ev_g(&em, &gm, &dm);
+    ea->rec.work_ts_j += (4.0 / 15.0) * T * (2.0 * gm - g0 - g1 - 0.25 * T * (d0 - d1));
+}
+
 /* A sample near or in contact, without thermal noise, from a into b: RT_ACC_NEAR_PIECES whole
  * Hermite pieces, a piece whose path crosses the contact line or has an end in contact close
  * to it (RT_ACC_CLOSE_TRAVELS) redone in its share of the m contact substeps (rt_substep_acc:
@@ -478,6 +534,7 @@ static inline __attribute__((always_inline)) void rt_graded_acc(const afm_sim *s
     const double tau = s->dt_s / K, taus = s->dt_s / r->m, xc = r->xc;
     const double close = RT_ACC_CLOSE_TRAVELS * tau;
     const double far2 = RT_ACC_MERGE_TRAVELS * 2.0 * tau;
+    const double close2 = RT_ACC_CLOSE_TRAVELS * 2.0 * tau, mtol = RT_ACC_MERGE_TOL * r->ftol;
     rt_snap t[2], w[2];
     const rt_snap *in = a;
     for (int p = 0; p < K; p++) {
@@ -494,6 +551,28 @@ static inline __attribute__((always_inline)) void rt_graded_acc(const afm_sim *s
                 in = o2;
                 p++;
                 continue;
+            }
+        }
+        /* in contact, clear of the line at both ends (RT_ACC_CLOSE_TRAVELS of the long
+         * piece's travel) and the embedded estimate small (RT_ACC_MERGE_TOL): two in one */
+        if (RT_ACC_MERGE_TOL > 0 && (p & 1) == 0 && in->tip.x_m < xc &&
+            xc - in->tip.x_m >= close2 * fabs(in->tip.v_m_s)) {
+            rt_snap *o2 = p + 2 == K ? b : o;
+            const double a0 = rt_ev_acc(r, in, np, nt), T = 2.0 * tau;
+            /* the end predicted from the start (x0 + v0 T + a0 T^2 / 2): a trial whose end
+             * would come close to the line is not taken (its result would be discarded) */
+            const double xp = fma(fma(0.5 * a0, T, in->tip.v_m_s), T, in->tip.x_m);
+            const double vp = fma(a0, T, in->tip.v_m_s);
+            rt_mid mid;
+            if (xc - xp >= close2 * fabs(vp)) {
+                rt_piece_acc_t(s, r, in, o2, 2 * k, true, np, nt, false, true);
+                if (o2->tip.x_m < xc && xc - o2->tip.x_m >= close2 * fabs(o2->tip.v_m_s) &&
+                    rt_merge_ok_t(s, r, in, o2, T, a0, mtol, &mid)) {
+                    if (ea) rt_ev_merged(ea, s, r, o2, &mid, T, (double)(p + 2) / K);
+                    in = o2;
+                    p++;
+                    continue;
+                }
             }
         }
         /* a start in contact close to the line: the piece is redone whatever its end, so

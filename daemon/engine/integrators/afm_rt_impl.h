@@ -46,6 +46,19 @@
 #ifndef RT_ACC_MERGE_TRAVELS
 #define RT_ACC_MERGE_TRAVELS 2.0
 #endif
+/* Two pieces in contact are taken as one where an embedded error estimate allows it
+ * (rt_merge_ok_t, issue 29, seventh round): the force law at the long piece's midpoint (the
+ * tip there from its ends' x, v, a: quintic Hermite) against the Hermite force's midpoint
+ * value, within this many of the Newton tolerance (rt_state.ftol: the force that bends the
+ * cantilever by 1 pm). 0: never. Both ends in contact, not close to the line (as
+ * RT_ACC_CLOSE_TRAVELS, with the long piece's travel; no trial where the end predicted from
+ * the start is), no crossing; its step record's work corrected with that midpoint
+ * (rt_ev_merged). At 1: default.conf 1019.5 -> 1023.2 instructions per sample, nchv.conf
+ * 1145.9 -> 1178.9, test_rt_steady 148/0 with NCHV's energy 0.031 -> 0.038 eV
+ * (docs/numerics.md, seventh round): dearer, so off. */
+#ifndef RT_ACC_MERGE_TOL
+#define RT_ACC_MERGE_TOL 0.0
+#endif
 #define RT_ACC_SURE 0.999 /* rt_state.sure_k: below 1, so that rounding cannot decide */
 #define RT_MAX_SUBSTEPS AFM_MAX_RT_SUBSTEPS
 #define RT_RESYNC 4096 /* steps between phasor resynchronisations */
