@@ -114,7 +114,9 @@ void afm_cycle_reset(afm_cycle *c) {
  * becomes the tip-sample force f - F_sq(x, v), and its theta_rad (the tip rotation, which
  * no metric here uses) carries the squeeze film's power F_sq v (W). Everything below then
  * works on the tip-sample force; the sums of w F_sq v give squeeze_dissipated_energy_j.
- * Both push paths split each sample with the same function, so they stay bit for bit equal. */
+ * afm_cycle_push splits a sample by split_sample, the runs read the split from
+ * afm_cycle_split_forces (its loops are split_sample's operations, the same bits): the
+ * chain's, or one afm_cycle_push_n takes here (split_here). */
 
 /* The squeeze film's force on the tip at (x, v) (N): afm_force_squeeze_term's expressions
  * (the linear film's verbatim, without the partials), Starr's coefficient from the
@@ -141,25 +143,6 @@ static CYCLE_INLINE void split_sample(const afm_cycle *c, const afm_sample *s, a
     d->theta_rad = fs * s->v_m_s;
 }
 
-/* split_sample of s[0 .. m-1] into d (a run's samples). */
-static AFM_CLONES_NOINLINE void split_run(const afm_cycle *c, const afm_sample *restrict s,
-                                          afm_sample *restrict d, int m) {
-    const afm_force_params *f = c->forces;
-    if (f->squeeze == AFM_SQUEEZE_LINEAR) { /* squeeze_force's, the constants hoisted */
-        const double p1 = f->p1, p2 = f->p2, z = c->z_m;
-        for (int j = 0; j < m; j++) {
-            double cq = p1 * (z + s[j].x_m) + p2, v = s[j].v_m_s;
-            double fs = cq > 0.0 ? -cq * v : 0.0;
-            copy_sample(d + j, s + j);
-            d[j].f_n = s[j].f_n - fs;
-            d[j].theta_rad = fs * v;
-        }
-        return;
-    }
-    for (int j = 0; j < m; j++)
-        split_sample(c, s + j, d + j);
-}
-
 AFM_CLONES void afm_cycle_split_forces(const afm_cycle *c, const afm_sample *restrict s, int n,
                                        double *restrict f_ts, double *restrict p_sq) {
     if (!c->split) {
@@ -168,7 +151,7 @@ AFM_CLONES void afm_cycle_split_forces(const afm_cycle *c, const afm_sample *res
         return;
     }
     const afm_force_params *f = c->forces;
-    if (f->squeeze == AFM_SQUEEZE_LINEAR) { /* split_run's, the same bits */
+    if (f->squeeze == AFM_SQUEEZE_LINEAR) { /* squeeze_force's, the constants hoisted */
         const double p1 = f->p1, p2 = f->p2, z = c->z_m;
         int j = 0;
         /* 4 samples at a time: (x, v) and (f, theta) of samples 0, 2 and 1, 3 side by side,
@@ -916,7 +899,7 @@ int afm_cycle_push_ev(afm_cycle *c, const afm_sample *s, double theta_rad,
 enum {
     RUN_MAX = 512,  /* samples per run (the event records below are on the stack) */
     RUN_MIN = 4,    /* shorter stretches go through afm_cycle_push */
-    SPLIT_MAX = 256 /* with split: samples per run (split into a buffer on the stack) */
+    SPLIT_MAX = 256 /* with split: samples per run, and per block split_here splits */
 };
 
 /* Index of the lowest set bit of m != 0. */
@@ -935,7 +918,7 @@ typedef struct {
     const afm_sample *s; /* the run's samples; sample -1 is *p0 */
     const double *fs;    /* with the split given apart (afm_cycle_push_n_split): the
                             tip-sample force and squeeze power of s[k] (NULL: s[k]'s own f_n,
-                            theta_rad, split already or without a film) */
+                            theta_rad: without a film) */
     const double *qs;
     afm_cycle *c;
     const afm_sample *p0; /* the sample before the run (c->prev) */
@@ -1301,7 +1284,7 @@ static CYCLE_INLINE int run_sums_of(const run_state *r, const afm_cycle *c, cons
 }
 
 /* A run over s[0 .. m-1] (m <= RUN_MAX, fast-path room for m samples, period active, full
- * history), split (fs NULL) or with its split in fs[0 .. m-1], qs[0 .. m-1] (force and
+ * history), without split (fs NULL) or with its split in fs[0 .. m-1], qs[0 .. m-1] (force and
  * squeeze power, afm_cycle_split_forces). Returns the samples taken (0: none, the caller
  * pushes the next one), or -k: the first k samples hold a value that is not finite; nothing
  * changed (the caller pushes them one at a time). */
@@ -1363,35 +1346,28 @@ AFM_CLONES static int run(afm_cycle *c, const afm_sample *s, const double *th, i
 }
 
 /* afm_cycle_push for a sample known to be off the tracker's fast path (afm_track_fast
- * would fail): its checks, then the exact clock. f, qs (NULL: none): its split force and
- * squeeze power given apart (afm_cycle_split_forces, as the runs read them). */
+ * would fail): its checks, then the exact clock. f, qs (with split; NULL without): its split
+ * force and squeeze power given apart (afm_cycle_split_forces, as the runs read them). */
 static CYCLE_INLINE int push_exact(afm_cycle *c, const afm_sample *q, double th, const double *f,
                                    const double *qs) {
     /* all finite: the products with 0 are all +-0 (NaN otherwise) */
     double z = (q->t_s * 0.0 + q->x_m * 0.0) + (q->v_m_s * 0.0 + q->f_n * 0.0);
     if (!(z == 0.0 && !(c->n_prev > 0 && !(q->t_s > c->prev.t_s)))) return -1;
     afm_sample sp;
-    if (c->split) {
-        if (f) {
-            copy_sample(&sp, q);
-            sp.f_n = *f;
-            sp.theta_rad = *qs;
-        } else {
-            split_sample(c, q, &sp);
-        }
+    if (f) {
+        copy_sample(&sp, q);
+        sp.f_n = *f;
+        sp.theta_rad = *qs;
         q = &sp;
     }
     return push_slow(c, q, th);
 }
 
-int afm_cycle_push_n(afm_cycle *c, const afm_sample *s, const double *th, int n, int *done,
-                     long long *rejects) {
-    return afm_cycle_push_n_split(c, s, th, NULL, NULL, n, done, rejects);
-}
-
-AFM_CLONES int afm_cycle_push_n_split(afm_cycle *c, const afm_sample *s, const double *th,
-                                      const double *f_ts, const double *p_sq, int n, int *done,
-                                      long long *rejects) {
+/* afm_cycle_push_n_split's work, with split given apart (f_ts, p_sq; not read without
+ * split): one path for the chain's split and the one split_here takes. */
+static CYCLE_INLINE int push_n_core(afm_cycle *c, const afm_sample *s, const double *th,
+                                    const double *f_ts, const double *p_sq, int n, int *done,
+                                    long long *rejects) {
     *done = 0;
     int i = 0, one_by_one = 0;
     while (i < n) {
@@ -1403,15 +1379,8 @@ AFM_CLONES int afm_cycle_push_n_split(afm_cycle *c, const afm_sample *s, const d
             if (c->split && m > SPLIT_MAX) m = SPLIT_MAX;
             if (room < m) m = room > 0 ? (int)room : 0;
             if (m >= RUN_MIN) {
-                const afm_sample *rs = s + i;
-                afm_sample sp[SPLIT_MAX];
-                const bool apart = c->split && f_ts; /* split already: read from there */
-                if (c->split && !f_ts) {             /* the run on the split samples */
-                    split_run(c, s + i, sp, m);
-                    rs = sp;
-                }
-                int k = apart ? run(c, rs, th + i, m, f_ts + i, p_sq + i)
-                              : run(c, rs, th + i, m, NULL, NULL);
+                int k = c->split ? run(c, s + i, th + i, m, f_ts + i, p_sq + i)
+                                 : run(c, s + i, th + i, m, NULL, NULL);
                 if (k > 0) {
                     i += k;
                     /* a run that took the whole room: the next sample is off the fast path */
@@ -1422,9 +1391,9 @@ AFM_CLONES int afm_cycle_push_n_split(afm_cycle *c, const afm_sample *s, const d
                 }
             }
         }
-        int rc = !off   ? afm_cycle_push(c, &s[i], th[i])
-                 : f_ts ? push_exact(c, &s[i], th[i], f_ts + i, p_sq + i)
-                        : push_exact(c, &s[i], th[i], NULL, NULL);
+        int rc = !off       ? afm_cycle_push(c, &s[i], th[i])
+                 : c->split ? push_exact(c, &s[i], th[i], f_ts + i, p_sq + i)
+                            : push_exact(c, &s[i], th[i], NULL, NULL);
         i++;
         if (one_by_one > 0) one_by_one--;
         if (rc < 0) (*rejects)++;
@@ -1434,4 +1403,32 @@ AFM_CLONES int afm_cycle_push_n_split(afm_cycle *c, const afm_sample *s, const d
         }
     }
     return i;
+}
+
+/* afm_cycle_push_n_split with split and no split given: the split taken here
+ * (afm_cycle_split_forces) SPLIT_MAX samples at a time (the same bits however the stream is
+ * cut), out of the hot function's way. */
+static AFM_CLONES_NOINLINE int split_here(afm_cycle *c, const afm_sample *s, const double *th,
+                                          int n, int *done, long long *rejects) {
+    double f[SPLIT_MAX], q[SPLIT_MAX];
+    int i = 0;
+    *done = 0;
+    while (i < n && !*done) {
+        int m = n - i < SPLIT_MAX ? n - i : SPLIT_MAX;
+        afm_cycle_split_forces(c, s + i, m, f, q);
+        i += afm_cycle_push_n_split(c, s + i, th + i, f, q, m, done, rejects);
+    }
+    return i;
+}
+
+int afm_cycle_push_n(afm_cycle *c, const afm_sample *s, const double *th, int n, int *done,
+                     long long *rejects) {
+    return afm_cycle_push_n_split(c, s, th, NULL, NULL, n, done, rejects);
+}
+
+AFM_CLONES int afm_cycle_push_n_split(afm_cycle *c, const afm_sample *s, const double *th,
+                                      const double *f_ts, const double *p_sq, int n, int *done,
+                                      long long *rejects) {
+    if (c->split && !f_ts) return split_here(c, s, th, n, done, rejects);
+    return push_n_core(c, s, th, f_ts, p_sq, n, done, rejects);
 }
