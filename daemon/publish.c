@@ -10,12 +10,14 @@
 #include "transport/afm_lcm_encode.h"
 
 #include <errno.h>
+#include <sched.h>
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
 #include <time.h>
 
 #define STATUS_PERIOD_S 0.1
+#define DRAIN_ROUNDS 64 /* per loop: then the status, and a yield */
 
 void twind_status_fill(twind *d, afm_io_status *o, twind_rtf_state *rs) {
     twind_snapshot s;
@@ -139,13 +141,17 @@ static void republish(twind *d, pub_state *p) {
     atomic_fetch_add_explicit(&d->republished, 1, memory_order_relaxed);
 }
 
-/* Every waiting record and completion, in the order the chain thread committed them: a
- * record only while no completion committed before it waits, a completion once the records
- * committed before it are out (its counts), with the digest of the messages since the
- * previous one. Records are peeked before the completion queue, so a completion committed
- * before a record is always seen first. */
-static void drain(twind *d, pub_state *p) {
-    for (bool progress = true; progress;) {
+/* The waiting records and completions, at most DRAIN_ROUNDS rounds of one of each, in the
+ * order the chain thread committed them: a record only while no completion committed before
+ * it waits, a completion once the records committed before it are out (its counts), with the
+ * digest of the messages since the previous one. Records are peeked before the completion
+ * queue, so a completion committed before a record is always seen first. Bounded, so that a
+ * backlog that never empties (the publisher behind) still leaves the loop its status and a
+ * yield. true when it stopped at the bound with work left. */
+static bool drain(twind *d, pub_state *p) {
+    int rounds = 0;
+    bool progress = true;
+    for (; progress && rounds < DRAIN_ROUNDS; rounds++) {
         progress = false;
         twind_done_item *it;
         afm_io_samples *s = afm_spsc_peek(&d->samples_q);
@@ -189,6 +195,7 @@ static void drain(twind *d, pub_state *p) {
             progress = true;
         }
     }
+    return progress;
 }
 
 void *twind_pub_main(void *arg) {
@@ -200,11 +207,15 @@ void *twind_pub_main(void *arg) {
     static afm_io_status st; /* large (reason strings) */
     pub_state ps = {0};
     afm_lcm_digest_init(&ps.dg);
-    for (;;) {
-        struct timespec ts = twind_deadline_in(20000000L);
-        while (sem_timedwait(&d->out_sem, &ts) != 0 && errno == EINTR) {
+    for (bool more = false;;) {
+        if (!more) { /* (with work left from the last loop: no wait) */
+            struct timespec ts = twind_deadline_in(20000000L);
+            while (sem_timedwait(&d->out_sem, &ts) != 0 && errno == EINTR) {
+            }
         }
-        drain(d, &ps);
+        while (sem_trywait(&d->out_sem) == 0) { /* the posts so far: the drain sees their items */
+        }
+        more = drain(d, &ps);
         republish(d, &ps);
         double now = twind_mono_now();
         if (now >= next_status) {
@@ -214,8 +225,14 @@ void *twind_pub_main(void *arg) {
             if (next_status < now) next_status = now + STATUS_PERIOD_S;
         }
         if (atomic_load_explicit(&d->chain_done, memory_order_acquire)) break;
+        /* Behind (its semaphore already posted again) it would never block, and at SCHED_FIFO
+         * the receive and main threads of its priority on its CPU would wait for it for as
+         * long as it has work: a daemon pinned beside its integrator (--aux-cpu = --cpu) that
+         * fell behind took commands and SIGTERM minutes late. To the tail of its priority. */
+        sched_yield();
     }
-    drain(d, &ps);
+    while (drain(d, &ps)) {
+    }
     twind_status_fill(d, &st, &rs);
     d->io->ops->publish_status(d->io, &st); /* the final status */
     return NULL;

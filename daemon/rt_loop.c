@@ -23,7 +23,13 @@
  * then the thread waits on cmd_sem (posted with every command queued), so that a tick or a
  * run starts as soon as it arrives. The real-time factor of the status is model time over
  * wall time of the last second of running turns (RTF_BUCKETS buckets of RTF_BUCKET_S,
- * sliding): paused and idle turns do not count, a turn that fell behind does. */
+ * sliding): paused and idle turns do not count, a turn that fell behind does.
+ * Sharing the CPU: at SCHED_FIFO 80 a loop that never waits (a twin behind real time whose
+ * chain keeps up, or freerun) keeps every thread below it off its CPU: where the receive,
+ * publish and main threads share it (`--aux-cpu` = `--cpu`, or one core) no command was
+ * taken, nothing published and SIGTERM not handled (measured: a pinned daemon behind real
+ * time ran on for 10 minutes). So after SHARE_AFTER_S without a wait the loop naps
+ * SHARE_NAP_NS: at most 2 % of a twin that is behind anyway, nothing while it keeps up. */
 #include "twind.h"
 
 #include <limits.h>
@@ -39,6 +45,8 @@
  * ring still holds 7/8 of its items for the chain when the nap ends). */
 #define CHAIN_WAIT_MIN_NS 20000L
 #define CHAIN_WAIT_MAX_NS 200000L
+#define SHARE_AFTER_S 0.05
+#define SHARE_NAP_NS 1000000L
 #define RTF_BUCKETS 10
 #define RTF_BUCKET_S 0.1
 
@@ -52,7 +60,8 @@ typedef struct {
     /* real-time factor: wall and model seconds of running turns, per bucket */
     double rtf_wall[RTF_BUCKETS], rtf_model[RTF_BUCKETS], cur_wall, cur_model;
     int rtf_next, rtf_full;
-    double last_end; /* wall time at the end of the previous turn */
+    double last_end;  /* wall time at the end of the previous turn */
+    double waited_at; /* wall time this thread last waited (any wait) */
 } rt_ctx;
 
 /* A running turn that ended at `now` and advanced model_s: into the buckets; rtf_1s from
@@ -144,6 +153,18 @@ static void apply_commands(rt_ctx *c) {
     flush_trash(c);
 }
 
+/* After SHARE_AFTER_S of running without a wait, one nap of SHARE_NAP_NS for the threads
+ * below this one on its CPU (the top comment). */
+static void share_cpu(rt_ctx *c) {
+    struct timespec n;
+    clock_gettime(CLOCK_MONOTONIC, &n);
+    if (ts_sec(&n) - c->waited_at < SHARE_AFTER_S) return;
+    struct timespec w = {0, SHARE_NAP_NS};
+    clock_nanosleep(CLOCK_MONOTONIC, 0, &w, NULL);
+    clock_gettime(CLOCK_MONOTONIC, &n);
+    c->waited_at = ts_sec(&n);
+}
+
 void *twind_rt_main(void *arg) {
     twind_thread_name("afm-rt");
     twind *d = arg;
@@ -154,7 +175,7 @@ void *twind_rt_main(void *arg) {
     clock_gettime(CLOCK_MONOTONIC, &origin);
     long long origin_samples = 0;
     double speed = d->opt.speed > 0 ? d->opt.speed : 1.0;
-    c.busy_t0 = c.last_end = ts_sec(&origin);
+    c.busy_t0 = c.last_end = c.waited_at = ts_sec(&origin);
     long chain_wait_ns = (long)(d->opt.ring_s / 8 * 1e9);
     if (chain_wait_ns < CHAIN_WAIT_MIN_NS) chain_wait_ns = CHAIN_WAIT_MIN_NS;
     if (chain_wait_ns > CHAIN_WAIT_MAX_NS) chain_wait_ns = CHAIN_WAIT_MAX_NS;
@@ -185,7 +206,7 @@ void *twind_rt_main(void *arg) {
                 sem_timedwait(&d->cmd_sem, &ts); /* EINTR, ETIMEDOUT: look again */
             clock_gettime(CLOCK_MONOTONIC, &origin);
             origin_samples = st.samples;
-            c.last_end = ts_sec(&origin);
+            c.last_end = c.waited_at = ts_sec(&origin);
             continue;
         }
         struct timespec t_start;
@@ -208,6 +229,7 @@ void *twind_rt_main(void *arg) {
                 clock_nanosleep(CLOCK_MONOTONIC, 0, &w, NULL);
                 clock_gettime(CLOCK_MONOTONIC, &n1);
                 napped += ts_sec(&n1) - ts_sec(&n0);
+                c.waited_at = ts_sec(&n1);
                 continue;
             }
             apply_commands(&c);
@@ -245,13 +267,17 @@ void *twind_rt_main(void *arg) {
                 late = 0;
             }
             twind_snap_write(d, &c.snap);
-            if (late < 0) clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &deadline, NULL);
+            if (late < 0) {
+                clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &deadline, NULL);
+                c.waited_at = ts_sec(&deadline);
+            }
         } else {
             c.snap.lag_s = 0;
             twind_scheme_turn(d, c.r, &c.snap, 0.0, (double)(st.samples - before) * dt,
                               ts_sec(&now));
             twind_snap_write(d, &c.snap);
         }
+        share_cpu(&c);
         clock_gettime(CLOCK_MONOTONIC, &now); /* after the sleep: the turn's whole wall time */
         rtf_account(&c, ts_sec(&now), (double)(st.samples - before) * dt);
         c.last_end = ts_sec(&now);

@@ -98,5 +98,31 @@ recipe() {
 recipe "after 4 s of uptime" 4
 recipe "at model time 60 s (--start-time 60)" 1.5 --start-time 60
 
+# Behind real time with every thread below the integrator on its CPU (`--cpu 0 --chain-cpu 1
+# --aux-cpu 0` at --speed 3: the integrator never keeps up). Before: the publisher's drain
+# never emptied, so no status went out, and at the same SCHED_FIFO priority it kept the
+# receive and main threads off the CPU: no status in 3 s, --exit-after 5 took 10-16 s (a
+# scan daemon pinned this way ran on, unkillable, for 10 minutes). Now the drain is bounded
+# per loop, the publisher yields, and the integrator naps 1 ms after 50 ms without a wait.
+# Pass: 3 statuses within 3 s (the listener above the daemon, on its CPU), and the daemon
+# gone within 3 s of --exit-after.
+t0=$(date +%s.%N)
+"$D" --config config/default.conf --scheme fast --speed 3 --cpu 0 --chain-cpu 1 --aux-cpu 0 \
+  --quiet --exit-after 5 2> "$T/pin.err" & DPID=$!
+sleep 2
+n=$(taskset -c 0 chrt -f 90 "$A" listen --channels status --json --count 3 --timeout 3 2>/dev/null |
+  grep -c realtime_factor)
+for _ in $(seq 1 60); do kill -0 "$DPID" 2>/dev/null || break; sleep 0.1; done
+gone=$(awk -v a="$t0" -v b="$(date +%s.%N)" 'BEGIN{printf "%.1f", b - a}')
+if kill -0 "$DPID" 2>/dev/null; then kill -KILL "$DPID"; gone="not gone after $gone"; fi
+wait "$DPID" 2>/dev/null; DPID=""
+[ "$n" -eq 3 ] && ok "pinned beside its integrator, behind real time: 3 statuses in 3 s" ||
+  bad "pinned beside its integrator, behind real time: $n statuses in 3 s"
+case "$gone" in
+  not*) bad "pinned beside its integrator: --exit-after 5: $gone s" ;;
+  *) awk -v g="$gone" 'BEGIN{exit !(g <= 8)}' && ok "pinned beside its integrator: --exit-after 5 gone after $gone s" ||
+       bad "pinned beside its integrator: --exit-after 5 gone after $gone s (> 8)" ;;
+esac
+
 echo "$pass passed, $fail failed"
 [ "$fail" -eq 0 ]
