@@ -191,10 +191,13 @@ listen --channels status --json --timeout $((AFTER + 10)) > "$T/st.jsonl" 2>/dev
 # commands at 10 kHz under load), its socket buffer (recv_buf_size, 4 MB) holding the rest.
 # Enough at 1000 commands/s (all logged); at 10 000/s, with the daemon behind and taking 1.3
 # cores, it kept 344 485 of 584 947 (README, FM).
-# FM_LOGGER_PRIO sets another priority (docs/realtime.md, "Command intake": 74, just below the
+# FM_LOGGER_PRIO sets another priority (0: SCHED_OTHER, which make fm-stream uses: loggers at
+# SCHED_FIFO count against the kernel's real-time throttling, 95 % of each second on a CPU,
+# and a full CPU of them stalls every SCHED_FIFO thread there for the rest of the second;
+# docs/realtime.md, "Command intake": 74, just below the
 # controller, tried at 10 kHz).
 LOGGER_PRIO=${FM_LOGGER_PRIO:-1}
-logrt=(); chrt -f "$LOGGER_PRIO" true 2>/dev/null && logrt=(chrt -f "$LOGGER_PRIO")
+logrt=(); [ "$LOGGER_PRIO" -gt 0 ] && chrt -f "$LOGGER_PRIO" true 2>/dev/null && logrt=(chrt -f "$LOGGER_PRIO")
 # FM_LOGGER_CPU: the CPUs of the loggers (default: this shell's)
 [ -n "${FM_LOGGER_CPU:-}" ] && logrt=(taskset -c "$FM_LOGGER_CPU" "${logrt[@]}")
 if [ "$REPLAY" = 1 ]; then
