@@ -68,21 +68,26 @@ cp config/default.conf "$T/run.conf"
 DPID=$!
 # the start-up line comes once the threads run (LCM subscribed before): no fixed sleep
 for i in $(seq 1 100); do grep -q "free amplitude A0" "$T/d.err" && break; sleep 0.2; done
-# settled FILE AWKCOND: 5 statuses into FILE, again (up to 10 times, ~1 s apart) until the
-# last one meets AWKCOND on z (separation_m), fe, ae (tone 0) and a0 ("" while NaN): under
-# load a command, a reload or A0 takes longer than a fixed sleep. Whether it ever met the
-# condition, the checks below judge FILE as it is.
+# settled FILE AWKCOND: 5 statuses into FILE, again (up to 10 times, ~1 s apart) until every
+# one of them meets AWKCOND on z (separation_m), fe, ae (tone 0) and a0 ("" while NaN): under
+# load a command, a reload or A0 takes longer than a fixed sleep, and a window in which A0
+# arrives half-way holds statuses without A/A0 (null) that no median may count. Whether it
+# ever met the condition, the checks below judge FILE as it is.
 settled() {
-  local i l
+  local i l all
   for i in $(seq 1 10); do
     sleep 1
     listen --channels status --json --count 5 --timeout 5 > "$1" 2>/dev/null
-    l=$(tail -1 "$1")
-    awk -v z="$(echo "$l" | grep -o '"separation_m":[-0-9.e+]*' | cut -d: -f2)" \
-      -v fe="$(echo "$l" | grep -o '"fe_hz":[-0-9.e+]*' | cut -d: -f2)" \
-      -v ae="$(echo "$l" | grep -o '"amplitude_m":[-0-9.e+]*' | cut -d: -f2)" \
-      -v a0="$(echo "$l" | grep -o '"free_amplitude_m":[-0-9.e+]*' | cut -d: -f2)" \
-      "BEGIN{exit !($2)}" && return 0
+    all=1
+    [ "$(grep -c . "$1")" -ge 5 ] || all=0
+    while read -r l; do
+      awk -v z="$(echo "$l" | grep -o '"separation_m":[-0-9.e+]*' | cut -d: -f2)" \
+        -v fe="$(echo "$l" | grep -o '"fe_hz":[-0-9.e+]*' | cut -d: -f2)" \
+        -v ae="$(echo "$l" | grep -o '"amplitude_m":[-0-9.e+]*' | cut -d: -f2)" \
+        -v a0="$(echo "$l" | grep -o '"free_amplitude_m":[-0-9.e+]*' | cut -d: -f2)" \
+        "BEGIN{exit !($2)}" || all=0
+    done < "$1"
+    [ "$all" = 1 ] && return 0
   done
   return 1
 }
@@ -122,7 +127,7 @@ field() { tail -1 "$2" | grep -o "\"$1\":[-0-9.e+]*" | cut -d: -f2; }
 # real time under load drops its backlog (a resync) and the lock-in of the period after it
 # may be off by ~1e-4; one such status does not decide
 med() {
-  grep -o "\"$1\":[-0-9.e+]*" "$2" | cut -d: -f2 | sort -g |
+  grep -o "\"$1\":[-0-9.e+]*" "$2" | cut -d: -f2 | grep . | sort -g |
     awk '{v[NR] = $1} END {if (NR) print (NR % 2 ? v[(NR + 1) / 2] : (v[NR / 2] + v[NR / 2 + 1]) / 2)}'
 }
 a_d_nm=$(nm "$(med lockin_amplitude_m "$T/st.json")")
