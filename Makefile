@@ -280,7 +280,7 @@ bench: deps
 soak: deps
 	$(MAKE) $(BUILD)/bin/afmtwin $(BUILD)/bin/afmtwind
 	AFMTWIN_SOAK_S=300 AFMTWIN_SOAK_CHECK_S=60 AFMTWIN_SOAK_MIN_RTF=0.99 AFMTWIN_RT_SPEED=1 bash tests/test_soak.sh $(BUILD)
-	FM_DAEMON_ARGS="--cpu 0 --chain-cpu 1 --aux-cpu 0" FM_SIDE_CPU=0 FM_LOGGER_CPU=1 FM_LOGGER_PRIO=0 FM_RATE=10000 FM_AFTER=60 FM_SPEED=1 FM_REPLAY_EVERY=100 FM_RT_CHECK=1 bash tests/test_fm_daemon.sh $(BUILD)
+	FM_DAEMON_ARGS="--cpu 0 --chain-cpu 1 --aux-cpu 0" FM_SIDE_CPU=0 FM_LOGGER_CPU=1 FM_LOGGER_PRIO=0 FM_RATE=10000 FM_AFTER=60 FM_SPEED=1 FM_RT_CHECK=1 bash tests/test_fm_daemon.sh $(BUILD)
 
 # The outside FM controller's 10 kHz stream for 60 s at --speed 1 against the realtime
 # daemon, strict (tests/test_fm_daemon.sh part (b) only, FM_RT_CHECK=1: every command
@@ -288,7 +288,7 @@ soak: deps
 # replayed; ~2 minutes; make soak runs it after the command soaks). Not in make test.
 fm-stream: deps
 	$(MAKE) $(BUILD)/bin/afmtwin $(BUILD)/bin/afmtwind
-	FM_DAEMON_ARGS="--cpu 0 --chain-cpu 1 --aux-cpu 0" FM_SIDE_CPU=0 FM_LOGGER_CPU=1 FM_LOGGER_PRIO=0 FM_PARTS=b FM_RATE=10000 FM_AFTER=60 FM_SPEED=1 FM_REPLAY_EVERY=100 FM_RT_CHECK=1 bash tests/test_fm_daemon.sh $(BUILD)
+	FM_DAEMON_ARGS="--cpu 0 --chain-cpu 1 --aux-cpu 0" FM_SIDE_CPU=0 FM_LOGGER_CPU=1 FM_LOGGER_PRIO=0 FM_PARTS=b FM_RATE=10000 FM_AFTER=60 FM_SPEED=1 FM_RT_CHECK=1 bash tests/test_fm_daemon.sh $(BUILD)
 
 clean:
 	rm -rf $(BUILD)

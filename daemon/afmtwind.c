@@ -328,6 +328,7 @@ static void run_until_stopped(twind *d, const sigset_t *sigs, twind_watch *w) {
 
 /* Everything start-up made, in reverse order (each destroy accepts what was never made). */
 static void release(twind *d) {
+    twind_applied_close(d);
     twind_bw_stop(d);
     twind_a0_stop(d);
     afm_io_destroy(&d->io);
@@ -388,6 +389,13 @@ int main(int argc, char **argv) {
         release(&d);
         return 1;
     }
+    /* the scheme the runner starts in (the config's, as scheme.c resolved it) */
+    bool acc0 = !strcmp(afm_sim_scheme_name(afm_runner_sim(d.runner)), "accurate");
+    if (twind_applied_open(&d, acc0, err, sizeof err)) {
+        fprintf(stderr, "afmtwind: %s\n", err);
+        release(&d);
+        return 1;
+    }
     if (twind_a0_start(&d, &cfg, a0_scheme(&d, &cfg), &a0) || twind_bw_start(&d)) {
         fprintf(stderr, "afmtwind: cannot start the A0 threads\n");
         release(&d);
@@ -406,6 +414,7 @@ int main(int argc, char **argv) {
     run_until_stopped(&d, &sigs, &w);
     twind_notify_stopping();
     stop_threads(&d, &t);
+    twind_applied_close(&d);
     char line[1024];
     status_line(&d, &w.rs, line, sizeof line);
     fprintf(stderr, "afmtwind: final: %s\n", line);

@@ -138,10 +138,16 @@ static void apply_commands(rt_ctx *c) {
         afm_runner_model *m = it->model;
         int rc = afm_runner_apply(c->r, &it->cmd, m ? &m : NULL, err, sizeof err);
         if (rc == AFM_RUNNER_EBUSY) break; /* the chain is behind: this one again next item */
-        if (rc != 0)
+        if (rc != 0) {
             rt_reject(c, &it->cmd, err, it->order);
-        else
+        } else {
             c->snap.last_applied_order = it->order;
+            if (c->d->applied.log) { /* --applied-log: at the samples run before it */
+                afm_runner_status st;
+                afm_runner_status_get(c->r, &st);
+                twind_applied_cmd(c->d, &it->cmd, st.samples);
+            }
+        }
         trash(c, m); /* unused (rejected); NULL when applied (it went to the chain thread) */
         afm_cmd_kind k = it->cmd.kind;
         afm_spsc_release(&c->d->cmd_q);

@@ -153,5 +153,9 @@ void twind_scheme_turn(twind *d, afm_runner *r, twind_snapshot *snap, double lat
         }
     }
     /* every turn: a model swapped in starts in its config's scheme */
-    if (sc->rt && afm_runner_set_scheme(r, sc->accurate) == 0) snap->scheme_accurate = sc->accurate;
+    bool was = sc->rt && !strcmp(afm_sim_scheme_name(afm_runner_sim(r)), "accurate");
+    if (sc->rt && afm_runner_set_scheme(r, sc->accurate) == 0) {
+        snap->scheme_accurate = sc->accurate;
+        if (was != sc->accurate) twind_applied_scheme(d, sc->accurate, snap->st.samples);
+    }
 }

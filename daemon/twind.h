@@ -92,6 +92,7 @@ typedef struct {
     int quiet;    /* no status line */
     int a0_track; /* --a0-track: recompute A0 after drive and model changes (a0_track.c) */
     twind_scheme scheme;
+    const char *applied_log; /* --applied-log FILE (applied_log.c); NULL: none */
 } twind_opts;
 
 /* scheme.c's choice: main thread before start, then the rt thread's. */
@@ -120,6 +121,21 @@ typedef struct {
     int64_t order; /* of the command the RT thread rejected */
     int64_t seq;   /* its seq (tagged onto the reason by the receive thread) */
 } twind_reason;
+
+/* applied_log.c's queue item (rt -> receive thread): a command the twin applied, or a
+ * scheme hand-over (scheme >= 0: 1 accurate, 0 fast), with the samples run before it. */
+typedef struct {
+    int64_t sample;
+    int scheme; /* -1: a command */
+    afm_cmd cmd;
+} twind_applied;
+struct _lcm_eventlog_t;
+typedef struct {
+    afm_spsc q;
+    struct _lcm_eventlog_t *log;         /* NULL: no --applied-log */
+    atomic_llong lost;                   /* rt: pushes that found q full */
+    long long written, unlogged, failed; /* receive thread (main at the end) */
+} twind_applied_log;
 
 /* Lines of rejections and refusals on stderr: at most this many a second, the rest
  * counted and summed up once a second by main (the status has every one). */
@@ -266,9 +282,21 @@ typedef struct {
     atomic_llong republish_req; /* receive -> publisher: +1 per re-send, seq below */
     atomic_llong republish_seq; /* the seq whose completion is asked for again */
     atomic_llong republished;   /* completions published again (status) */
+    twind_applied_log applied;  /* --applied-log (applied_log.c) */
     /* RT scheduling result, for the start-up report */
     char rt_warn[512];
 } twind;
+
+/* applied_log.c (--applied-log). open: main, before the threads (the log's first event: the
+ * scheme in force at sample 0); 0, or -1 with err. cmd and scheme: the rt thread, after a
+ * command applied / a hand-over, with the samples run before it (never block). drain: the
+ * receive thread, writes what the rt thread queued. close: main, after the threads stopped:
+ * the rest, and a line on stderr (incomplete: said so). All do nothing without the option. */
+int twind_applied_open(twind *d, bool accurate, char *err, size_t errlen);
+void twind_applied_cmd(twind *d, const afm_cmd *c, long long sample);
+void twind_applied_scheme(twind *d, bool accurate, long long sample);
+void twind_applied_drain(twind *d);
+void twind_applied_close(twind *d);
 
 /* twind_clock.c */
 const char *twind_mode_name(twind_mode m);

@@ -78,6 +78,11 @@ static void usage(FILE *f) {
             "                         without it A0 is the start-up (or reloaded) config's and\n"
             "                         reads NaN once the drive differs. Its computations take\n"
             "                         ~5 %% of real time in the second they run\n"
+            "  --applied-log FILE     write every command the twin applied, stamped with the\n"
+            "                         sample it applied at, and the scheme in force, to the\n"
+            "                         LCM log FILE: `afmtwin replay --applied --in FILE`\n"
+            "                         gives this run's outputs bit for bit (a log of arrival\n"
+            "                         times cannot: commands apply at the next ring item)\n"
             "  --help                 this text\n"
             "  --version              the version\n");
 }
@@ -135,6 +140,7 @@ int twind_parse_args(int argc, char **argv, twind_opts *o) {
         AFMT_DOUBLE("--start-time", &o->start_s, 0, 1e9, NULL),
         AFMT_DOUBLE("--exit-after", &o->exit_after_s, 0, 1e9, NULL),
         AFMT_FLAG("--quiet", &quiet),
+        AFMT_STRING("--applied-log", &o->applied_log),
         AFMT_FLAG("--a0-track", &a0_track),
         AFMT_FLAG("--version", &version),
         AFMT_OPTS_END,

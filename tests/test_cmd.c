@@ -2,12 +2,14 @@
 /* test_cmd.c -- command decoding and validation (afm_cmd): every kind of bad input the
  * daemon must reject (NaN, inf, out-of-range values, unknown and malformed parameter names,
  * truncated and malformed bodies, the wrong message type on a channel, trailing bytes),
- * each with a reason; valid commands decode to the right values; afm_param_apply changes a
- * config only when the whole result is valid and the name fits it. */
+ * each with a reason; valid commands decode to the right values, and afm_cmd_encode (the
+ * daemon's --applied-log) gives each one back as a body that decodes to it bit for bit;
+ * afm_param_apply changes a config only when the whole result is valid and the name fits it. */
 #include "transport/afm_cmd_lcm.h"
 #include "afmtwin_control_t.h"
 #include "afmtwin_dither_t.h"
 #include "afmtwin_param_t.h"
+#include "afmtwin_scan_t.h"
 #include "afmtwin_setpoint_t.h"
 #include "afmtwin_tick_t.h"
 #include "check.h"
@@ -30,6 +32,16 @@ static void expect(afm_cmd_kind kind, int want_ok, const char *needle, const cha
     if (want_ok) {
         snprintf(name, sizeof name, "%s: accepted (%s)", what, rc ? err : "ok");
         check_true(rc == 0, name);
+        if (rc == 0) { /* encoded again (--applied-log), it decodes to the same bits */
+            static unsigned char b2[65536];
+            afm_cmd c2;
+            int n2 = afm_cmd_encode(&c, b2, (int)sizeof b2);
+            int rc2 =
+                n2 > 0 ? afm_cmd_decode(kind, b2, (size_t)n2, &lim, &c2, err, sizeof err) : -1;
+            snprintf(name, sizeof name, "%s: encoded again (%d bytes, %s %d), decodes to the same",
+                     what, n2, afm_cmd_channel_suffix(kind), buf_len);
+            check_true(rc2 == 0 && memcmp(&c, &c2, sizeof c) == 0, name);
+        }
     } else {
         snprintf(name, sizeof name, "%s: rejected: \"%s\"", what, err);
         check_true(rc == -1 && err[0] && (!needle || strstr(err, needle)), name);
@@ -75,6 +87,28 @@ static void tick(long long n, const char *needle, int ok, const char *what) {
     afmtwin_tick_t m = {.utime = 1, .seq = 11, .n_samples = n};
     buf_len = afmtwin_tick_t_encode(buf, 0, sizeof buf, &m);
     expect(AFM_CMD_TICK, ok, needle, what);
+}
+
+/* A scan command (every field set) through expect: decoded, encoded again, decoded. */
+static void test_scan_encode(void) {
+    afmtwin_scan_t m = {.utime = 3,
+                        .seq = 12,
+                        .mode = AFMTWIN_SCAN_T_RASTER,
+                        .x_m = -1e-6,
+                        .y_m = 2e-7,
+                        .size_x_m = 1e-6,
+                        .size_y_m = 5e-7,
+                        .lines = 16,
+                        .pixels = 64,
+                        .line_rate_hz = 2.5};
+    buf_len = afmtwin_scan_t_encode(buf, 0, sizeof buf, &m);
+    expect(AFM_CMD_SCAN, 1, NULL, "scan raster");
+    afm_cmd r = {.kind = AFM_CMD_RELOAD};
+    check_true(afm_cmd_encode(&r, buf, (int)sizeof buf) == -1 &&
+                   afm_cmd_channel_suffix(AFM_CMD_RELOAD) == NULL,
+               "a reload comes from no message: not encoded");
+    afm_cmd d = {.kind = AFM_CMD_DITHER, .u.dither = {.n_tones = 1}};
+    check_true(afm_cmd_encode(&d, buf, 10) == -1, "encode into too small a buffer: -1");
 }
 
 static void test_dither(void) {
@@ -387,6 +421,7 @@ int main(void) {
     test_setpoint();
     test_param();
     test_control_tick();
+    test_scan_encode();
     test_malformed();
     test_apply();
     return check_done();

@@ -60,6 +60,7 @@ typedef struct {
     double tail_s;
     double speed; /* model seconds per logged second (the daemon's --speed) */
     bool lockstep, quiet;
+    bool applied; /* --applied: the log is afmtwind --applied-log's (time stamps: samples) */
     bool want[N_OUT];
 } replay_opts;
 
@@ -124,6 +125,11 @@ static void replay_usage(FILE *f) {
             "                   log order; log times are ignored). A tick whose seq is that\n"
             "                   of the last tick is a client's re-send: not run again, no\n"
             "                   completion (afmtwind publishes the last one again)\n"
+            "  --applied        the log is one afmtwind --applied-log wrote: its time stamps\n"
+            "                   are sample counts; each command applies after exactly that\n"
+            "                   many samples (no block rounding, --speed unused) and the\n"
+            "                   scheme follows its PREFIX SCHEME events: the daemon's\n"
+            "                   outputs bit for bit, in real time or not\n"
             "  --channels LIST  outputs to write, comma-separated subset of\n"
             "                   samples,harmonics,status,tick_done (default all)\n"
             "  --harmonics-every K  write every K-th period's harmonics (1: all, ~185 MB per\n"
@@ -427,6 +433,40 @@ static void apply_event(replay_ctx *x, afm_cmd_kind kind, const afm_lcm_log_even
     afm_runner_model_destroy(&model);
 }
 
+/* --applied: one event of an afmtwind --applied-log log. The twin runs to the event's sample
+ * count (exactly), then the command applies, or the scheme (PREFIX SCHEME, one byte) is handed
+ * over. Counts that go backwards are no such log. 0, or -1 with the reason in bad. */
+static int applied_event(replay_ctx *x, const afm_lcm_log_event *ev, long long *last, char *bad,
+                         size_t badlen) {
+    if (ev->timestamp < *last || ev->timestamp > (int64_t)1 << 62) {
+        snprintf(bad, badlen,
+                 "event %lld at byte %lld: sample %lld after sample %lld: not a log of "
+                 "afmtwind --applied-log",
+                 (long long)ev->eventnum, ev->offset, (long long)ev->timestamp, *last);
+        return -1;
+    }
+    *last = ev->timestamp;
+    run_to(x, *last);
+    char sch[AFMT_CHAN_LEN];
+    snprintf(sch, sizeof sch, "%sSCHEME", x->o.prefix);
+    if (!strcmp(ev->channel, sch)) {
+        if (ev->datalen != 1) {
+            snprintf(bad, badlen, "event %lld: %s with %d bytes (1 expected)",
+                     (long long)ev->eventnum, sch, (int)ev->datalen);
+            return -1;
+        }
+        emit_all(x, false);
+        afm_runner_set_scheme(x->r, ((const uint8_t *)ev->data)[0] == 1); /* none: no schemes */
+        return 0;
+    }
+    afm_cmd_kind kind = afmt_channels_kind(&x->ch, ev->channel);
+    if (!kind)
+        x->skipped++;
+    else
+        apply_event(x, kind, ev);
+    return 0;
+}
+
 /* --harmonics-max-hz: a rate cap instead of --harmonics-every (which it resets to 0). */
 static int parse_max_hz(const char *v, void *dest) {
     replay_opts *o = dest;
@@ -440,6 +480,7 @@ static int parse_max_hz(const char *v, void *dest) {
 static int parse_opts(int argc, char **argv, replay_opts *o) {
     const afmt_opt opts[] = {
         AFMT_FLAG("--lockstep", &o->lockstep),
+        AFMT_FLAG("--applied", &o->applied),
         AFMT_FLAG("--quiet", &o->quiet),
         AFMT_STRING("--config", &o->config),
         AFMT_STRING("--in", &o->in),
@@ -459,6 +500,10 @@ static int parse_opts(int argc, char **argv, replay_opts *o) {
     if (rc) return rc;
     if (!o->config || !o->in || !o->out) {
         fprintf(stderr, "afmtwin replay: --config, --in and --out are required (see --help)\n");
+        return 2;
+    }
+    if (o->applied && o->lockstep) {
+        fprintf(stderr, "afmtwin replay: --applied and --lockstep exclude each other\n");
         return 2;
     }
     if (!strcmp(o->in, o->out)) {
@@ -525,6 +570,10 @@ int afm_cmd_replay(int argc, char **argv) {
             break;
         }
         events++;
+        if (x.o.applied) {
+            if (applied_event(&x, &ev, &last_target, bad, sizeof bad)) break;
+            continue;
+        }
         afm_cmd_kind kind = afmt_channels_kind(&x.ch, ev.channel);
         if (!kind) {
             x.skipped++;
@@ -584,7 +633,7 @@ int afm_cmd_replay(int argc, char **argv) {
     if (!x.o.lockstep) {
         long long tail = llround(x.o.tail_s * rate);
         long long end = last_target + tail;
-        end = (end + x.o.block - 1) / x.o.block * x.o.block;
+        if (!x.o.applied) end = (end + x.o.block - 1) / x.o.block * x.o.block;
         run_to(&x, end);
     }
     emit_all(&x, true); /* final status */

@@ -128,6 +128,98 @@ int afm_cmd_from_msg(afm_cmd_kind kind, const void *msg, const afm_cmd_limits *l
     return afm_cmd_validate(c, lim, err, errlen);
 }
 
+const char *afm_cmd_channel_suffix(afm_cmd_kind kind) {
+    switch (kind) {
+    case AFM_CMD_DITHER:
+        return "DITHER";
+    case AFM_CMD_SETPOINT:
+        return "SETPOINT";
+    case AFM_CMD_PARAM:
+        return "PARAM";
+    case AFM_CMD_CONTROL:
+        return "CONTROL";
+    case AFM_CMD_TICK:
+        return "TICK";
+    case AFM_CMD_SCAN:
+        return "SCAN";
+    default:
+        return NULL;
+    }
+}
+
+int afm_cmd_encode(const afm_cmd *c, void *buf, int cap) {
+    switch (c->kind) {
+    case AFM_CMD_DITHER: {
+        const afm_cmd_dither *q = &c->u.dither;
+        afmtwin_dither_t m = {.utime = c->utime,
+                              .seq = c->seq,
+                              .n_tones = (int8_t)q->n_tones,
+                              .frequency_hz = (double *)q->frequency_hz,
+                              .amplitude_m = (double *)q->amplitude_m,
+                              .phase_rad = (double *)q->phase_rad};
+        if (afmtwin_dither_t_encoded_size(&m) > cap) return -1;
+        return afmtwin_dither_t_encode(buf, 0, cap, &m);
+    }
+    case AFM_CMD_SETPOINT: {
+        afmtwin_setpoint_t m = {.utime = c->utime,
+                                .seq = c->seq,
+                                .separation_m = c->u.setpoint.separation_m,
+                                .ramp_rate_m_s = c->u.setpoint.ramp_rate_m_s};
+        if (afmtwin_setpoint_t_encoded_size(&m) > cap) return -1;
+        return afmtwin_setpoint_t_encode(buf, 0, cap, &m);
+    }
+    case AFM_CMD_PARAM: {
+        const afm_cmd_param *q = &c->u.param;
+        char names[AFM_CMD_MAX_PARAMS][AFM_CMD_NAME_LEN];
+        char *np[AFM_CMD_MAX_PARAMS];
+        double v[AFM_CMD_MAX_PARAMS];
+        int n = q->n < AFM_CMD_MAX_PARAMS ? q->n : AFM_CMD_MAX_PARAMS;
+        for (int i = 0; i < n; i++) {
+            afm_param_name(q->entry[i], q->index[i], names[i], sizeof names[i]);
+            np[i] = names[i];
+            v[i] = q->value[i];
+        }
+        afmtwin_param_t m = {
+            .utime = c->utime, .seq = c->seq, .n = (int16_t)n, .name = np, .value = v};
+        if (afmtwin_param_t_encoded_size(&m) > cap) return -1;
+        return afmtwin_param_t_encode(buf, 0, cap, &m);
+    }
+    case AFM_CMD_CONTROL: {
+        afmtwin_control_t m = {.utime = c->utime,
+                               .seq = c->seq,
+                               .action = (int8_t)c->u.control.action,
+                               .n_samples = c->u.control.n_samples};
+        if (afmtwin_control_t_encoded_size(&m) > cap) return -1;
+        return afmtwin_control_t_encode(buf, 0, cap, &m);
+    }
+    case AFM_CMD_TICK: {
+        afmtwin_tick_t m = {.utime = c->utime, .seq = c->seq, .n_samples = c->u.tick.n_samples};
+        if (afmtwin_tick_t_encoded_size(&m) > cap) return -1;
+        return afmtwin_tick_t_encode(buf, 0, cap, &m);
+    }
+    case AFM_CMD_SCAN: {
+        const afm_cmd_lateral *q = &c->u.scan;
+        afmtwin_scan_t m = {.utime = c->utime,
+                            .seq = c->seq,
+                            .mode = (int8_t)q->mode,
+                            .x_m = q->x_m,
+                            .y_m = q->y_m,
+                            .speed_m_s = q->speed_m_s,
+                            .vx_m_s = q->vx_m_s,
+                            .vy_m_s = q->vy_m_s,
+                            .size_x_m = q->size_x_m,
+                            .size_y_m = q->size_y_m,
+                            .lines = q->lines,
+                            .pixels = q->pixels,
+                            .line_rate_hz = q->line_rate_hz};
+        if (afmtwin_scan_t_encoded_size(&m) > cap) return -1;
+        return afmtwin_scan_t_encode(buf, 0, cap, &m);
+    }
+    default:
+        return -1;
+    }
+}
+
 /* The wire type of each command kind (afm_lcm_wire.h). */
 static const afm_wire_type *wire_type(afm_cmd_kind kind) {
     switch (kind) {

@@ -23,4 +23,14 @@ int afm_cmd_decode(afm_cmd_kind kind, const void *data, size_t len, const afm_cm
 int afm_cmd_from_msg(afm_cmd_kind kind, const void *msg, const afm_cmd_limits *lim, afm_cmd *c,
                      char *err, size_t errlen);
 
+/* The channel suffix of a command kind ("DITHER", "SETPOINT", "PARAM", "CONTROL", "TICK",
+ * "SCAN"), or NULL for a kind that comes from no message (reload). */
+const char *afm_cmd_channel_suffix(afm_cmd_kind kind);
+
+/* The inverse of afm_cmd_decode: c (a decoded, valid command) as the LCM message body that
+ * decodes to it again, into buf (cap bytes). Its length, or -1 for a kind that comes from no
+ * message (reload) or a buf too small. Every field round-trips bit for bit (param names by
+ * afm_param_name). Allocates nothing; not for the real-time thread (lcm's encode). */
+int afm_cmd_encode(const afm_cmd *c, void *buf, int cap);
+
 #endif
