@@ -177,8 +177,9 @@ else
   bad "fm_pll build: $(head -3 "$T/cc.err")"; echo "$pass passed, $fail failed"; exit 1
 fi
 # FM_DAEMON_ARGS: more daemon options (the CPU plan, e.g. "--cpu 1 --chain-cpu 0 --aux-cpu 1");
-# FM_SIDE_CPU: the CPUs the controller, the loggers and the status listener run on (this
-# shell's affinity, which they inherit, until the stream's part ends)
+# FM_SIDE_CPU: the CPUs the controller and the status listener run on (this shell's affinity,
+# which they inherit, until the stream's part ends); the loggers too, unless FM_LOGGER_CPU
+# names theirs (below)
 read -r -a dargs <<< "${FM_DAEMON_ARGS:-}"
 fm_daemon_up "$T/d2.err" "$T/others" --config "$T/out.conf" --scheme fast --speed "$SPEED" \
   "${dargs[@]}"
