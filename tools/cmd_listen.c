@@ -189,6 +189,20 @@ static void json_lockin(cJSON *o, double amplitude_m, double phase_deg, double p
     json_num(o, "peak_force_n", peak_force_n);
 }
 
+/* The sample under the tip (issue 18), as harmonics and status both carry it. */
+static void json_tip(cJSON *o, double x_m, double y_m, double true_height_m, int material) {
+    json_num(o, "tip_x_m", x_m);
+    json_num(o, "tip_y_m", y_m);
+    json_num(o, "true_height_m", true_height_m);
+    json_int(o, "material", material);
+}
+
+/* The same on a text line, after sep. */
+static void print_tip(const char *sep, double x_m, double y_m, double true_height_m, int material) {
+    printf("%stip (%.6g, %.6g) nm over z_s %.5g nm, material %d", sep, x_m * 1e9, y_m * 1e9,
+           true_height_m * 1e9, material);
+}
+
 static cJSON *json_head(const char *channel, const char *type, int64_t utime, int64_t msg_seq) {
     cJSON *o = cJSON_CreateObject();
     cJSON_AddStringToObject(o, "channel", channel);
@@ -291,10 +305,7 @@ static void print_harmonics(const listen_ctx *c, const char *channel,
         json_num(o, "mean_deflection_m", m->mean_deflection_m);
         json_num(o, "squeeze_dissipated_energy_j", m->squeeze_dissipated_energy_j);
         json_oppoint(o, m->separation_m, m->n_tones, m->tone_frequency_hz, m->tone_amplitude_m);
-        json_num(o, "tip_x_m", m->tip_x_m); /* issue 18: the sample under the tip */
-        json_num(o, "tip_y_m", m->tip_y_m);
-        json_num(o, "true_height_m", m->true_height_m);
-        json_int(o, "material", m->material);
+        json_tip(o, m->tip_x_m, m->tip_y_m, m->true_height_m, m->material);
         if (m->fm_lock_state >= 0) { /* issue 32: the internal FM loops */
             json_str(o, "fm_lock_state", fm_lock_name(m->fm_lock_state));
             json_str(o, "fm_drive", fm_drive_name(m->fm_drive));
@@ -315,8 +326,7 @@ static void print_harmonics(const listen_ctx *c, const char *channel,
         printf("%s k%d %.4g nm %.2f deg (lag)", i ? "," : ";", m->k[i],
                m->deflection_amplitude_m[i] * 1e9, m->deflection_lag_deg[i]);
     if (m->tip_x_m != 0 || m->tip_y_m != 0 || m->true_height_m != 0 || m->material != 0)
-        printf("; tip (%.6g, %.6g) nm over z_s %.5g nm, material %d", m->tip_x_m * 1e9,
-               m->tip_y_m * 1e9, m->true_height_m * 1e9, m->material); /* issue 18 */
+        print_tip("; ", m->tip_x_m, m->tip_y_m, m->true_height_m, m->material);
     if (m->fm_lock_state >= 0)
         printf("; FM (%s) %s, shift %.6g Hz, phase error %.4g deg", fm_drive_name(m->fm_drive),
                fm_lock_name(m->fm_lock_state), m->fm_frequency_shift_hz, m->fm_phase_error_deg);
@@ -382,10 +392,7 @@ static void print_status(const listen_ctx *c, const char *channel, const afmtwin
         json_int(o, "fm_tone_changes", m->fm_tone_changes);
         json_num(o, "squeeze_dissipated_energy_j", m->squeeze_dissipated_energy_j); /* issue 30 */
         json_int(o, "sample_on", m->sample_on); /* issue 18: the sample under the tip */
-        json_num(o, "tip_x_m", m->tip_x_m);
-        json_num(o, "tip_y_m", m->tip_y_m);
-        json_num(o, "true_height_m", m->true_height_m);
-        json_int(o, "material", m->material);
+        json_tip(o, m->tip_x_m, m->tip_y_m, m->true_height_m, m->material);
         json_str(o, "scan_mode", m->scan_mode);
         json_int(o, "scan_line", m->scan_line);
         json_int(o, "scan_pixel", m->scan_pixel);
@@ -451,8 +458,8 @@ static void print_status(const listen_ctx *c, const char *channel, const afmtwin
     if (m->sample_on) { /* issue 18 */
         char sm[SHOW_LEN];
         show(sm, m->scan_mode);
-        printf(" | tip (%.6g, %.6g) nm over z_s %.5g nm, material %d, scan %s", m->tip_x_m * 1e9,
-               m->tip_y_m * 1e9, m->true_height_m * 1e9, m->material, sm);
+        print_tip(" | ", m->tip_x_m, m->tip_y_m, m->true_height_m, m->material);
+        printf(", scan %s", sm);
         if (m->scan_line >= 0)
             printf(" line %d pixel %d %s", m->scan_line, m->scan_pixel,
                    m->scan_retrace ? "retrace" : "trace");
