@@ -38,8 +38,8 @@ REPLAY=${FM_REPLAY:-1} # (b): log the commands and replay them (0: not)
 EVERY=${FM_REPLAY_EVERY:-30} # (b): replay --harmonics-every
 url="$LCM_DEFAULT_URL"; out_url=${url/:7667/:7668}
 run=(); chrt -f 90 true 2>/dev/null && run=(chrt -f 90)
-PARTS=${FM_PARTS:-acb} # which of (a), (c), (b) to run (make fm-stream: b only; (a)'s offline
-                       # approach, which (b) compares with, always runs)
+PARTS=${FM_PARTS:-acb} # which of (a) and (c) to run (make fm-stream: "b", neither); (b) and
+                       # (a)'s offline approach, which (b) compares with, always run
 PLL_SRC=${FM_PLL_SRC:-examples/fm_pll.c} # (b)'s controller (another build's, to compare)
 # (b)'s controller runs SCHED_FIFO $FM_CLIENT_PRIO (default 75): below the integrator (80),
 # above the daemon's receive, publish and LCM threads (70) and the output chain (60) at the
