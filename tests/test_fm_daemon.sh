@@ -31,15 +31,15 @@ cd "$(dirname "$0")/.." || exit 1
 . tests/lib_daemon.sh
 [ "${2:-}" = "--inside" ] || netns_reexec test_fm_daemon.sh "$0" "$BUILD"
 daemon_test_init "$BUILD"
-. tests/lib_fm.sh # T, Z, DPID, LPID, LOGPIDS, fm_conf, jget, fm_daemon_up
+. tests/lib_fm.sh # T, Z, DPID, LPID, LOGPIDS, fm_conf, jget, fm_daemon_up, fm_harm_check, ...
 RATE=${FM_RATE:-1000}
 AFTER=${FM_AFTER:-5} # wall seconds fm_pll streams after its lock (make soak: 60 at 10 kHz)
 SPEED=${FM_SPEED:-$RT_SPEED} # (b): the daemon's --speed (lib_daemon.sh: make test 0.5, soak 1)
 REPLAY=${FM_REPLAY:-1} # (b): the daemon logs the commands it applied, replayed (0: not)
 url="$LCM_DEFAULT_URL"; out_url=${url/:7667/:7668}
 run=(); chrt -f 90 true 2>/dev/null && run=(chrt -f 90)
-PARTS=${FM_PARTS:-acb} # which of (a), (c), (b) to run (make fm-stream: b only; (a)'s offline
-                       # approach, which (b) compares with, always runs)
+PARTS=${FM_PARTS:-acb} # which of (a) and (c) to run (make fm-stream: "b", neither); (b) and
+                       # (a)'s offline approach, which (b) compares with, always run
 PLL_SRC=${FM_PLL_SRC:-examples/fm_pll.c} # (b)'s controller (another build's, to compare)
 # (b)'s controller runs SCHED_FIFO $FM_CLIENT_PRIO (default 75): below the integrator (80),
 # above the daemon's receive, publish and LCM threads (70) and the output chain (60) at the
@@ -94,35 +94,11 @@ dr=$(jget "$T/s1.json" fm_drive_amplitude_m)
 # the harmonics records carry the loops too (issue 32): lock state, the shift = the period's
 # tone 0 (tones[0], = fe_hz) less the status's reference, the phase error
 listen --channels harmonics --json --count 20 --timeout 3 > "$T/h1.jsonl" 2>/dev/null
-if python3 - "$T/h1.jsonl" "$ref" "$sd" <<'PY'
-import json, sys
-h = [json.loads(l) for l in open(sys.argv[1]) if l.strip()]
-ref, sd = float(sys.argv[2]), float(sys.argv[3])
-assert len(h) >= 10, len(h)
-for r in h:
-    assert r["fm_lock_state"] == "locked", r.get("fm_lock_state")
-    assert r["fm_drive"] == "pll", r.get("fm_drive")
-    f0 = r["tones"][0]["frequency_hz"]
-    assert r["fe_hz"] == f0, (r["fe_hz"], f0)
-    assert abs(r["fm_frequency_shift_hz"] - (f0 - ref)) < 1e-6, (r["fm_frequency_shift_hz"], f0 - ref)
-    assert abs(r["fm_frequency_shift_hz"] - sd) < 0.01, (r["fm_frequency_shift_hz"], sd)
-    assert abs(r["fm_phase_error_deg"]) < 0.1, r["fm_phase_error_deg"]
-print("%d records, shift %.4f Hz, phase error %.2e deg" % (len(h), h[-1]["fm_frequency_shift_hz"], h[-1]["fm_phase_error_deg"]))
-PY
-then ok "harmonics records under internal FM: locked, fm_drive pll, shift = tone 0 - reference = the status's within 0.01 Hz"
-else bad "harmonics records under internal FM: $(head -c 400 "$T/h1.jsonl")"; fi
-# a dither command while the loops own tone 0: refused by the twin with the reason (status
-# `refused`: valid, but not taken), counted, nothing changed
-rej0=$(jget "$T/s1.json" refused)
-out=$("${run[@]}" "$A" send dither --freq 298kHz --amp 0.6pm --config "$T/fm.conf" --wait 2>&1); src=$?
-listen --channels status --json --count 1 --timeout 3 > "$T/s2.json" 2>/dev/null
-rej1=$(jget "$T/s2.json" refused); fl2=$(jget "$T/s2.json" fm_lock_state)
-fe2=$(jget "$T/s2.json" fe_hz)
-[ "$src" -eq 1 ] && echo "$out" | grep -q 'under the daemon.s FM control' &&
-  [ "$rej1" = $((rej0 + 1)) ] && [ "$fl2" = locked ] &&
-  awk -v a="$fe2" 'BEGIN{exit !(a > 299000)}' &&
-  ok "dither under internal FM: refused ($(echo "$out" | head -1 | cut -c1-90)...), counted, still locked at $fe2 Hz" ||
-  bad "dither under internal FM: exit $src, '$out', refused $rej0 -> $rej1, lock $fl2, fe $fe2"
+if fm_harm_check "$T/h1.jsonl" "$ref" "$sd" pll 10 0.01 > "$T/h.out" 2>&1
+then ok "harmonics records under internal FM: $(cat "$T/h.out"); locked, shift = tone 0 - reference = the status's within 0.01 Hz"
+else bad "harmonics records under internal FM: $(tail -2 "$T/h.out") $(head -c 400 "$T/h1.jsonl")"; fi
+# a dither command while the loops own tone 0: refused, counted, nothing changed
+fm_dither_refused "$T/fm.conf" "internal FM" "$T/s1.json"
 kill -TERM "$DPID"; wait "$DPID"; drc=$?; DPID=""
 [ "$drc" -eq 0 ] && ok "daemon (internal FM) stopped cleanly" || bad "daemon exit $drc"
 fi # (a)
@@ -177,8 +153,9 @@ else
   bad "fm_pll build: $(head -3 "$T/cc.err")"; echo "$pass passed, $fail failed"; exit 1
 fi
 # FM_DAEMON_ARGS: more daemon options (the CPU plan, e.g. "--cpu 1 --chain-cpu 0 --aux-cpu 1");
-# FM_SIDE_CPU: the CPUs the controller, the loggers and the status listener run on (this
-# shell's affinity, which they inherit, until the stream's part ends)
+# FM_SIDE_CPU: the CPUs the controller and the status listener run on (this shell's affinity,
+# which they inherit, until the stream's part ends); the loggers too, unless FM_LOGGER_CPU
+# names theirs (below)
 read -r -a dargs <<< "${FM_DAEMON_ARGS:-}"
 applog=(); [ "$REPLAY" = 1 ] && applog=(--applied-log "$T/applied.lcmlog")
 fm_daemon_up "$T/d2.err" "$T/others" --config "$T/out.conf" --scheme fast --speed "$SPEED" \

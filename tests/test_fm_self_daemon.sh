@@ -20,7 +20,7 @@ cd "$(dirname "$0")/.." || exit 1
 . tests/lib_daemon.sh
 [ "${2:-}" = "--inside" ] || netns_reexec test_fm_self_daemon.sh "$0" "$BUILD"
 daemon_test_init "$BUILD"
-. tests/lib_fm.sh # T, Z, DPID, LPID, fm_conf, jget, fm_self_reference, fm_daemon_up
+. tests/lib_fm.sh # T, Z, DPID, LPID, fm_conf, jget, fm_self_reference, fm_daemon_up, ...
 run=(); chrt -f 90 true 2>/dev/null && run=(chrt -f 90)
 fm_conf internal self > "$T/self.conf"
 
@@ -70,23 +70,8 @@ PY
 then ok "lockstep self drive: $(cat "$T/a.out") (0.005 Hz)"
 else bad "lockstep self drive: $(tail -3 "$T/a.out")"; fi
 ref=$(jget "$T/st1.jsonl" fm_reference_hz)
-if python3 - "$T/h1.jsonl" "$ref" "$sa" > "$T/h.out" 2>&1 <<'PY'
-import json, sys
-h = [json.loads(l) for l in open(sys.argv[1]) if l.strip()]
-ref, sa = float(sys.argv[2]), float(sys.argv[3])
-assert len(h) >= 20, len(h)
-for r in h:
-    assert r["fm_lock_state"] == "locked", r.get("fm_lock_state")
-    assert r["fm_drive"] == "self", r.get("fm_drive")
-    f0 = r["tones"][0]["frequency_hz"]
-    assert r["fe_hz"] == f0, (r["fe_hz"], f0)
-    assert abs(r["fm_frequency_shift_hz"] - (f0 - ref)) < 1e-6, (r["fm_frequency_shift_hz"], f0 - ref)
-    # one update's count: 5 sd of its scatter (0.004 Hz)
-    assert abs(r["fm_frequency_shift_hz"] - sa) < 0.02, (r["fm_frequency_shift_hz"], sa)
-    assert abs(r["fm_phase_error_deg"]) < 0.1, r["fm_phase_error_deg"]
-print("%d records, fm_drive self, shift %.4f Hz, phase error %.1e deg" %
-      (len(h), h[-1]["fm_frequency_shift_hz"], h[-1]["fm_phase_error_deg"]))
-PY
+# the shift within 0.02 Hz: one update's count, 5 sd of its scatter (0.004 Hz)
+if fm_harm_check "$T/h1.jsonl" "$ref" "$sa" self 20 0.02 > "$T/h.out" 2>&1
 then ok "harmonics records under the self drive: $(cat "$T/h.out"); shift = tone 0 - reference, within 0.02 Hz of approach's"
 else bad "harmonics records under the self drive: $(tail -2 "$T/h.out") $(head -c 300 "$T/h1.jsonl")"; fi
 
@@ -113,19 +98,9 @@ PY
 read -r tag rest < "$T/rt.out"
 if [ "$tag" = ok ]; then ok "$rest"; else
   bad "$rest (other real-time processes: $(cat "$T/others" 2>/dev/null); load $(cut -d' ' -f1-3 /proc/loadavg))"; fi
-# a dither command while the self drive owns tone 0: refused by the twin with the reason,
-# counted, nothing changed
+# a dither command while the self drive owns tone 0: refused, counted, nothing changed
 listen --channels status --json --count 1 --timeout 3 > "$T/s1.json" 2>/dev/null
-rej0=$(jget "$T/s1.json" refused)
-out=$("${run[@]}" "$A" send dither --freq 298kHz --amp 0.6pm --config "$T/self.conf" --wait 2>&1); src=$?
-listen --channels status --json --count 1 --timeout 3 > "$T/s2.json" 2>/dev/null
-rej1=$(jget "$T/s2.json" refused); fl2=$(jget "$T/s2.json" fm_lock_state)
-fe2=$(jget "$T/s2.json" fe_hz)
-[ "$src" -eq 1 ] && echo "$out" | grep -q 'under the daemon.s FM control' &&
-  [ -n "$rej0" ] && [ "$rej1" = $((rej0 + 1)) ] && [ "$fl2" = locked ] &&
-  awk -v a="$fe2" 'BEGIN{exit !(a > 299000)}' &&
-  ok "dither under the self drive: refused ($(echo "$out" | head -1 | cut -c1-80)...), counted, still locked at $fe2 Hz" ||
-  bad "dither under the self drive: exit $src, '$out', refused $rej0 -> $rej1, lock $fl2, fe $fe2"
+fm_dither_refused "$T/self.conf" "the self drive" "$T/s1.json"
 kill -TERM "$DPID"; wait "$DPID"; drc=$?; DPID=""
 [ "$drc" -eq 0 ] && ok "daemon (self drive, real time) stopped cleanly" || bad "daemon exit $drc"
 echo "$pass passed, $fail failed"

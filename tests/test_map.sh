@@ -286,13 +286,7 @@ done
 [ $px_ok -eq 1 ] && ok "amplitude .gsf pixels equal the map's values (float precision)" \
   || bad "amplitude .gsf pixels differ from the map"
 if command -v gwyddion-thumbnailer > /dev/null; then
-  th_ok=1
-  for f in "$T"/g-*.gsf; do
-    gwyddion-thumbnailer gnome2 64 "$f" "${f%.gsf}.png" 2> "$T/th.err" \
-      && [ "$(head -c 4 "${f%.gsf}.png" | tail -c 3)" = PNG ] \
-      || { th_ok=0; echo "     $f: $(head -c 200 "$T/th.err")"; }
-  done
-  [ $th_ok -eq 1 ] && ok "gwyddion-thumbnailer reads all 21 map .gsf files" \
+  gsf_thumbnails "$T"/g-*.gsf && ok "gwyddion-thumbnailer reads all 21 map .gsf files" \
     || bad "gwyddion-thumbnailer refused a map .gsf file"
 else
   bad "gwyddion-thumbnailer not found (package gwyddion: make deps)"

@@ -112,13 +112,7 @@ awk -v x="$x" -v y="$y" -v xo="$(gsf_key "$h" XOffset)" -v yo="$(gsf_key "$h" YO
   || bad "scan --gsf: pixel values or geometry"
 # Gwyddion's own reader: a PNG thumbnail of every file, none of a truncated one.
 if command -v gwyddion-thumbnailer > /dev/null; then
-  th_ok=1
-  for f in "$T"/img-*.gsf; do
-    gwyddion-thumbnailer gnome2 64 "$f" "${f%.gsf}.png" 2> "$T/th.err" \
-      && [ "$(head -c 4 "${f%.gsf}.png" | tail -c 3)" = PNG ] \
-      || { th_ok=0; echo "     $f: $(head -c 200 "$T/th.err")"; }
-  done
-  [ $th_ok -eq 1 ] && ok "gwyddion-thumbnailer reads all 20 .gsf files (a PNG of each)" \
+  gsf_thumbnails "$T"/img-*.gsf && ok "gwyddion-thumbnailer reads all 20 .gsf files (a PNG of each)" \
     || bad "gwyddion-thumbnailer refused a .gsf file"
   head -c $(($(stat -c %s "$h") - 4)) "$h" > "$T/cut.gsf"
   gwyddion-thumbnailer gnome2 64 "$T/cut.gsf" "$T/cut.png" 2> "$T/th.err"; rc=$?

@@ -236,6 +236,15 @@ static void test_log(void) {
     check_true(read_mem(lg, p, &sk) == 1 && sk == 5,
                "log: 5 junk bytes before an event skipped, counted");
     check_true(read_mem(lg, 0, NULL) == 0, "log: an empty file has no events");
+    /* the channel's kind, whatever the daemon's --prefix (curve, plot fm, plot trace) */
+    check_true(afm_lcm_log_channel_is("AFMTWIN_HARMONICS", "HARMONICS") &&
+                   afm_lcm_log_channel_is("HARMONICS", "HARMONICS") &&
+                   afm_lcm_log_channel_is("LAB2_SAMPLES", "SAMPLES"),
+               "log: channel_is: the kind at the end of the name, with or without a prefix");
+    check_true(!afm_lcm_log_channel_is("ARMONICS", "HARMONICS") &&
+                   !afm_lcm_log_channel_is("AFMTWIN_HARMONICS_X", "HARMONICS") &&
+                   !afm_lcm_log_channel_is("", "SAMPLES"),
+               "log: channel_is: not a shorter name, nor one with the kind inside");
 }
 
 int main(void) {

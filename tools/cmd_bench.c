@@ -607,13 +607,6 @@ static void print_text(const bench_opts *o, const bench_result *res, int n) {
     }
 }
 
-static void json_num(cJSON *o, const char *k, double v) {
-    if (isfinite(v))
-        cJSON_AddNumberToObject(o, k, v);
-    else
-        cJSON_AddNullToObject(o, k);
-}
-
 static int print_json(const bench_opts *o, const bench_result *res, int n) {
     cJSON *root = cJSON_CreateObject(), *cases = cJSON_CreateArray(), *ratios = cJSON_CreateArray();
     cJSON_AddNumberToObject(root, "runs", o->runs);
@@ -633,10 +626,10 @@ static int print_json(const bench_opts *o, const bench_result *res, int n) {
             cJSON *e = cJSON_CreateObject();
             cJSON_AddStringToObject(e, "config", r->config);
             cJSON_AddStringToObject(e, "integrator", row_name[k]);
-            json_num(e, "ns_per_sample", w->ns_med);
-            json_num(e, "ns_per_sample_min", w->ns_min);
-            json_num(e, "realtime_factor", w->rt_factor);
-            json_num(e, "error_rel", w->err_rel);
+            afmt_json_num(e, "ns_per_sample", w->ns_med);
+            afmt_json_num(e, "ns_per_sample_min", w->ns_min);
+            afmt_json_num(e, "realtime_factor", w->rt_factor);
+            afmt_json_num(e, "error_rel", w->err_rel);
             if (w->substeps < 0)
                 cJSON_AddNullToObject(e, "substeps"); /* adaptive */
             else
@@ -655,13 +648,13 @@ static int print_json(const bench_opts *o, const bench_result *res, int n) {
             cJSON_AddNumberToObject(e, "settle_s", r->settle_s);
             if (k == ROW_REF) {
                 cJSON_AddNumberToObject(e, "rtol", r->ref_rtol);
-                json_num(e, "error_rel_vs_rtol_div_100", r->ref_check);
+                afmt_json_num(e, "error_rel_vs_rtol_div_100", r->ref_check);
             }
             cJSON_AddItemToArray(cases, e);
         }
         cJSON *q = cJSON_CreateObject();
         cJSON_AddStringToObject(q, "config", r->config);
-        json_num(q, "arkode_over_rt_ns_per_sample", ratio_erk_rt(r));
+        afmt_json_num(q, "arkode_over_rt_ns_per_sample", ratio_erk_rt(r));
         cJSON_AddNumberToObject(q, "arkode_substeps", r->row[ROW_ERK].substeps);
         cJSON_AddItemToArray(ratios, q);
         if (r->has_chain) {
@@ -669,13 +662,13 @@ static int print_json(const bench_opts *o, const bench_result *res, int n) {
             cJSON_AddStringToObject(ch, "config", r->config);
             cJSON_AddStringToObject(ch, "integrator", "rt");
             cJSON_AddBoolToObject(ch, "ok", r->chain_ok);
-            json_num(ch, "integrator_ns_per_sample", r->chain_int_ns);
-            json_num(ch, "chain_ns_per_sample", r->chain_ns);
-            json_num(ch, "ns_per_sample", r->chain_total_ns);
-            json_num(ch, "fastest_ns_per_sample", r->chain_fastest_ns);
+            afmt_json_num(ch, "integrator_ns_per_sample", r->chain_int_ns);
+            afmt_json_num(ch, "chain_ns_per_sample", r->chain_ns);
+            afmt_json_num(ch, "ns_per_sample", r->chain_total_ns);
+            afmt_json_num(ch, "fastest_ns_per_sample", r->chain_fastest_ns);
             cJSON_AddNumberToObject(ch, "runs", r->chain_runs);
-            json_num(ch, "realtime_factor", r->chain_rt_factor);
-            json_num(ch, "chain_overhead_pct", r->chain_overhead_pct);
+            afmt_json_num(ch, "realtime_factor", r->chain_rt_factor);
+            afmt_json_num(ch, "chain_overhead_pct", r->chain_overhead_pct);
             cJSON_AddNumberToObject(ch, "obd_noise_density_m_rthz", CHAIN_NOISE_M_RTHZ);
             cJSON_AddNumberToObject(ch, "obd_adc_bits", CHAIN_ADC_BITS);
             cJSON *dec = cJSON_AddArrayToObject(ch, "decimation");

@@ -212,8 +212,7 @@ int afm_cmd_curve(int argc, char **argv) {
     afm_lcm_log_event ev;
     long bad = 0;
     while ((rc = afm_lcm_log_next(l, &ev, err, sizeof err)) > 0) {
-        size_t cl = strlen(ev.channel);
-        if (cl < 9 || strcmp(ev.channel + cl - 9, "HARMONICS")) continue;
+        if (!afm_lcm_log_channel_is(ev.channel, AFMT_CHAN_HARMONICS)) continue;
         afmtwin_harmonics_t m;
         char why[256];
         if (afm_wire_decode(&afm_wire_harmonics_t, ev.data, (int)ev.datalen, &m, why, sizeof why)) {

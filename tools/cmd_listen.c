@@ -134,13 +134,6 @@ static arr_stats stats_f(const float *v, int n) {
     return s;
 }
 
-static void json_num(cJSON *o, const char *k, double v) {
-    if (isfinite(v))
-        cJSON_AddNumberToObject(o, k, v);
-    else
-        cJSON_AddNullToObject(o, k);
-}
-
 /* 64-bit integers exactly (cJSON numbers are doubles: seq numbers of 1e15 and more would
  * print rounded or in exponent form). */
 static void json_int(cJSON *o, const char *k, int64_t v) {
@@ -163,10 +156,10 @@ static void json_str(cJSON *o, const char *k, const char *v) {
 
 static void json_stats(cJSON *o, const char *k, arr_stats s) {
     cJSON *j = cJSON_AddObjectToObject(o, k);
-    json_num(j, "min", s.min);
-    json_num(j, "max", s.max);
-    json_num(j, "mean", s.mean);
-    json_num(j, "rms", s.rms);
+    afmt_json_num(j, "min", s.min);
+    afmt_json_num(j, "max", s.max);
+    afmt_json_num(j, "mean", s.mean);
+    afmt_json_num(j, "rms", s.rms);
 }
 
 static void json_farr(cJSON *o, const char *k, const float *v, int n) {
@@ -184,9 +177,23 @@ static void json_darr(cJSON *o, const char *k, const double *v, int n) {
 /* The lock-in at tone 0 and the peak force of the last period, as harmonics and status
  * both carry them. */
 static void json_lockin(cJSON *o, double amplitude_m, double phase_deg, double peak_force_n) {
-    json_num(o, "lockin_amplitude_m", amplitude_m);
-    json_num(o, "lockin_phase_deg", phase_deg);
-    json_num(o, "peak_force_n", peak_force_n);
+    afmt_json_num(o, "lockin_amplitude_m", amplitude_m);
+    afmt_json_num(o, "lockin_phase_deg", phase_deg);
+    afmt_json_num(o, "peak_force_n", peak_force_n);
+}
+
+/* The sample under the tip (issue 18), as harmonics and status both carry it. */
+static void json_tip(cJSON *o, double x_m, double y_m, double true_height_m, int material) {
+    afmt_json_num(o, "tip_x_m", x_m);
+    afmt_json_num(o, "tip_y_m", y_m);
+    afmt_json_num(o, "true_height_m", true_height_m);
+    json_int(o, "material", material);
+}
+
+/* The same on a text line, after sep. */
+static void print_tip(const char *sep, double x_m, double y_m, double true_height_m, int material) {
+    printf("%stip (%.6g, %.6g) nm over z_s %.5g nm, material %d", sep, x_m * 1e9, y_m * 1e9,
+           true_height_m * 1e9, material);
 }
 
 static cJSON *json_head(const char *channel, const char *type, int64_t utime, int64_t msg_seq) {
@@ -211,12 +218,12 @@ static const char *fm_drive_name(int d) {
 }
 
 static void json_oppoint(cJSON *o, double z_m, int n, const double *f_hz, const double *a_m) {
-    json_num(o, "separation_m", z_m);
+    afmt_json_num(o, "separation_m", z_m);
     cJSON *t = cJSON_AddArrayToObject(o, "tones");
     for (int i = 0; i < n; i++) {
         cJSON *e = cJSON_CreateObject();
-        json_num(e, "frequency_hz", f_hz[i]);
-        json_num(e, "amplitude_m", a_m[i]);
+        afmt_json_num(e, "frequency_hz", f_hz[i]);
+        afmt_json_num(e, "amplitude_m", a_m[i]);
         cJSON_AddItemToArray(t, e);
     }
 }
@@ -228,11 +235,11 @@ static void print_samples(const listen_ctx *c, const char *channel, const afmtwi
         cJSON *o = json_head(channel, "samples", m->utime, m->msg_seq);
         json_int(o, "seq_applied", m->seq_applied);
         cJSON_AddNumberToObject(o, "stream", m->stream);
-        json_num(o, "t0_s", m->t0_s);
-        json_num(o, "rate_hz", m->rate_hz);
+        afmt_json_num(o, "t0_s", m->t0_s);
+        afmt_json_num(o, "rate_hz", m->rate_hz);
         cJSON_AddNumberToObject(o, "decimation", m->decimation);
-        json_num(o, "passband_hz", m->passband_hz);
-        json_num(o, "stopband_hz", m->stopband_hz);
+        afmt_json_num(o, "passband_hz", m->passband_hz);
+        afmt_json_num(o, "stopband_hz", m->stopband_hz);
         cJSON_AddNumberToObject(o, "n", m->n);
         json_stats(o, "deflection_m", sx);
         json_stats(o, "obd_m", so);
@@ -270,8 +277,8 @@ static void print_harmonics(const listen_ctx *c, const char *channel,
     if (c->json) {
         cJSON *o = json_head(channel, "harmonics", m->utime, m->msg_seq);
         json_int(o, "seq_applied", m->seq_applied);
-        json_num(o, "t_s", m->t_s);
-        json_num(o, "fe_hz", m->fe_hz);
+        afmt_json_num(o, "t_s", m->t_s);
+        afmt_json_num(o, "fe_hz", m->fe_hz);
         cJSON_AddNumberToObject(o, "n", m->n);
         cJSON *k = cJSON_AddArrayToObject(o, "k");
         for (int i = 0; i < m->n; i++)
@@ -283,23 +290,20 @@ static void print_harmonics(const listen_ctx *c, const char *channel,
         json_darr(o, "force_phase_deg", m->force_phase_deg, m->n);
         json_darr(o, "phase_diff_deg", m->phase_diff_deg, m->n);
         json_lockin(o, m->lockin_amplitude_m, m->lockin_phase_deg, m->peak_force_n);
-        json_num(o, "min_deflection_m", m->min_deflection_m);
-        json_num(o, "indentation_m", m->indentation_m);
-        json_num(o, "contact_time_s", m->contact_time_s);
-        json_num(o, "pre_contact_velocity_m_s", m->pre_contact_velocity_m_s);
-        json_num(o, "dissipated_energy_j", m->dissipated_energy_j);
-        json_num(o, "mean_deflection_m", m->mean_deflection_m);
-        json_num(o, "squeeze_dissipated_energy_j", m->squeeze_dissipated_energy_j);
+        afmt_json_num(o, "min_deflection_m", m->min_deflection_m);
+        afmt_json_num(o, "indentation_m", m->indentation_m);
+        afmt_json_num(o, "contact_time_s", m->contact_time_s);
+        afmt_json_num(o, "pre_contact_velocity_m_s", m->pre_contact_velocity_m_s);
+        afmt_json_num(o, "dissipated_energy_j", m->dissipated_energy_j);
+        afmt_json_num(o, "mean_deflection_m", m->mean_deflection_m);
+        afmt_json_num(o, "squeeze_dissipated_energy_j", m->squeeze_dissipated_energy_j);
         json_oppoint(o, m->separation_m, m->n_tones, m->tone_frequency_hz, m->tone_amplitude_m);
-        json_num(o, "tip_x_m", m->tip_x_m); /* issue 18: the sample under the tip */
-        json_num(o, "tip_y_m", m->tip_y_m);
-        json_num(o, "true_height_m", m->true_height_m);
-        json_int(o, "material", m->material);
+        json_tip(o, m->tip_x_m, m->tip_y_m, m->true_height_m, m->material);
         if (m->fm_lock_state >= 0) { /* issue 32: the internal FM loops */
             json_str(o, "fm_lock_state", fm_lock_name(m->fm_lock_state));
             json_str(o, "fm_drive", fm_drive_name(m->fm_drive));
-            json_num(o, "fm_frequency_shift_hz", m->fm_frequency_shift_hz);
-            json_num(o, "fm_phase_error_deg", m->fm_phase_error_deg);
+            afmt_json_num(o, "fm_frequency_shift_hz", m->fm_frequency_shift_hz);
+            afmt_json_num(o, "fm_phase_error_deg", m->fm_phase_error_deg);
         }
         afmt_json_emit(o);
         return;
@@ -315,8 +319,7 @@ static void print_harmonics(const listen_ctx *c, const char *channel,
         printf("%s k%d %.4g nm %.2f deg (lag)", i ? "," : ";", m->k[i],
                m->deflection_amplitude_m[i] * 1e9, m->deflection_lag_deg[i]);
     if (m->tip_x_m != 0 || m->tip_y_m != 0 || m->true_height_m != 0 || m->material != 0)
-        printf("; tip (%.6g, %.6g) nm over z_s %.5g nm, material %d", m->tip_x_m * 1e9,
-               m->tip_y_m * 1e9, m->true_height_m * 1e9, m->material); /* issue 18 */
+        print_tip("; ", m->tip_x_m, m->tip_y_m, m->true_height_m, m->material);
     if (m->fm_lock_state >= 0)
         printf("; FM (%s) %s, shift %.6g Hz, phase error %.4g deg", fm_drive_name(m->fm_drive),
                fm_lock_name(m->fm_lock_state), m->fm_frequency_shift_hz, m->fm_phase_error_deg);
@@ -327,23 +330,23 @@ static void print_status(const listen_ctx *c, const char *channel, const afmtwin
     if (c->json) {
         cJSON *o = json_head(channel, "status", m->utime, m->msg_seq);
         json_int(o, "seq_applied", m->seq_applied);
-        json_num(o, "model_time_s", m->model_time_s);
-        json_num(o, "realtime_factor", m->realtime_factor);
+        afmt_json_num(o, "model_time_s", m->model_time_s);
+        afmt_json_num(o, "realtime_factor", m->realtime_factor);
         json_int(o, "overruns", m->overruns);
-        json_num(o, "lag_s", m->lag_s);
+        afmt_json_num(o, "lag_s", m->lag_s);
         json_int(o, "received", m->received);
         json_int(o, "rejected", m->rejected);
         json_str(o, "last_reject", m->last_reject);
         json_int(o, "blowups", m->blowups);
         json_str(o, "mode", m->mode);
         cJSON_AddNumberToObject(o, "running", m->running);
-        json_num(o, "separation_m", m->separation_m);
-        json_num(o, "fe_hz", m->fe_hz);
-        json_num(o, "amplitude_m", m->amplitude_m);
+        afmt_json_num(o, "separation_m", m->separation_m);
+        afmt_json_num(o, "fe_hz", m->fe_hz);
+        afmt_json_num(o, "amplitude_m", m->amplitude_m);
         json_int(o, "applied", m->applied);
         json_int(o, "resyncs", m->resyncs);
         json_int(o, "chain_stalls", m->chain_stalls);
-        json_num(o, "chain_lag_s", m->chain_lag_s);
+        afmt_json_num(o, "chain_lag_s", m->chain_lag_s);
         json_str(o, "can_state", m->can_state);
         json_int(o, "can_frames", m->can_frames);
         json_int(o, "can_rejected", m->can_rejected);
@@ -359,44 +362,42 @@ static void print_status(const listen_ctx *c, const char *channel, const afmtwin
         json_int(o, "republished", m->republished);
         cJSON_AddNumberToObject(o, "auto_paused", m->auto_paused);
         json_str(o, "pause_reason", m->pause_reason);
-        json_num(o, "realtime_factor_1s", m->realtime_factor_1s);
-        json_num(o, "resync_skipped_s", m->resync_skipped_s);
+        afmt_json_num(o, "realtime_factor_1s", m->realtime_factor_1s);
+        afmt_json_num(o, "resync_skipped_s", m->resync_skipped_s);
         json_lockin(o, m->lockin_amplitude_m, m->lockin_phase_deg, m->peak_force_n);
-        json_num(o, "last_reject_age_s", m->last_reject_age_s);
+        afmt_json_num(o, "last_reject_age_s", m->last_reject_age_s);
         cJSON_AddNumberToObject(o, "last_reject_old", m->last_reject_old);
         json_str(o, "rt_scheme", m->rt_scheme);
         json_str(o, "rt_scheme_reason", m->rt_scheme_reason);
         json_int(o, "scheme_handovers", m->scheme_handovers);
-        json_num(o, "model_s_accurate", m->model_s_accurate);
-        json_num(o, "model_s_fast", m->model_s_fast);
+        afmt_json_num(o, "model_s_accurate", m->model_s_accurate);
+        afmt_json_num(o, "model_s_fast", m->model_s_fast);
         json_str(o, "fm_control", m->fm_control); /* issue 32 */
         json_str(o, "fm_drive", m->fm_drive);
         json_str(o, "fm_lock_state", m->fm_lock_state);
-        json_num(o, "fm_frequency_hz", m->fm_frequency_hz);
-        json_num(o, "fm_reference_hz", m->fm_reference_hz);
-        json_num(o, "fm_frequency_shift_hz", m->fm_frequency_shift_hz);
-        json_num(o, "fm_phase_error_deg", m->fm_phase_error_deg);
-        json_num(o, "fm_drive_amplitude_m", m->fm_drive_amplitude_m);
-        json_num(o, "fm_amplitude_m", m->fm_amplitude_m);
-        json_num(o, "fm_amplitude_setpoint_m", m->fm_amplitude_setpoint_m);
+        afmt_json_num(o, "fm_frequency_hz", m->fm_frequency_hz);
+        afmt_json_num(o, "fm_reference_hz", m->fm_reference_hz);
+        afmt_json_num(o, "fm_frequency_shift_hz", m->fm_frequency_shift_hz);
+        afmt_json_num(o, "fm_phase_error_deg", m->fm_phase_error_deg);
+        afmt_json_num(o, "fm_drive_amplitude_m", m->fm_drive_amplitude_m);
+        afmt_json_num(o, "fm_amplitude_m", m->fm_amplitude_m);
+        afmt_json_num(o, "fm_amplitude_setpoint_m", m->fm_amplitude_setpoint_m);
         json_int(o, "fm_tone_changes", m->fm_tone_changes);
-        json_num(o, "squeeze_dissipated_energy_j", m->squeeze_dissipated_energy_j); /* issue 30 */
-        json_int(o, "sample_on", m->sample_on); /* issue 18: the sample under the tip */
-        json_num(o, "tip_x_m", m->tip_x_m);
-        json_num(o, "tip_y_m", m->tip_y_m);
-        json_num(o, "true_height_m", m->true_height_m);
-        json_int(o, "material", m->material);
+        afmt_json_num(o, "squeeze_dissipated_energy_j",
+                      m->squeeze_dissipated_energy_j); /* issue 30 */
+        json_int(o, "sample_on", m->sample_on);        /* issue 18: the sample under the tip */
+        json_tip(o, m->tip_x_m, m->tip_y_m, m->true_height_m, m->material);
         json_str(o, "scan_mode", m->scan_mode);
         json_int(o, "scan_line", m->scan_line);
         json_int(o, "scan_pixel", m->scan_pixel);
         json_int(o, "scan_retrace", m->scan_retrace);
         json_str(o, "am_control", m->am_control);
-        json_num(o, "am_z_m", m->am_z_m);
-        json_num(o, "am_error_m", m->am_error_m);
-        json_num(o, "am_setpoint_m", m->am_setpoint_m);
-        json_num(o, "am_amplitude_m", m->am_amplitude_m);
-        json_num(o, "free_amplitude_m", m->free_amplitude_m); /* issue 30: A0, A/A0 */
-        json_num(o, "amplitude_ratio", m->amplitude_ratio);
+        afmt_json_num(o, "am_z_m", m->am_z_m);
+        afmt_json_num(o, "am_error_m", m->am_error_m);
+        afmt_json_num(o, "am_setpoint_m", m->am_setpoint_m);
+        afmt_json_num(o, "am_amplitude_m", m->am_amplitude_m);
+        afmt_json_num(o, "free_amplitude_m", m->free_amplitude_m); /* issue 30: A0, A/A0 */
+        afmt_json_num(o, "amplitude_ratio", m->amplitude_ratio);
         afmt_json_emit(o);
         return;
     }
@@ -451,8 +452,8 @@ static void print_status(const listen_ctx *c, const char *channel, const afmtwin
     if (m->sample_on) { /* issue 18 */
         char sm[SHOW_LEN];
         show(sm, m->scan_mode);
-        printf(" | tip (%.6g, %.6g) nm over z_s %.5g nm, material %d, scan %s", m->tip_x_m * 1e9,
-               m->tip_y_m * 1e9, m->true_height_m * 1e9, m->material, sm);
+        print_tip(" | ", m->tip_x_m, m->tip_y_m, m->true_height_m, m->material);
+        printf(", scan %s", sm);
         if (m->scan_line >= 0)
             printf(" line %d pixel %d %s", m->scan_line, m->scan_pixel,
                    m->scan_retrace ? "retrace" : "trace");
@@ -540,7 +541,7 @@ static void print_done(const listen_ctx *c, const char *channel, const afmtwin_t
         cJSON *o = json_head(channel, "tick_done", m->utime, m->msg_seq);
         json_int(o, "seq", m->seq);
         json_int(o, "samples", m->samples);
-        json_num(o, "model_time_s", m->model_time_s);
+        afmt_json_num(o, "model_time_s", m->model_time_s);
         json_int(o, "n_samples_msgs", m->n_samples_msgs);
         json_int(o, "n_harmonics_msgs", m->n_harmonics_msgs);
         char dg[24];

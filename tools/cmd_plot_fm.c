@@ -8,6 +8,7 @@
 #include "transport/afm_lcm_log.h"
 #include "transport/afm_lcm_wire.h"
 #include "afmtwin_harmonics_t.h"
+#include "afmtwin_lcm_layout.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -42,8 +43,7 @@ int load_fm(const plot_opts *o, plot_data *d, FILE *gp) {
     double f_first = NAN, ph_set = NAN;
     while ((rr = afm_lcm_log_next(lg, &ev, err, sizeof err)) > 0) {
         events++;
-        size_t cl = strlen(ev.channel);
-        if (cl < 9 || strcmp(ev.channel + cl - 9, "HARMONICS")) continue;
+        if (!afm_lcm_log_channel_is(ev.channel, AFMTWIN_CHAN_HARMONICS)) continue;
         afmtwin_harmonics_t m;
         if (afm_wire_decode(&afm_wire_harmonics_t, ev.data, (int)ev.datalen, &m, err, sizeof err))
             continue; /* not a harmonics_t: skipped, as listen does */

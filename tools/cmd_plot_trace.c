@@ -7,6 +7,7 @@
 
 #include "transport/afm_lcm_log.h"
 #include "transport/afm_lcm_wire.h"
+#include "afmtwin_lcm_layout.h"
 #include "afmtwin_samples_t.h"
 
 #include <math.h>
@@ -72,8 +73,7 @@ int load_trace(const plot_opts *o, plot_data *d, FILE *gp) {
     long events = 0; /* of any channel: none, and the file is no LCM log */
     while ((rr = afm_lcm_log_next(lg, &ev, err, sizeof err)) > 0) {
         events++;
-        size_t cl = strlen(ev.channel);
-        if (cl < 7 || strcmp(ev.channel + cl - 7, "SAMPLES")) continue;
+        if (!afm_lcm_log_channel_is(ev.channel, AFMTWIN_CHAN_SAMPLES)) continue;
         afmtwin_samples_t m;
         if (afm_wire_decode(&afm_wire_samples_t, ev.data, (int)ev.datalen, &m, err, sizeof err))
             continue; /* not a samples_t: skipped, as listen does */

@@ -286,10 +286,7 @@ static cJSON *orbit_json(const afm_orbit *ob, const afm_orbit_settler *st, bool 
     cJSON_AddNumberToObject(o, "periodicity", settled ? st->p : 0);
     cJSON_AddNumberToObject(o, "settle_periods", st->periods);
     cJSON_AddBoolToObject(o, "settled", settled);
-    if (isfinite(st->change_rel))
-        cJSON_AddNumberToObject(o, "orbit_change", st->change_rel);
-    else
-        cJSON_AddNullToObject(o, "orbit_change");
+    afmt_json_num(o, "orbit_change", st->change_rel);
     cJSON_AddNumberToObject(o, "analysed_periods", ob->p);
     cJSON_AddNumberToObject(o, "min_deflection_m", ob->min_deflection_m);
     cJSON_AddNumberToObject(o, "max_deflection_m", ob->max_deflection_m);

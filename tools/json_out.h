@@ -10,4 +10,8 @@
  * allowed and prints nothing). 0, or -1 (o NULL, or cJSON could not print it). */
 int afmt_json_emit(cJSON *o);
 
+/* Add v to o as key: a number, or null when v is not finite (JSON has no NaN nor
+ * infinity; NaN is how the tools say "not measured"). */
+void afmt_json_num(cJSON *o, const char *key, double v);
+
 #endif

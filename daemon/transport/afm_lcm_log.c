@@ -78,6 +78,11 @@ void afm_lcm_log_close(afm_lcm_log **lp) {
     *lp = NULL;
 }
 
+int afm_lcm_log_channel_is(const char *channel, const char *suffix) {
+    size_t cl = strlen(channel), sl = strlen(suffix);
+    return cl >= sl && !strcmp(channel + cl - sl, suffix);
+}
+
 long long afm_lcm_log_skipped(const afm_lcm_log *l) {
     return l ? l->skipped : 0;
 }

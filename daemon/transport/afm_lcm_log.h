@@ -44,6 +44,10 @@ afm_lcm_log *afm_lcm_log_from_file(FILE *f, uint32_t max_data, char *err, size_t
  * the end (further calls return 0). */
 int afm_lcm_log_next(afm_lcm_log *l, afm_lcm_log_event *ev, char *err, size_t errlen);
 
+/* 1 when channel ends with suffix (the channel's kind without the daemon's --prefix:
+ * "AFMTWIN_HARMONICS" and "LAB2_HARMONICS" both end with "HARMONICS"), else 0. */
+int afm_lcm_log_channel_is(const char *channel, const char *suffix);
+
 /* Bytes skipped so far while looking for a sync word (junk between events). */
 long long afm_lcm_log_skipped(const afm_lcm_log *l);
 

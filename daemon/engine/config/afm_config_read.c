@@ -2,7 +2,8 @@
 /* afm_config_read.c -- the config loader's reading primitives on libconfig settings: typed
  * members (number, integer, boolean, choice, group, vector, list), the known-keys check,
  * and messages "FILE:LINE: key 'PATH': reason" (contract in afm_config_read.h). The schema
- * (which groups and keys exist) is afm_config.c's; the range checks afm_config_check.c's. */
+ * (which groups and keys exist) is afm_config.c's and afm_config_opt.c's; the range checks
+ * afm_config_check.c's. */
 #include "config/afm_config_read.h"
 
 #include "config/afm_err.h"
@@ -208,6 +209,16 @@ int afm_cfgr_group(const afm_cfgr *L, const config_setting_t *g, const char *nam
         return afm_cfgr_fail(L, *out, NULL, "expected a group { ... }, got %s",
                              afm_cfgr_type(*out));
     return 0;
+}
+
+/* An optional group with "enabled" (default true when the group is present). */
+int afm_cfgr_feature(const afm_cfgr *L, const config_setting_t *g, const char *name,
+                     config_setting_t **out, bool *enabled) {
+    *enabled = false;
+    if (afm_cfgr_group(L, g, name, false, out)) return -1;
+    if (!*out) return 0;
+    *enabled = true;
+    return afm_cfgr_bool(L, *out, "enabled", enabled);
 }
 
 /* Numbers given as [a, b, ...] or (a, b, ...), 1..max of them. */

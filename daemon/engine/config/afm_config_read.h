@@ -1,7 +1,7 @@
 /* SPDX-License-Identifier: MIT */
-/* afm_config_read.h -- what the config loader (afm_config.c) reads settings with: typed
- * members of a libconfig group, each failure written as "FILE:LINE: key 'PATH': reason"
- * into the loader's err. Internal to the config layer: not part of afm_config.h. */
+/* afm_config_read.h -- what the config loader (afm_config.c, afm_config_opt.c) reads settings with:
+ * typed members of a libconfig group, each failure written as "FILE:LINE: key 'PATH': reason" into
+ * the loader's err. Internal to the config layer: not part of afm_config.h. */
 #ifndef AFM_CONFIG_READ_H
 #define AFM_CONFIG_READ_H
 
@@ -51,6 +51,10 @@ int afm_cfgr_choice(const afm_cfgr *L, const config_setting_t *g, const char *na
 /* A member that must be a group { ... } when present. */
 int afm_cfgr_group(const afm_cfgr *L, const config_setting_t *g, const char *name, bool required,
                    config_setting_t **out);
+/* An optional group with "enabled": *out the group or NULL; *enabled false when it is
+ * absent, else its "enabled" key, true when not given. */
+int afm_cfgr_feature(const afm_cfgr *L, const config_setting_t *g, const char *name,
+                     config_setting_t **out, bool *enabled);
 /* Numbers given as [a, b, ...] or (a, b, ...), 1..max of them. */
 int afm_cfgr_vector(const afm_cfgr *L, const config_setting_t *s, double *v, int max, int *n);
 /* A list ( {...}, ... ) of at most max groups, each read by one() into items[i] (size bytes
