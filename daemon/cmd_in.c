@@ -440,7 +440,6 @@ static void drain_side_queues(twind *d) {
     while (afm_spsc_pop(&d->rtrej_q, &r)) /* counted by the rt thread (snapshot.refused) */
         count_reason(d, NULL, d->last_refusal, "refused", tag_seq(b, sizeof b, r.reason, r.seq));
     model_changes_settled(d, 0); /* a refused model change: the shadow goes back now */
-    twind_applied_drain(d);      /* --applied-log */
 }
 
 /* The receive thread. With no stream it blocks in the transport's poll and takes each

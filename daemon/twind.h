@@ -134,7 +134,9 @@ typedef struct {
     afm_spsc q;
     struct _lcm_eventlog_t *log;         /* NULL: no --applied-log */
     atomic_llong lost;                   /* rt: pushes that found q full */
-    long long written, unlogged, failed; /* receive thread (main at the end) */
+    pthread_t th;                        /* the writer (afm-log) */
+    atomic_int stop;                     /* main -> writer */
+    long long written, unlogged, failed; /* the writer (main at the end) */
 } twind_applied_log;
 
 /* Lines of rejections and refusals on stderr: at most this many a second, the rest
@@ -288,14 +290,14 @@ typedef struct {
 } twind;
 
 /* applied_log.c (--applied-log). open: main, before the threads (the log's first event: the
- * scheme in force at sample 0); 0, or -1 with err. cmd and scheme: the rt thread, after a
- * command applied / a hand-over, with the samples run before it (never block). drain: the
- * receive thread, writes what the rt thread queued. close: main, after the threads stopped:
- * the rest, and a line on stderr (incomplete: said so). All do nothing without the option. */
+ * scheme in force at sample 0; starts the writer thread); 0, or -1 with err. cmd and scheme:
+ * the rt thread, after a command applied / a hand-over, with the samples run before it (never
+ * block); the writer writes them. close: main, after the threads stopped: the writer stopped,
+ * the rest written, and a line on stderr (incomplete: said so). All do nothing without the
+ * option. */
 int twind_applied_open(twind *d, bool accurate, char *err, size_t errlen);
 void twind_applied_cmd(twind *d, const afm_cmd *c, long long sample);
 void twind_applied_scheme(twind *d, bool accurate, long long sample);
-void twind_applied_drain(twind *d);
 void twind_applied_close(twind *d);
 
 /* twind_clock.c */
