@@ -4,9 +4,8 @@
 # takes a plain sequence of every command kind that changes the twin in real time: a Z step,
 # a Z ramp, frequency and amplitude steps, four tones and back, a force constant, a damping
 # change (a model built off the real-time threads and swapped in), pause and run. (Not a
-# reset: after `control reset` the daemon's period records start ~1e-3 s apart from replay's
-# at the same sample, the output chain's restart depending on where its items end; noted
-# in docs/realtime.md, left for now.)
+# reset: after it the daemon publishes other periods than replay, every K-th counted from
+# another one; docs/realtime.md, left for now.)
 # Where each applies is decided by real time (the next ring item, later while the chain is
 # behind), so a replay of the arrival times differs; the daemon's log stamps each with the
 # sample it applied at. Checked: the log holds every applied command and the scheme events;
