@@ -87,30 +87,15 @@ compare() {
     --harmonics-every $K --channels harmonics 2> "$T/rp.err" || { bad "$2: replay --applied: $(tail -2 "$T/rp.err")"; return; }
   "$A" listen --log "$T/harm.lcmlog" --channels harmonics --json > "$T/dh.jsonl" 2>/dev/null
   "$A" listen --log "$T/rp.lcmlog" --channels harmonics --json > "$T/rh.jsonl" 2>/dev/null
-  python3 - "$T/dh.jsonl" "$T/rh.jsonl" "$3" "$2" "$(sed -n 's/.*: \([0-9]* commands applied, [0-9]* rejected\).*/\1/p' "$T/rp.err")" <<'EOF'
-import json, sys
-SKIP = ("utime", "seq_applied", "msg_seq")
-def load(f):
-    d = {}
-    for l in open(f):
-        if l.strip():
-            r = json.loads(l)
-            d[r["t_s"]] = {k: v for k, v in r.items() if k not in SKIP}
-    return d
-dm, rp = load(sys.argv[1]), load(sys.argv[2])
-found = [t for t in dm if t in rp]
-diff = [t for t in found if dm[t] != rp[t]]
-same = len(dm) > 100 and len(found) >= 0.99 * len(dm) and not diff
-want = sys.argv[3] == "same"
-first = ""
-if diff:
-    t = min(diff)
-    k = next(k for k in dm[t] if dm[t][k] != rp[t].get(k))
-    first = "; first at t_s %r: %s %.60s vs %.60s" % (t, k, repr(dm[t][k]), repr(rp[t].get(k)))
-print("%s %s: replay --applied (%s): %d daemon harmonics records, %d found (t_s), %d differ%s%s" %
-      ("ok  " if same == want else "FAIL", sys.argv[4], sys.argv[5], len(dm), len(found), len(diff),
-       first, "" if want else " (must not all match)"))
-EOF
+  local what res rc
+  what="$2: replay --applied ($(sed -n 's/.*: \([0-9]* commands applied, [0-9]* rejected\).*/\1/p' "$T/rp.err"))"
+  res=$(python3 tests/harm_identical.py "$T/dh.jsonl" "$T/rh.jsonl"); rc=$?
+  if [ "$3" = same ]; then
+    [ "$rc" -eq 0 ] && echo "ok   $what: $res" || echo "FAIL $what: ${res:-no comparison}"
+  else
+    [ "$rc" -ne 0 ] && echo "ok   $what: $res (must not all match)" ||
+      echo "FAIL $what: $res (must not all match)"
+  fi
 }
 compare "$T/applied.lcmlog" "the daemon's log" same > "$T/c1.out"
 read -r tag rest < "$T/c1.out"; [ "$tag" = ok ] && ok "$rest" || bad "$rest"

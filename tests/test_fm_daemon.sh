@@ -268,33 +268,12 @@ if [ "$REPLAY" = 1 ]; then
   "$A" listen --log "$T/harm.lcmlog" --channels harmonics --json > "$T/dh.jsonl" 2>/dev/null
   "$A" listen --log "$T/rp.lcmlog" --channels harmonics --json > "$T/rh.jsonl" 2>/dev/null
   applied=$(sed -n 's/.*: \([0-9]*\) commands applied, \([0-9]*\) rejected.*/\1 \2/p' "$T/rp.err")
-  python3 - "$T/dh.jsonl" "$T/rh.jsonl" "${sent:-0}" "$applied" > "$T/rp.out" <<'EOF'
-import json, sys
-SKIP = ("utime", "seq_applied", "msg_seq")
-def load(f):
-    d = {}
-    for l in open(f):
-        if l.strip():
-            r = json.loads(l)
-            d[r["t_s"]] = {k: v for k, v in r.items() if k not in SKIP}
-    return d
-dm, rp = load(sys.argv[1]), load(sys.argv[2])
-sent = int(sys.argv[3])
-app = (sys.argv[4].split() + ["?", "?"])[:2]
-found = [t for t in dm if t in rp]
-diff = [t for t in found if dm[t] != rp[t]]
-ok = len(dm) > 0 and len(found) >= 0.99 * len(dm) and not diff
-first = ""
-if diff:
-    t = min(diff)
-    k = next(k for k in dm[t] if dm[t][k] != rp[t].get(k))
-    first = "; first at t_s %r: %s daemon %r, replay %r" % (t, k, dm[t][k], rp[t].get(k))
-print("%s replay --applied (%s commands applied, %s rejected; %d sent by the controller): %d "
-      "daemon harmonics records, %d found in the replay (t_s), %d of them differ in any field%s" %
-      ("ok  " if ok else "FAIL", app[0], app[1], sent, len(dm), len(found), len(diff), first))
-EOF
-  read -r tag rest < "$T/rp.out"
-  [ "$tag" = ok ] && ok "$rest" || bad "${rest:-no comparison}"
+  what="replay --applied (${applied/ / commands applied, } rejected; ${sent:-0} sent by the controller)"
+  if res=$(python3 tests/harm_identical.py "$T/dh.jsonl" "$T/rh.jsonl"); then
+    ok "$what: $res"
+  else
+    bad "$what: ${res:-no comparison}"
+  fi
 fi
 echo "$pass passed, $fail failed"
 [ "$fail" -eq 0 ]

@@ -166,12 +166,8 @@ static const afm_io_ops lcm_ops = {
 
 afm_io *afm_lcm_io_create(const char *url, const char *out_url, const char *samples_url,
                           const char *prefix, const afm_io_sink *sink, char *err, size_t errlen) {
-    static const struct {
-        afm_cmd_kind kind;
-        const char *name;
-    } ins[6] = {{AFM_CMD_DITHER, "DITHER"}, {AFM_CMD_SETPOINT, "SETPOINT"},
-                {AFM_CMD_PARAM, "PARAM"},   {AFM_CMD_CONTROL, "CONTROL"},
-                {AFM_CMD_TICK, "TICK"},     {AFM_CMD_SCAN, "SCAN"}};
+    static const afm_cmd_kind ins[6] = {AFM_CMD_DITHER,  AFM_CMD_SETPOINT, AFM_CMD_PARAM,
+                                        AFM_CMD_CONTROL, AFM_CMD_TICK,     AFM_CMD_SCAN};
     if (!prefix) prefix = "AFMTWIN_";
     if (strlen(prefix) > 64 || strpbrk(prefix, " \t\n.*?[]()") != NULL) {
         snprintf(err, errlen,
@@ -213,8 +209,8 @@ afm_io *afm_lcm_io_create(const char *url, const char *out_url, const char *samp
     for (int i = 0; i < 6; i++) {
         in_channel *ic = &l->in[i];
         ic->owner = l;
-        ic->kind = ins[i].kind;
-        snprintf(ic->channel, sizeof ic->channel, "%s%s", prefix, ins[i].name);
+        ic->kind = ins[i];
+        snprintf(ic->channel, sizeof ic->channel, "%s%s", prefix, afm_cmd_channel_suffix(ins[i]));
         lcm_subscription_t *sub = lcm_subscribe(l->lcm, ic->channel, on_raw, ic);
         if (!sub) {
             snprintf(err, errlen, "cannot subscribe to %s", ic->channel);
