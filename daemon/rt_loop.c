@@ -131,6 +131,18 @@ static void rt_reject(rt_ctx *c, const afm_cmd *cmd, const char *why, int64_t or
     if (!afm_spsc_push(&c->d->rtrej_q, &r)) c->snap.reasons_lost++; /* never the loop */
 }
 
+/* A model swapped in (damping, geometry, reload) starts in its config's scheme: the one in
+ * force goes on at the same sample (without this, the rest of the turn ran in the config's
+ * until twind_scheme_turn handed it back: --scheme fast ran accurate samples), and the applied
+ * log says so after the command, so that a replay follows. */
+static void keep_scheme(rt_ctx *c, long long sample) {
+    twind *d = c->d;
+    if (!d->scheme.rt) return;
+    bool acc = !strcmp(afm_sim_scheme_name(afm_runner_sim(c->r)), "accurate");
+    if (acc != d->scheme.accurate && afm_runner_set_scheme(c->r, d->scheme.accurate) == 0)
+        twind_applied_scheme(d, d->scheme.accurate, sample);
+}
+
 static void apply_commands(rt_ctx *c) {
     twind_cmd_item *it;
     while ((it = afm_spsc_peek(&c->d->cmd_q)) != NULL) {
@@ -142,11 +154,12 @@ static void apply_commands(rt_ctx *c) {
             rt_reject(c, &it->cmd, err, it->order);
         } else {
             c->snap.last_applied_order = it->order;
+            afm_runner_status st = {0};
             if (c->d->applied.log) { /* --applied-log: at the samples run before it */
-                afm_runner_status st;
                 afm_runner_status_get(c->r, &st);
                 twind_applied_cmd(c->d, &it->cmd, st.samples);
             }
+            if (it->model) keep_scheme(c, st.samples);
         }
         trash(c, m); /* unused (rejected); NULL when applied (it went to the chain thread) */
         afm_cmd_kind k = it->cmd.kind;
