@@ -63,8 +63,8 @@ line=$(sed -n 's/^afmtwind: --applied-log [^:]*: //p' "$T/d.err")
 nev=$(echo "$line" | sed -n 's/^\([0-9]*\) events.*/\1/p')
 napp=$(sed -n 's/^afmtwind: final: .* applied \([0-9]*\) .*/\1/p' "$T/d.err")
 # the log's events by channel: the commands applied, and the scheme (at sample 0, at the end,
-# and after the damping change: a model swapped in starts in its config's scheme until the
-# turn's end hands it back to the fast one the daemon was told to run)
+# and right after the damping change: the model swapped in starts in its config's scheme, and
+# the daemon sets the fast one it was told to run again at that sample)
 python3 - "$T/applied.lcmlog" > "$T/ev.out" <<'EOF'
 import collections, struct, sys
 b = open(sys.argv[1], "rb").read()
