@@ -469,7 +469,8 @@ int afm_runner_chain_run(afm_runner *r, int max_items) {
     while ((max_items <= 0 || done < max_items) && (it = afm_spsc_peek(&r->ring)) != NULL) {
         /* Outputs waiting were made after command b_seq: hand them out before samples of a
          * later command join them. */
-        if (done > 0 && it->kind == IT_SAMPLES && it->seq != r->b_seq) break;
+        if (done > 0 && ((it->kind == IT_SAMPLES && it->seq != r->b_seq) || it->kind == IT_RESET))
+            break; /* a reset clears the chain's queues: what waits goes out first */
         bool is_done = it->kind == IT_DONE;
         back_item(r, it);
         afm_spsc_release(&r->ring);
@@ -488,7 +489,7 @@ int afm_runner_take_done(afm_runner *r, afm_runner_done *d) {
 
 bool afm_runner_chain_seq_next(afm_runner *r) {
     const ring_item *it = afm_spsc_peek(&r->ring);
-    return it && it->kind == IT_SAMPLES && it->seq != r->b_seq;
+    return it && ((it->kind == IT_SAMPLES && it->seq != r->b_seq) || it->kind == IT_RESET);
 }
 
 int afm_runner_take_trash(afm_runner *r, afm_runner_model **m) {

@@ -218,11 +218,13 @@ long long afm_runner_budget(const afm_runner *r);
 
 /* Back, pipelined only (inline, run and apply do it): process up to max_items (<= 0: all)
  * ring items; stops early before samples that follow a later command than the outputs
- * waiting, so that the caller takes those first with their seq. Returns items processed
+ * waiting, so that the caller takes those first with their seq, and before a reset (which
+ * clears the chain's queues: what waits there would be lost). Returns items processed
  * (0: nothing waiting). */
 int afm_runner_chain_run(afm_runner *r, int max_items);
 /* Back: true when the next waiting item holds samples of a later command than the
- * outputs waiting now (afm_runner_chain_run would stop before it): hand those out first. */
+ * outputs waiting now, or is a reset (afm_runner_chain_run would stop before it): hand
+ * those out first. */
 bool afm_runner_chain_seq_next(afm_runner *r);
 
 /* Back: the completion of a tick (lockstep) or step budget. When the integrator uses up the
