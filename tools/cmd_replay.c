@@ -96,7 +96,7 @@ typedef struct {
 static void replay_usage(FILE *f) {
     fprintf(f,
             "usage: afmtwin replay --config FILE --in LOG --out LOG [--prefix NAME_]\n"
-            "                      [--block N] [--tail S] [--speed X] [--lockstep]\n"
+            "                      [--block N] [--tail S] [--speed X] [--lockstep | --applied]\n"
             "                      [--channels LIST]\n"
             "                      [--harmonics-every K | --harmonics-max-hz F] [--quiet]\n\n"
             "Runs the commands recorded in an LCM log (lcm-logger's format, e.g. a logged\n"
