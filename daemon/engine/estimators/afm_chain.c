@@ -381,11 +381,19 @@ static afm_chain_period *put_period(afm_chain *c) {
            offsetof(afm_harm_result, raw) + (size_t)(4 * c->harm.nl) * sizeof p->harm.raw[0]);
     if (c->cycle.periods > 0) {
         p->cycle = c->cycle.out;
-        memcpy(&p->cycle_def, &c->cycle.out_def, AFM_CYCLE_DEFERRED_SIZE(&c->cycle.out_def));
+        /* the cycle wrote its deferred steps here already (see below), unless its last
+         * period went elsewhere (the ring was full, a reset, no period since the last record) */
+        const afm_cycle_deferred *d = c->cycle.out_def_at;
+        if (d != &p->cycle_def) memcpy(&p->cycle_def, d, AFM_CYCLE_DEFERRED_SIZE(d));
     } else {
         memset(&p->cycle, 0, sizeof p->cycle);
         p->cycle_def.n = p->cycle_def.n_energy = 0;
     }
+    /* the cycle's next period straight into the next record (one copy, not two: issue 12);
+     * not while the ring is full, whose next record is the oldest, still to be taken */
+    c->cycle.out_def_to = c->p_count < PERIOD_RING
+                              ? &c->periods[(c->p_head + c->p_count) % PERIOD_RING].cycle_def
+                              : NULL;
     c->stats.periods++;
     return p;
 }

@@ -793,11 +793,13 @@ static AFM_CLONES_NOINLINE int step_boundary(afm_cycle *c, const afm_sample *s, 
         if (c->defer) { /* the pending entries go with the record (afm_cycle_finish) */
             c->pend.e_part = e_part;
             c->pend.e_corr = c->e_corr;
-            memcpy(&c->out_def, &c->pend, offsetof(afm_cycle_deferred, f));
+            afm_cycle_deferred *d = c->out_def_to ? c->out_def_to : &c->out_def;
+            memcpy(d, &c->pend, offsetof(afm_cycle_deferred, f));
             if (c->pend.n > 0) {
-                c->out_def.f = c->fsnap;
-                copy_steps(c->out_def.st, c->pend.st, c->pend.n);
+                d->f = c->fsnap;
+                copy_steps(d->st, c->pend.st, c->pend.n);
             }
+            c->out_def_at = d;
             c->pend.n = c->pend.n_energy = 0;
         }
     }
