@@ -377,23 +377,27 @@ static afm_chain_period *put_period(afm_chain *c) {
     afm_chain_period *p = &c->periods[w];
     /* The header and the sums of the lanes in use (afm_harm is deferred: h[] is filled by
      * afm_chain_period_finish). */
-    memcpy(&p->harm, &c->harm.out,
-           offsetof(afm_harm_result, raw) + (size_t)(4 * c->harm.nl) * sizeof p->harm.raw[0]);
+    const afm_harm_result *hr = c->harm.out_at ? c->harm.out_at : &c->harm.out;
+    if (hr != &p->harm) /* else written there already (see below) */
+        memcpy(&p->harm, hr,
+               offsetof(afm_harm_result, raw) + (size_t)(4 * c->harm.nl) * sizeof p->harm.raw[0]);
     if (c->cycle.periods > 0) {
         p->cycle = c->cycle.out;
         /* the cycle wrote its deferred steps here already (see below), unless its last
          * period went elsewhere (the ring was full, a reset, no period since the last record) */
-        const afm_cycle_deferred *d = c->cycle.out_def_at;
+        const afm_cycle_deferred *d = c->cycle.out_def_at ? c->cycle.out_def_at : &c->cycle.out_def;
         if (d != &p->cycle_def) memcpy(&p->cycle_def, d, AFM_CYCLE_DEFERRED_SIZE(d));
     } else {
         memset(&p->cycle, 0, sizeof p->cycle);
         p->cycle_def.n = p->cycle_def.n_energy = 0;
     }
-    /* the cycle's next period straight into the next record (one copy, not two: issue 12);
-     * not while the ring is full, whose next record is the oldest, still to be taken */
-    c->cycle.out_def_to = c->p_count < PERIOD_RING
-                              ? &c->periods[(c->p_head + c->p_count) % PERIOD_RING].cycle_def
-                              : NULL;
+    /* the next period's cycle steps and harmonic sums straight into the next record (one
+     * copy, not two: issue 12); not while the ring is full, whose next record is the oldest,
+     * still to be taken */
+    afm_chain_period *next =
+        c->p_count < PERIOD_RING ? &c->periods[(c->p_head + c->p_count) % PERIOD_RING] : NULL;
+    c->cycle.out_def_to = next ? &next->cycle_def : NULL;
+    c->harm.out_to = next ? &next->harm : NULL;
     c->stats.periods++;
     return p;
 }

@@ -799,7 +799,7 @@ static AFM_CLONES_NOINLINE int step_boundary(afm_cycle *c, const afm_sample *s, 
                 d->f = c->fsnap;
                 copy_steps(d->st, c->pend.st, c->pend.n);
             }
-            c->out_def_at = d;
+            c->out_def_at = c->out_def_to; /* NULL: out_def (c stays copyable) */
             c->pend.n = c->pend.n_energy = 0;
         }
     }

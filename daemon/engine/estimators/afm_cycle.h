@@ -159,14 +159,16 @@ typedef struct {
                                    continuous path less their trapezoids (J) */
     long periods;               /* completed periods since init/reset */
     afm_cycle_metrics out;      /* last completed period (valid if periods > 0; with defer, final
-                                   once afm_cycle_finish(&out, out_def_at) ran) */
+                                   once afm_cycle_finish(&out, def) ran, def
+                                   below) */
     bool defer;                 /* afm_cycle_set_defer */
     afm_force_params fsnap;     /* the force law the pending entries were flagged under */
     afm_cycle_deferred pend;    /* the current period's deferred steps (pend.f unused) */
-    afm_cycle_deferred out_def; /* out's (with out_def_to NULL) */
+    afm_cycle_deferred out_def; /* out's (when out_def_at is NULL) */
     /* where the next completed period's deferred steps go (NULL: out_def); the output chain
      * points it at its next period record, so that they are copied once (afm_chain.c,
-     * put_period). out_def_at: where the last completed period's went (NULL: none yet). */
+     * put_period). out_def_at: where the last completed period's went (NULL: out_def; no
+     * pointer into c itself, so that c can be copied). */
     afm_cycle_deferred *out_def_to;
     const afm_cycle_deferred *out_def_at;
     long def_overflows; /* times pend was full (its entries finished at once) */
@@ -193,13 +195,12 @@ int afm_cycle_set_forces(afm_cycle *c, const afm_force_params *f, double z_m);
 
 /* on: from now on the steps that need the force law on the continuous path (peak_force_n's
  * refinement in contact and at the minimum, dissipated_energy_j's contact-step work) are
- * kept with the period (*c->out_def_at: c->out_def unless c->out_def_to says otherwise)
+ * kept with the period (def = c->out_def_at, or &c->out_def when that is NULL, the default)
  * instead of computed: out.peak_force_n is then a lower bound and out.dissipated_energy_j
- * NaN until afm_cycle_finish(&c->out, c->out_def_at) (or the
- * same on copies of both). Finished, the figures are those of the eager path bit for bit
- * (the energy's sum in the same order; the peak a maximum, whose order does not matter but
- * for the sign of a zero). off (the default): computed as the samples come (pending ones
- * first). */
+ * NaN until afm_cycle_finish(&c->out, def) (or the same on copies of both). Finished, the figures
+ * are those of the eager path bit for bit (the energy's sum in the same order; the peak a maximum,
+ * whose order does not matter but for the sign of a zero). off (the default): computed as the
+ * samples come (pending ones first). */
 void afm_cycle_set_defer(afm_cycle *c, bool on);
 
 /* m's deferred figures from d (afm_cycle_set_defer); then d is all zero (m final). */
