@@ -208,7 +208,10 @@ int afm_chain_attach(afm_chain *c, const afm_sim *sim, char *err, size_t errlen)
     }
     const afm_force_params *f = afm_sim_forces(sim);
     double xc = afm_force_contact_x(f, afm_sim_separation(sim));
+    /* the law numbers go on from the last attach's: the records keep the laws they hold */
+    const unsigned long long law_id = c->cycle.law_id;
     if (afm_cycle_init(&c->cycle, xc, f->cos_alpha, err, errlen)) return -1;
+    c->cycle.law_id = law_id;
     afm_cycle_set_forces(&c->cycle, f, afm_sim_separation(sim));
     afm_cycle_set_defer(&c->cycle, true); /* finished per record read (afm_chain.h) */
     c->forces = f;

@@ -118,6 +118,9 @@ typedef struct {
     int n_energy;  /* of them WORK and VALUE: dissipated_energy_j waits for them (NaN) */
     double e_part; /* the period's energy before the work corrections (J) */
     double e_corr; /* the corrections taken before the first deferred one (J) */
+    /* which of its afm_cycle's laws f holds (afm_cycle.law_id; 0: none): the law is copied
+     * into a record only when it is not there yet (issue 12) */
+    unsigned long long law_id;
     afm_force_params f;
     afm_cycle_step st[AFM_CYCLE_DEFER_MAX]; /* the used ones only are copied (keep last) */
 } afm_cycle_deferred;
@@ -163,6 +166,9 @@ typedef struct {
                                    below) */
     bool defer;                 /* afm_cycle_set_defer */
     afm_force_params fsnap;     /* the force law the pending entries were flagged under */
+    unsigned long long law_id;  /* fsnap's number: 1, 2, ... at each afm_cycle_set_forces and
+                                   afm_cycle_set_defer (kept by afm_cycle_reset; an owner that
+                                   re-inits c and keeps its records restores it after init) */
     afm_cycle_deferred pend;    /* the current period's deferred steps (pend.f unused) */
     afm_cycle_deferred out_def; /* out's (when out_def_at is NULL) */
     /* where the next completed period's deferred steps go (NULL: out_def); the output chain
