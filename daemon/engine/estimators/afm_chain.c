@@ -370,9 +370,11 @@ static void run_streams(afm_chain *c, const afm_sample *p, const double *obd, co
 /* Append the current estimates as a period record (its lock-in X and Y are the caller's:
  * estimators reads them at the period's end in its one lock-in pass). */
 static afm_chain_period *put_period(afm_chain *c) {
-    int w = (c->p_head + c->p_count) % PERIOD_RING;
+    _Static_assert((PERIOD_RING & (PERIOD_RING - 1)) == 0, "PERIOD_RING: a power of 2");
+    const unsigned mask = PERIOD_RING - 1; /* indices >= 0: a mask, not a signed % */
+    int w = (int)((unsigned)(c->p_head + c->p_count) & mask);
     if (c->p_count == PERIOD_RING) {
-        c->p_head = (c->p_head + 1) % PERIOD_RING;
+        c->p_head = (int)((unsigned)(c->p_head + 1) & mask);
         c->stats.periods_dropped++;
     } else {
         c->p_count++;
@@ -398,7 +400,7 @@ static afm_chain_period *put_period(afm_chain *c) {
      * copy, not two: issue 12); not while the ring is full, whose next record is the oldest,
      * still to be taken */
     afm_chain_period *next =
-        c->p_count < PERIOD_RING ? &c->periods[(c->p_head + c->p_count) % PERIOD_RING] : NULL;
+        c->p_count < PERIOD_RING ? &c->periods[(unsigned)(w + 1) & mask] : NULL;
     c->cycle.out_def_to = next ? &next->cycle_def : NULL;
     c->harm.out_to = next ? &next->harm : NULL;
     c->stats.periods++;
