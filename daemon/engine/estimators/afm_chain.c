@@ -208,7 +208,10 @@ int afm_chain_attach(afm_chain *c, const afm_sim *sim, char *err, size_t errlen)
     }
     const afm_force_params *f = afm_sim_forces(sim);
     double xc = afm_force_contact_x(f, afm_sim_separation(sim));
+    /* the law numbers go on from the last attach's: the records keep the laws they hold */
+    const unsigned long long law_id = c->cycle.law_id;
     if (afm_cycle_init(&c->cycle, xc, f->cos_alpha, err, errlen)) return -1;
+    c->cycle.law_id = law_id;
     afm_cycle_set_forces(&c->cycle, f, afm_sim_separation(sim));
     afm_cycle_set_defer(&c->cycle, true); /* finished per record read (afm_chain.h) */
     c->forces = f;
@@ -367,9 +370,11 @@ static void run_streams(afm_chain *c, const afm_sample *p, const double *obd, co
 /* Append the current estimates as a period record (its lock-in X and Y are the caller's:
  * estimators reads them at the period's end in its one lock-in pass). */
 static afm_chain_period *put_period(afm_chain *c) {
-    int w = (c->p_head + c->p_count) % PERIOD_RING;
+    _Static_assert((PERIOD_RING & (PERIOD_RING - 1)) == 0, "PERIOD_RING: a power of 2");
+    const unsigned mask = PERIOD_RING - 1; /* indices >= 0: a mask, not a signed % */
+    int w = (int)((unsigned)(c->p_head + c->p_count) & mask);
     if (c->p_count == PERIOD_RING) {
-        c->p_head = (c->p_head + 1) % PERIOD_RING;
+        c->p_head = (int)((unsigned)(c->p_head + 1) & mask);
         c->stats.periods_dropped++;
     } else {
         c->p_count++;
@@ -377,15 +382,27 @@ static afm_chain_period *put_period(afm_chain *c) {
     afm_chain_period *p = &c->periods[w];
     /* The header and the sums of the lanes in use (afm_harm is deferred: h[] is filled by
      * afm_chain_period_finish). */
-    memcpy(&p->harm, &c->harm.out,
-           offsetof(afm_harm_result, raw) + (size_t)(4 * c->harm.nl) * sizeof p->harm.raw[0]);
+    const afm_harm_result *hr = c->harm.out_at ? c->harm.out_at : &c->harm.out;
+    if (hr != &p->harm) /* else written there already (see below) */
+        memcpy(&p->harm, hr,
+               offsetof(afm_harm_result, raw) + (size_t)(4 * c->harm.nl) * sizeof p->harm.raw[0]);
     if (c->cycle.periods > 0) {
         p->cycle = c->cycle.out;
-        memcpy(&p->cycle_def, &c->cycle.out_def, AFM_CYCLE_DEFERRED_SIZE(&c->cycle.out_def));
+        /* the cycle wrote its deferred steps here already (see below), unless its last
+         * period went elsewhere (the ring was full, a reset, no period since the last record) */
+        const afm_cycle_deferred *d = c->cycle.out_def_at ? c->cycle.out_def_at : &c->cycle.out_def;
+        if (d != &p->cycle_def) memcpy(&p->cycle_def, d, AFM_CYCLE_DEFERRED_SIZE(d));
     } else {
         memset(&p->cycle, 0, sizeof p->cycle);
         p->cycle_def.n = p->cycle_def.n_energy = 0;
     }
+    /* the next period's cycle steps and harmonic sums straight into the next record (one
+     * copy, not two: issue 12); not while the ring is full, whose next record is the oldest,
+     * still to be taken */
+    afm_chain_period *next =
+        c->p_count < PERIOD_RING ? &c->periods[(unsigned)(w + 1) & mask] : NULL;
+    c->cycle.out_def_to = next ? &next->cycle_def : NULL;
+    c->harm.out_to = next ? &next->harm : NULL;
     c->stats.periods++;
     return p;
 }

@@ -63,6 +63,7 @@ int afm_cycle_set_forces(afm_cycle *c, const afm_force_params *f, double z_m) {
     if (c->pend.n > 0 && memcmp(&c->fsnap, f, sizeof *f) != 0)
         def_resolve(c, &c->e_corr, &c->cur.peak_force_n);
     c->fsnap = *f;
+    c->law_id++;
     afm_cycle_set_contact(c, xc);
     bool was_split = c->split;
     c->forces = f;
@@ -93,6 +94,7 @@ void afm_cycle_reset(afm_cycle *c) {
     bool split = c->split, defer = c->defer;
     afm_rt_starr st = c->starr;
     afm_force_params fsnap = c->fsnap;
+    unsigned long long law_id = c->law_id;
     memcpy(key, c->starr_key, sizeof key);
     memset(c, 0, sizeof *c);
     c->x_contact_m = xc;
@@ -105,6 +107,7 @@ void afm_cycle_reset(afm_cycle *c) {
     memcpy(c->starr_key, key, sizeof key);
     c->defer = defer;
     c->fsnap = fsnap;
+    c->law_id = law_id;
     afm_track_init(&c->trk, true);
 }
 
@@ -552,7 +555,10 @@ static void work_add(afm_cycle *c, const afm_sample *p, const afm_sample *q, dou
 void afm_cycle_set_defer(afm_cycle *c, bool on) {
     if (!on && c->pend.n > 0) def_resolve(c, &c->e_corr, &c->cur.peak_force_n);
     c->defer = on;
-    if (c->forces) c->fsnap = *c->forces;
+    if (c->forces) {
+        c->fsnap = *c->forces;
+        c->law_id++;
+    }
 }
 
 void afm_cycle_finish(afm_cycle_metrics *m, afm_cycle_deferred *d) {
@@ -793,11 +799,16 @@ static AFM_CLONES_NOINLINE int step_boundary(afm_cycle *c, const afm_sample *s, 
         if (c->defer) { /* the pending entries go with the record (afm_cycle_finish) */
             c->pend.e_part = e_part;
             c->pend.e_corr = c->e_corr;
-            memcpy(&c->out_def, &c->pend, offsetof(afm_cycle_deferred, f));
+            afm_cycle_deferred *d = c->out_def_to ? c->out_def_to : &c->out_def;
+            memcpy(d, &c->pend, offsetof(afm_cycle_deferred, law_id));
             if (c->pend.n > 0) {
-                c->out_def.f = c->fsnap;
-                copy_steps(c->out_def.st, c->pend.st, c->pend.n);
+                if (d->law_id != c->law_id) { /* d (a chain's record) may hold it already */
+                    d->f = c->fsnap;
+                    d->law_id = c->law_id;
+                }
+                copy_steps(d->st, c->pend.st, c->pend.n);
             }
+            c->out_def_at = c->out_def_to; /* NULL: out_def (c stays copyable) */
             c->pend.n = c->pend.n_energy = 0;
         }
     }
@@ -821,8 +832,9 @@ static AFM_CLONES_NOINLINE int step_boundary(afm_cycle *c, const afm_sample *s, 
     c->e_corr = 0.0;
     m->mean_deflection_m = 0.0;
     c->x_int = h * (wa0 * p->x_m + wa1 * s->x_m);
-    for (int i = 0; i < 4; i++)
-        c->sum_fv[i] = c->sum_x[i] = c->sum_sq[i] = 0.0;
+    AFM_V4_ST(c->sum_fv, AFM_V4_SET1(0.0));
+    AFM_V4_ST(c->sum_x, AFM_V4_SET1(0.0));
+    AFM_V4_ST(c->sum_sq, AFM_V4_SET1(0.0));
     c->smin = s->x_m;
     c->k = 0;
     c->t_before = c->t_first = c->t_in = s->t_s;

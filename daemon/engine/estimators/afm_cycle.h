@@ -118,6 +118,9 @@ typedef struct {
     int n_energy;  /* of them WORK and VALUE: dissipated_energy_j waits for them (NaN) */
     double e_part; /* the period's energy before the work corrections (J) */
     double e_corr; /* the corrections taken before the first deferred one (J) */
+    /* which of its afm_cycle's laws f holds (afm_cycle.law_id; 0: none): the law is copied
+     * into a record only when it is not there yet (issue 12) */
+    unsigned long long law_id;
     afm_force_params f;
     afm_cycle_step st[AFM_CYCLE_DEFER_MAX]; /* the used ones only are copied (keep last) */
 } afm_cycle_deferred;
@@ -159,12 +162,22 @@ typedef struct {
                                    continuous path less their trapezoids (J) */
     long periods;               /* completed periods since init/reset */
     afm_cycle_metrics out;      /* last completed period (valid if periods > 0; with defer, final
-                                   once afm_cycle_finish(&out, &out_def) ran) */
+                                   once afm_cycle_finish(&out, def) ran, def
+                                   below) */
     bool defer;                 /* afm_cycle_set_defer */
     afm_force_params fsnap;     /* the force law the pending entries were flagged under */
+    unsigned long long law_id;  /* fsnap's number: 1, 2, ... at each afm_cycle_set_forces and
+                                   afm_cycle_set_defer (kept by afm_cycle_reset; an owner that
+                                   re-inits c and keeps its records restores it after init) */
     afm_cycle_deferred pend;    /* the current period's deferred steps (pend.f unused) */
-    afm_cycle_deferred out_def; /* out's */
-    long def_overflows;         /* times pend was full (its entries finished at once) */
+    afm_cycle_deferred out_def; /* out's (when out_def_at is NULL) */
+    /* where the next completed period's deferred steps go (NULL: out_def); the output chain
+     * points it at its next period record, so that they are copied once (afm_chain.c,
+     * put_period). out_def_at: where the last completed period's went (NULL: out_def; no
+     * pointer into c itself, so that c can be copied). */
+    afm_cycle_deferred *out_def_to;
+    const afm_cycle_deferred *out_def_at;
+    long def_overflows; /* times pend was full (its entries finished at once) */
 
     /* during afm_cycle_push_ev: the integrator's record of the step to the sample being
      * pushed (else NULL) */
@@ -188,12 +201,12 @@ int afm_cycle_set_forces(afm_cycle *c, const afm_force_params *f, double z_m);
 
 /* on: from now on the steps that need the force law on the continuous path (peak_force_n's
  * refinement in contact and at the minimum, dissipated_energy_j's contact-step work) are
- * kept with the period (c->out_def) instead of computed: out.peak_force_n is then a lower
- * bound and out.dissipated_energy_j NaN until afm_cycle_finish(&c->out, &c->out_def) (or the
- * same on copies of both). Finished, the figures are those of the eager path bit for bit
- * (the energy's sum in the same order; the peak a maximum, whose order does not matter but
- * for the sign of a zero). off (the default): computed as the samples come (pending ones
- * first). */
+ * kept with the period (def = c->out_def_at, or &c->out_def when that is NULL, the default)
+ * instead of computed: out.peak_force_n is then a lower bound and out.dissipated_energy_j
+ * NaN until afm_cycle_finish(&c->out, def) (or the same on copies of both). Finished, the figures
+ * are those of the eager path bit for bit (the energy's sum in the same order; the peak a maximum,
+ * whose order does not matter but for the sign of a zero). off (the default): computed as the
+ * samples come (pending ones first). */
 void afm_cycle_set_defer(afm_cycle *c, bool on);
 
 /* m's deferred figures from d (afm_cycle_set_defer); then d is all zero (m final). */

@@ -37,6 +37,7 @@ static void clear_state(afm_harm *h) {
     h->out.n_harmonics = h->nk;
     for (int j = 0; j < h->nk; j++)
         h->out.h[j].k = h->ks[j];
+    h->out_at = NULL;
 }
 
 int afm_harm_init(afm_harm *h, const int *ks, int nk, char *err, size_t errlen) {
@@ -356,8 +357,8 @@ static inline ALWAYS_INLINE void harm_slow_weights(afm_harm *h, double x, double
 /* One pass over the lanes: the previous sample's phasor ep = b T[m]; the phasor p for this
  * sample on the rotation, b T[m + 1] times e^{-ik e} ~ 1 - i k e for the residual e = theta
  * - imp (|k e| < 1e-6: the dropped terms are below 1e-12 of it), or exact (pex); the chunk
- * into the period sums (s += b c); the ends of a completed period (into h->out.raw); the new
- * period's sums; the new chunk (c = w x: the phasor of the new chunk base is its own). */
+ * into the period sums (s += b c); the ends of a completed period (into out.raw, or out_to's); the
+ * new period's sums; the new chunk (c = w x: the phasor of the new chunk base is its own). */
 AFM_CLONES static void harm_slow_lanes(afm_harm *h, double x, double f, const harm_slow_step *s,
                                        const double *pex) {
     const int st = 2 * h->nl;
@@ -368,6 +369,7 @@ AFM_CLONES static void harm_slow_lanes(afm_harm *h, double x, double f, const ha
     const afm_v4 kfp = AFM_V4_SET1((s->wb[0] - 0.5) * h->f_prev), kfc = AFM_V4_SET1(s->wb[1] * f);
     const afm_v4 nxp = AFM_V4_SET1(s->wa[0] * h->x_prev), nfp = AFM_V4_SET1(s->wa[0] * h->f_prev);
     const afm_v4 wxv = AFM_V4_SET1(s->wx), wfv = AFM_V4_SET1(s->wf);
+    double *const out_raw = (h->out_to ? h->out_to : &h->out)->raw;
     for (int g = 0; g < st; g += 8) {
         const afm_v4 br = AFM_V4_LD(h->b + g), bi = AFM_V4_LD(h->b + g + 4);
         afm_v4 er, ei, pr, pi;
@@ -398,7 +400,7 @@ AFM_CLONES static void harm_slow_lanes(afm_harm *h, double x, double f, const ha
             sxi = AFM_V4_FMA(kxc, pi, AFM_V4_FMA(kxp, ei, sxi));
             sfr = AFM_V4_FMA(kfc, pr, AFM_V4_FMA(kfp, er, sfr));
             sfi = AFM_V4_FMA(kfc, pi, AFM_V4_FMA(kfp, ei, sfi));
-            double *z = h->out.raw + 2 * g;
+            double *z = out_raw + 2 * g;
             AFM_V4_ST(z, sxr);
             AFM_V4_ST(z + 4, sxi);
             AFM_V4_ST(z + 8, sfr);
@@ -434,10 +436,12 @@ AFM_CLONES static int harm_push_slow(afm_harm *h, double x, double f, double the
     harm_slow_weights(h, x, f, &s);
     harm_slow_lanes(h, x, f, &s, pex);
     if (s.cross) {
-        h->out.period = h->periods;
-        h->out.samples = s.samples;
-        h->out.n_harmonics = h->nk;
-        if (!h->deferred) afm_harm_polar(h, &h->out);
+        afm_harm_result *o = h->out_to ? h->out_to : &h->out;
+        o->period = h->periods;
+        o->samples = s.samples;
+        o->n_harmonics = h->nk;
+        if (!h->deferred) afm_harm_polar(h, o);
+        h->out_at = h->out_to; /* no pointer into h itself: h stays copyable */
         h->periods++;
     }
     if (h->trk.locked && s.rate_changed) build_table(h); /* after the pass: tm points into it */

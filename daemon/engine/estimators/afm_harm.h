@@ -90,7 +90,13 @@ typedef struct {
     double nsteps;       /* whole steps since then */
     long periods;        /* completed periods since init/reset */
     bool deferred;       /* out.h[] left to afm_harm_polar (afm_harm_set_deferred) */
-    afm_harm_result out; /* the last completed period (valid if periods > 0) */
+    afm_harm_result out; /* the last completed period (valid if periods > 0 and out_at NULL) */
+    /* where the next completed period goes (NULL: out): the output chain points it at its
+     * next period record, so that the sums are written there once (afm_chain.c, put_period).
+     * out_at: where the last completed period went (NULL: out; no pointer into h itself, so
+     * that h can be copied). */
+    afm_harm_result *out_to;
+    const afm_harm_result *out_at;
     /* e^{-ik m dphi} for the tracker's dphi, m = 0..AFM_HARM_TAB: entry m at m * 2 nl */
     double tab[(AFM_HARM_TAB + 1) * 2 * AFM_HARM_LANES];
 } afm_harm;

@@ -196,9 +196,14 @@ struct afm_runner {
     afm_runner_oppoint b_op;
     /* the operating point of every period record the chain holds, in its order: the op of
      * the item its period ended in (the chain's ring and its drop-the-oldest rule, so that
-     * the two stay aligned; cleared with the chain's queue) */
-    afm_runner_oppoint b_pop[AFM_CHAIN_PERIOD_RING];
-    int b_pop_head, b_pop_n;
+     * the two stay aligned; cleared with the chain's queue). By runs: the records of one push
+     * share one op (one copy a push, not one a period: issue 12); b_pop_n records in
+     * b_pop_runs runs from b_pop_head, each run at least one record */
+    struct {
+        afm_runner_oppoint op;
+        int n;
+    } b_pop[AFM_CHAIN_PERIOD_RING];
+    int b_pop_head, b_pop_runs, b_pop_n;
     long long b_samples, b_items, b_attach_errors, b_trash_lost;
     const afm_step_events *b_ev[SLOT];  /* the item's samples' records (NULL: none) */
     long long b_ev_samples;             /* samples whose metrics took a record */
@@ -330,27 +335,44 @@ static void back_oppoint(afm_runner *r, const afm_drive *d) {
     }
 }
 
-/* One period record more in the chain: its op is b_op (the item's it ended in). */
-static void back_pop_put(afm_runner *r) {
-    const int N = AFM_CHAIN_PERIOD_RING;
-    if (r->b_pop_n == N) { /* the chain dropped its oldest: so do we */
-        r->b_pop_head = (r->b_pop_head + 1) % N;
-        r->b_pop_n--;
-    }
-    r->b_pop[(r->b_pop_head + r->b_pop_n) % N] = r->b_op;
-    r->b_pop_n++;
-}
-
-/* n records taken from the chain: their ops into ops[0..n) (if ops), in order. */
-static void back_pop_take(afm_runner *r, int n, afm_runner_oppoint *ops) {
-    const int N = AFM_CHAIN_PERIOD_RING;
-    for (int i = 0; i < n; i++) {
-        if (ops) ops[i] = r->b_pop_n > 0 ? r->b_pop[r->b_pop_head] : r->b_op;
-        if (r->b_pop_n > 0) {
-            r->b_pop_head = (r->b_pop_head + 1) % N;
-            r->b_pop_n--;
+/* The oldest n records of b_pop gone (n <= b_pop_n), their ops into ops[0..n) if ops. */
+static void back_pop_drop(afm_runner *r, int n, afm_runner_oppoint *ops) {
+    const unsigned mask = AFM_CHAIN_PERIOD_RING - 1;
+    _Static_assert((AFM_CHAIN_PERIOD_RING & (AFM_CHAIN_PERIOD_RING - 1)) == 0, "a power of 2");
+    while (n > 0) {
+        int h = r->b_pop_head, d = n < r->b_pop[h].n ? n : r->b_pop[h].n;
+        for (int i = 0; ops && i < d; i++)
+            *ops++ = r->b_pop[h].op;
+        n -= d;
+        r->b_pop_n -= d;
+        if ((r->b_pop[h].n -= d) == 0) {
+            r->b_pop_head = (int)((unsigned)(h + 1) & mask);
+            r->b_pop_runs--;
         }
     }
+}
+
+/* k period records more in the chain: their op is b_op (the item's they ended in). The
+ * chain drops its oldest beyond AFM_CHAIN_PERIOD_RING: so do we. */
+static void back_pop_put(afm_runner *r, long long k) {
+    const int N = AFM_CHAIN_PERIOD_RING;
+    if (k <= 0) return;
+    if (k > N) k = N;
+    if (r->b_pop_n + k > N) back_pop_drop(r, (int)(r->b_pop_n + k - N), NULL);
+    const unsigned w = (unsigned)(r->b_pop_head + r->b_pop_runs) & (unsigned)(N - 1);
+    r->b_pop[w].op = r->b_op;
+    r->b_pop[w].n = (int)k;
+    r->b_pop_runs++;
+    r->b_pop_n += (int)k;
+}
+
+/* n records taken from the chain: their ops into ops[0..n) (if ops), in order (b_op for
+ * any beyond those b_pop knows). */
+static void back_pop_take(afm_runner *r, int n, afm_runner_oppoint *ops) {
+    int d = n < r->b_pop_n ? n : r->b_pop_n;
+    back_pop_drop(r, d, ops);
+    for (int i = d; ops && i < n; i++)
+        ops[i] = r->b_op;
 }
 
 /* The records of the item's samples into r->b_ev (afm_runner_step_events): true when at least
@@ -417,8 +439,7 @@ static void back_item(afm_runner *r, ring_item *it) {
                 afm_chain_push_ev(r->chain, it->s + from, r->b_ev + from, to - from);
             else
                 afm_chain_push(r->chain, it->s + from, to - from);
-            for (long long k = afm_chain_periods(r->chain) - p0; k > 0; k--)
-                back_pop_put(r);
+            back_pop_put(r, afm_chain_periods(r->chain) - p0);
             from = to;
         }
         if (it->lat_on) { /* after the item: its last sample's */
@@ -434,7 +455,7 @@ static void back_item(afm_runner *r, ring_item *it) {
     }
     case IT_RESET:
         afm_chain_reset(r->chain);
-        r->b_pop_n = 0; /* the chain's queue is empty */
+        r->b_pop_n = r->b_pop_runs = 0; /* the chain's queue is empty */
         break;
     case IT_FORCES:
         afm_sim_mirror_set(r->mirror, NULL, &it->f, r->b_z);
@@ -453,7 +474,7 @@ static void back_item(afm_runner *r, ring_item *it) {
             r->chain = m->chain;
             m->chain = old;
             afm_chain_attach(m->chain, NULL, NULL, 0);
-            r->b_pop_n = 0; /* the old chain's records went with it */
+            r->b_pop_n = r->b_pop_runs = 0; /* the old chain's records went with it */
         }
         if (afm_chain_attach(r->chain, r->mirror, NULL, 0)) r->b_attach_errors++;
         if (m) back_trash(r, m);
