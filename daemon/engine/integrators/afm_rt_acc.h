@@ -632,6 +632,7 @@ static inline __attribute__((always_inline)) int rt_run_acc_t(afm_sim *s, rt_sta
     long step = s->step, since = r->since_sync;
     double stepd = (double)step; /* the step count as a double (exact below 2^53) */
     const double t0 = s->t_start_s, dt = s->dt_s;
+    const double half_dt = 0.5 * dt, dt2_12 = dt * dt * (1.0 / 12.0); /* rt_ev_free's weights */
     const bool kinked = r->kinked;
     const double xc = r->xc, sure_k = r->sure_k, clear_k = r->clear_k;
     rt_snap *a = &r->buf[r->cur], *const b0 = &r->buf[0], *const b1 = &r->buf[1];
@@ -687,7 +688,7 @@ static inline __attribute__((always_inline)) int rt_run_acc_t(afm_sim *s, rt_sta
         if (contact)
             tb = rt_acc_tip_of(r, b, np, nt);
         else if (ev_free) /* kept whole: clear of the contact line */
-            rt_ev_free(ea, s, r, b, step + 1);
+            rt_ev_free(ea, s, r, b, step + 1, half_dt, dt2_12);
         else if (evs)
             rt_ev_piece(ea, s, r, b, 1.0, true);
         a = b;
