@@ -263,6 +263,34 @@ rt_acc_tip_of(const rt_state *r, const rt_snap *st, const int np, const int nt) 
     return t;
 }
 
+/* rt_solve_fast with the force's partials and the reciprocal slope also left in *fx, *fv, *rj
+ * (the free step reads them at once: no reload after the stores into o). */
+static inline __attribute__((always_inline)) double
+rt_solve_fast_reg(const afm_sim *s, const rt_state *r, double xs, double vs, double gx, double gv,
+                  double F, double rj0, double x, double v, double d, rt_snap *o, double *fx,
+                  double *fv, double *rj) {
+    const afm_force_params *p = &s->f;
+    if (__builtin_expect(d >= p->a0_m, 1)) {
+        double f = rt_force_out(s, r, x, v, d, fx, fv);
+        double fn = fma(f - F, rj0, F);
+        double jac = 1.0 - *fx * gx - *fv * gv;
+        jac = jac > 0.25 ? jac : 0.25;
+        double est = fabs(fn - F) * fabs(1.0 - jac * rj0);
+        if (__builtin_expect(!(est > r->ftol), 1)) {
+            *rj = 1.0 / jac;
+            o->dfdx_n_m = *fx;
+            o->dfdv_n_s_m = *fv;
+            o->tip.inv_slope = *rj;
+            return fn;
+        }
+    }
+    const double F1 = rt_solve(s, r, xs, vs, gx, gv, F, rj0, o);
+    *fx = o->dfdx_n_m;
+    *fv = o->dfdv_n_s_m;
+    *rj = o->tip.inv_slope;
+    return F1;
+}
+
 /* One free step from in (its tip *ti) into o (and *to); rec: o->acc_m_s2 for the step record. */
 static inline __attribute__((always_inline)) void
 rt_free_acc_t(const afm_sim *s, const rt_state *r, const rt_snap *in, rt_snap *o, const int np,
@@ -275,9 +303,9 @@ rt_free_acc_t(const afm_sim *s, const rt_state *r, const rt_snap *in, rt_snap *o
     /* the force first (the critical path), from the guess extrapolated along the last piece */
     const double Fg = fma(ti->df_per_cell_n, (double)r->ncell, F0);
     const double xg = fma(gx, Fg, xs);
-    const double F1 = rt_solve_fast(s, r, xs, vs, gx, gv, Fg, ti->inv_slope, xg, fma(gv, Fg, vs),
-                                    rt_gap(r, xg), o);
-    const double fx = o->dfdx_n_m, fv = o->dfdv_n_s_m, rj = o->tip.inv_slope;
+    double fx, fv, rj;
+    const double F1 = rt_solve_fast_reg(s, r, xs, vs, gx, gv, Fg, ti->inv_slope, xg,
+                                        fma(gv, Fg, vs), rt_gap(r, xg), o, &fx, &fv, &rj);
     /* the modal update's part that does not wait for F1, D1, its tip rows and acceleration */
     double zr1[AFM_MAX_TONES], zi1[AFM_MAX_TONES];
     rt_tones_rotate(in->z_re, in->z_im, P->rot_re, P->rot_im, zr1, zi1, nt);
@@ -604,6 +632,7 @@ static inline __attribute__((always_inline)) int rt_run_acc_t(afm_sim *s, rt_sta
     long step = s->step, since = r->since_sync;
     double stepd = (double)step; /* the step count as a double (exact below 2^53) */
     const double t0 = s->t_start_s, dt = s->dt_s;
+    const double half_dt = 0.5 * dt, dt2_12 = dt * dt * (1.0 / 12.0); /* rt_ev_free's weights */
     const bool kinked = r->kinked;
     const double xc = r->xc, sure_k = r->sure_k, clear_k = r->clear_k;
     rt_snap *a = &r->buf[r->cur], *const b0 = &r->buf[0], *const b1 = &r->buf[1];
@@ -624,7 +653,6 @@ static inline __attribute__((always_inline)) int rt_run_acc_t(afm_sim *s, rt_sta
             ta = rt_acc_tip_of(r, a, np, nt);
             if (evs) rt_ev_start(ea, s, r, a, np, nt, false);
         }
-        if (evs) rt_ev_step_begin(ea);
         rt_snap *b = a == b0 ? b1 : b0;
         const bool at_once = kinked && ta.x_m < xc;
         /* Without noise, a start so close to the line that the free step's low bound (below)
@@ -648,6 +676,9 @@ static inline __attribute__((always_inline)) int rt_run_acc_t(afm_sim *s, rt_sta
                 contact = low < xc + RT_ACC_NEAR_TRAVELS * sp * dt;
             }
         }
+        /* a step in pieces gathers its record (a kept free step writes it at once) */
+        const bool ev_free = evs && kinked && !contact;
+        if (evs && !ev_free) rt_ev_step_begin(ea);
         if (contact && !noise && r->m % RT_ACC_NEAR_PIECES == 0)
             /* near or in contact: whole Hermite pieces follow the van der Waals pulse and
              * the indentation; substeps only for the pieces at the contact line */
@@ -656,15 +687,15 @@ static inline __attribute__((always_inline)) int rt_run_acc_t(afm_sim *s, rt_sta
             b = rt_contact_acc(s, r, a, b, noise && !at_once, ea); /* noise: trial taken */
         if (contact)
             tb = rt_acc_tip_of(r, b, np, nt);
-        else if (evs && kinked) /* kept whole: clear of the contact line */
-            rt_ev_free(ea, s, r, b);
+        else if (ev_free) /* kept whole: clear of the contact line */
+            rt_ev_free(ea, s, r, b, step + 1, half_dt, dt2_12);
         else if (evs)
             rt_ev_piece(ea, s, r, b, 1.0, true);
         a = b;
         ta = tb;
         step++;
         stepd += 1.0;
-        if (evs) rt_ev_step_end(ea, s, step, contact);
+        if (evs && !ev_free) rt_ev_step_end(ea, s, step, contact);
         if (!(fabs(ta.x_m) < 1e-3) || !(fabs(ta.v_m_s) < HUGE_VAL && fabs(ta.f_n) < HUGE_VAL)) {
             rc = AFM_SIM_EBLOWUP;
             break;

@@ -92,25 +92,54 @@ static inline void rt_ev_step_begin(rt_evacc *ea) {
 
 /* The work int F_ts v dt over a kept piece from e0 to e1 of tau (end-corrected trapezoid);
  * herm: its force is the Hermite cubic (ends' slopes fdot), else linear. */
-static inline __attribute__((always_inline)) void
-rt_ev_work(rt_evacc *ea, const rt_ev_end *e0, const rt_ev_end *e1, double tau, bool herm) {
+static inline __attribute__((always_inline)) double
+rt_ev_work_of(const rt_ev_end *e0, const rt_ev_end *e1, double tau, bool herm) {
     double fd0 = herm ? e0->fdot : (e1->f - e0->f) / tau, fd1 = herm ? e1->fdot : fd0;
     double t0 = e0->f - e0->fsq, t1 = e1->f - e1->fsq;
     double g0 = t0 * e0->v, g1 = t1 * e1->v;
     double d0 = (fd0 - e0->sqd) * e0->v + t0 * e0->a, d1 = (fd1 - e1->sqd) * e1->v + t1 * e1->a;
-    ea->rec.work_ts_j += 0.5 * tau * (g0 + g1) + tau * tau * (1.0 / 12.0) * (d0 - d1);
+    return 0.5 * tau * (g0 + g1) + tau * tau * (1.0 / 12.0) * (d0 - d1);
+}
+
+/* rt_ev_work_of's Hermite value over a whole step, its weights 0.5 dt (half_dt) and
+ * dt dt / 12 (dt2_12) the caller's loop constants (the same products, so the same bits). */
+static inline __attribute__((always_inline)) double
+rt_ev_work_dt(const rt_ev_end *e0, const rt_ev_end *e1, double half_dt, double dt2_12) {
+    double t0 = e0->f - e0->fsq, t1 = e1->f - e1->fsq;
+    double g0 = t0 * e0->v, g1 = t1 * e1->v;
+    double d0 = (e0->fdot - e0->sqd) * e0->v + t0 * e0->a;
+    double d1 = (e1->fdot - e1->sqd) * e1->v + t1 * e1->a;
+    return half_dt * (g0 + g1) + dt2_12 * (d0 - d1);
+}
+
+/* rt_ev_work_of added to the step's work. */
+static inline __attribute__((always_inline)) void
+rt_ev_work(rt_evacc *ea, const rt_ev_end *e0, const rt_ev_end *e1, double tau, bool herm) {
+    ea->rec.work_ts_j += rt_ev_work_of(e0, e1, tau, herm);
 }
 
 /* A step taken as one free piece (the accurate scheme kept its trial: its path stays above
- * the contact line, so no crossing, and x_min_m is not kept for it): its work alone. The
- * piece left st->acc_m_s2. */
-static inline __attribute__((always_inline)) void rt_ev_free(rt_evacc *ea, const afm_sim *s,
-                                                             const rt_state *r, const rt_snap *st) {
+ * the contact line, so no crossing, and x_min_m is not kept for it): its work alone, and its
+ * record written at once, step its step count (issue 29, eighth round: what rt_ev_step_begin,
+ * the piece and rt_ev_step_end gave it, the same bits: tau = (1 - 0) dt, the work added to 0,
+ * without the accumulator's round trip; ea->rec is left as it was, rt_ev_step_begin resets it
+ * for a step in pieces). The piece left st->acc_m_s2. */
+static inline __attribute__((always_inline)) void rt_ev_free(rt_evacc *ea, afm_sim *s,
+                                                             const rt_state *r, const rt_snap *st,
+                                                             long step, double half_dt,
+                                                             double dt2_12) {
     rt_ev_end e1;
     rt_ev_end_of(s, r, st, st->acc_m_s2, &e1);
-    rt_ev_work(ea, &ea->e0, &e1, (1.0 - ea->frac0) * s->dt_s, true);
+    const double w = rt_ev_work_dt(&ea->e0, &e1, half_dt, dt2_12);
     ea->e0 = e1;
-    ea->frac0 = 1.0;
+    afm_step_events *o = &s->ev_ring[ea->slot];
+    ea->slot = ea->slot + 1 < s->ev_cap ? ea->slot + 1 : 0;
+    o->step = step;
+    o->n_in = o->n_out = 0;
+    o->contact_frac = 0.0;
+    o->in_frac = o->out_frac = o->v_in_m_s = NAN;
+    o->x_min_m = NAN;
+    o->work_ts_j = 0.0 + w;
 }
 
 /* A kept piece from the last kept end to st, ending at frac1 of the step; herm: its force is

@@ -261,8 +261,11 @@ static inline double rt_tones_im(const double *c_re, const double *c_im, const d
                                  const double *z_im, int nt) {
     if (nt == RT_TONES_V4)
         return rt_hsum(rt_fma4(RT_V4(c_re), RT_V4(z_im), RT_V4(c_im) * RT_V4(z_re)));
-    double t = 0.0;
-    for (int j = 0; j < nt; j++)
+    if (nt < 1) return 0.0;
+    /* from the first tone's term, not 0.0 + it (an add per call; the same value unless that
+     * term is -0.0, and then the same once added to a sum) */
+    double t = c_re[0] * z_im[0] + c_im[0] * z_re[0];
+    for (int j = 1; j < nt; j++)
         t += c_re[j] * z_im[j] + c_im[j] * z_re[j];
     return t;
 }
