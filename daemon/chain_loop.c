@@ -154,7 +154,12 @@ void *twind_chain_main(void *arg) {
     for (;;) {
         double t0 = mono(), t1 = t0;
         int n;
-        while ((n = afm_runner_chain_run(c.r, 1)) > 0) {
+        for (;;) {
+            /* Before a reset (which clears the chain's queues) or a later command's samples,
+             * what waits goes out first: also when that item came after the chain slept
+             * (push_due below sees only an item already queued). */
+            if (afm_runner_chain_seq_next(c.r)) push_outputs(&c);
+            if ((n = afm_runner_chain_run(c.r, 1)) <= 0) break;
             c.waiting = true;
             afm_runner_done dn;
             if (afm_runner_take_done(c.r, &dn)) { /* (v) */
