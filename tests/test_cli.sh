@@ -199,7 +199,8 @@ progress_check approach "approach: approach step [0-9]*/33, Z " "$A" approach --
 sed -e '/vdw_contact/d' -e '/viscoelastic/d' -e '/squeeze/d' config/thesis-fig-4-2.conf >"$T/lin.conf"
 progress_check continue "continue: branch 0 (period 1), [0-9]* records, fe " "$A" continue \
   --config "$T/lin.conf" --param fe --from 80000 --to 82000 --max-points 30
-progress_check force-curve "force-curve: approach  *[0-9]* %, Z " "$A" force-curve \
+# (approach or retract: on a fast machine the approach is over before the first line)
+progress_check force-curve "force-curve: [a-z]*  *[0-9]* %, Z " "$A" force-curve \
   --config config/thesis-1dof.conf --from 30nm --to 0nm --speed 3e-8
 "$A" send setpoint --z 1um --seq 1 --log "$T/p.log" --log-time 0 --quiet --no-check ||
   bad "send setpoint --log"
