@@ -9,8 +9,9 @@
 # harmonic 1 carries on record by record across the hand-over back (no jump, no gap).
 # The hand-over back depends on the machine's speed only through "the fast scheme free uses
 # under 60 % of a core", which holds with a wide margin on any machine that runs the twin.
-# The adaptive run is at --speed RT_SPEED (lib_daemon.sh: 0.5; the accurate scheme tapping
-# still needs ~2x the budget there, so it hands over as at full speed).
+# The adaptive run's speed puts the budget at 3/4 of the accurate scheme's worst-state cost as
+# auto measures it here (capped at 1x); on a machine where the accurate scheme keeps real time
+# at 1x (issue 29 reached) the hand-over is reported as not exercised.
 # Prints "N passed, N failed".
 BUILD=${1:-build}
 cd "$(dirname "$0")/.." || exit 1
@@ -63,8 +64,18 @@ grep -q "rt scheme fast (--scheme fast): forced (--scheme)" "$T/fast.err" \
   && [ "$(jkey rt_scheme "$T/fast.json")" = fast ] && [ "$(jkey scheme_handovers "$T/fast.json")" = 0 ] \
   && ok "--scheme fast: forced, no hand-over" || bad "--scheme fast: $(cat "$T/fast.err") $(cat "$T/fast.json")"
 
-# adaptive: over to fast while tapping, back to accurate when free, no resync
-"$D" --config config/nchv.conf --quiet --scheme adaptive --speed "$RT_SPEED" 2> "$T/ad.err" &
+# adaptive: over to fast while tapping, back to accurate when free, no resync.
+# The speed: the accurate scheme must fall behind while tapping, so the budget (71.1 ns / speed)
+# is set to 3/4 of its worst-state cost as auto measures it on nchv.conf on this machine, now
+# (the fast scheme then uses about half the budget: it costs ~1/3 of the accurate one). A fixed
+# --speed 0.5 stopped exercising the hand-over once the accurate scheme got faster: the CI
+# machine kept real time at 0.5x with it (stop 43's CI: no hand-over, 4 failures).
+"$D" --config config/nchv.conf --quiet --exit-after 0.2 2> "$T/nauto.err"
+acc_ns=$(sed -n 's/.*auto: accurate [0-9]* ns.* (\([0-9]*\) ns with it).*/\1/p; t; s/.*auto: accurate \([0-9]*\) ns\/sample.*/\1/p' "$T/nauto.err" | head -n 1)
+AD_SPEED=$(awk -v a="${acc_ns:-0}" 'BEGIN { s = (a > 0) ? 71.1 / (0.75 * a) : 0.5;
+  if (s > 1) s = 1; if (s < 0.25) s = 0.25; printf "%.2f", s }')
+echo "     adaptive run at --speed $AD_SPEED (accurate scheme's worst state ${acc_ns:-?} ns/sample here)"
+"$D" --config config/nchv.conf --quiet --scheme adaptive --speed "$AD_SPEED" 2> "$T/ad.err" &
 DPID=$!
 listen --channels status,harmonics --json --timeout 20 > "$T/adh.json" 2>/dev/null &
 LPID=$!
@@ -77,13 +88,18 @@ grep '"channel":"AFMTWIN_STATUS"' "$T/adh.json" > "$T/ad.json"
 [ $rc -eq 0 ] && ok "adaptive: daemon ran and exited 0" || bad "adaptive: exit $rc"
 # the status after the first hand-over (tapping) and the last one
 first_fast=$(grep -m1 '"rt_scheme":"fast"' "$T/ad.json")
-[ -n "$first_fast" ] && echo "$first_fast" | grep -q '"rt_scheme_reason":"overload: lag' \
+exercised=1
+if [ -z "$first_fast" ] && [ "$AD_SPEED" = "1.00" ]; then
+  exercised=0
+  ok "adaptive: the accurate scheme kept real time at 1x while tapping (worst state ${acc_ns:-?} ns): hand-over NOT exercised here"
+fi
+[ $exercised -eq 0 ] || [ -n "$first_fast" ] && echo "$first_fast" | grep -q '"rt_scheme_reason":"overload: lag' \
   && ok "adaptive: handed over to fast while tapping, reason overload" \
   || bad "adaptive: no hand-over to fast: $(head -c 600 "$T/ad.json")"
 h=$(jkey scheme_handovers "$T/ad.json"); r=$(jkey resyncs "$T/ad.json")
 ma=$(jkey model_s_accurate "$T/ad.json"); mf=$(jkey model_s_fast "$T/ad.json")
 back=$(grep -c '"rt_scheme_reason":"margin back' "$T/ad.json")
-if [ "${h:-0}" -ge 2 ] && [ "$back" -ge 1 ]; then
+if [ $exercised -eq 0 ] || { [ "${h:-0}" -ge 2 ] && [ "$back" -ge 1 ]; }; then
   ok "adaptive: back to accurate once free ($h hand-overs; model time accurate $ma s, fast $mf s)"
 else
   bad "adaptive: $h hand-overs, no return to accurate: $(tail -n 1 "$T/ad.json")"
@@ -98,7 +114,7 @@ elif [ "${r:-2}" -le 1 ]; then
 else
   bad "adaptive: $r resyncs"
 fi
-awk -v a="$ma" -v f="$mf" 'BEGIN{exit !(a > 0 && f > 0)}' \
+[ $exercised -eq 0 ] || awk -v a="$ma" -v f="$mf" 'BEGIN{exit !(a > 0 && f > 0)}' \
   && ok "adaptive: the status splits model time between the schemes" \
   || bad "adaptive: model time accurate '$ma' fast '$mf'"
 # the outputs carry on across the hand-overs: every status has a finite lock-in amplitude
@@ -126,7 +142,9 @@ read -r nh da dl gap <<< "$(awk -v t0="${tz:-1e9}" '$2 > t0 + 1.0 {
       g = $2 - pt; if (g > gap) gap = g }
     n++; ps = $1; pt = $2; pa = $3; pl = $4 }
   END { printf "%d %.3e %.5f %.6f\n", n, da, dl, gap }' "$T/h.txt")"
-if [ -n "$tz" ] && [ -n "$hb" ] && awk -v h="$hb" -v t="$tz" 'BEGIN{exit !(h > t + 1.0)}' \
+if [ $exercised -eq 0 ]; then
+  :
+elif [ -n "$tz" ] && [ -n "$hb" ] && awk -v h="$hb" -v t="$tz" 'BEGIN{exit !(h > t + 1.0)}' \
    && [ "$nh" -gt 1000 ]; then
   awk -v a="$da" -v l="$dl" -v g="$gap" 'BEGIN{exit !(a <= 1e-3 && l <= 0.01 && g < 0.002)}' \
     && ok "adaptive: harmonic 1 continuous across the hand-over back (at $hb s; $nh records from $tz + 1 s: max change $da relative, $dl deg, longest step $gap s)" \
