@@ -33,7 +33,8 @@
 #define APPLIED_MSG_MAX 4096
 #define WRITER_NAP_NS 5000000L /* 5 ms between drains */
 
-/* One event into the file (receive thread, or main before and after the threads). */
+/* One event into the file (the writer thread afm-log, or main before it starts and after it
+ * is joined: never two at once). */
 static void write_event(twind *d, int64_t sample, const char *suffix, const void *body, int len) {
     char ch[128];
     snprintf(ch, sizeof ch, "%s%s", d->opt.prefix ? d->opt.prefix : "AFMTWIN_", suffix);
