@@ -268,6 +268,7 @@ bench: deps
 	$(MAKE) $(BUILD)/bin/afmtwin $(BUILD)/bin/afmtwind
 	$(BUILD)/bin/afmtwin bench
 	$(BUILD)/bin/afmtwin bench-states
+	$(BUILD)/bin/afmtwin bench-states --config config/scan-grating.conf --only "sample:"
 	$(BUILD)/bin/afmtwin bench-scheme
 	sh tools/bench-fm.sh $(BUILD)
 	$(BUILD)/bin/afmtwin bench-daemon --daemon $(BUILD)/bin/afmtwind

@@ -69,6 +69,7 @@ typedef enum {
     ST_FM_1024,
     ST_FM_64,
     ST_FM_SELF,
+    ST_SAMPLE_FLAT,
     ST_SAMPLE_HOLD,
     ST_SAMPLE_RASTER,
     ST_SAMPLE_RASTER_AM,
@@ -100,6 +101,7 @@ static const struct {
     [ST_FM_1024] = {"FM: internal PLL + amplitude, update every 1024", 0.01},
     [ST_FM_64] = {"FM: internal PLL + amplitude, update every 64", 0.01},
     [ST_FM_SELF] = {"FM: self-excited drive + amplitude, update every 1024", 0.01},
+    [ST_SAMPLE_FLAT] = {"sample: none, flat as held (gap Z - 5 nm, Er x 2)", 0.01},
     [ST_SAMPLE_HOLD] = {"sample: a grating under the tip, holding (Z 40 nm)", 0.01},
     [ST_SAMPLE_RASTER] = {"sample: rastering the grating, 10 lines/s (Z 40 nm)", 0.01},
     [ST_SAMPLE_RASTER_AM] = {"sample: rastering it under am.control internal", 0.01},
@@ -107,14 +109,15 @@ static const struct {
 
 /* The sample of the sample states (issue 18): a grating of 5 nm lines, pitch 100 nm, along
  * x, 10 nm edges, its lines a second material (Er x 2), so that a raster crosses heights and
- * materials; the tip starts over a line's middle. */
+ * materials; the tip starts over a line's middle (z_s = BENCH_LINE_M exactly there). */
+#define BENCH_LINE_M 5e-9
 static void bench_sample(afm_config *c) {
     afm_cfg_sample *s = &c->sample;
     memset(s, 0, sizeof *s);
     s->enabled = true;
     s->n_features = 1;
     s->features[0] = (afm_cfg_feature){.kind = AFM_FEATURE_GRATING,
-                                       .height_m = 5e-9,
+                                       .height_m = BENCH_LINE_M,
                                        .position_m = -25e-9,
                                        .pitch_m = 100e-9,
                                        .duty = 0.5,
@@ -125,6 +128,17 @@ static void bench_sample(afm_config *c) {
                                          .hamaker_j = NAN,
                                          .a0_m = NAN,
                                          .eta_pa_s = NAN};
+}
+
+/* The holding state's physics without a sample (issue 18): no sample group, the stage Z less
+ * the line's height (the gap lat_gap hands the integrator, the same double), the line's
+ * material (Er x 2). Holding must cost what this costs: the sample model's own cost is the
+ * difference between the two rows (and what the rasters add to it), not the harder tapping
+ * on the line, which a flat sample at that gap costs as well. */
+static void bench_flat_as_held(afm_config *c) {
+    memset(&c->sample, 0, sizeof c->sample);
+    c->drive.separation_m = c->drive.separation_m - BENCH_LINE_M;
+    c->forces.reduced_modulus_pa = 2.0 * c->forces.reduced_modulus_pa;
 }
 
 typedef struct {
@@ -288,6 +302,7 @@ static int run_state(const afm_config *cfg, double uptime_s, state_id id, state_
     }
     if (id == ST_SAMPLE_HOLD || id == ST_SAMPLE_RASTER || id == ST_SAMPLE_RASTER_AM)
         bench_sample(&t.shadow);
+    if (id == ST_SAMPLE_FLAT) bench_flat_as_held(&t.shadow);
     if (id == ST_SAMPLE_RASTER_AM) { /* the runner's reference PI moves Z (issue 18) */
         t.shadow.am.enabled = true;
         t.shadow.am.control = AFM_AM_CONTROL_INTERNAL;
