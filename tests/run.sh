@@ -50,21 +50,24 @@ account() { # NAME OUT RC SECONDS
   if [ "$rc" -ne 0 ] && [ "$f" -eq 0 ]; then echo "FAIL $t: exit $rc"; fail=$((fail+1)); fi
 }
 # The pool, JOBS at a time: section i writes TMP/i.out, .rc, .s.
+running=0
 for i in "${order[@]}"; do
   t=${pool[$i]}
   [ -e "$t" ] || continue
-  while [ "$(jobs -rp | wc -l)" -ge "$JOBS" ]; do wait -n; done
+  if [ "$running" -ge "$JOBS" ]; then wait -n; running=$((running - 1)); fi
+  running=$((running + 1))
   ( t0=$(date +%s)
     if [ "${t%.sh}" != "$t" ]; then bash "$t" "$BUILD"; else "$t"; fi > "$TMP/$i.out" 2>&1
     echo $? > "$TMP/$i.rc"; echo $(( $(date +%s) - t0 )) > "$TMP/$i.s" ) &
 done
 wait
+pool_s=$(( $(date +%s) - T0 ))
 for i in "${!pool[@]}"; do
   t=${pool[$i]}
   if [ ! -e "$t" ]; then echo "FAIL $t: not built"; fail=$((fail+1)); continue; fi
   account "$t" "$(cat "$TMP/$i.out")" "$(cat "$TMP/$i.rc")" "$(cat "$TMP/$i.s")"
 done
-echo "   (the pool of ${#pool[@]} sections, $JOBS at a time: $(( $(date +%s) - T0 )) s wall)"
+echo "   (the pool of ${#pool[@]} sections, $JOBS at a time: $pool_s s wall)"
 for t in "${serial[@]}"; do
   t0=$(date +%s)
   out=$(bash "$t" "$BUILD" 2>&1); rc=$?
