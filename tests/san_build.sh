@@ -19,8 +19,9 @@ san_build() {
   # a file under BUILD/san (bin/afmtwind) or a phony goal of the Makefile (fuzzers)
   for g in "$@"; do case $g in */*) goals="$goals $b/san/$g" ;; *) goals="$goals $g" ;; esac; done
   [ -n "$goals" ] || goals="core fuzzers"
-  # -j2: the build machine has two cores (this runs outside the caller's make jobserver)
-  if ! out=$(make --no-print-directory -s -j2 sanitize-build BUILD="$b" SAN_GOALS="$goals" 2>&1); then
+  # -j2: the build machine has two cores (this runs outside the caller's make jobserver);
+  # SAN_JOBS=1 when run.sh makes it beside the unit tests
+  if ! out=$(make --no-print-directory -s -j"${SAN_JOBS:-2}" sanitize-build BUILD="$b" SAN_GOALS="$goals" 2>&1); then
     echo "$out" | tail -20
     echo "FAIL make sanitize-build"; echo "0 passed, 1 failed"; exit 1
   fi
