@@ -254,12 +254,13 @@ run: deps
 	sh tools/afmtwind-run.sh $(BUILD) config/default.conf
 
 # make test: under 15 minutes on this 2-core machine (deps check, build, every test; the
-# build and each section print their time). What is long runs elsewhere, each with a short
-# form here that fails on a broken build: AFMTWIN_VALIDATE=full (make validate) adds
-# test_rt_steady's NCHV, 20 and 15 MHz curves and 0.5 nm steps, test_continue's whole
-# Figure 4.2, test_period_metrics' NCHV and second Q 300 case, and test_march's x86-64-v3
-# build; make sanitize the sanitized tools and the other unit tests under the sanitizers;
-# make fuzz 1e7 inputs per fuzzer; make flood the 10 s floods; make soak the 5-min soaks.
+# build and each section print their time; tests/run.sh runs the unit tests and the
+# no-daemon scripts 2 at a time beside the scripts' own builds). The long forms run
+# elsewhere, each with a short form here that fails on a broken build (README "What make
+# test runs"): make validate (AFMTWIN_VALIDATE=full) test_rt_steady's 20/15 MHz and NCHV
+# curves and 0.5 nm steps, test_march's x86-64-v3 build; make sanitize the sanitized tools and
+# the other unit tests; make fuzz 1e7 inputs per fuzzer; make flood the 10 s floods; make
+# soak the 5-minute soaks.
 test: deps
 	@t0=$$(date +%s); $(MAKE) -j$(NPROC) all && echo "   (make all: $$(( $$(date +%s) - t0 )) s)"
 	@bash tests/run.sh $(BUILD)
