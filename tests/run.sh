@@ -2,13 +2,16 @@
 # run.sh BUILD -- runs every test binary (and tests/*.sh scripts) and prints one closing
 # line "N passed, N failed" summed over all of them. Exit status 1 if anything failed.
 # The unit test binaries and the scripts that need no daemon (they source tests/lib_check.sh:
-# the CLI's offline computations; no wall-clock bound) run AFMTWIN_TEST_JOBS at a time
-# (default: the number of CPUs, at most 2), the longest first, their outputs printed in
-# order once all are done; the other scripts (daemons held to real time, their own -j2
-# builds) one at a time after them. The builds those scripts need (the sanitizer build of
-# test_flood, test_fuzz and test_sanitize; test_march's other copies) are made in the pool
-# too, at -j1, so that their one long compile (afm_rt.c) runs beside the unit tests rather
-# than beside an idle core; a failed one is made again, and reported, by its script.
+# the CLI's offline computations; no wall-clock bound) form a pool that runs
+# AFMTWIN_TEST_JOBS at a time (default: the number of CPUs, at most 2), the longest first,
+# at nice 19 beside the daemon scripts (which run one at a time, their daemons at SCHED_FIFO
+# or, where that is not permitted, at nice 0: the pool takes only the CPU they leave, at
+# --speed 0.5 about half); its outputs are printed in order once it is done.
+# AFMTWIN_TEST_OVERLAP=0: the pool first, at normal priority, then the daemon scripts. The
+# builds of the scripts run last (the sanitizer build of test_flood, test_fuzz and
+# test_sanitize; test_march's other copies) are made in the pool too, at -j1, so that their
+# one long compile (afm_rt.c) does not leave a core idle; a failed one is made again, and
+# reported, by its script.
 # Every section prints its wall time, "(tests/test_X.sh: N s)"; the slowest ones and the
 # total are repeated before the closing line.
 set -u
@@ -20,6 +23,7 @@ T0=$(date +%s)
 TMP=$(mktemp -d /tmp/afmtwin-run.XXXXXX)
 trap 'rm -rf "$TMP"' EXIT
 times=()
+OVERLAP=${AFMTWIN_TEST_OVERLAP:-1}
 JOBS=${AFMTWIN_TEST_JOBS:-$(nproc 2>/dev/null || echo 1)}
 [ "$JOBS" -gt 2 ] && [ -z "${AFMTWIN_TEST_JOBS:-}" ] && JOBS=2
 # The binaries of the sources that exist (a stale binary of a removed test is not run), and
@@ -55,45 +59,75 @@ account() { # NAME OUT RC SECONDS
   pass=$((pass+p)); fail=$((fail+f))
   if [ "$rc" -ne 0 ] && [ "$f" -eq 0 ]; then echo "FAIL $t: exit $rc"; fail=$((fail+1)); fi
 }
-# The pool, JOBS at a time: section i writes TMP/i.out, .rc, .s.
-running=0
-for i in "${order[@]}"; do
-  t=${pool[$i]}
-  case $t in build:*) ;; *) [ -e "$t" ] || continue ;; esac
-  if [ "$running" -ge "$JOBS" ]; then wait -n; running=$((running - 1)); fi
-  running=$((running + 1))
-  ( t0=$(date +%s)
-    case $t in
-      build:san) (. tests/san_build.sh
-                  SAN_JOBS=1 san_build "$BUILD" bin/afmtwind fuzzers $(printf 'tests/%s ' $SAN_SHORT)) ;;
-      build:march) # tests/test_march.sh's copies
-        for m in x86-64 $([ "${AFMTWIN_VALIDATE:-}" = full ] && echo x86-64-v3); do
-          make -s -j1 --no-print-directory BUILD="$BUILD/march/$m" AFMTWIN_MARCH=$m \
-            "$BUILD/march/$m/bin/afmtwin" || exit 1
-        done ;;
-      *.sh) bash "$t" "$BUILD" ;;
-      *) "$t" ;;
-    esac > "$TMP/$i.out" 2>&1
-    echo $? > "$TMP/$i.rc"; echo $(( $(date +%s) - t0 )) > "$TMP/$i.s" ) &
-done
-wait
-pool_s=$(( $(date +%s) - T0 ))
-for i in "${!pool[@]}"; do
-  t=${pool[$i]}
-  case $t in build:*)
-    echo "   ($t, the scripts' build: $(cat "$TMP/$i.s") s, exit $(cat "$TMP/$i.rc"))"
-    [ "$(cat "$TMP/$i.rc")" = 0 ] || tail -5 "$TMP/$i.out"
-    continue ;;
-  esac
-  if [ ! -e "$t" ]; then echo "FAIL $t: not built"; fail=$((fail+1)); continue; fi
-  account "$t" "$(cat "$TMP/$i.out")" "$(cat "$TMP/$i.rc")" "$(cat "$TMP/$i.s")"
-done
-echo "   (the pool of ${#pool[@]} sections, $JOBS at a time: $pool_s s wall)"
+# After the pool: the scripts that run what its builds made.
+first=(); after=()
 for t in "${serial[@]}"; do
-  t0=$(date +%s)
-  out=$(bash "$t" "$BUILD" 2>&1); rc=$?
-  account "$t" "$out" "$rc" $(( $(date +%s) - t0 ))
+  case $(basename "$t") in
+    test_flood.sh | test_fuzz.sh | test_sanitize.sh | test_march.sh) after+=("$t") ;;
+    *) first+=("$t") ;;
+  esac
 done
+# The pool, JOBS at a time: section i writes TMP/i.out, .rc, .s; nice 19 when it runs beside
+# the daemon scripts.
+run_pool() {
+  local running=0 i t
+  for i in "${order[@]}"; do
+    t=${pool[$i]}
+    case $t in build:*) ;; *) [ -e "$t" ] || continue ;; esac
+    if [ "$running" -ge "$JOBS" ]; then wait -n; running=$((running - 1)); fi
+    running=$((running + 1))
+    ( [ "$OVERLAP" = 1 ] && renice -n 19 -p $BASHPID > /dev/null
+      t0=$(date +%s)
+      case $t in
+        build:san) (. tests/san_build.sh
+                    SAN_JOBS=1 san_build "$BUILD" bin/afmtwind fuzzers $(printf 'tests/%s ' $SAN_SHORT)) ;;
+        build:march) # tests/test_march.sh's copies
+          for m in x86-64 $([ "${AFMTWIN_VALIDATE:-}" = full ] && echo x86-64-v3); do
+            make -s -j1 --no-print-directory BUILD="$BUILD/march/$m" AFMTWIN_MARCH=$m \
+              "$BUILD/march/$m/bin/afmtwin" || exit 1
+          done ;;
+        *.sh) bash "$t" "$BUILD" ;;
+        *) "$t" ;;
+      esac > "$TMP/$i.out" 2>&1
+      echo $? > "$TMP/$i.rc"; echo $(( $(date +%s) - t0 )) > "$TMP/$i.s" ) &
+  done
+  wait
+  echo $(( $(date +%s) - T0 )) > "$TMP/pool.s"
+}
+print_pool() {
+  local i t
+  for i in "${!pool[@]}"; do
+    t=${pool[$i]}
+    case $t in build:*)
+      echo "   ($t, the scripts' build: $(cat "$TMP/$i.s") s, exit $(cat "$TMP/$i.rc"))"
+      [ "$(cat "$TMP/$i.rc")" = 0 ] || tail -5 "$TMP/$i.out"
+      continue ;;
+    esac
+    if [ ! -e "$t" ]; then echo "FAIL $t: not built"; fail=$((fail+1)); continue; fi
+    account "$t" "$(cat "$TMP/$i.out")" "$(cat "$TMP/$i.rc")" "$(cat "$TMP/$i.s")"
+  done
+  echo "   (the pool of ${#pool[@]} sections, $JOBS at a time$([ "$OVERLAP" = 1 ] && echo " at nice 19 beside the daemon scripts"): $(cat "$TMP/pool.s") s wall)"
+}
+run_serial() {
+  local t t0 out rc
+  for t in "$@"; do
+    t0=$(date +%s)
+    out=$(bash "$t" "$BUILD" 2>&1); rc=$?
+    account "$t" "$out" "$rc" $(( $(date +%s) - t0 ))
+  done
+}
+if [ "$OVERLAP" = 1 ]; then
+  run_pool &
+  POOL=$!
+  run_serial "${first[@]}"
+  wait "$POOL"
+  print_pool
+else
+  run_pool
+  print_pool
+  run_serial "${first[@]}"
+fi
+run_serial "${after[@]}"
 echo "   slowest sections (s): $(printf '%s\n' "${times[@]}" | sort -rn | head -12 | awk '{printf "%s %s; ", $2, $1}')"
 echo "   all tests: $(( $(date +%s) - T0 )) s wall"
 echo "$pass passed, $fail failed"
