@@ -254,8 +254,8 @@ run: deps
 	sh tools/afmtwind-run.sh $(BUILD) config/default.conf
 
 # make test: under 15 minutes on this 2-core machine (deps check, build, every test; the
-# build and each section print their time; tests/run.sh runs the unit tests and the
-# no-daemon scripts 2 at a time beside the scripts' own builds). The long forms run
+# build and each section print their time; tests/run.sh runs the unit tests, the no-daemon
+# scripts and the scripts' own builds 2 at a time at nice 19 beside the daemon scripts). The long forms run
 # elsewhere, each with a short form here that fails on a broken build (README "What make
 # test runs"): make validate (AFMTWIN_VALIDATE=full) test_rt_steady's 20/15 MHz and NCHV
 # curves and 0.5 nm steps, test_march's x86-64-v3 build; make sanitize the sanitized tools and
