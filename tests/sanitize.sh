@@ -16,9 +16,8 @@ export LSAN_OPTIONS=report_objects=1
 pass=0; fail=0
 ok()  { echo "ok   $1"; pass=$((pass+1)); }
 bad() { echo "FAIL $1"; fail=$((fail+1)); }
-SHORT="test_cmd test_wire test_can_codec test_config test_runner test_spsc test_force test_model
-       test_cycle test_orbit test_sundials test_obd"
-if [ "$MODE" = short ]; then list=$SHORT; else list=$(cd "$SAN/tests" && ls test_* 2>/dev/null); fi
+. tests/san_build.sh   # SAN_SHORT: the short list
+if [ "$MODE" = short ]; then list=$SAN_SHORT; else list=$(cd "$SAN/tests" && ls test_* 2>/dev/null); fi
 log=$(mktemp)
 trap 'rm -f "$log"' EXIT
 for t in $list; do

@@ -26,7 +26,7 @@ if [ "${3:-}" != "--inside" ]; then
     echo "0 passed, 1 failed"; exit 1
   fi
   . tests/san_build.sh
-  san_build "$BUILD"
+  san_build "$BUILD" bin/afmtwind
   exec unshare -n sh -c 'ip link set lo up && ip link set lo multicast on &&
     ip route add 224.0.0.0/4 dev lo && exec bash "$0" "$1" "$2" --inside' "$0" "$BUILD" "$MODE"
 fi

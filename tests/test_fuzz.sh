@@ -7,5 +7,5 @@ set -u
 BUILD=${1:-build}
 cd "$(dirname "$0")/.." || exit 1
 . tests/san_build.sh
-san_build "$BUILD"
+san_build "$BUILD" fuzzers
 exec bash tests/fuzz.sh "$BUILD/san" 0 "${AFMTWIN_FUZZ_SECONDS:-3}"

@@ -7,5 +7,5 @@ set -u
 BUILD=${1:-build}
 cd "$(dirname "$0")/.." || exit 1
 . tests/san_build.sh
-san_build "$BUILD"
+san_build "$BUILD" $(for t in $SAN_SHORT; do echo tests/$t; done)
 exec bash tests/sanitize.sh "$BUILD/san" short
