@@ -451,7 +451,7 @@ static int write_script(FILE *sf, const mplot_opts *o, const afmt_map_data *m, i
     if (lpc2 && *lpc2) fprintf(sf, "; dash-dot black: folds of period-2+ branches");
     if (pd && *pd) fprintf(sf, "; dashed magenta: PD curves");
     if (!isnan(o->contour_n)) fprintf(sf, "; white line: peak force %.4g nN", o->contour_n * 1e9);
-    fprintf(sf, "'\n");
+    fprintf(sf, "'.\"\\n\".'%s'\n", PLOT_LAG_NOTE);
     char xlab[128], ylab[128];
     fprintf(sf,
             "set xlabel '%s'\nset ylabel '%s'\nset palette rgb 33,13,10\nset autoscale cbfix\nset "

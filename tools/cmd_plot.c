@@ -579,6 +579,7 @@ static int load_sweep(const plot_opts *o, plot_data *d, FILE *gp) {
              squeeze ? "energy dissipated per period in the last period: E_ts by the tip-sample "
                        "forces, E_sq by the squeeze film (air under the beam)"
                      : "E_ts: the energy the tip-sample forces dissipate in the last period");
+    snprintf(d->note2, sizeof d->note2, "%s", PLOT_LAG_NOTE);
     const double l = PX_LEFT / d->W, r = 1 - PX_RIGHT / d->W;
     double top = plot_figure(gp, d, &k, l, r);
     /* the energies per period in panels of their own: E_ts (tip-sample) and, where a

@@ -233,6 +233,7 @@ int load_approach(const plot_opts *o, plot_data *d, FILE *gp) {
                          "conservative), E_sq by the squeeze film (air under the beam)"
                        : "E_ts: the energy the tip-sample forces dissipate per period (0 for "
                          "conservative forces, but for the integration's noise)");
+    snprintf(d->note2, sizeof d->note2, "%s", PLOT_LAG_NOTE);
     const double l = PX_LEFT / d->W, r = 1 - PX_RIGHT / d->W;
     double top = plot_figure(gp, d, &k, l, r);
     /* 2 x 2 panels; with a squeeze film the last cell holds E_ts over E_sq */

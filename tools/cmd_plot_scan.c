@@ -103,6 +103,7 @@ int load_scan(const plot_opts *o, plot_data *d, FILE *gp) {
     if (!c.tr || !c.re || plot_each_json(o->in[0], scan_row, &c)) return -1;
     if (c.tr->n == 0) return plot_err("%s: no trace pixels", o->in[0]);
     d->info.no_z = true;
+    snprintf(d->note, sizeof d->note, "%s", PLOT_LAG_NOTE);
     scan_line_y(c.tr, c.lines);
     /* the profile: the middle line's trace and retrace against the truth */
     int mid = c.lines / 2;
