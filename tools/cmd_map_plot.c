@@ -34,7 +34,7 @@ static void mplot_usage(FILE *f) {
             "points (up and down differ) marked with white crosses, points that did not settle\n"
             "with black dots. A partial map (an interrupted run) shows its finished lines.\n\n"
             "options:\n"
-            "  --out FILE       the picture (pngcairo; .svg: SVG)\n"
+            "  --out FILE       the picture (pngcairo; .svg: SVG); also -o, --output\n"
             "  --gsf PREFIX     every map quantity of every direction as a Gwyddion Simple Field\n"
             "                   file PREFIX-DIR-QUANTITY.gsf (DIR up or down; QUANTITY amplitude,\n"
             "                   phase_lag, peak_force, attractive_force, min_gap, indentation,\n"
@@ -495,6 +495,8 @@ int afm_cmd_plot_map(int argc, char **argv) {
     mplot_opts o = {.width = 1200, .height = 900, .contour_n = NAN, .dir = -1};
     const afmt_opt opts[] = {
         AFMT_STRING("--out", &o.out),
+        AFMT_STRING("-o", &o.out), /* as every other plot kind takes it */
+        AFMT_STRING("--output", &o.out),
         AFMT_STRING("--gsf", &o.gsf),
         AFMT_STRING("--script", &o.script),
         AFMT_STRING("--curves", &o.curves),
