@@ -835,7 +835,8 @@ static int load_force_curve(const plot_opts *o, plot_data *d, FILE *gp) {
     const double l = PX_LEFT / d->W, r = 1 - PX_RIGHT / d->W;
     double top = plot_figure(gp, d, &k, l, r);
     plot_area(gp, l, r, PX_BOTTOM / d->H, top);
-    fprintf(gp, "set xlabel 'base separation Z (nm)'\nset ylabel 'force on the lever k x (nN)'\n"
+    fprintf(gp, "set xlabel 'base separation Z (nm)'\nset ylabel 'force on the lever k x (nN; < 0 "
+                "attractive)'\n"
                 "set xzeroaxis lt -1 lw 0.5\nset offsets 0, 0, graph 0.05, graph 0.05\n"
                 "plot $A using 1:2 with lines lw 2 lc rgb '#0072b2' notitle, "
                 "$R using 1:2 with lines lw 2 lc rgb '#d55e00' notitle, "
