@@ -237,8 +237,11 @@ int afm_cmd_curve(int argc, char **argv) {
         return 1;
     }
     if (c.runs == 0) {
-        fprintf(stderr, "afmtwin curve: %s: no operating point with %d harmonics records\n", o.log,
-                o.min_records);
+        fprintf(stderr,
+                "afmtwin curve: %s: no operating point with %d harmonics records (the daemon "
+                "and replay keep at most 1000 a second: dwell longer, log with "
+                "--harmonics-every 1, or lower --min-records)\n",
+                o.log, o.min_records);
         return 1;
     }
     return 0;

@@ -34,7 +34,7 @@ static void mplot_usage(FILE *f) {
             "points (up and down differ) marked with white crosses, points that did not settle\n"
             "with black dots. A partial map (an interrupted run) shows its finished lines.\n\n"
             "options:\n"
-            "  --out FILE       the picture (pngcairo; .svg: SVG)\n"
+            "  --out FILE       the picture (pngcairo; .svg: SVG); also -o, --output\n"
             "  --gsf PREFIX     every map quantity of every direction as a Gwyddion Simple Field\n"
             "                   file PREFIX-DIR-QUANTITY.gsf (DIR up or down; QUANTITY amplitude,\n"
             "                   phase_lag, peak_force, attractive_force, min_gap, indentation,\n"
@@ -451,7 +451,7 @@ static int write_script(FILE *sf, const mplot_opts *o, const afmt_map_data *m, i
     if (lpc2 && *lpc2) fprintf(sf, "; dash-dot black: folds of period-2+ branches");
     if (pd && *pd) fprintf(sf, "; dashed magenta: PD curves");
     if (!isnan(o->contour_n)) fprintf(sf, "; white line: peak force %.4g nN", o->contour_n * 1e9);
-    fprintf(sf, "'\n");
+    fprintf(sf, "'.\"\\n\".'%s'\n", PLOT_LAG_NOTE);
     char xlab[128], ylab[128];
     fprintf(sf,
             "set xlabel '%s'\nset ylabel '%s'\nset palette rgb 33,13,10\nset autoscale cbfix\nset "
@@ -480,6 +480,9 @@ static int write_script(FILE *sf, const mplot_opts *o, const afmt_map_data *m, i
             fprintf(sf, "set cbrange [%.10g:%.10g]\n", lo, hi);
         else
             fprintf(sf, "set autoscale cbfix\n");
+        /* the colour bar's unit: the label's last parenthesis ("peak force (nN)": nN) */
+        const char *lab = quantities[show[k]].label, *u = strrchr(lab, '(');
+        fprintf(sf, "set cblabel '%.*s'\n", u ? (int)strcspn(u + 1, ")") : 0, u ? u + 1 : "");
         fprintf(sf,
                 "set title '%s'\nplot $map using 1:2:%d with image notitle, "
                 "$bist using 1:2 with points pt 2 ps 1.2 lc rgb 'white' notitle, "
@@ -495,6 +498,8 @@ int afm_cmd_plot_map(int argc, char **argv) {
     mplot_opts o = {.width = 1200, .height = 900, .contour_n = NAN, .dir = -1};
     const afmt_opt opts[] = {
         AFMT_STRING("--out", &o.out),
+        AFMT_STRING("-o", &o.out), /* as every other plot kind takes it */
+        AFMT_STRING("--output", &o.out),
         AFMT_STRING("--gsf", &o.gsf),
         AFMT_STRING("--script", &o.script),
         AFMT_STRING("--curves", &o.curves),

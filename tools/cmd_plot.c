@@ -72,8 +72,9 @@ static void plot_usage(FILE *f) {
             "  thermal   INPUT: a PSD from afmtwin thermal --psd; --fit FILE: its --json\n"
             "            output, whose eq. 5.1 fit per mode is drawn over the PSD (its config\n"
             "            names the model in the title unless --config does)\n"
-            "  trace     INPUT: an LCM log of the daemon's outputs (lcm-logger, afmtwin\n"
-            "            listen): deflection, OBD signal and force of one sample stream\n"
+            "  trace     INPUT: an LCM log of the daemon's outputs (lcm-logger on its\n"
+            "            samples URL, or afmtwin replay --out; afmtwin listen only reads\n"
+            "            logs): deflection, OBD signal and force of one sample stream\n"
             "            (--stream N, default 0) over --from S --to S of model time (default\n"
             "            the first 2 ms); --z M also draws the gap d = xr + Z (cos alpha 1).\n"
             "            The title states the stream's rate, samples per drive period and\n"
@@ -114,7 +115,9 @@ static void plot_usage(FILE *f) {
             "  force-curve  INPUT: afmtwin force-curve --json output: the force on the\n"
             "            lever k x against the base Z, approach and retract, snap-in and\n"
             "            pull-off marked, spring constant and adhesion in the title.\n"
-            "            Columns: Z[nm] force[nN] deflection[nm]; set E the events\n\n"
+            "            Columns: Z[nm] force[nN] deflection[nm]; set E the events\n"
+            "  map       MAPFILE: an afmtwin map file's heat maps and Gwyddion files, with\n"
+            "            options of its own (afmtwin plot map --help)\n\n"
             "options:\n"
             "  -o, --output FILE  the picture (.png, or .svg)\n"
             "  --title TEXT       the title's first line (default: what the kind draws)\n"
@@ -579,6 +582,7 @@ static int load_sweep(const plot_opts *o, plot_data *d, FILE *gp) {
              squeeze ? "energy dissipated per period in the last period: E_ts by the tip-sample "
                        "forces, E_sq by the squeeze film (air under the beam)"
                      : "E_ts: the energy the tip-sample forces dissipate in the last period");
+    snprintf(d->note2, sizeof d->note2, "%s", PLOT_LAG_NOTE);
     const double l = PX_LEFT / d->W, r = 1 - PX_RIGHT / d->W;
     double top = plot_figure(gp, d, &k, l, r);
     /* the energies per period in panels of their own: E_ts (tip-sample) and, where a
@@ -832,7 +836,8 @@ static int load_force_curve(const plot_opts *o, plot_data *d, FILE *gp) {
     const double l = PX_LEFT / d->W, r = 1 - PX_RIGHT / d->W;
     double top = plot_figure(gp, d, &k, l, r);
     plot_area(gp, l, r, PX_BOTTOM / d->H, top);
-    fprintf(gp, "set xlabel 'base separation Z (nm)'\nset ylabel 'force on the lever k x (nN)'\n"
+    fprintf(gp, "set xlabel 'base separation Z (nm)'\nset ylabel 'force on the lever k x (nN; < 0 "
+                "attractive)'\n"
                 "set xzeroaxis lt -1 lw 0.5\nset offsets 0, 0, graph 0.05, graph 0.05\n"
                 "plot $A using 1:2 with lines lw 2 lc rgb '#0072b2' notitle, "
                 "$R using 1:2 with lines lw 2 lc rgb '#d55e00' notitle, "

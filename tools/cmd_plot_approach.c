@@ -74,7 +74,10 @@ static int approach_row(const cJSON *o, void *vctx) {
                                  settled ? 1 : 0,
                                  esq};
     if (settled && p > 1 && plot_set_row(c->pm, row)) return -1;
-    if ((!settled || p == 0) && plot_set_row(c->um, row)) return -1;
+    /* `afmtwin curve` records (from a daemon log) carry neither settled nor periodicity:
+     * nothing was judged, so nothing is marked unsettled (every point was, before) */
+    const bool judged = cJSON_GetObjectItemCaseSensitive(o, "settled") != NULL;
+    if (judged && (!settled || p == 0) && plot_set_row(c->um, row)) return -1;
     return plot_set_row(ret ? c->ret : c->app, row);
 }
 
@@ -229,10 +232,11 @@ int load_approach(const plot_opts *o, plot_data *d, FILE *gp) {
     plot_key_add(&k, "with lines lw 1.5 lc rgb 'black'", "force: repulsive peak max(F, 0)");
     plot_key_add(&k, "with lines lw 1.5 dt 2 lc rgb 'black'", "force: attractive peak min(F, 0)");
     snprintf(d->note, sizeof d->note, "%s",
-             c.squeeze ? "energy dissipated per period: E_ts by the tip-sample forces (0 if "
-                         "conservative), E_sq by the squeeze film (air under the beam)"
+             c.squeeze ? "energy per period: E_ts dissipated by the tip-sample forces (0 if "
+                         "conservative), E_sq by the squeeze film on the beam"
                        : "E_ts: the energy the tip-sample forces dissipate per period (0 for "
                          "conservative forces, but for the integration's noise)");
+    snprintf(d->note2, sizeof d->note2, "%s", PLOT_LAG_NOTE);
     const double l = PX_LEFT / d->W, r = 1 - PX_RIGHT / d->W;
     double top = plot_figure(gp, d, &k, l, r);
     /* 2 x 2 panels; with a squeeze film the last cell holds E_ts over E_sq */

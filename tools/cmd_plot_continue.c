@@ -347,8 +347,9 @@ int load_continue(const plot_opts *o, plot_data *d, FILE *gp) {
     for (int k = 0; k < 3; k++)
         fprintf(gp, "set style line %d lc rgb '%s' pt %s ps 1.3\n", 11 + k, ev[k][2], ev[k][1]);
     plot_key k = {0};
-    plot_key_add(&k, "with lines lw 2 lc rgb 'black'", "stable");
-    plot_key_add(&k, "with lines lw 1.2 dt 2 lc rgb 'black'", "unstable");
+    /* the line styles' samples in grey: black is branch b6's colour */
+    plot_key_add(&k, "with lines lw 2 lc rgb 'gray50'", "stable (any branch)");
+    plot_key_add(&k, "with lines lw 1.2 dt 2 lc rgb 'gray50'", "unstable (any branch)");
     /* each branch: its period and how it was reached (parent, event) */
     for (int q = 0; q < c.n_branch && c.n_branch > 1; q++) {
         char with[64], t[96];
@@ -371,7 +372,7 @@ int load_continue(const plot_opts *o, plot_data *d, FILE *gp) {
     /* the diagram's two panels share x; the parameter plane under them has its own */
     double bottom = PX_BOTTOM / d->H;
     if (curves) bottom += 0.36 * (top - bottom);
-    const char *ylab[2] = {"minimum of xr (nm)", "amplitude at fe (nm)"};
+    const char *ylab[2] = {"min tip deflection xr (nm)", "amplitude at fe (nm)"};
     for (int p = 0; p < 2; p++) {
         plot_stack(gp, p, 2, l, r, bottom, top, PX_GAP / d->H);
         plot_shared_x(gp, p, 2, xl);

@@ -98,8 +98,11 @@ int load_fm(const plot_opts *o, plot_data *d, FILE *gp) {
                  "no internal loops (outside controller): tone 0 - its first record's %.9g Hz; "
                  "lock-in lag behind the drive (90 deg free at resonance)",
                  f_first);
+    /* the set-point read back from a record (its lock-in lag less its error): the loops' own
+     * lock-in and the published (OBD) one differ by a few mdeg, so "90.0043" would be
+     * noise; one decimal is what the config's set-point means */
     if (internal && isfinite(ph_set))
-        snprintf(d->note2, sizeof d->note2, "phase set-point %.6g deg (lag)", ph_set);
+        snprintf(d->note2, sizeof d->note2, "phase set-point %.1f deg (lag)", ph_set);
     fprintf(gp, "set style line 1 lc rgb '#0072b2' lw 1.5 pt 7 ps 0.5\nset style line 2 lc rgb "
                 "'#e69f00' lw 2 pt 6 ps 1.0\nset style line 3 lc rgb '#d55e00' lw 2 pt 2 ps "
                 "1.2\n");

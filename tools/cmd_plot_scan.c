@@ -103,6 +103,7 @@ int load_scan(const plot_opts *o, plot_data *d, FILE *gp) {
     if (!c.tr || !c.re || plot_each_json(o->in[0], scan_row, &c)) return -1;
     if (c.tr->n == 0) return plot_err("%s: no trace pixels", o->in[0]);
     d->info.no_z = true;
+    snprintf(d->note, sizeof d->note, "%s", PLOT_LAG_NOTE);
     scan_line_y(c.tr, c.lines);
     /* the profile: the middle line's trace and retrace against the truth */
     int mid = c.lines / 2;
@@ -115,13 +116,14 @@ int load_scan(const plot_opts *o, plot_data *d, FILE *gp) {
     for (size_t i = 0; i < c.re->n; i++)
         if (c.re->v[i * SCAN_COLS + 2] == mid && plot_set_row(pr, c.re->v + i * SCAN_COLS))
             return -1;
+    /* unit: the colour bar's label; ylab: the profile's axis (room for the error's sign) */
     static const struct {
-        const char *title, *unit;
+        const char *title, *unit, *ylab;
         int col;
-    } img[4] = {{"height", "height (nm)", 4},
-                {"phase lag", "phase lag (deg)", 6},
-                {"amplitude error", "amplitude error (nm)", 7},
-                {"peak force", "peak force (nN)", 8}};
+    } img[4] = {{"height", "height (nm)", "height (nm)", 4},
+                {"phase lag", "phase lag (deg)", "phase lag (deg)", 6},
+                {"amplitude error", "set-point - A (nm)", "amplitude error: set-point - A (nm)", 7},
+                {"peak force", "peak force (nN)", "peak force (nN)", 8}};
     /* the pixels' edges: half a pixel pitch (line pitch in y) beyond the outer centres */
     double x0 = INFINITY, x1 = -INFINITY, y0 = INFINITY, y1 = -INFINITY;
     for (size_t i = 0; i < c.tr->n; i++) {
@@ -151,7 +153,10 @@ int load_scan(const plot_opts *o, plot_data *d, FILE *gp) {
             double cl = p % 2 ? 0.5 + 60 / W : PX_LEFT / W, cr = p % 2 ? kr : 0.5 - 40 / W;
             double t = top - (p / 2) * (h + PX_LINE / H);
             plot_area(gp, cl, cr, t - h + (p < 2 ? (PX_BOTTOM - 10) / H : 0), t);
-            fprintf(gp, "%sset xlabel 'x (nm)'\nset ylabel '%s'\n", xr, img[p].unit);
+            /* tics that fit the panel's width (gnuplot's own ran "100150200" together) */
+            double xs = tic_step(x1 - x0, (cr - cl) * W, label_chars(x0, x1) * PX_CHAR + 12);
+            fprintf(gp, "%sset xtics %g\nset xlabel 'x (nm)'\nset ylabel '%s'\n", xr, xs,
+                    img[p].ylab);
             if (p == 0) fprintf(gp, key, kr + 12 / W, top);
             fprintf(gp,
                     "plot $PT using 1:%d with linespoints ls 2 %s, $PR using 1:%d with "

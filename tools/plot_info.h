@@ -64,4 +64,10 @@ void plot_info_line(const plot_info *pi, char *out, size_t n);
  * A0 on the accurate scheme): 0, or -1 without a model. */
 int plot_info_free(const plot_info *pi, double f_hz, double *gain, double *lag_deg);
 
+/* The note under the title of every picture that draws a phase: the project's one convention
+ * (README "Conventions"), so that a reader of the picture alone knows which phase it is. */
+#define PLOT_LAG_NOTE                                                                              \
+    "phase lag: of the deflection behind the drive, 90 deg when free at resonance, below 90 "      \
+    "repulsive"
+
 #endif
