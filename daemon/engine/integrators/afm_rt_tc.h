@@ -38,8 +38,8 @@ static void rt_tc_build(rt_state *r) {
     for (int l = 0; l <= RT_TC_NODES; l++)
         for (int i = 0; i < np; i++)
             for (int e = 0; e < 4; e++)
-                ph[l][e][i] = l == 0 ? (e == 0 || e == 3 ? 1.0 : 0.0)
-                                     : t->prop[l * k - 1].c[e * np + i];
+                ph[l][e][i] =
+                    l == 0 ? (e == 0 || e == 3 ? 1.0 : 0.0) : t->prop[l * k - 1].c[e * np + i];
     for (int l = 0; l <= RT_TC_NODES; l++) {
         for (int i = 0; i < np; i++) {
             T->fr[l][0][i] = r->tip[i] * ph[l][0][i];
@@ -89,14 +89,14 @@ rt_tc_state(const rt_state *r, const rt_snap *org, int po, int n, const double *
     for (int i = 0; i < np; i += 4) {
         rt_v4 q = RT_V4(org->q + i), v = RT_V4(org->v + i);
         const rt_v4 fo = rt_splat(F[po]), dO = rt_splat(D[po]);
-        rt_v4 a = rt_fma4(RT_V4(c + i), q,
-                          rt_fma4(RT_V4(c + np + i), v,
-                                  rt_fma4(RT_V4(T->m[1][l][0][0] + i), fo,
-                                          RT_V4(T->m[1][l][1][0] + i) * dO)));
-        rt_v4 w = rt_fma4(RT_V4(c + 2 * np + i), q,
-                          rt_fma4(RT_V4(c + 3 * np + i), v,
-                                  rt_fma4(RT_V4(T->m[1][l][0][1] + i), fo,
-                                          RT_V4(T->m[1][l][1][1] + i) * dO)));
+        rt_v4 a = rt_fma4(
+            RT_V4(c + i), q,
+            rt_fma4(RT_V4(c + np + i), v,
+                    rt_fma4(RT_V4(T->m[1][l][0][0] + i), fo, RT_V4(T->m[1][l][1][0] + i) * dO)));
+        rt_v4 w = rt_fma4(
+            RT_V4(c + 2 * np + i), q,
+            rt_fma4(RT_V4(c + 3 * np + i), v,
+                    rt_fma4(RT_V4(T->m[1][l][0][1] + i), fo, RT_V4(T->m[1][l][1][1] + i) * dO)));
         for (int j = po + 1; j <= n; j++) {
             const rt_v4 fj = rt_splat(F[j]), dj = rt_splat(D[j]);
             const int lj = n - j;
@@ -132,10 +132,9 @@ rt_tc_state(const rt_state *r, const rt_snap *org, int po, int n, const double *
 }
 
 /* rt_graded_acc in the tip-channel form (the same decisions per piece; no merges). */
-static inline __attribute__((always_inline)) void rt_graded_tc_t(const afm_sim *s, const rt_state *r,
-                                                                 const rt_snap *a, rt_snap *b,
-                                                                 const int np, const int nt,
-                                                                 const bool evs, rt_evacc *ea) {
+static inline __attribute__((always_inline)) void
+rt_graded_tc_t(const afm_sim *s, const rt_state *r, const rt_snap *a, rt_snap *b, const int np,
+               const int nt, const bool evs, rt_evacc *ea) {
     const rt_tc_tab *T = &r->tc;
     const int K = RT_TC_NODES, k = T->k, sub = r->m / K;
     const double tau = r->prop[k - 1].tau_s, taus = s->dt_s / r->m, xc = r->xc;
@@ -190,9 +189,8 @@ static inline __attribute__((always_inline)) void rt_graded_tc_t(const afm_sim *
             /* the end force (rt_piece_acc_t's solve), then D from dF/dt at the end */
             double jj = 1.0 - in->dfdx_n_m * gx - in->dfdv_n_s_m * gv;
             const double rj = 1.0 / (jj > 0.25 ? jj : 0.25);
-            const double F1 =
-                rt_solve_in_t(s, r, xs, vs, gx, gv, fma(in->df_per_cell_n, (double)k, F0), rj, o,
-                              true);
+            const double F1 = rt_solve_in_t(s, r, xs, vs, gx, gv,
+                                            fma(in->df_per_cell_n, (double)k, F0), rj, o, true);
             double x1 = fma(gx, F1, xs), v1 = fma(gv, F1, vs);
             const double acc = fma(ga, F1, as);
             const double fdot = fma(o->dfdx_n_m, v1, o->dfdv_n_s_m * acc);
