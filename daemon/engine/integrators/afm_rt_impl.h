@@ -69,6 +69,11 @@
 #define RT_ACC_TC 0
 #endif
 #define RT_TC_NODES RT_ACC_NEAR_PIECES
+/* the tip-channel form with rt_graded_acc's merges out of contact (an origin reset before each
+ * merged pair); 0: every piece a node */
+#ifndef RT_ACC_TC_MERGE
+#define RT_ACC_TC_MERGE 0
+#endif
 #define RT_ACC_SURE 0.999 /* rt_state.sure_k: below 1, so that rounding cannot decide */
 #define RT_MAX_SUBSTEPS AFM_MAX_RT_SUBSTEPS
 #define RT_RESYNC 4096 /* steps between phasor resynchronisations */

@@ -142,13 +142,46 @@ rt_graded_tc_t(const afm_sim *s, const rt_state *r, const rt_snap *a, rt_snap *b
     const double gx = T->w[0][0][0][0], gv = T->w[0][0][0][1], ga = T->w[0][0][0][2];
     const double gdx = T->w[0][0][1][0], gdv = T->w[0][0][1][1], gda = T->w[0][0][1][2];
     double F[RT_TC_NODES + 1], D[RT_TC_NODES + 1];
-    rt_snap nd[2], ob[2], mat, w[2];
+    rt_snap nd[2], ob[3], mat, w[2];
+    const double far2 = RT_ACC_MERGE_TRAVELS * 2.0 * tau;
     const rt_snap *org = a, *in = a;
     int po = 0;
     F[0] = a->tip.f_n;
     D[0] = tau * a->fdot_n_s;
     for (int p = 1; p <= K; p++) {
         rt_snap *o = p == K ? b : in == &nd[0] ? &nd[1] : &nd[0];
+        /* out of contact, far from the line at both ends: two pieces in one, as rt_graded_acc
+         * (RT_ACC_TC_MERGE), taken by rt_piece_acc_t from the state at this node; kept, its
+         * end is the new origin */
+        if (RT_ACC_TC_MERGE && RT_ACC_MERGE_TRAVELS > 0 && ((p - 1) & 1) == 0 &&
+            in->tip.x_m - xc > far2 * fabs(in->tip.v_m_s)) {
+            const rt_snap *st = in;
+            rt_snap *sm = org == &ob[0] ? &ob[1] : &ob[0];
+            if (p - 1 > po) {
+                rt_tc_state(r, org, po, p - 1, F, D, in, sm, np, nt);
+                st = sm;
+            }
+            rt_snap *o2 = p + 1 == K                        ? b
+                          : (org != &ob[2] && sm != &ob[2]) ? &ob[2]
+                          : (org != &ob[1] && sm != &ob[1]) ? &ob[1]
+                                                            : &ob[0];
+            rt_piece_acc_t(s, r, st, o2, 2 * k, true, np, nt, false, evs);
+            if (o2->tip.x_m - xc > far2 * fabs(o2->tip.v_m_s) &&
+                !rt_crosses(r, st, o2, 2.0 * tau)) {
+                if (ea) rt_ev_piece(ea, s, r, o2, (double)(p + 1) / K, true);
+                org = in = o2;
+                po = p + 1;
+                F[po] = o2->tip.f_n;
+                D[po] = tau * o2->fdot_n_s;
+                p++;
+                continue;
+            }
+            if (st == sm) { /* the state formed: the origin from here */
+                org = in = sm;
+                po = p - 1;
+            }
+            o = p == K ? b : &nd[0];
+        }
         /* a start in contact close to the line: redone whatever its end (rt_graded_acc) */
         bool redo = in->tip.x_m < xc && xc - in->tip.x_m < close * fabs(in->tip.v_m_s);
         if (!redo) {
