@@ -548,6 +548,9 @@ static inline void rt_ev_merged(rt_evacc *ea, const afm_sim *s, const rt_state *
     ea->rec.work_ts_j += (4.0 / 15.0) * T * (2.0 * gm - g0 - g1 - 0.25 * T * (d0 - d1));
 }
 
+/* the same sample in the tip-channel form (RT_ACC_TC): its nodes use rt_substeps_acc above */
+#include "integrators/afm_rt_tc.h"
+
 /* A sample near or in contact, without thermal noise, from a into b: RT_ACC_NEAR_PIECES whole
  * Hermite pieces, a piece whose path crosses the contact line or has an end in contact close
  * to it (RT_ACC_CLOSE_TRAVELS) redone in its share of the m contact substeps (rt_substep_acc:
@@ -682,7 +685,10 @@ static inline __attribute__((always_inline)) int rt_run_acc_t(afm_sim *s, rt_sta
         if (contact && !noise && r->m % RT_ACC_NEAR_PIECES == 0)
             /* near or in contact: whole Hermite pieces follow the van der Waals pulse and
              * the indentation; substeps only for the pieces at the contact line */
-            rt_graded_acc(s, r, a, b, np, nt, evs, ea);
+            if (RT_ACC_TC)
+                rt_graded_tc_t(s, r, a, b, np, nt, evs, ea);
+            else
+                rt_graded_acc(s, r, a, b, np, nt, evs, ea);
         else if (contact)
             b = rt_contact_acc(s, r, a, b, noise && !at_once, ea); /* noise: trial taken */
         if (contact)

@@ -59,6 +59,21 @@
 #ifndef RT_ACC_MERGE_TOL
 #define RT_ACC_MERGE_TOL 0.0
 #endif
+/* The tip-channel (Toeplitz) form of a graded sample (issue 29, ninth round; afm_rt_tc.h): its
+ * RT_ACC_NEAR_PIECES Hermite pieces taken as nodes of the tip's response alone (x, v and the
+ * acceleration at each node a dot product over the earlier nodes' forces and slopes, weights per
+ * model), the modal state formed once from the node forces where a piece is redone in substeps
+ * and at the sample's end. Same discretization (the same pieces, no merges: finer where the
+ * default merges two out of contact), other rounding. 0: the default's graded pieces. */
+#ifndef RT_ACC_TC
+#define RT_ACC_TC 0
+#endif
+#define RT_TC_NODES RT_ACC_NEAR_PIECES
+/* the tip-channel form with rt_graded_acc's merges out of contact (an origin reset before each
+ * merged pair); 0: every piece a node */
+#ifndef RT_ACC_TC_MERGE
+#define RT_ACC_TC_MERGE 0
+#endif
 #define RT_ACC_SURE 0.999 /* rt_state.sure_k: below 1, so that rounding cannot decide */
 #define RT_MAX_SUBSTEPS AFM_MAX_RT_SUBSTEPS
 #define RT_RESYNC 4096 /* steps between phasor resynchronisations */
@@ -80,6 +95,21 @@ typedef struct {
      * held at f_n: x_free_m + gx f_n, ... (m, m/s, m) */
     double x_guess_m, v_guess_m_s, gap_guess_m;
 } rt_tip;
+
+/* The tip-channel form's tables (afm_rt_tc.h), for tab[1]'s pieces of ncell / RT_TC_NODES cells
+ * (on: m a multiple of RT_TC_NODES). A node's force F and slope D = tau dF/dt move the tip at
+ * the node l pieces later by w[o][l][0 for F, 1 for D][0 x (m/N), 1 v (m/s/N), 2 acceleration
+ * (1/kg)], o = 1 for the origin node (the state the nodes start from: it enters only through
+ * the next piece's K0, Gd0 rows), 0 for a later node (K1, Gd1 of its own piece, then K0, Gd0 of
+ * the next). m[o][l][F, D][q, v][i]: the same on the modal state. fr[l]: the tip rows of
+ * Phi(l tau) on the origin's (qh, qh'): x (q, v), v (q, v), acceleration (q, v). */
+typedef struct {
+    bool on;
+    int k; /* cells per piece */
+    double w[2][RT_TC_NODES + 1][2][3];
+    double m[2][RT_TC_NODES + 1][2][2][AFM_MAX_MODES] __attribute__((aligned(32)));
+    double fr[RT_TC_NODES + 1][6][AFM_MAX_MODES] __attribute__((aligned(32)));
+} rt_tc_tab;
 
 /* The state a step reads and writes; two of them so a trial step can be dropped. */
 typedef struct {
@@ -173,6 +203,7 @@ typedef struct {
      * rt_set_scheme, rt_thermal). */
     bool ev_a_ok;
     double ev_a_m_s2, ev_x_m, ev_v_m_s, ev_f_n;
+    rt_tc_tab tc; /* the tip-channel form's tables (RT_ACC_TC) */
 } rt_state;
 
 /* A redone piece takes the noise already drawn for its interval (issue 11): the increment
