@@ -402,7 +402,7 @@ static int rt_init(afm_sim *s, char *err, size_t errlen) {
             r->fa_ad += r->aq[i] * d1[i] + r->av[i] * d1[np + i];
         }
     }
-    rt_tc_build(r); /* the tip-channel form's tables (RT_ACC_TC; unused when off) */
+    if (RT_ACC_TC) rt_tc_build(r); /* the tip-channel form's tables (off: never read) */
     r->cos_alpha = s->f.cos_alpha;
     rt_tables_use(r, acc);
     r->kinked = s->f.vdw_contact || s->f.capillary || s->f.electrostatic;
