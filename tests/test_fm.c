@@ -195,6 +195,56 @@ static void test_lock(void) {
     afm_sim_destroy(&s);
 }
 
+/* The lock states on synthetic phase errors (afm_fm_update fed the lag directly): LOCKED
+ * held for the lock time outside the window, then LOST; LOST back inside is ACQUIRING at
+ * once (not LOST while the loop tracks), LOST again if it leaves before LOCKED, LOCKED after
+ * the lock time inside. Errors of 0 and 3 deg against the 2 deg window; the NCO moves at
+ * most ki x 3 deg x 2 lock times ~ 0.3 kHz of its 5 kHz, so never limited. */
+static int feed(afm_fm *f, double e_deg, int n, double dt_s) {
+    for (int i = 0; i < n; i++)
+        afm_fm_update(f, f->a_set_m, f->c.phase_setpoint_deg + e_deg, dt_s);
+    return (int)f->lock;
+}
+
+static void test_lock_states(void) {
+    char err[AFM_ERR_LEN];
+    const double f0 = 300e3, a_set = 10e-12;
+    if (load(40.0, 1e-6, a_set / 300.0, f0, "amplitude_setpoint_m = 1e-11;")) {
+        check_true(false, "lock states: config loads");
+        return;
+    }
+    afm_modal m;
+    afm_sim *s = afm_twin_create(&cfg, &m, NULL, err, sizeof err);
+    if (!s) {
+        check_true(false, err);
+        return;
+    }
+    afm_fm_plant p;
+    afm_fm_plant_of(&m, &p);
+    afm_sim_destroy(&s);
+    afm_fm f;
+    if (afm_fm_init(&f, &cfg.fm, &cfg.lockin, &p, cfg.sim.sample_rate_hz, f0, f0,
+                    cfg.drive.tones[0].amplitude_m, err, sizeof err)) {
+        check_true(false, err);
+        return;
+    }
+    const double dt = f.lock_time_s / 10.0; /* 10 updates per lock time (+1: rounding) */
+    const int in = 0, out = 3;
+    check_true(feed(&f, in, 5, dt) == AFM_FM_ACQUIRING, "lock states: acquiring at first");
+    check_true(feed(&f, in, 6, dt) == AFM_FM_LOCKED, "lock states: locked after the lock time");
+    check_true(feed(&f, out, 5, dt) == AFM_FM_LOCKED,
+               "lock states: locked held for less than the lock time outside");
+    check_true(feed(&f, out, 6, dt) == AFM_FM_LOST, "lock states: lost after the lock time out");
+    check_true(feed(&f, in, 1, dt) == AFM_FM_ACQUIRING,
+               "lock states: lost and back inside: acquiring at the first update");
+    check_true(feed(&f, out, 1, dt) == AFM_FM_LOST,
+               "lock states: a re-acquisition leaving the window is lost at once");
+    check_true(feed(&f, in, 9, dt) == AFM_FM_ACQUIRING,
+               "lock states: re-acquiring until the lock time inside");
+    check_true(feed(&f, in, 2, dt) == AFM_FM_LOCKED && !f.f_limited,
+               "lock states: locked again after the lock time inside (NCO off its limit)");
+}
+
 /* The tip's rest displacement under the tip force: k x = F(Z + x). */
 static double rest_x(const afm_force_params *fp, double k, double z) {
     double x = 0.0;
@@ -543,6 +593,7 @@ static void test_self(void) {
 int main(void) {
     test_config();
     test_lock();
+    test_lock_states();
     test_gradient();
     test_self();
     test_sader_synthetic();

@@ -106,6 +106,7 @@ int afm_fm_init(afm_fm *f, const afm_cfg_fm *c, const afm_cfg_lockin *lk, const 
     f->a_set_m = c->amplitude_setpoint_m;
     f->amplitude_m = f->lag_deg = NAN;
     f->lock = AFM_FM_ACQUIRING;
+    f->reacquiring = false;
     f->t_lock_s = NAN;
     afm_fm_self_init(&f->self, sample_rate_hz, f_start_hz, c->pll_bandwidth_hz);
     return 0;
@@ -174,15 +175,21 @@ void afm_fm_update(afm_fm *f, double amplitude_m, double lag_deg, double dt_s) {
         if (f->lock != AFM_FM_LOCKED && f->t_in_s >= f->lock_time_s) {
             f->lock = AFM_FM_LOCKED;
             f->t_lock_s = f->t_s;
+            f->reacquiring = false;
+        } else if (f->lock == AFM_FM_LOST) { /* tracking again: not lost, not yet locked */
+            f->lock = AFM_FM_ACQUIRING;
+            f->reacquiring = true;
         }
     } else {
         f->t_out_s += dt_s;
         f->t_in_s = 0.0;
         if (f->lock == AFM_FM_LOCKED) {
             if (f->t_out_s >= f->lock_time_s) f->lock = AFM_FM_LOST;
-        } else if ((f->f_limited && f->t_out_s >= f->lock_time_s) ||
-                   f->t_out_s >= ACQUIRE_LOCK_TIMES * f->lock_time_s) {
-            f->lock = AFM_FM_LOST;
+        } else if (f->lock == AFM_FM_ACQUIRING &&
+                   (f->reacquiring || (f->f_limited && f->t_out_s >= f->lock_time_s) ||
+                    f->t_out_s >= ACQUIRE_LOCK_TIMES * f->lock_time_s)) {
+            f->lock = AFM_FM_LOST; /* a re-acquisition that left the window is lost again */
+            f->reacquiring = false;
         }
     }
 }

@@ -28,7 +28,10 @@
  * Lock state: inside = |e| <= lock_threshold_deg with the NCO off its limit. Inside for
  * lock_time: LOCKED; LOCKED and outside for lock_time: LOST; never locked and outside for 20
  * lock_times, or at the NCO's limit for lock_time: LOST (an unreachable set-point says so,
- * it does not drift silently). LOST goes back to LOCKED once inside for lock_time.
+ * it does not drift silently). LOST and inside again: ACQUIRING at once (the loop tracks,
+ * not yet for lock_time), LOCKED once inside for lock_time; such a re-acquisition that
+ * leaves the window before that is LOST again at once. So LOST means outside the window
+ * now, and ACQUIRING inside it (or, before the first lock, not yet given up).
  *
  * Frequency shift: f - f_center. f_center is what afm_fm_init is given (the caller's
  * reference: the start frequency or the free resonance) and afm_fm_recenter moves it to the
@@ -108,6 +111,7 @@ typedef struct {
     bool f_limited;         /* the NCO sits at a limit */
     bool drive_limited;     /* the drive sits at 0 or drive_max_m */
     afm_fm_lock lock;
+    bool reacquiring;       /* ACQUIRING after LOST: leaving the window is LOST again */
     double t_in_s, t_out_s; /* time inside / outside the lock window */
     double t_lock_s;        /* controller time of the last ACQUIRING/LOST -> LOCKED; NAN */
     double t_s;             /* controller time (sum of update intervals) */
