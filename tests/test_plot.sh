@@ -295,4 +295,13 @@ if [ $rc -eq 0 ] && grep -q '^set object .* rect from 2.166' "$T/g2.gp" \
   && grep -q "title 'lost messages (msg_seq 60 to 99)'" "$T/g2.gp" && [ "$runs" = 2 ]; then
   ok "trace across lost messages: the gap shaded and named, the samples in 2 runs"
 else bad "trace across a gap: exit $rc, runs $runs, $(grep -c '^set object' "$T/g2.gp" 2>/dev/null) objects, $(cat "$T/g2.err")"; fi
+# the filter's delay is taken off the sample times, which puts its first (start-up) samples
+# before the run's start: not drawn, and the time axis says so; the first row within one
+# stream sample (1.138 us) after 0, where the run starts
+"$A" plot trace "$T/out.log" -o "$T/t0.png" --script "$T/t0.gp" --data "$T/t0.dat" 2>"$T/t0.err"; rc=$?
+t_first=$(awk '/^# T:/ { f = 1; next } f && NF { print $1; exit }' "$T/t0.dat" 2>/dev/null)
+if [ $rc -eq 0 ] && awk -v t="${t_first:--1}" 'BEGIN { exit !(t >= 0 && t < 1.138e-3) }' \
+  && grep -q "xlabel 'model time (ms), less the 1[0-9.]* us delay of the filter (its [0-9]* samples before 0 not drawn)'" "$T/t0.gp"; then
+  ok "trace: no samples before the start (first at $t_first ms), the axis names the filter's delay"
+else bad "trace start: exit $rc, first row $t_first ms, $(grep -m1 xlabel "$T/t0.gp") $(cat "$T/t0.err")"; fi
 check_done

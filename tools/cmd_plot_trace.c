@@ -29,6 +29,11 @@ typedef struct {
     double rate_hz, pass_hz, stop_hz, fe_hz; /* the last block's (fe: tone 0, NAN: none) */
     double t_first, t_end;                   /* the stream's first and last sample + 1 */
     long long lost;                          /* messages lost in the whole log */
+    /* samples stamped before model time 0: the filter's start-up (each sample's time is its
+     * source sample's less the filter's group delay, so the first ones fall before the run
+     * started, made from the filter's empty history); not drawn */
+    long long n_pre;
+    double pre_s; /* the earliest one's distance before 0: the delay */
     int n_gaps;
     trace_gap gap[TRACE_MAX_GAPS];
 } trace_ctx;
@@ -96,10 +101,15 @@ int load_trace(const plot_opts *o, plot_data *d, FILE *gp) {
             c.decimation = m.decimation;
             c.pass_hz = m.passband_hz;
             c.stop_hz = m.stopband_hz;
-            double a = isnan(o->t_from_s) ? c.t_first : t0;
+            double a = isnan(o->t_from_s) ? fmax(c.t_first, 0.0) : t0;
             double b = isnan(o->t_to_s) ? a + 2e-3 : t1;
             for (int i = 0; i < m.n; i++) {
                 double t = m.t0_s + i / m.rate_hz;
+                if (t < 0) { /* the filter's start-up, before the run (trace_ctx) */
+                    c.n_pre++;
+                    c.pre_s = fmax(c.pre_s, -t);
+                    continue;
+                }
                 if (t < a || t > b) continue;
                 if (m.n_tones > 0) c.fe_hz = m.tone_frequency_hz[0];
                 double row[9] = {t * 1e3,
@@ -122,7 +132,7 @@ int load_trace(const plot_opts *o, plot_data *d, FILE *gp) {
     if (events == 0) return plot_not_lcm_log(o->in[0], skipped, rr < 0 ? err : NULL);
     if (lost_lo >= 0 && c.n_gaps < TRACE_MAX_GAPS) /* lost after the stream's last block */
         c.gap[c.n_gaps++] = (trace_gap){lost_lo, lost_hi, c.t_end, NAN};
-    const double a = isnan(o->t_from_s) ? c.t_first : t0;
+    const double a = isnan(o->t_from_s) ? fmax(c.t_first, 0.0) : t0;
     const double b = isnan(o->t_to_s) ? a + 2e-3 : t1;
     if (s->n == 0) {
         for (int g = 0; g < c.n_gaps; g++) {
@@ -195,24 +205,31 @@ int load_trace(const plot_opts *o, plot_data *d, FILE *gp) {
             plot_key_add(&k, "with boxes fc rgb '#cccccc' fs solid 0.5 noborder", lab);
         }
     }
+    /* the time axis says the filter's delay is off the times (no samples before the start) */
+    char xl[128] = "model time (ms)";
+    if (c.n_pre > 0)
+        snprintf(xl, sizeof xl,
+                 "model time (ms), less the %.3g us delay of the filter (its %lld samples before 0 "
+                 "not drawn)",
+                 c.pre_s * 1e6, c.n_pre);
     const double l = PX_LEFT / d->W, r = 1 - PX_RIGHT / d->W, b0 = PX_BOTTOM / d->H,
                  g = PX_GAP / d->H;
     double top = plot_figure(gp, d, &k, l, r);
     const int n = gap ? 3 : 2;
     int i = 0;
     plot_stack(gp, i, n, l, r, b0, top, g);
-    plot_shared_x(gp, i++, n, "model time (ms)");
+    plot_shared_x(gp, i++, n, xl);
     fprintf(gp,
             "set ylabel 'deflection (nm)'\nplot $T using 1:2 %s ls 1 notitle, $T using 1:3 %s "
             "ls 2 notitle\n",
             with, with);
     if (gap) {
         plot_stack(gp, i, n, l, r, b0, top, g);
-        plot_shared_x(gp, i++, n, "model time (ms)");
+        plot_shared_x(gp, i++, n, xl);
         fprintf(gp, "set ylabel 'gap (nm)'\nplot $T using 1:5 %s ls 3 notitle\n", with);
     }
     plot_stack(gp, i, n, l, r, b0, top, g);
-    plot_shared_x(gp, i, n, "model time (ms)");
+    plot_shared_x(gp, i, n, xl);
     fprintf(gp, "set ylabel 'force (nN)'\nplot $T using 1:4 %s ls 4 notitle\nunset multiplot\n",
             with);
     return 0;
