@@ -264,9 +264,11 @@ EOF
   && ok "plot map: a PNG of the heat maps" || bad "plot map: exit $rc: $(head -2 "$T/p.err")"
 # its title names the model and the drive as every plot's does (plot_info.h), and E_ts
 "$A" plot map "$T/single.map" --out "$T/map2.png" --script "$T/map.gp" 2> /dev/null
-grep -m1 '^set multiplot' "$T/map.gp" | grep -q 'thesis-fig-4-2.conf: f0 80.8205 kHz, Q 200, k 2.821 N/m; drive fe 80-88 kHz, Ae 700 pm; Z 20-30 nm' &&
+# (the config's name once: on the model's line, not again with its path on the first)
+grep -m1 '^set multiplot' "$T/map.gp" | grep -q "title 'afmtwin map (up sweep, [0-9]* x [0-9]*)'.*'thesis-fig-4-2.conf: f0 80.8205 kHz, Q 200, k 2.821 N/m; drive fe 80-88 kHz, Ae 700 pm; Z 20-30 nm" &&
+  [ "$(grep -m1 '^set multiplot' "$T/map.gp" | grep -o 'thesis-fig-4-2' | wc -l)" = 1 ] &&
   grep -q "E_ts tip-sample dissipated (eV)" "$T/map.gp" &&
-  ok "plot map: the title names f0, Q, k and the drive; the energy panel is E_ts" ||
+  ok "plot map: the title names the config once, f0, Q, k and the drive; the energy panel is E_ts" ||
   bad "plot map title: $(grep -m1 '^set multiplot' "$T/map.gp")"
 ng=$(ls "$T"/g-*.gsf 2> /dev/null | wc -l)
 [ "$ng" = 21 ] && ok "plot map --gsf: 21 files (10 quantities x 2 directions, bistable)" \

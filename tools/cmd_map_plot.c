@@ -438,15 +438,17 @@ static int write_script(FILE *sf, const mplot_opts *o, const afmt_map_data *m, i
         ol += snprintf(over + ol, sizeof over - ol,
                        ", $cont using 1:2 with lines lw 2.5 lc rgb 'white' notitle");
     }
-    /* three title lines: what the map is, the model and the drive (plot_info.h), then what
-     * the marks and lines are (no key: it would hide part of a panel) */
+    /* three title lines: what the map is, the model and the drive (plot_info.h, which starts
+     * with the config's name: the first line names it only when the config cannot be read),
+     * then what the marks and lines are (no key: it would hide part of a panel) */
     char info[256];
     map_info_line(m, info, sizeof info);
     fprintf(sf,
-            "set multiplot layout 2,2 title 'afmtwin map %s (%s sweep, %d x %d%s)'.\"\\n\"."
+            "set multiplot layout 2,2 title 'afmtwin map%s%s (%s sweep, %d x %d%s)'.\"\\n\"."
             "%s%s%s'white x: bistable points, black dots: unsettled",
-            m->config, d ? "down" : "up", m->x.n, m->y.n, m->lines < m->y.n ? ", partial" : "",
-            info[0] ? "'" : "", info, info[0] ? "'.\"\\n\"." : "");
+            info[0] ? "" : " ", info[0] ? "" : m->config, d ? "down" : "up", m->x.n, m->y.n,
+            m->lines < m->y.n ? ", partial" : "", info[0] ? "'" : "", info,
+            info[0] ? "'.\"\\n\"." : "");
     if (lpc && *lpc) fprintf(sf, "; black lines: LPC curves");
     if (lpc2 && *lpc2) fprintf(sf, "; dash-dot black: folds of period-2+ branches");
     if (pd && *pd) fprintf(sf, "; dashed magenta: PD curves");
