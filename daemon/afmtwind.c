@@ -210,9 +210,8 @@ static void print_started(const twind *d, double fs_hz, long long block, long lo
             afm_sim_integrator_name(afm_runner_sim(d->runner)), fs_hz * 1e-6, block,
             (double)block / fs_hz * 1e6, ring, AFM_RUNNER_SLOT_SAMPLES, d->opt.prefix, cmd_u, out_u,
             smp_u);
-    fprintf(stderr, "afmtwind: rt scheme %s (--scheme %s): %s\n",
-            afm_sim_scheme_name(afm_runner_sim(d->runner)), twind_scheme_opt_name(d->opt.scheme),
-            d->scheme.reason);
+    fprintf(stderr, "afmtwind: rt scheme %s (%s): %s\n",
+            afm_sim_scheme_name(afm_runner_sim(d->runner)), d->scheme.from, d->scheme.reason);
     if (isfinite(a0->amplitude_m))
         fprintf(stderr,
                 "afmtwind: free amplitude A0 %.6f nm, lag %.4f deg (harmonic 1 at Z %.0f nm, "

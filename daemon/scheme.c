@@ -53,6 +53,13 @@ int twind_scheme_choose(twind *d, afm_config *cfg, char *err, size_t errlen) {
     twind_scheme want = d->opt.scheme;
     sc->handover = false;
     sc->rt = cfg->sim.integrator == AFM_INTEGRATOR_RT;
+    if (want == TWIND_SCHEME_CONFIG)
+        snprintf(sc->from, sizeof sc->from, "--scheme config: sim.rt_scheme %s",
+                 cfg->sim.rt_scheme == AFM_RT_SCHEME_ACCURATE ? "accurate"
+                 : cfg->sim.rt_scheme == AFM_RT_SCHEME_FAST   ? "fast"
+                                                              : "auto");
+    else
+        snprintf(sc->from, sizeof sc->from, "--scheme %s", twind_scheme_opt_name(want));
     if (!sc->rt) {
         sc->accurate = false;
         snprintf(sc->reason, sizeof sc->reason, "-: the %s integrator has no schemes",

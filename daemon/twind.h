@@ -103,6 +103,8 @@ typedef struct {
     double ns_accurate, ns_fast; /* auto: measured worst-state cost per sample */
     double t_switch_s, hold_s;   /* last hand-over (monotonic s), hold-off before going back */
     char reason[160];            /* why, at start */
+    char from[64];               /* what asked: "--scheme fast", "--scheme config: sim.rt_scheme
+                                    auto" (no option: the config's) */
 } twind_scheme_state;
 
 /* cmd_q item: a validated command and, for damping/geometry/reload, the model to swap in.

@@ -41,7 +41,7 @@ sleep 1.5
 listen --channels status --json --count 1 --timeout 3 > "$T/auto.json" 2>/dev/null
 wait "$DPID"; rc=$?; DPID=""
 line=$(grep "rt scheme" "$T/auto.err")
-if [ $rc -eq 0 ] && echo "$line" | grep -Eq "rt scheme (accurate|fast) \(--scheme config\): auto: accurate [0-9]+ ns/sample in its worst state (<=|>) [0-9]+ ns .*fast [0-9]+ ns"; then
+if [ $rc -eq 0 ] && echo "$line" | grep -Eq "rt scheme (accurate|fast) \(--scheme config: sim.rt_scheme auto\): auto: accurate [0-9]+ ns/sample in its worst state (<=|>) [0-9]+ ns .*fast [0-9]+ ns"; then
   ok "auto: start-up line names the pick and both costs ($line)"
   echo "$line" | grep -Eq "ns \(90% of [0-9.]+ ns\) with(out)? the step record" \
     && ok "auto: the accurate scheme measured with the per-step record (sim.step_events auto)" \
@@ -63,6 +63,13 @@ wait "$DPID"; DPID=""
 grep -q "rt scheme fast (--scheme fast): forced (--scheme)" "$T/fast.err" \
   && [ "$(jkey rt_scheme "$T/fast.json")" = fast ] && [ "$(jkey scheme_handovers "$T/fast.json")" = 0 ] \
   && ok "--scheme fast: forced, no hand-over" || bad "--scheme fast: $(cat "$T/fast.err") $(cat "$T/fast.json")"
+
+# no --scheme, the config's sim.rt_scheme fast: the line says where the choice came from
+sed 's/integrator = "rt";/integrator = "rt"; rt_scheme = "fast";/' config/default.conf > "$T/cfast.conf"
+"$D" --config "$T/cfast.conf" --quiet --exit-after 0.2 2> "$T/cfast.err"
+grep -q "rt scheme fast (--scheme config: sim.rt_scheme fast): forced (config sim.rt_scheme)" "$T/cfast.err" \
+  && ok "no --scheme: the start-up line names the config's sim.rt_scheme" \
+  || bad "config sim.rt_scheme fast: $(grep 'rt scheme' "$T/cfast.err") ($(grep -c 'rt_scheme = "fast"' "$T/cfast.conf") edits)"
 
 # adaptive: over to fast while tapping, back to accurate when free, no resync.
 # The speed: the accurate scheme must fall behind while tapping, so the budget (71.1 ns / speed)
