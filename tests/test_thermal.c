@@ -147,7 +147,7 @@ static void synthetic(double floor_frac) {
     }
     afm_psd_get(p, psd);
     afm_thermfit fit;
-    int rc = afm_thermfit_mode(psd, afm_psd_n_bins(p), afm_psd_df_hz(p), tk, 50e3, 200e3, 0, &fit,
+    int rc = afm_thermfit_mode(psd, afm_psd_n_bins(p), afm_psd_df_hz(p), fs, tk, 50e3, 200e3, 0, &fit,
                                err, sizeof err);
     snprintf(what, sizeof what, "synthetic fit converges (floor %g of peak)", floor_frac);
     if (check_true(rc == 0, what)) {
@@ -178,15 +178,15 @@ static void fit_bad_input(void) {
     for (int i = 0; i < 64; i++)
         psd[i] = 1e-26;
     afm_thermfit fit = {.f_hz = -1};
-    check_true(afm_thermfit_mode(psd, 64, 10, 295, 100, 500, 0, &fit, err, sizeof err) == -1,
+    check_true(afm_thermfit_mode(psd, 64, 10, 0, 295, 100, 500, 0, &fit, err, sizeof err) == -1,
                "flat spectrum: no peak, refused");
     printf("  (error text: %s)\n", err);
-    check_true(afm_thermfit_mode(psd, 64, 10, -1, 100, 500, 0, &fit, err, sizeof err) == -1,
+    check_true(afm_thermfit_mode(psd, 64, 10, 0, -1, 100, 500, 0, &fit, err, sizeof err) == -1,
                "negative temperature refused");
-    check_true(afm_thermfit_mode(psd, 64, 10, 295, 500, 100, 0, &fit, err, sizeof err) == -1,
+    check_true(afm_thermfit_mode(psd, 64, 10, 0, 295, 500, 100, 0, &fit, err, sizeof err) == -1,
                "empty band refused");
     psd[20] = NAN;
-    check_true(afm_thermfit_mode(psd, 64, 10, 295, 100, 500, 0, &fit, err, sizeof err) == -1,
+    check_true(afm_thermfit_mode(psd, 64, 10, 0, 295, 100, 500, 0, &fit, err, sizeof err) == -1,
                "NaN bin refused");
     check_true(fit.f_hz == -1, "failed fits leave the result untouched");
 }
