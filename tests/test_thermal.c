@@ -150,8 +150,8 @@ static void synthetic(double floor_frac) {
     }
     afm_psd_get(p, psd);
     afm_thermfit fit;
-    int rc = afm_thermfit_mode(psd, afm_psd_n_bins(p), afm_psd_df_hz(p), fs, tk, 50e3, 200e3, 0, &fit,
-                               err, sizeof err);
+    int rc = afm_thermfit_mode(psd, afm_psd_n_bins(p), afm_psd_df_hz(p), fs, tk, 50e3, 200e3, 0,
+                               &fit, err, sizeof err);
     snprintf(what, sizeof what, "synthetic fit converges (floor %g of peak)", floor_frac);
     if (check_true(rc == 0, what)) {
         printf("  f %.6g Hz (se %.2g)  Q %.5g (se %.2g)  k %.5g N/m (se %.2g)  floor %.4g "
@@ -177,8 +177,8 @@ static void synthetic(double floor_frac) {
 
 /* A broad mode near Nyquist, sampled exactly with no anti-alias filter: f = 410 kHz = 0.41 fs,
  * Q = 5, k = 2 N/m, fs = 1 MHz (NCHV mode 3's 5.78 MHz, Q 5 at 14.06 MHz is 0.41 fs too).
- * Its images |j fs +- f| put 3 % (at f) to 40 % (near Nyquist) more power in the band than the
- * continuous-time Lorentzian has; the unfolded fit then gives Q and k 10 to 13 % low (below, and
+ * Its images |j fs +- f| add 3 % (at f) to 100 % (at Nyquist) to the continuous-time
+ * Lorentzian's level; the unfolded fit then gives Q and k 10 to 13 % low (below, and
  * docs/numerics.md "Thermal fit near Nyquist"). Folded, the fit must find them within 1-1.5 %.
  * Statistics: lambda = pi f / Q = 2.6e5 /s, 2^22 samples = 4.19 s: 1 / sqrt(lambda T) = 9.5e-4;
  * the fit reports se 0.16 % for k and 0.26 % for Q (f, Q, k and the floor are correlated over

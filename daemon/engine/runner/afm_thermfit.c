@@ -188,9 +188,8 @@ static long tf_bin_down(double f, double df) {
 }
 
 int afm_thermfit_mode(const double *psd, long n_bins, double df_hz, double sample_rate_hz,
-                      double temperature_k,
-                      double band_lo_hz, double band_hi_hz, double window_linewidths,
-                      afm_thermfit *out, char *err, size_t errlen) {
+                      double temperature_k, double band_lo_hz, double band_hi_hz,
+                      double window_linewidths, afm_thermfit *out, char *err, size_t errlen) {
 #define TF_FAIL(...)                                                                               \
     do {                                                                                           \
         if (err && errlen) snprintf(err, errlen, __VA_ARGS__);                                     \
@@ -440,8 +439,8 @@ int afm_thermfit_tune(const afm_config *cfg_in, double seconds, long seg_len, bo
         r->gain = obd ? afm_obd_mode_gain(ob, m, i) : 1.0;
         r->model_k_n_m =
             m->omega_rad_s[i] * m->omega_rad_s[i] / (m->tip[i] * m->tip[i]) / (r->gain * r->gain);
-        if (afm_thermfit_mode(psd, afm_psd_n_bins(p), res->df_hz, fs, cfg->thermal.temperature_k, lo,
-                              hi, 0, &r->fit, e, sizeof e) == 0) {
+        if (afm_thermfit_mode(psd, afm_psd_n_bins(p), res->df_hz, fs, cfg->thermal.temperature_k,
+                              lo, hi, 0, &r->fit, e, sizeof e) == 0) {
             res->n_modes++;
         } else if (used < sizeof res->skipped) {
             int w = snprintf(res->skipped + used, sizeof res->skipped - used, "%smode %d: %s",
