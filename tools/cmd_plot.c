@@ -686,20 +686,25 @@ static int load_thermal(const plot_opts *o, plot_data *d, FILE *gp) {
             }
         }
         static const char *const fc[4] = {"#d55e00", "#009e73", "#0072b2", "#cc79a7"};
+        /* The fit's model folded at the sample rate, as afm_thermfit fits it (images
+         * |j fs +- f|, j <= 16; R is even in x). */
+        double fs = plot_num(j, "sample_rate_hz");
+        if (!(fs > 0)) fs = 0;
         int i = 0;
         cJSON_ArrayForEach(m, ms) {
             double fn = plot_num(m, "f_hz"), q = plot_num(m, "q"), kk = plot_num(m, "k_n_per_m");
             double fl = plot_num(m, "floor_m_rthz");
             char with[64], t[96];
             snprintf(with, sizeof with, "with lines lw 2 lc rgb '%s'", fc[i % 4]);
-            snprintf(t, sizeof t, "eq. 5.1 fit, mode %d: f %.6g kHz, Q %.4g, k %.4g N/m", i + 1,
-                     fn * 1e-3, q, kk);
+            const cJSON *nn = cJSON_GetObjectItemCaseSensitive(m, "n");
+            snprintf(t, sizeof t, "eq. 5.1 fit, mode %d: f %.6g kHz, Q %.4g, k %.4g N/m",
+                     cJSON_IsNumber(nn) ? nn->valueint : i + 1, fn * 1e-3, q, kk);
             plot_key_add(&k, with, t);
-            /* eq. 5.1 */
-            fprintf(ff,
-                    ", [%g:%g] 2*1.380649e-23*%g/(pi*%g*%g*%g)/((x**2/%g**2-1)**2+(x/(%g*%g))**2)"
-                    "+%g**2 with lines lw 2 lc rgb '%s' notitle",
-                    fn * (1 - 8 / q), fn * (1 + 8 / q), T, kk, fn, q, fn, fn, q, fl, fc[i % 4]);
+            /* eq. 5.1, folded at fs: F(x, f, Q, k, T, fs) defined before the plot */
+            double hi = fn * (1 + 8 / q);
+            if (fs > 0 && hi > fs / 2) hi = fs / 2;
+            fprintf(ff, ", [%g:%g] F(x,%g,%g,%g,%g,%g)+%g**2 with lines lw 2 lc rgb '%s' notitle",
+                    fmax(fn * (1 - 8 / q), fn / 8), hi, fn, q, kk, T, fs, fl, fc[i % 4]);
             i++;
         }
         cJSON_Delete(j);
@@ -708,11 +713,14 @@ static int load_thermal(const plot_opts *o, plot_data *d, FILE *gp) {
     const double l = PX_LEFT / d->W, r = 1 - PX_RIGHT / d->W;
     double top = plot_figure(gp, d, &k, l, r);
     plot_area(gp, l, r, PX_BOTTOM / d->H, top);
-    fprintf(gp,
-            "set logscale xy\nset format y '%%.0e'\nset format x '%%.0s%%c'\nset autoscale xfix\n"
-            "set xlabel 'frequency (Hz)'\nset ylabel 'deflection PSD (m^2/Hz)'\n"
-            "plot $P using 1:2 with lines lc rgb 'gray40' notitle%s\nunset multiplot\n",
-            fit ? fit : "");
+    fprintf(
+        gp,
+        "set logscale xy\nset format y '%%.0e'\nset format x '%%.0s%%c'\nset autoscale xfix\n"
+        "set xlabel 'frequency (Hz)'\nset ylabel 'deflection PSD (m^2/Hz)'\n"
+        "R(x,f,q,k,T)=2*1.380649e-23*T/(pi*k*f*q)/((x**2/f**2-1)**2+(x/(f*q))**2)\n"
+        "F(x,f,q,k,T,fs)=R(x,f,q,k,T)+(fs>0?sum [j=1:16] (R(j*fs-x,f,q,k,T)+R(j*fs+x,f,q,k,T)):0)\n"
+        "plot $P using 1:2 with lines lc rgb 'gray40' notitle%s\nunset multiplot\n",
+        fit ? fit : "");
     free(fit);
     return 0;
 }

@@ -40,36 +40,39 @@ typedef struct {
 typedef afm_thermfit_mode_result mode_result;
 
 static void thermal_usage(FILE *f) {
-    fprintf(
-        f,
-        "usage: afmtwin thermal --config FILE --seconds S [--modes N] [--segment-s X]\n"
-        "                       [--signal x|obd] [--psd OUT] [--json]\n\n"
-        "Thermal tune (thesis section 5.2): simulates the cantilever's Brownian motion at\n"
-        "the config's thermal.temperature_k (thermal noise forced on), with the drive off,\n"
-        "the sample 1 mm away and all tip-sample forces switched off, for S seconds at the\n"
-        "OBD sample rate; takes the Welch PSD (Hann, 50%% overlap, one-sided, m^2/Hz) and\n"
-        "fits eq. 5.1 to each of the first N modes below the Nyquist frequency:\n"
-        "  d(f)^2 = 2 kB T / (pi k_n f_n Q_n) / ((f^2/f_n^2 - 1)^2 + (f/(f_n Q_n))^2) + d_ds^2\n"
-        "and compares f_n, Q_n, k_n with the model's f_n = w_n / 2pi, Q_n = 1 / (2 xi_n),\n"
-        "k_n = w_n^2 / tip_n^2 (the modal stiffness at the tip).\n\n"
-        "options:\n"
-        "  --config FILE   libconfig model file (see config/README.md)\n"
-        "  --seconds S     simulated time (0 < S <= %g). The statistical error of k_1 and\n"
-        "                  Q_1 is about 1 / sqrt(pi f_1 / Q_1 * S): 0.6 %% for NCHV at 10 s\n"
-        "  --modes N       fit at most N modes (default %d)\n"
-        "  --segment-s X   Welch segment length in s (default min(%g, S / %d)); the\n"
-        "                  resolution 1/X should be well below the narrowest f_n / Q_n\n"
-        "  --signal x|obd  x: the tip displacement (default); obd: the OBD sensor's\n"
-        "                  calibrated reading with its noise floor and ADC (config obd\n"
-        "                  group). It reads mode n with the gain g_n of docs/obd.md, so the\n"
-        "                  model value shown for k_n is then k_n / g_n^2\n"
-        "  --psd OUT       also write the PSD: columns f_hz, psd_m2_per_hz\n"
-        "  --json          one JSON object: run parameters and \"modes\": [{n, f_hz, q,\n"
-        "                  k_n_per_m, floor_m_rthz, model_f_hz, model_q, model_k_n_per_m,\n"
-        "                  rel_err_f, rel_err_q, rel_err_k, se_f_hz, se_q, se_k_n_per_m,\n"
-        "                  fit_lo_hz, fit_hi_hz, linewidth_bins}]\n"
-        "  --help          this text\n",
-        MAX_SECONDS, DEFAULT_MODES, DEFAULT_SEGMENT_S, MIN_SEGMENTS);
+    fprintf(f,
+            "usage: afmtwin thermal --config FILE --seconds S [--modes N] [--segment-s X]\n"
+            "                       [--signal x|obd] [--psd OUT] [--json]\n\n"
+            "Thermal tune (thesis section 5.2): simulates the cantilever's Brownian motion at\n"
+            "the config's thermal.temperature_k (thermal noise forced on), with the drive off,\n"
+            "the sample 1 mm away and all tip-sample forces switched off, for S seconds at the\n"
+            "OBD sample rate; takes the Welch PSD (Hann, 50%% overlap, one-sided, m^2/Hz) and\n"
+            "fits eq. 5.1 to each of the first N modes below the Nyquist frequency:\n"
+            "  d(f)^2 = R(f) + d_ds^2,\n"
+            "  R(f) = 2 kB T / (pi k_n f_n Q_n) / ((f^2/f_n^2 - 1)^2 + (f/(f_n Q_n))^2),\n"
+            "folded at the sample rate fs as the unfiltered samples are: R(f) + sum over j >= 1\n"
+            "of R(j fs - f) + R(j fs + f) (it matters for a broad mode near Nyquist; other modes'\n"
+            "tails and images in the band are not modelled: docs/numerics.md),\n"
+            "and compares f_n, Q_n, k_n with the model's f_n = w_n / 2pi, Q_n = 1 / (2 xi_n),\n"
+            "k_n = w_n^2 / tip_n^2 (the modal stiffness at the tip).\n\n"
+            "options:\n"
+            "  --config FILE   libconfig model file (see config/README.md)\n"
+            "  --seconds S     simulated time (0 < S <= %g). The statistical error of k_1 and\n"
+            "                  Q_1 is about 1 / sqrt(pi f_1 / Q_1 * S): 0.6 %% for NCHV at 10 s\n"
+            "  --modes N       fit at most N modes (default %d)\n"
+            "  --segment-s X   Welch segment length in s (default min(%g, S / %d)); the\n"
+            "                  resolution 1/X should be well below the narrowest f_n / Q_n\n"
+            "  --signal x|obd  x: the tip displacement (default); obd: the OBD sensor's\n"
+            "                  calibrated reading with its noise floor and ADC (config obd\n"
+            "                  group). It reads mode n with the gain g_n of docs/obd.md, so the\n"
+            "                  model value shown for k_n is then k_n / g_n^2\n"
+            "  --psd OUT       also write the PSD: columns f_hz, psd_m2_per_hz\n"
+            "  --json          one JSON object: run parameters and \"modes\": [{n, f_hz, q,\n"
+            "                  k_n_per_m, floor_m_rthz, model_f_hz, model_q, model_k_n_per_m,\n"
+            "                  rel_err_f, rel_err_q, rel_err_k, se_f_hz, se_q, se_k_n_per_m,\n"
+            "                  fit_lo_hz, fit_hi_hz, linewidth_bins}]\n"
+            "  --help          this text\n",
+            MAX_SECONDS, DEFAULT_MODES, DEFAULT_SEGMENT_S, MIN_SEGMENTS);
 }
 
 /* --signal x|obd: what the PSD is of (1: the OBD reading). */

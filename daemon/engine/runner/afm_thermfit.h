@@ -26,7 +26,15 @@
  * Start: the highest (3-bin smoothed) bin in the band, the half-power width for Q, the
  * peak height for k, half the band's lowest level for F. Fit window: f_n +- w f_n / Q_n
  * (w linewidths, default 25) inside the band; fitted once on the start's window and again
- * on the fitted one. The caller chooses the band so that it holds one resonance. */
+ * on the fitted one. The caller chooses the band so that it holds one resonance.
+ *
+ * Sampled without an anti-alias filter (the twin's x and OBD reading are), a record has the
+ * spectrum of the continuous one folded at the sample rate fs: given fs, M's resonance term
+ * is summed over its images |j fs +- f| (afm_thermfit_mode). Fitting the bare Lorentzian to
+ * a broad mode near Nyquist is biased: NCHV mode 3 (0.41 fs, Q 5) came out Q -11 %, k -13 %,
+ * f +1.9 %. What one resonance plus a constant floor still cannot absorb (other modes' tails
+ * and images in the band) is left: there f +0.4 %, Q +0.3 %, k +0.04 % (docs/numerics.md,
+ * "Thermal fit near Nyquist"). */
 #ifndef AFM_THERMFIT_H
 #define AFM_THERMFIT_H
 
@@ -55,16 +63,24 @@ typedef struct {
                                     Q_n low by about 4/3 / linewidth_bins^2 */
 } afm_thermfit;
 
-/* The model M(f) in m^2/Hz for the parameters of r (f_hz, q, k_n_m, floor_m2_hz). */
-double afm_thermfit_model(const afm_thermfit *r, double temperature_k, double f_hz);
+/* The model M(f) in m^2/Hz for the parameters of r (f_hz, q, k_n_m, floor_m2_hz), folded at
+ * sample_rate_hz (0: not folded; see afm_thermfit_mode). */
+double afm_thermfit_model(const afm_thermfit *r, double temperature_k, double sample_rate_hz,
+                          double f_hz);
 
 /* Fit one mode. psd: n_bins one-sided values (m^2/Hz) at f = i df_hz (bin 0 = DC, never
- * used). band_lo_hz < band_hi_hz: where to look for the peak; window_linewidths <= 0 gives
- * 25. Returns 0 with out filled, or -1 with err (bad input, too few bins, no peak, no
- * convergence); out is untouched on failure. */
-int afm_thermfit_mode(const double *psd, long n_bins, double df_hz, double temperature_k,
-                      double band_lo_hz, double band_hi_hz, double window_linewidths,
-                      afm_thermfit *out, char *err, size_t errlen);
+ * used). sample_rate_hz > 0: the PSD is of samples taken at that rate with no anti-alias
+ * filter, so the resonance term is folded: R(f) + sum_{j=1..16} (R(j fs - f) + R(j fs + f))
+ * (the spectrum of the sampled process; R decays as f^-4, so the sum converges fast). It
+ * matters for a broad mode near Nyquist: the images of NCHV mode 3 (5.78 MHz, Q 5 at
+ * 14.06 MHz) add 3 % to its level at the peak and 100 % at Nyquist (docs/numerics.md,
+ * "Thermal fit near Nyquist"). 0: a continuous-time spectrum, no folding.
+ * band_lo_hz < band_hi_hz: where to look for the peak; window_linewidths <= 0 gives 25. Returns 0
+ * with out filled, or -1 with err (bad input, too few bins, no peak, no convergence); out is
+ * untouched on failure. */
+int afm_thermfit_mode(const double *psd, long n_bins, double df_hz, double sample_rate_hz,
+                      double temperature_k, double band_lo_hz, double band_hi_hz,
+                      double window_linewidths, afm_thermfit *out, char *err, size_t errlen);
 
 /* ---- The whole thermal tune on a config: what `afmtwin thermal` and the tests run ----
  *
