@@ -132,7 +132,7 @@ typedef struct {
     const double *p;
     double c, fs, df;
     long i0, m;     /* first bin, bins per node interval */
-    long k;         /* nodes k-1 .. k+2 are in v[0..3] */
+    long k, r;      /* the next bin is i0 + k m + r; nodes k-1 .. k+2 are in v[0..3] */
     double v[4][4]; /* image sum and its partials in f_n, Q, k at the four nodes */
 } tf_sweep;
 
@@ -156,25 +156,19 @@ static void tf_sweep_init(tf_sweep *w, const tf_data *dt, const double *p) {
     w->i0 = dt->i0;
     double m = floor(p[0] / p[1] / TF_NODE_PER_WIDTH / dt->df);
     w->m = !(m >= 1) ? 1 : m > TF_NODE_MAX ? TF_NODE_MAX : (long)m;
-    w->k = 0;
+    w->k = w->r = 0;
     if (w->fs > 0)
         for (int n = 0; n < 4; n++)
             tf_node(w, n - 1, w->v[n]);
 }
 
-/* As tf_eval at bin i; bins must come in increasing order from dt->i0. */
+/* As tf_eval at bin i; the bins must be dt->i0, dt->i0 + 1, ... in turn. */
 static double tf_sweep_eval(tf_sweep *w, long i, double *d) {
     double f = (double)i * w->df;
     double l = tf_res(w->p, w->c, f, d);
     if (d) d[3] = 1.0;
     if (!(w->fs > 0)) return l + w->p[3];
-    long k = (i - w->i0) / w->m, r = (i - w->i0) % w->m;
-    while (w->k < k) { /* slide the four nodes by one */
-        memmove(w->v[0], w->v[1], 3 * sizeof w->v[0]);
-        w->k++;
-        tf_node(w, w->k + 2, w->v[3]);
-    }
-    double u = (double)r / (double)w->m;
+    double u = (double)w->r / (double)w->m;
     double c[4] = {-u * (u - 1) * (u - 2) / 6, (u + 1) * (u - 1) * (u - 2) / 2,
                    -(u + 1) * u * (u - 2) / 2, (u + 1) * u * (u - 1) / 6};
     int nv = d ? 4 : 1;
@@ -184,6 +178,12 @@ static double tf_sweep_eval(tf_sweep *w, long i, double *d) {
             l += s;
         else
             d[n - 1] += s;
+    }
+    if (++w->r == w->m) { /* the next bin starts a new interval: slide the nodes by one */
+        w->r = 0;
+        w->k++;
+        memmove(w->v[0], w->v[1], 3 * sizeof w->v[0]);
+        tf_node(w, w->k + 2, w->v[3]);
     }
     return l + w->p[3];
 }
