@@ -264,7 +264,7 @@ done
 [ $n2 -eq 5 ] && ok "continue zoom: LO >= HI, no colon, no number, a window with no point, and sweep --xrange refused (exit 2, said why)" \
   || bad "continue zoom: $n2 of 5 bad ranges refused with exit 2 and a reason"
 # the legend: short, a PD branch named by the label of its PD (P1) (the old legend's
-# 'b1 (period 2): PD of b0 at 81.5 kHz' and 'stable (any branch)' took one column)
+# 'b1 (period 2): PD of b0 at 81.5 kHz' and 'stable (any branch)' were longer)
 { cat "$T/cont.json"
   echo '{"type":"branch","param_name":"fe","branch":1,"parent":0,"param":81500,"period":2,"via":"PD","via_param":81500}'
   printf '{"type":"point","param_name":"fe","branch":1,"parent":0,"param":%s,"period":2,"stable":true,"min_deflection_m":%s,"amplitude_m":3.2e-8}\n' \
