@@ -120,7 +120,7 @@ static void plot_usage(FILE *f) {
             "            fitted to the branches inside it and the labels placed anew;\n"
             "            --yrange LO:HI and --yrange2 LO:HI (nm) fix the y of the min(xr)\n"
             "            and of the amplitude panel. --data and --csv keep every row of\n"
-            "            the run; under a zoom only $E's label rows are those of the window\n"
+            "            the run; under a zoom only $E's label rows are those of the window.\n"
             "  force-curve  INPUT: afmtwin force-curve --json output: the force on the\n"
             "            lever k x against the base Z, approach and retract, snap-in and\n"
             "            pull-off marked, spring constant and adhesion in the title.\n"
