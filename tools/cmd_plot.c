@@ -119,7 +119,9 @@ static void plot_usage(FILE *f) {
             "            unit: kHz for fe, nm for z and ae) draws that window, each panel's y\n"
             "            fitted to the branches inside it and the labels placed anew;\n"
             "            --yrange LO:HI and --yrange2 LO:HI (nm) fix the y of the min(xr)\n"
-            "            and of the amplitude panel. --data and --csv keep every row of\n"
+            "            and of the amplitude panel; --zoom-pd: x and y those of the\n"
+            "            period-doubled branches (period > 1), 3 %% more in x, the\n"
+            "            period-1 orbit clipped. --data and --csv keep every row of\n"
             "            the run; under a zoom only $E's label rows are those of the window.\n"
             "  force-curve  INPUT: afmtwin force-curve --json output: the force on the\n"
             "            lever k x against the base Z, approach and retract, snap-in and\n"
@@ -149,7 +151,7 @@ static void plot_usage(FILE *f) {
             "  --script FILE      the gnuplot script as run, data inline (gnuplot FILE redraws)\n"
             "  --size WxH         pixels, 100..10000 each (default 1000x750)\n"
             "  --index N, --stream N, --from S, --to S, --fit FILE  as the kinds say\n"
-            "  --xrange LO:HI, --yrange LO:HI, --yrange2 LO:HI  continue's zoom\n\n"
+            "  --xrange LO:HI, --yrange LO:HI, --yrange2 LO:HI, --zoom-pd  continue's zoom\n\n"
             "Phase convention: the lag of the deflection behind the drive, 90 deg for a free\n"
             "cantilever at resonance, below 90 in the repulsive regime.\n"
             "Exit status 0 ok, 1 gnuplot or a file failed, 2 bad usage or bad input.\n");
@@ -254,6 +256,7 @@ static int parse_args(int argc, char **argv, plot_opts *o) {
         AFMT_FN("--xrange", parse_xrange, o, "LO:HI, LO < HI"),
         AFMT_FN("--yrange", parse_yrange, o, "LO:HI, LO < HI"),
         AFMT_FN("--yrange2", parse_yrange2, o, "LO:HI, LO < HI"),
+        AFMT_FLAG("--zoom-pd", &o->zoom_pd),
         AFMT_OPTS_END,
     };
     _Static_assert(PLOT_MAX_INPUTS == 8, "add_input's error text");
@@ -267,8 +270,9 @@ static int parse_args(int argc, char **argv, plot_opts *o) {
         if (quotable("input", o->in[i])) return -1;
     if (!o->out) return plot_err("%s", "-o FILE.png is required");
     for (int i = 0; i < 3; i++)
-        if (!isnan(o->range_lo[i]) && strcmp(o->kind, "continue"))
-            return plot_err("%s", "--xrange, --yrange and --yrange2 are continue's options");
+        if ((!isnan(o->range_lo[i]) || o->zoom_pd) && strcmp(o->kind, "continue"))
+            return plot_err("%s",
+                            "--xrange, --yrange, --yrange2 and --zoom-pd are continue's options");
     if (quotable("output", o->out) || quotable("--script", o->script) ||
         quotable("--config", o->config))
         return -1;

@@ -42,6 +42,7 @@ typedef struct {
     /* continue's zoom, in the picture's units (kHz or nm for the parameter, nm for y): x,
      * then y of the top (min xr) and of the lower (amplitude) panel; NAN: not given */
     double range_lo[3], range_hi[3];
+    bool zoom_pd; /* continue --zoom-pd: the window of the period-doubled branches */
 } plot_opts;
 
 /* A data set: rows of ncol numbers (NAN prints as "NaN", which gnuplot skips). The header

@@ -228,15 +228,16 @@ static int continue_segments(const cont_ctx *c, plot_set *b) {
     return 0;
 }
 
-/* Event i of ev lies in the picture's window (--xrange, and y in both panels): its label
- * and marker are drawn, and only those take part in the placing of the labels. */
+/* Event i of ev lies in the picture's window (x, and y in either panel): its label and
+ * marker are drawn, and only those take part in the placing of the labels (both panels
+ * share the rows, so one drawn in either panel counts). */
 static bool cont_in_window(const plot_set *ev, size_t i, double xlo, double xhi,
                            const double ylo[2], const double yhi[2]) {
     double x = plot_cell(ev, i, 0);
-    bool in = x >= xlo && x <= xhi;
+    bool in_y = false;
     for (int p = 0; p < 2; p++)
-        in = in && plot_cell(ev, i, 1 + p) >= ylo[p] && plot_cell(ev, i, 1 + p) <= yhi[p];
-    return in;
+        in_y = in_y || (plot_cell(ev, i, 1 + p) >= ylo[p] && plot_cell(ev, i, 1 + p) <= yhi[p]);
+    return x >= xlo && x <= xhi && in_y;
 }
 
 /* The rows of the bifurcation labels (ev's column 6): each label ("L7": type letter and
@@ -368,13 +369,29 @@ int load_continue(const plot_opts *o, plot_data *d, FILE *gp) {
             yhi[p] = fmax(yhi[p], plot_cell(b, i, 1 + p));
         }
     }
-    /* the zoom (--xrange, --yrange, --yrange2): the window in x, and each panel's y the
+    /* the zoom (--xrange, --yrange, --yrange2, --zoom-pd): the window in x, and each panel's y the
      * option's or the extent of the branches within that x window, the labels placed for it
      * (their rows in $E change; the branches' columns do not) */
     bool zoom = false, fixed[2] = {false, false};
+    /* --zoom-pd: the period-doubled branches (period > 1) alone set the window: x their
+     * extent and 3 % more each side, y theirs inside it */
+    if (o->zoom_pd) {
+        double lo = INFINITY, hi = -INFINITY;
+        for (size_t i = 0; i < b->n; i++)
+            if (plot_cell(b, i, 5) > 1) {
+                lo = fmin(lo, plot_cell(b, i, 0));
+                hi = fmax(hi, plot_cell(b, i, 0));
+            }
+        if (!(lo <= hi)) return plot_err("%s", "--zoom-pd: no branch of period > 1");
+        double pad = fmax(0.03 * (hi - lo), 1e-6 * fmax(fabs(lo), fabs(hi)) + 1e-12);
+        xlo = lo - pad;
+        xhi = hi + pad;
+    }
     if (!isnan(o->range_lo[0])) {
         xlo = o->range_lo[0];
         xhi = o->range_hi[0];
+    }
+    if (o->zoom_pd || !isnan(o->range_lo[0])) {
         zoom = true;
         for (int p = 0; p < 2; p++) {
             ylo[p] = INFINITY;
@@ -382,7 +399,8 @@ int load_continue(const plot_opts *o, plot_data *d, FILE *gp) {
         }
         for (size_t i = 0; i < b->n; i++) {
             double x = plot_cell(b, i, 0);
-            for (int p = 0; p < 2 && x >= xlo && x <= xhi; p++) {
+            bool take = x >= xlo && x <= xhi && (!o->zoom_pd || plot_cell(b, i, 5) > 1);
+            for (int p = 0; p < 2 && take; p++) {
                 ylo[p] = fmin(ylo[p], plot_cell(b, i, 1 + p));
                 yhi[p] = fmax(yhi[p], plot_cell(b, i, 1 + p));
             }
