@@ -276,6 +276,14 @@ if [ $rc -eq 0 ] && grep -q "keyentry with lines ls 23 title 'b1 (period 2): P1 
   && grep -q "keyentry .* title 'stable'" "$T/cl.gp" && grep -q 'maxrows 3 ' "$T/cl.gp"; then
   ok "continue legend: 'b1 (period 2): P1 of b0' (the PD's own label), 5 entries in 2 columns of 3 rows"
 else bad "continue legend: exit $rc, $(grep -o "maxrows [0-9]*\|title '[^']*'" "$T/cl.gp" | tr '\n' ' ') $(cat "$T/cl.err")"; fi
+# --zoom-pd: the window of the period-2 branch alone (b1: 81.5..83 kHz, min(xr) -34..-31.5
+# nm): x [81.5 - 0.045 : 83 + 0.045] (3 %), y [-34 - 0.1 : -31.5 + 2.2 * 0.09 * 2.5 + 0.05]
+# (its P1 label's row 0 over it); the period-1 points from 80 to 84 kHz clipped
+"$A" plot continue "$T/cl.json" -o "$T/cpd.png" --script "$T/cpd.gp" --zoom-pd 2>"$T/cpd.err"; rc=$?
+zr=$(grep '^set [xy]range ' "$T/cpd.gp" | grep -v '\[0:1\]' | head -2 | tr '\n' ' ')
+if [ $rc -eq 0 ] && [ "$zr" = "set xrange [81.455:83.045] set yrange [-34.1:-30.955] " ]; then
+  ok "continue --zoom-pd: x and y of the period-2 branch ($zr)"
+else bad "continue --zoom-pd: exit $rc, '$zr' $(cat "$T/cpd.err")"; fi
 # 5. bifurcation labels that do not overlap (issue 30: fig 4.2's "P2P6" ran together, and
 # L3/L5/L7 stood in a column over a cluster): two PDs 130 Hz apart and four events within
 # 100 Hz, as in fig 4.2 (6 kHz wide, ~2.7 characters of a label per 130 Hz). Each label is
