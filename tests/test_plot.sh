@@ -233,6 +233,57 @@ if [ $rc -eq 0 ] && [ "$segs" = "solid:80,81,81.5 dashed:81.5,82,83,83.5 solid:8
   && grep -q "^set style line 22 .* dt 2" "$T/cont.gp" && ! grep -q "^set style line 21 .* dt " "$T/cont.gp"; then
   ok "continue: cut at the PD (81.5 kHz) and where |mu| crosses 1 (83.5 kHz), both segments sharing the point"
 else bad "continue segments: exit $rc, '$segs' $(cat "$T/cont.err")"; fi
+# 4b. zoom (issue: fig 4.2's period-2 branches squeezed into 1 nm of 6 kHz): --xrange 81:83
+# draws that window in both panels, each y fitted to the branch points inside it (min(xr)
+# -33..-31 nm, amplitude 31..33 nm, plus 4 % below and 2 % above: [-33.08:-30.96] and
+# [30.92:33.04]); --yrange and --yrange2 fix a panel's y; --data is the same bytes with or
+# without a zoom (the one label keeps row 0); bad ranges and a range for another kind refused
+"$A" plot continue "$T/cont.json" -o "$T/cz.png" --script "$T/cz.gp" --data "$T/cz.dat" \
+  --xrange 81:83 2>"$T/cz.err"; rc=$?
+"$A" plot continue "$T/cont.json" -o "$T/cz2.png" --script "$T/cz2.gp" --data "$T/cz0.dat" \
+  --yrange -32.5:-31.5 --yrange2 30:35 2>>"$T/cz.err"; rc2=$?
+"$A" plot continue "$T/cont.json" -o "$T/cz3.png" --data "$T/cz3.dat" 2>>"$T/cz.err"
+# (the legend's own empty plot sets [0:1])
+yr=$(grep '^set [xy]range ' "$T/cz.gp" | grep -v '\[0:1\]' | tr '\n' ' ')
+yr2=$(grep '^set yrange ' "$T/cz2.gp" | grep -v '\[0:1\]' | tr '\n' ' ')
+if [ $rc -eq 0 ] && [ $rc2 -eq 0 ] \
+  && [ "$yr" = "set xrange [81:83] set yrange [-33.08:-30.96] set xrange [81:83] set yrange [30.92:33.04] " ] \
+  && [ "$yr2" = "set yrange [-32.5:-31.5] set yrange [30:35] " ] \
+  && cmp -s "$T/cz.dat" "$T/cz3.dat" && cmp -s "$T/cz0.dat" "$T/cz3.dat"; then
+  ok "continue --xrange 81:83: both panels zoomed, y fitted to the window; --yrange/--yrange2 fix y; --data unchanged"
+else bad "continue zoom: exit $rc/$rc2, '$yr' '$yr2' $(cat "$T/cz.err")"; fi
+# each refused with exit 2 and its own reason (not as an unknown option)
+n2=0
+for a in "--xrange 83:81" "--xrange 81" "--yrange 1:x" "--xrange 90:95"; do
+  # shellcheck disable=SC2086
+  "$A" plot continue "$T/cont.json" -o "$T/czb.png" $a 2>"$T/czb.err"
+  [ $? -eq 2 ] && grep -q 'LO:HI, LO < HI\|no point of the branches in --xrange' "$T/czb.err" && n2=$((n2 + 1))
+done
+"$A" plot sweep "$T/sweep-fwd.json" -o "$T/czs.png" --xrange 81:83 2>"$T/czb.err"
+[ $? -eq 2 ] && grep -q "continue's options" "$T/czb.err" && n2=$((n2 + 1))
+[ $n2 -eq 5 ] && ok "continue zoom: LO >= HI, no colon, no number, a window with no point, and sweep --xrange refused (exit 2, said why)" \
+  || bad "continue zoom: $n2 of 5 bad ranges refused with exit 2 and a reason"
+# the legend: short, a PD branch named by the label of its PD (P1) (the old legend's
+# 'b1 (period 2): PD of b0 at 81.5 kHz' and 'stable (any branch)' were longer)
+{ cat "$T/cont.json"
+  echo '{"type":"branch","param_name":"fe","branch":1,"parent":0,"param":81500,"period":2,"via":"PD","via_param":81500}'
+  printf '{"type":"point","param_name":"fe","branch":1,"parent":0,"param":%s,"period":2,"stable":true,"min_deflection_m":%s,"amplitude_m":3.2e-8}\n' \
+    81500 -3.15e-8 82000 -3.3e-8 83000 -3.4e-8
+} >"$T/cl.json"
+"$A" plot continue "$T/cl.json" -o "$T/cl.png" --script "$T/cl.gp" 2>"$T/cl.err"; rc=$?
+if [ $rc -eq 0 ] && grep -q "keyentry with lines ls 23 title 'b1 (period 2): P1 of b0'" "$T/cl.gp" \
+  && grep -q "keyentry with lines ls 21 title 'b0 (period 1)'" "$T/cl.gp" \
+  && grep -q "keyentry .* title 'stable'" "$T/cl.gp" && grep -q 'maxrows 3 ' "$T/cl.gp"; then
+  ok "continue legend: 'b1 (period 2): P1 of b0' (the PD's own label), 5 entries in 2 columns of 3 rows"
+else bad "continue legend: exit $rc, $(grep -o "maxrows [0-9]*\|title '[^']*'" "$T/cl.gp" | tr '\n' ' ') $(cat "$T/cl.err")"; fi
+# --zoom-pd: the window of the period-2 branch alone (b1: 81.5..83 kHz, min(xr) -34..-31.5
+# nm): x [81.5 - 0.045 : 83 + 0.045] (3 %), y [-34 - 0.1 : -31.5 + 2.2 * 0.09 * 2.5 + 0.05]
+# (its P1 label's row 0 over it); the period-1 points from 80 to 84 kHz clipped
+"$A" plot continue "$T/cl.json" -o "$T/cpd.png" --script "$T/cpd.gp" --zoom-pd 2>"$T/cpd.err"; rc=$?
+zr=$(grep '^set [xy]range ' "$T/cpd.gp" | grep -v '\[0:1\]' | head -2 | tr '\n' ' ')
+if [ $rc -eq 0 ] && [ "$zr" = "set xrange [81.455:83.045] set yrange [-34.1:-30.955] " ]; then
+  ok "continue --zoom-pd: x and y of the period-2 branch ($zr)"
+else bad "continue --zoom-pd: exit $rc, '$zr' $(cat "$T/cpd.err")"; fi
 # 5. bifurcation labels that do not overlap (issue 30: fig 4.2's "P2P6" ran together, and
 # L3/L5/L7 stood in a column over a cluster): two PDs 130 Hz apart and four events within
 # 100 Hz, as in fig 4.2 (6 kHz wide, ~2.7 characters of a label per 130 Hz). Each label is

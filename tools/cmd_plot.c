@@ -108,14 +108,21 @@ static void plot_usage(FILE *f) {
             "            unstable dashed, cut at every change of stability (at the LPC, PD or\n"
             "            NS point found there, else where the largest Floquet multiplier\n"
             "            crosses 1 between the two points), each branch in its own colour,\n"
-            "            its legend saying its period and how it was reached (continue's\n"
-            "            branch records: the start, the PD of its parent, the end of its\n"
-            "            parent, or its parent past a fold beyond the range; \"joins bN\"\n"
-            "            when it ran onto a branch computed before); LPC, PD and NS points\n"
-            "            labelled L1.., P1.., N1.. in\n"
+            "            its legend short, saying its period and where it starts (continue's\n"
+            "            branch records: the start, a PD of its parent by its label, e.g.\n"
+            "            \"b1 (period 2): P1 of b0\", the end of its parent, or its parent\n"
+            "            past a fold beyond the range; \"joins bN\" when it ran onto a branch\n"
+            "            computed before); LPC, PD and NS points labelled L1.., P1.., N1.. in\n"
             "            the order found (a label that would overlap another goes up a row,\n"
             "            a thin leader down to its point); with --param2, the curves in the\n"
-            "            parameter plane\n"
+            "            parameter plane. Zoom: --xrange LO:HI (the parameter in the x axis'\n"
+            "            unit: kHz for fe, nm for z and ae) draws that window, each panel's y\n"
+            "            fitted to the branches inside it and the labels placed anew;\n"
+            "            --yrange LO:HI and --yrange2 LO:HI (nm) fix the y of the min(xr)\n"
+            "            and of the amplitude panel; --zoom-pd: x and y those of the\n"
+            "            period-doubled branches (period > 1), 3 %% more in x, the\n"
+            "            period-1 orbit clipped. --data and --csv keep every row of\n"
+            "            the run; under a zoom only $E's label rows are those of the window.\n"
             "  force-curve  INPUT: afmtwin force-curve --json output: the force on the\n"
             "            lever k x against the base Z, approach and retract, snap-in and\n"
             "            pull-off marked, spring constant and adhesion in the title.\n"
@@ -143,7 +150,8 @@ static void plot_usage(FILE *f) {
             "                     curve (forward, retract, ...) where a picture has several\n"
             "  --script FILE      the gnuplot script as run, data inline (gnuplot FILE redraws)\n"
             "  --size WxH         pixels, 100..10000 each (default 1000x750)\n"
-            "  --index N, --stream N, --from S, --to S, --fit FILE  as the kinds say\n\n"
+            "  --index N, --stream N, --from S, --to S, --fit FILE  as the kinds say\n"
+            "  --xrange LO:HI, --yrange LO:HI, --yrange2 LO:HI, --zoom-pd  continue's zoom\n\n"
             "Phase convention: the lag of the deflection behind the drive, 90 deg for a free\n"
             "cantilever at resonance, below 90 in the repulsive regime.\n"
             "Exit status 0 ok, 1 gnuplot or a file failed, 2 bad usage or bad input.\n");
@@ -192,6 +200,29 @@ static int quotable(const char *what, const char *v) {
     return 0;
 }
 
+/* --xrange, --yrange, --yrange2 LO:HI (continue): two finite numbers, LO < HI. */
+static int parse_range(const char *v, double *lo, double *hi) {
+    char end;
+    if (sscanf(v, "%lf:%lf%c", lo, hi, &end) != 2 || !isfinite(*lo) || !isfinite(*hi) ||
+        !(*lo < *hi)) {
+        *lo = *hi = NAN;
+        return -1;
+    }
+    return 0;
+}
+static int parse_xrange(const char *v, void *dest) {
+    plot_opts *o = dest;
+    return parse_range(v, &o->range_lo[0], &o->range_hi[0]);
+}
+static int parse_yrange(const char *v, void *dest) {
+    plot_opts *o = dest;
+    return parse_range(v, &o->range_lo[1], &o->range_hi[1]);
+}
+static int parse_yrange2(const char *v, void *dest) {
+    plot_opts *o = dest;
+    return parse_range(v, &o->range_lo[2], &o->range_hi[2]);
+}
+
 /* 0 ok, 1 --help, -1 bad usage (said). */
 static int parse_args(int argc, char **argv, plot_opts *o) {
     *o = (plot_opts){.width = 1000,
@@ -200,7 +231,9 @@ static int parse_args(int argc, char **argv, plot_opts *o) {
                      .t_to_s = NAN,
                      .z_m = NAN,
                      .fe_hz = NAN,
-                     .ae_m = NAN};
+                     .ae_m = NAN,
+                     .range_lo = {NAN, NAN, NAN},
+                     .range_hi = {NAN, NAN, NAN}};
     const afmt_opt opts[] = {
         AFMT_ARG("KIND", &o->kind),
         AFMT_ARG_FN("INPUT", add_input, o, "at most 8 inputs"),
@@ -220,6 +253,10 @@ static int parse_args(int argc, char **argv, plot_opts *o) {
         AFMT_DOUBLE("--z", &o->z_m, 0, 0, NULL),
         AFMT_DOUBLE("--fe", &o->fe_hz, 0, 1e9, NULL),
         AFMT_DOUBLE("--ae", &o->ae_m, 0, 1e-3, NULL),
+        AFMT_FN("--xrange", parse_xrange, o, "LO:HI, LO < HI"),
+        AFMT_FN("--yrange", parse_yrange, o, "LO:HI, LO < HI"),
+        AFMT_FN("--yrange2", parse_yrange2, o, "LO:HI, LO < HI"),
+        AFMT_FLAG("--zoom-pd", &o->zoom_pd),
         AFMT_OPTS_END,
     };
     _Static_assert(PLOT_MAX_INPUTS == 8, "add_input's error text");
@@ -232,6 +269,10 @@ static int parse_args(int argc, char **argv, plot_opts *o) {
     for (int i = 0; i < o->n_in; i++)
         if (quotable("input", o->in[i])) return -1;
     if (!o->out) return plot_err("%s", "-o FILE.png is required");
+    for (int i = 0; i < 3; i++)
+        if ((!isnan(o->range_lo[i]) || o->zoom_pd) && strcmp(o->kind, "continue"))
+            return plot_err("%s",
+                            "--xrange, --yrange, --yrange2 and --zoom-pd are continue's options");
     if (quotable("output", o->out) || quotable("--script", o->script) ||
         quotable("--config", o->config))
         return -1;

@@ -39,6 +39,10 @@ typedef struct {
     const char *in[PLOT_MAX_INPUTS];
     int n_in, index, stream, width, height;
     double t_from_s, t_to_s, z_m, fe_hz, ae_m;
+    /* continue's zoom, in the picture's units (kHz or nm for the parameter, nm for y): x,
+     * then y of the top (min xr) and of the lower (amplitude) panel; NAN: not given */
+    double range_lo[3], range_hi[3];
+    bool zoom_pd; /* continue --zoom-pd: the window of the period-doubled branches */
 } plot_opts;
 
 /* A data set: rows of ncol numbers (NAN prints as "NaN", which gnuplot skips). The header

@@ -228,6 +228,18 @@ static int continue_segments(const cont_ctx *c, plot_set *b) {
     return 0;
 }
 
+/* Event i of ev lies in the picture's window (x, and y in either panel): its label and
+ * marker are drawn, and only those take part in the placing of the labels (both panels
+ * share the rows, so one drawn in either panel counts). */
+static bool cont_in_window(const plot_set *ev, size_t i, double xlo, double xhi,
+                           const double ylo[2], const double yhi[2]) {
+    double x = plot_cell(ev, i, 0);
+    bool in_y = false;
+    for (int p = 0; p < 2; p++)
+        in_y = in_y || (plot_cell(ev, i, 1 + p) >= ylo[p] && plot_cell(ev, i, 1 + p) <= yhi[p]);
+    return x >= xlo && x <= xhi && in_y;
+}
+
 /* The rows of the bifurcation labels (ev's column 6): each label ("L7": type letter and
  * count, drawn 1 character right of and 1 line over its point, row steps of 0.09 of the
  * panel's y span higher) takes the lowest row where, in both panels, it overlaps no label
@@ -235,17 +247,20 @@ static int continue_segments(const cont_ctx *c, plot_set *b) {
  * panel w_px wide, with half a character to spare (issue 30: "P2P6" ran together, and a
  * column of labels stood over a cluster of points at no distance one could read). */
 static void continue_label_rows(plot_set *ev, double xlo, double xhi, const double ylo[2],
-                                const double yhi[2], double w_px) {
+                                const double yhi[2], double w_px, bool zoom) {
     double cw = w_px > 0 && xhi > xlo ? PX_CHAR / w_px * (xhi - xlo) : 0.0;
     for (size_t i = 0; i < ev->n; i++) {
         double xi = plot_cell(ev, i, 0), wi = (plot_cell(ev, i, 4) >= 10 ? 3.0 : 2.0) * cw;
         int row = 0;
+        ev->v[i * 6 + 5] = 0;
+        if (zoom && !cont_in_window(ev, i, xlo, xhi, ylo, yhi)) continue; /* not drawn */
         for (; row < 40; row++) {
             bool clash = false;
             for (int p = 0; p < 2 && !clash; p++) {
                 double step = yhi[p] > ylo[p] ? 0.09 * (yhi[p] - ylo[p]) : 1.0;
                 double yi = plot_cell(ev, i, 1 + p) / step + row + 0.5; /* the box: [yi, yi + 1] */
                 for (size_t j = 0; j < ev->n && !clash; j++) {
+                    if (zoom && !cont_in_window(ev, j, xlo, xhi, ylo, yhi)) continue;
                     double xj = plot_cell(ev, j, 0), yj = plot_cell(ev, j, 1 + p) / step;
                     /* j's marker, a character square about its point */
                     if (j != i && xi + cw - 0.5 * cw < xj + 0.6 * cw &&
@@ -267,21 +282,45 @@ static void continue_label_rows(plot_set *ev, double xlo, double xhi, const doub
     }
 }
 
-/* The legend of branch b: "b1 (period 2): PD of b0 at 82.243 kHz, joins b2". */
+/* The label ("P3") of the event of type (1 LPC, 2 PD, 3 NS) at the parameter x (scaled),
+ * on branch br (-1: any), within 1e-6 of x: its letter and its count in the file's order,
+ * as drawn beside its point; 0 if there is none (t is then ""). */
+static int cont_event_label(const cont_ctx *c, int type, int br, double x, char *t, size_t n) {
+    int k = 0;
+    t[0] = 0;
+    for (size_t i = 0; i < c->n; i++) {
+        if (c->rec[i].event != type) continue;
+        k++;
+        if ((br < 0 || c->rec[i].branch == br) &&
+            fabs(c->rec[i].x - x) <= 1e-6 * fmax(fabs(x), 1e-300)) {
+            snprintf(t, n, "%c%d", "LPN"[type - 1], k);
+            return k;
+        }
+    }
+    return 0;
+}
+
+/* The legend of branch b, short (the legend is one strip for all panels, and a long entry
+ * takes a column of its own): its period and where it starts, by the label of the event
+ * drawn there: "b1 (period 2): P1 of b0, joins b2"; the parameter where no label names it. */
 static void cont_branch_label(const cont_ctx *c, int b, char *t, size_t n) {
     const char *u = scale_unit(c->scale);
     double v = c->br[b].via_param * c->scale;
+    char at[16], val[40];
+    snprintf(val, sizeof val, "%.5g %s", v, u);
     int parent = c->br[b].parent, w = snprintf(t, n, "b%d (period %d)", b, c->br[b].period);
     if (w < 0 || (size_t)w >= n) return;
     const char *via = c->br[b].have ? c->br[b].via : "";
     if (!strcmp(via, "start"))
-        w += snprintf(t + w, n - (size_t)w, ": start at %.6g %s", v, u);
+        w += snprintf(t + w, n - (size_t)w, ": start");
     else if (!strcmp(via, "PD"))
-        w += snprintf(t + w, n - (size_t)w, ": PD of b%d at %.6g %s", parent, v, u);
+        w += snprintf(t + w, n - (size_t)w, ": %s of b%d",
+                      cont_event_label(c, 2, parent, v, at, sizeof at) ? at : val, parent);
     else if (!strcmp(via, "end"))
-        w += snprintf(t + w, n - (size_t)w, ": from the end of b%d (PD, %.6g %s)", parent, v, u);
+        w += snprintf(t + w, n - (size_t)w, ": %s, end of b%d",
+                      cont_event_label(c, 2, -1, v, at, sizeof at) ? at : val, parent);
     else if (!strcmp(via, "fold"))
-        w += snprintf(t + w, n - (size_t)w, ": b%d past its fold at %.6g %s", parent, v, u);
+        w += snprintf(t + w, n - (size_t)w, ": b%d past its fold", parent);
     if (c->br[b].have && c->br[b].joined >= 0 && w > 0 && (size_t)w < n)
         snprintf(t + w, n - (size_t)w, ", joins b%d", c->br[b].joined);
 }
@@ -309,6 +348,9 @@ int load_continue(const plot_opts *o, plot_data *d, FILE *gp) {
     plot_set *b = rc ? NULL : plot_curve_new(d, "B", "", hdr, 7);
     if (b) b->seg_col = 6;
     if (rc == 0 && (!b || continue_segments(&c, b))) rc = -1;
+    char blab[CONT_PLOT_BRANCHES][96]; /* the branches' legends (they need c.rec) */
+    for (int q = 0; q < c.n_branch && rc == 0; q++)
+        cont_branch_label(&c, q, blab[q], sizeof blab[q]);
     free(c.rec);
     if (rc) return -1;
     snprintf(c.ev->header, sizeof c.ev->header,
@@ -327,7 +369,52 @@ int load_continue(const plot_opts *o, plot_data *d, FILE *gp) {
             yhi[p] = fmax(yhi[p], plot_cell(b, i, 1 + p));
         }
     }
-    continue_label_rows(c.ev, xlo, xhi, ylo, yhi, d->W - PX_LEFT - PX_RIGHT);
+    /* the zoom (--xrange, --yrange, --yrange2, --zoom-pd): the window in x, and each panel's y the
+     * option's or the extent of the branches within that x window, the labels placed for it
+     * (their rows in $E change; the branches' columns do not) */
+    bool zoom = false, fixed[2] = {false, false};
+    /* --zoom-pd: the period-doubled branches (period > 1) alone set the window: x their
+     * extent and 3 % more each side, y theirs inside it */
+    if (o->zoom_pd) {
+        double lo = INFINITY, hi = -INFINITY;
+        for (size_t i = 0; i < b->n; i++)
+            if (plot_cell(b, i, 5) > 1) {
+                lo = fmin(lo, plot_cell(b, i, 0));
+                hi = fmax(hi, plot_cell(b, i, 0));
+            }
+        if (!(lo <= hi)) return plot_err("%s", "--zoom-pd: no branch of period > 1");
+        double pad = fmax(0.03 * (hi - lo), 1e-6 * fmax(fabs(lo), fabs(hi)) + 1e-12);
+        xlo = lo - pad;
+        xhi = hi + pad;
+    }
+    if (!isnan(o->range_lo[0])) {
+        xlo = o->range_lo[0];
+        xhi = o->range_hi[0];
+    }
+    if (o->zoom_pd || !isnan(o->range_lo[0])) {
+        zoom = true;
+        for (int p = 0; p < 2; p++) {
+            ylo[p] = INFINITY;
+            yhi[p] = -INFINITY;
+        }
+        for (size_t i = 0; i < b->n; i++) {
+            double x = plot_cell(b, i, 0);
+            bool take = x >= xlo && x <= xhi && (!o->zoom_pd || plot_cell(b, i, 5) > 1);
+            for (int p = 0; p < 2 && take; p++) {
+                ylo[p] = fmin(ylo[p], plot_cell(b, i, 1 + p));
+                yhi[p] = fmax(yhi[p], plot_cell(b, i, 1 + p));
+            }
+        }
+    }
+    for (int p = 0; p < 2; p++)
+        if (!isnan(o->range_lo[1 + p])) {
+            ylo[p] = o->range_lo[1 + p];
+            yhi[p] = o->range_hi[1 + p];
+            zoom = fixed[p] = true;
+        }
+    if (!(ylo[0] <= yhi[0]) || !(ylo[1] <= yhi[1]))
+        return plot_err("%s", "no point of the branches in --xrange");
+    continue_label_rows(c.ev, xlo, xhi, ylo, yhi, d->W - PX_LEFT - PX_RIGHT, zoom);
     const char *xl = !strcmp(c.name, "fe")   ? "drive frequency fe (kHz)"
                      : !strcmp(c.name, "z")  ? "separation Z (nm)"
                      : !strcmp(c.name, "ae") ? "drive amplitude Ae (nm)"
@@ -348,14 +435,13 @@ int load_continue(const plot_opts *o, plot_data *d, FILE *gp) {
         fprintf(gp, "set style line %d lc rgb '%s' pt %s ps 1.3\n", 11 + k, ev[k][2], ev[k][1]);
     plot_key k = {0};
     /* the line styles' samples in grey: black is branch b6's colour */
-    plot_key_add(&k, "with lines lw 2 lc rgb 'gray50'", "stable (any branch)");
-    plot_key_add(&k, "with lines lw 1.2 dt 2 lc rgb 'gray50'", "unstable (any branch)");
+    plot_key_add(&k, "with lines lw 2 lc rgb 'gray50'", "stable");
+    plot_key_add(&k, "with lines lw 1.2 dt 2 lc rgb 'gray50'", "unstable");
     /* each branch: its period and how it was reached (parent, event) */
     for (int q = 0; q < c.n_branch && c.n_branch > 1; q++) {
-        char with[64], t[96];
+        char with[64];
         snprintf(with, sizeof with, "with lines ls %d", 21 + 2 * q);
-        cont_branch_label(&c, q, t, sizeof t);
-        plot_key_add(&k, with, t);
+        plot_key_add(&k, with, blab[q]);
     }
     for (int e = 0; e < 3; e++)
         if (c.count[e + 1] > 0) {
@@ -379,9 +465,14 @@ int load_continue(const plot_opts *o, plot_data *d, FILE *gp) {
         /* y: the branches, and over them room for the stacked labels */
         double span = yhi[p] - ylo[p], ytop = yhi[p];
         for (size_t i = 0; i < c.ev->n; i++)
-            ytop =
-                fmax(ytop, plot_cell(c.ev, i, 1 + p) + (plot_cell(c.ev, i, 5) + 2.2) * 0.09 * span);
-        if (span > 0) fprintf(gp, "set yrange [%g:%g]\n", ylo[p] - 0.04 * span, ytop + 0.02 * span);
+            if (!zoom || cont_in_window(c.ev, i, xlo, xhi, ylo, yhi))
+                ytop = fmax(ytop, plot_cell(c.ev, i, 1 + p) +
+                                      (plot_cell(c.ev, i, 5) + 2.2) * 0.09 * span);
+        if (zoom) fprintf(gp, "set xrange [%.9g:%.9g]\n", xlo, xhi);
+        if (fixed[p])
+            fprintf(gp, "set yrange [%.9g:%.9g]\n", ylo[p], yhi[p]);
+        else if (span > 0)
+            fprintf(gp, "set yrange [%g:%g]\n", ylo[p] - 0.04 * span, ytop + 0.02 * span);
         fprintf(gp, "set ylabel '%s'\nplot ", ylab[p]);
         const char *sep = "";
         for (int q = 0; q < c.n_branch; q++)
