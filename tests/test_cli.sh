@@ -212,6 +212,15 @@ out=$("$A" bench-states --only "tapping, Z 40" --runs 1 --no-fifo --scheme fast 
 [ $rc -eq 0 ] && echo "$out" | grep -q "normal priority: --no-fifo" &&
   ok "bench-states --no-fifo: runs at normal priority, says so" ||
   bad "bench-states --no-fifo: exit $rc, $(echo "$out" | head -1)"
+# --only: the states not run are left out (they printed as rows of 0.0 and an RT factor of inf)
+rows=$(echo "$out" | grep -cE "^  [a-zA-Z].* [0-9]+\.[0-9] +[0-9]+\.[0-9] +[0-9]+\.[0-9] +[0-9]+\.[0-9] ")
+[ "$rows" = 1 ] && echo "$out" | grep -q "^  tapping, Z 40" && ! echo "$out" | grep -q " inf " &&
+  ok "bench-states --only: only the state run is listed" ||
+  bad "bench-states --only: $rows rows: $(echo "$out" | grep -m2 " inf ")"
+out=$("$A" bench-states --only "no such state" --runs 1 --no-fifo 2>&1); rc=$?
+[ $rc -eq 2 ] && echo "$out" | grep -q "names no state" &&
+  ok "bench-states --only matching nothing: exit 2, says so" ||
+  bad "bench-states --only matching nothing: exit $rc: $out"
 "$A" bench-states --only "tapping, Z 40" --runs 20 --no-fifo --scheme fast > /dev/null 2>&1 & bp=$!
 sleep 0.5; pol=$(awk '{print $41}' /proc/$bp/stat 2>/dev/null); wait $bp
 [ "${pol:-x}" = 0 ] && ok "bench-states --no-fifo: its policy while it runs is SCHED_OTHER" ||

@@ -622,14 +622,17 @@ int afm_cmd_bench_states(int argc, char **argv) {
     struct sched_param prio = {.sched_priority = BENCH_PRIO};
     bool fifo = !no_fifo && sched_setscheduler(0, SCHED_FIFO | BENCH_RESET_ON_FORK, &prio) == 0;
     state_result res[N_STATES];
+    bool ran[N_STATES]; /* --only: the states not run are left out of every table */
     double v[4][MAX_RUNS];
-    int failed = 0;
+    int failed = 0, n_ran = 0;
     for (int s = 0; s < N_STATES; s++) {
         state_result one[MAX_RUNS];
-        if (only && !strstr(states[s].name, only)) {
+        ran[s] = !only || strstr(states[s].name, only);
+        if (!ran[s]) {
             memset(&res[s], 0, sizeof res[s]);
             continue;
         }
+        n_ran++;
         for (int k = 0; k < runs; k++)
             if (run_state(&cfg, uptime, (state_id)s, &one[k])) return 1;
         for (int k = 0; k < runs; k++) {
@@ -645,13 +648,21 @@ int afm_cmd_bench_states(int argc, char **argv) {
         res[s].chain_worst = median(v[3], runs);
         failed += one[0].applied_bad > 0;
     }
+    if (n_ran == 0) {
+        fprintf(stderr,
+                "afmtwin bench-states: --only '%s' names no state (afmtwin bench-states "
+                "--help lists them)\n",
+                only);
+        return 2;
+    }
     double zc = NAN, full = NAN;
     z_change_cost(&cfg, &zc, &full);
     const double budget = 1e9 / cfg.sim.sample_rate_hz;
-    int wi = 0, wc = 0;
-    for (int s = 1; s < N_STATES; s++) {
-        if (res[s].int_ns > res[wi].int_ns) wi = s;
-        if (res[s].chain_ns > res[wc].chain_ns) wc = s;
+    int wi = -1, wc = -1;
+    for (int s = 0; s < N_STATES; s++) {
+        if (!ran[s]) continue;
+        if (wi < 0 || res[s].int_ns > res[wi].int_ns) wi = s;
+        if (wc < 0 || res[s].chain_ns > res[wc].chain_ns) wc = s;
     }
     if (json) {
         cJSON *root = cJSON_CreateObject(), *arr = cJSON_AddArrayToObject(root, "states");
@@ -662,6 +673,7 @@ int afm_cmd_bench_states(int argc, char **argv) {
         cJSON_AddBoolToObject(root, "sched_fifo", fifo);
         cJSON_AddStringToObject(root, "scheme", why);
         for (int s = 0; s < N_STATES; s++) {
+            if (!ran[s]) continue;
             cJSON *e = cJSON_CreateObject();
             cJSON_AddStringToObject(e, "state", states[s].name);
             cJSON_AddNumberToObject(e, "integrator_ns_per_sample", res[s].int_ns);
@@ -692,9 +704,10 @@ int afm_cmd_bench_states(int argc, char **argv) {
     printf("  %-52s %10s %10s %10s %10s %8s\n", "", "mean", "worst item", "mean", "worst item",
            "RT f.");
     for (int s = 0; s < N_STATES; s++)
-        printf("  %-52s %10.1f %10.1f %10.1f %10.1f %8.3f %9lld\n", states[s].name, res[s].int_ns,
-               res[s].int_worst, res[s].chain_ns, res[s].chain_worst,
-               budget / (res[s].int_ns + res[s].chain_ns), res[s].rebuilds);
+        if (ran[s])
+            printf("  %-52s %10.1f %10.1f %10.1f %10.1f %8.3f %9lld\n", states[s].name,
+                   res[s].int_ns, res[s].int_worst, res[s].chain_ns, res[s].chain_worst,
+                   budget / (res[s].int_ns + res[s].chain_ns), res[s].rebuilds);
     printf("  worst state: integrator %.1f ns/sample (%s), chain %.1f ns/sample (%s); on two "
            "cores each stage alone must stay below %.1f\n",
            res[wi].int_ns, states[wi].name, res[wc].chain_ns, states[wc].name, budget);
