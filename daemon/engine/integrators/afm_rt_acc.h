@@ -149,15 +149,7 @@ rt_piece_acc_t(const afm_sim *s, const rt_state *r, const rt_snap *in, rt_snap *
         fdot = fma(o->dfdx_n_m, v1, o->dfdv_n_s_m * acc);
         if (rec) o->acc_m_s2 = acc; /* the state is final */
     }
-    if (nt == RT_TONES_V4) {
-        RT_V4W(o->z_re) = RT_V4(zr1);
-        RT_V4W(o->z_im) = RT_V4(zi1);
-    } else {
-        for (int j = 0; j < nt; j++) {
-            o->z_re[j] = zr1[j];
-            o->z_im[j] = zi1[j];
-        }
-    }
+    rt_tones_store(o->z_re, o->z_im, zr1, zi1, nt);
     o->slope_cells = 0;
     o->acc_free = false;
     o->df_per_cell_n = (F1 - F0) * r->inv_cells[k];
@@ -346,15 +338,7 @@ rt_free_acc_t(const afm_sim *s, const rt_state *r, const rt_snap *in, rt_snap *o
         RT_V4W(o->v + i) =
             rt_fma4(RT_V4(k1 + np + i), f1, rt_fma4(RT_V4(gd1 + np + i), d1, pv[i / 4]));
     }
-    if (nt == RT_TONES_V4) {
-        RT_V4W(o->z_re) = RT_V4(zr1);
-        RT_V4W(o->z_im) = RT_V4(zi1);
-    } else {
-        for (int j = 0; j < nt; j++) {
-            o->z_re[j] = zr1[j];
-            o->z_im[j] = zi1[j];
-        }
-    }
+    rt_tones_store(o->z_re, o->z_im, zr1, zi1, nt);
     const rt_acc_tip t = {.x_m = x1,
                           .v_m_s = v1,
                           .f_n = F1,

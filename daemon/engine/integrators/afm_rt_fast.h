@@ -162,15 +162,7 @@ static inline __attribute__((always_inline)) int rt_piece_t(const afm_sim *s, co
         RT_V4W(o->q + i) = rt_fma4(RT_V4(c + 6 * np + i), f1, a);
         RT_V4W(o->v + i) = rt_fma4(RT_V4(c + 7 * np + i), f1, w);
     }
-    if (nt == RT_TONES_V4) { /* after the loop: in == o is allowed */
-        RT_V4W(o->z_re) = RT_V4(zr1);
-        RT_V4W(o->z_im) = RT_V4(zi1);
-    } else {
-        for (int j = 0; j < nt; j++) {
-            o->z_re[j] = zr1[j];
-            o->z_im[j] = zi1[j];
-        }
-    }
+    rt_tones_store(o->z_re, o->z_im, zr1, zi1, nt); /* after the loop: in == o is allowed */
     o->slope_cells = k;
     o->df_per_cell_n = dfc;
     if (kind.predict) {

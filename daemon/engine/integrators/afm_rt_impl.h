@@ -316,6 +316,21 @@ static inline void rt_tones_rotate(const double *z_re, const double *z_im, const
     }
 }
 
+/* A step's phasors stored (o->z_re, o->z_im: after the modal loop, so that in == o is allowed):
+ * one vector move each at RT_TONES_V4 tones. */
+static inline void rt_tones_store(double *o_re, double *o_im, const double *zr, const double *zi,
+                                  int nt) {
+    if (nt == RT_TONES_V4) {
+        RT_V4W(o_re) = RT_V4(zr);
+        RT_V4W(o_im) = RT_V4(zi);
+        return;
+    }
+    for (int j = 0; j < nt; j++) {
+        o_re[j] = zr[j];
+        o_im[j] = zi[j];
+    }
+}
+
 /* Phasors exactly from afm_drive at s->t_s. */
 static void rt_sync_phasors(const afm_sim *s, rt_state *r, rt_snap *st) {
     for (int j = 0; j < AFM_MAX_TONES; j++)

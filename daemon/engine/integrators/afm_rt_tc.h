@@ -110,15 +110,7 @@ rt_tc_state(const rt_state *r, const rt_snap *org, int po, int n, const double *
     }
     double zr[AFM_MAX_TONES], zi[AFM_MAX_TONES];
     rt_tones_rotate(org->z_re, org->z_im, PL->rot_re, PL->rot_im, zr, zi, nt);
-    if (nt == RT_TONES_V4) {
-        RT_V4W(o->z_re) = RT_V4(zr);
-        RT_V4W(o->z_im) = RT_V4(zi);
-    } else {
-        for (int j = 0; j < nt; j++) {
-            o->z_re[j] = zr[j];
-            o->z_im[j] = zi[j];
-        }
-    }
+    rt_tones_store(o->z_re, o->z_im, zr, zi, nt);
     if (o != tp) {
         o->tip = tp->tip;
         o->dfdx_n_m = tp->dfdx_n_m;
