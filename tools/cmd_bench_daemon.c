@@ -87,6 +87,7 @@ typedef struct {
     /* harmonics (tapping check) */
     double contact_time_s, indentation_m, lockin_m;
     int n_harm;
+    char scheme[16]; /* the rt scheme the daemon runs (status rt_scheme) */
     /* latency */
     int64_t want_seq;
     bool got;
@@ -110,7 +111,9 @@ static void bd_usage(FILE *f) {
             "  lockstep          afmtwind --mode lockstep driven by afmtwin lockstep --bench:\n"
             "                    ticks of 1 ms and 0.1 ms, each sent when the previous one's\n"
             "                    completion arrived; ticks/s and x real time (targets 0.9\n"
-            "                    and 0.3), unpinned and with the round trip on CPU 0\n\n"
+            "                    and 0.3), in lockstep's auto scheme (accurate: no deadline)\n"
+            "                    and in the fast one, unpinned and with the round trip on\n"
+            "                    CPU 0; a tick cannot run faster than its scheme integrates\n\n"
             "options:\n"
             "  --daemon PATH   afmtwind to run (default: afmtwind next to this afmtwin)\n"
             "  --config FILE   config to run (repeatable; default config/nchv.conf and\n"
@@ -148,6 +151,7 @@ static void on_status(const void *msg, void *u) {
     s->last_rtf = m->realtime_factor;
     s->last_rejected = m->rejected;
     s->last_received = m->received;
+    snprintf(s->scheme, sizeof s->scheme, "%s", m->rt_scheme ? m->rt_scheme : "?");
 }
 
 static void on_harm(const void *msg, void *u) {
@@ -437,22 +441,31 @@ static void bench_config(const bd_opts *o, const char *config, bd_result *r) {
 /* ---- lockstep -------------------------------------------------------------------------- */
 
 /* Lockstep co-simulation throughput on one config (text or JSON lines from afmtwin
- * lockstep --bench), unpinned and with the round trip's hand-overs kept on one core (the
- * integrator, receive and publish threads and the client on CPU 0, the chain on CPU 1: a
- * wake-up across cores costs ~24 us on this VM, on one core ~4 us). Returns 0, or 1 when a
+ * lockstep --bench), in the scheme lockstep's auto takes (the accurate one: lockstep has no
+ * deadline) and in the fast one, each unpinned and with the round trip's hand-overs kept on
+ * one core (the integrator, receive and publish threads and the client on CPU 0, the chain on
+ * CPU 1: a wake-up across cores costs ~24 us on this VM, on one core ~4 us). The targets
+ * (0.9 x with 1 ms ticks, 0.3 x with 0.1 ms) are of the round trip's overhead; a tick cannot
+ * run faster than its scheme integrates (`afmtwin bench-scheme`). Returns 0, or 1 when a
  * run failed. */
 static int bench_lockstep(const bd_opts *o, const char *config) {
-    static const char *const pins[2][3] = {{NULL, NULL, NULL}, {"0", "1", "0"}};
+    static const char *const schemes[2] = {"auto", "fast"};
     int rc = 0;
     if (!o->json)
-        printf(
-            "  lockstep (afmtwind --mode lockstep; each tick sent after the previous one's "
-            "completion arrived; targets 0.9 x real time with 1 ms ticks, 0.3 x with 0.1 ms):\n");
-    for (int pin = 0; pin < 2; pin++) {
-        const char *const extra[2][9] = {{"--mode", "lockstep", NULL},
-                                         {"--mode", "lockstep", "--cpu", pins[1][0], "--chain-cpu",
-                                          pins[1][1], "--aux-cpu", pins[1][2], NULL}};
-        pid_t pid = start_daemon(o, config, NULL, extra[pin]);
+        printf("  lockstep (afmtwind --mode lockstep; each tick sent after the previous one's "
+               "completion arrived; targets 0.9 x real time with 1 ms ticks, 0.3 x with 0.1 ms; "
+               "a tick is bounded by its scheme's integration cost):\n");
+    for (int run = 0; run < 4 && rc == 0; run++) {
+        const int sch = run / 2, pin = run % 2;
+        const char *extra[12] = {"--mode", "lockstep", "--scheme", schemes[sch], NULL};
+        if (pin) {
+            static const char *const pinned[6] = {"--cpu", "0",         "--chain-cpu",
+                                                  "1",     "--aux-cpu", "0"};
+            for (int i = 0; i < 6; i++)
+                extra[4 + i] = pinned[i];
+            extra[10] = NULL;
+        }
+        pid_t pid = start_daemon(o, config, NULL, extra);
         afmt_lcm lcm = {0};
         char err[256];
         if (pid < 0 || afmt_lcm_open(&lcm, o->url, o->out_url, o->samples_url, AFMT_OPEN_CMD, err,
@@ -471,10 +484,15 @@ static int bench_lockstep(const bd_opts *o, const char *config) {
             pump(&lcm, 0.1);
         send_tap(o, lcm.cmd); /* applied with the first tick */
         afmt_lcm_close(&lcm); /* and the subscription */
-        if (!o->json)
-            printf("   %s:\n", pin ? "pinned (afmtwind --cpu 0 --chain-cpu 1 --aux-cpu 0, "
-                                     "afmtwin lockstep --cpu 0)"
-                                   : "unpinned");
+        if (o->json)
+            printf("{\"config\":\"%s\",\"lockstep_scheme_option\":\"%s\",\"lockstep_scheme\":"
+                   "\"%s\",\"pinned\":%s}\n",
+                   config, schemes[sch], st.scheme[0] ? st.scheme : "?", pin ? "true" : "false");
+        else
+            printf("   --scheme %s (runs %s), %s:\n", schemes[sch], st.scheme[0] ? st.scheme : "?",
+                   pin ? "pinned (afmtwind --cpu 0 --chain-cpu 1 --aux-cpu 0, "
+                         "afmtwin lockstep --cpu 0)"
+                       : "unpinned");
         static const char *const ticks[2] = {"1000", "100"};
         for (int k = 0; k < 2; k++) {
             char secs[32];
