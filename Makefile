@@ -290,10 +290,12 @@ bench: deps
 
 # The 10-minute command soak (make test runs a 10 s one per config): 5 min per config
 # (default.conf, nchv.conf) against a realtime daemon, then each whole log in lockstep
-# against replay (the first 60 s of model time of each: ~3 min more per config).
+# against replay (the first 60 s of model time of each: ~3 min more per config); an outside
+# controller imaging a step at 1x, strict (test_scan_rt.sh, ~10 s); the FM stream.
 soak: deps
 	$(MAKE) $(BUILD)/bin/afmtwin $(BUILD)/bin/afmtwind
 	AFMTWIN_SOAK_S=300 AFMTWIN_SOAK_CHECK_S=60 AFMTWIN_SOAK_MIN_RTF=0.99 AFMTWIN_RT_SPEED=1 bash tests/test_soak.sh $(BUILD)
+	SCAN_SPEED=1 SCAN_RT_CHECK=1 bash tests/test_scan_rt.sh $(BUILD)
 	FM_DAEMON_ARGS="--cpu 0 --chain-cpu 1 --aux-cpu 0" FM_SIDE_CPU=0 FM_LOGGER_CPU=1 FM_LOGGER_PRIO=0 FM_RATE=10000 FM_AFTER=60 FM_SPEED=1 FM_RT_CHECK=1 bash tests/test_fm_daemon.sh $(BUILD)
 
 # The outside FM controller's 10 kHz stream for 60 s at --speed 1 against the realtime
