@@ -410,9 +410,19 @@ static void print_status(const listen_ctx *c, const char *channel, const afmtwin
     show(lf, m->last_refusal);
     show(ld, m->last_drop);
     show(pr, m->pause_reason);
+    /* A0 is NaN from a change of the drive or the model until it is computed again, which
+     * only afmtwind --a0-track does (README, "Free amplitude A0"): say so, not "nan". */
+    char a0s[96];
+    if (isfinite(m->free_amplitude_m))
+        snprintf(a0s, sizeof a0s, "A0 %.6g nm, A/A0 %.4f", m->free_amplitude_m * 1e9,
+                 m->amplitude_ratio);
+    else
+        snprintf(a0s, sizeof a0s,
+                 "A0 not known (drive or model changed; afmtwind --a0-track "
+                 "recomputes it)");
     printf("status    seq %lld t %.6f s %s %s rtf(1 s) %.4g lag %.3g s resyncs %lld (%.4g s "
            "skipped) chain lag %.3g s overruns %lld | lock-in %.4g nm, phase lag %.2f deg, peak "
-           "force %.4g nN, E_sq %.4g eV, A0 %.6g nm, A/A0 %.4f | Z %.4g nm fe %.6g Hz Ae %.4g nm | "
+           "force %.4g nN, E_sq %.4g eV, %s | Z %.4g nm fe %.6g Hz Ae %.4g nm | "
            "received %lld applied "
            "%lld rejected %lld refused %lld%s%s%s dropped %lld%s%s%s blowups %lld",
            (long long)m->seq_applied, m->model_time_s, mode[0] ? mode : "?",
@@ -421,12 +431,11 @@ static void print_status(const listen_ctx *c, const char *channel, const afmtwin
                           : "paused",
            m->realtime_factor_1s, m->lag_s, (long long)m->resyncs, m->resync_skipped_s,
            m->chain_lag_s, (long long)m->overruns, m->lockin_amplitude_m * 1e9, m->lockin_phase_deg,
-           m->peak_force_n * 1e9, m->squeeze_dissipated_energy_j / LISTEN_EV_J,
-           m->free_amplitude_m * 1e9, m->amplitude_ratio, m->separation_m * 1e9, m->fe_hz,
-           m->amplitude_m * 1e9, (long long)m->received, (long long)m->applied,
-           (long long)m->rejected, (long long)m->refused, lf[0] ? " (last: " : "", lf,
-           lf[0] ? ")" : "", (long long)m->dropped, ld[0] ? " (" : "", ld, ld[0] ? ")" : "",
-           (long long)m->blowups);
+           m->peak_force_n * 1e9, m->squeeze_dissipated_energy_j / LISTEN_EV_J, a0s,
+           m->separation_m * 1e9, m->fe_hz, m->amplitude_m * 1e9, (long long)m->received,
+           (long long)m->applied, (long long)m->rejected, (long long)m->refused,
+           lf[0] ? " (last: " : "", lf, lf[0] ? ")" : "", (long long)m->dropped, ld[0] ? " (" : "",
+           ld, ld[0] ? ")" : "", (long long)m->blowups);
     if (lr[0])
         printf(" (last rejected %.1f s ago%s: %s)", m->last_reject_age_s,
                m->last_reject_old ? ", old: later commands applied" : "", lr);
