@@ -1,6 +1,18 @@
 # lib_scan.sh -- sourced by the tests where an outside controller (tests/scan_client.c) images
 # a step over LCM (test_scan_daemon.sh, test_scan_rt.sh): judge reads its image against the
-# analytic step (H, POS, EDGE of the caller), rt_judge the daemon's statuses under the scan.
+# analytic step (H, POS, EDGE of the caller), rt_judge the daemon's statuses under the scan;
+# scan_client_build builds the controller.
+
+# scan_client_build BUILD OUT: tests/scan_client.c against BUILD's message library into OUT
+# (ok, or bad with the compiler's first lines, the counts printed and 1 returned).
+scan_client_build() {
+  if cc -std=c11 -O2 -Wall -Wextra -Werror -D_POSIX_C_SOURCE=200809L -I"$1/gen" -Imsgtypes \
+       -o "$2" tests/scan_client.c "$1/lib/libafmtwin_msg.a" -llcm -lm 2> "$2.err"; then
+    ok "tests/scan_client.c builds"
+  else
+    bad "scan_client build: $(head -3 "$2.err")"; echo "$pass passed, $fail failed"; return 1
+  fi
+}
 
 # judge IMG: the controller's image (scan_client's records) against the truth; one line
 judge() {

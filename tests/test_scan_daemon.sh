@@ -59,12 +59,7 @@ EOF
 conf 1 > "$T/step.conf"
 conf 0 > "$T/flat.conf"
 
-if cc -std=c11 -O2 -Wall -Wextra -Werror -D_POSIX_C_SOURCE=200809L -I"$BUILD/gen" -Imsgtypes \
-     -o "$T/scan_client" tests/scan_client.c "$BUILD/lib/libafmtwin_msg.a" -llcm -lm 2> "$T/cc.err"; then
-  ok "tests/scan_client.c builds"
-else
-  bad "scan_client build: $(head -3 "$T/cc.err")"; echo "$pass passed, $fail failed"; exit 1
-fi
+scan_client_build "$BUILD" "$T/scan_client" || exit 1
 SC=("${run[@]}" "$T/scan_client")
 
 # the status's JSON (one message) into FILE; field K of it

@@ -38,12 +38,7 @@ run=(); chrt -f 90 true 2>/dev/null && run=(chrt -f 90)
 CONF=tests/step-3nm-thesis.conf
 H=3e-9; POS=2e-7; EDGE=2e-8 # the step of $CONF (judge reads these)
 
-if cc -std=c11 -O2 -Wall -Wextra -Werror -D_POSIX_C_SOURCE=200809L -I"$BUILD/gen" -Imsgtypes \
-     -o "$T/scan_client" tests/scan_client.c "$BUILD/lib/libafmtwin_msg.a" -llcm -lm 2> "$T/cc.err"; then
-  ok "tests/scan_client.c builds"
-else
-  bad "scan_client build: $(head -3 "$T/cc.err")"; echo "$pass passed, $fail failed"; exit 1
-fi
+scan_client_build "$BUILD" "$T/scan_client" || exit 1
 
 read -r -a dargs <<< "${SCAN_DAEMON_ARGS:-}"
 "$D" --config "$CONF" --speed "$SPEED" --quiet "${dargs[@]}" 2> "$T/d.err" & DPID=$!
