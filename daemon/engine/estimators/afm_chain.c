@@ -481,7 +481,6 @@ AFM_CLONES static void estimators(afm_chain *c, const afm_sample *s, const doubl
             afm_chain_period *p = put_period(c);
             mk[nm].x_m = &p->lockin_x_m;
             mk[nm].y_m = &p->lockin_y_m;
-            if (c->ends && c->n_ends < c->max_ends) c->ends[c->n_ends++] = c->ends_base + i + k - 1;
         }
         i += k;
         mk[nm++].end = i;
@@ -493,6 +492,9 @@ AFM_CLONES static void estimators(afm_chain *c, const afm_sample *s, const doubl
         long long rl = mk[u].rejects;
         c->stats.estimator_rejects += rhc[u] > rl ? rhc[u] : rl;
     }
+    if (c->ends) /* afm_chain_push_ev_ends: a record's period ended on its run's last sample */
+        for (int u = 0; u < nm && c->n_ends < c->max_ends; u++)
+            if (mk[u].x_m) c->ends[c->n_ends++] = c->ends_base + mk[u].end - 1;
 }
 
 int afm_chain_push_ev_ends(afm_chain *c, const afm_sample *s, const afm_step_events *const *ev,

@@ -460,12 +460,14 @@ static void back_item(afm_runner *r, ring_item *it) {
                 if (from >= it->n) break;
                 continue;
             }
+            while (il < it->n_lc && it->lc[il].at <= from) /* in force from the push's start */
+                back_lat(r, &it->lc[il++]);
             const afm_step_events *const *e = ev ? r->b_ev + from : NULL;
-            if (it->lat_on) {
+            if (il < it->n_lc && it->lc[il].at < to) { /* the tip moves within the push */
                 int k =
                     afm_chain_push_ev_ends(r->chain, it->s + from, e, to - from, r->b_ends, SLOT);
                 back_pop_put_ends(r, it, from, to, k, &il);
-            } else {
+            } else { /* one op for the push (no sample, or a tip that holds), as before */
                 long long p0 = afm_chain_periods(r->chain);
                 afm_chain_push_ev(r->chain, it->s + from, e, to - from);
                 back_pop_put(r, afm_chain_periods(r->chain) - p0);
