@@ -636,7 +636,12 @@ static void test_phase_origin(const afm_config *cfg) {
 /* Issue 18: a raster over scan-grating.conf's grating, sliced 1024 and 700 samples at a time:
  * the tip's position is updated on a grid counted from create, so the samples and period
  * records are bit-identical; the status follows the raster to its end; a scan command to a
- * twin without a sample group is refused, nothing changed. */
+ * twin without a sample group is refused, nothing changed. The records' operating points
+ * (stage Z, tip x, y, z_s, material) are those of the position update in force at the
+ * sample the period ended on: against a third run sliced on the 64-sample update grid
+ * (every ring item within one update, one push: its records can only take that update's), to
+ * the bit, in all three (the chain takes an item's samples in one push and places each
+ * record by where it ended: afm_chain_push_ev_ends). */
 static void test_scan_slices(const afm_config *flat) {
     char err[AFM_ERR_LEN];
     afm_config cfg;
@@ -655,24 +660,26 @@ static void test_scan_slices(const afm_config *flat) {
                             .lines = 2,
                             .pixels = 16,
                             .line_rate_hz = 1000.0}};
-    static afm_chain_period rec[2][2048];
-    static float xs[2][8192];
-    long nrec[2] = {0, 0}, nx[2] = {0, 0};
-    afm_runner_status st[2];
+    static afm_chain_period rec[3][2048];
+    static afm_runner_oppoint ops[3][2048];
+    static float xs[3][8192];
+    long nrec[3] = {0, 0, 0}, nx[3] = {0, 0, 0};
+    afm_runner_status st[3];
     int applied = 0;
     double xmax = 0.0;
-    for (int run = 0; run < 2; run++) {
+    for (int run = 0; run < 3; run++) {
         afm_runner *r = afm_runner_create(&cfg, 4096, false, err, sizeof err);
         if (!r) {
             check_true(false, err);
             return;
         }
-        const long long slice = run ? 700 : 1024, total_s = 40000, at_s = 2000;
+        const long long slices[3] = {1024, 700, AFM_RUNNER_SCAN_SAMPLES};
+        const long long slice = slices[run], total_s = 40000, at_s = 2000;
         for (long long done = 0; done < total_s;) {
             if (done == at_s) {
                 applied += afm_runner_apply(r, &c, NULL, err, sizeof err) == 0;
             }
-            long long n = slice;
+            long long n = run == 2 ? slice - done % slice : slice; /* run 2: on the grid */
             if (done < at_s && done + n > at_s) n = at_s - done;
             if (done + n > total_s) n = total_s - done;
             done += afm_runner_run(r, n);
@@ -685,10 +692,13 @@ static void test_scan_slices(const afm_config *flat) {
                     for (int i = 0; i < b.n && k == 0 && nx[run] < 8192; i++)
                         xs[run][nx[run]++] = (float)b.x_m[i];
             afm_chain_period p[64];
+            afm_runner_oppoint po[64];
             int np;
-            while ((np = afm_runner_take_periods(r, p, 64)) > 0)
-                for (int i = 0; i < np && nrec[run] < 2048; i++)
+            while ((np = afm_runner_take_periods_op(r, p, po, 64)) > 0)
+                for (int i = 0; i < np && nrec[run] < 2048; i++) {
+                    ops[run][nrec[run]] = po[i];
                     rec[run][nrec[run]++] = p[i];
+                }
         }
         afm_runner_status_get(r, &st[run]);
         afm_runner_destroy(&r);
@@ -697,10 +707,30 @@ static void test_scan_slices(const afm_config *flat) {
                 memcmp(xs[0], xs[1], sizeof(float) * (size_t)nx[0]) == 0;
     for (long i = 0; same && i < nrec[0]; i++)
         same = memcmp(&rec[0][i], &rec[1][i], sizeof rec[0][i]) == 0;
+    /* the ops against the 64-sample run's, field by field; how many records changed place
+     * (x or z_s) from the one before: the raster moves the tip under nearly every period */
+    long op_bad = 0, moved = 0, edges = 0;
+    for (int run = 0; run < 2; run++)
+        for (long i = 0; i < nrec[run] && i < nrec[2]; i++) {
+            const afm_runner_oppoint *a = &ops[run][i], *b = &ops[2][i];
+            op_bad += a->z_m != b->z_m || a->tip_x_m != b->tip_x_m || a->tip_y_m != b->tip_y_m ||
+                      a->true_height_m != b->true_height_m || a->material != b->material;
+        }
+    for (long i = 1; i < nrec[2]; i++) {
+        moved += ops[2][i].tip_x_m != ops[2][i - 1].tip_x_m;
+        edges += ops[2][i].true_height_m != ops[2][i - 1].true_height_m;
+    }
+    printf("  raster ops: %ld / %ld / %ld records, %ld of run 2's moved x, %ld moved z_s; %ld "
+           "ops differ from the 64-sample run's\n",
+           nrec[0], nrec[1], nrec[2], moved, edges, op_bad);
+    check_true(nrec[2] == nrec[0] && nrec[1] == nrec[0] && op_bad == 0 && moved > nrec[2] / 3 &&
+                   edges > 10,
+               "scan: every period record's op (Z, x, y, z_s, material) is the position update "
+               "in force at the sample its period ended on (= a run pushing one update at a time)");
     printf("  raster over the grating: %ld period records, %ld samples of stream 0, x up to %.1f "
            "nm, at the end (%.4g, %.4g) nm, mode %d\n",
            nrec[0], nx[0], xmax * 1e9, st[0].tip_x_m * 1e9, st[0].tip_y_m * 1e9, st[0].scan_mode);
-    check_true(applied == 2 && same,
+    check_true(applied == 3 && same,
                "scan: a raster's outputs are bit-identical for slices of 1024 and 700 samples");
     check_true(st[0].sample_on && st[0].scan_mode == AFM_SCAN_HOLD && st[0].scan_line == -1 &&
                    xmax > 3.9e-7 && fabs(st[0].tip_x_m) < 1e-9 && st[0].tip_y_m > 0.9e-8 &&

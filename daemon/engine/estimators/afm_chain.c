@@ -75,6 +75,10 @@ struct afm_chain {
     double cos_alpha;
     const afm_force_params *forces;
     afm_chain_stats stats;
+    /* afm_chain_push_ev_ends: where the records of the push in progress ended (NULL: no one
+     * asks), ends_base the index in the push of the pass's first sample */
+    int *ends;
+    int n_ends, max_ends, ends_base;
 };
 
 /* Write every page of [p, p + n) once, so that the first push does not take the page faults
@@ -488,6 +492,20 @@ AFM_CLONES static void estimators(afm_chain *c, const afm_sample *s, const doubl
         long long rl = mk[u].rejects;
         c->stats.estimator_rejects += rhc[u] > rl ? rhc[u] : rl;
     }
+    if (c->ends) /* afm_chain_push_ev_ends: a record's period ended on its run's last sample */
+        for (int u = 0; u < nm && c->n_ends < c->max_ends; u++)
+            if (mk[u].x_m) c->ends[c->n_ends++] = c->ends_base + mk[u].end - 1;
+}
+
+int afm_chain_push_ev_ends(afm_chain *c, const afm_sample *s, const afm_step_events *const *ev,
+                           int n, int *ends, int max_ends) {
+    const long long p0 = c->stats.periods;
+    c->ends = ends;
+    c->n_ends = 0;
+    c->max_ends = ends ? max_ends : 0;
+    afm_chain_push_ev(c, s, ev, n);
+    c->ends = NULL;
+    return (int)(c->stats.periods - p0);
 }
 
 int afm_chain_push_ev(afm_chain *c, const afm_sample *s, const afm_step_events *const *ev, int n) {
@@ -508,6 +526,7 @@ int afm_chain_push_ev(afm_chain *c, const afm_sample *s, const afm_step_events *
             for (int i = 0; i < k; i++)
                 f_buf[i] = p[i].f_n;
         }
+        c->ends_base = done;
         if (c->attached) estimators(c, p, obd_buf, f_buf, q_buf, ev ? ev + done : NULL, k);
         run_streams(c, p, obd_buf, f_buf, k);
         c->stats.pushed += k;

@@ -120,6 +120,14 @@ int afm_chain_push(afm_chain *c, const afm_sample *s, int n);
  * runner's daemon path, runner/afm_runner.c). Harmonics, lock-in and streams do not use the
  * records. Returns 0. */
 int afm_chain_push_ev(afm_chain *c, const afm_sample *s, const afm_step_events *const *ev, int n);
+/* afm_chain_push_ev, and where each period record it makes ended: ends[j] = the index in s
+ * of the sample the j-th record's period ended on (0..n-1, ascending), for j < max_ends (ends
+ * NULL: none). Returns the records made (afm_chain_periods' increase). What the chain
+ * computes is afm_chain_push_ev's, bit for bit: the runner pushes an item's samples in
+ * one piece and gives each record the tip's place at the sample its period ended on
+ * (issue 18, runner/afm_runner.c). */
+int afm_chain_push_ev_ends(afm_chain *c, const afm_sample *s, const afm_step_events *const *ev,
+                           int n, int *ends, int max_ends);
 
 /* The oldest waiting samples of stream i, at most max_n (<= 0: all that are contiguous).
  * Returns b->n; 0 when nothing waits, -1 for a bad stream index. */

@@ -205,8 +205,9 @@ struct afm_runner {
     } b_pop[AFM_CHAIN_PERIOD_RING];
     int b_pop_head, b_pop_runs, b_pop_n;
     long long b_samples, b_items, b_attach_errors, b_trash_lost;
-    const afm_step_events *b_ev[SLOT];  /* the item's samples' records (NULL: none) */
-    long long b_ev_samples;             /* samples whose metrics took a record */
+    const afm_step_events *b_ev[SLOT]; /* the item's samples' records (NULL: none) */
+    int b_ends[SLOT];       /* with a sample: the sample each record of a push ended on */
+    long long b_ev_samples; /* samples whose metrics took a record */
     afm_runner_model *held[TRASH_HELD]; /* trash waiting for space */
     int n_held;
     bool b_done_waiting; /* a DONE item passed, not yet taken (afm_runner_take_done) */
@@ -375,6 +376,35 @@ static void back_pop_take(afm_runner *r, int n, afm_runner_oppoint *ops) {
         ops[i] = r->b_op;
 }
 
+/* What is under the tip (and the stage Z) from sample l->at on, into b_op. */
+static void back_lat(afm_runner *r, const lat_change *l) {
+    r->b_op.z_m = l->z_m; /* the stage Z, not the gap, and what is under the tip */
+    r->b_op.tip_x_m = l->x_m;
+    r->b_op.tip_y_m = l->y_m;
+    r->b_op.true_height_m = l->h_m;
+    r->b_op.material = l->mat;
+}
+
+/* With a sample: the k records of a push of the item's samples [from, to), the j-th ended on
+ * sample from + b_ends[j]: each gets the stage Z and the tip's place in force at that sample
+ * (the item's lc from *il on, applied to b_op as the ends pass them), by runs of equal ops.
+ * The same ops as a push cut at every lc would give (issue 18), without the cuts. */
+static void back_pop_put_ends(afm_runner *r, const ring_item *it, int from, int to, int k,
+                              int *il) {
+    int run = 0;
+    for (int j = 0; j < k; j++) {
+        const int a = j < SLOT ? from + r->b_ends[j] : to - 1; /* j < SLOT: k <= to - from */
+        if (*il < it->n_lc && it->lc[*il].at <= a) {
+            back_pop_put(r, run);
+            run = 0;
+            while (*il < it->n_lc && it->lc[*il].at <= a)
+                back_lat(r, &it->lc[(*il)++]);
+        }
+        run++;
+    }
+    back_pop_put(r, run);
+}
+
 /* The records of the item's samples into r->b_ev (afm_runner_step_events): true when at least
  * one sample has one. */
 static bool back_events(afm_runner *r, const ring_item *it) {
@@ -410,36 +440,38 @@ static void back_item(afm_runner *r, ring_item *it) {
             r->b_op.tip_x_m = r->b_op.tip_y_m = r->b_op.true_height_m = 0.0;
             r->b_op.material = 0;
         }
-        /* Sub-slices between the changes of Z (zc) and of the stage Z and tip (lc), so that
-         * every period record gets the operating point of the sample it ended on, however
-         * the samples were sliced into items (replay = daemon, bit for bit). */
+        /* Sub-slices between the changes of Z (zc: the chain's contact line follows the gap),
+         * so that every period record gets the operating point of the sample it ended on,
+         * however the samples were sliced into items (replay = daemon, bit for bit). With a
+         * sample, the stage Z and the tip (lc, every AFM_RUNNER_SCAN_SAMPLES while the tip
+         * moves) cut no push: the chain says where each record ended (afm_chain_push_ev_ends)
+         * and the record takes the lc in force at that sample, the op a cut there gave
+         * (issue 18: a cut costs the chain ~3100 instructions; on a grating the gap stands
+         * still over the flat 80 % of a line, and so do the pushes). */
         const bool ev = back_events(r, it);
         int from = 0, iz = 0, il = 0;
-        while (from < it->n || iz < it->n_zc || il < it->n_lc) {
+        while (from < it->n || iz < it->n_zc) {
             while (iz < it->n_zc && it->zc[iz].at <= from)
                 back_separation(r, it->zc[iz++].z_m);
-            while (il < it->n_lc && it->lc[il].at <= from) {
-                const lat_change *l = &it->lc[il++];
-                r->b_op.z_m = l->z_m; /* the stage Z, not the gap, and what is under the tip */
-                r->b_op.tip_x_m = l->x_m;
-                r->b_op.tip_y_m = l->y_m;
-                r->b_op.true_height_m = l->h_m;
-                r->b_op.material = l->mat;
-            }
             if (!it->lat_on) r->b_op.z_m = r->b_z;
             int to = it->n;
             if (iz < it->n_zc && it->zc[iz].at < to) to = it->zc[iz].at;
-            if (il < it->n_lc && it->lc[il].at < to) to = it->lc[il].at;
             if (to <= from) {
                 if (from >= it->n) break;
                 continue;
             }
-            long long p0 = afm_chain_periods(r->chain);
-            if (ev) /* each sample with its own record, however the item is sub-sliced */
-                afm_chain_push_ev(r->chain, it->s + from, r->b_ev + from, to - from);
-            else
-                afm_chain_push(r->chain, it->s + from, to - from);
-            back_pop_put(r, afm_chain_periods(r->chain) - p0);
+            while (il < it->n_lc && it->lc[il].at <= from) /* in force from the push's start */
+                back_lat(r, &it->lc[il++]);
+            const afm_step_events *const *e = ev ? r->b_ev + from : NULL;
+            if (il < it->n_lc && it->lc[il].at < to) { /* the tip moves within the push */
+                int k =
+                    afm_chain_push_ev_ends(r->chain, it->s + from, e, to - from, r->b_ends, SLOT);
+                back_pop_put_ends(r, it, from, to, k, &il);
+            } else { /* one op for the push (no sample, or a tip that holds), as before */
+                long long p0 = afm_chain_periods(r->chain);
+                afm_chain_push_ev(r->chain, it->s + from, e, to - from);
+                back_pop_put(r, afm_chain_periods(r->chain) - p0);
+            }
             from = to;
         }
         if (it->lat_on) { /* after the item: its last sample's */

@@ -265,9 +265,11 @@ typedef struct {
 } afm_runner_oppoint;
 
 /* As afm_runner_take_periods(_raw), with ops[i] the operating point of out[i]: that of the
- * ring item its period ended in (Z, drive, the tip's place), whenever the records are
- * taken, so that the outputs do not depend on how often the caller takes them (the daemon
- * every block, replay every --block; issue 18: a moving tip, a Z loop). ops may be NULL. */
+ * sample its period ended on (Z, drive, and with a sample the stage Z and the tip's place:
+ * the position update in force at that sample, every AFM_RUNNER_SCAN_SAMPLES while the tip
+ * moves), whenever the records are taken, so that the outputs do not depend on how often the
+ * caller takes them (the daemon every block, replay every --block; issue 18: a moving tip, a
+ * Z loop). ops may be NULL. */
 int afm_runner_take_periods_op(afm_runner *r, afm_chain_period *out, afm_runner_oppoint *ops,
                                int max);
 int afm_runner_take_periods_raw_op(afm_runner *r, afm_chain_period *out, afm_runner_oppoint *ops,
