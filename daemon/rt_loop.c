@@ -30,7 +30,10 @@
  * taken, nothing published and SIGTERM not handled (measured: a pinned daemon behind real
  * time ran on for 10 minutes). So after SHARE_AFTER_S without a wait the loop naps
  * SHARE_NAP_NS: at most 2 % of a twin that is behind anyway, nothing while it keeps up. */
+#define _GNU_SOURCE /* sem_clockwait (glibc 2.30) */
 #include "twind.h"
+
+#include <errno.h>
 
 #include <limits.h>
 #include <math.h>
@@ -184,6 +187,17 @@ static void share_cpu(rt_ctx *c) {
     c->waited_at = ts_sec(&n);
 }
 
+/* Ahead of wall time (realtime mode): sleep to the block's deadline, or until a command
+ * is queued. The posts of commands taken while running are stale: dropped first; then the
+ * wait only if none is queued (one queued after the check posts, the wait returns at once). */
+static void wait_deadline(twind *d, const struct timespec *deadline) {
+    while (sem_trywait(&d->cmd_sem) == 0) {
+    }
+    if (afm_spsc_peek(&d->cmd_q)) return;
+    while (sem_clockwait(&d->cmd_sem, CLOCK_MONOTONIC, deadline) != 0 && errno == EINTR) {
+    }
+}
+
 void *twind_rt_main(void *arg) {
     twind_thread_name("afm-rt");
     twind *d = arg;
@@ -234,6 +248,27 @@ void *twind_rt_main(void *arg) {
          * soon as it is made, and commands that arrive meanwhile apply at the next item
          * (73 us of model time at 14.06 MHz) instead of the next block. */
         long long left = block < budget ? block : budget;
+        if (d->opt.mode == TWIND_REALTIME) {
+            /* Ahead of wall time (a turn woken early by a command): no further than one
+             * block ahead; at least one item (or the block), waiting for room if need be. */
+            double ahead_s = ts_sec(&origin) +
+                             (double)(c.snap.st.samples - origin_samples) * dt / speed -
+                             ts_sec(&t_start);
+            long long cap = llround((d->opt.block_s - ahead_s) * speed / dt);
+            if (cap < left) {
+                long long least = left < AFM_RUNNER_SLOT_SAMPLES ? left : AFM_RUNNER_SLOT_SAMPLES;
+                if (cap < least) {
+                    struct timespec until = origin;
+                    ts_add(&until, (double)(c.snap.st.samples + least - origin_samples) * dt /
+                                           speed - d->opt.block_s);
+                    clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &until, NULL);
+                    apply_commands(&c); /* those that came meanwhile: at this item too */
+                    clock_gettime(CLOCK_MONOTONIC, &t_start);
+                    cap = least;
+                }
+                left = cap;
+            }
+        }
         double napped = 0; /* waiting for ring space is not busy */
         while (left > 0 && !atomic_load_explicit(&d->stop, memory_order_relaxed)) {
             long long piece = left < AFM_RUNNER_SLOT_SAMPLES ? left : AFM_RUNNER_SLOT_SAMPLES;
@@ -287,8 +322,9 @@ void *twind_rt_main(void *arg) {
             }
             twind_snap_write(d, &c.snap);
             if (late < 0) {
-                clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &deadline, NULL);
-                c.waited_at = ts_sec(&deadline);
+                wait_deadline(d, &deadline);
+                clock_gettime(CLOCK_MONOTONIC, &now);
+                c.waited_at = ts_sec(&now);
             }
         } else {
             c.snap.lag_s = 0;
