@@ -1,15 +1,28 @@
 /* SPDX-License-Identifier: MIT */
 /* rt_loop.c -- the real-time (integrator) thread: commands in at block boundaries, one block
- * of the twin integrated into the runner's ring for the chain thread, then sleep to the
- * block's absolute deadline (realtime mode).
+ * of the twin integrated into the runner's ring for the chain thread, then wait for the
+ * block's absolute deadline or a command, whichever comes first (realtime mode).
  *
  * The block is run one ring item (AFM_RUNNER_SLOT_SAMPLES) at a time, with the chain
  * thread woken and the command queue read after each, so that a command reaches the
  * outputs about one item after it arrives, not one block.
  *
+ * Commands during the wait (the setpoint -> first samples latency; docs/realtime.md, "A
+ * command's latency"): the integrator runs a block in a fraction of its wall time, then
+ * waits, ahead of wall time, for the block's deadline; a command that came then waited
+ * for the deadline too (up to a block: the median of bench-daemon's latency was 1.02 ms at
+ * --block-us 1000). The wait is now sem_clockwait on cmd_sem (posted with every command
+ * queued) with the same absolute deadline: a command wakes the loop, which applies it and
+ * runs on at once, but never further ahead of wall time than one block (the lead the
+ * block rhythm allowed before): the turn runs what fits under that, at least one item,
+ * first waiting (clock_nanosleep) until one item fits. So a command costs one wake-up of
+ * this thread; without commands it wakes once a block as before, and a stream of
+ * commands at most once per batch of the receive thread.
+ *
  * Never blocks, locks or allocates: queues are lock-free SPSC, the runner allocates nothing
- * after create, clock_nanosleep is the only wait (its deadline is absolute, so jitter does
- * not accumulate), sem_post the only signal. Pacing in realtime mode: model time is tied to
+ * after create, clock_nanosleep and the waits on cmd_sem are the only waits (their deadlines
+ * are absolute, so jitter does not accumulate), sem_post the only signal. Pacing in
+ * realtime mode: model time is tied to
  * CLOCK_MONOTONIC by an origin (wall = origin + samples dt / speed); the deadline of a
  * block is the wall time its last sample represents. A block that ends after its deadline
  * is an overrun; the loop then runs on without sleeping to catch up (lag_s says how far
@@ -30,7 +43,10 @@
  * taken, nothing published and SIGTERM not handled (measured: a pinned daemon behind real
  * time ran on for 10 minutes). So after SHARE_AFTER_S without a wait the loop naps
  * SHARE_NAP_NS: at most 2 % of a twin that is behind anyway, nothing while it keeps up. */
+#define _GNU_SOURCE /* sem_clockwait (glibc 2.30) */
 #include "twind.h"
+
+#include <errno.h>
 
 #include <limits.h>
 #include <math.h>
@@ -184,6 +200,17 @@ static void share_cpu(rt_ctx *c) {
     c->waited_at = ts_sec(&n);
 }
 
+/* Ahead of wall time (realtime mode): sleep to the block's deadline, or until a command
+ * is queued. The posts of commands taken while running are stale: dropped first; then the
+ * wait only if none is queued (one queued after the check posts, the wait returns at once). */
+static void wait_deadline(twind *d, const struct timespec *deadline) {
+    while (sem_trywait(&d->cmd_sem) == 0) {
+    }
+    if (afm_spsc_peek(&d->cmd_q)) return;
+    while (sem_clockwait(&d->cmd_sem, CLOCK_MONOTONIC, deadline) != 0 && errno == EINTR) {
+    }
+}
+
 void *twind_rt_main(void *arg) {
     twind_thread_name("afm-rt");
     twind *d = arg;
@@ -234,6 +261,28 @@ void *twind_rt_main(void *arg) {
          * soon as it is made, and commands that arrive meanwhile apply at the next item
          * (73 us of model time at 14.06 MHz) instead of the next block. */
         long long left = block < budget ? block : budget;
+        if (d->opt.mode == TWIND_REALTIME) {
+            /* Ahead of wall time (a turn woken early by a command): no further than one
+             * block ahead; at least one item (or the block), waiting for room if need be. */
+            double ahead_s = ts_sec(&origin) +
+                             (double)(c.snap.st.samples - origin_samples) * dt / speed -
+                             ts_sec(&t_start);
+            long long cap = llround((d->opt.block_s - ahead_s) * speed / dt);
+            if (cap < left) {
+                long long least = left < AFM_RUNNER_SLOT_SAMPLES ? left : AFM_RUNNER_SLOT_SAMPLES;
+                if (cap < least) {
+                    struct timespec until = origin;
+                    ts_add(&until,
+                           (double)(c.snap.st.samples + least - origin_samples) * dt / speed -
+                               d->opt.block_s);
+                    clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &until, NULL);
+                    apply_commands(&c); /* those that came meanwhile: at this item too */
+                    clock_gettime(CLOCK_MONOTONIC, &t_start);
+                    cap = least;
+                }
+                left = cap;
+            }
+        }
         double napped = 0; /* waiting for ring space is not busy */
         while (left > 0 && !atomic_load_explicit(&d->stop, memory_order_relaxed)) {
             long long piece = left < AFM_RUNNER_SLOT_SAMPLES ? left : AFM_RUNNER_SLOT_SAMPLES;
@@ -287,8 +336,9 @@ void *twind_rt_main(void *arg) {
             }
             twind_snap_write(d, &c.snap);
             if (late < 0) {
-                clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &deadline, NULL);
-                c.waited_at = ts_sec(&deadline);
+                wait_deadline(d, &deadline);
+                clock_gettime(CLOCK_MONOTONIC, &now);
+                c.waited_at = ts_sec(&now);
             }
         } else {
             c.snap.lag_s = 0;

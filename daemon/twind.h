@@ -12,9 +12,10 @@
  *  - build (build_worker.c): the models that damping/geometry changes, SIGHUP reloads and
  *    dithers under the internal AM Z loop bring, one at a time at SCHED_FIFO 1; the command
  *    and those after it wait in the receive thread's hold ring meanwhile.
- *  - rt (rt_loop.c): the runner's integrator stage. Pops cmd_q at block boundaries,
+ *  - rt (rt_loop.c): the runner's integrator stage. Pops cmd_q before every ring item,
  *    integrates a block into the runner's ring (afm_runner, pipelined), paces realtime
- *    mode, updates the snapshot (seqlock). Never blocks, locks or allocates.
+ *    mode (waits for a block's deadline or a command: cmd_sem), updates the snapshot
+ *    (seqlock). Never blocks, locks or allocates.
  *  - chain (chain_loop.c): the runner's output-chain stage, on a second core. Takes the
  *    ring's sample blocks through OBD, decimators and estimators, pushes samples
  *    (samples_q) and harmonics (harm_q), updates its own snapshot. Never blocks, locks or
