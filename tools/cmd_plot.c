@@ -911,7 +911,7 @@ static const char *kind_title(const char *kind) {
              {"trace", "time trace of the daemon outputs"},
              {"fm", "FM channels of the daemon outputs"},
              {"spectrum", "harmonic spectrum"},
-             {"scan", "scan"},
+             {"scan", "scan: height, phase lag, amplitude error and peak force"},
              {"continue", "bifurcation diagram"},
              {"force-curve", "force-distance curve"}};
     for (size_t i = 0; i < sizeof t / sizeof t[0]; i++)
