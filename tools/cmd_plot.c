@@ -739,8 +739,11 @@ static int load_thermal(const plot_opts *o, plot_data *d, FILE *gp) {
             char with[64], t[96];
             snprintf(with, sizeof with, "with lines lw 2 lc rgb '%s'", fc[i % 4]);
             const cJSON *nn = cJSON_GetObjectItemCaseSensitive(m, "n");
-            snprintf(t, sizeof t, "eq. 5.1 fit, mode %d: f %.6g kHz, Q %.4g, k %.4g N/m",
-                     cJSON_IsNumber(nn) ? nn->valueint : i + 1, fn * 1e-3, q, kk);
+            /* MHz from 1 MHz: "f 5800.55 kHz" on the axis' 1M tic read badly */
+            const bool mhz = fn >= 1e6;
+            snprintf(t, sizeof t, "eq. 5.1 fit, mode %d: f %.6g %s, Q %.4g, k %.4g N/m",
+                     cJSON_IsNumber(nn) ? nn->valueint : i + 1, fn * (mhz ? 1e-6 : 1e-3),
+                     mhz ? "MHz" : "kHz", q, kk);
             plot_key_add(&k, with, t);
             /* eq. 5.1, folded at fs: F(x, f, Q, k, T, fs) defined before the plot */
             double hi = fn * (1 + 8 / q);
