@@ -625,7 +625,7 @@ static int load_sweep(const plot_opts *o, plot_data *d, FILE *gp) {
     if (pm->n) plot_key_add(&k, "with points ls 11", "period p > 1 (p labelled)");
     if (um->n) plot_key_add(&k, "with points ls 12", "not settled (or periodicity 0)");
     snprintf(d->note, sizeof d->note, "%s",
-             squeeze ? "energy dissipated per period in the last period: E_ts by the tip-sample "
+             squeeze ? "energy dissipated in the last drive period: E_ts by the tip-sample "
                        "forces, E_sq by the squeeze film (air under the beam)"
                      : "E_ts: the energy the tip-sample forces dissipate in the last period");
     snprintf(d->note2, sizeof d->note2, "%s", PLOT_LAG_NOTE);
