@@ -264,8 +264,8 @@ static int parse_args(int argc, char **argv, plot_opts *o) {
     int rc = afmt_opts_parse("plot", opts, argc, argv, 1);
     if (rc) return rc == AFMT_OPTS_HELP ? 1 : -1;
     if (!o->kind)
-        return plot_err("%s", "KIND is required (sweep, approach, thermal, trace, spectrum, scan, "
-                              "continue, force-curve)");
+        return plot_err("%s", "KIND is required (sweep, approach, thermal, trace, fm, spectrum, "
+                              "scan, continue, force-curve, map)");
     if (o->n_in == 0) return plot_err("%s", "an INPUT file is required");
     for (int i = 0; i < o->n_in; i++)
         if (quotable("input", o->in[i])) return -1;
@@ -975,7 +975,7 @@ int afm_cmd_plot(int argc, char **argv) {
     if (k < 0) {
         fprintf(stderr,
                 "afmtwin plot: unknown kind '%s' (sweep, approach, thermal, trace, fm, "
-                "spectrum, scan, continue, force-curve)\n",
+                "spectrum, scan, continue, force-curve, map)\n",
                 o.kind);
         return 2;
     }
