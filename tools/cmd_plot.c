@@ -801,6 +801,13 @@ static int load_spectrum(const plot_opts *o, plot_data *d, FILE *gp) {
     spectrum_ctx c = {.want = o->index,
                       .s = plot_curve_new(d, "H", "", "k[harmonic] amplitude[nm]", 2)};
     if (!c.s || plot_each_json(o->in[0], spectrum_row, &c)) return -1;
+    if (c.s->n == 0 && c.seen > 0) { /* say what --index may be */
+        fprintf(stderr,
+                "afmtwin plot: %s: no record with harmonics at --index %d: it has %d (0..%d; -1 "
+                "the last)\n",
+                o->in[0], o->index, c.seen, c.seen - 1);
+        return -1;
+    }
     if (c.s->n == 0) return plot_err("%s: no record with harmonics at that --index", o->in[0]);
     plot_info_z(&d->info, c.z);
     plot_info_fe(&d->info, c.fe);
