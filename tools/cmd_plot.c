@@ -882,10 +882,19 @@ static int load_force_curve(const plot_opts *o, plot_data *d, FILE *gp) {
     for (size_t i = 0; i < c.ap->n; i++)
         plot_info_z(&d->info, plot_cell(c.ap, i, 0) * 1e-9);
     d->info.no_drive = true;
+    /* the ramp speed in the unit a user sets it in: "30 nm/s", "1 um/s", not "3e-08 m/s" */
+    const double v = c.speed_m_s, av = fabs(v);
+    const bool nm = av < 1e-6, um = !nm && av < 1e-3;
     snprintf(d->note, sizeof d->note,
-             "drive off, Z ramped at %.3g m/s; spring k %.4g N/m; adhesion (force at pull-off) "
+             "drive off, Z ramped at %.3g %s; spring k %.4g N/m; adhesion (force at pull-off) "
              "%.4g nN",
-             c.speed_m_s, c.k_n_m, c.adhesion_n * 1e9);
+             nm   ? v * 1e9
+             : um ? v * 1e6
+                  : v,
+             nm   ? "nm/s"
+             : um ? "um/s"
+                  : "m/s",
+             c.k_n_m, c.adhesion_n * 1e9);
     if (isnan(c.adhesion_n)) snprintf(d->note, sizeof d->note, "drive off; no pull-off found");
     bool snap = false, pull = false;
     for (size_t i = 0; i < c.ev->n; i++) {
