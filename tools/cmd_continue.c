@@ -372,10 +372,12 @@ static int cont_emit_record(void *ctx, const afm_cont_record *r) {
         memcpy(e->y, r->y, sizeof(double) * (size_t)r->n_mult);
     }
     if (!s->json) {
-        if (r->kind == AFM_CONT_END)
-            printf("# branch %d (period %d, from branch %d) ends after %d points: %s\n", r->branch,
-                   r->p, r->parent, r->points, r->stop_reason);
-        else if (r->kind == AFM_CONT_BRANCH)
+        if (r->kind == AFM_CONT_END) {
+            char from[32] = ""; /* the start branch has no parent (-1): said nothing of */
+            if (r->parent >= 0) snprintf(from, sizeof from, ", from branch %d", r->parent);
+            printf("# branch %d (period %d%s) ends after %d points: %s\n", r->branch, r->p, from,
+                   r->points, r->stop_reason);
+        } else if (r->kind == AFM_CONT_BRANCH)
             printf("# branch %d (period %d): %s\n", r->branch, r->p, r->how);
         else
             printf("%-5s %3d %2d %14.8g %-8s %12.6f %12.6f %10.5f %12.6f %8.3f\n",
@@ -607,9 +609,16 @@ int afm_cmd_continue(int argc, char **argv) {
                        .max_ev = o.param2 ? o.curves : 0,
                        .want_lpc = o.curve_kinds < 0 || (o.curve_kinds & CURVES_LPC),
                        .want_pd = o.curve_kinds < 0 || (o.curve_kinds & CURVES_PD)};
-    if (!o.json)
-        printf("# %-3s %3s %2s %14s %-8s %12s %12s %10s %12s %8s\n", "kind", "br", "p", unit, "",
+    if (!o.json) {
+        /* the parameter's column by its name and unit ("z (m)", "fe (kHz)"), not the unit
+         * alone; and what the lag is, as every other tool's header says */
+        char pcol[96];
+        snprintf(pcol, sizeof pcol, "%s (%s)", o.param, unit);
+        printf("# lag: of the deflection behind the drive (90 deg free at resonance); br: "
+               "branch, p: period\n");
+        printf("# %-3s %3s %2s %14s %-8s %12s %12s %10s %12s %8s\n", "kind", "br", "p", pcol, "",
                "min x (nm)", "max x (nm)", "max F (nN)", "ampl (nm)", "lag (deg)");
+    }
     afm_cont_summary sum;
     afmt_progress_init(&sink.pg);
     if (afm_cont_run(&cfg, &co, cont_emit, &sink, &sum, err, sizeof err) != 0) {

@@ -41,7 +41,8 @@ static void plot_usage(FILE *f) {
             "                    [--script FILE] [--size WxH] [kind options]\n\n"
             "Draws a result with gnuplot (pngcairo; an output name ending in .svg gives SVG):\n"
             "the title, under it the config and the drive, one legend for all panels in a\n"
-            "strip under the title (never on the data), and the panels. Kinds:\n"
+            "strip under the title (scan: right of the panels; never on the data), and the\n"
+            "panels. Kinds:\n"
             "  sweep     INPUT: afmtwin sweep --json output(s), e.g. a forward and a backward\n"
             "            sweep: amplitude (half peak-to-peak of xr), lock-in phase lag and the\n"
             "            largest tip-sample force against fe; steps with periodicity p > 1\n"
@@ -263,8 +264,8 @@ static int parse_args(int argc, char **argv, plot_opts *o) {
     int rc = afmt_opts_parse("plot", opts, argc, argv, 1);
     if (rc) return rc == AFMT_OPTS_HELP ? 1 : -1;
     if (!o->kind)
-        return plot_err("%s", "KIND is required (sweep, approach, thermal, trace, spectrum, scan, "
-                              "continue, force-curve)");
+        return plot_err("%s", "KIND is required (sweep, approach, thermal, trace, fm, spectrum, "
+                              "scan, continue, force-curve, map)");
     if (o->n_in == 0) return plot_err("%s", "an INPUT file is required");
     for (int i = 0; i < o->n_in; i++)
         if (quotable("input", o->in[i])) return -1;
@@ -624,7 +625,7 @@ static int load_sweep(const plot_opts *o, plot_data *d, FILE *gp) {
     if (pm->n) plot_key_add(&k, "with points ls 11", "period p > 1 (p labelled)");
     if (um->n) plot_key_add(&k, "with points ls 12", "not settled (or periodicity 0)");
     snprintf(d->note, sizeof d->note, "%s",
-             squeeze ? "energy dissipated per period in the last period: E_ts by the tip-sample "
+             squeeze ? "energy dissipated in the last drive period: E_ts by the tip-sample "
                        "forces, E_sq by the squeeze film (air under the beam)"
                      : "E_ts: the energy the tip-sample forces dissipate in the last period");
     snprintf(d->note2, sizeof d->note2, "%s", PLOT_LAG_NOTE);
@@ -738,8 +739,11 @@ static int load_thermal(const plot_opts *o, plot_data *d, FILE *gp) {
             char with[64], t[96];
             snprintf(with, sizeof with, "with lines lw 2 lc rgb '%s'", fc[i % 4]);
             const cJSON *nn = cJSON_GetObjectItemCaseSensitive(m, "n");
-            snprintf(t, sizeof t, "eq. 5.1 fit, mode %d: f %.6g kHz, Q %.4g, k %.4g N/m",
-                     cJSON_IsNumber(nn) ? nn->valueint : i + 1, fn * 1e-3, q, kk);
+            /* MHz from 1 MHz: "f 5800.55 kHz" on the axis' 1M tic read badly */
+            const bool mhz = fn >= 1e6;
+            snprintf(t, sizeof t, "eq. 5.1 fit, mode %d: f %.6g %s, Q %.4g, k %.4g N/m",
+                     cJSON_IsNumber(nn) ? nn->valueint : i + 1, fn * (mhz ? 1e-6 : 1e-3),
+                     mhz ? "MHz" : "kHz", q, kk);
             plot_key_add(&k, with, t);
             /* eq. 5.1, folded at fs: F(x, f, Q, k, T, fs) defined before the plot */
             double hi = fn * (1 + 8 / q);
@@ -797,6 +801,13 @@ static int load_spectrum(const plot_opts *o, plot_data *d, FILE *gp) {
     spectrum_ctx c = {.want = o->index,
                       .s = plot_curve_new(d, "H", "", "k[harmonic] amplitude[nm]", 2)};
     if (!c.s || plot_each_json(o->in[0], spectrum_row, &c)) return -1;
+    if (c.s->n == 0 && c.seen > 0) { /* say what --index may be */
+        fprintf(stderr,
+                "afmtwin plot: %s: no record with harmonics at --index %d: it has %d (0..%d; -1 "
+                "the last)\n",
+                o->in[0], o->index, c.seen, c.seen - 1);
+        return -1;
+    }
     if (c.s->n == 0) return plot_err("%s: no record with harmonics at that --index", o->in[0]);
     plot_info_z(&d->info, c.z);
     plot_info_fe(&d->info, c.fe);
@@ -871,10 +882,19 @@ static int load_force_curve(const plot_opts *o, plot_data *d, FILE *gp) {
     for (size_t i = 0; i < c.ap->n; i++)
         plot_info_z(&d->info, plot_cell(c.ap, i, 0) * 1e-9);
     d->info.no_drive = true;
+    /* the ramp speed in the unit a user sets it in: "30 nm/s", "1 um/s", not "3e-08 m/s" */
+    const double v = c.speed_m_s, av = fabs(v);
+    const bool nm = av < 1e-6, um = !nm && av < 1e-3;
     snprintf(d->note, sizeof d->note,
-             "drive off, Z ramped at %.3g m/s; spring k %.4g N/m; adhesion (force at pull-off) "
+             "drive off, Z ramped at %.3g %s; spring k %.4g N/m; adhesion (force at pull-off) "
              "%.4g nN",
-             c.speed_m_s, c.k_n_m, c.adhesion_n * 1e9);
+             nm   ? v * 1e9
+             : um ? v * 1e6
+                  : v,
+             nm   ? "nm/s"
+             : um ? "um/s"
+                  : "m/s",
+             c.k_n_m, c.adhesion_n * 1e9);
     if (isnan(c.adhesion_n)) snprintf(d->note, sizeof d->note, "drive off; no pull-off found");
     bool snap = false, pull = false;
     for (size_t i = 0; i < c.ev->n; i++) {
@@ -911,7 +931,7 @@ static const char *kind_title(const char *kind) {
              {"trace", "time trace of the daemon outputs"},
              {"fm", "FM channels of the daemon outputs"},
              {"spectrum", "harmonic spectrum"},
-             {"scan", "scan"},
+             {"scan", "scan: height, phase lag, amplitude error and peak force"},
              {"continue", "bifurcation diagram"},
              {"force-curve", "force-distance curve"}};
     for (size_t i = 0; i < sizeof t / sizeof t[0]; i++)
@@ -971,7 +991,7 @@ int afm_cmd_plot(int argc, char **argv) {
     if (k < 0) {
         fprintf(stderr,
                 "afmtwin plot: unknown kind '%s' (sweep, approach, thermal, trace, fm, "
-                "spectrum, scan, continue, force-curve)\n",
+                "spectrum, scan, continue, force-curve, map)\n",
                 o.kind);
         return 2;
     }

@@ -142,6 +142,8 @@ static int load_approach_fm(const plot_opts *o, plot_data *d, FILE *gp) {
                 "set style line 2 lc rgb '#009e73' lw 1.5 pt 6 ps 0.7\n"
                 "set style line 3 lc rgb 'black' lw 1 dt 2\n"
                 "set style line 12 lc rgb 'black' lw 1.5 pt 2 ps 1.6\n");
+    if (!o->title && c.app->n && c.ret->n)
+        snprintf(d->title, sizeof d->title, "approach and retract curve");
     plot_key k = {0};
     if (c.app->n) plot_key_add(&k, "with linespoints ls 1", "approach");
     if (c.ret->n) plot_key_add(&k, "with linespoints ls 2", "retract");
@@ -222,6 +224,9 @@ int load_approach(const plot_opts *o, plot_data *d, FILE *gp) {
                 "set style line 12 lc rgb 'black' lw 1.5 pt 2 ps 1.6\n"
                 "set style arrow 1 head filled size screen 0.012,20 ls 5\n"
                 "set style arrow 2 head filled size screen 0.012,20 ls 6\n");
+    /* the default title says when the curve has its retract too */
+    if (!o->title && c.app->n && c.ret->n)
+        snprintf(d->title, sizeof d->title, "approach and retract curve");
     plot_key k = {0};
     if (c.app->n) plot_key_add(&k, "with linespoints ls 1", "approach");
     if (c.ret->n) plot_key_add(&k, "with linespoints ls 2", "retract");

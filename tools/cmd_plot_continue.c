@@ -435,8 +435,17 @@ int load_continue(const plot_opts *o, plot_data *d, FILE *gp) {
         fprintf(gp, "set style line %d lc rgb '%s' pt %s ps 1.3\n", 11 + k, ev[k][2], ev[k][1]);
     plot_key k = {0};
     /* the line styles' samples in grey: black is branch b6's colour */
-    plot_key_add(&k, "with lines lw 2 lc rgb 'gray50'", "stable");
-    plot_key_add(&k, "with lines lw 1.2 dt 2 lc rgb 'gray50'", "unstable");
+    /* only the kinds drawn: a legend 'unstable' over a wholly stable branch misleads */
+    bool any_st = false, any_un = false;
+    for (size_t r = 0; r < c.n; r++) {
+        if (c.rec[r].event != 0) continue;
+        if (c.rec[r].stable)
+            any_st = true;
+        else
+            any_un = true;
+    }
+    if (any_st || !any_un) plot_key_add(&k, "with lines lw 2 lc rgb 'gray50'", "stable");
+    if (any_un || !any_st) plot_key_add(&k, "with lines lw 1.2 dt 2 lc rgb 'gray50'", "unstable");
     /* each branch: its period and how it was reached (parent, event) */
     for (int q = 0; q < c.n_branch && c.n_branch > 1; q++) {
         char with[64];

@@ -122,6 +122,8 @@ int load_fm(const plot_opts *o, plot_data *d, FILE *gp) {
                  {5, "phase error (deg)", "lag (deg)"}};
     const int n = 4;
     const double px = ((top - b0) - (n - 1) * g) / n * d->H; /* a panel's height */
+    /* time up to the last record: gnuplot's round tics left 60 ms of records on a 70 ms axis */
+    fprintf(gp, "set autoscale xfixmax\n");
     for (int i = 0; i < n; i++) {
         plot_stack(gp, i, n, l, r, b0, top, g);
         plot_shared_x(gp, i, n, "model time (ms)");

@@ -212,6 +212,9 @@ void plot_info_line(const plot_info *pi, char *out, size_t n) {
     if (isfinite(a0)) {
         char s[32];
         fmt_m(s, sizeof s, a0);
+        /* alone (no fe or Ae known: no --config) A0 is no drive setting: "drive A0 20 nm"
+         * read as a drive amplitude */
+        if (b.pre[0]) b.pre = "free amplitude ";
         add(&b, "A0 %s", s);
     }
     if (pi->no_z) return;
