@@ -200,9 +200,11 @@ static void share_cpu(rt_ctx *c) {
     c->waited_at = ts_sec(&n);
 }
 
-/* Ahead of wall time (realtime mode): sleep to the block's deadline, or until a command
- * is queued. The posts of commands taken while running are stale: dropped first; then the
- * wait only if none is queued (one queued after the check posts, the wait returns at once). */
+/* Until the absolute CLOCK_MONOTONIC deadline or a queued command, whichever is first: ahead
+ * of wall time (realtime mode) to the block's deadline, and idle (paused, waiting for ticks)
+ * for IDLE_WAIT_NS. The posts of commands taken while running are stale: dropped first; then
+ * the wait only if none is queued (one queued after the check posts, the wait returns at
+ * once). */
 static void wait_deadline(twind *d, const struct timespec *deadline) {
     while (sem_trywait(&d->cmd_sem) == 0) {
     }
@@ -242,14 +244,10 @@ void *twind_rt_main(void *arg) {
             c.snap.heartbeat++;
             c.snap.lag_s = 0;
             twind_snap_write(d, &c.snap);
-            /* The posts of commands taken while running (nobody waited) are stale: drop
-             * them, then wait only if no command is queued (one queued after the check
-             * posts, and the wait returns at once). */
-            while (sem_trywait(&d->cmd_sem) == 0) {
-            }
-            struct timespec ts = twind_deadline_in(IDLE_WAIT_NS);
-            if (!afm_spsc_peek(&d->cmd_q))
-                sem_timedwait(&d->cmd_sem, &ts); /* EINTR, ETIMEDOUT: look again */
+            struct timespec ts; /* IDLE_WAIT_NS at most: a heartbeat, the stop flag */
+            clock_gettime(CLOCK_MONOTONIC, &ts);
+            ts_add(&ts, IDLE_WAIT_NS * 1e-9);
+            wait_deadline(d, &ts);
             clock_gettime(CLOCK_MONOTONIC, &origin);
             origin_samples = st.samples;
             c.last_end = c.waited_at = ts_sec(&origin);
