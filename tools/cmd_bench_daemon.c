@@ -461,14 +461,9 @@ static int bench_lockstep(const bd_opts *o, const char *config) {
                "a tick is bounded by its scheme's integration cost):\n");
     for (int run = 0; run < 4 && rc == 0; run++) {
         const int sch = run / 2, pin = run % 2;
-        const char *extra[12] = {"--mode", "lockstep", "--scheme", schemes[sch], NULL};
-        if (pin) {
-            static const char *const pinned[6] = {"--cpu", "0",         "--chain-cpu",
-                                                  "1",     "--aux-cpu", "0"};
-            for (int i = 0; i < 6; i++)
-                extra[4 + i] = pinned[i];
-            extra[10] = NULL;
-        }
+        const char *extra[] = {"--mode",      "lockstep", "--scheme",  schemes[sch], "--cpu", "0",
+                               "--chain-cpu", "1",        "--aux-cpu", "0",          NULL};
+        if (!pin) extra[4] = NULL; /* unpinned: the CPU plan left out */
         pid_t pid = start_daemon(o, config, NULL, extra);
         afmt_lcm lcm = {0};
         char err[256];
