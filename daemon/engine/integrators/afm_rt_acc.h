@@ -37,6 +37,21 @@ static inline double rt_fdot(const rt_state *r, const rt_snap *st, int np, int n
     return fma(st->dfdx_n_m, st->tip.v_m_s, st->dfdv_n_s_m * acc);
 }
 
+/* A graded piece's end into o (its tip x1, v1, force F1 and dF/dt fdot; the force from F0
+ * at its start, over k cells): what a following piece or step reads. Both forms of a graded
+ * piece end with it (rt_piece_acc_t here, the tip-channel node in afm_rt_tc.h). */
+static inline __attribute__((always_inline)) void rt_piece_end(const rt_state *r, rt_snap *o, int k,
+                                                               double F0, double F1, double x1,
+                                                               double v1, double fdot) {
+    o->slope_cells = 0;
+    o->acc_free = false;
+    o->df_per_cell_n = (F1 - F0) * r->inv_cells[k];
+    o->tip.x_m = x1;
+    o->tip.v_m_s = v1;
+    o->tip.f_n = F1;
+    o->fdot_n_s = fdot;
+}
+
 /* Advance in by k cells into o (o may be in); herm: the force Hermite in time, else linear
  * (a piece beside a crossing). Leaves o->fdot_n_s for the next piece, and with rec (a step
  * record is kept: afm_rt_evrec.h) o->acc_m_s2, from the sums the piece forms anyway. */
@@ -150,13 +165,7 @@ rt_piece_acc_t(const afm_sim *s, const rt_state *r, const rt_snap *in, rt_snap *
         if (rec) o->acc_m_s2 = acc; /* the state is final */
     }
     rt_tones_store(o->z_re, o->z_im, zr1, zi1, nt);
-    o->slope_cells = 0;
-    o->acc_free = false;
-    o->df_per_cell_n = (F1 - F0) * r->inv_cells[k];
-    o->tip.x_m = x1;
-    o->tip.v_m_s = v1;
-    o->tip.f_n = F1;
-    o->fdot_n_s = fdot;
+    rt_piece_end(r, o, k, F0, F1, x1, v1, fdot);
 }
 
 /* rt_piece_acc_t out of line for the contact pieces, the sizes picked once. */

@@ -223,13 +223,7 @@ rt_graded_tc_t(const afm_sim *s, const rt_state *r, const rt_snap *a, rt_snap *b
             x1 = fma(gdx, dd, x1);
             v1 = fma(gdv, dd, v1);
             if (evs) o->acc_m_s2 = fma(gda, dd, acc);
-            o->slope_cells = 0;
-            o->acc_free = false;
-            o->df_per_cell_n = (F1 - F0) * r->inv_cells[k];
-            o->tip.x_m = x1;
-            o->tip.v_m_s = v1;
-            o->tip.f_n = F1;
-            o->fdot_n_s = fdot;
+            rt_piece_end(r, o, k, F0, F1, x1, v1, fdot);
             F[p] = F1;
             D[p] = tau * fdot;
             redo = (x1 < xc && xc - x1 < close * fabs(v1)) || rt_crosses(r, in, o, tau);
