@@ -283,6 +283,7 @@ bench: deps
 	$(BUILD)/bin/afmtwin bench-states
 	$(BUILD)/bin/afmtwin bench-states --config config/scan-grating.conf --only "sample:"
 	$(BUILD)/bin/afmtwin bench-scheme
+	sh tools/bench-ir.sh $(BUILD)
 	sh tools/bench-fm.sh $(BUILD)
 	$(BUILD)/bin/afmtwin bench-daemon --daemon $(BUILD)/bin/afmtwind
 	bash tools/bench-march.sh $(BUILD)

@@ -145,6 +145,8 @@ typedef struct {
     double int_ns, chain_ns;         /* mean per sample over the window */
     double int_worst, chain_worst;   /* the worst ring item, ns per sample */
     long long rebuilds, applied_bad; /* estimator table rebuilds in the window; failed commands */
+    long long samples_run;           /* every sample afm_runner_run took for the state (settling,
+                                      * set-up and window: what a callgrind count divides by) */
 } state_result;
 
 typedef struct {
@@ -154,6 +156,7 @@ typedef struct {
     long long seq;
     double sum_i, sum_c, worst_i, worst_c;
     long long n, bad;
+    long long all;     /* samples run, timed or not */
     long long periods; /* period records taken (which ones are finished: drain) */
     bool timing;
 } bench_twin;
@@ -218,6 +221,7 @@ static long long run(bench_twin *t, long long n) {
         drain(t);
         double t2 = afmt_mono_s();
         if (adv <= 0) break;
+        t->all += adv;
         if (t->timing) {
             double ni = (t1 - t0) * 1e9, nc = (t2 - t1) * 1e9;
             t->sum_i += ni;
@@ -471,6 +475,7 @@ static int run_state(const afm_config *cfg, double uptime_s, state_id id, state_
     out->int_worst = t.worst_i;
     out->chain_worst = t.worst_c;
     out->rebuilds = cs1.chain.estimator_rebuilds - cs0.chain.estimator_rebuilds;
+    out->samples_run = t.all;
     out->applied_bad = t.bad;
     afm_runner_destroy(&t.r);
     return 0;
@@ -578,7 +583,9 @@ static void usage(FILE *f) {
             "                 would run: the config's sim.rt_scheme if it names one, else both\n"
             "                 measured on this machine as the daemon's --scheme auto does),\n"
             "                 accurate or fast (forced; other integrators have no schemes)\n"
-            "  --json         one JSON object on stdout\n"
+            "  --json         one JSON object on stdout (per state also samples_run: every\n"
+            "                 sample the integrator took for it, settling included: what a\n"
+            "                 callgrind count of afm_runner_run divides by; tools/bench-ir.sh)\n"
             "  --no-fifo      keep the caller's scheduling (default: SCHED_FIFO 70 when\n"
             "                 permitted, as the daemon's stages). For profilers: under\n"
             "                 callgrind a run takes minutes, and at SCHED_FIFO it holds a\n"
@@ -681,6 +688,7 @@ int afm_cmd_bench_states(int argc, char **argv) {
             cJSON_AddNumberToObject(e, "integrator_worst_item_ns_per_sample", res[s].int_worst);
             cJSON_AddNumberToObject(e, "chain_worst_item_ns_per_sample", res[s].chain_worst);
             cJSON_AddNumberToObject(e, "estimator_rebuilds", (double)res[s].rebuilds);
+            cJSON_AddNumberToObject(e, "samples_run", (double)res[s].samples_run);
             cJSON_AddItemToArray(arr, e);
         }
         cJSON_AddStringToObject(root, "worst_integrator_state", states[wi].name);
