@@ -232,24 +232,28 @@ s=$(status)
 kill -TERM $DPID; wait $DPID; DPID=""
 
 # ---- D. what is lost before any handler is counted too --------------------------------------
-# The daemon stopped (SIGSTOP): 0.6 s of valid parameter changes at 10000/s (each needs a
-# model build) and then 0.5 s of junk at 40000/s go into the command socket, whose 4 MB
-# receive buffer overflows (the kernel drops); at SIGCONT, LCM's receive thread reads what the
-# buffer held far faster than the daemon takes it, and LCM's subscription queues (1000)
-# overflow: the 6000 builds fill the receive thread's hold ring (4096), which then waits for
-# them. (With 4000, 0.4 s, the hold ring took them all, and whether LCM's queues overflowed
+# The daemon stopped (SIGSTOP): 0.05 s of valid parameter changes at 10000/s (each needs a
+# model build), 0.55 s of valid setpoints at 10000/s and then 0.5 s of junk at 40000/s go
+# into the command socket, whose 4 MB receive buffer overflows (the kernel drops); at
+# SIGCONT, LCM's receive thread reads what the buffer held far faster than the daemon takes
+# it, and LCM's subscription queues (1000) overflow: every command behind a build in flight
+# waits in the receive thread's hold ring (4096, cmd_in.c), so the 500 builds and the 5500
+# setpoints behind them fill it, and the receive thread then waits for the builds. (With
+# 4000 commands, 0.4 s, the hold ring took them all, and whether LCM's queues overflowed
 # depended on how fast the receive thread rejected the junk: a fresh-clone make test of
-# 2026-12-07 saw none.)
+# 2026-12-07 saw none. 6000 parameter changes did it too, but the daemon then builds ~5200
+# models, ~25 ms each: 130 s of the section's 190; a setpoint behind them needs none.)
 # Every message sent is in received, and received = applied + rejected + refused + dropped.
 "$D" --config config/default.conf --quiet 2>"$T/d.err" &
 DPID=$!
 s=""; for _ in $(seq 1 40); do s=$(status); [ -n "$s" ] && break; sleep 0.25; done
 kill -STOP $DPID
-o1=$("$A" flood --rate 1 --seconds 0.6 --valid-rate 10000 --valid-kind param --seq0 3000000)
+o1=$("$A" flood --rate 1 --seconds 0.02 --valid-rate 10000 --valid-kind param --seq0 3000000)
+o3=$("$A" flood --rate 1 --seconds 0.58 --valid-rate 10000 --valid-kind setpoint --seq0 3100000)
 o2=$("$A" flood --rate 40000 --seconds 0.5 --valid-rate 0 --seed 3)
 kill -CONT $DPID
 sent=0
-for o in "$o1" "$o2"; do
+for o in "$o1" "$o3" "$o2"; do
   j=$(echo "$o" | sed -n 's/^flood: sent \([0-9]*\) junk.*/\1/p'); v=$(echo "$o" | sed -n 's/.*+ \([0-9]*\) valid.*/\1/p')
   sent=$((sent + j + v))
 done
