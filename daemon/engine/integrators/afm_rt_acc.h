@@ -567,7 +567,7 @@ static inline __attribute__((always_inline)) void rt_graded_acc(const afm_sim *s
             rt_piece_acc_t(s, r, in, o2, 2 * k, true, np, nt, false, evs);
             if (o2->tip.x_m - xc > far2 * fabs(o2->tip.v_m_s) &&
                 !rt_crosses(r, in, o2, 2.0 * tau)) {
-                if (ea) rt_ev_herm_t(ea, s, r, o2, (double)(p + 2) / K);
+                if (ea) rt_ev_herm(ea, s, r, o2, (double)(p + 2) / K);
                 in = o2;
                 p++;
                 continue;
@@ -605,7 +605,7 @@ static inline __attribute__((always_inline)) void rt_graded_acc(const afm_sim *s
         if (near || rt_crosses(r, in, o, tau)) {
             rt_substeps_acc(s, r, in, o, w, p * sub, sub, taus, ea);
         } else if (ea) {
-            rt_ev_herm_t(ea, s, r, o, (double)(p + 1) / K);
+            rt_ev_herm(ea, s, r, o, (double)(p + 1) / K);
         }
         in = o;
     }
