@@ -215,9 +215,8 @@ rt_ev_path(rt_evacc *ea, const rt_state *r, double x1, double v1, double tau, do
 /* A kept Hermite piece (its force the Hermite cubic, ends' slopes fdot) from the last kept end
  * to st, ending at frac1 of the step: rt_ev_work_of's sum from the carried g, d, the same bits.
  * The piece left st->acc_m_s2. */
-static inline __attribute__((always_inline)) void rt_ev_herm_t(rt_evacc *ea, const afm_sim *s,
-                                                               const rt_state *r,
-                                                               const rt_snap *st, double frac1) {
+static inline __attribute__((always_inline)) void
+rt_ev_herm_t(rt_evacc *ea, const afm_sim *s, const rt_state *r, const rt_snap *st, double frac1) {
     rt_ev_end e1;
     double g1, d1;
     rt_ev_end_of(s, r, st, st->acc_m_s2, &e1);
@@ -253,9 +252,8 @@ static AFM_CLONES_NOINLINE void rt_ev_lin(rt_evacc *ea, const afm_sim *s, const 
 }
 
 /* The last kept end rebuilt from its snapshot st (a linear piece's start). */
-static inline __attribute__((always_inline)) rt_ev_end rt_ev_end_at(const afm_sim *s,
-                                                                     const rt_state *r,
-                                                                     const rt_snap *st) {
+static inline __attribute__((always_inline)) rt_ev_end
+rt_ev_end_at(const afm_sim *s, const rt_state *r, const rt_snap *st) {
     rt_ev_end e;
     rt_ev_end_of(s, r, st, st->acc_m_s2, &e);
     return e;
