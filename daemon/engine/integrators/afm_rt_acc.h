@@ -380,9 +380,11 @@ static void rt_substep_acc(const afm_sim *s, const rt_state *r, const rt_snap *a
     int kc = rt_crossing_cell(r, a, b, tau, true);
     const double f0 = ea ? (double)j0 / r->m : 0.0;
     if (kc < 0) {
-        if (ea) rt_ev_piece(ea, s, r, b, f0 + 1.0 / r->m, true);
+        if (ea) rt_ev_herm(ea, s, r, b, f0 + 1.0 / r->m);
         return;
     }
+    /* the last kept end (a) for the linear pieces' records */
+    rt_ev_end e0 = ea ? rt_ev_end_at(s, r, a) : (rt_ev_end){0};
     rt_noise *z = r->nz;
     if (kc == 0 || kc >= RT_GRID) { /* at an end: the whole substep linear */
         if (r->noise) {
@@ -391,7 +393,7 @@ static void rt_substep_acc(const afm_sim *s, const rt_state *r, const rt_snap *a
             z->given_cells = RT_GRID;
         }
         rt_piece_acc(s, r, a, b, RT_GRID, false, ea);
-        if (ea) rt_ev_piece(ea, s, r, b, f0 + 1.0 / r->m, false);
+        if (ea) rt_ev_lin(ea, s, r, &e0, b, f0 + 1.0 / r->m, NULL);
         return;
     }
     if (r->noise) {
@@ -400,14 +402,14 @@ static void rt_substep_acc(const afm_sim *s, const rt_state *r, const rt_snap *a
         rt_bridge_draw(r, kc, RT_GRID, z->sq, z->sv);
     }
     rt_piece_acc(s, r, a, b, kc, false, ea);
-    if (ea) rt_ev_piece(ea, s, r, b, f0 + (double)kc / (double)r->ncell, false);
+    if (ea) rt_ev_lin(ea, s, r, &e0, b, f0 + (double)kc / (double)r->ncell, &e0);
     if (r->noise) {
         memcpy(z->gq, z->sq, sizeof z->gq);
         memcpy(z->gv, z->sv, sizeof z->gv);
         z->given_cells = RT_GRID - kc;
     }
     rt_piece_acc(s, r, b, b, RT_GRID - kc, false, ea);
-    if (ea) rt_ev_piece(ea, s, r, b, f0 + 1.0 / r->m, false);
+    if (ea) rt_ev_lin(ea, s, r, &e0, b, f0 + 1.0 / r->m, NULL);
 }
 
 /* rt_substep_acc without noise, its pieces inlined with the sizes as constants (rec: ea set). */
@@ -418,18 +420,20 @@ rt_substep_acc_t(const afm_sim *s, const rt_state *r, const rt_snap *a, rt_snap 
     int kc = rt_crossing_cell(r, a, b, tau, true);
     const double f0 = rec ? (double)j0 / r->m : 0.0;
     if (kc < 0) {
-        if (rec) rt_ev_piece(ea, s, r, b, f0 + 1.0 / r->m, true);
+        if (rec) rt_ev_herm(ea, s, r, b, f0 + 1.0 / r->m);
         return;
     }
+    /* the last kept end (a) for the linear pieces' records */
+    rt_ev_end e0 = rec ? rt_ev_end_at(s, r, a) : (rt_ev_end){0};
     if (kc == 0 || kc >= RT_GRID) { /* at an end: the whole substep linear */
         rt_piece_acc_t(s, r, a, b, RT_GRID, false, np, nt, false, rec);
-        if (rec) rt_ev_piece(ea, s, r, b, f0 + 1.0 / r->m, false);
+        if (rec) rt_ev_lin(ea, s, r, &e0, b, f0 + 1.0 / r->m, NULL);
         return;
     }
     rt_piece_acc_t(s, r, a, b, kc, false, np, nt, false, rec);
-    if (rec) rt_ev_piece(ea, s, r, b, f0 + (double)kc / (double)r->ncell, false);
+    if (rec) rt_ev_lin(ea, s, r, &e0, b, f0 + (double)kc / (double)r->ncell, &e0);
     rt_piece_acc_t(s, r, b, b, RT_GRID - kc, false, np, nt, false, rec);
-    if (rec) rt_ev_piece(ea, s, r, b, f0 + 1.0 / r->m, false);
+    if (rec) rt_ev_lin(ea, s, r, &e0, b, f0 + 1.0 / r->m, NULL);
 }
 
 /* The sub substeps of one graded piece from in into o (w: two scratch snapshots), the j0-th
@@ -512,21 +516,15 @@ static inline __attribute__((always_inline)) bool rt_merge_ok_t(const afm_sim *s
     return fabs(m->f_n - fh) <= tol;
 }
 
-/* The end-corrected trapezoid's g = (F - F_sq) v and its slope at e (rt_ev_work's, Hermite). */
-static inline void rt_ev_g(const rt_ev_end *e, double *g, double *d) {
-    const double t = e->f - e->fsq;
-    *g = t * e->v;
-    *d = (e->fdot - e->sqd) * e->v + t * e->a;
-}
-
 /* A merged piece's record from the last kept end to o (frac1; the piece T = 2 tau long): one
  * record update, its work corrected with the midpoint m from the end-corrected trapezoid to
  * T [7/30 (g0 + g1) + 8/15 gm] + T^2/60 (g0' - g1') (exact to degree 5; the trapezoid over
  * the long piece errs 16 times its halves'). */
 static inline void rt_ev_merged(rt_evacc *ea, const afm_sim *s, const rt_state *r, const rt_snap *o,
                                 const rt_mid *m, double T, double frac1) {
-    const rt_ev_end e0 = ea->e0;
-    rt_ev_piece(ea, s, r, o, frac1, true);
+    const double g0 = ea->g, d0 = ea->d;
+    rt_ev_herm(ea, s, r, o, frac1);
+    const double g1 = ea->g, d1 = ea->d;
     rt_snap hs, *h = &hs; /* only the tip fields rt_ev_end_of reads */
     h->tip.x_m = m->x_m;
     h->tip.v_m_s = m->v_m_s;
@@ -534,10 +532,8 @@ static inline void rt_ev_merged(rt_evacc *ea, const afm_sim *s, const rt_state *
     h->fdot_n_s = m->fdot_n_s;
     rt_ev_end em;
     rt_ev_end_of(s, r, h, m->a_m_s2, &em);
-    double g0, d0, g1, d1, gm, dm;
-    rt_ev_g(&e0, &g0, &d0);
-    rt_ev_g(&ea->e0, &g1, &d1);
-    rt_ev_g(&em, &gm, &dm);
+    double gm, dm;
+    rt_ev_gd(&em, &gm, &dm);
     ea->rec.work_ts_j += (4.0 / 15.0) * T * (2.0 * gm - g0 - g1 - 0.25 * T * (d0 - d1));
 }
 
@@ -571,7 +567,7 @@ static inline __attribute__((always_inline)) void rt_graded_acc(const afm_sim *s
             rt_piece_acc_t(s, r, in, o2, 2 * k, true, np, nt, false, evs);
             if (o2->tip.x_m - xc > far2 * fabs(o2->tip.v_m_s) &&
                 !rt_crosses(r, in, o2, 2.0 * tau)) {
-                if (ea) rt_ev_piece(ea, s, r, o2, (double)(p + 2) / K, true);
+                if (ea) rt_ev_herm(ea, s, r, o2, (double)(p + 2) / K);
                 in = o2;
                 p++;
                 continue;
@@ -609,7 +605,7 @@ static inline __attribute__((always_inline)) void rt_graded_acc(const afm_sim *s
         if (near || rt_crosses(r, in, o, tau)) {
             rt_substeps_acc(s, r, in, o, w, p * sub, sub, taus, ea);
         } else if (ea) {
-            rt_ev_piece(ea, s, r, o, (double)(p + 1) / K, true);
+            rt_ev_herm(ea, s, r, o, (double)(p + 1) / K);
         }
         in = o;
     }
@@ -689,7 +685,7 @@ static inline __attribute__((always_inline)) int rt_run_acc_t(afm_sim *s, rt_sta
         else if (ev_free) /* kept whole: clear of the contact line */
             rt_ev_free(ea, s, r, b, step + 1, half_dt, dt2_12);
         else if (evs)
-            rt_ev_piece(ea, s, r, b, 1.0, true);
+            rt_ev_herm(ea, s, r, b, 1.0);
         a = b;
         ta = tb;
         step++;
@@ -723,7 +719,7 @@ static inline __attribute__((always_inline)) int rt_run_acc_t(afm_sim *s, rt_sta
     s->t_s = t0 + (double)step * dt;
     r->since_sync = since;
     r->cur = a == b0 ? 0 : 1;
-    if (evs) rt_ev_finish(ea, r, rc == AFM_SIM_OK);
+    if (evs) rt_ev_finish(r, a, rc == AFM_SIM_OK);
     rt_publish(s, r, a);
     return rc;
 }

@@ -160,7 +160,7 @@ rt_graded_tc_t(const afm_sim *s, const rt_state *r, const rt_snap *a, rt_snap *b
             rt_piece_acc_t(s, r, st, o2, 2 * k, true, np, nt, false, evs);
             if (o2->tip.x_m - xc > far2 * fabs(o2->tip.v_m_s) &&
                 !rt_crosses(r, st, o2, 2.0 * tau)) {
-                if (ea) rt_ev_piece(ea, s, r, o2, (double)(p + 1) / K, true);
+                if (ea) rt_ev_herm(ea, s, r, o2, (double)(p + 1) / K);
                 org = in = o2;
                 po = p + 1;
                 F[po] = o2->tip.f_n;
@@ -242,7 +242,7 @@ rt_graded_tc_t(const afm_sim *s, const rt_state *r, const rt_snap *a, rt_snap *b
             D[p] = tau * dst->fdot_n_s;
             continue;
         }
-        if (ea) rt_ev_piece(ea, s, r, o, (double)p / K, true);
+        if (ea) rt_ev_herm(ea, s, r, o, (double)p / K);
         in = o;
     }
     if (po < K) rt_tc_state(r, org, po, K, F, D, b, b, np, nt); /* b's tip is the last node's */
