@@ -33,10 +33,12 @@
  * substeps). Callgrind, NCHV tapping: 4500 -> 2700 instructions per sample for the samples
  * near the line, 2320 -> 1370 for those in contact; 4 pieces miss the suite (docs/numerics.md) */
 #define RT_ACC_NEAR_PIECES 8
-/* (-DRT_ACC_CLOSE_TRAVELS=0.5: default.conf 829 -> 797, nchv.conf 923 -> 891; only the suite's
- * NCHV cases were run with it, 42/0: an option, docs/numerics.md) */
+/* Half a travel since issue 29's tenth round (1.0 before): callgrind, bench-states tapping,
+ * default.conf 995.2 -> 963.5 instructions per sample, nchv.conf 1120.9 -> 1088.0; the whole
+ * suite (AFMTWIN_VALIDATE=full test_rt_steady) 172/0, its figures the same or better (NCHV's
+ * energy 0.022 / 0.031 -> 0.0075 / 0.0127 eV, film on / off; docs/numerics.md) */
 #ifndef RT_ACC_CLOSE_TRAVELS
-#define RT_ACC_CLOSE_TRAVELS 1.0
+#define RT_ACC_CLOSE_TRAVELS 0.5
 #endif
 /* Two of those pieces are taken as one where both its ends are out of contact, this many of
  * its travels (|v| dt / 4) above the contact line (0: never). Callgrind: default.conf 933 -> 873
