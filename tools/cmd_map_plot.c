@@ -484,7 +484,8 @@ static int write_script(FILE *sf, const mplot_opts *o, const afmt_map_data *m, i
             fprintf(sf, "set autoscale cbfix\n");
         /* the colour bar's unit: the label's last parenthesis ("peak force (nN)": nN) */
         const char *lab = quantities[show[k]].label, *u = strrchr(lab, '(');
-        fprintf(sf, "set cblabel '%.*s'\n", u ? (int)strcspn(u + 1, ")") : 0, u ? u + 1 : "");
+        fprintf(sf, "set cblabel '%.*s' offset 2,0\n", u ? (int)strcspn(u + 1, ")") : 0,
+                u ? u + 1 : "");
         fprintf(sf,
                 "set title '%s'\nplot $map using 1:2:%d with image notitle, "
                 "$bist using 1:2 with points pt 2 ps 1.2 lc rgb 'white' notitle, "
