@@ -482,7 +482,8 @@ static int write_script(FILE *sf, const mplot_opts *o, const afmt_map_data *m, i
             fprintf(sf, "set cbrange [%.10g:%.10g]\n", lo, hi);
         else
             fprintf(sf, "set autoscale cbfix\n");
-        /* the colour bar's unit: the label's last parenthesis ("peak force (nN)": nN) */
+        /* the colour bar's unit: the label's last parenthesis ("peak force (nN)": nN), 2
+         * characters right (where gnuplot puts it, it sits on the tick labels: "150nN") */
         const char *lab = quantities[show[k]].label, *u = strrchr(lab, '(');
         fprintf(sf, "set cblabel '%.*s' offset 2,0\n", u ? (int)strcspn(u + 1, ")") : 0,
                 u ? u + 1 : "");
