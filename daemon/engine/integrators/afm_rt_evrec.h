@@ -19,7 +19,7 @@ typedef struct {
 } rt_ev_end;
 
 /* The end-corrected trapezoid's g = (F - F_sq) v at e and its slope d (Hermite: the force's
- * slope fdot), the expressions rt_ev_work_of forms. */
+ * slope fdot). */
 static inline __attribute__((always_inline)) void rt_ev_gd(const rt_ev_end *e, double *g,
                                                            double *d) {
     const double t = e->f - e->fsq;
@@ -121,14 +121,15 @@ static inline void rt_ev_step_begin(rt_evacc *ea) {
     ea->rec.work_ts_j = 0.0;
 }
 
-/* The work int F_ts v dt over a kept piece from e0 to e1 of tau (end-corrected trapezoid);
- * herm: its force is the Hermite cubic (ends' slopes fdot), else linear. */
+/* The work int F_ts v dt over a kept linear piece from e0 to e1 of tau (end-corrected
+ * trapezoid, the force's slope the secant's at both ends; a Hermite piece's sum is
+ * rt_ev_herm_t's, from the ends' rt_ev_gd). */
 static inline __attribute__((always_inline)) double
-rt_ev_work_of(const rt_ev_end *e0, const rt_ev_end *e1, double tau, bool herm) {
-    double fd0 = herm ? e0->fdot : (e1->f - e0->f) / tau, fd1 = herm ? e1->fdot : fd0;
+rt_ev_work_lin(const rt_ev_end *e0, const rt_ev_end *e1, double tau) {
+    const double fd = (e1->f - e0->f) / tau;
     double t0 = e0->f - e0->fsq, t1 = e1->f - e1->fsq;
     double g0 = t0 * e0->v, g1 = t1 * e1->v;
-    double d0 = (fd0 - e0->sqd) * e0->v + t0 * e0->a, d1 = (fd1 - e1->sqd) * e1->v + t1 * e1->a;
+    double d0 = (fd - e0->sqd) * e0->v + t0 * e0->a, d1 = (fd - e1->sqd) * e1->v + t1 * e1->a;
     return 0.5 * tau * (g0 + g1) + tau * tau * (1.0 / 12.0) * (d0 - d1);
 }
 
@@ -138,7 +139,7 @@ rt_ev_work_of(const rt_ev_end *e0, const rt_ev_end *e1, double tau, bool herm) {
  * the piece and rt_ev_step_end gave it, the same bits: tau = (1 - 0) dt, the work added to 0,
  * without the accumulator's round trip; ea->rec is left as it was, rt_ev_step_begin resets it
  * for a step in pieces). Its weights 0.5 dt (half_dt) and dt dt / 12 (dt2_12) are the caller's
- * loop constants (rt_ev_work_of's products, so the same bits). The piece left st->acc_m_s2. */
+ * loop constants (rt_ev_herm_t's products, so the same bits). The piece left st->acc_m_s2. */
 static inline __attribute__((always_inline)) void rt_ev_free(rt_evacc *ea, afm_sim *s,
                                                              const rt_state *r, const rt_snap *st,
                                                              long step, double half_dt,
@@ -213,7 +214,7 @@ rt_ev_path(rt_evacc *ea, const rt_state *r, double x1, double v1, double tau, do
 }
 
 /* A kept Hermite piece (its force the Hermite cubic, ends' slopes fdot) from the last kept end
- * to st, ending at frac1 of the step: rt_ev_work_of's sum from the carried g, d, the same bits.
+ * to st, ending at frac1 of the step: the end-corrected trapezoid from the carried g, d.
  * The piece left st->acc_m_s2. */
 static inline __attribute__((always_inline)) void
 rt_ev_herm_t(rt_evacc *ea, const afm_sim *s, const rt_state *r, const rt_snap *st, double frac1) {
@@ -245,7 +246,7 @@ static AFM_CLONES_NOINLINE void rt_ev_lin(rt_evacc *ea, const afm_sim *s, const 
     rt_ev_end_of(s, r, st, st->acc_m_s2, &e1);
     rt_ev_gd(&e1, &g1, &d1);
     const double df = frac1 - ea->frac0, tau = df * s->dt_s;
-    ea->rec.work_ts_j += rt_ev_work_of(e0, &e1, tau, false);
+    ea->rec.work_ts_j += rt_ev_work_lin(e0, &e1, tau);
     rt_ev_path(ea, r, e1.x, e1.v, tau, df);
     rt_ev_keep(ea, &e1, g1, d1, frac1);
     if (e1o) *e1o = e1;
