@@ -2,9 +2,10 @@
 # script again inside a new network namespace whose loopback carries multicast (and nothing
 # else: no packet can reach a real interface; ../shared/notes/lcm-netns.md); daemon_test_init
 # sets what they share (binaries, listen above the daemon's threads, the LCM URL, the pass /
-# fail counters ok and bad); rt_others lists the other real-time (SCHED_FIFO) processes while
-# a daemon runs: on two cores another twin's threads take the CPU a real-time check needs,
-# and a failure then says so.
+# fail counters ok and bad); daemon_test_tmp makes the temporary directory and the exit trap
+# that kills the daemon and removes it; rt_others lists the other real-time (SCHED_FIFO)
+# processes while a daemon runs: on two cores another twin's threads take the CPU a real-time
+# check needs, and a failure then says so.
 
 # NAME SCRIPT BUILD: exec SCRIPT BUILD --inside in a private network namespace (no return).
 netns_reexec() {
@@ -26,6 +27,15 @@ rt_others() {
       $3 !~ /^(irq|watchdog|migration|posix|afmtwin$)/ {print $1 "(" $3 ")"}'
     sleep 0.5
   done | sort -u | tr '\n' ' ' > "$1"
+}
+
+# NAME: T, a temporary directory /tmp/afmtwin-NAME.XXXXXX, and DPID (the caller sets it to
+# the daemon it starts): at exit the daemon is killed and T removed.
+daemon_test_tmp() {
+  T=$(mktemp -d "/tmp/afmtwin-$1.XXXXXX")
+  DPID=""
+  cleanup() { [ -n "$DPID" ] && kill -KILL "$DPID" 2>/dev/null; rm -rf "$T"; }
+  trap cleanup EXIT
 }
 
 # BUILD: A and D (afmtwin, afmtwind), listen, LCM_DEFAULT_URL, AFMTWIN_CONFIG, pass, fail, ok,

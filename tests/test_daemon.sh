@@ -10,10 +10,7 @@ cd "$(dirname "$0")/.." || exit 1
 . tests/lib_daemon.sh
 [ "${2:-}" = "--inside" ] || netns_reexec test_daemon.sh "$0" "$BUILD"
 daemon_test_init "$BUILD"
-T=$(mktemp -d /tmp/afmtwin-daemon.XXXXXX)
-DPID=""
-cleanup() { [ -n "$DPID" ] && kill -KILL "$DPID" 2>/dev/null; rm -rf "$T"; }
-trap cleanup EXIT
+daemon_test_tmp daemon
 
 # JSON fields of one listen --json line.
 jnum() { sed -n "s/.*\"$1\":\([^,}]*\).*/\1/p"; }

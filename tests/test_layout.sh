@@ -12,10 +12,7 @@ cd "$(dirname "$0")/.." || exit 1
 . tests/lib_daemon.sh
 [ "${2:-}" = "--inside" ] || netns_reexec test_layout.sh "$0" "$BUILD"
 daemon_test_init "$BUILD"
-T=$(mktemp -d /tmp/afmtwin-layout.XXXXXX)
-DPID=""
-cleanup() { [ -n "$DPID" ] && kill -KILL "$DPID" 2>/dev/null; rm -rf "$T"; }
-trap cleanup EXIT
+daemon_test_tmp layout
 CMD_URL="$LCM_DEFAULT_URL"; OUT_URL=${CMD_URL/:7667/:7668}; SMP_URL=${CMD_URL/:7667/:7669}
 jnum() { sed -n "s/.*\"$1\":\([^,}]*\).*/\1/p"; }
 # CHANNELS OF LOG: "CHANNEL COUNT" lines (afmtwin listen --log --json)

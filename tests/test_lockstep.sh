@@ -17,10 +17,7 @@ cd "$(dirname "$0")/.." || exit 1
 . tests/lib_daemon.sh
 [ "${2:-}" = "--inside" ] || netns_reexec test_lockstep.sh "$0" "$BUILD"
 daemon_test_init "$BUILD"
-T=$(mktemp -d /tmp/afmtwin-lockstep.XXXXXX)
-DPID=""
-cleanup() { [ -n "$DPID" ] && kill -KILL "$DPID" 2>/dev/null; rm -rf "$T"; }
-trap cleanup EXIT
+daemon_test_tmp lockstep
 
 S() { "$A" send "$@" --quiet || bad "send $*"; }
 

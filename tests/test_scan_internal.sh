@@ -30,10 +30,7 @@ cd "$(dirname "$0")/.." || exit 1
 . tests/lib_daemon.sh
 [ "${2:-}" = "--inside" ] || netns_reexec test_scan_internal.sh "$0" "$BUILD"
 daemon_test_init "$BUILD"
-T=$(mktemp -d /tmp/afmtwin-scani.XXXXXX)
-DPID=""
-cleanup() { [ -n "$DPID" ] && kill -KILL "$DPID" 2>/dev/null; rm -rf "$T"; }
-trap cleanup EXIT
+daemon_test_tmp scani
 url="$LCM_DEFAULT_URL"
 # the step's height, position and edge width, as tests/step-3nm.conf has them
 stepkey() { grep -o "$1 = [-0-9.e]*" tests/step-3nm.conf | head -1 | awk '{print $3}'; }

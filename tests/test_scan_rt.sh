@@ -32,10 +32,7 @@ cd "$(dirname "$0")/.." || exit 1
 . tests/lib_scan.sh
 [ "${2:-}" = "--inside" ] || netns_reexec test_scan_rt.sh "$0" "$BUILD"
 daemon_test_init "$BUILD"
-T=$(mktemp -d /tmp/afmtwin-scanrt.XXXXXX)
-DPID=""
-cleanup() { [ -n "$DPID" ] && kill -KILL "$DPID" 2>/dev/null; rm -rf "$T"; }
-trap cleanup EXIT
+daemon_test_tmp scanrt
 url="$LCM_DEFAULT_URL"; out_url=${url/:7667/:7668}
 run=(); chrt -f 90 true 2>/dev/null && run=(chrt -f 90)
 CONF=tests/step-3nm-thesis.conf
