@@ -22,6 +22,11 @@ one() { # config scheme
     --only "tapping, Z" --runs 1 --scheme "$2" --no-fifo --json > "$T/out.$1.$2" 2> "$T/err.$1.$2"
   echo $? > "$T/rc.$1.$2"
 }
+per() { # config scheme -> its instructions per sample
+  ir=$(sed -n 's/^summary: *\([0-9]*\).*/\1/p' "$T/cg.$1.$2")
+  n=$(python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["states"][0]["samples_run"])' "$T/out.$1.$2")
+  awk -v i="$ir" -v n="$n" 'BEGIN { printf "%.1f", i / n }'
+}
 for c in $CONFIGS; do
   one "$c" accurate &
   one "$c" fast &
@@ -36,12 +41,7 @@ for c in $CONFIGS; do
       exit 1
     fi
   done
-  per() { # scheme -> Ir per sample
-    ir=$(sed -n 's/^summary: *\([0-9]*\).*/\1/p' "$T/cg.$c.$1")
-    n=$(python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["states"][0]["samples_run"])' "$T/out.$c.$1")
-    awk -v i="$ir" -v n="$n" 'BEGIN { printf "%.1f", i / n }'
-  }
-  a=$(per accurate)
-  f=$(per fast)
+  a=$(per "$c" accurate)
+  f=$(per "$c" fast)
   printf '  %-18s %12s %12s %8s\n' "$c" "$a" "$f" "$(awk -v a="$a" -v f="$f" 'BEGIN { printf "%.2f", a / f }')"
 done
