@@ -544,8 +544,11 @@ static inline void rt_ev_merged(rt_evacc *ea, const afm_sim *s, const rt_state *
  * Hermite pieces, a piece whose path crosses the contact line or has an end in contact close
  * to it (RT_ACC_CLOSE_TRAVELS) redone in its share of the m contact substeps (rt_substep_acc:
  * split at the located crossing). The indentation's square root (DMT, viscoelastic) is no
- * polynomial in time near the line; away from it the pieces are fourth order. evs: ea gathers
- * the pieces kept (else NULL). */
+ * polynomial in time near the line; away from it the pieces are fourth order. Out of contact
+ * and far from the line four (RT_ACC_MERGE4_TRAVELS) or two (RT_ACC_MERGE_TRAVELS) pieces are
+ * taken as one; in contact every piece is dt / RT_ACC_NEAR_PIECES long (longer ones miss NCHV's
+ * dissipated energy, docs/numerics.md eleventh round). evs: ea gathers the pieces kept (else
+ * NULL). */
 static inline __attribute__((always_inline)) void rt_graded_acc(const afm_sim *s, const rt_state *r,
                                                                 const rt_snap *a, rt_snap *b,
                                                                 const int np, const int nt,
@@ -554,11 +557,26 @@ static inline __attribute__((always_inline)) void rt_graded_acc(const afm_sim *s
     const double tau = s->dt_s / K, taus = s->dt_s / r->m, xc = r->xc;
     const double close = RT_ACC_CLOSE_TRAVELS * tau;
     const double far2 = RT_ACC_MERGE_TRAVELS * 2.0 * tau;
+    const double far4 = RT_ACC_MERGE4_TRAVELS * 4.0 * tau;
     const double close2 = RT_ACC_CLOSE_TRAVELS * 2.0 * tau, mtol = RT_ACC_MERGE_TOL * r->ftol;
     rt_snap t[2], w[2];
     const rt_snap *in = a;
     for (int p = 0; p < K; p++) {
         rt_snap *o = p == K - 1 ? b : in == &t[0] ? &t[1] : &t[0];
+        /* out of contact, far from the line at both ends (RT_ACC_MERGE4_TRAVELS of its
+         * travel): four pieces in one */
+        if (RT_ACC_MERGE4_TRAVELS > 0 && (p & 3) == 0 &&
+            in->tip.x_m - xc > far4 * fabs(in->tip.v_m_s)) {
+            rt_snap *o4 = p + 4 == K ? b : o;
+            rt_piece_acc_t(s, r, in, o4, 4 * k, true, np, nt, false, evs);
+            if (o4->tip.x_m - xc > far4 * fabs(o4->tip.v_m_s) &&
+                !rt_crosses(r, in, o4, 4.0 * tau)) {
+                if (ea) rt_ev_herm(ea, s, r, o4, (double)(p + 4) / K);
+                in = o4;
+                p += 3;
+                continue;
+            }
+        }
         /* out of contact, far from the line at both ends (RT_ACC_MERGE_TRAVELS of its
          * travel): two pieces in one */
         if (RT_ACC_MERGE_TRAVELS > 0 && (p & 1) == 0 &&

@@ -48,6 +48,14 @@
 #ifndef RT_ACC_MERGE_TRAVELS
 #define RT_ACC_MERGE_TRAVELS 2.0
 #endif
+/* Four of those pieces as one where both its ends are this many of its travels (|v| dt / 2)
+ * above the contact line, tried before the pair (0: never). Issue 29, eleventh round: callgrind,
+ * bench-states tapping, default.conf 928.4 -> 901.8 instructions per sample, nchv.conf 1047.4 ->
+ * 1020.6; the whole suite 172/0, its worst figures within a few per cent of before
+ * (docs/numerics.md) */
+#ifndef RT_ACC_MERGE4_TRAVELS
+#define RT_ACC_MERGE4_TRAVELS 2.0
+#endif
 /* Two pieces in contact are taken as one where an embedded error estimate allows it
  * (rt_merge_ok_t, issue 29, seventh round): the force law at the long piece's midpoint (the
  * tip there from its ends' x, v, a: quintic Hermite) against the Hermite force's midpoint
