@@ -157,10 +157,8 @@ rt_graded_tc_t(const afm_sim *s, const rt_state *r, const rt_snap *a, rt_snap *b
                           : (org != &ob[2] && sm != &ob[2]) ? &ob[2]
                           : (org != &ob[1] && sm != &ob[1]) ? &ob[1]
                                                             : &ob[0];
-            rt_piece_acc_t(s, r, st, o2, 2 * k, true, np, nt, false, evs);
-            if (o2->tip.x_m - xc > far2 * fabs(o2->tip.v_m_s) &&
-                !rt_crosses(r, st, o2, 2.0 * tau)) {
-                if (ea) rt_ev_herm(ea, s, r, o2, (double)(p + 1) / K);
+            if (rt_graded_merge_t(s, r, st, o2, 2 * k, 2.0 * tau, far2, (double)(p + 1) / K, np, nt,
+                                  evs, ea)) {
                 org = in = o2;
                 po = p + 1;
                 F[po] = o2->tip.f_n;
