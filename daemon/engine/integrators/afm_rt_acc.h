@@ -537,6 +537,15 @@ static inline void rt_ev_merged(rt_evacc *ea, const afm_sim *s, const rt_state *
     ea->rec.work_ts_j += (4.0 / 15.0) * T * (2.0 * gm - g0 - g1 - 0.25 * T * (d0 - d1));
 }
 
+/* A merge's end st clear of the contact line: far |v| above it, and with RT_ACC_GAP_MERGE that
+ * many of the piece's travels (|v| T) above d = 0 too. */
+static inline __attribute__((always_inline)) bool
+rt_merge_clear(const rt_state *r, const rt_snap *st, double far, double T) {
+    const double x = st->tip.x_m, av = fabs(st->tip.v_m_s);
+    return x - r->xc > far * av &&
+           (!(RT_ACC_GAP_MERGE > 0) || x - r->xg > RT_ACC_GAP_MERGE * T * av);
+}
+
 /* Several graded pieces as one (kc cells, T long) out of contact from in into o, its start
  * already more than far |v| above the contact line (the caller's test): kept where its end is
  * too and its path does not cross the line, its record (ea) to frac1 of the sample. False (o
@@ -546,7 +555,7 @@ rt_graded_merge_t(const afm_sim *s, const rt_state *r, const rt_snap *in, rt_sna
                   double T, double far, double frac1, const int np, const int nt, const bool evs,
                   rt_evacc *ea) {
     rt_piece_acc_t(s, r, in, o, kc, true, np, nt, false, evs);
-    if (!(o->tip.x_m - r->xc > far * fabs(o->tip.v_m_s)) || rt_crosses(r, in, o, T)) return false;
+    if (!rt_merge_clear(r, o, far, T) || rt_crosses(r, in, o, T)) return false;
     if (ea) rt_ev_herm(ea, s, r, o, frac1);
     return true;
 }
@@ -579,8 +588,7 @@ static inline __attribute__((always_inline)) void rt_graded_acc(const afm_sim *s
         rt_snap *o = p == K - 1 ? b : in == &t[0] ? &t[1] : &t[0];
         /* out of contact, far from the line at both ends: four pieces in one
          * (RT_ACC_MERGE4_TRAVELS), else two (RT_ACC_MERGE_TRAVELS) */
-        if (RT_ACC_MERGE4_TRAVELS > 0 && (p & 3) == 0 &&
-            in->tip.x_m - xc > far4 * fabs(in->tip.v_m_s)) {
+        if (RT_ACC_MERGE4_TRAVELS > 0 && (p & 3) == 0 && rt_merge_clear(r, in, far4, 4.0 * tau)) {
             rt_snap *o4 = p + 4 == K ? b : o;
             if (rt_graded_merge_t(s, r, in, o4, 4 * k, 4.0 * tau, far4, (double)(p + 4) / K, np, nt,
                                   evs, ea)) {
@@ -589,8 +597,7 @@ static inline __attribute__((always_inline)) void rt_graded_acc(const afm_sim *s
                 continue;
             }
         }
-        if (RT_ACC_MERGE_TRAVELS > 0 && (p & 1) == 0 &&
-            in->tip.x_m - xc > far2 * fabs(in->tip.v_m_s)) {
+        if (RT_ACC_MERGE_TRAVELS > 0 && (p & 1) == 0 && rt_merge_clear(r, in, far2, 2.0 * tau)) {
             rt_snap *o2 = p + 2 == K ? b : o;
             if (rt_graded_merge_t(s, r, in, o2, 2 * k, 2.0 * tau, far2, (double)(p + 2) / K, np, nt,
                                   evs, ea)) {

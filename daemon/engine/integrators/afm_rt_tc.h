@@ -146,7 +146,7 @@ rt_graded_tc_t(const afm_sim *s, const rt_state *r, const rt_snap *a, rt_snap *b
          * (RT_ACC_TC_MERGE), taken by rt_piece_acc_t from the state at this node; kept, its
          * end is the new origin */
         if (RT_ACC_TC_MERGE && RT_ACC_MERGE_TRAVELS > 0 && ((p - 1) & 1) == 0 &&
-            in->tip.x_m - xc > far2 * fabs(in->tip.v_m_s)) {
+            rt_merge_clear(r, in, far2, 2.0 * tau)) {
             const rt_snap *st = in;
             rt_snap *sm = org == &ob[0] ? &ob[1] : &ob[0];
             if (p - 1 > po) {
