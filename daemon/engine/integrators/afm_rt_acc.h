@@ -537,13 +537,15 @@ static inline void rt_ev_merged(rt_evacc *ea, const afm_sim *s, const rt_state *
     ea->rec.work_ts_j += (4.0 / 15.0) * T * (2.0 * gm - g0 - g1 - 0.25 * T * (d0 - d1));
 }
 
-/* A merge's end st clear of the contact line: far |v| above it, and with RT_ACC_GAP_MERGE that
- * many of the piece's travels (|v| T) above d = 0 too. */
-static inline __attribute__((always_inline)) bool
+/* Where a merge's end st is (T its length): 1 where far |v| above the contact line (and, with
+ * RT_ACC_GAP_MERGE, that many of its travels |v| T above d = 0), 2 where only the latter holds
+ * and the merge is kept on the embedded estimate (RT_ACC_GAP_TOL > 0), 0 where neither. */
+static inline __attribute__((always_inline)) int
 rt_merge_clear(const rt_state *r, const rt_snap *st, double far, double T) {
     const double x = st->tip.x_m, av = fabs(st->tip.v_m_s);
-    return x - r->xc > far * av &&
-           (!(RT_ACC_GAP_MERGE > 0) || x - r->xg > RT_ACC_GAP_MERGE * T * av);
+    if (!(RT_ACC_GAP_MERGE > 0)) return x - r->xc > far * av;
+    if (!(x - r->xg > RT_ACC_GAP_MERGE * T * av) || !(x > r->xc)) return 0;
+    return x - r->xc > far * av ? 1 : RT_ACC_GAP_TOL > 0 ? 2 : 0;
 }
 
 /* Several graded pieces as one (kc cells, T long) out of contact from in into o, its start
@@ -554,8 +556,19 @@ static inline __attribute__((always_inline)) bool
 rt_graded_merge_t(const afm_sim *s, const rt_state *r, const rt_snap *in, rt_snap *o, int kc,
                   double T, double far, double frac1, const int np, const int nt, const bool evs,
                   rt_evacc *ea) {
-    rt_piece_acc_t(s, r, in, o, kc, true, np, nt, false, evs);
-    if (!rt_merge_clear(r, o, far, T) || rt_crosses(r, in, o, T)) return false;
+    if (RT_ACC_GAP_TOL > 0) { /* the start's and end's clearance: an estimate where not 1 */
+        const int c0 = rt_merge_clear(r, in, far, T);
+        rt_piece_acc_t(s, r, in, o, kc, true, np, nt, false, true);
+        const int c1 = rt_merge_clear(r, o, far, T);
+        if (!c1 || rt_crosses(r, in, o, T)) return false;
+        rt_mid mid;
+        if ((c0 != 1 || c1 != 1) && !rt_merge_ok_t(s, r, in, o, T, rt_ev_acc(r, in, np, nt),
+                                                   RT_ACC_GAP_TOL * r->ftol, &mid))
+            return false;
+    } else {
+        rt_piece_acc_t(s, r, in, o, kc, true, np, nt, false, evs);
+        if (!rt_merge_clear(r, o, far, T) || rt_crosses(r, in, o, T)) return false;
+    }
     if (ea) rt_ev_herm(ea, s, r, o, frac1);
     return true;
 }

@@ -92,6 +92,12 @@
 #ifndef RT_ACC_GAP_MERGE
 #define RT_ACC_GAP_MERGE 0
 #endif
+/* With RT_ACC_GAP_MERGE, > 0: a merge that is clear of d = 0 but not of the line (and out of
+ * contact) is kept where the embedded estimate (rt_merge_ok_t: the force law at its midpoint
+ * against the Hermite force's) agrees within this many Newton tolerances; 0: never. */
+#ifndef RT_ACC_GAP_TOL
+#define RT_ACC_GAP_TOL 0.0
+#endif
 #define RT_ACC_SURE 0.999 /* rt_state.sure_k: below 1, so that rounding cannot decide */
 #define RT_MAX_SUBSTEPS AFM_MAX_RT_SUBSTEPS
 #define RT_RESYNC 4096 /* steps between phasor resynchronisations */
