@@ -179,7 +179,6 @@ static void rt_changed(afm_sim *s) {
         r->ax_im[j] = -r->wd[j] * r->wd[j] * cx_im[j];
     }
     r->xc = afm_force_contact_x(&s->f, s->z_m);
-    r->xg = -s->z_m / s->f.cos_alpha;
     r->cos_alpha = s->f.cos_alpha;
     r->z_m = s->z_m;
     rt_tables_use(r, r->acc);
@@ -335,11 +334,11 @@ static int rt_init(afm_sim *s, char *err, size_t errlen) {
      * store into any of it with aligned vector moves: calloc's 16 bytes are not enough */
     const size_t al = _Alignof(rt_state), sz = (sizeof(rt_state) + al - 1) / al * al;
     rt_state *r = aligned_alloc(al, sz);
-    if (r) memset(r, 0, sizeof *r);
     if (!r) {
         snprintf(err, errlen, "rt integrator: out of memory");
         return -1;
     }
+    memset(r, 0, sizeof *r);
     r->n = m->n;
     r->np = (m->n + 3) & ~3;
     for (int i = 0; i < r->n; i++) {
@@ -432,7 +431,6 @@ static void rt_changed_z(afm_sim *s) {
     rt_state *r = s->be_state;
     r->ev_a_ok = false;
     r->xc = afm_force_contact_x(&s->f, s->z_m);
-    r->xg = -s->z_m / s->f.cos_alpha;
     r->z_m = s->z_m;
     if (s->f.squeeze == AFM_SQUEEZE_STARR &&
         !(r->starr.on && fabs(afm_force_starr_h(&s->f, s->z_m, 0.0) - r->starr.h0) <=

@@ -544,31 +544,29 @@ static inline __attribute__((always_inline)) int
 rt_merge_clear(const rt_state *r, const rt_snap *st, double far, double T) {
     const double x = st->tip.x_m, av = fabs(st->tip.v_m_s);
     if (!(RT_ACC_GAP_MERGE > 0)) return x - r->xc > far * av;
-    if (!(x - r->xg > RT_ACC_GAP_MERGE * T * av) || !(x > r->xc)) return 0;
+    const double xg = -r->z_m / r->cos_alpha; /* the tip x at which the gap is 0 */
+    if (!(x - xg > RT_ACC_GAP_MERGE * T * av) || !(x > r->xc)) return 0;
     return x - r->xc > far * av ? 1 : RT_ACC_GAP_TOL > 0 ? 2 : 0;
 }
 
 /* Several graded pieces as one (kc cells, T long) out of contact from in into o, its start
- * already more than far |v| above the contact line (the caller's test): kept where its end is
- * too and its path does not cross the line, its record (ea) to frac1 of the sample. False (o
- * scratch) where not kept. rt_graded_acc's merges and the tip-channel form's. */
+ * already clear of the line (rt_merge_clear, the caller's test): kept where its end is too and
+ * its path does not cross the line (and, where either end is clear only by RT_ACC_GAP_MERGE,
+ * the embedded estimate agrees), its record (ea) to frac1 of the sample. False (o scratch)
+ * where not kept. rt_graded_acc's merges and the tip-channel form's. */
 static inline __attribute__((always_inline)) bool
 rt_graded_merge_t(const afm_sim *s, const rt_state *r, const rt_snap *in, rt_snap *o, int kc,
                   double T, double far, double frac1, const int np, const int nt, const bool evs,
                   rt_evacc *ea) {
-    if (RT_ACC_GAP_TOL > 0) { /* the start's and end's clearance: an estimate where not 1 */
-        const int c0 = rt_merge_clear(r, in, far, T);
-        rt_piece_acc_t(s, r, in, o, kc, true, np, nt, false, true);
-        const int c1 = rt_merge_clear(r, o, far, T);
-        if (!c1 || rt_crosses(r, in, o, T)) return false;
-        rt_mid mid;
-        if ((c0 != 1 || c1 != 1) && !rt_merge_ok_t(s, r, in, o, T, rt_ev_acc(r, in, np, nt),
-                                                   RT_ACC_GAP_TOL * r->ftol, &mid))
-            return false;
-    } else {
-        rt_piece_acc_t(s, r, in, o, kc, true, np, nt, false, evs);
-        if (!rt_merge_clear(r, o, far, T) || rt_crosses(r, in, o, T)) return false;
-    }
+    const bool est = RT_ACC_GAP_TOL > 0; /* the estimate reads o's acceleration */
+    const int c0 = est ? rt_merge_clear(r, in, far, T) : 1;
+    rt_piece_acc_t(s, r, in, o, kc, true, np, nt, false, evs || est);
+    const int c1 = rt_merge_clear(r, o, far, T);
+    if (!c1 || rt_crosses(r, in, o, T)) return false;
+    rt_mid mid;
+    if (est && (c0 != 1 || c1 != 1) &&
+        !rt_merge_ok_t(s, r, in, o, T, rt_ev_acc(r, in, np, nt), RT_ACC_GAP_TOL * r->ftol, &mid))
+        return false;
     if (ea) rt_ev_herm(ea, s, r, o, frac1);
     return true;
 }

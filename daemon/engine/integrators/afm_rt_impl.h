@@ -88,7 +88,7 @@
  * scale of the gap d itself, which is a0 at the contact line, not on the scale of the distance
  * to that line (issue 29, twelfth round). > 0: a merge (RT_ACC_MERGE_TRAVELS,
  * RT_ACC_MERGE4_TRAVELS, which then bound the distance to the line) also needs both its ends
- * this many of its travels above d = 0 (rt_state.xg, rt_merge_clear); 0: not tested. */
+ * this many of its travels above d = 0 (rt_merge_clear); 0: not tested. */
 #ifndef RT_ACC_GAP_MERGE
 #define RT_ACC_GAP_MERGE 0
 #endif
@@ -177,7 +177,6 @@ typedef struct {
     double th_re[AFM_MAX_TONES], th_im[AFM_MAX_TONES]; /* theta = rot . qh + Im(th z) */
     double amp_m[AFM_MAX_TONES]; /* base amplitude of each tone (m); zero past ntones */
     double xc;                   /* tip x at which the gap is a0 */
-    double xg;                   /* tip x at which the gap is 0 (RT_ACC_GAP_*) */
     double cos_alpha, z_m;       /* d = x cos(alpha) + Z (copies of s->f's and s's) */
     /* A full step's first guess per unit end force of the step before (rt_tip's x_guess_m,
      * v_guess_m_s, gap_guess_m): gx + hx (m/N), gv + hv (m/s/N), (gx + hx) cos(alpha) (m/N) */
